@@ -1,0 +1,53 @@
+#pragma once
+/** Fourier volume rendering on the CPU: the reference the GPU renderer must match and the
+ *  fallback when no usable GPU exists. */
+#include <map>
+#include <memory>
+
+#include <fvr/core/kernels.h>
+#include <fvr/core/projection.h>
+#include <fvr/core/spectrum.h>
+#include <fvr/core/thread_pool.h>
+#include <fvr/core/view.h>
+
+namespace fvr::core {
+
+/** What one frame needs besides the spectrum. */
+struct RenderParams {
+    ViewFrame view;
+    ImageGeometry image;
+    Kernel kernel = Kernel::Linear;
+};
+
+/**
+ * Per frame: resample the central slice perpendicular to D from the spectrum (separable kernel
+ * tables; Hermitian lookups into the half spectrum; the output centring (-1)^(m+n) and the
+ * physical scale (s_x s_y s_z)/(M d)^2 folded into the slice), then one inverse 2D transform:
+ * complex-to-real FFT (only the half slice is sampled) or FHT with the eq. 4 correction.
+ * Spatial frequencies outside the volume's band (|k_a| > P_a/2) are zero. The Nyquist row and
+ * column average their two aliases, so the FFT and FHT paths compute the same image.
+ * Not thread-safe: one renderer per thread (each owns its pool, plans and buffers).
+ */
+class CpuFourierRenderer {
+public:
+    /** threads <= 0: all hardware threads. */
+    explicit CpuFourierRenderer(std::shared_ptr<const Spectrum> spectrum, int threads = 0);
+    ~CpuFourierRenderer();
+
+    /** Renders one projection. Throws SettingsError for a bad image geometry. */
+    ProjectionImage render(const RenderParams& params, StageTimes* times = nullptr);
+
+    const Spectrum& spectrum() const { return *m_spectrum; }
+
+private:
+    struct SizeResources;
+    SizeResources& resources(int size);
+
+    std::shared_ptr<const Spectrum> m_spectrum;
+    ThreadPool m_pool;
+    int m_threads;
+    std::map<int, std::unique_ptr<SizeResources>> m_resources;
+    std::map<Kernel, std::unique_ptr<KernelTable>> m_tables;
+};
+
+} // namespace fvr::core

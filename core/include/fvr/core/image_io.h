@@ -1,0 +1,37 @@
+#pragma once
+/** Writers for projection images (no Qt): NumPy .npy, PFM, PNG (8/16-bit grayscale), and the
+ *  display mapping used for PNG output. All writes go to a temporary file renamed into place. */
+#include <cstdint>
+#include <filesystem>
+#include <vector>
+
+#include <fvr/core/projection.h>
+
+namespace fvr::core {
+
+/** Window for display mapping: value `low` maps to black, `high` to white (inverted swaps). */
+struct DisplayWindow {
+    double low = 0.0;
+    double high = 1.0;
+    bool invert = false;
+};
+
+/** Window from the 0.5 and 99.5 percentiles of the image (robust auto window). */
+DisplayWindow autoWindow(const std::vector<float>& pixels);
+
+/** float32 little-endian, C order, shape (rows, cols) or (count, rows, cols) when count > 0. */
+void writeNpy(const std::filesystem::path& path, const float* data, std::int64_t rows,
+              std::int64_t cols, std::int64_t count = 0);
+/** Reads a float32 .npy written by writeNpy (tests); shape returned in `shape`. */
+std::vector<float> readNpy(const std::filesystem::path& path, std::vector<std::int64_t>& shape);
+/** Grayscale PFM ("Pf", little-endian scale -1), rows stored bottom-to-top as the format says. */
+void writePfm(const std::filesystem::path& path, const float* data, int rows, int cols);
+/** Grayscale PNG; bitDepth 8 or 16; values mapped through the window. */
+void writePng(const std::filesystem::path& path, const float* data, int rows, int cols,
+              const DisplayWindow& window, int bitDepth = 8);
+
+/** Writes by extension: .npy (raw floats), .pfm (raw floats), .png (auto-windowed 8-bit).
+ *  Throws WriteError (unknown extension, I/O failure) naming the path. */
+void writeProjection(const std::filesystem::path& path, const ProjectionImage& image);
+
+} // namespace fvr::core

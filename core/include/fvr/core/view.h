@@ -1,0 +1,44 @@
+#pragma once
+/** View geometry shared by the CPU renderer, the GPU renderer, the spatial projector and the
+ *  analytic phantom projections (DESIGN.md, "View and pixels, exactly"). */
+#include <fvr/core/volume.h>
+
+namespace fvr::core {
+
+/**
+ * An orthonormal view frame in the volume's physical frame (axes along the voxel index axes):
+ * D = viewing direction, U = up (orthogonalised against D), R = D x U. Pixel (col, row) of an
+ * M x M image with pixel size d (mm) is the line integral along D through
+ * c + (col - M/2) d R - (row - M/2) d U, with c the volume's physical centre. Row 0 is the top.
+ */
+struct ViewFrame {
+    Vec3 d{0, 0, 1};
+    Vec3 u{0, -1, 0};
+    Vec3 r{1, 0, 0};
+
+    /** Builds the frame; throws SettingsError when dir is zero or up is parallel to dir. */
+    static ViewFrame fromDirUp(const Vec3& dir, const Vec3& up);
+    /** The frame rotated by `angleRad` about `axis` (right-handed): used for sweeps. */
+    ViewFrame rotated(const Vec3& axis, double angleRad) const;
+};
+
+/** Projection image geometry: M x M pixels of size d (mm). */
+struct ImageGeometry {
+    int size = 256;
+    double pixelSize = 1.0;
+};
+
+/** The default pixel size: the volume's physical diagonal spread over M pixels, so that the
+ *  projection of any view fits the image period M*d (no overlapping copies). */
+double defaultPixelSize(const Dims3& dims, const Vec3& spacing, int size);
+
+/** Checks that M is a power of two in [16, 4096] (the renderers accept 128..2048 in the UI; tests
+ *  use smaller ones) and pixel size > 0; throws SettingsError. */
+void validateImageGeometry(const ImageGeometry& g);
+
+inline Vec3 cross(const Vec3& a, const Vec3& b) {
+    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+inline double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+} // namespace fvr::core

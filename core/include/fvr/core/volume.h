@@ -1,0 +1,55 @@
+#pragma once
+/** The volume model shared by every layer: float voxels on a regular grid. */
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace fvr::core {
+
+using Vec3 = std::array<double, 3>;
+using Dims3 = std::array<std::int64_t, 3>;
+
+/** What the voxel values mean. */
+enum class ValueUnits { Unknown, HounsfieldUnits, LinearAttenuationRelWater, Intensity };
+
+const char* unitsName(ValueUnits u);
+
+/** Largest accepted number of voxels per axis and in total (checked before any allocation). */
+inline constexpr std::int64_t kMaxDimPerAxis = 16384;
+inline constexpr std::int64_t kMaxVoxels = std::int64_t(2048) * 2048 * 2048;
+
+/**
+ * A scalar volume. Voxel (x, y, z) (x = column, fastest; y = row; z = slice) is stored at
+ * index x + nx * (y + ny * z). Spacing in mm per index axis. Origin is the physical (patient,
+ * LPS for DICOM) position of voxel (0,0,0); direction[a] is the unit vector of index axis a in
+ * that frame (identity when the file carries no orientation).
+ */
+struct Volume {
+    Dims3 dims{0, 0, 0};
+    Vec3 spacing{1.0, 1.0, 1.0};
+    Vec3 origin{0.0, 0.0, 0.0};
+    std::array<Vec3, 3> direction{Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
+    ValueUnits units = ValueUnits::Unknown;
+    std::string name;
+    std::vector<float> voxels;
+
+    std::int64_t voxelCount() const { return dims[0] * dims[1] * dims[2]; }
+    std::size_t index(std::int64_t x, std::int64_t y, std::int64_t z) const {
+        return std::size_t(x + dims[0] * (y + dims[1] * z));
+    }
+    float at(std::int64_t x, std::int64_t y, std::int64_t z) const { return voxels[index(x, y, z)]; }
+    /** Physical extent N*s per axis (mm). */
+    Vec3 extent() const {
+        return {dims[0] * spacing[0], dims[1] * spacing[1], dims[2] * spacing[2]};
+    }
+    /** Minimum and maximum voxel value (0,0 for an empty volume). */
+    std::pair<float, float> valueRange() const;
+};
+
+/** Throws SettingsError/LoadError naming `source` if dims or spacing are unusable
+ *  (dims < 1, above kMaxDimPerAxis, total above kMaxVoxels, spacing <= 0 or not finite). */
+void validateGeometry(const Dims3& dims, const Vec3& spacing, const std::string& source);
+
+} // namespace fvr::core

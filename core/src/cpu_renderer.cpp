@@ -1,0 +1,346 @@
+#include <fvr/core/cpu_renderer.h>
+
+#include <chrono>
+#include <cmath>
+#include <complex>
+#include <cstring>
+
+#include <fvr/core/errors.h>
+
+#include "fftw_support.h"
+
+namespace fvr::core {
+
+using Clock = std::chrono::steady_clock;
+using cfloat = std::complex<float>;
+
+std::string projectionUnits(ValueMapping mapping, ValueUnits source) {
+    if (mapping == ValueMapping::Mu) return "mm (mu/mu_water x mm)";
+    if (source == ValueUnits::HounsfieldUnits) return "HU x mm";
+    return "value x mm";
+}
+
+struct CpuFourierRenderer::SizeResources {
+    int size = 0;
+    FftwBuffer slice;  // Fft: M rows x (M/2+1) complex; Fht: M x M real (in place)
+    FftwBuffer image;  // Fft: M x M real output
+    detail::Plan c2r;  // complex-to-real, out of place
+    detail::Plan dht;  // separable 2D DHT, in place on slice
+};
+
+CpuFourierRenderer::CpuFourierRenderer(std::shared_ptr<const Spectrum> spectrum, int threads)
+    : m_spectrum(std::move(spectrum)), m_pool(threads),
+      m_threads(threads > 0 ? threads : hardwareThreads()) {
+    if (!m_spectrum || !m_spectrum->data) throw SettingsError("renderer: no spectrum");
+    for (Kernel k : allKernels()) m_tables.emplace(k, std::make_unique<KernelTable>(k));
+}
+
+CpuFourierRenderer::~CpuFourierRenderer() = default;
+
+CpuFourierRenderer::SizeResources& CpuFourierRenderer::resources(int M) {
+    auto it = m_resources.find(M);
+    if (it != m_resources.end()) return *it->second;
+    detail::ensureFftwInitialised();
+    auto r = std::make_unique<SizeResources>();
+    r->size = M;
+    const std::size_t halfFloats = std::size_t(M) * (M / 2 + 1) * 2;
+    if (m_spectrum->kind == TransformKind::Fft) {
+        r->slice = allocateFftw(halfFloats);
+        r->image = allocateFftw(std::size_t(M) * M);
+        std::lock_guard lock(detail::planMutex());
+        fftwf_plan_with_nthreads(M >= 512 ? m_threads : 1);
+        r->c2r = detail::Plan(fftwf_plan_dft_c2r_2d(
+            M, M, reinterpret_cast<fftwf_complex*>(r->slice.get()), r->image.get(),
+            detail::plannerFlags(true)));
+    } else {
+        r->slice = allocateFftw(std::size_t(M) * M);
+        std::lock_guard lock(detail::planMutex());
+        fftwf_plan_with_nthreads(M >= 512 ? m_threads : 1);
+        r->dht = detail::Plan(fftwf_plan_r2r_2d(M, M, r->slice.get(), r->slice.get(), FFTW_DHT,
+                                                FFTW_DHT, detail::plannerFlags(true)));
+    }
+    if (!r->c2r && !r->dht) throw std::runtime_error("FFTW could not plan the inverse 2D transform");
+    detail::saveWisdom();
+    return *m_resources.emplace(M, std::move(r)).first->second;
+}
+
+namespace {
+
+/** Everything the per-sample code reads, precomputed per frame. */
+struct SliceContext {
+    const float* data;
+    std::int64_t P0, P1, P2, rs;
+    double half0, half1, half2; // band limits P/2 (+ tiny tolerance)
+    const KernelTable* table;
+    int taps;
+    int first;
+};
+
+inline std::int64_t wrapSmall(std::int64_t i, std::int64_t p) {
+    // i is within a few periods of [0, p)
+    while (i < 0) i += p;
+    while (i >= p) i -= p;
+    return i;
+}
+
+template <int T>
+inline void axisWeights(const SliceContext& c, double k, std::int64_t& base, float* w) {
+    if constexpr (T == 1) {
+        base = std::int64_t(std::floor(k + 0.5));
+        w[0] = 1.0f;
+    } else {
+        const double f = std::floor(k);
+        base = std::int64_t(f) + c.first;
+        c.table->weights(k - f, w);
+    }
+}
+
+/** Interpolated complex G at continuous signed frequency k from the half spectrum. */
+template <int T>
+inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double kz) {
+    if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return {};
+    bool conjugate = false;
+    if (kx < 0) {
+        kx = -kx;
+        ky = -ky;
+        kz = -kz;
+        conjugate = true;
+    }
+    std::int64_t bx, by, bz;
+    float wx[T], wy[T], wz[T];
+    axisWeights<T>(c, kx, bx, wx);
+    axisWeights<T>(c, ky, by, wy);
+    axisWeights<T>(c, kz, bz, wz);
+    std::int64_t ix[T], iy[T], iz[T];
+    bool flip[T];
+    bool anyFlip = false;
+    const std::int64_t hx = c.P0 / 2;
+    for (int t = 0; t < T; ++t) {
+        std::int64_t jx = bx + t;
+        if (jx > hx) jx -= c.P0; // beyond the stored half: its negative image
+        flip[t] = jx < 0;
+        ix[t] = flip[t] ? -jx : jx;
+        anyFlip |= flip[t];
+        iy[t] = wrapSmall(by + t, c.P1);
+        iz[t] = wrapSmall(bz + t, c.P2);
+    }
+    const cfloat* base = reinterpret_cast<const cfloat*>(c.data);
+    const std::int64_t H = c.rs / 2; // complex per row
+    cfloat acc{};
+    if (!anyFlip) {
+        for (int zc = 0; zc < T; ++zc)
+            for (int yc = 0; yc < T; ++yc) {
+                const cfloat* row = base + (iy[yc] + c.P1 * iz[zc]) * H;
+                cfloat sx{};
+                for (int xc = 0; xc < T; ++xc) sx += wx[xc] * row[ix[xc]];
+                acc += (wz[zc] * wy[yc]) * sx;
+            }
+    } else {
+        for (int zc = 0; zc < T; ++zc)
+            for (int yc = 0; yc < T; ++yc) {
+                const cfloat* row = base + (iy[yc] + c.P1 * iz[zc]) * H;
+                const std::int64_t my = iy[yc] == 0 ? 0 : c.P1 - iy[yc];
+                const std::int64_t mz = iz[zc] == 0 ? 0 : c.P2 - iz[zc];
+                const cfloat* mrow = base + (my + c.P1 * mz) * H;
+                cfloat sx{};
+                for (int xc = 0; xc < T; ++xc)
+                    sx += wx[xc] * (flip[xc] ? std::conj(mrow[ix[xc]]) : row[ix[xc]]);
+                acc += (wz[zc] * wy[yc]) * sx;
+            }
+    }
+    return conjugate ? std::conj(acc) : acc;
+}
+
+/** Interpolated Hartley value at continuous signed frequency k. */
+template <int T>
+inline float sampleHartley(const SliceContext& c, double kx, double ky, double kz) {
+    if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return 0.0f;
+    std::int64_t bx, by, bz;
+    float wx[T], wy[T], wz[T];
+    axisWeights<T>(c, kx, bx, wx);
+    axisWeights<T>(c, ky, by, wy);
+    axisWeights<T>(c, kz, bz, wz);
+    std::int64_t ix[T], iy[T], iz[T];
+    for (int t = 0; t < T; ++t) {
+        ix[t] = wrapSmall(bx + t, c.P0);
+        iy[t] = wrapSmall(by + t, c.P1);
+        iz[t] = wrapSmall(bz + t, c.P2);
+    }
+    float acc = 0.0f;
+    for (int zc = 0; zc < T; ++zc)
+        for (int yc = 0; yc < T; ++yc) {
+            const float* row = c.data + (iy[yc] + c.P1 * iz[zc]) * c.rs;
+            float sx = 0.0f;
+            for (int xc = 0; xc < T; ++xc) sx += wx[xc] * row[ix[xc]];
+            acc += (wz[zc] * wy[yc]) * sx;
+        }
+    return acc;
+}
+
+struct FrameMapping {
+    // k(m, n) = m * A + n * B, spectrum index units, m and n signed image frequencies.
+    double A[3], B[3];
+    float scale;
+};
+
+template <int T>
+void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, int M, cfloat* out,
+                      ThreadPool& pool) {
+    const int H = M / 2 + 1;
+    auto sample = [&](double m, double n) {
+        return sampleComplex<T>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1],
+                                m * f.A[2] + n * f.B[2]);
+    };
+    pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
+        for (std::int64_t r = r0; r < r1; ++r) {
+            const int n = int(r < M / 2 ? r : r - M);
+            const bool nyqRow = (n == -M / 2);
+            cfloat* row = out + r * H;
+            float sign = ((n & 1) ? -1.0f : 1.0f) * f.scale;
+            for (int m = 0; m < H; ++m, sign = -sign) {
+                cfloat v;
+                if (m == M / 2 || nyqRow) {
+                    // Average over the aliases of the Nyquist frequencies.
+                    const int ms = (m == M / 2) ? 2 : 1;
+                    const int ns = nyqRow ? 2 : 1;
+                    cfloat sum{};
+                    for (int a = 0; a < ms; ++a)
+                        for (int b = 0; b < ns; ++b) sum += sample(a ? -m : m, b ? -n : n);
+                    v = sum / float(ms * ns);
+                } else {
+                    v = sample(m, n);
+                }
+                row[m] = v * sign;
+            }
+        }
+    });
+}
+
+template <int T>
+void sliceFullHartley(const SliceContext& c, const FrameMapping& f, int M, float* out,
+                      ThreadPool& pool) {
+    auto sample = [&](double m, double n) {
+        return sampleHartley<T>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1],
+                                m * f.A[2] + n * f.B[2]);
+    };
+    pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
+        for (std::int64_t r = r0; r < r1; ++r) {
+            const int n = int(r < M / 2 ? r : r - M);
+            const bool nyqRow = (n == -M / 2);
+            float* row = out + r * M;
+            for (int col = 0; col < M; ++col) {
+                const int m = col < M / 2 ? col : col - M;
+                const float sign = (((m + n) & 1) ? -1.0f : 1.0f) * f.scale;
+                float v;
+                if (m == -M / 2 || nyqRow) {
+                    const int ms = (m == -M / 2) ? 2 : 1;
+                    const int ns = nyqRow ? 2 : 1;
+                    float sum = 0.0f;
+                    for (int a = 0; a < ms; ++a)
+                        for (int b = 0; b < ns; ++b) sum += sample(a ? -m : m, b ? -n : n);
+                    v = sum / float(ms * ns);
+                } else {
+                    v = sample(m, n);
+                }
+                row[col] = v * sign;
+            }
+        }
+    });
+}
+
+/** Eq. 4: H(u,v) = 1/2 (T(u,v) + T(-u,v) + T(u,-v) - T(-u,-v)), in place, 4 mirror points at once. */
+void hartleyCorrection2D(float* d, int M, ThreadPool& pool) {
+    pool.parallelFor(M / 2 + 1, 8, [&](std::int64_t v0, std::int64_t v1) {
+        for (std::int64_t v = v0; v < v1; ++v) {
+            const std::int64_t vy[2] = {v, (M - v) % M};
+            for (int u = 0; u <= M / 2; ++u) {
+                const int ux[2] = {u, (M - u) % M};
+                float t[2][2], h[2][2];
+                for (int b = 0; b < 2; ++b)
+                    for (int a = 0; a < 2; ++a) t[b][a] = d[vy[b] * M + ux[a]];
+                for (int b = 0; b < 2; ++b)
+                    for (int a = 0; a < 2; ++a)
+                        h[b][a] = 0.5f * (t[b][a] + t[b][1 - a] + t[1 - b][a] - t[1 - b][1 - a]);
+                for (int b = 0; b < 2; ++b)
+                    for (int a = 0; a < 2; ++a) d[vy[b] * M + ux[a]] = h[b][a];
+            }
+        }
+    });
+}
+
+} // namespace
+
+ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTimes* times) {
+    validateImageGeometry(params.image);
+    const auto t0 = Clock::now();
+    const Spectrum& s = *m_spectrum;
+    const int M = params.image.size;
+    const double d = params.image.pixelSize;
+    SizeResources& res = resources(M);
+
+    SliceContext c{};
+    c.data = s.data.get();
+    c.P0 = s.padded[0];
+    c.P1 = s.padded[1];
+    c.P2 = s.padded[2];
+    c.rs = s.rowStride();
+    c.half0 = c.P0 / 2.0 + 1e-9;
+    c.half1 = c.P1 / 2.0 + 1e-9;
+    c.half2 = c.P2 / 2.0 + 1e-9;
+    c.table = m_tables.at(params.kernel).get();
+    c.taps = c.table->taps();
+    c.first = c.table->firstTapOffset();
+
+    FrameMapping f{};
+    const Vec3& R = params.view.r;
+    const Vec3 V{-params.view.u[0], -params.view.u[1], -params.view.u[2]};
+    for (int a = 0; a < 3; ++a) {
+        const double perIndex = s.spacing[a] * double(s.padded[a]) / (M * d);
+        f.A[a] = R[a] * perIndex;
+        f.B[a] = V[a] * perIndex;
+    }
+    f.scale = float(s.spacing[0] * s.spacing[1] * s.spacing[2] / ((M * d) * (M * d)));
+
+    ProjectionImage img;
+    img.size = M;
+    img.pixelSize = d;
+    img.view = params.view;
+    img.mapping = s.mapping;
+    img.pixels.resize(std::size_t(M) * M);
+
+    Clock::time_point t1, t2;
+    if (s.kind == TransformKind::Fft) {
+        auto* slice = reinterpret_cast<cfloat*>(res.slice.get());
+        switch (c.taps) {
+        case 1: sliceHalfComplex<1>(c, f, M, slice, m_pool); break;
+        case 2: sliceHalfComplex<2>(c, f, M, slice, m_pool); break;
+        default: sliceHalfComplex<4>(c, f, M, slice, m_pool); break;
+        }
+        t1 = Clock::now();
+        fftwf_execute_dft_c2r(res.c2r.get(), reinterpret_cast<fftwf_complex*>(res.slice.get()),
+                              res.image.get());
+        std::memcpy(img.pixels.data(), res.image.get(), sizeof(float) * img.pixels.size());
+        t2 = Clock::now();
+    } else {
+        float* slice = res.slice.get();
+        switch (c.taps) {
+        case 1: sliceFullHartley<1>(c, f, M, slice, m_pool); break;
+        case 2: sliceFullHartley<2>(c, f, M, slice, m_pool); break;
+        default: sliceFullHartley<4>(c, f, M, slice, m_pool); break;
+        }
+        t1 = Clock::now();
+        fftwf_execute_r2r(res.dht.get(), slice, slice);
+        hartleyCorrection2D(slice, M, m_pool);
+        std::memcpy(img.pixels.data(), slice, sizeof(float) * img.pixels.size());
+        t2 = Clock::now();
+    }
+    if (times) {
+        auto ms = [](auto a, auto b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
+        times->sliceMs = ms(t0, t1);
+        times->inverseMs = ms(t1, t2);
+        times->totalMs = ms(t0, t2);
+    }
+    return img;
+}
+
+} // namespace fvr::core

@@ -1,0 +1,186 @@
+#include <fvr/core/image_io.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include <zlib.h>
+
+#include <fvr/core/errors.h>
+
+namespace fvr::core {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+/** Writes bytes to path atomically (temporary file in the same folder, then rename). */
+void writeFileAtomic(const fs::path& path, const std::string& bytes) {
+    fs::path tmp = path;
+    tmp += ".part";
+    {
+        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+        if (!out) throw WriteError(path.string() + ": cannot open for writing");
+        out.write(bytes.data(), std::streamsize(bytes.size()));
+        out.flush();
+        if (!out) {
+            std::error_code ec;
+            fs::remove(tmp, ec);
+            throw WriteError(path.string() + ": write failed (disk full?)");
+        }
+    }
+    std::error_code ec;
+    fs::rename(tmp, path, ec);
+    if (ec) {
+        fs::remove(tmp, ec);
+        throw WriteError(path.string() + ": cannot move the written file into place");
+    }
+}
+
+void appendU32BE(std::string& s, std::uint32_t v) {
+    for (int i = 3; i >= 0; --i) s.push_back(char((v >> (8 * i)) & 0xff));
+}
+
+void appendChunk(std::string& png, const char* type, const std::string& payload) {
+    appendU32BE(png, std::uint32_t(payload.size()));
+    std::string body(type, 4);
+    body += payload;
+    png += body;
+    appendU32BE(png, std::uint32_t(crc32(0, reinterpret_cast<const Bytef*>(body.data()), uInt(body.size()))));
+}
+
+std::string lower(std::string s) {
+    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    return s;
+}
+
+} // namespace
+
+DisplayWindow autoWindow(const std::vector<float>& pixels) {
+    DisplayWindow w;
+    if (pixels.empty()) return w;
+    std::vector<float> v;
+    v.reserve(pixels.size());
+    for (float p : pixels)
+        if (std::isfinite(p)) v.push_back(p);
+    if (v.empty()) return w;
+    const auto lo = v.begin() + std::ptrdiff_t(0.005 * (v.size() - 1));
+    const auto hi = v.begin() + std::ptrdiff_t(0.995 * (v.size() - 1));
+    std::nth_element(v.begin(), lo, v.end());
+    w.low = *lo;
+    std::nth_element(v.begin(), hi, v.end());
+    w.high = *hi;
+    if (!(w.high > w.low)) w.high = w.low + 1.0;
+    return w;
+}
+
+void writeNpy(const fs::path& path, const float* data, std::int64_t rows, std::int64_t cols,
+              std::int64_t count) {
+    std::ostringstream hdr;
+    hdr << "{'descr': '<f4', 'fortran_order': False, 'shape': (";
+    if (count > 0) hdr << count << ", ";
+    hdr << rows << ", " << cols << "), }";
+    std::string h = hdr.str();
+    const std::size_t preamble = 10; // magic(6) + version(2) + header length(2)
+    while ((preamble + h.size() + 1) % 64 != 0) h.push_back(' ');
+    h.push_back('\n');
+    std::string out("\x93NUMPY\x01\x00", 8);
+    out.push_back(char(h.size() & 0xff));
+    out.push_back(char((h.size() >> 8) & 0xff));
+    out += h;
+    const std::size_t n = std::size_t(rows * cols * std::max<std::int64_t>(1, count));
+    out.append(reinterpret_cast<const char*>(data), n * sizeof(float)); // x86/ARM: little-endian
+    writeFileAtomic(path, out);
+}
+
+std::vector<float> readNpy(const fs::path& path, std::vector<std::int64_t>& shape) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw LoadError(path.string() + ": cannot open");
+    char pre[10];
+    in.read(pre, 10);
+    if (!in || std::memcmp(pre, "\x93NUMPY", 6) != 0) throw LoadError(path.string() + ": not a .npy file");
+    const std::size_t hlen = std::uint8_t(pre[8]) | (std::size_t(std::uint8_t(pre[9])) << 8);
+    std::string h(hlen, '\0');
+    in.read(h.data(), std::streamsize(hlen));
+    if (h.find("'<f4'") == std::string::npos) throw LoadError(path.string() + ": descr: expected '<f4'");
+    shape.clear();
+    const auto open = h.find('('), close = h.find(')');
+    std::istringstream ss(h.substr(open + 1, close - open - 1));
+    std::string tok;
+    std::int64_t total = 1;
+    while (std::getline(ss, tok, ',')) {
+        if (tok.find_first_of("0123456789") == std::string::npos) continue;
+        shape.push_back(std::stoll(tok));
+        total *= shape.back();
+    }
+    const auto dataStart = std::uint64_t(in.tellg());
+    const auto fileSize = std::uint64_t(fs::file_size(path));
+    if (total < 0 || std::uint64_t(total) * sizeof(float) != fileSize - dataStart)
+        throw LoadError(path.string() + ": shape: expected " + std::to_string(total) +
+                        " floats, found " + std::to_string((fileSize - dataStart) / sizeof(float)));
+    std::vector<float> v(static_cast<std::size_t>(total));
+    in.read(reinterpret_cast<char*>(v.data()), std::streamsize(v.size() * sizeof(float)));
+    if (!in) throw LoadError(path.string() + ": data: truncated");
+    return v;
+}
+
+void writePfm(const fs::path& path, const float* data, int rows, int cols) {
+    std::string out = "Pf\n" + std::to_string(cols) + " " + std::to_string(rows) + "\n-1.0\n";
+    for (int r = rows - 1; r >= 0; --r)
+        out.append(reinterpret_cast<const char*>(data + std::size_t(r) * cols), std::size_t(cols) * sizeof(float));
+    writeFileAtomic(path, out);
+}
+
+void writePng(const fs::path& path, const float* data, int rows, int cols, const DisplayWindow& w,
+              int bitDepth) {
+    if (bitDepth != 8 && bitDepth != 16) throw WriteError(path.string() + ": PNG bit depth must be 8 or 16");
+    const int bpp = bitDepth / 8;
+    const double maxv = bitDepth == 8 ? 255.0 : 65535.0;
+    const double scale = 1.0 / (w.high - w.low);
+    std::string raw;
+    raw.reserve(std::size_t(rows) * (1 + std::size_t(cols) * bpp));
+    for (int r = 0; r < rows; ++r) {
+        raw.push_back('\0'); // filter: none
+        for (int c = 0; c < cols; ++c) {
+            double t = (double(data[std::size_t(r) * cols + c]) - w.low) * scale;
+            if (!std::isfinite(t)) t = 0.0;
+            t = std::clamp(t, 0.0, 1.0);
+            if (w.invert) t = 1.0 - t;
+            const auto q = std::uint32_t(std::lround(t * maxv));
+            if (bpp == 2) raw.push_back(char(q >> 8));
+            raw.push_back(char(q & 0xff));
+        }
+    }
+    uLongf zlen = compressBound(uLong(raw.size()));
+    std::string z(zlen, '\0');
+    if (compress2(reinterpret_cast<Bytef*>(z.data()), &zlen, reinterpret_cast<const Bytef*>(raw.data()),
+                  uLong(raw.size()), 6) != Z_OK)
+        throw WriteError(path.string() + ": PNG compression failed");
+    z.resize(zlen);
+    std::string png("\x89PNG\r\n\x1a\n", 8);
+    std::string ihdr;
+    appendU32BE(ihdr, std::uint32_t(cols));
+    appendU32BE(ihdr, std::uint32_t(rows));
+    ihdr.push_back(char(bitDepth));
+    ihdr.push_back('\0'); // grayscale
+    ihdr.push_back('\0');
+    ihdr.push_back('\0');
+    ihdr.push_back('\0');
+    appendChunk(png, "IHDR", ihdr);
+    appendChunk(png, "IDAT", z);
+    appendChunk(png, "IEND", "");
+    writeFileAtomic(path, png);
+}
+
+void writeProjection(const fs::path& path, const ProjectionImage& image) {
+    const std::string ext = lower(path.extension().string());
+    const int M = image.size;
+    if (ext == ".npy") writeNpy(path, image.pixels.data(), M, M);
+    else if (ext == ".pfm") writePfm(path, image.pixels.data(), M, M);
+    else if (ext == ".png") writePng(path, image.pixels.data(), M, M, autoWindow(image.pixels), 8);
+    else throw WriteError(path.string() + ": unknown output format '" + ext + "' (expected .npy, .pfm or .png)");
+}
+
+} // namespace fvr::core

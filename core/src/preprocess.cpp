@@ -1,0 +1,513 @@
+#include <fvr/core/preprocess.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <numbers>
+#include <vector>
+
+#include <fvr/core/errors.h>
+#include <fvr/core/thread_pool.h>
+
+#include "fftw_support.h"
+
+namespace fvr::core {
+
+using detail::Plan;
+
+// ---------------------------------------------------------------------------------------------
+// Spectrum helpers
+
+void FftwFree::operator()(float* p) const { fftwf_free(p); }
+
+FftwBuffer allocateFftw(std::size_t floats) {
+    auto* p = static_cast<float*>(fftwf_malloc(floats * sizeof(float)));
+    if (!p) throw std::bad_alloc();
+    return FftwBuffer(p);
+}
+
+const char* valueMappingName(ValueMapping m) { return m == ValueMapping::Mu ? "mu" : "raw"; }
+ValueMapping parseValueMapping(const std::string& s) {
+    if (s == "raw") return ValueMapping::Raw;
+    if (s == "mu") return ValueMapping::Mu;
+    throw SettingsError("values: expected raw|mu, found '" + s + "'");
+}
+const char* transformName(TransformKind t) { return t == TransformKind::Fht ? "fht" : "fft"; }
+TransformKind parseTransform(const std::string& s) {
+    if (s == "fft") return TransformKind::Fft;
+    if (s == "fht") return TransformKind::Fht;
+    throw SettingsError("transform: expected fft|fht, found '" + s + "'");
+}
+
+namespace {
+std::int64_t wrap(std::int64_t k, std::int64_t p) {
+    k %= p;
+    return k < 0 ? k + p : k;
+}
+} // namespace
+
+std::complex<double> Spectrum::valueAt(std::int64_t kx, std::int64_t ky, std::int64_t kz) const {
+    kx = wrap(kx, padded[0]);
+    ky = wrap(ky, padded[1]);
+    kz = wrap(kz, padded[2]);
+    if (kind == TransformKind::Fft) {
+        bool conj = false;
+        if (kx > padded[0] / 2) {
+            kx = padded[0] - kx;
+            ky = wrap(-ky, padded[1]);
+            kz = wrap(-kz, padded[2]);
+            conj = true;
+        }
+        const float* p = data.get() + (ky + padded[1] * kz) * rowStride() + 2 * kx;
+        return {p[0], conj ? -p[1] : p[1]};
+    }
+    // Hartley: G = E - i O with E, O the even and odd parts of H.
+    const double h = hartleyAt(kx, ky, kz);
+    const double hm = hartleyAt(-kx, -ky, -kz);
+    return {0.5 * (h + hm), -0.5 * (h - hm)};
+}
+
+double Spectrum::hartleyAt(std::int64_t kx, std::int64_t ky, std::int64_t kz) const {
+    if (kind == TransformKind::Fft) {
+        const auto g = valueAt(kx, ky, kz);
+        return g.real() - g.imag();
+    }
+    kx = wrap(kx, padded[0]);
+    ky = wrap(ky, padded[1]);
+    kz = wrap(kz, padded[2]);
+    return data.get()[(ky + padded[1] * kz) * rowStride() + kx];
+}
+
+// ---------------------------------------------------------------------------------------------
+// Sizes
+
+std::int64_t nextFftSize(std::int64_t n) {
+    if (n <= 1) return 1;
+    for (std::int64_t m = n;; ++m) {
+        std::int64_t r = m;
+        for (std::int64_t f : {2, 3, 5, 7})
+            while (r % f == 0) r /= f;
+        if (r == 1) return m;
+    }
+}
+
+Dims3 paddedDimsFor(const Dims3& dims, const PreprocessOptions& options) {
+    Dims3 p{};
+    if (options.paddedDims) {
+        p = *options.paddedDims;
+        for (int a = 0; a < 3; ++a)
+            if (p[a] < dims[a] || p[a] > kMaxDimPerAxis)
+                throw SettingsError("padded size axis " + std::to_string(a) + ": expected " +
+                                    std::to_string(dims[a]) + ".." + std::to_string(kMaxDimPerAxis) +
+                                    ", found " + std::to_string(p[a]));
+        return p;
+    }
+    const double f = options.oversampling;
+    if (!(f >= 1.0 && f <= 2.0))
+        throw SettingsError("oversampling: expected a factor in [1, 2], found " + std::to_string(f));
+    for (int a = 0; a < 3; ++a) p[a] = nextFftSize(std::int64_t(std::ceil(f * dims[a] - 1e-9)));
+    return p;
+}
+
+std::size_t spectrumBytes(const Dims3& padded) {
+    return std::size_t(2 * (padded[0] / 2 + 1)) * padded[1] * padded[2] * sizeof(float);
+}
+
+void CancelToken::check() const {
+    if (cancelled()) throw Cancelled();
+}
+
+// ---------------------------------------------------------------------------------------------
+// The preprocessing pipeline
+
+namespace {
+
+/** Reports monotone progress over weighted stages. */
+class ProgressReporter {
+public:
+    ProgressReporter(const ProgressFn& fn, const CancelToken* cancel) : m_fn(fn), m_cancel(cancel) {}
+    void stage(std::string_view name, double start, double end) {
+        m_name = name;
+        m_start = start;
+        m_end = end;
+        report(0.0);
+    }
+    void report(double withinStage) {
+        if (m_cancel) m_cancel->check();
+        const double f = std::clamp(m_start + (m_end - m_start) * withinStage, m_last, 1.0);
+        m_last = f;
+        if (m_fn) m_fn(f, m_name);
+    }
+
+private:
+    const ProgressFn& m_fn;
+    const CancelToken* m_cancel;
+    std::string_view m_name;
+    double m_start = 0, m_end = 0, m_last = 0;
+};
+
+/** Per-axis centring phase: the FFT origin holds voxel floor(N/2), the true centre is (N-1)/2,
+ *  so G = F * exp(-2 pi i k sigma / P) with sigma = floor(N/2) - (N-1)/2 in {0, 1/2}. At the
+ *  Nyquist index of an even P the symmetric (real) factor cos(pi sigma) keeps G Hermitian. */
+std::vector<std::complex<double>> centringPhase(std::int64_t n, std::int64_t p) {
+    const double sigma = double(n / 2) - double(n - 1) / 2.0;
+    std::vector<std::complex<double>> ph(std::size_t(p), {1.0, 0.0});
+    if (sigma == 0.0) return ph;
+    for (std::int64_t k = 0; k < p; ++k) {
+        const std::int64_t ks = k <= p / 2 ? k : k - p;
+        if (p % 2 == 0 && k == p / 2) ph[k] = {std::cos(std::numbers::pi * sigma), 0.0};
+        else ph[k] = std::polar(1.0, -2.0 * std::numbers::pi * double(ks) * sigma / double(p));
+    }
+    return ph;
+}
+
+struct ChunkPlans {
+    // One plan per (howmany, alignment class) so new-array execution is always legal.
+    std::map<std::pair<int, int>, Plan> plans;
+};
+
+class Transformer {
+public:
+    Transformer(Spectrum& s, const PreprocessOptions& o, ThreadPool& pool)
+        : m_s(s), m_opt(o), m_pool(pool), m_P(s.padded), m_rs(s.rowStride()),
+          m_threads(o.threads > 0 ? o.threads : hardwareThreads()) {}
+
+    /** Plans everything first: MEASURE scribbles on the buffer, so this precedes the fill. */
+    void plan() {
+        detail::ensureFftwInitialised();
+        const bool dht = m_s.kind == TransformKind::Fht && m_opt.hartleyMethod == HartleyMethod::Dht;
+        m_dht = dht;
+        const std::int64_t P1 = m_P[1], P2 = m_P[2];
+        m_planesPerChunk = std::max<std::int64_t>(1, (P2 + 15) / 16);
+        m_rowsPerChunk = std::max<std::int64_t>(1, (P1 + 15) / 16);
+        std::lock_guard lock(detail::planMutex());
+        fftwf_plan_with_nthreads(m_threads);
+        const unsigned flags = detail::plannerFlags(m_opt.effort == PlannerEffort::Measure);
+        for (std::int64_t z0 = 0; z0 < P2; z0 += m_planesPerChunk)
+            planPlanes(planeChunkPtr(z0), int(std::min(m_planesPerChunk, P2 - z0)), flags);
+        for (std::int64_t y0 = 0; y0 < P1; y0 += m_rowsPerChunk)
+            planColumns(columnChunkPtr(y0), int(std::min(m_rowsPerChunk, P1 - y0)), flags);
+    }
+
+    void planesPass(ProgressReporter& pr) {
+        const std::int64_t P2 = m_P[2];
+        for (std::int64_t z0 = 0; z0 < P2; z0 += m_planesPerChunk) {
+            const int n = int(std::min(m_planesPerChunk, P2 - z0));
+            float* p = planeChunkPtr(z0);
+            const fftwf_plan plan = m_planes.plans.at({n, fftwf_alignment_of(p)}).get();
+            if (m_dht) fftwf_execute_r2r(plan, p, p);
+            else fftwf_execute_dft_r2c(plan, p, reinterpret_cast<fftwf_complex*>(p));
+            pr.report(double(z0 + n) / P2);
+        }
+    }
+
+    void columnsPass(ProgressReporter& pr) {
+        const std::int64_t P1 = m_P[1];
+        for (std::int64_t y0 = 0; y0 < P1; y0 += m_rowsPerChunk) {
+            const int n = int(std::min(m_rowsPerChunk, P1 - y0));
+            float* p = columnChunkPtr(y0);
+            const fftwf_plan plan = m_columns.plans.at({n, fftwf_alignment_of(p)}).get();
+            if (m_dht) fftwf_execute_r2r(plan, p, p);
+            else {
+                auto* c = reinterpret_cast<fftwf_complex*>(p);
+                fftwf_execute_dft(plan, c, c);
+            }
+            pr.report(double(y0 + n) / P1);
+        }
+    }
+
+    bool dht() const { return m_dht; }
+
+private:
+    float* planeChunkPtr(std::int64_t z0) const { return m_s.data.get() + z0 * m_rs * m_P[1]; }
+    float* columnChunkPtr(std::int64_t y0) const { return m_s.data.get() + y0 * m_rs; }
+
+    void planPlanes(float* p, int howmany, unsigned flags) {
+        const auto key = std::make_pair(howmany, fftwf_alignment_of(p));
+        if (m_planes.plans.count(key)) return;
+        const int n[2] = {int(m_P[1]), int(m_P[0])};
+        const int rs = int(m_rs);
+        fftwf_plan plan;
+        if (m_dht) {
+            const int embed[2] = {int(m_P[1]), rs};
+            const fftwf_r2r_kind kinds[2] = {FFTW_DHT, FFTW_DHT};
+            plan = fftwf_plan_many_r2r(2, n, howmany, p, embed, 1, rs * int(m_P[1]), p, embed, 1,
+                                       rs * int(m_P[1]), kinds, flags);
+        } else {
+            const int iembed[2] = {int(m_P[1]), rs};
+            const int oembed[2] = {int(m_P[1]), rs / 2};
+            plan = fftwf_plan_many_dft_r2c(2, n, howmany, p, iembed, 1, rs * int(m_P[1]),
+                                           reinterpret_cast<fftwf_complex*>(p), oembed, 1,
+                                           (rs / 2) * int(m_P[1]), flags);
+        }
+        if (!plan) throw std::runtime_error("FFTW could not plan the 2D plane transforms");
+        m_planes.plans.emplace(key, Plan(plan));
+    }
+
+    void planColumns(float* p, int rows, unsigned flags) {
+        const auto key = std::make_pair(rows, fftwf_alignment_of(p));
+        if (m_columns.plans.count(key)) return;
+        const int n[1] = {int(m_P[2])};
+        fftwf_plan plan;
+        if (m_dht) {
+            const fftwf_r2r_kind kinds[1] = {FFTW_DHT};
+            const int howmany = int(m_rs) * rows;
+            const int stride = int(m_rs * m_P[1]);
+            plan = fftwf_plan_many_r2r(1, n, howmany, p, nullptr, stride, 1, p, nullptr, stride, 1,
+                                       kinds, flags);
+        } else {
+            const int h = int(m_rs / 2);
+            const int howmany = h * rows;
+            const int stride = h * int(m_P[1]);
+            auto* c = reinterpret_cast<fftwf_complex*>(p);
+            plan = fftwf_plan_many_dft(1, n, howmany, c, nullptr, stride, 1, c, nullptr, stride, 1,
+                                       FFTW_FORWARD, flags);
+        }
+        if (!plan) throw std::runtime_error("FFTW could not plan the 1D column transforms");
+        m_columns.plans.emplace(key, Plan(plan));
+    }
+
+    Spectrum& m_s;
+    const PreprocessOptions& m_opt;
+    ThreadPool& m_pool;
+    Dims3 m_P;
+    std::int64_t m_rs;
+    int m_threads;
+    bool m_dht = false;
+    std::int64_t m_planesPerChunk = 1, m_rowsPerChunk = 1;
+    ChunkPlans m_planes, m_columns;
+};
+
+/** Zero-pads and centres the mapped volume into the transform buffer (wrap-around). */
+void fillPadded(const Volume& v, Spectrum& s, ValueMapping mapping, ThreadPool& pool,
+                ProgressReporter& pr) {
+    const auto& N = v.dims;
+    const auto& P = s.padded;
+    const std::int64_t rs = s.rowStride();
+    const std::int64_t m[3] = {N[0] / 2, N[1] / 2, N[2] / 2};
+    float* data = s.data.get();
+    // Whole padded planes with no voxel are zeroed; planes with voxels are written row by row.
+    std::vector<std::int64_t> srcZ(std::size_t(P[2]), -1);
+    for (std::int64_t z = 0; z < N[2]; ++z) srcZ[std::size_t(wrap(z - m[2], P[2]))] = z;
+    std::vector<std::int64_t> srcY(std::size_t(P[1]), -1);
+    for (std::int64_t y = 0; y < N[1]; ++y) srcY[std::size_t(wrap(y - m[1], P[1]))] = y;
+    const bool mu = mapping == ValueMapping::Mu;
+    std::atomic<std::int64_t> done{0};
+    pool.parallelFor(P[2], 1, [&](std::int64_t z0, std::int64_t z1) {
+        for (std::int64_t jz = z0; jz < z1; ++jz) {
+            float* plane = data + jz * rs * P[1];
+            const std::int64_t z = srcZ[std::size_t(jz)];
+            if (z < 0) {
+                std::memset(plane, 0, sizeof(float) * std::size_t(rs * P[1]));
+                continue;
+            }
+            for (std::int64_t jy = 0; jy < P[1]; ++jy) {
+                float* row = plane + jy * rs;
+                const std::int64_t y = srcY[std::size_t(jy)];
+                std::memset(row, 0, sizeof(float) * std::size_t(rs));
+                if (y < 0) continue;
+                const float* src = v.voxels.data() + v.index(0, y, z);
+                // x in [m, N) -> [0, N - m); x in [0, m) -> [P - m, P).
+                for (std::int64_t x = 0; x < N[0]; ++x) {
+                    const std::int64_t jx = x >= m[0] ? x - m[0] : x - m[0] + P[0];
+                    const float val = src[x];
+                    row[jx] = mu ? std::max(0.0f, 1.0f + val / 1000.0f) : val;
+                }
+            }
+        }
+        done += z1 - z0;
+    });
+    pr.report(1.0);
+}
+
+/** Fft kind: G = F * phase, in place. */
+void applyPhaseComplex(Spectrum& s, const Dims3& N, ThreadPool& pool) {
+    const auto& P = s.padded;
+    const auto px = centringPhase(N[0], P[0]), py = centringPhase(N[1], P[1]),
+               pz = centringPhase(N[2], P[2]);
+    const bool any = N[0] % 2 == 0 || N[1] % 2 == 0 || N[2] % 2 == 0;
+    if (!any) return;
+    const std::int64_t rs = s.rowStride(), H = P[0] / 2 + 1;
+    pool.parallelFor(P[2], 1, [&](std::int64_t z0, std::int64_t z1) {
+        for (std::int64_t z = z0; z < z1; ++z)
+            for (std::int64_t y = 0; y < P[1]; ++y) {
+                const std::complex<double> fyz = py[y] * pz[z];
+                auto* row = reinterpret_cast<std::complex<float>*>(s.data.get() + (y + P[1] * z) * rs);
+                for (std::int64_t x = 0; x < H; ++x)
+                    row[x] = std::complex<float>(std::complex<double>(row[x]) * (px[x] * fyz));
+            }
+    });
+}
+
+/** Fht from the r2c result: G = F * phase, then H = Re G - Im G over the full kx range.
+ *  Rows (y, z) and (-y, -z) are converted together so the conversion is in place. */
+void complexToHartley(Spectrum& s, const Dims3& N, ThreadPool& pool) {
+    const auto& P = s.padded;
+    const auto px = centringPhase(N[0], P[0]), py = centringPhase(N[1], P[1]),
+               pz = centringPhase(N[2], P[2]);
+    const std::int64_t rs = s.rowStride(), H = P[0] / 2 + 1, rows = P[1] * P[2];
+    pool.parallelFor(rows, 64, [&](std::int64_t r0, std::int64_t r1) {
+        std::vector<std::complex<double>> a(static_cast<std::size_t>(H)), b(static_cast<std::size_t>(H));
+        for (std::int64_t r = r0; r < r1; ++r) {
+            const std::int64_t y = r % P[1], z = r / P[1];
+            const std::int64_t my = wrap(-y, P[1]), mz = wrap(-z, P[2]);
+            const std::int64_t rm = my + P[1] * mz;
+            if (rm < r) continue; // handled with its partner
+            float* ra = s.data.get() + r * rs;
+            float* rb = s.data.get() + rm * rs;
+            const std::complex<double> fa = py[y] * pz[z], fb = py[my] * pz[mz];
+            for (std::int64_t x = 0; x < H; ++x) {
+                a[x] = std::complex<double>(ra[2 * x], ra[2 * x + 1]) * (px[x] * fa);
+                b[x] = std::complex<double>(rb[2 * x], rb[2 * x + 1]) * (px[x] * fb);
+            }
+            // Row (y,z): kx <= P0/2 from a; kx > P0/2 is -k' with k' = (P0-kx, -y, -z) in row b.
+            for (std::int64_t x = 0; x < P[0]; ++x) {
+                if (x < H) ra[x] = float(a[x].real() - a[x].imag());
+                else {
+                    const auto g = b[P[0] - x]; // G(-k) = conj(g)
+                    ra[x] = float(g.real() + g.imag());
+                }
+            }
+            if (rm == r) continue;
+            for (std::int64_t x = 0; x < P[0]; ++x) {
+                if (x < H) rb[x] = float(b[x].real() - b[x].imag());
+                else {
+                    const auto g = a[P[0] - x];
+                    rb[x] = float(g.real() + g.imag());
+                }
+            }
+        }
+    });
+}
+
+/** Fht via FFTW_DHT: the separable product T becomes the 3D Hartley transform through the
+ *  paper's eq. 5, H(u,v,w) = 1/2 (T(-u,v,w) + T(u,-v,w) + T(u,v,-w) - T(-u,-v,-w)), then the
+ *  centring phase is applied in the Hartley domain. The 8 mirror points (+-u, +-v, +-w) are read
+ *  and written together, so the pass is in place. */
+void hartleyCorrection(Spectrum& s, const Dims3& N, ThreadPool& pool) {
+    const auto& P = s.padded;
+    const auto px = centringPhase(N[0], P[0]), py = centringPhase(N[1], P[1]),
+               pz = centringPhase(N[2], P[2]);
+    const std::int64_t rs = s.rowStride();
+    float* d = s.data.get();
+    pool.parallelFor(P[2] / 2 + 1, 1, [&](std::int64_t w0, std::int64_t w1) {
+        for (std::int64_t w = w0; w < w1; ++w)
+            for (std::int64_t v = 0; v <= P[1] / 2; ++v)
+                for (std::int64_t u = 0; u <= P[0] / 2; ++u) {
+                    const std::int64_t ix[2] = {u, wrap(-u, P[0])};
+                    const std::int64_t iy[2] = {v, wrap(-v, P[1])};
+                    const std::int64_t iz[2] = {w, wrap(-w, P[2])};
+                    double t[2][2][2], h[2][2][2];
+                    for (int c = 0; c < 2; ++c)
+                        for (int b = 0; b < 2; ++b)
+                            for (int a = 0; a < 2; ++a)
+                                t[c][b][a] = d[(iy[b] + P[1] * iz[c]) * rs + ix[a]];
+                    for (int c = 0; c < 2; ++c)
+                        for (int b = 0; b < 2; ++b)
+                            for (int a = 0; a < 2; ++a)
+                                h[c][b][a] = 0.5 * (t[c][b][1 - a] + t[c][1 - b][a] +
+                                                    t[1 - c][b][a] - t[1 - c][1 - b][1 - a]);
+                    // Centring phase G' = G (c + i s): H' = E (c - s) + O (c + s).
+                    double out[2][2][2];
+                    for (int c = 0; c < 2; ++c)
+                        for (int b = 0; b < 2; ++b)
+                            for (int a = 0; a < 2; ++a) {
+                                const std::complex<double> f = px[ix[a]] * py[iy[b]] * pz[iz[c]];
+                                const double hk = h[c][b][a], hm = h[1 - c][1 - b][1 - a];
+                                const double e = 0.5 * (hk + hm), o = 0.5 * (hk - hm);
+                                out[c][b][a] = e * (f.real() - f.imag()) + o * (f.real() + f.imag());
+                            }
+                    for (int c = 0; c < 2; ++c)
+                        for (int b = 0; b < 2; ++b)
+                            for (int a = 0; a < 2; ++a)
+                                d[(iy[b] + P[1] * iz[c]) * rs + ix[a]] = float(out[c][b][a]);
+                }
+    });
+}
+
+} // namespace
+
+std::shared_ptr<const Spectrum> preprocess(const Volume& volume, const PreprocessOptions& options,
+                                           const ProgressFn& progress, const CancelToken* cancel) {
+    validateGeometry(volume.dims, volume.spacing, volume.name.empty() ? "volume" : volume.name);
+    if (std::int64_t(volume.voxels.size()) != volume.voxelCount())
+        throw SettingsError(volume.name + ": voxel buffer holds " + std::to_string(volume.voxels.size()) +
+                            " values, dims need " + std::to_string(volume.voxelCount()));
+    ProgressReporter pr(progress, cancel);
+    pr.stage("planning", 0.0, 0.02);
+
+    auto s = std::make_shared<Spectrum>();
+    s->kind = options.transform;
+    s->mapping = options.mapping;
+    s->sourceUnits = volume.units;
+    s->volumeDims = volume.dims;
+    s->spacing = volume.spacing;
+    s->padded = paddedDimsFor(volume.dims, options);
+    s->name = volume.name;
+    s->data = allocateFftw(s->floatCount());
+
+    ThreadPool pool(options.threads);
+    Transformer tr(*s, options, pool);
+    tr.plan();
+    pr.report(1.0);
+
+    pr.stage("mapping and padding", 0.02, 0.12);
+    fillPadded(volume, *s, options.mapping, pool, pr);
+
+    pr.stage("3D transform: planes", 0.12, 0.57);
+    tr.planesPass(pr);
+    pr.stage("3D transform: columns", 0.57, 0.92);
+    tr.columnsPass(pr);
+
+    pr.stage(options.transform == TransformKind::Fht ? "Hartley conversion" : "centring phase", 0.92,
+             1.0);
+    if (options.transform == TransformKind::Fft) applyPhaseComplex(*s, volume.dims, pool);
+    else if (tr.dht()) hartleyCorrection(*s, volume.dims, pool);
+    else complexToHartley(*s, volume.dims, pool);
+    pr.report(1.0);
+    detail::saveWisdom();
+    return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+PreprocessJob::PreprocessJob(std::shared_ptr<const Volume> volume, PreprocessOptions options)
+    : m_volume(std::move(volume)), m_options(std::move(options)) {
+    m_thread = std::thread([this] {
+        try {
+            auto result = preprocess(*m_volume, m_options,
+                                     [this](double f, std::string_view stage) {
+                                         m_fraction.store(f);
+                                         std::lock_guard lock(m_mutex);
+                                         m_stage = stage;
+                                     },
+                                     &m_cancel);
+            std::lock_guard lock(m_mutex);
+            m_result = std::move(result);
+        } catch (...) {
+            std::lock_guard lock(m_mutex);
+            m_error = std::current_exception();
+        }
+        m_finished.store(true);
+    });
+}
+
+PreprocessJob::~PreprocessJob() {
+    m_cancel.cancel();
+    if (m_thread.joinable()) m_thread.join();
+}
+
+std::string PreprocessJob::stage() const {
+    std::lock_guard lock(m_mutex);
+    return m_stage;
+}
+
+std::shared_ptr<const Spectrum> PreprocessJob::get() {
+    if (m_thread.joinable()) m_thread.join();
+    std::lock_guard lock(m_mutex);
+    if (m_error) std::rethrow_exception(m_error);
+    return m_result;
+}
+
+} // namespace fvr::core

@@ -1,0 +1,61 @@
+#include <fvr/core/view.h>
+
+#include <cmath>
+
+#include <fvr/core/errors.h>
+
+namespace fvr::core {
+
+namespace {
+Vec3 scaled(const Vec3& a, double s) { return {a[0] * s, a[1] * s, a[2] * s}; }
+Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
+
+Vec3 rotate(const Vec3& v, const Vec3& k, double angle) {
+    // Rodrigues' formula, k unit.
+    const double c = std::cos(angle), s = std::sin(angle);
+    const Vec3 kxv = cross(k, v);
+    const double kv = dot(k, v);
+    return {v[0] * c + kxv[0] * s + k[0] * kv * (1 - c), v[1] * c + kxv[1] * s + k[1] * kv * (1 - c),
+            v[2] * c + kxv[2] * s + k[2] * kv * (1 - c)};
+}
+} // namespace
+
+ViewFrame ViewFrame::fromDirUp(const Vec3& dir, const Vec3& up) {
+    const double nd = norm(dir);
+    if (!(nd > 1e-12) || !std::isfinite(nd))
+        throw SettingsError("view direction: expected a non-zero finite vector");
+    ViewFrame f;
+    f.d = scaled(dir, 1.0 / nd);
+    const Vec3 upOrtho = sub(up, scaled(f.d, dot(up, f.d)));
+    const double nu = norm(upOrtho);
+    if (!(nu > 1e-9 * std::max(1.0, norm(up))) || !std::isfinite(nu))
+        throw SettingsError("view up vector: expected a vector not parallel to the direction");
+    f.u = scaled(upOrtho, 1.0 / nu);
+    f.r = cross(f.d, f.u);
+    return f;
+}
+
+ViewFrame ViewFrame::rotated(const Vec3& axis, double angleRad) const {
+    const double n = norm(axis);
+    if (!(n > 1e-12)) throw SettingsError("rotation axis: expected a non-zero vector");
+    const Vec3 k = scaled(axis, 1.0 / n);
+    return fromDirUp(rotate(d, k, angleRad), rotate(u, k, angleRad));
+}
+
+double defaultPixelSize(const Dims3& dims, const Vec3& spacing, int size) {
+    double diag2 = 0.0;
+    for (int a = 0; a < 3; ++a) diag2 += double(dims[a]) * spacing[a] * double(dims[a]) * spacing[a];
+    return std::sqrt(diag2) / size;
+}
+
+void validateImageGeometry(const ImageGeometry& g) {
+    if (g.size < 16 || g.size > 4096 || (g.size & (g.size - 1)) != 0)
+        throw SettingsError("slice size: expected a power of two in 16..4096, found " +
+                            std::to_string(g.size));
+    if (!(g.pixelSize > 0.0) || !std::isfinite(g.pixelSize))
+        throw SettingsError("pixel size: expected a positive number of mm, found " +
+                            std::to_string(g.pixelSize));
+}
+
+} // namespace fvr::core

@@ -1,0 +1,31 @@
+#pragma once
+// Helpers shared by the test executables.
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+
+namespace fvr::test {
+
+/** ../shared/data as configured at build time (FVR_SHARED_DATA_DIR, overridable at run time). */
+inline std::filesystem::path sharedData() {
+    if (const char* env = std::getenv("FVR_SHARED_DATA_DIR")) return env;
+    return FVR_SHARED_DATA_DIR;
+}
+
+/** A scratch folder for files written by tests. */
+inline std::filesystem::path tmpDir() {
+    std::filesystem::path p = FVR_TEST_TMP_DIR;
+    std::filesystem::create_directories(p);
+    return p;
+}
+
+} // namespace fvr::test
+
+/** Skips the current test with a reason when a shared-data path is missing. */
+#define FVR_REQUIRE_DATA(relpath)                                                               \
+    do {                                                                                       \
+        if (!std::filesystem::exists(::fvr::test::sharedData() / (relpath)))                   \
+            GTEST_SKIP() << "shared data not found: " << (::fvr::test::sharedData() / (relpath)) \
+                         << " (tests that need ../shared/data are skipped without it)";        \
+    } while (0)

@@ -1,0 +1,110 @@
+#include <cstring>
+#include <fstream>
+#include <iterator>
+
+#include <gtest/gtest.h>
+#include <zlib.h>
+
+#include <fvr/core/errors.h>
+#include <fvr/core/image_io.h>
+
+#include "test_support.h"
+
+using namespace fvr::core;
+
+namespace {
+std::string slurp(const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+std::vector<float> ramp(int rows, int cols) {
+    std::vector<float> v(std::size_t(rows) * cols);
+    for (int r = 0; r < rows; ++r)
+        for (int c = 0; c < cols; ++c) v[std::size_t(r) * cols + c] = float(r * 100 + c);
+    return v;
+}
+} // namespace
+
+TEST(ImageIo, NpyRoundTripAndHeader) {
+    const auto v = ramp(5, 7);
+    const auto p = fvr::test::tmpDir() / "ramp.npy";
+    writeNpy(p, v.data(), 5, 7);
+    const std::string bytes = slurp(p);
+    ASSERT_EQ(bytes.substr(0, 6), "\x93NUMPY");
+    const std::size_t hlen = std::uint8_t(bytes[8]) | (std::uint8_t(bytes[9]) << 8);
+    EXPECT_EQ((10 + hlen) % 64, 0u);
+    EXPECT_NE(bytes.find("'shape': (5, 7)"), std::string::npos);
+    EXPECT_NE(bytes.find("'fortran_order': False"), std::string::npos);
+    std::vector<std::int64_t> shape;
+    EXPECT_EQ(readNpy(p, shape), v);
+    EXPECT_EQ(shape, (std::vector<std::int64_t>{5, 7}));
+    // Stacked (N, M, M)
+    std::vector<float> stack(3 * 4 * 4, 1.5f);
+    writeNpy(p, stack.data(), 4, 4, 3);
+    EXPECT_EQ(readNpy(p, shape).size(), 48u);
+    EXPECT_EQ(shape, (std::vector<std::int64_t>{3, 4, 4}));
+}
+
+TEST(ImageIo, PfmStoresRowsBottomToTop) {
+    const auto v = ramp(3, 4);
+    const auto p = fvr::test::tmpDir() / "ramp.pfm";
+    writePfm(p, v.data(), 3, 4);
+    const std::string bytes = slurp(p);
+    const std::string header = "Pf\n4 3\n-1.0\n";
+    ASSERT_EQ(bytes.substr(0, header.size()), header);
+    ASSERT_EQ(bytes.size(), header.size() + 12 * 4);
+    float first;
+    std::memcpy(&first, bytes.data() + header.size(), 4);
+    EXPECT_EQ(first, 200.0f); // bottom row (row 2), column 0
+}
+
+TEST(ImageIo, PngDecodesToWindowedValues) {
+    const auto v = ramp(2, 3); // 0 1 2 / 100 101 102
+    const auto p = fvr::test::tmpDir() / "ramp.png";
+    for (int depth : {8, 16}) {
+        writePng(p, v.data(), 2, 3, {0.0, 102.0, false}, depth);
+        const std::string b = slurp(p);
+        ASSERT_EQ(b.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+        ASSERT_EQ(b.substr(12, 4), "IHDR");
+        EXPECT_EQ(std::uint8_t(b[24]), depth);
+        const auto idat = b.find("IDAT");
+        ASSERT_NE(idat, std::string::npos);
+        const std::uint32_t len = (std::uint8_t(b[idat - 4]) << 24) | (std::uint8_t(b[idat - 3]) << 16) |
+                                  (std::uint8_t(b[idat - 2]) << 8) | std::uint8_t(b[idat - 1]);
+        const int bpp = depth / 8;
+        std::vector<unsigned char> raw(2 * (1 + 3 * bpp));
+        uLongf rawLen = uLongf(raw.size());
+        ASSERT_EQ(uncompress(raw.data(), &rawLen, reinterpret_cast<const Bytef*>(b.data() + idat + 4), len), Z_OK);
+        ASSERT_EQ(rawLen, raw.size());
+        auto px = [&](int r, int c) {
+            const unsigned char* q = &raw[r * (1 + 3 * bpp) + 1 + c * bpp];
+            return bpp == 2 ? (q[0] << 8 | q[1]) : q[0];
+        };
+        const int maxv = depth == 8 ? 255 : 65535;
+        EXPECT_EQ(px(0, 0), 0);
+        EXPECT_EQ(px(1, 2), maxv);
+        EXPECT_EQ(px(1, 0), std::lround(100.0 / 102.0 * maxv));
+    }
+}
+
+TEST(ImageIo, AutoWindowIgnoresOutliers) {
+    std::vector<float> v(10000);
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = float(i % 100);
+    v[5] = 1e9f;
+    const auto w = autoWindow(v);
+    EXPECT_LT(w.high, 100.0);
+    EXPECT_GE(w.low, 0.0);
+}
+
+TEST(ImageIo, UnknownExtensionAndUnwritablePath) {
+    ProjectionImage img;
+    img.size = 2;
+    img.pixels.assign(4, 1.0f);
+    EXPECT_THROW(writeProjection(fvr::test::tmpDir() / "x.bmp", img), WriteError);
+    try {
+        writeProjection("/nonexistent-dir/x.npy", img);
+        FAIL() << "expected WriteError";
+    } catch (const WriteError& e) {
+        EXPECT_NE(std::string(e.what()).find("/nonexistent-dir/x.npy"), std::string::npos);
+    }
+}
