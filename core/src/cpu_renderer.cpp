@@ -88,11 +88,38 @@ inline void axisWeights(const SliceContext& c, double k, std::int64_t& base, flo
     if constexpr (T == 1) {
         base = std::int64_t(std::floor(k + 0.5));
         w[0] = 1.0f;
+    } else if constexpr (T == 2) {
+        // The linear table is exact; computing the two weights directly is cheaper.
+        const double f = std::floor(k);
+        base = std::int64_t(f);
+        w[1] = float(k - f);
+        w[0] = 1.0f - w[1];
     } else {
         const double f = std::floor(k);
         base = std::int64_t(f) + c.first;
         c.table->weights(k - f, w);
     }
+}
+
+/** Prefetches the spectrum rows a later sample will read (the slice walks the spectrum along a
+ *  plane: the loads are cache misses, so issuing them early overlaps their latency). */
+template <int T>
+inline void prefetchComplex(const SliceContext& c, double kx, double ky, double kz) {
+    if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return;
+    if (kx < 0) {
+        kx = -kx;
+        ky = -ky;
+        kz = -kz;
+    }
+    const std::int64_t off = T == 4 ? -1 : 0;
+    const std::int64_t bx = std::int64_t(T == 1 ? std::floor(kx + 0.5) : std::floor(kx)) + off;
+    const std::int64_t by = std::int64_t(T == 1 ? std::floor(ky + 0.5) : std::floor(ky)) + off;
+    const std::int64_t bz = std::int64_t(T == 1 ? std::floor(kz + 0.5) : std::floor(kz)) + off;
+    const std::int64_t ix = std::max<std::int64_t>(0, std::min(bx, c.P0 / 2));
+    const float* base = c.data + 2 * ix;
+    for (int zc = 0; zc < T; ++zc)
+        for (int yc = 0; yc < T; ++yc)
+            __builtin_prefetch(base + (wrapSmall(by + yc, c.P1) + c.P1 * wrapSmall(bz + zc, c.P2)) * c.rs);
 }
 
 /** Interpolated complex G at continuous signed frequency k from the half spectrum. */
@@ -149,6 +176,19 @@ inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double 
             }
     }
     return conjugate ? std::conj(acc) : acc;
+}
+
+template <int T>
+inline void prefetchHartley(const SliceContext& c, double kx, double ky, double kz) {
+    if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return;
+    const std::int64_t off = T == 4 ? -1 : 0;
+    const std::int64_t bx = std::int64_t(T == 1 ? std::floor(kx + 0.5) : std::floor(kx)) + off;
+    const std::int64_t by = std::int64_t(T == 1 ? std::floor(ky + 0.5) : std::floor(ky)) + off;
+    const std::int64_t bz = std::int64_t(T == 1 ? std::floor(kz + 0.5) : std::floor(kz)) + off;
+    const float* base = c.data + wrapSmall(bx, c.P0);
+    for (int zc = 0; zc < T; ++zc)
+        for (int yc = 0; yc < T; ++yc)
+            __builtin_prefetch(base + (wrapSmall(by + yc, c.P1) + c.P1 * wrapSmall(bz + zc, c.P2)) * c.rs);
 }
 
 /** Interpolated Hartley value at continuous signed frequency k. */
@@ -208,6 +248,10 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, int M, cfloa
                         for (int b = 0; b < ns; ++b) sum += sample(a ? -m : m, b ? -n : n);
                     v = sum / float(ms * ns);
                 } else {
+                    constexpr int kAhead = 6;
+                    const double ma = m + kAhead;
+                    prefetchComplex<T>(c, ma * f.A[0] + n * f.B[0], ma * f.A[1] + n * f.B[1],
+                                       ma * f.A[2] + n * f.B[2]);
                     v = sample(m, n);
                 }
                 row[m] = v * sign;
@@ -240,6 +284,10 @@ void sliceFullHartley(const SliceContext& c, const FrameMapping& f, int M, float
                         for (int b = 0; b < ns; ++b) sum += sample(a ? -m : m, b ? -n : n);
                     v = sum / float(ms * ns);
                 } else {
+                    constexpr int kAhead = 6;
+                    const double ma = m + kAhead;
+                    prefetchHartley<T>(c, ma * f.A[0] + n * f.B[0], ma * f.A[1] + n * f.B[1],
+                                       ma * f.A[2] + n * f.B[2]);
                     v = sample(m, n);
                 }
                 row[col] = v * sign;
