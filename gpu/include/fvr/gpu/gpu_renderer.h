@@ -1,0 +1,101 @@
+#pragma once
+/** Fourier volume rendering on the GPU (OpenGL 4.3 compute shaders). Renders into whatever
+ *  context is current: the workstation's QOpenGLWidget, an offscreen context for fvr-render and
+ *  the tests. Computes exactly what fvr::core::CpuFourierRenderer computes. */
+#include <complex>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <fvr/core/cpu_renderer.h>
+#include <fvr/core/image_io.h>
+#include <fvr/core/spectrum.h>
+
+class QOpenGLFunctions_4_3_Core;
+
+namespace fvr::gpu {
+
+/** Storage of the spectrum texture: float32 (4 bytes per voxel) or float16 (2 bytes). */
+enum class SpectrumPrecision { Float32, Float16 };
+
+/** GPU time per stage (timer queries), ms. When the slice is fused into the row FFT pass, the
+ *  slice time is 0 and `inverseMs` holds both. */
+struct GpuStageTimes {
+    double sliceMs = 0.0;
+    double inverseMs = 0.0;
+    double displayMs = 0.0;
+    double totalMs = 0.0;
+    bool fused = false;
+};
+
+class GpuFourierRenderer {
+public:
+    /** Needs a current OpenGL >= 4.3 context; throws GlError otherwise. All later calls need the
+     *  same context current; releaseGl() (or the destructor) frees the GL objects. */
+    GpuFourierRenderer();
+    ~GpuFourierRenderer();
+    GpuFourierRenderer(const GpuFourierRenderer&) = delete;
+    GpuFourierRenderer& operator=(const GpuFourierRenderer&) = delete;
+
+    /** Uploads the spectrum as a 3D texture (RG for the half spectrum, R for Hartley). Checks the
+     *  texture size limit and, where the driver reports it, free GPU memory first; throws
+     *  GpuMemoryError with the sizes when it does not fit. */
+    void setSpectrum(std::shared_ptr<const core::Spectrum> spectrum,
+                     SpectrumPrecision precision = SpectrumPrecision::Float32);
+    bool hasSpectrum() const { return bool(m_spectrum); }
+    std::size_t spectrumTextureBytes() const { return m_textureBytes; }
+
+    /** Slice the spectrum inside the first (row) FFT pass instead of a separate pass (faster;
+     *  the per-stage times then merge slice and inverse). Default on. */
+    void setFuseSlice(bool fuse) { m_fuse = fuse; }
+
+    /** Renders into GPU buffers (no readback). Throws SettingsError, GlError. */
+    void render(const core::RenderParams& params);
+    /** The last render's float line integrals (row 0 at the top). */
+    core::ProjectionImage readback() const;
+    /** render() + readback() with the stage times. */
+    core::ProjectionImage renderImage(const core::RenderParams& params, GpuStageTimes* times = nullptr);
+    /** Maps the last render through the window into an RGBA8 M x M texture and returns its id. */
+    unsigned displayTexture(const core::DisplayWindow& window);
+    /** Stage times of the last render (and display pass, if any); waits for the GPU. */
+    GpuStageTimes lastTimes();
+
+    /** Inverse 2D FFT (unnormalised, FFTW_BACKWARD) of a row-major complex M x M array with the
+     *  renderer's row and column passes: for tests against FFTW. */
+    std::vector<std::complex<float>> inverseFft2D(const std::vector<std::complex<float>>& data, int size);
+    /** Inverse 2D FHT (separable passes + eq. 4) of a real M x M array (tests). */
+    std::vector<float> inverseFht2D(const std::vector<float>& data, int size);
+
+    /** Compiles every shader variant for size M (tests: every shader compiles). Returns the
+     *  number of programs built. */
+    int compileAll(int size);
+    std::string rendererInfo() const;
+    void releaseGl();
+
+private:
+    struct Program;
+    unsigned program(const std::string& path, const std::vector<std::pair<std::string, std::string>>& defines);
+    void ensureSize(int size);
+    void bindKernel(unsigned prog, core::Kernel kernel);
+    void setSliceUniforms(unsigned prog, const core::RenderParams& params);
+    void runRows(int M, bool fused, bool hartley, core::Kernel kernel, const core::RenderParams* params);
+    void runCols(int M, const char* outputMode);
+
+    QOpenGLFunctions_4_3_Core* m_gl = nullptr;
+    std::shared_ptr<const core::Spectrum> m_spectrum;
+    std::size_t m_textureBytes = 0;
+    unsigned m_texture = 0;
+    bool m_fuse = true;
+    std::map<std::string, unsigned> m_programs;
+    std::map<core::Kernel, unsigned> m_kernelBuffers;
+    std::map<core::Kernel, std::unique_ptr<core::KernelTable>> m_tables;
+    int m_size = 0;
+    unsigned m_twiddles = 0, m_bufA = 0, m_bufB = 0, m_image = 0, m_hartleyT = 0, m_display = 0;
+    unsigned m_queries[4] = {0, 0, 0, 0};
+    bool m_timesPending = false, m_displayTimed = false;
+    GpuStageTimes m_times;
+    core::RenderParams m_last;
+};
+
+} // namespace fvr::gpu

@@ -1,0 +1,447 @@
+#include <fvr/gpu/gpu_renderer.h>
+
+#include <QOpenGLContext>
+#include <QOpenGLFunctions_4_3_Core>
+#include <QOpenGLVersionFunctionsFactory>
+
+#include <algorithm>
+#include <cstring>
+
+#include <fvr/core/errors.h>
+#include <fvr/gpu/errors.h>
+#include <fvr/gpu/fft_plan.h>
+#include <fvr/gpu/shader_source.h>
+
+namespace fvr::gpu {
+
+using core::Kernel;
+
+namespace {
+constexpr GLenum kGpuMemoryInfoAvailableNvx = 0x9049; // GL_GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX (KiB)
+constexpr GLenum kTextureFreeMemoryAti = 0x87FC;      // GL_TEXTURE_FREE_MEMORY_ATI (KiB)
+
+int tapsOf(Kernel k) { return k == Kernel::Nearest ? 1 : (k == Kernel::Linear ? 2 : 4); }
+int workGroupSize(int M) { return std::min(256, M / 2); }
+
+std::string glErrorName(GLenum e) {
+    switch (e) {
+    case GL_INVALID_ENUM: return "GL_INVALID_ENUM";
+    case GL_INVALID_VALUE: return "GL_INVALID_VALUE";
+    case GL_INVALID_OPERATION: return "GL_INVALID_OPERATION";
+    case GL_OUT_OF_MEMORY: return "GL_OUT_OF_MEMORY";
+    case GL_INVALID_FRAMEBUFFER_OPERATION: return "GL_INVALID_FRAMEBUFFER_OPERATION";
+    default: return "GL error " + std::to_string(e);
+    }
+}
+} // namespace
+
+GpuFourierRenderer::GpuFourierRenderer() {
+    QOpenGLContext* ctx = QOpenGLContext::currentContext();
+    if (!ctx) throw GlError("GPU renderer: no current OpenGL context");
+    const auto fmt = ctx->format();
+    if (fmt.majorVersion() < 4 || (fmt.majorVersion() == 4 && fmt.minorVersion() < 3) || ctx->isOpenGLES())
+        throw GlError("GPU renderer: OpenGL 4.3 (compute shaders) needed, the context offers " +
+                      std::to_string(fmt.majorVersion()) + "." + std::to_string(fmt.minorVersion()));
+    m_gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(ctx);
+    if (!m_gl || !m_gl->initializeOpenGLFunctions())
+        throw GlError("GPU renderer: could not resolve the OpenGL 4.3 core functions");
+    for (Kernel k : core::allKernels()) m_tables.emplace(k, std::make_unique<core::KernelTable>(k));
+    m_gl->glGenQueries(4, m_queries);
+}
+
+GpuFourierRenderer::~GpuFourierRenderer() {
+    if (QOpenGLContext::currentContext()) releaseGl();
+}
+
+void GpuFourierRenderer::releaseGl() {
+    if (!m_gl) return;
+    auto del = [&](unsigned& b) {
+        if (b) m_gl->glDeleteBuffers(1, &b);
+        b = 0;
+    };
+    for (auto& [name, p] : m_programs) m_gl->glDeleteProgram(p);
+    m_programs.clear();
+    for (auto& [k, b] : m_kernelBuffers) m_gl->glDeleteBuffers(1, &b);
+    m_kernelBuffers.clear();
+    del(m_twiddles);
+    del(m_bufA);
+    del(m_bufB);
+    del(m_image);
+    del(m_hartleyT);
+    if (m_texture) m_gl->glDeleteTextures(1, &m_texture);
+    if (m_display) m_gl->glDeleteTextures(1, &m_display);
+    m_texture = m_display = 0;
+    if (m_queries[0]) m_gl->glDeleteQueries(4, m_queries);
+    std::fill(std::begin(m_queries), std::end(m_queries), 0u);
+    m_size = 0;
+    m_gl = nullptr;
+}
+
+std::string GpuFourierRenderer::rendererInfo() const {
+    auto str = [&](GLenum e) {
+        const auto* s = reinterpret_cast<const char*>(m_gl->glGetString(e));
+        return s ? std::string(s) : std::string("?");
+    };
+    return str(GL_RENDERER) + " (" + str(GL_VERSION) + ")";
+}
+
+unsigned GpuFourierRenderer::program(const std::string& path,
+                                     const std::vector<std::pair<std::string, std::string>>& defines) {
+    std::string key = path;
+    for (const auto& [n, v] : defines) key += "|" + n + "=" + v;
+    if (auto it = m_programs.find(key); it != m_programs.end()) return it->second;
+    const ShaderSource src = ShaderSource::assemble(path, defines, ShaderSource::defaultReader());
+    const GLuint sh = m_gl->glCreateShader(GL_COMPUTE_SHADER);
+    const char* text = src.text().c_str();
+    m_gl->glShaderSource(sh, 1, &text, nullptr);
+    m_gl->glCompileShader(sh);
+    GLint ok = 0;
+    m_gl->glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+        GLint len = 0;
+        m_gl->glGetShaderiv(sh, GL_INFO_LOG_LENGTH, &len);
+        std::string log(std::size_t(std::max(len, 1)), '\0');
+        m_gl->glGetShaderInfoLog(sh, len, nullptr, log.data());
+        m_gl->glDeleteShader(sh);
+        throw ShaderError("shader " + key + " failed to compile:\n" + src.mapLog(log.c_str()));
+    }
+    const GLuint prog = m_gl->glCreateProgram();
+    m_gl->glAttachShader(prog, sh);
+    m_gl->glLinkProgram(prog);
+    m_gl->glDeleteShader(sh);
+    m_gl->glGetProgramiv(prog, GL_LINK_STATUS, &ok);
+    if (!ok) {
+        GLint len = 0;
+        m_gl->glGetProgramiv(prog, GL_INFO_LOG_LENGTH, &len);
+        std::string log(std::size_t(std::max(len, 1)), '\0');
+        m_gl->glGetProgramInfoLog(prog, len, nullptr, log.data());
+        m_gl->glDeleteProgram(prog);
+        throw ShaderError("shader " + key + " failed to link:\n" + src.mapLog(log.c_str()));
+    }
+    m_programs.emplace(key, prog);
+    return prog;
+}
+
+void GpuFourierRenderer::setSpectrum(std::shared_ptr<const core::Spectrum> s, SpectrumPrecision precision) {
+    if (!s || !s->data) throw GlError("GPU renderer: no spectrum");
+    const bool fht = s->kind == core::TransformKind::Fht;
+    const GLint width = GLint(fht ? s->padded[0] : s->padded[0] / 2 + 1);
+    const GLint height = GLint(s->padded[1]), depth = GLint(s->padded[2]);
+    GLint max3d = 0;
+    m_gl->glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
+    if (width > max3d || height > max3d || depth > max3d)
+        throw GpuMemoryError("spectrum texture " + std::to_string(width) + "x" + std::to_string(height) + "x" +
+                             std::to_string(depth) + " exceeds the GPU's 3D texture limit of " +
+                             std::to_string(max3d) + " per axis");
+    const std::size_t channels = fht ? 1 : 2;
+    const std::size_t bytes = std::size_t(width) * height * depth * channels *
+                              (precision == SpectrumPrecision::Float16 ? 2 : 4);
+    // Free memory where the driver tells (NVIDIA, AMD); otherwise the upload's GL_OUT_OF_MEMORY.
+    GLint freeKiB[4] = {0, 0, 0, 0};
+    const QOpenGLContext* ctx = QOpenGLContext::currentContext();
+    if (ctx->hasExtension("GL_NVX_gpu_memory_info")) m_gl->glGetIntegerv(kGpuMemoryInfoAvailableNvx, freeKiB);
+    else if (ctx->hasExtension("GL_ATI_meminfo")) m_gl->glGetIntegerv(kTextureFreeMemoryAti, freeKiB);
+    while (m_gl->glGetError() != GL_NO_ERROR) {
+    }
+    const std::size_t freeBytes = std::size_t(freeKiB[0]) * 1024;
+    const std::size_t current = m_texture ? m_textureBytes : 0;
+    if (freeBytes > 0 && bytes > freeBytes + current)
+        throw GpuMemoryError("spectrum needs " + std::to_string(bytes >> 20) + " MiB of GPU memory, " +
+                             std::to_string((freeBytes + current) >> 20) +
+                             " MiB are free (try fp16 storage or a smaller oversampling)");
+    if (m_texture) m_gl->glDeleteTextures(1, &m_texture);
+    m_gl->glGenTextures(1, &m_texture);
+    m_gl->glBindTexture(GL_TEXTURE_3D, m_texture);
+    m_gl->glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    m_gl->glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    const GLenum internal = fht ? (precision == SpectrumPrecision::Float16 ? GL_R16F : GL_R32F)
+                                : (precision == SpectrumPrecision::Float16 ? GL_RG16F : GL_RG32F);
+    m_gl->glTexStorage3D(GL_TEXTURE_3D, 1, internal, width, height, depth);
+    GLenum err = m_gl->glGetError();
+    if (err == GL_NO_ERROR) {
+        m_gl->glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+        m_gl->glPixelStorei(GL_UNPACK_ROW_LENGTH, GLint(fht ? s->rowStride() : 0));
+        // Upload in slabs so the driver never copies the whole volume at once.
+        const GLint slab = std::max<GLint>(1, GLint((64 << 20) / (std::size_t(s->rowStride()) * height * 4)));
+        for (GLint z = 0; z < depth && err == GL_NO_ERROR; z += slab) {
+            const GLint n = std::min(slab, depth - z);
+            const float* src = s->data.get() + std::size_t(z) * s->rowStride() * height;
+            m_gl->glTexSubImage3D(GL_TEXTURE_3D, 0, 0, 0, z, width, height, n, fht ? GL_RED : GL_RG, GL_FLOAT, src);
+            err = m_gl->glGetError();
+        }
+        m_gl->glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+    }
+    if (err != GL_NO_ERROR) {
+        m_gl->glDeleteTextures(1, &m_texture);
+        m_texture = 0;
+        m_spectrum.reset();
+        if (err == GL_OUT_OF_MEMORY)
+            throw GpuMemoryError("spectrum texture of " + std::to_string(bytes >> 20) +
+                                 " MiB does not fit in GPU memory (try fp16 storage or a smaller oversampling)");
+        throw GlError("spectrum upload failed: " + glErrorName(err));
+    }
+    m_spectrum = std::move(s);
+    m_textureBytes = bytes;
+}
+
+void GpuFourierRenderer::ensureSize(int M) {
+    if (m_size == M) return;
+    auto buffer = [&](unsigned& b, std::size_t bytes, const void* data = nullptr) {
+        if (!b) m_gl->glGenBuffers(1, &b);
+        m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
+        m_gl->glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(bytes), data, GL_DYNAMIC_COPY);
+    };
+    const FftPlan plan(M, +1);
+    buffer(m_twiddles, plan.twiddles().size() * sizeof(float), plan.twiddles().data());
+    const std::size_t n = std::size_t(M) * M;
+    buffer(m_bufA, n * 8);
+    buffer(m_bufB, n * 8);
+    buffer(m_image, n * 4);
+    buffer(m_hartleyT, n * 4);
+    if (const GLenum err = m_gl->glGetError(); err != GL_NO_ERROR)
+        throw GlError("GPU buffers for M = " + std::to_string(M) + ": " + glErrorName(err));
+    if (m_display) m_gl->glDeleteTextures(1, &m_display);
+    m_gl->glGenTextures(1, &m_display);
+    m_gl->glBindTexture(GL_TEXTURE_2D, m_display);
+    m_gl->glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA8, M, M);
+    m_gl->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    m_gl->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    m_size = M;
+}
+
+void GpuFourierRenderer::bindKernel(unsigned prog, Kernel kernel) {
+    auto it = m_kernelBuffers.find(kernel);
+    if (it == m_kernelBuffers.end()) {
+        GLuint b = 0;
+        m_gl->glGenBuffers(1, &b);
+        m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
+        const auto& t = m_tables.at(kernel)->table();
+        m_gl->glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(t.size() * sizeof(float)), t.data(), GL_STATIC_DRAW);
+        it = m_kernelBuffers.emplace(kernel, b).first;
+    }
+    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, it->second);
+    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uKernelRes"), core::KernelTable::kResolution);
+    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uKernelFirst"), m_tables.at(kernel)->firstTapOffset());
+}
+
+void GpuFourierRenderer::setSliceUniforms(unsigned prog, const core::RenderParams& p) {
+    const core::Spectrum& s = *m_spectrum;
+    const int M = p.image.size;
+    const double d = p.image.pixelSize;
+    float A[3], B[3];
+    for (int a = 0; a < 3; ++a) {
+        const double perIndex = s.spacing[a] * double(s.padded[a]) / (M * d);
+        A[a] = float(p.view.r[a] * perIndex);
+        B[a] = float(-p.view.u[a] * perIndex);
+    }
+    auto loc = [&](const char* n) { return m_gl->glGetUniformLocation(prog, n); };
+    m_gl->glUniform3i(loc("uPadded"), GLint(s.padded[0]), GLint(s.padded[1]), GLint(s.padded[2]));
+    m_gl->glUniform3f(loc("uHalf"), float(s.padded[0] / 2.0 + 1e-4), float(s.padded[1] / 2.0 + 1e-4),
+                      float(s.padded[2] / 2.0 + 1e-4));
+    m_gl->glUniform3f(loc("uA"), A[0], A[1], A[2]);
+    m_gl->glUniform3f(loc("uB"), B[0], B[1], B[2]);
+    m_gl->glUniform1f(loc("uScale"), float(s.spacing[0] * s.spacing[1] * s.spacing[2] / ((M * d) * (M * d))));
+    m_gl->glActiveTexture(GL_TEXTURE0);
+    m_gl->glBindTexture(GL_TEXTURE_3D, m_texture);
+    m_gl->glUniform1i(loc("uSpectrum"), 0);
+    bindKernel(prog, p.kernel);
+}
+
+void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel, const core::RenderParams* params) {
+    int log2 = 0;
+    while ((1 << log2) < M) ++log2;
+    std::vector<std::pair<std::string, std::string>> defs{{"MAX_M", std::to_string(M)},
+                                                          {"WG_SIZE", std::to_string(workGroupSize(M))}};
+    if (fused) {
+        defs.emplace_back("FUSED_SLICE", "1");
+        defs.emplace_back("TAPS", std::to_string(tapsOf(kernel)));
+        if (m_spectrum->kind == core::TransformKind::Fht) defs.emplace_back("SPECTRUM_FHT", "1");
+    }
+    if (hartley) defs.emplace_back("HARTLEY_ROWS", "1");
+    const GLuint prog = program("fft/rows.comp", defs);
+    m_gl->glUseProgram(prog);
+    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
+    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uLog2M"), log2);
+    if (fused) setSliceUniforms(prog, *params);
+    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_bufA); // input (unfused)
+    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_bufB); // transposed output
+    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, m_twiddles);
+    m_gl->glDispatchCompute(GLuint(M), 1, 1);
+    m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+}
+
+void GpuFourierRenderer::runCols(int M, const char* outputMode) {
+    int log2 = 0;
+    while ((1 << log2) < M) ++log2;
+    const GLuint prog = program("fft/cols.comp", {{"MAX_M", std::to_string(M)},
+                                                  {"WG_SIZE", std::to_string(workGroupSize(M))},
+                                                  {outputMode, "1"}});
+    m_gl->glUseProgram(prog);
+    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
+    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uLog2M"), log2);
+    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_bufB);
+    const bool complexOut = std::strcmp(outputMode, "OUTPUT_COMPLEX") == 0;
+    const bool hartleyOut = std::strcmp(outputMode, "OUTPUT_HARTLEY") == 0;
+    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, complexOut ? m_bufA : (hartleyOut ? m_hartleyT : m_image));
+    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, m_twiddles);
+    m_gl->glDispatchCompute(GLuint(M), 1, 1);
+    m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+}
+
+void GpuFourierRenderer::render(const core::RenderParams& p) {
+    core::validateImageGeometry(p.image);
+    if (!m_spectrum) throw GlError("GPU renderer: no spectrum uploaded");
+    const int M = p.image.size;
+    if (M > 4096) throw core::SettingsError("GPU slice size: at most 4096");
+    ensureSize(M);
+    const bool fht = m_spectrum->kind == core::TransformKind::Fht;
+    m_gl->glQueryCounter(m_queries[0], GL_TIMESTAMP);
+    if (!m_fuse) {
+        std::vector<std::pair<std::string, std::string>> defs{{"TAPS", std::to_string(tapsOf(p.kernel))}};
+        if (fht) defs.emplace_back("SPECTRUM_FHT", "1");
+        const GLuint prog = program("slice/slice.comp", defs);
+        m_gl->glUseProgram(prog);
+        m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
+        setSliceUniforms(prog, p);
+        m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_bufA);
+        m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
+        m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    }
+    m_gl->glQueryCounter(m_queries[1], GL_TIMESTAMP);
+    runRows(M, m_fuse, fht, p.kernel, &p);
+    if (!fht) {
+        runCols(M, "OUTPUT_REAL");
+    } else {
+        runCols(M, "OUTPUT_HARTLEY");
+        const GLuint prog = program("fft/hartley_correct.comp", {});
+        m_gl->glUseProgram(prog);
+        m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
+        m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_hartleyT);
+        m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_image);
+        m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
+        m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    }
+    m_gl->glQueryCounter(m_queries[2], GL_TIMESTAMP);
+    if (const GLenum err = m_gl->glGetError(); err != GL_NO_ERROR)
+        throw GlError("GPU render failed: " + glErrorName(err));
+    m_timesPending = true;
+    m_displayTimed = false;
+    m_last = p;
+}
+
+core::ProjectionImage GpuFourierRenderer::readback() const {
+    if (!m_size) throw GlError("GPU renderer: nothing rendered yet");
+    core::ProjectionImage img;
+    img.size = m_last.image.size;
+    img.pixelSize = m_last.image.pixelSize;
+    img.view = m_last.view;
+    img.mapping = m_spectrum->mapping;
+    img.pixels.resize(std::size_t(img.size) * img.size);
+    m_gl->glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_image);
+    m_gl->glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(img.pixels.size() * 4), img.pixels.data());
+    return img;
+}
+
+core::ProjectionImage GpuFourierRenderer::renderImage(const core::RenderParams& p, GpuStageTimes* times) {
+    render(p);
+    auto img = readback();
+    if (times) *times = lastTimes();
+    return img;
+}
+
+unsigned GpuFourierRenderer::displayTexture(const core::DisplayWindow& w) {
+    if (!m_size) throw GlError("GPU renderer: nothing rendered yet");
+    const int M = m_size;
+    const GLuint prog = program("display/display.comp", {});
+    m_gl->glUseProgram(prog);
+    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
+    m_gl->glUniform1f(m_gl->glGetUniformLocation(prog, "uLow"), float(w.low));
+    m_gl->glUniform1f(m_gl->glGetUniformLocation(prog, "uHigh"), float(w.high > w.low ? w.high : w.low + 1.0));
+    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uInvert"), w.invert ? 1 : 0);
+    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_image);
+    m_gl->glBindImageTexture(0, m_display, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA8);
+    m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
+    m_gl->glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+    m_gl->glQueryCounter(m_queries[3], GL_TIMESTAMP);
+    m_displayTimed = m_timesPending;
+    return m_display;
+}
+
+GpuStageTimes GpuFourierRenderer::lastTimes() {
+    if (!m_timesPending) return m_times;
+    GLuint64 t[4] = {0, 0, 0, 0};
+    const int n = m_displayTimed ? 4 : 3;
+    for (int i = 0; i < n; ++i) m_gl->glGetQueryObjectui64v(m_queries[i], GL_QUERY_RESULT, &t[i]);
+    m_times.fused = m_fuse;
+    m_times.sliceMs = double(t[1] - t[0]) * 1e-6;
+    m_times.inverseMs = double(t[2] - t[1]) * 1e-6;
+    m_times.displayMs = m_displayTimed ? double(t[3] - t[2]) * 1e-6 : 0.0;
+    m_times.totalMs = double(t[n - 1] - t[0]) * 1e-6;
+    m_timesPending = false;
+    return m_times;
+}
+
+std::vector<std::complex<float>> GpuFourierRenderer::inverseFft2D(const std::vector<std::complex<float>>& data,
+                                                                 int M) {
+    if (data.size() != std::size_t(M) * M) throw core::SettingsError("inverseFft2D: data size is not M*M");
+    ensureSize(M);
+    m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
+    m_gl->glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(data.size() * 8), data.data());
+    runRows(M, false, false, Kernel::Linear, nullptr);
+    runCols(M, "OUTPUT_COMPLEX");
+    std::vector<std::complex<float>> out(data.size());
+    m_gl->glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
+    m_gl->glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(out.size() * 8), out.data());
+    return out;
+}
+
+std::vector<float> GpuFourierRenderer::inverseFht2D(const std::vector<float>& data, int M) {
+    if (data.size() != std::size_t(M) * M) throw core::SettingsError("inverseFht2D: data size is not M*M");
+    ensureSize(M);
+    std::vector<std::complex<float>> in(data.begin(), data.end());
+    m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
+    m_gl->glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(in.size() * 8), in.data());
+    runRows(M, false, true, Kernel::Linear, nullptr);
+    runCols(M, "OUTPUT_HARTLEY");
+    const GLuint prog = program("fft/hartley_correct.comp", {});
+    m_gl->glUseProgram(prog);
+    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
+    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_hartleyT);
+    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_image);
+    m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
+    m_gl->glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    std::vector<float> out(data.size());
+    m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_image);
+    m_gl->glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(out.size() * 4), out.data());
+    return out;
+}
+
+int GpuFourierRenderer::compileAll(int M) {
+    const std::string mm = std::to_string(M), wg = std::to_string(workGroupSize(M));
+    int count = 0;
+    for (int taps : {1, 2, 4})
+        for (bool fht : {false, true}) {
+            std::vector<std::pair<std::string, std::string>> d{{"TAPS", std::to_string(taps)}};
+            if (fht) d.emplace_back("SPECTRUM_FHT", "1");
+            program("slice/slice.comp", d), ++count;
+            auto r = d;
+            r.insert(r.begin(), {{"MAX_M", mm}, {"WG_SIZE", wg}});
+            r.emplace_back("FUSED_SLICE", "1");
+            if (fht) r.emplace_back("HARTLEY_ROWS", "1");
+            program("fft/rows.comp", r), ++count;
+        }
+    for (bool hartley : {false, true}) {
+        std::vector<std::pair<std::string, std::string>> r{{"MAX_M", mm}, {"WG_SIZE", wg}};
+        if (hartley) r.emplace_back("HARTLEY_ROWS", "1");
+        program("fft/rows.comp", r), ++count;
+    }
+    for (const char* mode : {"OUTPUT_REAL", "OUTPUT_HARTLEY", "OUTPUT_COMPLEX"})
+        program("fft/cols.comp", {{"MAX_M", mm}, {"WG_SIZE", wg}, {mode, "1"}}), ++count;
+    program("fft/hartley_correct.comp", {}), ++count;
+    program("display/display.comp", {}), ++count;
+    return count;
+}
+
+} // namespace fvr::gpu

@@ -1,0 +1,15 @@
+#version 430
+// The paper's eq. 4: the separable product T of 1D Hartley transforms becomes the 2D Hartley
+// transform, H(u,v) = 1/2 (T(u,v) + T(-u,v) + T(u,-v) - T(-u,-v)).
+layout(local_size_x = 16, local_size_y = 16) in;
+uniform int uM;
+layout(std430, binding = 1) readonly buffer TIn { float tIn[]; };
+layout(std430, binding = 0) writeonly buffer HOut { float hOut[]; };
+
+void main() {
+    int u = int(gl_GlobalInvocationID.x), v = int(gl_GlobalInvocationID.y);
+    if (u >= uM || v >= uM) return;
+    int mu = u == 0 ? 0 : uM - u;
+    int mv = v == 0 ? 0 : uM - v;
+    hOut[v * uM + u] = 0.5 * (tIn[v * uM + u] + tIn[v * uM + mu] + tIn[mv * uM + u] - tIn[mv * uM + mu]);
+}

@@ -1,0 +1,13 @@
+#version 430
+// Slice pass (unfused): the full M x M complex slice, row-major, rows and columns wrapped.
+layout(local_size_x = 16, local_size_y = 16) in;
+#include "common/slice.glsl"
+layout(std430, binding = 0) writeonly buffer SliceOut { vec2 sliceOut[]; };
+
+void main() {
+    int col = int(gl_GlobalInvocationID.x), r = int(gl_GlobalInvocationID.y);
+    if (col >= uM || r >= uM) return;
+    int m = col < uM / 2 ? col : col - uM;
+    int n = r < uM / 2 ? r : r - uM;
+    sliceOut[r * uM + col] = sliceValue(m, n);
+}

@@ -1,0 +1,238 @@
+// GPU renderer on a real OpenGL 4.3 context (Mesa llvmpipe under Xvfb in CI): the inverse
+// transforms against FFTW in double, projections against the CPU renderer, every shader.
+#include <QOpenGLContext>
+#include <QOpenGLFunctions_4_3_Core>
+#include <QOpenGLVersionFunctionsFactory>
+
+#include <complex>
+#include <random>
+
+#include <fftw3.h>
+#include <gtest/gtest.h>
+
+#include <fvr/core/cpu_renderer.h>
+#include <fvr/core/phantom.h>
+#include <fvr/core/preprocess.h>
+#include <fvr/core/volume_io.h>
+#include <fvr/gpu/gpu_renderer.h>
+#include <fvr/gpu/shader_source.h>
+
+#include "gl_fixture.h"
+#include "image_metrics.h"
+#include "test_support.h"
+
+using namespace fvr::core;
+using namespace fvr::gpu;
+using fvr::test::GlTest;
+
+namespace {
+
+struct ErrorStats {
+    double maxRel = 0, rmsRel = 0;
+};
+
+ErrorStats relErrors(const std::vector<std::complex<double>>& ref, const std::vector<std::complex<double>>& got) {
+    double maxAbs = 0, maxErr = 0, e2 = 0, r2 = 0;
+    for (std::size_t i = 0; i < ref.size(); ++i) {
+        maxAbs = std::max(maxAbs, std::abs(ref[i]));
+        maxErr = std::max(maxErr, std::abs(got[i] - ref[i]));
+        e2 += std::norm(got[i] - ref[i]);
+        r2 += std::norm(ref[i]);
+    }
+    return {maxErr / maxAbs, std::sqrt(e2 / r2)};
+}
+
+std::shared_ptr<const Spectrum> spectrumOf(const Volume& v, TransformKind t, double over) {
+    PreprocessOptions o;
+    o.effort = PlannerEffort::Estimate;
+    o.transform = t;
+    o.oversampling = over;
+    o.mapping = ValueMapping::Mu;
+    return preprocess(v, o);
+}
+
+} // namespace
+
+TEST_F(GlTest, EveryShaderCompiles) {
+    GpuFourierRenderer r;
+    for (int M : {64, 512, 2048}) EXPECT_EQ(r.compileAll(M), 19) << "M " << M;
+}
+
+TEST_F(GlTest, CompileErrorsNameTheShaderFileAndLine) {
+    std::map<std::string, std::string> files{
+        {"bad.comp", "#version 430\nlayout(local_size_x = 1) in;\n#include \"inc.glsl\"\nvoid main() { f(); }\n"},
+        {"inc.glsl", "float f() {\n  return undefinedThing;\n}\n"}};
+    auto reader = [&](const std::string& p) -> std::optional<std::string> {
+        auto it = files.find(p);
+        return it == files.end() ? std::nullopt : std::optional<std::string>(it->second);
+    };
+    const auto src = ShaderSource::assemble("bad.comp", {}, reader);
+    auto* gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(QOpenGLContext::currentContext());
+    const GLuint sh = gl->glCreateShader(GL_COMPUTE_SHADER);
+    const char* text = src.text().c_str();
+    gl->glShaderSource(sh, 1, &text, nullptr);
+    gl->glCompileShader(sh);
+    GLint ok = 1;
+    gl->glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
+    ASSERT_EQ(ok, 0);
+    char log[4096] = {0};
+    gl->glGetShaderInfoLog(sh, sizeof log, nullptr, log);
+    gl->glDeleteShader(sh);
+    EXPECT_NE(src.mapLog(log).find("inc.glsl:2"), std::string::npos) << src.mapLog(log);
+}
+
+TEST_F(GlTest, InverseFftMatchesFftwDouble) {
+    GpuFourierRenderer r;
+    std::mt19937 rng(5);
+    std::normal_distribution<double> g;
+    for (int M : {64, 128, 256, 512, 1024}) {
+        std::vector<std::complex<float>> in(std::size_t(M) * M);
+        std::vector<fftw_complex> din(in.size()), dout(in.size());
+        for (std::size_t i = 0; i < in.size(); ++i) {
+            in[i] = {float(g(rng)), float(g(rng))};
+            din[i][0] = in[i].real();
+            din[i][1] = in[i].imag();
+        }
+        fftw_plan p = fftw_plan_dft_2d(M, M, din.data(), dout.data(), FFTW_BACKWARD, FFTW_ESTIMATE);
+        fftw_execute(p);
+        fftw_destroy_plan(p);
+        const auto out = r.inverseFft2D(in, M);
+        std::vector<std::complex<double>> ref(in.size()), got(in.size());
+        for (std::size_t i = 0; i < in.size(); ++i) {
+            ref[i] = {dout[i][0], dout[i][1]};
+            got[i] = out[i];
+        }
+        const auto e = relErrors(ref, got);
+        std::printf("[gpu fft] M %4d max rel %.2e rms rel %.2e\n", M, e.maxRel, e.rmsRel);
+        EXPECT_LT(e.maxRel, 2e-6) << "M " << M;
+        EXPECT_LT(e.rmsRel, 5e-7) << "M " << M;
+    }
+}
+
+TEST_F(GlTest, InverseFhtMatchesDoubleHartley) {
+    GpuFourierRenderer r;
+    std::mt19937 rng(6);
+    std::normal_distribution<double> g;
+    for (int M : {64, 256, 1024}) {
+        std::vector<float> in(std::size_t(M) * M);
+        std::vector<fftw_complex> din(in.size()), dout(in.size());
+        for (std::size_t i = 0; i < in.size(); ++i) {
+            in[i] = float(g(rng));
+            din[i][0] = in[i];
+            din[i][1] = 0;
+        }
+        // Oracle: the 2D Hartley transform of real data is Re F - Im F (FFTW, double).
+        fftw_plan p = fftw_plan_dft_2d(M, M, din.data(), dout.data(), FFTW_FORWARD, FFTW_ESTIMATE);
+        fftw_execute(p);
+        fftw_destroy_plan(p);
+        const auto out = r.inverseFht2D(in, M);
+        std::vector<std::complex<double>> ref(in.size()), got(in.size());
+        for (std::size_t i = 0; i < in.size(); ++i) {
+            ref[i] = dout[i][0] - dout[i][1];
+            got[i] = out[i];
+        }
+        const auto e = relErrors(ref, got);
+        std::printf("[gpu fht] M %4d max rel %.2e rms rel %.2e\n", M, e.maxRel, e.rmsRel);
+        EXPECT_LT(e.maxRel, 2e-6) << "M " << M;
+        EXPECT_LT(e.rmsRel, 5e-7) << "M " << M;
+    }
+}
+
+TEST_F(GlTest, ProjectionsMatchCpuRendererOnPhantom) {
+    const Volume v = makeSheppLoganVolume(48);
+    const ViewFrame views[] = {ViewFrame::fromDirUp({0.35, 0.2, 0.92}, {0, -1, 0}),
+                               ViewFrame::fromDirUp({1, 0, 0}, {0, 0, 1}),
+                               ViewFrame::fromDirUp({-0.4, 0.8, -0.45}, {0, 0, 1})};
+    for (auto t : {TransformKind::Fft, TransformKind::Fht}) {
+        auto s = spectrumOf(v, t, 1.5);
+        CpuFourierRenderer cpu(s, 2);
+        GpuFourierRenderer gpu;
+        gpu.setSpectrum(s);
+        for (bool fuse : {true, false}) {
+            gpu.setFuseSlice(fuse);
+            for (Kernel k : allKernels())
+                for (int M : {64, 128})
+                    for (const auto& view : views) {
+                        const RenderParams p{view, {M, defaultPixelSize(v.dims, v.spacing, M)}, k};
+                        const auto a = cpu.render(p);
+                        const auto b = gpu.renderImage(p);
+                        const auto c = fvr::test::compare(b.pixels, a.pixels);
+                        EXPECT_GT(c.psnr, 90.0) << transformName(t) << " " << kernelName(k) << " M " << M
+                                                << " fused " << fuse;
+                    }
+        }
+    }
+}
+
+TEST_F(GlTest, ProjectionMatchesCpuOnRealVolume) {
+    FVR_REQUIRE_DATA("volumes/headsq/headsq.mhd");
+    const Volume v = loadVolume(fvr::test::sharedData() / "volumes/headsq/headsq.mhd");
+    const ViewFrame view = ViewFrame::fromDirUp({0.3, 0.9, 0.3}, {0, 0, 1});
+    for (auto t : {TransformKind::Fft, TransformKind::Fht}) {
+        auto s = spectrumOf(v, t, 1.0);
+        CpuFourierRenderer cpu(s, 2);
+        GpuFourierRenderer gpu;
+        gpu.setSpectrum(s);
+        for (Kernel k : {Kernel::Linear, Kernel::CatmullRom, Kernel::Sinc4}) {
+            const RenderParams p{view, {256, defaultPixelSize(v.dims, v.spacing, 256)}, k};
+            const auto c = fvr::test::compare(gpu.renderImage(p).pixels, cpu.render(p).pixels);
+            std::printf("[gpu vs cpu] headsq %s %s PSNR %.1f dB\n", transformName(t), kernelName(k), c.psnr);
+            EXPECT_GT(c.psnr, 90.0);
+        }
+    }
+}
+
+TEST_F(GlTest, HalfPrecisionSpectrumCostIsMeasured) {
+    const Volume v = makeSheppLoganVolume(48);
+    auto s = spectrumOf(v, TransformKind::Fft, 2.0);
+    const EllipsoidPhantom ph = EllipsoidPhantom::sheppLogan3D(256.0);
+    const ViewFrame view = ViewFrame::fromDirUp({0.35, 0.2, 0.92}, {0, -1, 0});
+    const RenderParams p{view, {128, defaultPixelSize(v.dims, v.spacing, 128)}, Kernel::CatmullRom};
+    const auto truth = ph.project(view, p.image, ValueMapping::Mu, v.dims, v.spacing);
+    GpuFourierRenderer gpu;
+    gpu.setSpectrum(s, SpectrumPrecision::Float32);
+    const auto full = gpu.renderImage(p);
+    const std::size_t bytes32 = gpu.spectrumTextureBytes();
+    gpu.setSpectrum(s, SpectrumPrecision::Float16);
+    const auto half = gpu.renderImage(p);
+    EXPECT_EQ(gpu.spectrumTextureBytes() * 2, bytes32);
+    const double vsFull = fvr::test::compare(half.pixels, full.pixels).psnr;
+    const double psnr32 = fvr::test::compare(full.pixels, truth.pixels).psnr;
+    const double psnr16 = fvr::test::compare(half.pixels, truth.pixels).psnr;
+    std::printf("[fp16] vs fp32 %.1f dB; vs analytic fp32 %.2f dB, fp16 %.2f dB\n", vsFull, psnr32, psnr16);
+    EXPECT_GT(vsFull, 55.0);
+    EXPECT_GT(psnr16, psnr32 - 0.5);
+}
+
+TEST_F(GlTest, TooLargeSpectrumIsRefusedWithSizes) {
+    auto s = std::make_shared<Spectrum>();
+    s->kind = TransformKind::Fht;
+    s->padded = {8192, 2, 2};
+    s->volumeDims = {8192, 2, 2};
+    s->data = allocateFftw(s->floatCount());
+    GpuFourierRenderer gpu;
+    try {
+        gpu.setSpectrum(s);
+        FAIL() << "expected GpuMemoryError";
+    } catch (const GpuMemoryError& e) {
+        EXPECT_NE(std::string(e.what()).find("8192"), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(gpu.hasSpectrum());
+}
+
+TEST_F(GlTest, DisplayTextureAndTimes) {
+    const Volume v = makeSheppLoganVolume(32);
+    GpuFourierRenderer gpu;
+    gpu.setSpectrum(spectrumOf(v, TransformKind::Fft, 1.0));
+    gpu.render({ViewFrame{}, {128, defaultPixelSize(v.dims, v.spacing, 128)}, Kernel::Linear});
+    EXPECT_NE(gpu.displayTexture({0.0, 100.0, false}), 0u);
+    const auto t = gpu.lastTimes();
+    EXPECT_GT(t.totalMs, 0.0);
+    EXPECT_GE(t.totalMs + 1e-9, t.sliceMs + t.inverseMs);
+    EXPECT_GT(t.displayMs, 0.0);
+}
+
+TEST(GpuRendererNoContext, RefusesWithoutContext) {
+    fvr::test::glContext().context()->doneCurrent();
+    EXPECT_THROW(GpuFourierRenderer(), GlError);
+}
