@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <fvr/core/cpu_renderer.h>
@@ -20,6 +21,13 @@
 #include <fvr/core/phantom.h>
 #include <fvr/core/preprocess.h>
 #include <fvr/core/volume_io.h>
+#ifdef FVR_HAVE_GPU
+#include <QGuiApplication>
+
+#include <fvr/gpu/errors.h>
+#include <fvr/gpu/gpu_renderer.h>
+#include <fvr/gpu/offscreen_context.h>
+#endif
 
 using namespace fvr::core;
 
@@ -42,7 +50,9 @@ Rendering:
   --transform T         fft | fht (default fft)
   --oversampling f      zero-padding factor 1..2 (default 1, as in the paper)
   --values V            raw (stored values) | mu (attenuation rel. water, max(0,1+HU/1000))
-  --backend cpu         renderer (the GPU backend comes with the GPU renderer)
+  --backend cpu|gpu     renderer (default cpu); gpu renders offscreen with OpenGL 4.3 compute
+                        shaders and falls back to the CPU, saying why, when no GPU is usable
+  --fp16                GPU: store the spectrum as float16 (2 bytes per voxel)
   --threads N           worker threads (default: all cores)
 Raw input:
   --raw-dims NX,NY,NZ   --raw-type int16|uint16|uint8|float32|...   --raw-spacing sx,sy,sz
@@ -66,6 +76,8 @@ struct Args {
     double oversampling = 1.0;
     ValueMapping values = ValueMapping::Raw;
     int threads = 0;
+    bool gpu = false;
+    bool fp16 = false;
     std::optional<RawSpec> raw;
     std::string out;
     bool info = false;
@@ -121,8 +133,10 @@ Args parseArgs(int argc, char** argv) {
         else if (opt == "--values") a.values = parseValueMapping(value());
         else if (opt == "--backend") {
             const std::string b = value();
-            if (b != "cpu") throw SettingsError("--backend: expected cpu (the GPU backend is not built yet), found '" + b + "'");
-        } else if (opt == "--threads") a.threads = parseInt(opt, value());
+            if (b != "cpu" && b != "gpu") throw SettingsError("--backend: expected cpu|gpu, found '" + b + "'");
+            a.gpu = b == "gpu";
+        } else if (opt == "--fp16") a.fp16 = true;
+        else if (opt == "--threads") a.threads = parseInt(opt, value());
         else if (opt == "--out") a.out = value();
         else if (opt == "--info") a.info = true;
         else if (opt == "--bench") a.bench = parseInt(opt, value());
@@ -198,9 +212,9 @@ Stat stats(std::vector<double> v) {
     return {v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]), q(0.95)};
 }
 
-std::string settingsJson(const Args& a, const Spectrum& s, double d, int threads) {
+std::string settingsJson(const Args& a, const Spectrum& s, double d, int threads, const std::string& backend) {
     std::ostringstream o;
-    o << "{\"input\": \"" << jsonEscape(a.input) << "\", \"backend\": \"cpu\", \"kernel\": \"" << kernelName(a.kernel)
+    o << "{\"input\": \"" << jsonEscape(a.input) << "\", \"backend\": \"" << jsonEscape(backend) << "\", \"kernel\": \"" << kernelName(a.kernel)
       << "\", \"transform\": \"" << transformName(a.transform) << "\", \"size\": " << a.size
       << ", \"pixel_size_mm\": " << d << ", \"oversampling\": " << a.oversampling << ", \"values\": \""
       << valueMappingName(a.values) << "\", \"volume_dims\": [" << s.volumeDims[0] << ", " << s.volumeDims[1] << ", "
@@ -208,6 +222,38 @@ std::string settingsJson(const Args& a, const Spectrum& s, double d, int threads
       << "], \"spectrum_mb\": " << double(s.bytes()) / (1 << 20) << ", \"threads\": " << threads << "}";
     return o.str();
 }
+
+#ifdef FVR_HAVE_GPU
+/** A Qt GUI application without windows, an offscreen GL 4.3 context and the GPU renderer. */
+struct GpuSession {
+    int argc = 1;
+    char name[16] = "fvr-render";
+    char* argv[2] = {name, nullptr};
+    std::unique_ptr<QGuiApplication> app;
+    std::unique_ptr<fvr::gpu::OffscreenContext> context;
+    std::unique_ptr<fvr::gpu::GpuFourierRenderer> renderer;
+    GpuSession() {
+        // Try X first, then Qt's offscreen platform; a missing display must not abort the program.
+        if (!std::getenv("QT_QPA_PLATFORM")) setenv("QT_QPA_PLATFORM", std::getenv("DISPLAY") ? "xcb;offscreen" : "offscreen", 1);
+        if (!std::getenv("XDG_RUNTIME_DIR")) {
+            const std::string dir = "/tmp/fvr-runtime-" + std::to_string(getuid());
+            mkdir(dir.c_str(), 0700);
+            setenv("XDG_RUNTIME_DIR", dir.c_str(), 1);
+        }
+        app = std::make_unique<QGuiApplication>(argc, argv);
+        context = std::make_unique<fvr::gpu::OffscreenContext>();
+        renderer = std::make_unique<fvr::gpu::GpuFourierRenderer>();
+    }
+    ~GpuSession() {
+        if (renderer && context) {
+            context->makeCurrent();
+            renderer.reset();
+        }
+        context.reset();
+        app.reset();
+    }
+};
+#endif
 
 int run(int argc, char** argv) {
     const Args a = parseArgs(argc, argv);
@@ -240,37 +286,94 @@ int run(int argc, char** argv) {
     validateImageGeometry(geom);
     if (a.size < 128 || a.size > 2048)
         throw SettingsError("--size: expected a power of two in 128..2048, found " + std::to_string(a.size));
-    CpuFourierRenderer renderer(spectrum, a.threads);
     const int threads = a.threads > 0 ? a.threads : hardwareThreads();
+    const ViewFrame base = ViewFrame::fromDirUp(a.dir, a.up);
+
+#ifdef FVR_HAVE_GPU
+    GpuSession* gpu = nullptr;
+    std::unique_ptr<GpuSession> gpuHolder;
+    if (a.gpu) {
+        try {
+            gpuHolder = std::make_unique<GpuSession>();
+            gpuHolder->renderer->setSpectrum(spectrum, a.fp16 ? fvr::gpu::SpectrumPrecision::Float16
+                                                              : fvr::gpu::SpectrumPrecision::Float32);
+            gpu = gpuHolder.get();
+        } catch (const std::exception& e) {
+            gpuHolder.reset();
+            std::fprintf(stderr, "fvr-render: GPU backend unavailable (%s); rendering on the CPU\n", e.what());
+        }
+    }
+#else
+    if (a.gpu) std::fprintf(stderr, "fvr-render: built without the GPU renderer; rendering on the CPU\n");
+#endif
+    std::unique_ptr<CpuFourierRenderer> cpu;
+    std::string backendName = "cpu";
+#ifdef FVR_HAVE_GPU
+    if (gpu) backendName = "gpu: " + gpu->renderer->rendererInfo() + (a.fp16 ? ", fp16" : "");
+#endif
+    if (backendName == "cpu") cpu = std::make_unique<CpuFourierRenderer>(spectrum, a.threads);
 
     if (a.bench > 0) {
-        std::vector<double> sl, inv, tot;
-        const ViewFrame base = ViewFrame::fromDirUp(a.dir, a.up);
-        renderer.render({base, geom, a.kernel}); // warm-up: plans and buffers
-        for (int i = 0; i < a.bench; ++i) {
+        std::vector<double> sl, inv, tot, fusedTot;
+        auto viewAt = [&](int i) {
             // Views over a cone of directions, so the spectrum is read along varied planes.
-            const ViewFrame v = base.rotated({0.3, 1.0, 0.2}, 2.0 * std::numbers::pi * i / a.bench);
-            StageTimes t;
-            renderer.render({v, geom, a.kernel}, &t);
-            sl.push_back(t.sliceMs);
-            inv.push_back(t.inverseMs);
-            tot.push_back(t.totalMs);
+            return base.rotated({0.3, 1.0, 0.2}, 2.0 * std::numbers::pi * i / a.bench);
+        };
+        if (cpu) {
+            cpu->render({base, geom, a.kernel}); // warm-up: plans and buffers
+            for (int i = 0; i < a.bench; ++i) {
+                StageTimes t;
+                cpu->render({viewAt(i), geom, a.kernel}, &t);
+                sl.push_back(t.sliceMs);
+                inv.push_back(t.inverseMs);
+                tot.push_back(t.totalMs);
+            }
         }
+#ifdef FVR_HAVE_GPU
+        else {
+            auto& r = *gpu->renderer;
+            for (bool fuse : {false, true}) {
+                r.setFuseSlice(fuse);
+                r.render({base, geom, a.kernel}); // warm-up: shader compilation, buffers
+                r.lastTimes();
+                for (int i = 0; i < a.bench; ++i) {
+                    r.render({viewAt(i), geom, a.kernel});
+                    const auto t = r.lastTimes(); // GPU timer queries
+                    if (fuse) fusedTot.push_back(t.totalMs);
+                    else {
+                        sl.push_back(t.sliceMs);
+                        inv.push_back(t.inverseMs);
+                        tot.push_back(t.totalMs);
+                    }
+                }
+            }
+        }
+#endif
         const Stat s1 = stats(sl), s2 = stats(inv), s3 = stats(tot);
-        std::printf("{\n  \"settings\": %s,\n  \"frames\": %d,\n", settingsJson(a, *spectrum, d, threads).c_str(), a.bench);
+        std::printf("{\n  \"settings\": %s,\n  \"frames\": %d,\n",
+                    settingsJson(a, *spectrum, d, threads, backendName).c_str(), a.bench);
         std::printf("  \"preprocess\": {\"median_ms\": %.3f, \"p95_ms\": %.3f},\n", preprocessMs, preprocessMs);
         std::printf("  \"slice\": {\"median_ms\": %.3f, \"p95_ms\": %.3f},\n", s1.median, s1.p95);
         std::printf("  \"inverse\": {\"median_ms\": %.3f, \"p95_ms\": %.3f},\n", s2.median, s2.p95);
-        std::printf("  \"total\": {\"median_ms\": %.3f, \"p95_ms\": %.3f, \"fps\": %.1f}\n}\n", s3.median, s3.p95,
+        std::printf("  \"total\": {\"median_ms\": %.3f, \"p95_ms\": %.3f, \"fps\": %.1f}", s3.median, s3.p95,
                     1000.0 / s3.median);
+        if (!fusedTot.empty()) {
+            const Stat s4 = stats(fusedTot);
+            std::printf(",\n  \"total_fused\": {\"median_ms\": %.3f, \"p95_ms\": %.3f, \"fps\": %.1f}", s4.median,
+                        s4.p95, 1000.0 / s4.median);
+        }
+        std::printf("\n}\n");
     }
     if (!a.out.empty()) {
-        const ViewFrame view = ViewFrame::fromDirUp(a.dir, a.up);
-        const ProjectionImage img = renderer.render({view, geom, a.kernel});
+        ProjectionImage img;
+#ifdef FVR_HAVE_GPU
+        if (gpu) img = gpu->renderer->renderImage({base, geom, a.kernel});
+#endif
+        if (cpu) img = cpu->render({base, geom, a.kernel});
         writeProjection(a.out, img);
-        std::fprintf(stderr, "wrote %s (%dx%d, pixel %.4g mm, %s, %s, %s)\n", a.out.c_str(), a.size, a.size, d,
+        std::fprintf(stderr, "wrote %s (%dx%d, pixel %.4g mm, %s, %s, %s, %s)\n", a.out.c_str(), a.size, a.size, d,
                      kernelName(a.kernel), transformName(a.transform),
-                     projectionUnits(a.values, volume.units).c_str());
+                     projectionUnits(a.values, volume.units).c_str(), backendName.c_str());
     }
     return 0;
 }
