@@ -1,6 +1,6 @@
 # FVR Workstation: the two commands of the README.
-#   make run    installs what is missing, builds, starts the workstation on the demo study
-#               (or on STUDY=path)
+#   make run    installs what is missing, builds, starts the workstation on the built-in demo
+#               study (or on STUDY=path)
 #   make test   installs what is missing, builds, runs every test headless
 BUILD_DIR ?= build
 BUILD_TYPE ?= Release
@@ -23,17 +23,9 @@ configure: deps
 build: configure
 	@cmake --build $(BUILD_DIR) --parallel $(JOBS)
 
-# Until the Qt workstation lands (issue 5), `make run` renders the study with fvr-render and
-# writes out/projection.png (and the float line integrals in out/projection.npy).
+# Starts the workstation on the built-in phantom, or on STUDY=path (DICOM folder or volume file).
 run: build
-	@mkdir -p out
-	@$(BUILD_DIR)/app/fvr-render $(if $(STUDY),$(STUDY),phantom:shepp-logan:128) \
-	  --dir 0.35,0.2,0.92 --up 0,-1,0 --kernel catmull-rom --oversampling 2 --values mu \
-	  --size 512 --out out/projection.npy
-	@$(BUILD_DIR)/app/fvr-render $(if $(STUDY),$(STUDY),phantom:shepp-logan:128) \
-	  --dir 0.35,0.2,0.92 --up 0,-1,0 --kernel catmull-rom --oversampling 2 --values mu \
-	  --size 512 --out out/projection.png
-	@echo "Open out/projection.png (display-mapped) or out/projection.npy (line integrals, mm)."
+	@$(BUILD_DIR)/app/fvr-workstation $(STUDY)
 
 test: build
 	@cd $(BUILD_DIR) && xvfb-run -a -s "-screen 0 1280x1024x24" \

@@ -1,0 +1,66 @@
+#include <fvr/core/patient_views.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+
+#include <fvr/core/errors.h>
+
+namespace fvr::core {
+
+const char* patientViewName(PatientView v) {
+    switch (v) {
+    case PatientView::AP: return "AP";
+    case PatientView::PA: return "PA";
+    case PatientView::Left: return "LEFT";
+    case PatientView::Right: return "RIGHT";
+    case PatientView::Head: return "HEAD";
+    case PatientView::Feet: return "FEET";
+    }
+    return "?";
+}
+
+PatientView parsePatientView(const std::string& s) {
+    std::string u = s;
+    std::transform(u.begin(), u.end(), u.begin(), [](unsigned char c) { return char(std::toupper(c)); });
+    for (PatientView v : {PatientView::AP, PatientView::PA, PatientView::Left, PatientView::Right,
+                          PatientView::Head, PatientView::Feet})
+        if (u == patientViewName(v)) return v;
+    throw SettingsError("view: expected AP|PA|LEFT|RIGHT|HEAD|FEET, found '" + s + "'");
+}
+
+namespace {
+/** LPS vector -> index-frame vector: components along the (orthonormal) index axes. */
+Vec3 fromPatient(const Volume& v, const Vec3& lps) {
+    return {dot(v.direction[0], lps), dot(v.direction[1], lps), dot(v.direction[2], lps)};
+}
+} // namespace
+
+ViewFrame patientViewFrame(const Volume& volume, PatientView view) {
+    Vec3 d, u;
+    switch (view) {
+    case PatientView::AP: d = {0, 1, 0}, u = {0, 0, 1}; break;
+    case PatientView::PA: d = {0, -1, 0}, u = {0, 0, 1}; break;
+    case PatientView::Left: d = {-1, 0, 0}, u = {0, 0, 1}; break;
+    case PatientView::Right: d = {1, 0, 0}, u = {0, 0, 1}; break;
+    case PatientView::Head: d = {0, 0, -1}, u = {0, -1, 0}; break;
+    case PatientView::Feet: d = {0, 0, 1}, u = {0, -1, 0}; break;
+    }
+    return ViewFrame::fromDirUp(fromPatient(volume, d), fromPatient(volume, u));
+}
+
+std::string patientDirectionLabel(const Volume& volume, const Vec3& v) {
+    Vec3 w{0, 0, 0};
+    for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c) w[c] += v[a] * volume.direction[a][c];
+    const char pos[3] = {'L', 'P', 'S'}, neg[3] = {'R', 'A', 'I'};
+    int order[3] = {0, 1, 2};
+    std::sort(order, order + 3, [&](int a, int b) { return std::abs(w[a]) > std::abs(w[b]); });
+    const double top = std::abs(w[order[0]]);
+    std::string label;
+    for (int i : order)
+        if (top > 0 && std::abs(w[i]) >= 0.2 * top) label += w[i] > 0 ? pos[i] : neg[i];
+    return label;
+}
+
+} // namespace fvr::core

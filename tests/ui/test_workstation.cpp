@@ -1,0 +1,244 @@
+// The workstation driven like a user (QTest, real widgets and GL under Xvfb): opening studies
+// through the menus' code path, panel controls, compare mode, exports, cancel, bad input.
+#include <QApplication>
+#include <QCheckBox>
+#include <QComboBox>
+#include <QDoubleSpinBox>
+#include <QImage>
+#include <QPlainTextEdit>
+#include <QSettings>
+#include <QSignalSpy>
+#include <QStandardPaths>
+#include <QSurfaceFormat>
+#include <QTest>
+
+#include <filesystem>
+#include <set>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include <fvr/core/cpu_renderer.h>
+#include <fvr/core/image_io.h>
+#include <fvr/ui/main_window.h>
+
+#include "image_metrics.h"
+#include "test_support.h"
+
+using namespace fvr;
+using fvr::ui::MainWindow;
+using fvr::ui::StudySource;
+
+namespace {
+
+QApplication& app() {
+    static int argc = 1;
+    static char name[] = "fvr_ui_tests";
+    static char* argv[] = {name, nullptr};
+    static QApplication* a = [] {
+        QSurfaceFormat fmt;
+        fmt.setVersion(4, 3);
+        fmt.setProfile(QSurfaceFormat::CoreProfile);
+        QSurfaceFormat::setDefaultFormat(fmt);
+        QApplication::setAttribute(Qt::AA_ShareOpenGLContexts);
+        QStandardPaths::setTestModeEnabled(true); // settings go to a test location
+        auto* x = new QApplication(argc, argv);
+        QApplication::setOrganizationName("fvr-workstation-tests");
+        QApplication::setApplicationName("fvr-ui-tests");
+        return x;
+    }();
+    return *a;
+}
+
+/** Opens a study and waits until its spectrum is ready and view 0 has rendered. */
+bool openAndWait(MainWindow& w, const StudySource& s, int timeoutMs = 60000) {
+    QSignalSpy ready(&w.study(), &ui::StudyController::spectrumReady);
+    const int before = w.views()[0]->framesRendered();
+    w.openStudy(s);
+    if (!ready.wait(timeoutMs)) {
+        ADD_FAILURE() << "no spectrum; messages:\n" << w.messages()->toPlainText().toStdString();
+        return false;
+    }
+    if (!QTest::qWaitFor([&] { return w.views()[0]->framesRendered() > before; }, timeoutMs)) {
+        ADD_FAILURE() << "view 0 did not render; messages:\n" << w.messages()->toPlainText().toStdString();
+        return false;
+    }
+    return true;
+}
+
+/** Waits for a new spectrum after a panel change. */
+bool waitSpectrum(MainWindow& w, const std::function<void()>& change) {
+    QSignalSpy ready(&w.study(), &ui::StudyController::spectrumReady);
+    change();
+    return ready.wait(60000);
+}
+
+class Workstation : public ::testing::Test {
+protected:
+    void SetUp() override {
+        app();
+        QSettings().clear(); // each test starts from the defaults
+        window = std::make_unique<MainWindow>();
+        window->resize(1200, 800);
+        window->show();
+        ASSERT_TRUE(QTest::qWaitForWindowExposed(window.get()));
+    }
+    void TearDown() override { window.reset(); }
+    std::unique_ptr<MainWindow> window;
+};
+
+core::ProjectionImage cpuReference(MainWindow& w, const ui::ProjectionView& v) {
+    core::CpuFourierRenderer r(w.study().spectrum(), 2);
+    const auto& vol = *w.study().volume();
+    const int M = v.settings().size;
+    return r.render({v.viewFrame(), {M, core::defaultPixelSize(vol.dims, vol.spacing, M)}, v.settings().kernel});
+}
+
+} // namespace
+
+TEST_F(Workstation, OpensPhantomAndShowsTheRendererProjection) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
+    auto* v = window->views()[0];
+    const auto p = v->projection();
+    ASSERT_TRUE(p);
+    std::printf("[ui] backend %s %s\n", v->usingGpu() ? "GPU" : "CPU", v->backendNotice().toStdString().c_str());
+    EXPECT_GT(test::compare(p->pixels, cpuReference(*window, *v).pixels).psnr, 90.0);
+    EXPECT_TRUE(window->windowTitle().contains("phantom"));
+    // The window is set from the image, and the view is not blank.
+    const QImage shot = v->screenshot();
+    ASSERT_FALSE(shot.isNull());
+    int bright = 0;
+    for (int y = 0; y < shot.height(); y += 4)
+        for (int x = 0; x < shot.width(); x += 4) bright += qGray(shot.pixel(x, y)) > 128;
+    EXPECT_GT(bright, 50);
+}
+
+TEST_F(Workstation, PanelControlsChangeSettingsAndImage) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    auto* v = window->views()[0];
+    const auto before = *v->projection();
+
+    auto* kernel = window->kernelCombo();
+    kernel->setCurrentIndex(kernel->findData(int(core::Kernel::Nearest)));
+    EXPECT_EQ(v->settings().kernel, core::Kernel::Nearest);
+    const auto nearest = *v->projection();
+    EXPECT_LT(test::compare(nearest.pixels, before.pixels).psnr, 80.0); // a different image
+    EXPECT_GT(test::compare(nearest.pixels, cpuReference(*window, *v).pixels).psnr, 90.0);
+
+    auto* size = window->sizeCombo();
+    size->setCurrentIndex(size->findData(256));
+    EXPECT_EQ(v->settings().size, 256);
+    EXPECT_EQ(v->projection()->size, 256);
+
+    ASSERT_TRUE(waitSpectrum(*window, [&] {
+        window->oversamplingCombo()->setCurrentIndex(window->oversamplingCombo()->findData(1.5));
+    }));
+    EXPECT_EQ(window->study().spectrum()->padded[0], 60);
+    ASSERT_TRUE(waitSpectrum(*window, [&] {
+        window->transformCombo()->setCurrentIndex(window->transformCombo()->findData(int(core::TransformKind::Fht)));
+    }));
+    EXPECT_EQ(window->study().spectrum()->kind, core::TransformKind::Fht);
+    QTest::qWait(50);
+    EXPECT_GT(test::compare(v->projection()->pixels, cpuReference(*window, *v).pixels).psnr, 90.0);
+    ASSERT_TRUE(waitSpectrum(*window, [&] {
+        window->valuesCombo()->setCurrentIndex(window->valuesCombo()->findData(int(core::ValueMapping::Raw)));
+    }));
+    EXPECT_EQ(window->study().spectrum()->mapping, core::ValueMapping::Raw);
+
+    window->invertCheck()->setChecked(true);
+    EXPECT_TRUE(v->window().invert);
+    window->windowWidthSpin()->setValue(1234.0);
+    EXPECT_NEAR(v->window().high - v->window().low, 1234.0, 1e-6);
+    window->windowLevelSpin()->setValue(-50.0);
+    EXPECT_NEAR((v->window().high + v->window().low) / 2, -50.0, 1e-6);
+}
+
+TEST_F(Workstation, CompareViewRendersEachKernel) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    window->setCompareCount(4);
+    QApplication::processEvents();
+    ASSERT_EQ(window->views().size(), 4u);
+    std::set<core::Kernel> kernels;
+    for (auto* v : window->views()) {
+        const auto p = v->projection();
+        ASSERT_TRUE(p);
+        kernels.insert(v->settings().kernel);
+        EXPECT_GT(test::compare(p->pixels, cpuReference(*window, *v).pixels).psnr, 90.0)
+            << core::kernelName(v->settings().kernel);
+        EXPECT_EQ(v->viewFrame().d, window->views()[0]->viewFrame().d); // synchronised
+    }
+    EXPECT_EQ(kernels.size(), 4u);
+    window->setDifferenceMode(true);
+    QTest::qWait(100);
+    EXPECT_TRUE(window->views()[1]->projection().has_value());
+    window->setCompareCount(1);
+    EXPECT_EQ(window->views().size(), 1u);
+}
+
+TEST_F(Workstation, ExportsMatchTheRendererProjection) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    const auto dir = test::tmpDir() / "ui_export";
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    const auto p = *window->views()[0]->projection();
+    ASSERT_TRUE(window->exportProjection(QString::fromStdString((dir / "p.npy").string())));
+    std::vector<std::int64_t> shape;
+    EXPECT_EQ(core::readNpy(dir / "p.npy", shape), p.pixels);
+    ASSERT_TRUE(window->exportProjection(QString::fromStdString((dir / "p.png").string())));
+    const QImage png(QString::fromStdString((dir / "p.png").string()));
+    EXPECT_EQ(png.width(), p.size);
+    EXPECT_EQ(png.format(), QImage::Format_Grayscale16);
+    ASSERT_TRUE(window->exportScreenshot(QString::fromStdString((dir / "shot.png").string())));
+    EXPECT_FALSE(QImage(QString::fromStdString((dir / "shot.png").string())).isNull());
+    ASSERT_TRUE(window->exportSweep(QString::fromStdString((dir / "sweep").string()), 4, {0, 1, 0}));
+    const auto stack = core::readNpy(dir / "sweep" / "sweep.npy", shape);
+    EXPECT_EQ(shape, (std::vector<std::int64_t>{4, p.size, p.size}));
+    EXPECT_TRUE(std::equal(p.pixels.begin(), p.pixels.end(), stack.begin())); // frame 0 = the view
+    EXPECT_TRUE(std::filesystem::exists(dir / "sweep" / "frame_0003.png"));
+    EXPECT_FALSE(window->exportProjection("/no/such/dir/p.npy"));
+    EXPECT_TRUE(window->messages()->toPlainText().contains("/no/such/dir/p.npy"));
+}
+
+TEST_F(Workstation, CancelDuringPreprocessingKeepsTheStudy) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(32)));
+    const auto spectrumBefore = window->study().spectrum();
+    QSignalSpy cancelled(&window->study(), &ui::StudyController::cancelled);
+    window->openStudy(StudySource::phantom(200));
+    QTest::qWait(30);
+    window->study().cancel();
+    ASSERT_TRUE(cancelled.wait(60000));
+    EXPECT_EQ(window->study().spectrum(), spectrumBefore);
+    EXPECT_TRUE(window->views()[0]->projection().has_value());
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(36))); // still usable
+    EXPECT_EQ(window->study().volume()->dims[0], 36);
+}
+
+TEST_F(Workstation, MalformedStudyShowsTheErrorAndStaysUsable) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(32)));
+    const auto bad = test::tmpDir() / "broken.mhd";
+    std::ofstream(bad) << "NDims = 3\nDimSize = 4 4\nElementType = MET_SHORT\nElementDataFile = x.raw\n";
+    QSignalSpy failed(&window->study(), &ui::StudyController::failed);
+    window->openStudy(StudySource::fromPath(QString::fromStdString(bad.string())));
+    ASSERT_TRUE(failed.wait(30000));
+    const QString log = window->messages()->toPlainText();
+    EXPECT_TRUE(log.contains("broken.mhd")) << log.toStdString();
+    EXPECT_TRUE(log.contains("DimSize")) << log.toStdString();
+    EXPECT_EQ(window->study().volume()->dims[0], 32);
+    EXPECT_TRUE(window->views()[0]->projection().has_value());
+}
+
+TEST_F(Workstation, OpensRealVolumeFile) {
+    FVR_REQUIRE_DATA("volumes/headsq/headsq.mhd");
+    const auto path = test::sharedData() / "volumes/headsq/headsq.mhd";
+    ASSERT_TRUE(openAndWait(*window, StudySource::fromPath(QString::fromStdString(path.string()))));
+    EXPECT_EQ(window->study().volume()->dims, (core::Dims3{64, 64, 93}));
+    EXPECT_GT(test::compare(window->views()[0]->projection()->pixels,
+                            cpuReference(*window, *window->views()[0]).pixels).psnr, 90.0);
+}
+
+TEST_F(Workstation, OpensDicomFolder) {
+    FVR_REQUIRE_DATA("dicom/ct_head_slicer_64x64x93");
+    const auto path = test::sharedData() / "dicom/ct_head_slicer_64x64x93";
+    ASSERT_TRUE(openAndWait(*window, StudySource::fromPath(QString::fromStdString(path.string()))));
+    EXPECT_EQ(window->study().volume()->dims, (core::Dims3{64, 64, 93}));
+}

@@ -1,0 +1,40 @@
+#include <gtest/gtest.h>
+
+#include <fvr/core/errors.h>
+#include <fvr/core/patient_views.h>
+
+using namespace fvr::core;
+
+TEST(PatientViews, ApOnAnAxialStack) {
+    Volume v; // identity direction: x = L, y = P, z = S (an axial stack as stored by DICOM)
+    const ViewFrame f = patientViewFrame(v, PatientView::AP);
+    EXPECT_EQ(patientDirectionLabel(v, f.d), "P");  // looking towards posterior
+    EXPECT_EQ(patientDirectionLabel(v, f.u), "S");  // head up
+    EXPECT_EQ(patientDirectionLabel(v, f.r), "L");  // patient's left on the image's right
+    const ViewFrame feet = patientViewFrame(v, PatientView::Feet);
+    EXPECT_EQ(patientDirectionLabel(v, feet.r), "L");
+    EXPECT_EQ(patientDirectionLabel(v, feet.u), "A");
+    EXPECT_EQ(patientDirectionLabel(v, patientViewFrame(v, PatientView::Left).r), "P");
+    EXPECT_EQ(patientDirectionLabel(v, patientViewFrame(v, PatientView::Right).r), "A");
+    EXPECT_EQ(patientDirectionLabel(v, patientViewFrame(v, PatientView::PA).r), "R");
+}
+
+TEST(PatientViews, CoronalStackAndObliqueLabels) {
+    Volume v; // coronal: columns along L, rows along -S (down), slices along A
+    v.direction = {Vec3{1, 0, 0}, Vec3{0, 0, -1}, Vec3{0, -1, 0}};
+    const ViewFrame f = patientViewFrame(v, PatientView::AP);
+    // Whatever the storage order, the labels stay true to the patient.
+    EXPECT_EQ(patientDirectionLabel(v, f.d), "P");
+    EXPECT_EQ(patientDirectionLabel(v, f.u), "S");
+    EXPECT_EQ(patientDirectionLabel(v, f.r), "L");
+    EXPECT_NEAR(f.d[2], -1.0, 1e-12); // posterior = -slice axis
+    // index +z is anterior here, so -z is posterior: (1, 0, -0.5) is mostly left, then posterior.
+    EXPECT_EQ(patientDirectionLabel(v, {1, 0, -0.5}), "LP");
+    EXPECT_EQ(patientDirectionLabel(v, {0.05, 0, 1}), "A");
+}
+
+TEST(PatientViews, Parse) {
+    EXPECT_EQ(parsePatientView("ap"), PatientView::AP);
+    EXPECT_EQ(parsePatientView("FEET"), PatientView::Feet);
+    EXPECT_THROW(parsePatientView("lateral"), SettingsError);
+}

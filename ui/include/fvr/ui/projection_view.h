@@ -1,0 +1,127 @@
+#pragma once
+/** The projection on screen: a QOpenGLWidget driving fvr::gpu::GpuFourierRenderer (the CPU
+ *  renderer when no usable GPU exists, with a visible notice), with trackball rotation, zoom,
+ *  pan, window/level, patient orientation labels and an fps overlay. */
+#include <QElapsedTimer>
+#include <QOpenGLWidget>
+
+#include <memory>
+#include <optional>
+
+#include <fvr/core/cpu_renderer.h>
+#include <fvr/core/image_io.h>
+#include <fvr/core/spectrum.h>
+#include <fvr/core/view.h>
+#include <fvr/core/volume.h>
+
+class QOpenGLShaderProgram;
+class QOpenGLTexture;
+class QOpenGLVertexArrayObject;
+
+namespace fvr::gpu {
+class GpuFourierRenderer;
+}
+
+namespace fvr::ui {
+
+/** Per-view render settings (the compare mode gives each view its own). */
+struct ViewSettings {
+    core::Kernel kernel = core::Kernel::CatmullRom;
+    int size = 512;
+    bool operator==(const ViewSettings&) const = default;
+};
+
+class ProjectionView : public QOpenGLWidget {
+    Q_OBJECT
+public:
+    explicit ProjectionView(QWidget* parent = nullptr);
+    ~ProjectionView() override;
+
+    void setStudy(std::shared_ptr<const core::Volume> volume, std::shared_ptr<const core::Spectrum> spectrum);
+    void setSettings(const ViewSettings& s);
+    const ViewSettings& settings() const { return m_settings; }
+    void setViewFrame(const core::ViewFrame& f);
+    const core::ViewFrame& viewFrame() const { return m_view; }
+    void setWindow(const core::DisplayWindow& w);
+    const core::DisplayWindow& window() const { return m_window; }
+    /** Window from the current projection's percentiles (0.5..99.5). */
+    void autoWindow();
+    void setZoom(double zoom);
+    double zoom() const { return m_zoom; }
+    void resetPanZoom();
+    void setOverlayVisible(bool on);
+    /** When set, this view shows (own projection - reference) with a symmetric window. */
+    void setDifferenceReference(ProjectionView* reference);
+    /** Title drawn in the top-left corner (compare mode). */
+    void setTitle(const QString& title);
+
+    /** The float projection of the current view and settings (renders if needed). */
+    std::optional<core::ProjectionImage> projection();
+    /** What the view shows, as an image of the widget's framebuffer. */
+    QImage screenshot();
+    bool usingGpu() const { return m_gpu != nullptr; }
+    QString backendNotice() const { return m_notice; }
+    /** Stage times of the last frame (ms): slice, inverse, display, total, and fps. */
+    struct FrameStats {
+        double sliceMs = 0, inverseMs = 0, displayMs = 0, totalMs = 0, fps = 0;
+        bool fused = false;
+    };
+    FrameStats frameStats() const { return m_stats; }
+    /** Number of frames rendered (tests). */
+    int framesRendered() const { return m_frames; }
+
+signals:
+    void viewFrameChanged(const core::ViewFrame& f);
+    void windowChanged(const core::DisplayWindow& w);
+    void rendered();
+    void backendChanged(bool gpu, const QString& notice);
+
+protected:
+    void initializeGL() override;
+    void paintGL() override;
+    void resizeGL(int w, int h) override;
+    void mousePressEvent(QMouseEvent* e) override;
+    void mouseMoveEvent(QMouseEvent* e) override;
+    void mouseReleaseEvent(QMouseEvent* e) override;
+    void wheelEvent(QWheelEvent* e) override;
+
+private:
+    void releaseGl();
+    void renderIfNeeded();
+    void drawOverlay();
+    QRectF imageRect() const;
+
+    std::shared_ptr<const core::Volume> m_volume;
+    std::shared_ptr<const core::Spectrum> m_spectrum;
+    bool m_spectrumDirty = false;
+    bool m_renderDirty = true;
+    ViewSettings m_settings;
+    core::ViewFrame m_view;
+    core::DisplayWindow m_window{0.0, 1.0, false};
+    bool m_windowSet = false;
+    double m_zoom = 1.0;
+    QPointF m_pan{0, 0};
+    bool m_overlay = true;
+    QString m_title;
+    ProjectionView* m_reference = nullptr;
+
+    std::unique_ptr<gpu::GpuFourierRenderer> m_gpu;
+    std::unique_ptr<core::CpuFourierRenderer> m_cpu;
+    std::optional<core::ProjectionImage> m_cpuImage; // CPU path / difference mode
+    QString m_notice;
+    std::unique_ptr<QOpenGLShaderProgram> m_quad;
+    std::unique_ptr<QOpenGLVertexArrayObject> m_vao;
+    unsigned m_cpuTexture = 0;
+    int m_cpuTextureSize = 0;
+    bool m_glReady = false;
+    bool m_gpuTimesPending = false;
+
+    Qt::MouseButton m_dragButton = Qt::NoButton;
+    Qt::KeyboardModifiers m_dragMods;
+    QPoint m_lastPos;
+    FrameStats m_stats;
+    QElapsedTimer m_frameClock;
+    int m_frames = 0;
+};
+
+} // namespace fvr::ui

@@ -1,0 +1,103 @@
+#pragma once
+/** The open study and its preprocessing, run in the background with progress and cancel. All
+ *  signals arrive on the GUI thread. */
+#include <QObject>
+#include <QString>
+#include <QStringList>
+#include <QTimer>
+
+#include <atomic>
+#include <functional>
+#include <mutex>
+#include <string_view>
+#include <memory>
+#include <thread>
+
+#include <fvr/core/dicom.h>
+#include <fvr/core/preprocess.h>
+#include <fvr/core/spectrum.h>
+#include <fvr/core/volume.h>
+
+namespace fvr::ui {
+
+/** Where a study comes from: the built-in phantom, a volume file or a DICOM folder/series. */
+struct StudySource {
+    enum class Kind { Phantom, VolumeFile, DicomFolder };
+    Kind kind = Kind::Phantom;
+    QString path;      ///< file or folder
+    QString seriesKey; ///< DICOM series (empty: the only/largest one)
+    int phantomSize = 128;
+
+    QString displayName() const;
+    static StudySource phantom(int n = 128);
+    /** Folder -> DICOM folder; otherwise a volume file. */
+    static StudySource fromPath(const QString& path);
+};
+
+/** Preprocessing settings that need a new spectrum when they change. */
+struct SpectrumSettings {
+    core::ValueMapping mapping = core::ValueMapping::Mu;
+    core::TransformKind transform = core::TransformKind::Fft;
+    double oversampling = 2.0;
+    bool operator==(const SpectrumSettings&) const = default;
+};
+
+class StudyController : public QObject {
+    Q_OBJECT
+public:
+    explicit StudyController(QObject* parent = nullptr);
+    ~StudyController() override;
+
+    /** Loads a study (worker thread), then preprocesses it with the current settings. */
+    void open(const StudySource& source);
+    /** Re-runs preprocessing when the settings differ from the current spectrum's. */
+    void setSpectrumSettings(const SpectrumSettings& settings);
+    /** Cancels the running load or preprocessing; the previous study stays usable. */
+    void cancel();
+    bool busy() const { return m_worker.joinable() && !m_done.load(); }
+
+    std::shared_ptr<const core::Volume> volume() const { return m_volume; }
+    std::shared_ptr<const core::Spectrum> spectrum() const { return m_spectrum; }
+    const SpectrumSettings& spectrumSettings() const { return m_settings; }
+    const StudySource& source() const { return m_source; }
+    const QStringList& warnings() const { return m_warnings; }
+    /** Spectrum memory (MiB) the settings would need for the current volume. */
+    double estimatedSpectrumMiB(const SpectrumSettings& s) const;
+    /** Blocks until the running job ends (tests). */
+    void waitIdle();
+
+signals:
+    void progress(double fraction, const QString& stage);
+    void studyLoaded(const QString& name);
+    void spectrumReady();
+    /** A load or preprocessing failed: `title` names what, `details` is the error text. */
+    void failed(const QString& title, const QString& details);
+    void cancelled();
+    void warningsChanged(const QStringList& warnings);
+    /** A DICOM folder holds several series: the GUI asks the user and calls open() again with
+     *  the chosen key. `labels` describe the series (same order as `keys`). */
+    void seriesChoiceNeeded(const StudySource& source, const QStringList& keys, const QStringList& labels);
+
+private:
+    void startJob(std::function<void(core::CancelToken&)> job);
+    void poll();
+    void preprocessAsync();
+    void report(double fraction, std::string_view stage);
+
+    StudySource m_source;
+    SpectrumSettings m_settings;
+    std::shared_ptr<const core::Volume> m_volume;
+    std::shared_ptr<const core::Spectrum> m_spectrum;
+    QStringList m_warnings;
+    std::thread m_worker;
+    std::atomic<bool> m_done{true};
+    std::shared_ptr<core::CancelToken> m_cancel;
+    std::atomic<double> m_fraction{0};
+    QString m_stage;
+    std::mutex m_stageMutex;
+    QTimer m_timer;
+    std::shared_ptr<const core::DicomScanResult> m_scan; ///< last DICOM scan (series picking)
+    QString m_scanFolder;
+};
+
+} // namespace fvr::ui

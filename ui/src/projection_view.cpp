@@ -1,0 +1,442 @@
+#include <fvr/ui/projection_view.h>
+
+#include <QMouseEvent>
+#include <QOpenGLContext>
+#include <QOpenGLExtraFunctions>
+#include <QOpenGLShaderProgram>
+#include <QOpenGLVertexArrayObject>
+#include <QPainter>
+#include <QWheelEvent>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include <fvr/core/patient_views.h>
+#include <fvr/gpu/errors.h>
+#include <fvr/gpu/gpu_renderer.h>
+
+namespace fvr::ui {
+
+namespace {
+const char* kQuadVertex = R"(#version 330 core
+uniform vec4 uRect; // x0, y0, x1, y1 in NDC (y1 = top)
+out vec2 vTex;
+void main() {
+    vec2 c = vec2(gl_VertexID & 1, (gl_VertexID >> 1) & 1);
+    gl_Position = vec4(mix(uRect.x, uRect.z, c.x), mix(uRect.w, uRect.y, c.y), 0.0, 1.0);
+    vTex = c; // texel row 0 (the image's top row) at the top of the quad
+}
+)";
+const char* kQuadFragment = R"(#version 330 core
+uniform sampler2D uImage;
+in vec2 vTex;
+out vec4 fragColor;
+void main() { fragColor = vec4(texture(uImage, vTex).rgb, 1.0); }
+)";
+} // namespace
+
+ProjectionView::ProjectionView(QWidget* parent) : QOpenGLWidget(parent) {
+    setMinimumSize(160, 160);
+    setFocusPolicy(Qt::StrongFocus);
+    setMouseTracking(false);
+    m_view = core::ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0});
+}
+
+ProjectionView::~ProjectionView() {
+    if (m_glReady) {
+        makeCurrent();
+        releaseGl();
+        doneCurrent();
+    }
+}
+
+void ProjectionView::releaseGl() {
+    if (!m_glReady) return;
+    m_gpu.reset();
+    m_quad.reset();
+    m_vao.reset();
+    if (m_cpuTexture) context()->functions()->glDeleteTextures(1, &m_cpuTexture);
+    m_cpuTexture = 0;
+    m_glReady = false;
+    m_spectrumDirty = true;
+}
+
+void ProjectionView::setStudy(std::shared_ptr<const core::Volume> volume,
+                              std::shared_ptr<const core::Spectrum> spectrum) {
+    const bool newVolume = volume != m_volume;
+    m_volume = std::move(volume);
+    m_spectrum = std::move(spectrum);
+    m_spectrumDirty = true;
+    m_renderDirty = true;
+    m_cpu.reset();
+    if (newVolume) m_windowSet = false;
+    update();
+}
+
+void ProjectionView::setSettings(const ViewSettings& s) {
+    if (s == m_settings) return;
+    m_settings = s;
+    m_renderDirty = true;
+    update();
+}
+
+void ProjectionView::setViewFrame(const core::ViewFrame& f) {
+    m_view = f;
+    m_renderDirty = true;
+    update();
+}
+
+void ProjectionView::setWindow(const core::DisplayWindow& w) {
+    m_window = w;
+    m_windowSet = true;
+    update();
+}
+
+void ProjectionView::autoWindow() {
+    if (auto p = projection()) {
+        core::DisplayWindow w = core::autoWindow(p->pixels);
+        w.invert = m_window.invert;
+        setWindow(w);
+        emit windowChanged(m_window);
+    }
+}
+
+void ProjectionView::setZoom(double zoom) {
+    m_zoom = std::clamp(zoom, 0.1, 40.0);
+    update();
+}
+
+void ProjectionView::resetPanZoom() {
+    m_zoom = 1.0;
+    m_pan = {0, 0};
+    update();
+}
+
+void ProjectionView::setOverlayVisible(bool on) {
+    m_overlay = on;
+    update();
+}
+
+void ProjectionView::setDifferenceReference(ProjectionView* reference) {
+    m_reference = reference;
+    m_renderDirty = true;
+    m_windowSet = false;
+    update();
+}
+
+void ProjectionView::setTitle(const QString& title) {
+    m_title = title;
+    update();
+}
+
+void ProjectionView::initializeGL() {
+    connect(context(), &QOpenGLContext::aboutToBeDestroyed, this, [this] {
+        makeCurrent();
+        releaseGl();
+        doneCurrent();
+    });
+    m_glReady = true;
+    m_spectrumDirty = true;
+    try {
+        m_gpu = std::make_unique<gpu::GpuFourierRenderer>();
+        m_notice.clear();
+    } catch (const std::exception& e) {
+        m_gpu.reset();
+        m_notice = tr("GPU renderer unavailable (%1): rendering on the CPU").arg(QString::fromUtf8(e.what()));
+    }
+    m_quad = std::make_unique<QOpenGLShaderProgram>();
+    m_quad->addShaderFromSourceCode(QOpenGLShader::Vertex, kQuadVertex);
+    m_quad->addShaderFromSourceCode(QOpenGLShader::Fragment, kQuadFragment);
+    if (!m_quad->link()) m_notice += tr(" (display shader failed: %1)").arg(m_quad->log());
+    m_vao = std::make_unique<QOpenGLVertexArrayObject>();
+    m_vao->create();
+    emit backendChanged(m_gpu != nullptr, m_notice);
+}
+
+void ProjectionView::resizeGL(int, int) {}
+
+void ProjectionView::renderIfNeeded() {
+    if (!m_spectrum || !m_volume) return;
+    if (m_spectrumDirty) {
+        m_spectrumDirty = false;
+        m_renderDirty = true;
+        if (m_gpu) {
+            try {
+                m_gpu->setSpectrum(m_spectrum);
+            } catch (const std::exception& e) {
+                m_gpu.reset();
+                m_notice = tr("GPU renderer unavailable (%1): rendering on the CPU").arg(QString::fromUtf8(e.what()));
+                emit backendChanged(false, m_notice);
+            }
+        }
+        if (!m_gpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
+    }
+    if (!m_renderDirty) return;
+    m_renderDirty = false;
+    const int M = m_settings.size;
+    const core::RenderParams params{m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)},
+                                    m_settings.kernel};
+    if (m_gpu) {
+        m_gpu->render(params); // stage times are read after the display pass (paintGL)
+        m_gpuTimesPending = true;
+        m_cpuImage.reset();
+    } else {
+        if (!m_cpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
+        core::StageTimes t;
+        m_cpuImage = m_cpu->render(params, &t);
+        m_stats.sliceMs = t.sliceMs;
+        m_stats.inverseMs = t.inverseMs;
+        m_stats.totalMs = t.totalMs;
+        m_stats.fused = false;
+    }
+    if (m_reference && m_reference != this) {
+        auto own = m_gpu ? std::optional<core::ProjectionImage>(m_gpu->readback()) : m_cpuImage;
+        auto ref = m_reference->projection();
+        if (own && ref && ref->size == own->size) {
+            double maxAbs = 0;
+            for (std::size_t i = 0; i < own->pixels.size(); ++i) {
+                own->pixels[i] -= ref->pixels[i];
+                maxAbs = std::max(maxAbs, double(std::abs(own->pixels[i])));
+            }
+            m_cpuImage = own;
+            if (!m_windowSet) {
+                m_window = {-maxAbs, maxAbs > 0 ? maxAbs : 1.0, false};
+                m_windowSet = true;
+            }
+        }
+    }
+    if (!m_windowSet) {
+        const auto img = m_cpuImage ? *m_cpuImage : m_gpu->readback();
+        const bool invert = m_window.invert;
+        m_window = core::autoWindow(img.pixels);
+        m_window.invert = invert;
+        m_windowSet = true;
+        emit windowChanged(m_window);
+    }
+    ++m_frames;
+    const double wall = m_frameClock.isValid() ? m_frameClock.restart() : 0.0;
+    m_stats.fps = wall > 0 ? 1000.0 / wall : 0.0;
+    if (!m_frameClock.isValid()) m_frameClock.start();
+    emit rendered();
+}
+
+QRectF ProjectionView::imageRect() const {
+    const double side = std::min(width(), height()) * m_zoom;
+    return {width() / 2.0 - side / 2.0 + m_pan.x(), height() / 2.0 - side / 2.0 + m_pan.y(), side, side};
+}
+
+void ProjectionView::paintGL() {
+    auto* f = context()->extraFunctions();
+    f->glClearColor(0.08f, 0.08f, 0.09f, 1.0f);
+    f->glClear(GL_COLOR_BUFFER_BIT);
+    if (!m_spectrum) {
+        drawOverlay();
+        return;
+    }
+    try {
+        renderIfNeeded();
+    } catch (const std::exception& e) {
+        m_notice = tr("Rendering failed: %1").arg(QString::fromUtf8(e.what()));
+        drawOverlay();
+        return;
+    }
+    GLuint tex = 0;
+    if (m_gpu && !m_cpuImage) {
+        tex = m_gpu->displayTexture(m_window);
+        const auto t = m_gpu->lastTimes();
+        if (m_gpuTimesPending) {
+            m_stats.sliceMs = t.sliceMs;
+            m_stats.inverseMs = t.inverseMs;
+            m_stats.totalMs = t.totalMs;
+            m_stats.fused = t.fused;
+            m_stats.displayMs = t.displayMs;
+            m_gpuTimesPending = false;
+        }
+    } else if (m_cpuImage) {
+        const int M = m_cpuImage->size;
+        std::vector<unsigned char> rgba(std::size_t(M) * M * 4);
+        const double lo = m_window.low, scale = 1.0 / std::max(1e-30, m_window.high - m_window.low);
+        for (std::size_t i = 0; i < std::size_t(M) * M; ++i) {
+            double t = std::clamp((m_cpuImage->pixels[i] - lo) * scale, 0.0, 1.0);
+            if (m_window.invert) t = 1.0 - t;
+            const auto v = static_cast<unsigned char>(std::lround(t * 255.0));
+            rgba[4 * i] = rgba[4 * i + 1] = rgba[4 * i + 2] = v;
+            rgba[4 * i + 3] = 255;
+        }
+        if (!m_cpuTexture) f->glGenTextures(1, &m_cpuTexture);
+        f->glBindTexture(GL_TEXTURE_2D, m_cpuTexture);
+        f->glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+        if (m_cpuTextureSize != M) {
+            f->glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, M, M, 0, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+            f->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+            f->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+            m_cpuTextureSize = M;
+        } else {
+            f->glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, M, M, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+        }
+        tex = m_cpuTexture;
+    }
+    if (tex && m_quad && m_quad->isLinked()) {
+        const QRectF r = imageRect();
+        const double dpr = devicePixelRatioF();
+        f->glViewport(0, 0, int(width() * dpr), int(height() * dpr));
+        auto ndcX = [&](double x) { return float(2.0 * x / width() - 1.0); };
+        auto ndcY = [&](double y) { return float(1.0 - 2.0 * y / height()); };
+        m_quad->bind();
+        m_quad->setUniformValue("uRect", QVector4D(ndcX(r.left()), ndcY(r.bottom()), ndcX(r.right()), ndcY(r.top())));
+        m_quad->setUniformValue("uImage", 0);
+        f->glActiveTexture(GL_TEXTURE0);
+        f->glBindTexture(GL_TEXTURE_2D, tex);
+        m_vao->bind();
+        f->glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
+        m_vao->release();
+        m_quad->release();
+    }
+    drawOverlay();
+}
+
+void ProjectionView::drawOverlay() {
+    QPainter p(this);
+    p.setRenderHint(QPainter::TextAntialiasing);
+    QFont font = p.font();
+    font.setPointSizeF(std::max(8.0, font.pointSizeF()));
+    p.setFont(font);
+    const QColor label(255, 210, 80);
+    if (!m_spectrum) {
+        p.setPen(QColor(180, 180, 180));
+        p.drawText(rect(), Qt::AlignCenter, tr("No study loaded\nFile ▸ Open, or drop a DICOM folder or volume file here"));
+        return;
+    }
+    // Text with a dark halo stays readable on bright (bone) and dark (air) parts of the image.
+    auto haloText = [&](const QRectF& r, int flags, const QString& text, const QColor& color) {
+        p.setPen(QColor(0, 0, 0, 200));
+        for (const QPointF& o : {QPointF(-1, 0), QPointF(1, 0), QPointF(0, -1), QPointF(0, 1)}) p.drawText(r.translated(o), flags, text);
+        p.setPen(color);
+        p.drawText(r, flags, text);
+    };
+    if (m_volume) {
+        const QRectF r = imageRect().intersected(QRectF(rect()));
+        auto lbl = [&](const core::Vec3& v) { return QString::fromStdString(core::patientDirectionLabel(*m_volume, v)); };
+        const core::Vec3 neg_r{-m_view.r[0], -m_view.r[1], -m_view.r[2]};
+        const core::Vec3 neg_u{-m_view.u[0], -m_view.u[1], -m_view.u[2]};
+        const int pad = 6;
+        QFont bold = p.font();
+        bold.setBold(true);
+        p.setFont(bold);
+        const QRectF inner(r.left() + pad, r.top() + pad, r.width() - 2 * pad, r.height() - 2 * pad);
+        haloText(inner, Qt::AlignLeft | Qt::AlignVCenter, lbl(neg_r), label);
+        haloText(inner, Qt::AlignRight | Qt::AlignVCenter, lbl(m_view.r), label);
+        haloText(inner, Qt::AlignHCenter | Qt::AlignTop, lbl(m_view.u), label);
+        haloText(inner, Qt::AlignHCenter | Qt::AlignBottom, lbl(neg_u), label);
+        p.setFont(font);
+    }
+    QStringList lines;
+    if (!m_title.isEmpty()) lines << m_title;
+    if (m_overlay) {
+        lines << QStringLiteral("%1 fps  %2  %3×%3  %4")
+                     .arg(m_stats.fps > 0 ? QString::number(m_stats.fps, 'f', 0) : QStringLiteral("–"))
+                     .arg(QString::fromUtf8(core::kernelName(m_settings.kernel)))
+                     .arg(m_settings.size)
+                     .arg(m_gpu ? QStringLiteral("GPU") : QStringLiteral("CPU"));
+        if (m_stats.fused)
+            lines << QStringLiteral("slice+inverse %1 ms  display %2 ms").arg(m_stats.inverseMs, 0, 'f', 2).arg(m_stats.displayMs, 0, 'f', 2);
+        else
+            lines << QStringLiteral("slice %1  inverse %2  display %3 ms")
+                         .arg(m_stats.sliceMs, 0, 'f', 2)
+                         .arg(m_stats.inverseMs, 0, 'f', 2)
+                         .arg(m_stats.displayMs, 0, 'f', 2);
+        lines << QStringLiteral("W %1  L %2").arg(m_window.high - m_window.low, 0, 'g', 4).arg((m_window.high + m_window.low) / 2, 0, 'g', 4);
+    }
+    if (m_reference) lines << tr("difference to %1").arg(m_reference->m_title);
+    if (!lines.isEmpty()) {
+        const QString text = lines.join('\n');
+        const QRect box = p.fontMetrics().boundingRect(QRect(8, 6, width() - 16, height() - 12), Qt::AlignLeft | Qt::AlignTop, text);
+        p.fillRect(box.adjusted(-4, -2, 4, 2), QColor(0, 0, 0, 150));
+        p.setPen(QColor(140, 240, 140));
+        p.drawText(box, Qt::AlignLeft | Qt::AlignTop, text);
+    }
+    if (!m_notice.isEmpty()) {
+        const QRect area(8, 6, width() - 16, height() - 12);
+        const QRect box = p.fontMetrics().boundingRect(area, Qt::AlignLeft | Qt::AlignBottom | Qt::TextWordWrap, m_notice);
+        p.fillRect(box.adjusted(-4, -2, 4, 2), QColor(0, 0, 0, 170));
+        p.setPen(QColor(255, 130, 110));
+        p.drawText(box, Qt::AlignLeft | Qt::AlignBottom | Qt::TextWordWrap, m_notice);
+    }
+}
+
+std::optional<core::ProjectionImage> ProjectionView::projection() {
+    if (!m_spectrum || !m_volume) return std::nullopt;
+    if (m_glReady) {
+        makeCurrent();
+        try {
+            renderIfNeeded();
+        } catch (const std::exception&) {
+            doneCurrent();
+            return std::nullopt;
+        }
+        std::optional<core::ProjectionImage> img;
+        if (m_gpu) img = m_gpu->readback();
+        else img = m_cpuImage;
+        doneCurrent();
+        // In difference mode the view shows the difference; the projection is its own image.
+        if (m_reference && m_cpu) img = m_cpu->render({m_view, {m_settings.size, img->pixelSize}, m_settings.kernel});
+        else if (m_reference && m_gpu) {
+            makeCurrent();
+            img = m_gpu->readback();
+            doneCurrent();
+        }
+        return img;
+    }
+    if (!m_cpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
+    const int M = m_settings.size;
+    return m_cpu->render({m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)}, m_settings.kernel});
+}
+
+QImage ProjectionView::screenshot() { return grabFramebuffer(); }
+
+void ProjectionView::mousePressEvent(QMouseEvent* e) {
+    m_dragButton = e->button();
+    m_dragMods = e->modifiers();
+    m_lastPos = e->position().toPoint();
+}
+
+void ProjectionView::mouseMoveEvent(QMouseEvent* e) {
+    if (m_dragButton == Qt::NoButton) return;
+    const QPoint pos = e->position().toPoint();
+    const QPoint delta = pos - m_lastPos;
+    m_lastPos = pos;
+    const bool windowing = m_dragButton == Qt::RightButton ||
+                           (m_dragButton == Qt::LeftButton && (m_dragMods & Qt::ControlModifier));
+    if (windowing) {
+        double w = m_window.high - m_window.low, c = (m_window.high + m_window.low) / 2;
+        w = std::max(1e-9, w * std::exp(delta.x() * 0.005));
+        c -= delta.y() * w * 0.003;
+        m_window.low = c - w / 2;
+        m_window.high = c + w / 2;
+        m_windowSet = true;
+        emit windowChanged(m_window);
+        update();
+    } else if (m_dragButton == Qt::LeftButton) {
+        // Trackball: horizontal drags turn about the screen's vertical axis, vertical drags about
+        // the horizontal one; the object follows the mouse.
+        const double k = std::numbers::pi / std::max(1, std::min(width(), height()));
+        core::ViewFrame f = m_view;
+        if (delta.x()) f = f.rotated(f.u, delta.x() * k);
+        if (delta.y()) f = f.rotated(f.r, delta.y() * k);
+        setViewFrame(f);
+        emit viewFrameChanged(m_view);
+    } else if (m_dragButton == Qt::MiddleButton) {
+        m_pan += QPointF(delta);
+        update();
+    }
+}
+
+void ProjectionView::mouseReleaseEvent(QMouseEvent*) { m_dragButton = Qt::NoButton; }
+
+void ProjectionView::wheelEvent(QWheelEvent* e) {
+    const double steps = e->angleDelta().y() / 120.0;
+    setZoom(m_zoom * std::pow(1.15, steps));
+}
+
+} // namespace fvr::ui
