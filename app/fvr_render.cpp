@@ -16,6 +16,8 @@
 #include <unistd.h>
 
 #include <fvr/core/cpu_renderer.h>
+#include <fvr/core/dicom.h>
+#include <fvr/core/patient_views.h>
 #include <fvr/core/errors.h>
 #include <fvr/core/image_io.h>
 #include <fvr/core/phantom.h>
@@ -37,12 +39,19 @@ const char* kUsage = R"(usage: fvr-render INPUT [options] --out FILE
        fvr-render INPUT --info
        fvr-render INPUT --bench N [options]
 
-INPUT is a volume file (.mhd, .mha, .nii, .nii.gz), a headerless raw file with --raw-dims,
-or phantom:shepp-logan[:N] (built-in 3D Shepp-Logan in HU, N^3 voxels, default 128).
+INPUT is a DICOM folder (or one DICOM file), a volume file (.mhd, .mha, .nii, .nii.gz), a
+headerless raw file with --raw-dims, or phantom:shepp-logan[:N] (built-in 3D Shepp-Logan in HU,
+N^3 voxels, default 128).
 
 View and image:
   --dir x,y,z           viewing direction in the volume frame (default 0,0,1)
   --up x,y,z            up vector (default 0,-1,0: the plain sum of the slices, as stored)
+  --view V              patient view from the direction cosines (instead of --dir/--up):
+                        AP | PA | LEFT | RIGHT | HEAD | FEET (AP: from anterior, head up,
+                        patient's left on the image's right)
+DICOM:
+  --series UID          the series to load from a folder (default: the only one, else the one
+                        with most slices); --info lists the folder's series as JSON
   --size M              slice/image size, power of two 128..2048 (default 512)
   --pixel-size mm       output pixel size (default: volume diagonal / M, no overlapping copies)
 Rendering:
@@ -79,6 +88,8 @@ struct Args {
     bool gpu = false;
     bool fp16 = false;
     std::optional<RawSpec> raw;
+    std::optional<PatientView> view;
+    std::string series;
     std::string out;
     bool info = false;
     int bench = 0;
@@ -125,6 +136,8 @@ Args parseArgs(int argc, char** argv) {
             std::exit(0);
         } else if (opt == "--dir") a.dir = parseVec(opt, value());
         else if (opt == "--up") a.up = parseVec(opt, value());
+        else if (opt == "--view") a.view = parsePatientView(value());
+        else if (opt == "--series") a.series = value();
         else if (opt == "--size") a.size = parseInt(opt, value());
         else if (opt == "--pixel-size") a.pixelSize = parseNumber(opt, value());
         else if (opt == "--kernel") a.kernel = parseKernel(value());
@@ -160,7 +173,37 @@ Args parseArgs(int argc, char** argv) {
     return a;
 }
 
-Volume loadInput(const Args& a) {
+std::string jsonEscape(const std::string& s);
+
+void printWarnings(const std::vector<std::string>& warnings) {
+    for (const auto& w : warnings) std::fprintf(stderr, "fvr-render: warning: %s\n", w.c_str());
+}
+
+void printSeriesJson(const DicomScanResult& scan) {
+    std::printf("{\n  \"series\": [");
+    for (std::size_t i = 0; i < scan.series.size(); ++i) {
+        const auto& s = scan.series[i];
+        std::printf("%s\n    {\"key\": \"%s\", \"series_uid\": \"%s\", \"patient_name\": \"%s\", "
+                    "\"patient_id\": \"%s\", \"study_date\": \"%s\", \"modality\": \"%s\", "
+                    "\"description\": \"%s\", \"transfer_syntax\": \"%s\", \"images\": %d, \"frames\": %d, "
+                    "\"dims\": [%lld, %lld, %lld], \"spacing_mm\": [%g, %g, %g], \"warnings\": [",
+                    i ? "," : "", jsonEscape(s.key).c_str(), jsonEscape(s.seriesUid).c_str(),
+                    jsonEscape(s.patientName).c_str(), jsonEscape(s.patientId).c_str(), jsonEscape(s.studyDate).c_str(),
+                    jsonEscape(s.modality).c_str(), jsonEscape(s.description).c_str(),
+                    jsonEscape(s.transferSyntax).c_str(), s.imageCount, s.frameCount, (long long)s.dims[0],
+                    (long long)s.dims[1], (long long)s.dims[2], s.spacing[0], s.spacing[1], s.spacing[2]);
+        for (std::size_t w = 0; w < s.warnings.size(); ++w)
+            std::printf("%s\"%s\"", w ? ", " : "", jsonEscape(s.warnings[w]).c_str());
+        std::printf("]}");
+    }
+    std::printf("\n  ],\n  \"skipped\": [");
+    for (std::size_t i = 0; i < scan.skipped.size(); ++i)
+        std::printf("%s\n    \"%s\"", i ? "," : "", jsonEscape(scan.skipped[i]).c_str());
+    std::printf("%s]\n}\n", scan.skipped.empty() ? "" : "\n  ");
+}
+
+/** Loads INPUT; for a DICOM folder with --info prints the series and returns nothing. */
+std::optional<Volume> loadInput(const Args& a) {
     const std::string prefix = "phantom:";
     if (a.input.rfind(prefix, 0) == 0) {
         const std::string rest = a.input.substr(prefix.size());
@@ -171,7 +214,34 @@ Volume loadInput(const Args& a) {
         return makeSheppLoganVolume(n);
     }
     if (a.raw) return loadRaw(a.input, *a.raw);
-    return loadVolume(a.input);
+    const std::filesystem::path path(a.input);
+    if (std::filesystem::is_directory(path)) {
+        const auto scan = scanDicomFolder(path);
+        if (a.info && a.series.empty()) {
+            printSeriesJson(scan);
+            return std::nullopt;
+        }
+        const DicomSeriesInfo* chosen = nullptr;
+        for (const auto& s : scan.series)
+            if (a.series.empty() ? (!chosen || s.frameCount > chosen->frameCount)
+                                 : (s.key == a.series || s.seriesUid == a.series))
+                chosen = &s;
+        if (!chosen) throw LoadError(a.input + ": series '" + a.series + "' not found (see --info)");
+        if (a.series.empty() && scan.series.size() > 1)
+            std::fprintf(stderr, "fvr-render: %zu series in %s; using %s (%d slices); pick one with --series\n",
+                         scan.series.size(), a.input.c_str(), chosen->key.c_str(), chosen->frameCount);
+        auto loaded = loadDicomSeries(*chosen);
+        printWarnings(loaded.warnings);
+        return std::move(loaded.volume);
+    }
+    std::string ext = path.extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    if (ext == ".dcm" || ext == ".dicom" || ext.empty()) {
+        auto loaded = loadDicomFile(path);
+        printWarnings(loaded.warnings);
+        return std::move(loaded.volume);
+    }
+    return loadVolume(path);
 }
 
 std::string jsonEscape(const std::string& s) {
@@ -257,7 +327,9 @@ struct GpuSession {
 
 int run(int argc, char** argv) {
     const Args a = parseArgs(argc, argv);
-    const Volume volume = loadInput(a);
+    auto loadedInput = loadInput(a);
+    if (!loadedInput) return 0; // DICOM folder --info: the series list was printed
+    const Volume volume = std::move(*loadedInput);
     if (a.info) {
         printInfo(volume);
         if (a.out.empty() && a.bench <= 0) return 0;
@@ -287,7 +359,7 @@ int run(int argc, char** argv) {
     if (a.size < 128 || a.size > 2048)
         throw SettingsError("--size: expected a power of two in 128..2048, found " + std::to_string(a.size));
     const int threads = a.threads > 0 ? a.threads : hardwareThreads();
-    const ViewFrame base = ViewFrame::fromDirUp(a.dir, a.up);
+    const ViewFrame base = a.view ? patientViewFrame(volume, *a.view) : ViewFrame::fromDirUp(a.dir, a.up);
 
 #ifdef FVR_HAVE_GPU
     GpuSession* gpu = nullptr;

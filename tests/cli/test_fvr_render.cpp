@@ -154,3 +154,40 @@ TEST(FvrRender, GpuBackendMatchesCpuOrFallsBackWithANotice) {
     const auto c = readNpy(tmp("cpu.npy"), shape);
     EXPECT_GT(fvr::test::compare(g, c).psnr, 90.0);
 }
+
+TEST(FvrRender, DicomFolderInfoListsSeriesWithWarnings) {
+    FVR_REQUIRE_DATA("dicom/ct_head_ge_gantrytilt_28");
+    const auto dir = fvr::test::sharedData() / "dicom/ct_head_ge_gantrytilt_28";
+    const Result r = run(dir.string() + " --info");
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_NE(r.output.find("\"series\": ["), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("\"modality\": \"CT\""), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("\"images\": 28"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("gantry tilt"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("uneven slice spacing"), std::string::npos) << r.output;
+}
+
+TEST(FvrRender, DicomPatientViewsFollowTheDirectionCosines) {
+    FVR_REQUIRE_DATA("dicom/ct_head_slicer_64x64x93");
+    const auto dir = (fvr::test::sharedData() / "dicom/ct_head_slicer_64x64x93").string();
+    // AP and PA look along opposite directions: the same line integrals, mirrored left-right.
+    ASSERT_EQ(run(dir + " --view AP --size 128 --values mu --out " + tmp("ap.npy")).status, 0);
+    ASSERT_EQ(run(dir + " --view PA --size 128 --values mu --out " + tmp("pa.npy")).status, 0);
+    std::vector<std::int64_t> shape;
+    const auto ap = readNpy(tmp("ap.npy"), shape);
+    const auto pa = readNpy(tmp("pa.npy"), shape);
+    std::vector<float> mirrored(pa.size());
+    for (int row = 0; row < 128; ++row)
+        for (int col = 0; col < 128; ++col) {
+            // Mirror about the image centre column M/2: col -> M - col (col 0 has no partner).
+            const int mc = (128 - col) % 128;
+            mirrored[std::size_t(row) * 128 + col] = pa[std::size_t(row) * 128 + mc];
+        }
+    EXPECT_GT(fvr::test::compare(mirrored, ap).psnr, 60.0);
+    // A wrong series UID is bad input.
+    const Result bad = run(dir + " --series 1.2.3.4 --out " + tmp("x.npy"));
+    EXPECT_EQ(bad.status, 2) << bad.output;
+    EXPECT_NE(bad.output.find("1.2.3.4"), std::string::npos) << bad.output;
+    const Result badView = run(dir + " --view OBLIQUE --out " + tmp("x.npy"));
+    EXPECT_EQ(badView.status, 2) << badView.output;
+}
