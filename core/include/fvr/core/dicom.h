@@ -1,6 +1,56 @@
 #pragma once
 /** DICOM studies through DCMTK: scan a folder into series, load one series into a Volume with
- *  its patient geometry (LPS), Hounsfield units and every geometry problem reported. */
+ *  its patient geometry (LPS), Hounsfield units and every geometry problem reported.
+ *
+ *  Supported: Explicit/Implicit VR Little Endian, Explicit VR Big Endian, Deflated, RLE, JPEG
+ *  (baseline, extended, lossless incl. frames split over several fragments), JPEG-LS (lossless
+ *  and near-lossless); single-frame series, classic multi-frame and enhanced multi-frame
+ *  (shared and per-frame functional groups: PlanePosition, PlaneOrientation, PixelMeasures,
+ *  PixelValueTransformation); monochrome, 8/16/32-bit integer (signed or not, any BitsStored and
+ *  HighBit) and Float/Double Float Pixel Data. Refused with a DicomError naming the file and the
+ *  reason: JPEG 2000 and other transfer syntaxes without a decoder in Debian's DCMTK 3.6.7,
+ *  colour (SamplesPerPixel > 1, PALETTE COLOR), BitsAllocated 1 (segmentations), headers the
+ *  pixel data cannot hold (checked before anything is allocated; compressed data may claim at
+ *  most 1024 times its size, or 256 MiB).
+ *
+ *  Values: raw words shifted down by HighBit + 1 - BitsStored, masked to BitsStored,
+ *  sign-extended from the top stored bit when PixelRepresentation is 1, then rescaled with the
+ *  frame's RescaleSlope/RescaleIntercept, or mapped through the Modality LUT Sequence when there
+ *  is one (LUTData[stored - first mapped value], clamped to the table). Units: HounsfieldUnits
+ *  for CT with a rescale whose RescaleType is absent or HU (an explicit 'US' on a CT is loaded as
+ *  Intensity, with a warning), Intensity otherwise. MONOCHROME1: stored value v -> (min + max
+ *  of the BitsStored range) - v before the rescale (with a Modality LUT: its output range is
+ *  inverted), so that larger means brighter, with a warning; except Hounsfield units, which are
+ *  physical and stay as they are (MONOCHROME1 only tells a viewer to show low values white),
+ *  also with a warning.
+ *
+ *  Geometry (decided per case; a user never gets a silently distorted volume):
+ *  - Order: slices sorted by ImagePositionPatient projected on the normal n = row x column
+ *    cosines (ImageOrientationPatient), never by file name or InstanceNumber.
+ *    direction[0] = row cosines (index x, along a row), direction[1] = column cosines,
+ *    direction[2] = n; origin = the first slice's position (LPS). spacing x/y = PixelSpacing
+ *    column/row spacing; z = (last - first) / (N - 1) along n (not SliceThickness).
+ *  - Uneven gaps or missing slices (a gap differing from the median by more than 1 % or
+ *    0.01 mm): resampled onto a regular grid along n at the median gap (adjusted so that the
+ *    first and last slices fall on it) by linear interpolation between the two neighbouring
+ *    slices; the warning lists the distinct gaps found and, where a gap is a multiple of the
+ *    median, how many slices are missing where. A gap of more than 10 times the median (two
+ *    stacks in one series) is refused, as is a grid of more than 16 times the input voxels.
+ *  - Gantry tilt / sheared stack (slice positions drifting in plane by more than 5 % of a
+ *    pixel): resampled onto an orthogonal grid (rows, columns, n) that covers every slice,
+ *    bilinear in plane and linear along n; voxels that no slice covers get the series minimum;
+ *    the warning gives the angle of the stack against n (and GantryDetectorTilt).
+ *  - Duplicate positions (two slices within 0.01 mm along n): the scan splits the series by
+ *    the acquisition attribute that separates them (AcquisitionNumber, temporal position,
+ *    StackID, ImageType/FrameType, trigger time, b-value, rescale, a DimensionIndexValues
+ *    entry, or the file); when none does, loading refuses with a message naming two of them.
+ *  - Image size, pixel spacing, orientation (cosines differing by more than 1e-3) and echo
+ *    always split a series at scan time; the loader refuses mixed sizes it is handed.
+ *  - Missing ImagePositionPatient in a multi-file series: refused (no guessing from names).
+ *    Frames of one multi-frame file without positions: stacked in file order at
+ *    SpacingBetweenSlices/SliceThickness (or 1 mm), with a warning. Missing PixelSpacing or
+ *    ImageOrientationPatient on a single image: 1 mm / identity, with a warning. */
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -27,9 +77,14 @@ struct DicomSeriesInfo {
     int imageCount = 0;         ///< files (a multi-frame file counts once)
     int frameCount = 0;         ///< slices in total
     Dims3 dims{0, 0, 0};        ///< columns, rows, slices (as it would load)
-    Vec3 spacing{0, 0, 0};      ///< mm; slice spacing estimated from positions
-    std::vector<std::filesystem::path> files;
-    std::vector<std::string> warnings; ///< problems visible at scan time
+    Vec3 spacing{0, 0, 0};      ///< mm, as it would load (slice spacing from positions)
+    std::vector<std::filesystem::path> files; ///< sorted along the slice normal where positions allow
+    /** Per file (parallel to `files`): the 0-based frames of that file that belong to this series,
+     *  when a multi-frame file holds several volumes (e.g. two image types of an enhanced MR
+     *  split apart); empty (or an empty entry): all frames of the file. */
+    std::vector<std::vector<std::int32_t>> frames;
+    std::vector<std::string> warnings; ///< problems visible at scan time; "cannot be loaded: ..."
+                                       ///< when loading would refuse (and why)
 };
 
 struct DicomScanResult {
@@ -37,9 +92,11 @@ struct DicomScanResult {
     std::vector<std::string> skipped; ///< "file: reason" for files that are not usable images
 };
 
-/** Recursive scan (reads DICOMDIR when present, else every file), in parallel; progress and
- *  cancellation as for preprocessing. Non-DICOM and broken files are listed in `skipped`.
- *  Throws DicomError when the folder does not exist or holds no image series. */
+/** Recursive scan (reads DICOMDIR when present, else every file), in parallel, headers only
+ *  (pixel data stays on disk); progress and cancellation as for preprocessing. Non-DICOM and
+ *  broken files are listed in `skipped`; series that cannot be loaded (e.g. JPEG 2000) are
+ *  listed with a "cannot be loaded" warning. `folder` may also be a single file. Throws
+ *  DicomError when the folder does not exist or holds no image series. */
 DicomScanResult scanDicomFolder(const std::filesystem::path& folder, const ProgressFn& progress = {},
                                 const CancelToken* cancel = nullptr);
 
@@ -57,10 +114,12 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
                             const CancelToken* cancel = nullptr);
 
 /** Convenience: scan `folder` and load the series whose key or SeriesInstanceUID is `key`
- *  (empty: the only series, or the one with most slices when there are several). */
+ *  (empty: the only series, or the loadable one with most slices when there are several; a
+ *  warning says which). */
 DicomVolume loadDicomFolder(const std::filesystem::path& folder, const std::string& key = {});
 
-/** Loads one file (single image or multi-frame) as a volume; throws DicomError. Used by the
+/** Loads one file (single image or multi-frame) as a volume; throws DicomError. A file that
+ *  holds several volumes (split as a scan would) loads the first, with a warning. Used by the
  *  fuzz target and for single-file input. */
 DicomVolume loadDicomFile(const std::filesystem::path& file);
 

@@ -1,0 +1,510 @@
+// Scanning a folder for DICOM series: the file list (DICOMDIR or a recursive walk), headers read
+// in parallel without pixel data, and the grouping of files (and frames) into series.
+//
+// Grouping: by SeriesInstanceUID (files without one: by folder, study and series number). Within
+// a series, frames are split apart where they cannot form one volume: image size, pixel spacing,
+// orientation (row/column cosines differing by more than 1e-3) and echo (EchoNumbers or the
+// enhanced MR EffectiveEchoTime) always split. When a part still holds two images at the same
+// position, the first of AcquisitionNumber, temporal position, StackID, ImageType/FrameType,
+// trigger time, b-value, rescale, a DimensionIndexValues entry, or the file, that separates it
+// into parts without duplicates (the fewest parts wins; parts average at least two slices) splits
+// it. Otherwise it stays whole and its warnings say that loading refuses the duplicates.
+#include "dicom_internal.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <functional>
+#include <map>
+#include <set>
+#include <unordered_map>
+
+#include <dcmtk/config/osconfig.h>
+#include <dcmtk/dcmdata/dcdeftag.h>
+#include <dcmtk/dcmdata/dcfilefo.h>
+#include <dcmtk/dcmdata/dcsequen.h>
+
+#include <fvr/core/thread_pool.h>
+
+namespace fvr::core {
+
+using namespace dicom_detail;
+
+namespace dicom_detail {
+
+namespace {
+
+struct Unit {
+    int h = 0;     // header index
+    int f = 0;     // frame
+};
+
+std::string lower(std::string s) {
+    for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return s;
+}
+
+/** `dir / name` matched case-insensitively (ISO 9660 names in a DICOMDIR are upper case, the
+ *  files on disk may not be). */
+std::optional<fs::path> findCaseInsensitive(const fs::path& dir, const std::string& name) {
+    std::error_code ec;
+    if (fs::exists(dir / name, ec)) return dir / name;
+    const std::string want = lower(name);
+    for (fs::directory_iterator it(dir, fs::directory_options::skip_permission_denied, ec), end;
+         !ec && it != end; it.increment(ec)) {
+        if (lower(it->path().filename().string()) == want) return it->path();
+    }
+    return std::nullopt;
+}
+
+/** Files referenced by a DICOMDIR; nullopt when it cannot be read. */
+std::optional<std::vector<fs::path>> filesFromDicomdir(const fs::path& dicomdir,
+                                                       std::vector<std::string>& skipped,
+                                                       std::string& why) {
+    DcmFileFormat ff;
+    const OFCondition c = ff.loadFile(OFFilename(dicomdir.c_str()));
+    if (c.bad()) {
+        why = c.text();
+        return std::nullopt;
+    }
+    DcmSequenceOfItems* records = nullptr;
+    if (ff.getDataset()->findAndGetSequence(DCM_DirectoryRecordSequence, records).bad() || !records) {
+        why = "no DirectoryRecordSequence (0004,1220)";
+        return std::nullopt;
+    }
+    const fs::path root = dicomdir.parent_path();
+    std::vector<fs::path> files;
+    std::set<fs::path> seen;
+    for (unsigned long i = 0; i < records->card(); ++i) {
+        DcmItem* rec = records->getItem(i);
+        OFString id;
+        if (!rec || rec->findAndGetOFStringArray(DCM_ReferencedFileID, id).bad() || id.empty()) continue;
+        // Components are separated by backslashes; never leave the DICOMDIR's folder.
+        std::vector<std::string> parts;
+        std::string cur;
+        for (char ch : std::string(id.c_str())) {
+            if (ch == '\\') {
+                parts.push_back(cur);
+                cur.clear();
+            } else if (ch != ' ') {
+                cur += ch;
+            }
+        }
+        parts.push_back(cur);
+        bool bad = false;
+        fs::path p = root;
+        for (const std::string& part : parts) {
+            if (part.empty() || part == "." || part == ".." || part.find('/') != std::string::npos) {
+                bad = true;
+                break;
+            }
+            auto found = findCaseInsensitive(p, part);
+            p = found ? *found : p / part;
+        }
+        if (bad) {
+            skipped.push_back(dicomdir.string() + ": record " + std::to_string(i + 1) +
+                              " has an invalid ReferencedFileID '" + std::string(id.c_str()) + "'");
+            continue;
+        }
+        std::error_code ec;
+        if (!fs::is_regular_file(p, ec)) {
+            skipped.push_back(p.string() + ": listed in DICOMDIR but missing");
+            continue;
+        }
+        if (seen.insert(p).second) files.push_back(p);
+    }
+    return files;
+}
+
+const FrameInfo& info(const std::vector<DicomHeader>& hs, const Unit& u) {
+    return hs[static_cast<std::size_t>(u.h)].frameInfo[static_cast<std::size_t>(u.f)];
+}
+
+bool realPosition(const FrameInfo& f) { return f.hasPosition && !f.fileLevelPosition; }
+
+/** Two units of the group at the same place along the slice normal. */
+bool hasDuplicates(const std::vector<DicomHeader>& hs, const std::vector<Unit>& units) {
+    if (units.size() < 2) return false;
+    const FrameInfo& f0 = info(hs, units[0]);
+    Vec3 n{0, 0, 1};
+    if (f0.hasOrientation) {
+        const auto& o = f0.orientation;
+        n = {o[1] * o[5] - o[2] * o[4], o[2] * o[3] - o[0] * o[5], o[0] * o[4] - o[1] * o[3]};
+    }
+    std::vector<double> t;
+    for (const Unit& u : units) {
+        const FrameInfo& f = info(hs, u);
+        if (realPosition(f))
+            t.push_back(f.position[0] * n[0] + f.position[1] * n[1] + f.position[2] * n[2]);
+    }
+    std::sort(t.begin(), t.end());
+    for (std::size_t k = 0; k + 1 < t.size(); ++k)
+        if (t[k + 1] - t[k] < 0.01) return true;
+    return false;
+}
+
+using KeyFn = std::function<std::string(const Unit&)>;
+
+std::vector<std::vector<Unit>> partition(const std::vector<Unit>& units, const KeyFn& key) {
+    std::vector<std::vector<Unit>> parts;
+    std::unordered_map<std::string, std::size_t> index;
+    for (const Unit& u : units) {
+        const std::string k = key(u);
+        auto [it, inserted] = index.try_emplace(k, parts.size());
+        if (inserted) parts.emplace_back();
+        parts[it->second].push_back(u);
+    }
+    return parts;
+}
+
+struct Split {
+    std::vector<std::vector<Unit>> parts;
+    std::string by; // what split it, empty if not split
+    bool duplicates = false;
+};
+
+Split resolveDuplicates(const std::vector<DicomHeader>& hs, const std::vector<Unit>& units) {
+    Split result;
+    if (!hasDuplicates(hs, units)) {
+        result.parts = {units};
+        return result;
+    }
+    std::size_t maxDims = 0;
+    for (const Unit& u : units) maxDims = std::max(maxDims, info(hs, u).dimensionIndex.size());
+    std::vector<std::pair<std::string, KeyFn>> candidates = {
+        {"AcquisitionNumber (0020,0012)", [&](const Unit& u) { return info(hs, u).acquisition; }},
+        {"temporal position", [&](const Unit& u) { return info(hs, u).temporal; }},
+        {"StackID (0020,9056)", [&](const Unit& u) { return info(hs, u).stack; }},
+        {"ImageType/FrameType", [&](const Unit& u) { return info(hs, u).imageType; }},
+        {"trigger time", [&](const Unit& u) { return info(hs, u).triggerTime; }},
+        {"DiffusionBValue", [&](const Unit& u) { return info(hs, u).diffusion; }},
+        {"RescaleSlope/Intercept", [&](const Unit& u) {
+             return fmt(info(hs, u).slope, 9) + "/" + fmt(info(hs, u).intercept, 9);
+         }},
+    };
+    const std::size_t combinable = candidates.size();
+    for (std::size_t j = 0; j < maxDims; ++j)
+        candidates.emplace_back("DimensionIndexValues (0020,9157) entry " + std::to_string(j + 1),
+                                [&, j](const Unit& u) {
+                                    const auto& d = info(hs, u).dimensionIndex;
+                                    return j < d.size() ? std::to_string(d[j]) : std::string("-");
+                                });
+    candidates.emplace_back("file", [](const Unit& u) { return std::to_string(u.h); });
+    candidates.emplace_back("the combination of acquisition attributes", [&](const Unit& u) {
+        std::string k;
+        for (std::size_t c = 0; c < combinable; ++c) k += candidates[c].second(u) + "|";
+        return k;
+    });
+
+    for (const auto& [name, key] : candidates) {
+        auto parts = partition(units, key);
+        if (parts.size() < 2 || parts.size() * 2 > units.size()) continue;
+        bool clean = true;
+        for (const auto& p : parts) clean = clean && !hasDuplicates(hs, p);
+        if (clean && (result.parts.empty() || parts.size() < result.parts.size())) {
+            result.parts = std::move(parts);
+            result.by = name;
+        }
+    }
+    if (result.parts.empty()) {
+        result.parts = {units};
+        result.duplicates = true;
+    }
+    return result;
+}
+
+} // namespace
+
+std::string sliceLabel(const DicomHeader& h, std::int64_t frame) {
+    std::string s = h.path.filename().string();
+    if (h.frames > 1) s += " frame " + std::to_string(frame + 1);
+    return s;
+}
+
+std::vector<DicomSeriesInfo> groupIntoSeries(const std::vector<DicomHeader>& hs,
+                                             std::vector<std::string>& skipped) {
+    // Repeated SOP instances (the same image copied twice) count once.
+    std::vector<int> usable;
+    {
+        std::unordered_map<std::string, int> seen;
+        for (int i = 0; i < int(hs.size()); ++i) {
+            const auto& uid = hs[static_cast<std::size_t>(i)].sopInstanceUid;
+            if (!uid.empty()) {
+                auto [it, inserted] = seen.try_emplace(uid, i);
+                if (!inserted) {
+                    skipped.push_back(hs[static_cast<std::size_t>(i)].path.string() +
+                                      ": duplicate of " +
+                                      hs[static_cast<std::size_t>(it->second)].path.string() +
+                                      " (same SOPInstanceUID)");
+                    continue;
+                }
+            }
+            usable.push_back(i);
+        }
+    }
+
+    // By SeriesInstanceUID (or folder/study/series number when it is missing).
+    std::vector<std::string> primaryKeys;
+    std::unordered_map<std::string, std::vector<int>> primary;
+    for (int i : usable) {
+        const DicomHeader& h = hs[static_cast<std::size_t>(i)];
+        std::string key = h.seriesUid;
+        if (key.empty())
+            key = "folder:" + h.path.parent_path().string() +
+                  (h.seriesNumber.empty() ? "" : "#" + h.seriesNumber) +
+                  (h.studyUid.empty() ? "" : "@" + h.studyUid);
+        auto [it, inserted] = primary.try_emplace(key);
+        if (inserted) primaryKeys.push_back(key);
+        it->second.push_back(i);
+    }
+
+    std::vector<DicomSeriesInfo> out;
+    for (const std::string& pkey : primaryKeys) {
+        const auto& members = primary[pkey];
+        std::vector<Unit> units;
+        for (int i : members)
+            for (int f = 0; f < int(hs[static_cast<std::size_t>(i)].frames); ++f) units.push_back({i, f});
+
+        // Always split: size, pixel spacing, orientation, echo.
+        std::vector<std::array<double, 6>> iops;
+        std::vector<std::pair<double, double>> spacings;
+        auto iopId = [&](const FrameInfo& f) -> int {
+            if (!f.hasOrientation) return -1;
+            for (std::size_t k = 0; k < iops.size(); ++k) {
+                double d = 0;
+                for (int j = 0; j < 6; ++j) d = std::max(d, std::abs(iops[k][static_cast<std::size_t>(j)] - f.orientation[static_cast<std::size_t>(j)]));
+                if (d <= 1e-3) return int(k);
+            }
+            iops.push_back(f.orientation);
+            return int(iops.size()) - 1;
+        };
+        auto spacingId = [&](const FrameInfo& f) -> int {
+            if (!f.hasPixelSpacing) return -1;
+            for (std::size_t k = 0; k < spacings.size(); ++k)
+                if (std::abs(spacings[k].first - f.rowSpacing) <= 1e-3 * f.rowSpacing &&
+                    std::abs(spacings[k].second - f.colSpacing) <= 1e-3 * f.colSpacing)
+                    return int(k);
+            spacings.emplace_back(f.rowSpacing, f.colSpacing);
+            return int(spacings.size()) - 1;
+        };
+        std::vector<std::string> splitReasons;
+        auto hard = partition(units, [&](const Unit& u) {
+            const DicomHeader& h = hs[static_cast<std::size_t>(u.h)];
+            const FrameInfo& f = info(hs, u);
+            return std::to_string(h.cols) + "x" + std::to_string(h.rows) + "|" +
+                   std::to_string(spacingId(f)) + "|" + std::to_string(iopId(f)) + "|" + f.echo;
+        });
+        if (hard.size() > 1) {
+            std::set<std::string> sizes, echoes;
+            for (const auto& p : hard) {
+                const DicomHeader& h = hs[static_cast<std::size_t>(p[0].h)];
+                sizes.insert(std::to_string(h.cols) + "x" + std::to_string(h.rows));
+                echoes.insert(info(hs, p[0]).echo);
+            }
+            std::string what;
+            if (sizes.size() > 1) what += "image size";
+            if (iops.size() > 1) what += std::string(what.empty() ? "" : ", ") + "orientation";
+            if (spacings.size() > 1) what += std::string(what.empty() ? "" : ", ") + "pixel spacing";
+            if (echoes.size() > 1) what += std::string(what.empty() ? "" : ", ") + "echo";
+            splitReasons.push_back(what);
+        }
+
+        struct Final {
+            std::vector<Unit> units;
+            std::string note;
+            bool duplicates = false;
+        };
+        std::vector<Final> finals;
+        for (auto& part : hard) {
+            Split s = resolveDuplicates(hs, part);
+            for (auto& p : s.parts)
+                finals.push_back({std::move(p), s.by, s.duplicates});
+        }
+
+        const bool split = finals.size() > 1;
+        for (std::size_t g = 0; g < finals.size(); ++g) {
+            Final& fin = finals[g];
+            const DicomHeader& h0 = hs[static_cast<std::size_t>(fin.units[0].h)];
+            DicomSeriesInfo si;
+            si.seriesUid = h0.seriesUid;
+            si.key = (h0.seriesUid.empty() ? pkey : h0.seriesUid) +
+                     (split ? "#" + std::to_string(g + 1) : std::string());
+            si.studyUid = h0.studyUid;
+            si.patientName = h0.patientName;
+            si.patientId = h0.patientId;
+            si.studyDate = h0.studyDate;
+            si.modality = h0.modality;
+            si.description = h0.description;
+            si.transferSyntax = h0.xferName;
+            si.frameCount = int(fin.units.size());
+            if (h0.seriesUid.empty())
+                si.warnings.push_back("SeriesInstanceUID (0020,000E) missing: files grouped by folder" +
+                                      std::string(h0.seriesNumber.empty() ? "" : ", series number") +
+                                      (h0.studyUid.empty() ? "" : " and study"));
+            if (split) {
+                std::string why;
+                for (const auto& r : splitReasons) why += (why.empty() ? "" : ", ") + r;
+                if (!fin.note.empty()) why += (why.empty() ? "" : ", ") + fin.note;
+                si.warnings.push_back("series " + (h0.seriesUid.empty() ? pkey : h0.seriesUid) +
+                                      " split by " + why + " into " + std::to_string(finals.size()) +
+                                      " series; this is part " + std::to_string(g + 1));
+            }
+
+            // Plan as the loader will, to report dims, spacing and geometry problems now.
+            std::vector<PlanSlice> slices;
+            for (const Unit& u : fin.units) {
+                const DicomHeader& h = hs[static_cast<std::size_t>(u.h)];
+                slices.push_back({&info(hs, u), sliceLabel(h, u.f), h.frames > 1, h.gantryTilt, u.h});
+            }
+            std::vector<Unit> ordered = fin.units;
+            std::string cannot;
+            for (const Unit& u : fin.units) {
+                const std::string why = unsupportedReason(hs[static_cast<std::size_t>(u.h)]);
+                if (!why.empty()) {
+                    cannot = hs[static_cast<std::size_t>(u.h)].path.string() + ": " + why;
+                    break;
+                }
+            }
+            {
+                std::set<std::string> problems;
+                for (const Unit& u : fin.units)
+                    for (const auto& p : hs[static_cast<std::size_t>(u.h)].problems)
+                        if (problems.insert(p).second)
+                            si.warnings.push_back(hs[static_cast<std::size_t>(u.h)].path.filename().string() + ": " + p);
+            }
+            const FrameInfo& fi0 = info(hs, fin.units[0]);
+            si.dims = {h0.cols, h0.rows, std::int64_t(fin.units.size())};
+            si.spacing = {fi0.hasPixelSpacing ? fi0.colSpacing : 1.0,
+                          fi0.hasPixelSpacing ? fi0.rowSpacing : 1.0, 0.0};
+            try {
+                for (const Unit& u : fin.units)
+                    if (hs[static_cast<std::size_t>(u.h)].rows != h0.rows || hs[static_cast<std::size_t>(u.h)].cols != h0.cols)
+                        throw DicomError("mixed image sizes");
+                GeometryPlan plan = planGeometry(slices, h0.cols, h0.rows, "series " + si.key);
+                si.dims = plan.dims;
+                si.spacing = plan.spacing;
+                for (auto& w : plan.warnings) si.warnings.push_back(std::move(w));
+                ordered.clear();
+                for (int k : plan.order) ordered.push_back(fin.units[static_cast<std::size_t>(k)]);
+            } catch (const DicomError& e) {
+                if (cannot.empty()) cannot = e.what();
+            }
+            if (!cannot.empty()) si.warnings.push_back("cannot be loaded: " + cannot);
+
+            // Files in slice order, with the frames each contributes when not all of them.
+            std::unordered_map<int, std::size_t> fileIndex;
+            std::vector<int> fileHeader;
+            for (const Unit& u : ordered) {
+                auto [it, inserted] = fileIndex.try_emplace(u.h, si.files.size());
+                if (inserted) {
+                    si.files.push_back(hs[static_cast<std::size_t>(u.h)].path);
+                    si.frames.emplace_back();
+                    fileHeader.push_back(u.h);
+                }
+                si.frames[it->second].push_back(u.f);
+            }
+            bool anyPartial = false;
+            for (std::size_t k = 0; k < si.frames.size(); ++k) {
+                auto& fr = si.frames[k];
+                std::sort(fr.begin(), fr.end());
+                if (std::int64_t(fr.size()) == hs[static_cast<std::size_t>(fileHeader[k])].frames) fr.clear();
+                else anyPartial = true;
+            }
+            if (!anyPartial) si.frames.clear();
+            si.imageCount = int(si.files.size());
+            out.push_back(std::move(si));
+        }
+    }
+    std::stable_sort(out.begin(), out.end(), [](const DicomSeriesInfo& a, const DicomSeriesInfo& b) {
+        if (a.studyUid != b.studyUid) return a.studyUid < b.studyUid;
+        return a.key < b.key;
+    });
+    return out;
+}
+
+} // namespace dicom_detail
+
+DicomScanResult scanDicomFolder(const std::filesystem::path& folder, const ProgressFn& progress,
+                                const CancelToken* cancel) {
+    initDcmtk();
+    DicomScanResult result;
+    std::error_code ec;
+    if (!fs::exists(folder, ec)) throw DicomError(folder.string() + ": folder not found");
+
+    std::vector<fs::path> files;
+    if (fs::is_regular_file(folder, ec)) {
+        files.push_back(folder);
+    } else if (fs::is_directory(folder, ec)) {
+        bool listed = false;
+        if (auto dicomdir = findCaseInsensitive(folder, "DICOMDIR"); dicomdir && fs::is_regular_file(*dicomdir, ec)) {
+            std::string why;
+            if (auto refs = filesFromDicomdir(*dicomdir, result.skipped, why)) {
+                files = std::move(*refs);
+                listed = true;
+                if (files.empty())
+                    result.skipped.push_back(dicomdir->string() + ": lists no files");
+            } else {
+                result.skipped.push_back(dicomdir->string() + ": unreadable DICOMDIR (" + why +
+                                         "); every file in the folder was scanned instead");
+            }
+        }
+        if (!listed) {
+            std::int64_t count = 0;
+            fs::recursive_directory_iterator it(folder, fs::directory_options::skip_permission_denied, ec);
+            if (ec) throw DicomError(folder.string() + ": cannot list folder: " + ec.message());
+            for (const fs::recursive_directory_iterator end; it != end; it.increment(ec)) {
+                if (ec) {
+                    result.skipped.push_back(folder.string() + ": listing stopped: " + ec.message());
+                    break;
+                }
+                if ((++count & 255) == 0) checkCancel(cancel);
+                std::error_code fec;
+                if (it->is_regular_file(fec)) files.push_back(it->path());
+            }
+        }
+    } else {
+        throw DicomError(folder.string() + ": not a folder or file");
+    }
+    std::sort(files.begin(), files.end());
+
+    std::vector<std::optional<DicomHeader>> headers(files.size());
+    std::vector<std::string> errors(files.size());
+    {
+        Progress prog(progress, "reading DICOM headers", 0.0, 0.95, std::int64_t(files.size()));
+        ThreadPool pool;
+        runParallel(pool, std::int64_t(files.size()), 4, [&](std::int64_t i) {
+            checkCancel(cancel);
+            const auto k = static_cast<std::size_t>(i);
+            try {
+                headers[k] = readHeader(files[k]);
+            } catch (const DicomError& err) {
+                errors[k] = err.what();
+            } catch (const std::exception& err) {
+                errors[k] = files[k].string() + ": " + err.what();
+            }
+            prog.step();
+        });
+        prog.finish();
+    }
+    std::vector<DicomHeader> usable;
+    for (std::size_t k = 0; k < files.size(); ++k) {
+        if (headers[k]) usable.push_back(std::move(*headers[k]));
+        else result.skipped.push_back(errors[k]);
+    }
+    checkCancel(cancel);
+    result.series = groupIntoSeries(usable, result.skipped);
+    if (progress) progress(1.0, "reading DICOM headers");
+    if (result.series.empty()) {
+        std::string msg = folder.string() + ": no DICOM image series found (" +
+                          std::to_string(files.size()) + " files";
+        if (!result.skipped.empty()) {
+            msg += "; e.g. ";
+            for (std::size_t k = 0; k < std::min<std::size_t>(3, result.skipped.size()); ++k)
+                msg += (k ? "; " : "") + result.skipped[k];
+        }
+        throw DicomError(msg + ")");
+    }
+    return result;
+}
+
+} // namespace fvr::core
