@@ -10,6 +10,7 @@ packages=(
   libdcmtk-dev
   qt6-base-dev libqt6opengl6-dev libgl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  clang libclang-rt-14-dev
   xvfb xauth libgl1-mesa-dri
 )
 

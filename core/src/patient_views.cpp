@@ -46,7 +46,12 @@ ViewFrame patientViewFrame(const Volume& volume, PatientView view) {
     case PatientView::Head: d = {0, 0, -1}, u = {0, -1, 0}; break;
     case PatientView::Feet: d = {0, 0, 1}, u = {0, -1, 0}; break;
     }
-    return ViewFrame::fromDirUp(fromPatient(volume, d), fromPatient(volume, u));
+    ViewFrame f = ViewFrame::fromDirUp(fromPatient(volume, d), fromPatient(volume, u));
+    // R must be D x U in the patient's (right-handed) frame. Index frames stored mirrored (a
+    // direction matrix with determinant -1, e.g. NIfTI with qfac -1) need R = -(D x U) in index
+    // coordinates, or the image would be mirrored.
+    f.r = fromPatient(volume, cross(d, u));
+    return f;
 }
 
 std::string patientDirectionLabel(const Volume& volume, const Vec3& v) {

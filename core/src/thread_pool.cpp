@@ -23,18 +23,23 @@ ThreadPool::~ThreadPool() {
 void ThreadPool::runChunks() {
     for (;;) {
         std::int64_t begin;
+        const std::function<void(std::int64_t, std::int64_t)>* fn;
         {
             std::lock_guard lock(m_mutex);
-            if (m_next >= m_count || m_error) return;
+            if (m_next >= m_count || m_error || !m_fn) return;
             begin = m_next;
             m_next = std::min(m_count, m_next + m_grain);
+            fn = m_fn;
         }
         const std::int64_t end = std::min(m_count, begin + m_grain);
         try {
-            (*m_fn)(begin, end);
+            (*fn)(begin, end);
         } catch (...) {
             std::lock_guard lock(m_mutex);
             if (!m_error) m_error = std::current_exception();
+            // No chunk is handed out after an error: a worker that wakes late finds no work
+            // (and never a function the caller has already dropped).
+            m_next = m_count;
         }
     }
 }

@@ -40,7 +40,9 @@ ViewFrame ViewFrame::rotated(const Vec3& axis, double angleRad) const {
     const double n = norm(axis);
     if (!(n > 1e-12)) throw SettingsError("rotation axis: expected a non-zero vector");
     const Vec3 k = scaled(axis, 1.0 / n);
-    return fromDirUp(rotate(d, k, angleRad), rotate(u, k, angleRad));
+    ViewFrame f = fromDirUp(rotate(d, k, angleRad), rotate(u, k, angleRad));
+    if (dot(r, cross(d, u)) < 0) f.r = scaled(f.r, -1.0); // keep a mirrored frame mirrored
+    return f;
 }
 
 double defaultPixelSize(const Dims3& dims, const Vec3& spacing, int size) {

@@ -131,9 +131,9 @@ TEST_F(Workstation, PanelControlsChangeSettingsAndImage) {
     EXPECT_EQ(v->projection()->size, 256);
 
     ASSERT_TRUE(waitSpectrum(*window, [&] {
-        window->oversamplingCombo()->setCurrentIndex(window->oversamplingCombo()->findData(1.5));
+        window->oversamplingCombo()->setCurrentIndex(window->oversamplingCombo()->findData(1.25));
     }));
-    EXPECT_EQ(window->study().spectrum()->padded[0], 60);
+    EXPECT_EQ(window->study().spectrum()->padded[0], 50);
     ASSERT_TRUE(waitSpectrum(*window, [&] {
         window->transformCombo()->setCurrentIndex(window->transformCombo()->findData(int(core::TransformKind::Fht)));
     }));

@@ -33,6 +33,17 @@ TEST(PatientViews, CoronalStackAndObliqueLabels) {
     EXPECT_EQ(patientDirectionLabel(v, {0.05, 0, 1}), "A");
 }
 
+TEST(PatientViews, MirroredStorageIsNotShownMirrored) {
+    Volume v; // radiological storage: index x runs to the patient's right (det = -1)
+    v.direction = {Vec3{-1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
+    const ViewFrame f = patientViewFrame(v, PatientView::AP);
+    EXPECT_EQ(patientDirectionLabel(v, f.r), "L");
+    EXPECT_EQ(patientDirectionLabel(v, f.u), "S");
+    // Trackball rotations keep the frame's handedness.
+    const ViewFrame g = f.rotated(f.u, 0.3);
+    EXPECT_LT(dot(g.r, cross(g.d, g.u)), 0.0);
+}
+
 TEST(PatientViews, Parse) {
     EXPECT_EQ(parsePatientView("ap"), PatientView::AP);
     EXPECT_EQ(parsePatientView("FEET"), PatientView::Feet);

@@ -9,6 +9,7 @@
 
 #include <fvr/core/errors.h>
 #include <fvr/core/preprocess.h>
+#include <fvr/core/thread_pool.h>
 
 using namespace fvr::core;
 
@@ -225,4 +226,18 @@ TEST(Preprocess, RejectsInconsistentVolume) {
     Volume v = randomVolume({4, 4, 4}, 11);
     v.voxels.pop_back();
     EXPECT_THROW(preprocess(v, {}), SettingsError);
+}
+
+TEST(ThreadPool, ExceptionsPropagateAndThePoolStaysUsable) {
+    fvr::core::ThreadPool pool(2);
+    for (int i = 0; i < 5000; ++i) {
+        EXPECT_THROW(pool.parallelFor(64, 1,
+                                      [&](std::int64_t b, std::int64_t) {
+                                          if (b == 3) throw std::runtime_error("boom");
+                                      }),
+                     std::runtime_error);
+        std::atomic<int> n{0};
+        pool.parallelFor(64, 1, [&](std::int64_t b, std::int64_t e) { n += int(e - b); });
+        ASSERT_EQ(n.load(), 64);
+    }
 }

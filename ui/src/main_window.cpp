@@ -293,7 +293,7 @@ void MainWindow::buildDocks() {
     selectData(m_kernel, s.value("render/kernel", int(core::Kernel::CatmullRom)));
     selectData(m_size, s.value("render/size", 512));
     selectData(m_transform, s.value("render/transform", int(core::TransformKind::Fft)));
-    selectData(m_oversampling, s.value("render/oversampling", 2.0));
+    selectData(m_oversampling, s.value("render/oversampling", 1.5));
     selectData(m_values, s.value("render/values", int(core::ValueMapping::Mu)));
     m_invert->setChecked(s.value("display/invert", false).toBool());
     m_viewSettings[0].kernel = core::Kernel(m_kernel->currentData().toInt());

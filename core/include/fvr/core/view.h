@@ -10,6 +10,8 @@ namespace fvr::core {
  * D = viewing direction, U = up (orthogonalised against D), R = D x U. Pixel (col, row) of an
  * M x M image with pixel size d (mm) is the line integral along D through
  * c + (col - M/2) d R - (row - M/2) d U, with c the volume's physical centre. Row 0 is the top.
+ * R is normally D x U; patientViewFrame() sets R = -(D x U) for volumes whose index frame is
+ * mirrored against the patient frame, so that images are never shown mirrored.
  */
 struct ViewFrame {
     Vec3 d{0, 0, 1};

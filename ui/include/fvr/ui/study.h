@@ -38,7 +38,7 @@ struct StudySource {
 struct SpectrumSettings {
     core::ValueMapping mapping = core::ValueMapping::Mu;
     core::TransformKind transform = core::TransformKind::Fft;
-    double oversampling = 2.0;
+    double oversampling = 1.5;
     bool operator==(const SpectrumSettings&) const = default;
 };
 
