@@ -288,6 +288,16 @@ void GpuFourierRenderer::runCols(int M, const char* outputMode) {
     m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 }
 
+void GpuFourierRenderer::runHartleyCorrection(int M) {
+    const GLuint prog = program("fft/hartley_correct.comp", {});
+    m_gl->glUseProgram(prog);
+    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
+    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_hartleyT);
+    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_image);
+    m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
+    m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+}
+
 void GpuFourierRenderer::render(const core::RenderParams& p) {
     core::validateImageGeometry(p.image);
     if (!m_spectrum) throw GlError("GPU renderer: no spectrum uploaded");
@@ -313,13 +323,7 @@ void GpuFourierRenderer::render(const core::RenderParams& p) {
         runCols(M, "OUTPUT_REAL");
     } else {
         runCols(M, "OUTPUT_HARTLEY");
-        const GLuint prog = program("fft/hartley_correct.comp", {});
-        m_gl->glUseProgram(prog);
-        m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
-        m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_hartleyT);
-        m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_image);
-        m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
-        m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+        runHartleyCorrection(M);
     }
     m_gl->glQueryCounter(m_queries[2], GL_TIMESTAMP);
     if (const GLenum err = m_gl->glGetError(); err != GL_NO_ERROR)
@@ -405,12 +409,7 @@ std::vector<float> GpuFourierRenderer::inverseFht2D(const std::vector<float>& da
     m_gl->glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(in.size() * 8), in.data());
     runRows(M, false, true, Kernel::Linear, nullptr);
     runCols(M, "OUTPUT_HARTLEY");
-    const GLuint prog = program("fft/hartley_correct.comp", {});
-    m_gl->glUseProgram(prog);
-    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
-    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_hartleyT);
-    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_image);
-    m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
+    runHartleyCorrection(M);
     m_gl->glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     std::vector<float> out(data.size());
     m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_image);

@@ -22,8 +22,9 @@ struct Result {
     std::string output; // stdout and stderr
 };
 
-Result run(const std::string& args) {
-    const std::string cmd = std::string(FVR_RENDER_EXE) + " " + args + " 2>&1";
+/** Runs fvr-render with `args`; `envPrefix` (e.g. "env -u DISPLAY") goes before the binary. */
+Result run(const std::string& args, const std::string& envPrefix = {}) {
+    const std::string cmd = envPrefix + " " + std::string(FVR_RENDER_EXE) + " " + args + " 2>&1";
     Result r;
     FILE* p = popen(cmd.c_str(), "r");
     if (!p) return r;
@@ -128,23 +129,12 @@ TEST(FvrRender, UnwritableOutputExitsOne) {
 TEST(FvrRender, GpuBackendMatchesCpuOrFallsBackWithANotice) {
     const std::string args = "phantom:shepp-logan:48 --dir 0.3,0.5,0.8 --size 128 --kernel sinc4 --oversampling 1.5 ";
     // Without any display the GPU cannot be used here: the CPU renders and says so.
-    Result r;
-    const Result noDisplay = [&] {
-        const std::string cmd = std::string("env -u DISPLAY -u QT_QPA_PLATFORM -u WAYLAND_DISPLAY ") +
-                                FVR_RENDER_EXE + " --backend gpu " + args + "--out " + tmp("nogpu.npy") + " 2>&1";
-        Result x;
-        FILE* p = popen(cmd.c_str(), "r");
-        char buf[4096];
-        std::size_t n;
-        while ((n = fread(buf, 1, sizeof buf, p)) > 0) x.output.append(buf, n);
-        const int st = pclose(p);
-        x.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-        return x;
-    }();
+    const Result noDisplay = run("--backend gpu " + args + "--out " + tmp("nogpu.npy"),
+                                 "env -u DISPLAY -u QT_QPA_PLATFORM -u WAYLAND_DISPLAY");
     EXPECT_EQ(noDisplay.status, 0) << noDisplay.output;
     EXPECT_NE(noDisplay.output.find("rendering on the CPU"), std::string::npos) << noDisplay.output;
     if (!std::getenv("DISPLAY")) GTEST_SKIP() << "no X display (make test runs the suite under xvfb-run)";
-    r = run("--backend gpu " + args + "--out " + tmp("gpu.npy"));
+    Result r = run("--backend gpu " + args + "--out " + tmp("gpu.npy"));
     ASSERT_EQ(r.status, 0) << r.output;
     ASSERT_NE(r.output.find("gpu: "), std::string::npos) << "GPU backend not used: " << r.output;
     r = run("--backend cpu " + args + "--out " + tmp("cpu.npy"));

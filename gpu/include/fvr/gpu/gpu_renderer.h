@@ -81,6 +81,7 @@ private:
     void setSliceUniforms(unsigned prog, const core::RenderParams& params);
     void runRows(int M, bool fused, bool hartley, core::Kernel kernel, const core::RenderParams* params);
     void runCols(int M, const char* outputMode);
+    void runHartleyCorrection(int M);
 
     QOpenGLFunctions_4_3_Core* m_gl = nullptr;
     std::shared_ptr<const core::Spectrum> m_spectrum;
