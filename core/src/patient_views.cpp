@@ -37,7 +37,7 @@ Vec3 fromPatient(const Volume& v, const Vec3& lps) {
 } // namespace
 
 ViewFrame patientViewFrame(const Volume& volume, PatientView view) {
-    Vec3 d, u;
+    Vec3 d{0, 1, 0}, u{0, 0, 1};
     switch (view) {
     case PatientView::AP: d = {0, 1, 0}, u = {0, 0, 1}; break;
     case PatientView::PA: d = {0, -1, 0}, u = {0, 0, 1}; break;
