@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <numbers>
@@ -22,6 +24,7 @@
 #include <fvr/core/image_io.h>
 #include <fvr/core/phantom.h>
 #include <fvr/core/preprocess.h>
+#include <fvr/core/spatial_projector.h>
 #include <fvr/core/volume_io.h>
 #ifdef FVR_HAVE_GPU
 #include <QGuiApplication>
@@ -66,11 +69,25 @@ Rendering:
 Raw input:
   --raw-dims NX,NY,NZ   --raw-type int16|uint16|uint8|float32|...   --raw-spacing sx,sy,sz
   --raw-big-endian      --raw-header BYTES
+Many views (DRRs):
+  --sweep N             N views rotating about --axis (default: the patient's head-feet axis)
+  --axis x,y,z          rotation axis of --sweep in the volume frame
+  --views FILE          one view per line: dx dy dz ux uy uz (commas or spaces; # comments)
+  --numbered            with several views and a .npy output: numbered files, not one stack
 Output:
-  --out FILE            .npy (float32 line integrals, shape (M, M), row 0 at the top),
-                        .pfm (float, rows bottom-to-top), .png (display-mapped, auto window)
+  --out FILE            .npy (float32 line integrals, shape (M, M), row 0 at the top; several
+                        views: one stacked (N, M, M) file), .pfm (float, rows bottom-to-top),
+                        .png (display-mapped, auto window); several views and .pfm/.png:
+                        FILE_0000.ext, FILE_0001.ext, ... A JSON sidecar FILE.json records
+                        every parameter and view.
+  --bit-depth 8|16      PNG bit depth (default 8)
+  --beer-lambert        with --values mu: transmitted intensity exp(-mu_water x integral)
+                        instead of line integrals (a radiograph's physics)
+  --mu-water 1/mm       linear attenuation of water for --beer-lambert (default 0.0193,
+                        about 70 keV)
   --info                print the volume's facts as JSON
-  --bench N             render N frames over varying views, print per-stage timings as JSON
+  --bench N             render N frames over varying views, print per-stage timings as JSON,
+                        and the same views by ray casting (spatial projector) with the speed-up
 Exit status: 0 success, 2 bad input or settings, 1 other failure.
 )";
 
@@ -90,6 +107,13 @@ struct Args {
     std::optional<RawSpec> raw;
     std::optional<PatientView> view;
     std::string series;
+    int sweep = 0;
+    std::optional<Vec3> axis;
+    std::string viewsFile;
+    bool numbered = false;
+    int bitDepth = 8;
+    bool beerLambert = false;
+    double muWater = 0.0193;
     std::string out;
     bool info = false;
     int bench = 0;
@@ -138,6 +162,13 @@ Args parseArgs(int argc, char** argv) {
         else if (opt == "--up") a.up = parseVec(opt, value());
         else if (opt == "--view") a.view = parsePatientView(value());
         else if (opt == "--series") a.series = value();
+        else if (opt == "--sweep") a.sweep = parseInt(opt, value());
+        else if (opt == "--axis") a.axis = parseVec(opt, value());
+        else if (opt == "--views") a.viewsFile = value();
+        else if (opt == "--numbered") a.numbered = true;
+        else if (opt == "--bit-depth") a.bitDepth = parseInt(opt, value());
+        else if (opt == "--beer-lambert") a.beerLambert = true;
+        else if (opt == "--mu-water") a.muWater = parseNumber(opt, value());
         else if (opt == "--size") a.size = parseInt(opt, value());
         else if (opt == "--pixel-size") a.pixelSize = parseNumber(opt, value());
         else if (opt == "--kernel") a.kernel = parseKernel(value());
@@ -169,6 +200,12 @@ Args parseArgs(int argc, char** argv) {
     if (a.input.empty()) throw SettingsError("no INPUT given (see --help)");
     if (!a.info && a.bench <= 0 && a.out.empty()) throw SettingsError("no --out FILE given (or --info, --bench N)");
     if (a.bench < 0) throw SettingsError("--bench: expected a positive frame count");
+    if (a.sweep < 0 || a.sweep > 100000) throw SettingsError("--sweep: expected 1..100000 views");
+    if (a.sweep > 0 && !a.viewsFile.empty()) throw SettingsError("--sweep and --views: give one of them");
+    if (a.bitDepth != 8 && a.bitDepth != 16) throw SettingsError("--bit-depth: expected 8 or 16");
+    if (a.beerLambert && a.values != ValueMapping::Mu)
+        throw SettingsError("--beer-lambert: needs --values mu (transmission follows from attenuation)");
+    if (!(a.muWater > 0 && a.muWater < 10)) throw SettingsError("--mu-water: expected 0..10 per mm");
     if (a.threads < 0) throw SettingsError("--threads: expected a positive count");
     return a;
 }
@@ -291,6 +328,57 @@ std::string settingsJson(const Args& a, const Spectrum& s, double d, int threads
       << s.volumeDims[2] << "], \"padded_dims\": [" << s.padded[0] << ", " << s.padded[1] << ", " << s.padded[2]
       << "], \"spectrum_mb\": " << double(s.bytes()) / (1 << 20) << ", \"threads\": " << threads << "}";
     return o.str();
+}
+
+/** Views from --views FILE: "dx dy dz ux uy uz" per line. Throws SettingsError naming file:line. */
+std::vector<ViewFrame> readViewsFile(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw LoadError(path + ": cannot open the views file");
+    std::vector<ViewFrame> views;
+    std::string line;
+    int n = 0;
+    while (std::getline(in, line)) {
+        ++n;
+        if (const auto hash = line.find('#'); hash != std::string::npos) line.erase(hash);
+        std::replace(line.begin(), line.end(), ',', ' ');
+        std::istringstream ss(line);
+        std::vector<double> v;
+        double x;
+        while (ss >> x) v.push_back(x);
+        if (!ss.eof()) throw SettingsError(path + ":" + std::to_string(n) + ": expected numbers");
+        if (v.empty()) continue;
+        if (v.size() != 6)
+            throw SettingsError(path + ":" + std::to_string(n) + ": expected 6 numbers (dx dy dz ux uy uz), found " +
+                                std::to_string(v.size()));
+        try {
+            views.push_back(ViewFrame::fromDirUp({v[0], v[1], v[2]}, {v[3], v[4], v[5]}));
+        } catch (const SettingsError& e) {
+            throw SettingsError(path + ":" + std::to_string(n) + ": " + e.what());
+        }
+    }
+    if (views.empty()) throw SettingsError(path + ": no views in the file");
+    return views;
+}
+
+/** FILE.ext -> FILE_0007.ext */
+std::string numberedPath(const std::string& out, std::size_t i) {
+    const std::filesystem::path p(out);
+    char num[16];
+    std::snprintf(num, sizeof num, "_%04zu", i);
+    return (p.parent_path() / (p.stem().string() + num + p.extension().string())).string();
+}
+
+void writeTextAtomic(const std::string& path, const std::string& text) {
+    const std::string tmp = path + ".part";
+    {
+        std::ofstream o(tmp, std::ios::trunc);
+        o << text;
+        if (!o) throw WriteError(path + ": write failed");
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        std::remove(tmp.c_str());
+        throw WriteError(path + ": cannot move the written file into place");
+    }
 }
 
 #ifdef FVR_HAVE_GPU
@@ -429,23 +517,104 @@ int run(int argc, char** argv) {
         std::printf("  \"inverse\": {\"median_ms\": %.3f, \"p95_ms\": %.3f},\n", s2.median, s2.p95);
         std::printf("  \"total\": {\"median_ms\": %.3f, \"p95_ms\": %.3f, \"fps\": %.1f}", s3.median, s3.p95,
                     1000.0 / s3.median);
+        double fvrMs = s3.median;
         if (!fusedTot.empty()) {
             const Stat s4 = stats(fusedTot);
+            fvrMs = s4.median;
             std::printf(",\n  \"total_fused\": {\"median_ms\": %.3f, \"p95_ms\": %.3f, \"fps\": %.1f}", s4.median,
                         s4.p95, 1000.0 / s4.median);
         }
+        // The same views by ray casting (the spatial reference projector, all cores), in this run.
+        SpatialProjector sp(volume, {0.25, a.values, a.threads});
+        std::vector<double> spatialMs;
+        const int spatialViews = std::min(a.bench, 3);
+        for (int i = 0; i < spatialViews; ++i) {
+            const auto t0 = std::chrono::steady_clock::now();
+            sp.project(viewAt(i), geom);
+            spatialMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+        }
+        const Stat s5 = stats(spatialMs);
+        std::printf(",\n  \"spatial_projector\": {\"median_ms\": %.3f, \"views\": %d, \"step\": \"s_min/4\", "
+                    "\"sampling\": \"trilinear\"},\n  \"speedup_per_view\": %.1f",
+                    s5.median, spatialViews, s5.median / fvrMs);
         std::printf("\n}\n");
     }
     if (!a.out.empty()) {
-        ProjectionImage img;
+        std::vector<ViewFrame> views{base};
+        if (a.sweep > 0) {
+            const auto& dir = volume.direction;
+            const Vec3 axis = a.axis ? *a.axis : Vec3{dir[0][2], dir[1][2], dir[2][2]}; // head-feet
+            views.clear();
+            for (int i = 0; i < a.sweep; ++i) views.push_back(base.rotated(axis, 2.0 * std::numbers::pi * i / a.sweep));
+        } else if (!a.viewsFile.empty()) {
+            views = readViewsFile(a.viewsFile);
+        }
+        std::string ext = std::filesystem::path(a.out).extension().string();
+        std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+        if (ext != ".npy" && ext != ".pfm" && ext != ".png")
+            throw SettingsError("--out: unknown output format '" + ext + "' (expected .npy, .pfm or .png)");
+        const bool stacked = views.size() > 1 && ext == ".npy" && !a.numbered;
+        std::vector<float> stack;
+        std::vector<std::string> written;
+        const int M = a.size;
+        const auto t0 = std::chrono::steady_clock::now();
+        auto lastReport = t0;
+        for (std::size_t i = 0; i < views.size(); ++i) {
+            ProjectionImage img;
 #ifdef FVR_HAVE_GPU
-        if (gpu) img = gpu->renderer->renderImage({base, geom, a.kernel});
+            if (gpu) img = gpu->renderer->renderImage({views[i], geom, a.kernel});
 #endif
-        if (cpu) img = cpu->render({base, geom, a.kernel});
-        writeProjection(a.out, img);
-        std::fprintf(stderr, "wrote %s (%dx%d, pixel %.4g mm, %s, %s, %s, %s)\n", a.out.c_str(), a.size, a.size, d,
+            if (cpu) img = cpu->render({views[i], geom, a.kernel});
+            if (a.beerLambert)
+                for (float& v : img.pixels) v = float(std::exp(-a.muWater * double(v)));
+            if (stacked) {
+                if (stack.empty()) stack.reserve(views.size() * img.pixels.size());
+                stack.insert(stack.end(), img.pixels.begin(), img.pixels.end());
+            } else {
+                const std::string path = views.size() > 1 ? numberedPath(a.out, i) : a.out;
+                if (ext == ".png") writePng(path, img.pixels.data(), M, M, autoWindow(img.pixels), a.bitDepth);
+                else writeProjection(path, img);
+                written.push_back(path);
+            }
+            const auto now = std::chrono::steady_clock::now();
+            if (views.size() > 1 && (now - lastReport > std::chrono::seconds(1) || i + 1 == views.size())) {
+                std::fprintf(stderr, "%sview %zu/%zu%s", isatty(2) ? "\r" : "", i + 1, views.size(), isatty(2) ? "" : "\n");
+                lastReport = now;
+            }
+        }
+        if (views.size() > 1 && isatty(2)) std::fprintf(stderr, "\n");
+        const double renderMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        if (stacked) {
+            writeNpy(a.out, stack.data(), M, M, std::int64_t(views.size()));
+            written.push_back(a.out);
+        }
+        // JSON sidecar: every parameter, so the output can be reproduced and registered.
+        std::ostringstream j;
+        j << "{\n  \"generator\": \"fvr-render\",\n  \"settings\": " << settingsJson(a, *spectrum, d, threads, backendName)
+          << ",\n  \"volume\": {\"name\": \"" << jsonEscape(volume.name) << "\", \"dims\": [" << volume.dims[0] << ", "
+          << volume.dims[1] << ", " << volume.dims[2] << "], \"spacing_mm\": " << vecJson(volume.spacing)
+          << ", \"origin_mm\": " << vecJson(volume.origin) << ", \"direction\": [" << vecJson(volume.direction[0]) << ", "
+          << vecJson(volume.direction[1]) << ", " << vecJson(volume.direction[2]) << "], \"units\": \""
+          << unitsName(volume.units) << "\"},\n  \"output\": {\"values\": \""
+          << (a.beerLambert ? "transmitted intensity exp(-mu_water x line integral)" : projectionUnits(a.values, volume.units))
+          << "\", \"mu_water_per_mm\": " << (a.beerLambert ? a.muWater : 0.0) << ", \"stacked\": " << (stacked ? "true" : "false")
+          << ", \"files\": [";
+        for (std::size_t i = 0; i < written.size(); ++i) j << (i ? ", " : "") << "\"" << jsonEscape(written[i]) << "\"";
+        j << "], \"preprocess_ms\": " << preprocessMs << ", \"render_ms_per_view\": " << renderMs / double(views.size())
+          << "},\n  \"image\": {\"size\": " << M << ", \"pixel_size_mm\": " << d
+          << ", \"pixel\": \"(col, row) is the line integral along dir through centre + (col - M/2) d right - (row - M/2) d up\"},"
+          << "\n  \"views\": [";
+        for (std::size_t i = 0; i < views.size(); ++i)
+            j << (i ? "," : "") << "\n    {\"dir\": " << vecJson(views[i].d) << ", \"up\": " << vecJson(views[i].u)
+              << ", \"right\": " << vecJson(views[i].r) << "}";
+        j << "\n  ]\n}\n";
+        writeTextAtomic(a.out + ".json", j.str());
+        std::fprintf(stderr, "wrote %s%s (%zu view%s, %dx%d, pixel %.4g mm, %s, %s, %s, %s; %.2f ms per view)\n",
+                     stacked || views.size() == 1 ? a.out.c_str() : numberedPath(a.out, 0).c_str(),
+                     views.size() > 1 && !stacked ? " ..." : "", views.size(), views.size() > 1 ? "s" : "", M, M, d,
                      kernelName(a.kernel), transformName(a.transform),
-                     projectionUnits(a.values, volume.units).c_str(), backendName.c_str());
+                     a.beerLambert ? "transmission" : projectionUnits(a.values, volume.units).c_str(), backendName.c_str(),
+                     renderMs / double(views.size()));
     }
     return 0;
 }

@@ -3,6 +3,8 @@
 
 #include <cstdio>
 #include <fstream>
+#include <iterator>
+#include <cmath>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -180,4 +182,67 @@ TEST(FvrRender, DicomPatientViewsFollowTheDirectionCosines) {
     EXPECT_NE(bad.output.find("1.2.3.4"), std::string::npos) << bad.output;
     const Result badView = run(dir + " --view OBLIQUE --out " + tmp("x.npy"));
     EXPECT_EQ(badView.status, 2) << badView.output;
+}
+
+TEST(FvrRender, SweepStackEqualsSingleViewsAndSidecarRecordsThem) {
+    const std::string common = "phantom:shepp-logan:40 --size 128 --kernel catmull-rom --values mu ";
+    Result r = run(common + "--sweep 4 --axis 0,1,0 --out " + tmp("sweep.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::vector<std::int64_t> shape;
+    const auto stack = readNpy(tmp("sweep.npy"), shape);
+    ASSERT_EQ(shape, (std::vector<std::int64_t>{4, 128, 128}));
+    // View 1 of the sweep is the default view turned by 90 degrees about y: D = (0,0,1) -> (1,0,0).
+    r = run(common + "--dir 1,0,0 --up 0,-1,0 --out " + tmp("view1.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    const auto single = readNpy(tmp("view1.npy"), shape);
+    const std::vector<float> frame1(stack.begin() + 128 * 128, stack.begin() + 2 * 128 * 128);
+    EXPECT_GT(fvr::test::compare(frame1, single).psnr, 100.0);
+    std::ifstream js(tmp("sweep.npy") + ".json");
+    const std::string json((std::istreambuf_iterator<char>(js)), std::istreambuf_iterator<char>());
+    for (const char* key : {"\"views\": [", "\"kernel\": \"catmull-rom\"", "\"stacked\": true", "\"pixel_size_mm\"",
+                            "\"spacing_mm\"", "\"right\""})
+        EXPECT_NE(json.find(key), std::string::npos) << key << " in " << json;
+}
+
+TEST(FvrRender, ViewsFileNumberedOutputsAndErrors) {
+    {
+        std::ofstream f(tmp("views.txt"));
+        f << "# dir, up\n0 0 1  0 -1 0\n1,0,0, 0,0,1\n\n0 1 0 0 0 1  # lateral\n";
+    }
+    const std::string out = tmp("v.pfm");
+    Result r = run("phantom:shepp-logan:32 --size 128 --views " + tmp("views.txt") + " --out " + out);
+    ASSERT_EQ(r.status, 0) << r.output;
+    for (int i = 0; i < 3; ++i)
+        EXPECT_TRUE(std::filesystem::exists(tmp("v_000" + std::to_string(i) + ".pfm"))) << i;
+    {
+        std::ofstream f(tmp("badviews.txt"));
+        f << "0 0 1 0 -1 0\n0 0 1 0 0\n";
+    }
+    r = run("phantom:shepp-logan:32 --size 128 --views " + tmp("badviews.txt") + " --out " + out);
+    EXPECT_EQ(r.status, 2) << r.output;
+    EXPECT_NE(r.output.find("badviews.txt:2"), std::string::npos) << r.output;
+    r = run("phantom:shepp-logan:32 --size 128 --sweep 3 --views " + tmp("views.txt") + " --out " + out);
+    EXPECT_EQ(r.status, 2) << r.output;
+    r = run("phantom:shepp-logan:32 --size 128 --beer-lambert --out " + out);
+    EXPECT_EQ(r.status, 2) << r.output;
+    EXPECT_NE(r.output.find("--values mu"), std::string::npos) << r.output;
+}
+
+TEST(FvrRender, BeerLambertIsExpOfTheLineIntegrals) {
+    const std::string common = "phantom:shepp-logan:32 --size 128 --values mu --dir 0.2,0.3,0.9 ";
+    ASSERT_EQ(run(common + "--out " + tmp("mu.npy")).status, 0);
+    ASSERT_EQ(run(common + "--beer-lambert --mu-water 0.02 --out " + tmp("bl.npy")).status, 0);
+    std::vector<std::int64_t> shape;
+    const auto mu = readNpy(tmp("mu.npy"), shape);
+    const auto bl = readNpy(tmp("bl.npy"), shape);
+    double maxErr = 0;
+    for (std::size_t i = 0; i < mu.size(); ++i) maxErr = std::max(maxErr, std::abs(bl[i] - std::exp(-0.02 * mu[i])));
+    EXPECT_LT(maxErr, 1e-6);
+}
+
+TEST(FvrRender, BenchComparesWithRayCasting) {
+    const Result r = run("phantom:shepp-logan:32 --size 128 --bench 4");
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_NE(r.output.find("\"spatial_projector\""), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("\"speedup_per_view\""), std::string::npos) << r.output;
 }
