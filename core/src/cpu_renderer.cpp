@@ -32,7 +32,8 @@ CpuFourierRenderer::CpuFourierRenderer(std::shared_ptr<const Spectrum> spectrum,
     : m_spectrum(std::move(spectrum)), m_pool(threads),
       m_threads(threads > 0 ? threads : hardwareThreads()) {
     if (!m_spectrum || !m_spectrum->data) throw SettingsError("renderer: no spectrum");
-    for (Kernel k : allKernels()) m_tables.emplace(k, std::make_unique<KernelTable>(k));
+    const double sigma = kernelOversampling(m_spectrum->volumeDims, m_spectrum->padded);
+    for (Kernel k : allKernels()) m_tables.emplace(k, std::make_unique<KernelTable>(k, sigma));
 }
 
 CpuFourierRenderer::~CpuFourierRenderer() = default;
@@ -111,7 +112,7 @@ inline void prefetchComplex(const SliceContext& c, double kx, double ky, double 
         ky = -ky;
         kz = -kz;
     }
-    const std::int64_t off = T == 4 ? -1 : 0;
+    const std::int64_t off = T >= 4 ? -(T / 2 - 1) : 0;
     const std::int64_t bx = std::int64_t(T == 1 ? std::floor(kx + 0.5) : std::floor(kx)) + off;
     const std::int64_t by = std::int64_t(T == 1 ? std::floor(ky + 0.5) : std::floor(ky)) + off;
     const std::int64_t bz = std::int64_t(T == 1 ? std::floor(kz + 0.5) : std::floor(kz)) + off;
@@ -181,7 +182,7 @@ inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double 
 template <int T>
 inline void prefetchHartley(const SliceContext& c, double kx, double ky, double kz) {
     if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return;
-    const std::int64_t off = T == 4 ? -1 : 0;
+    const std::int64_t off = T >= 4 ? -(T / 2 - 1) : 0;
     const std::int64_t bx = std::int64_t(T == 1 ? std::floor(kx + 0.5) : std::floor(kx)) + off;
     const std::int64_t by = std::int64_t(T == 1 ? std::floor(ky + 0.5) : std::floor(ky)) + off;
     const std::int64_t bz = std::int64_t(T == 1 ? std::floor(kz + 0.5) : std::floor(kz)) + off;
@@ -322,6 +323,10 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
     validateImageGeometry(params.image);
     const auto t0 = Clock::now();
     const Spectrum& s = *m_spectrum;
+    if (s.deapodizedFor && *s.deapodizedFor != params.kernel)
+        throw SettingsError(std::string("kernel: the spectrum was deapodized for ") +
+                            kernelName(*s.deapodizedFor) + ", it cannot be rendered with " +
+                            kernelName(params.kernel) + " (preprocess again for that kernel)");
     const int M = params.image.size;
     const double d = params.image.pixelSize;
     SizeResources& res = resources(M);
@@ -362,6 +367,7 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
         switch (c.taps) {
         case 1: sliceHalfComplex<1>(c, f, M, slice, m_pool); break;
         case 2: sliceHalfComplex<2>(c, f, M, slice, m_pool); break;
+        case 6: sliceHalfComplex<6>(c, f, M, slice, m_pool); break;
         default: sliceHalfComplex<4>(c, f, M, slice, m_pool); break;
         }
         t1 = Clock::now();
@@ -374,6 +380,7 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
         switch (c.taps) {
         case 1: sliceFullHartley<1>(c, f, M, slice, m_pool); break;
         case 2: sliceFullHartley<2>(c, f, M, slice, m_pool); break;
+        case 6: sliceFullHartley<6>(c, f, M, slice, m_pool); break;
         default: sliceFullHartley<4>(c, f, M, slice, m_pool); break;
         }
         t1 = Clock::now();

@@ -1,5 +1,6 @@
 #include <fvr/core/kernels.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -14,6 +15,8 @@ const char* kernelName(Kernel k) {
     case Kernel::BSpline: return "bspline";
     case Kernel::CatmullRom: return "catmull-rom";
     case Kernel::Sinc4: return "sinc4";
+    case Kernel::KaiserBessel4: return "kaiser-bessel4";
+    case Kernel::KaiserBessel6: return "kaiser-bessel6";
     }
     return "?";
 }
@@ -24,19 +27,94 @@ Kernel parseKernel(const std::string& name) {
     if (name == "bspline" || name == "tricubic" || name == "cubic-bspline") return Kernel::BSpline;
     if (name == "catmull-rom" || name == "catmullrom") return Kernel::CatmullRom;
     if (name == "sinc4" || name == "sinc") return Kernel::Sinc4;
-    throw SettingsError("kernel: expected nearest|linear|bspline|catmull-rom|sinc4, found '" +
-                        name + "'");
+    if (name == "kaiser-bessel4" || name == "kaiser-bessel" || name == "kb4" || name == "kb")
+        return Kernel::KaiserBessel4;
+    if (name == "kaiser-bessel6" || name == "kb6") return Kernel::KaiserBessel6;
+    throw SettingsError(
+        "kernel: expected nearest|linear|bspline|catmull-rom|sinc4|kaiser-bessel4|kaiser-bessel6, found '" +
+        name + "'");
 }
 
-const std::array<Kernel, 5>& allKernels() {
-    static const std::array<Kernel, 5> all{Kernel::Nearest, Kernel::Linear, Kernel::BSpline,
-                                           Kernel::CatmullRom, Kernel::Sinc4};
+Kernel kaiserBesselKernel(int width) {
+    if (width == 4) return Kernel::KaiserBessel4;
+    if (width == 6) return Kernel::KaiserBessel6;
+    throw SettingsError("kernel width: expected 4|6 for kaiser-bessel, found " + std::to_string(width));
+}
+
+const std::array<Kernel, 7>& allKernels() {
+    static const std::array<Kernel, 7> all{Kernel::Nearest,      Kernel::Linear,        Kernel::BSpline,
+                                           Kernel::CatmullRom,   Kernel::Sinc4,         Kernel::KaiserBessel4,
+                                           Kernel::KaiserBessel6};
     return all;
 }
 
-bool kernelInterpolates(Kernel k) { return k != Kernel::BSpline; }
+bool kernelInterpolates(Kernel k) {
+    return k != Kernel::BSpline && k != Kernel::KaiserBessel4 && k != Kernel::KaiserBessel6;
+}
 
-double kernelValue(Kernel k, double x) {
+int kernelTaps(Kernel k) {
+    switch (k) {
+    case Kernel::Nearest: return 1;
+    case Kernel::Linear: return 2;
+    case Kernel::KaiserBessel6: return 6;
+    default: return 4;
+    }
+}
+
+double kernelOversampling(const std::array<std::int64_t, 3>& volumeDims,
+                          const std::array<std::int64_t, 3>& padded) {
+    double s = 0.0;
+    for (int a = 0; a < 3; ++a) {
+        if (volumeDims[a] <= 0 || padded[a] <= 0) return kDefaultKernelOversampling;
+        const double r = double(padded[a]) / double(volumeDims[a]);
+        s = a == 0 ? r : std::min(s, r);
+    }
+    return s;
+}
+
+double kaiserBesselBeta(int width, double oversampling) {
+    const double w = width, s = oversampling;
+    const double arg = (w / s) * (w / s) * (s - 0.5) * (s - 0.5) - 0.8;
+    return std::numbers::pi * std::sqrt(std::max(arg, 0.0));
+}
+
+namespace {
+
+int kbWidth(Kernel k) { return k == Kernel::KaiserBessel6 ? 6 : 4; }
+
+double sincPi(double u) {
+    const double x = std::numbers::pi * u;
+    return std::abs(x) < 1e-12 ? 1.0 : std::sin(x) / x;
+}
+
+/** sinh(z)/z for z^2 = z2 (sin(|z|)/|z| for negative z2). */
+double sinhcOfSquare(double z2) {
+    if (std::abs(z2) < 1e-12) return 1.0;
+    if (z2 > 0) {
+        const double z = std::sqrt(z2);
+        return std::sinh(z) / z;
+    }
+    const double z = std::sqrt(-z2);
+    return std::sin(z) / z;
+}
+
+/** Integral of kernelValue(k, x) cos(2 pi u x) over the support (Simpson's rule). */
+double numericFourier(Kernel k, double u, double oversampling) {
+    const double r = kernelTaps(k) / 2.0;
+    constexpr int n = 2048;
+    const double h = 2.0 * r / n;
+    double sum = 0.0;
+    for (int i = 0; i <= n; ++i) {
+        const double x = -r + i * h;
+        const double c = (i == 0 || i == n) ? 1.0 : (i % 2 ? 4.0 : 2.0);
+        sum += c * kernelValue(k, x, oversampling) * std::cos(2.0 * std::numbers::pi * u * x);
+    }
+    return sum * h / 3.0;
+}
+
+} // namespace
+
+double kernelValue(Kernel k, double x, double oversampling) {
     const double a = std::abs(x);
     switch (k) {
     case Kernel::Nearest: return a < 0.5 ? 1.0 : (a == 0.5 ? 0.5 : 0.0);
@@ -57,16 +135,39 @@ double kernelValue(Kernel k, double x) {
         const double w = 0.42 + 0.5 * std::cos(pi * a / 2.0) + 0.08 * std::cos(pi * a);
         return sinc * w;
     }
+    case Kernel::KaiserBessel4:
+    case Kernel::KaiserBessel6: {
+        const double W = kbWidth(k);
+        if (a >= W / 2.0) return 0.0;
+        const double beta = kaiserBesselBeta(int(W), oversampling);
+        const double q = 2.0 * a / W;
+        // Unit integral: the integral of I0(beta sqrt(1 - (2x/W)^2)) is W sinh(beta) / beta.
+        return std::cyl_bessel_i(0.0, beta * std::sqrt(1.0 - q * q)) / (W * sinhcOfSquare(beta * beta));
+    }
     }
     return 0.0;
 }
 
-KernelTable::KernelTable(Kernel k) : m_kernel(k) {
+double kernelFourier(Kernel k, double u, double oversampling) {
     switch (k) {
-    case Kernel::Nearest: m_taps = 1; break;
-    case Kernel::Linear: m_taps = 2; break;
-    default: m_taps = 4; break;
+    case Kernel::Nearest: return sincPi(u);
+    case Kernel::Linear: return std::pow(sincPi(u), 2);
+    case Kernel::BSpline: return std::pow(sincPi(u), 4);
+    case Kernel::KaiserBessel4:
+    case Kernel::KaiserBessel6: {
+        const double W = kbWidth(k);
+        const double beta = kaiserBesselBeta(int(W), oversampling);
+        const double piwu = std::numbers::pi * W * u;
+        return sinhcOfSquare(beta * beta - piwu * piwu) / sinhcOfSquare(beta * beta);
     }
+    case Kernel::CatmullRom:
+    case Kernel::Sinc4: return numericFourier(k, u, oversampling) / numericFourier(k, 0.0, oversampling);
+    }
+    return 1.0;
+}
+
+KernelTable::KernelTable(Kernel k, double oversampling)
+    : m_kernel(k), m_oversampling(oversampling), m_taps(kernelTaps(k)) {
     m_table.resize(std::size_t(kResolution + 1) * m_taps);
     for (int i = 0; i <= kResolution; ++i) {
         const double frac = double(i) / kResolution;
@@ -76,11 +177,11 @@ KernelTable::KernelTable(Kernel k) : m_kernel(k) {
             continue;
         }
         double sum = 0.0;
-        double w[4];
+        double w[kMaxTaps];
         for (int j = 0; j < m_taps; ++j) {
             // Tap j sits at floor(t) + firstTapOffset() + j; its distance from t:
             const double x = frac - (firstTapOffset() + j);
-            w[j] = kernelValue(k, x);
+            w[j] = kernelValue(k, x, oversampling);
             sum += w[j];
         }
         const bool normalise = (k == Kernel::Sinc4);

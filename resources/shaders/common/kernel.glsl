@@ -1,6 +1,8 @@
 // Separable interpolation weights, from the same 1D table as the CPU renderer
 // (fvr::core::KernelTable: kResolution intervals, taps per row, linear interpolation between
-// rows). TAPS (1, 2 or 4) is defined by the host when it compiles a kernel variant.
+// rows). TAPS (1, 2, 4 or 6) is defined by the host when it compiles a kernel variant; the
+// general branch serves any even TAPS >= 4 (first tap at floor(k) + uKernelFirst, uKernelFirst =
+// -(TAPS/2 - 1)).
 layout(std430, binding = 2) readonly buffer KernelTableBuffer { float kernelTable[]; };
 uniform int uKernelRes;
 uniform int uKernelFirst;

@@ -9,7 +9,9 @@
 #include <string>
 #include <string_view>
 #include <thread>
+#include <vector>
 
+#include <fvr/core/kernels.h>
 #include <fvr/core/spectrum.h>
 #include <fvr/core/volume.h>
 
@@ -32,6 +34,14 @@ struct PreprocessOptions {
     double oversampling = 1.0;
     /** Explicit padded sizes (each >= the volume's); overrides oversampling. */
     std::optional<Dims3> paddedDims;
+    /** Deapodization: the kernel the spectrum is made for. When set, each voxel is divided by
+     *  the kernel's continuous Fourier transform (normalised to 1 at 0), separably per axis,
+     *  at its centred position x in padded-grid units: f(x) / prod_a kernelFourier(k, x_a/P_a,
+     *  sigma), sigma = kernelOversampling(dims, padded). Interpolating that spectrum with the
+     *  kernel then leaves no apodization (only the kernel's aliases). The spectrum records the
+     *  kernel (Spectrum::deapodizedFor) and renderers refuse any other kernel (SettingsError).
+     *  Empty: no deapodization (any kernel). */
+    std::optional<Kernel> deapodizeFor;
     int threads = 0; ///< 0: all hardware threads
     /** FFTW planning: Measure (default) caches plans as wisdom on disk (XDG cache) so repeated
      *  loads plan instantly; Estimate plans at once without measuring. */
@@ -57,6 +67,10 @@ std::int64_t nextFftSize(std::int64_t n);
 /** The padded sizes the options give for a volume. Throws SettingsError for a factor outside
  *  [1, 2] or explicit sizes smaller than the volume. */
 Dims3 paddedDimsFor(const Dims3& dims, const PreprocessOptions& options);
+/** The per-axis deapodization factors 1 / kernelFourier(k, x / P, sigma) for the padded
+ *  positions j = 0..P-1 of an axis of n voxels (only the n voxel positions matter; x is the
+ *  voxel's offset from the volume centre (n-1)/2, in padded-grid units). */
+std::vector<float> deapodizationFactors(Kernel k, std::int64_t n, std::int64_t p, double oversampling);
 /** Bytes the spectrum will take (what to show before preprocessing). */
 std::size_t spectrumBytes(const Dims3& padded);
 

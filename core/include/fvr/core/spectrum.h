@@ -3,6 +3,9 @@
 #include <complex>
 #include <cstdint>
 #include <memory>
+#include <optional>
+
+#include <fvr/core/kernels.h>
 
 #include <fvr/core/volume.h>
 
@@ -50,6 +53,9 @@ struct Spectrum {
     Vec3 spacing{1, 1, 1};
     Dims3 padded{0, 0, 0};
     std::string name;
+    /** Set when the volume was divided by this kernel's Fourier transform before the 3D
+     *  transform (deapodization): the renderers then accept only this kernel. */
+    std::optional<Kernel> deapodizedFor;
     FftwBuffer data;
 
     std::int64_t rowStride() const { return 2 * (padded[0] / 2 + 1); }
