@@ -58,7 +58,11 @@ DICOM:
   --size M              slice/image size, power of two 128..2048 (default 512)
   --pixel-size mm       output pixel size (default: volume diagonal / M, no overlapping copies)
 Rendering:
-  --kernel K            nearest | linear | bspline | catmull-rom | sinc4 (default linear)
+  --kernel K            nearest | linear | bspline | catmull-rom | sinc4 | kaiser-bessel
+                        (default linear)
+  --kernel-width W      kaiser-bessel width: 4 (default) or 6
+  --deapodize on|off    divide the volume by the kernel's Fourier transform before the 3D FFT
+                        (gridding correction; default on for kaiser-bessel, off otherwise)
   --transform T         fft | fht (default fft)
   --oversampling f      zero-padding factor 1..2 (default 1, as in the paper)
   --values V            raw (stored values) | mu (attenuation rel. water, max(0,1+HU/1000))
@@ -98,6 +102,8 @@ struct Args {
     int size = 512;
     std::optional<double> pixelSize;
     Kernel kernel = Kernel::Linear;
+    int kernelWidth = 0;
+    std::optional<bool> deapodize;
     TransformKind transform = TransformKind::Fft;
     double oversampling = 1.0;
     ValueMapping values = ValueMapping::Raw;
@@ -172,6 +178,12 @@ Args parseArgs(int argc, char** argv) {
         else if (opt == "--size") a.size = parseInt(opt, value());
         else if (opt == "--pixel-size") a.pixelSize = parseNumber(opt, value());
         else if (opt == "--kernel") a.kernel = parseKernel(value());
+        else if (opt == "--kernel-width") a.kernelWidth = parseInt(opt, value());
+        else if (opt == "--deapodize") {
+            const std::string v = value();
+            if (v != "on" && v != "off") throw SettingsError("--deapodize: expected on|off, found '" + v + "'");
+            a.deapodize = v == "on";
+        }
         else if (opt == "--transform") a.transform = parseTransform(value());
         else if (opt == "--oversampling") a.oversampling = parseNumber(opt, value());
         else if (opt == "--values") a.values = parseValueMapping(value());
@@ -200,6 +212,11 @@ Args parseArgs(int argc, char** argv) {
     if (a.input.empty()) throw SettingsError("no INPUT given (see --help)");
     if (!a.info && a.bench <= 0 && a.out.empty()) throw SettingsError("no --out FILE given (or --info, --bench N)");
     if (a.bench < 0) throw SettingsError("--bench: expected a positive frame count");
+    const bool kb = a.kernel == Kernel::KaiserBessel4 || a.kernel == Kernel::KaiserBessel6;
+    if (a.kernelWidth != 0) {
+        if (!kb) throw SettingsError("--kernel-width: only for --kernel kaiser-bessel");
+        a.kernel = kaiserBesselKernel(a.kernelWidth);
+    }
     if (a.sweep < 0 || a.sweep > 100000) throw SettingsError("--sweep: expected 1..100000 views");
     if (a.sweep > 0 && !a.viewsFile.empty()) throw SettingsError("--sweep and --views: give one of them");
     if (a.bitDepth != 8 && a.bitDepth != 16) throw SettingsError("--bit-depth: expected 8 or 16");
@@ -324,7 +341,8 @@ std::string settingsJson(const Args& a, const Spectrum& s, double d, int threads
     o << "{\"input\": \"" << jsonEscape(a.input) << "\", \"backend\": \"" << jsonEscape(backend) << "\", \"kernel\": \"" << kernelName(a.kernel)
       << "\", \"transform\": \"" << transformName(a.transform) << "\", \"size\": " << a.size
       << ", \"pixel_size_mm\": " << d << ", \"oversampling\": " << a.oversampling << ", \"values\": \""
-      << valueMappingName(a.values) << "\", \"volume_dims\": [" << s.volumeDims[0] << ", " << s.volumeDims[1] << ", "
+      << valueMappingName(a.values) << "\", \"deapodized\": " << (s.deapodizedFor ? "true" : "false")
+      << ", \"volume_dims\": [" << s.volumeDims[0] << ", " << s.volumeDims[1] << ", "
       << s.volumeDims[2] << "], \"padded_dims\": [" << s.padded[0] << ", " << s.padded[1] << ", " << s.padded[2]
       << "], \"spectrum_mb\": " << double(s.bytes()) / (1 << 20) << ", \"threads\": " << threads << "}";
     return o.str();
@@ -427,6 +445,10 @@ int run(int argc, char** argv) {
     po.transform = a.transform;
     po.oversampling = a.oversampling;
     po.threads = a.threads;
+    const bool kbKernel = a.kernel == Kernel::KaiserBessel4 || a.kernel == Kernel::KaiserBessel6;
+    if (a.deapodize.value_or(kbKernel)) po.deapodizeFor = a.kernel;
+    else if (kbKernel)
+        std::fprintf(stderr, "fvr-render: warning: kaiser-bessel without deapodization is less accurate than trilinear\n");
     const auto tp0 = std::chrono::steady_clock::now();
     int lastPct = -1;
     const bool tty = isatty(2);

@@ -119,6 +119,14 @@ TEST_F(Workstation, PanelControlsChangeSettingsAndImage) {
     const auto before = *v->projection();
 
     auto* kernel = window->kernelCombo();
+    // With the gridding correction on, a new kernel needs a spectrum made for it.
+    ASSERT_TRUE(waitSpectrum(*window, [&] { kernel->setCurrentIndex(kernel->findData(int(core::Kernel::KaiserBessel6))); }));
+    EXPECT_EQ(window->study().spectrum()->deapodizedFor, core::Kernel::KaiserBessel6);
+    QApplication::processEvents();
+    EXPECT_EQ(v->settings().kernel, core::Kernel::KaiserBessel6);
+    EXPECT_GT(test::compare(v->projection()->pixels, cpuReference(*window, *v).pixels).psnr, 90.0);
+    ASSERT_TRUE(waitSpectrum(*window, [&] { window->deapodizeCheck()->setChecked(false); }));
+    EXPECT_FALSE(window->study().spectrum()->deapodizedFor.has_value());
     kernel->setCurrentIndex(kernel->findData(int(core::Kernel::Nearest)));
     EXPECT_EQ(v->settings().kernel, core::Kernel::Nearest);
     const auto nearest = *v->projection();
@@ -131,9 +139,9 @@ TEST_F(Workstation, PanelControlsChangeSettingsAndImage) {
     EXPECT_EQ(v->projection()->size, 256);
 
     ASSERT_TRUE(waitSpectrum(*window, [&] {
-        window->oversamplingCombo()->setCurrentIndex(window->oversamplingCombo()->findData(1.25));
+        window->oversamplingCombo()->setCurrentIndex(window->oversamplingCombo()->findData(1.5));
     }));
-    EXPECT_EQ(window->study().spectrum()->padded[0], 50);
+    EXPECT_EQ(window->study().spectrum()->padded[0], 60);
     ASSERT_TRUE(waitSpectrum(*window, [&] {
         window->transformCombo()->setCurrentIndex(window->transformCombo()->findData(int(core::TransformKind::Fht)));
     }));
@@ -155,7 +163,11 @@ TEST_F(Workstation, PanelControlsChangeSettingsAndImage) {
 
 TEST_F(Workstation, CompareViewRendersEachKernel) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
-    window->setCompareCount(4);
+    ASSERT_TRUE(window->deapodizeCheck()->isChecked()); // the default: Kaiser-Bessel, deapodized
+    ASSERT_TRUE(window->study().spectrum()->deapodizedFor.has_value());
+    // Compare mode needs a spectrum every kernel can use: deapodization goes off.
+    ASSERT_TRUE(waitSpectrum(*window, [&] { window->setCompareCount(4); }));
+    EXPECT_FALSE(window->study().spectrum()->deapodizedFor.has_value());
     QApplication::processEvents();
     ASSERT_EQ(window->views().size(), 4u);
     std::set<core::Kernel> kernels;
@@ -168,6 +180,7 @@ TEST_F(Workstation, CompareViewRendersEachKernel) {
         EXPECT_EQ(v->viewFrame().d, window->views()[0]->viewFrame().d); // synchronised
     }
     EXPECT_EQ(kernels.size(), 4u);
+    EXPECT_TRUE(kernels.count(core::Kernel::KaiserBessel4)); // view 1 keeps the main kernel
     window->setDifferenceMode(true);
     QTest::qWait(100);
     EXPECT_TRUE(window->views()[1]->projection().has_value());

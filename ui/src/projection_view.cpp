@@ -173,7 +173,6 @@ void ProjectionView::renderIfNeeded() {
         if (!m_gpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
     }
     if (!m_renderDirty) return;
-    m_renderDirty = false;
     const int M = m_settings.size;
     const core::RenderParams params{m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)},
                                     m_settings.kernel};
@@ -214,6 +213,7 @@ void ProjectionView::renderIfNeeded() {
         m_windowSet = true;
         emit windowChanged(m_window);
     }
+    m_renderDirty = false; // only after a frame really exists
     ++m_frames;
     const double wall = m_frameClock.isValid() ? m_frameClock.restart() : 0.0;
     m_stats.fps = wall > 0 ? 1000.0 / wall : 0.0;
@@ -236,12 +236,14 @@ void ProjectionView::paintGL() {
     }
     try {
         renderIfNeeded();
+        m_renderError.clear();
     } catch (const std::exception& e) {
-        m_notice = tr("Rendering failed: %1").arg(QString::fromUtf8(e.what()));
+        m_renderError = tr("Not rendered: %1").arg(QString::fromUtf8(e.what()));
         drawOverlay();
         return;
     }
     GLuint tex = 0;
+    try {
     if (m_gpu && !m_cpuImage) {
         tex = m_gpu->displayTexture(m_window);
         const auto t = m_gpu->lastTimes();
@@ -276,6 +278,10 @@ void ProjectionView::paintGL() {
             f->glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, M, M, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
         }
         tex = m_cpuTexture;
+    }
+    } catch (const std::exception& e) { // nothing may leave paintGL
+        m_renderError = tr("Not displayed: %1").arg(QString::fromUtf8(e.what()));
+        tex = 0;
     }
     if (tex && m_quad && m_quad->isLinked()) {
         const QRectF r = imageRect();
@@ -356,12 +362,13 @@ void ProjectionView::drawOverlay() {
         p.setPen(QColor(140, 240, 140));
         p.drawText(box, Qt::AlignLeft | Qt::AlignTop, text);
     }
-    if (!m_notice.isEmpty()) {
+    const QString notice = m_renderError.isEmpty() ? m_notice : m_renderError + '\n' + m_notice;
+    if (!notice.trimmed().isEmpty()) {
         const QRect area(8, 6, width() - 16, height() - 12);
-        const QRect box = p.fontMetrics().boundingRect(area, Qt::AlignLeft | Qt::AlignBottom | Qt::TextWordWrap, m_notice);
+        const QRect box = p.fontMetrics().boundingRect(area, Qt::AlignLeft | Qt::AlignBottom | Qt::TextWordWrap, notice.trimmed());
         p.fillRect(box.adjusted(-4, -2, 4, 2), QColor(0, 0, 0, 170));
         p.setPen(QColor(255, 130, 110));
-        p.drawText(box, Qt::AlignLeft | Qt::AlignBottom | Qt::TextWordWrap, m_notice);
+        p.drawText(box, Qt::AlignLeft | Qt::AlignBottom | Qt::TextWordWrap, notice.trimmed());
     }
 }
 
@@ -376,16 +383,15 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
             return std::nullopt;
         }
         std::optional<core::ProjectionImage> img;
-        if (m_gpu) img = m_gpu->readback();
-        else img = m_cpuImage;
-        doneCurrent();
-        // In difference mode the view shows the difference; the projection is its own image.
-        if (m_reference && m_cpu) img = m_cpu->render({m_view, {m_settings.size, img->pixelSize}, m_settings.kernel});
-        else if (m_reference && m_gpu) {
-            makeCurrent();
-            img = m_gpu->readback();
-            doneCurrent();
+        try {
+            if (m_gpu) img = m_gpu->readback(); // the view's own projection, also in difference mode
+            else if (m_reference && m_cpuImage)
+                img = m_cpu->render({m_view, {m_settings.size, m_cpuImage->pixelSize}, m_settings.kernel});
+            else img = m_cpuImage;
+        } catch (const std::exception&) {
+            img.reset();
         }
+        doneCurrent();
         return img;
     }
     if (!m_cpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);

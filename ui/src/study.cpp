@@ -186,6 +186,7 @@ void StudyController::open(const StudySource& source) {
         o.mapping = used.mapping;
         o.transform = settings.transform;
         o.oversampling = settings.oversampling;
+        o.deapodizeFor = settings.deapodizeFor;
         auto spectrum = core::preprocess(*vol, o, [this](double f, std::string_view st) { report(0.5 + 0.5 * f, st); },
                                          &token);
         std::shared_ptr<const core::Volume> cvol = vol;
@@ -214,6 +215,7 @@ void StudyController::setSpectrumSettings(const SpectrumSettings& settings) {
         o.mapping = settings.mapping;
         o.transform = settings.transform;
         o.oversampling = settings.oversampling;
+        o.deapodizeFor = settings.deapodizeFor;
         auto spectrum = core::preprocess(*vol, o, [this](double f, std::string_view st) { report(f, st); }, &token);
         QMetaObject::invokeMethod(this, [this, spectrum, settings, vol] {
             if (vol != m_volume) return; // a newer study replaced it meanwhile

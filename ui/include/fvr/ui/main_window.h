@@ -46,6 +46,7 @@ public:
     QComboBox* transformCombo() const { return m_transform; }
     QComboBox* oversamplingCombo() const { return m_oversampling; }
     QComboBox* valuesCombo() const { return m_values; }
+    QCheckBox* deapodizeCheck() const { return m_deapodize; }
     QCheckBox* invertCheck() const { return m_invert; }
     QDoubleSpinBox* windowWidthSpin() const { return m_width; }
     QDoubleSpinBox* windowLevelSpin() const { return m_level; }
@@ -94,6 +95,7 @@ private:
     QComboBox* m_transform = nullptr;
     QComboBox* m_oversampling = nullptr;
     QComboBox* m_values = nullptr;
+    QCheckBox* m_deapodize = nullptr;
     QComboBox* m_compareSlot = nullptr;
     QLabel* m_memory = nullptr;
     QDoubleSpinBox* m_width = nullptr;

@@ -108,7 +108,8 @@ private:
     std::unique_ptr<gpu::GpuFourierRenderer> m_gpu;
     std::unique_ptr<core::CpuFourierRenderer> m_cpu;
     std::optional<core::ProjectionImage> m_cpuImage; // CPU path / difference mode
-    QString m_notice;
+    QString m_notice;      ///< backend notice (CPU fallback)
+    QString m_renderError; ///< last render failure, cleared by the next good frame
     std::unique_ptr<QOpenGLShaderProgram> m_quad;
     std::unique_ptr<QOpenGLVertexArrayObject> m_vao;
     unsigned m_cpuTexture = 0;

@@ -9,11 +9,13 @@
 #include <atomic>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <string_view>
 #include <memory>
 #include <thread>
 
 #include <fvr/core/dicom.h>
+#include <fvr/core/kernels.h>
 #include <fvr/core/preprocess.h>
 #include <fvr/core/spectrum.h>
 #include <fvr/core/volume.h>
@@ -38,7 +40,10 @@ struct StudySource {
 struct SpectrumSettings {
     core::ValueMapping mapping = core::ValueMapping::Mu;
     core::TransformKind transform = core::TransformKind::Fft;
-    double oversampling = 1.5;
+    double oversampling = 1.25;
+    /** Gridding correction: the volume is divided by this kernel's Fourier transform before the
+     *  3D FFT; the spectrum then renders with that kernel only. Empty: none. */
+    std::optional<core::Kernel> deapodizeFor = core::Kernel::KaiserBessel4;
     bool operator==(const SpectrumSettings&) const = default;
 };
 
