@@ -20,7 +20,7 @@ namespace {
 constexpr GLenum kGpuMemoryInfoAvailableNvx = 0x9049; // GL_GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX (KiB)
 constexpr GLenum kTextureFreeMemoryAti = 0x87FC;      // GL_TEXTURE_FREE_MEMORY_ATI (KiB)
 
-int tapsOf(Kernel k) { return k == Kernel::Nearest ? 1 : (k == Kernel::Linear ? 2 : 4); }
+int tapsOf(Kernel k) { return core::kernelTaps(k); }
 int workGroupSize(int M) { return std::min(256, M / 2); }
 
 std::string glErrorName(GLenum e) {
@@ -210,7 +210,18 @@ void GpuFourierRenderer::ensureSize(int M) {
 }
 
 void GpuFourierRenderer::bindKernel(unsigned prog, Kernel kernel) {
+    // Kaiser-Bessel tables depend on the spectrum's oversampling: rebuild on a change.
+    const double sigma = m_spectrum ? core::kernelOversampling(m_spectrum->volumeDims, m_spectrum->padded)
+                                    : core::kDefaultKernelOversampling;
     auto it = m_kernelBuffers.find(kernel);
+    if (m_tables.at(kernel)->oversampling() != sigma) {
+        m_tables[kernel] = std::make_unique<core::KernelTable>(kernel, sigma);
+        if (it != m_kernelBuffers.end()) {
+            m_gl->glDeleteBuffers(1, &it->second);
+            m_kernelBuffers.erase(it);
+            it = m_kernelBuffers.end();
+        }
+    }
     if (it == m_kernelBuffers.end()) {
         GLuint b = 0;
         m_gl->glGenBuffers(1, &b);
@@ -301,6 +312,10 @@ void GpuFourierRenderer::runHartleyCorrection(int M) {
 void GpuFourierRenderer::render(const core::RenderParams& p) {
     core::validateImageGeometry(p.image);
     if (!m_spectrum) throw GlError("GPU renderer: no spectrum uploaded");
+    if (m_spectrum->deapodizedFor && *m_spectrum->deapodizedFor != p.kernel)
+        throw core::SettingsError(std::string("kernel: the spectrum was deapodized for ") +
+                                  core::kernelName(*m_spectrum->deapodizedFor) + ", it cannot be rendered with " +
+                                  core::kernelName(p.kernel) + " (preprocess again for that kernel)");
     const int M = p.image.size;
     if (M > 4096) throw core::SettingsError("GPU slice size: at most 4096");
     ensureSize(M);
@@ -420,7 +435,7 @@ std::vector<float> GpuFourierRenderer::inverseFht2D(const std::vector<float>& da
 int GpuFourierRenderer::compileAll(int M) {
     const std::string mm = std::to_string(M), wg = std::to_string(workGroupSize(M));
     int count = 0;
-    for (int taps : {1, 2, 4})
+    for (int taps : {1, 2, 4, 6})
         for (bool fht : {false, true}) {
             std::vector<std::pair<std::string, std::string>> d{{"TAPS", std::to_string(taps)}};
             if (fht) d.emplace_back("SPECTRUM_FHT", "1");
