@@ -19,6 +19,7 @@
 
 #include <fvr/core/cpu_renderer.h>
 #include <fvr/core/dicom.h>
+#include <fvr/core/dicom_export.h>
 #include <fvr/core/patient_views.h>
 #include <fvr/core/errors.h>
 #include <fvr/core/image_io.h>
@@ -256,6 +257,9 @@ void printSeriesJson(const DicomScanResult& scan) {
     std::printf("%s]\n}\n", scan.skipped.empty() ? "" : "\n  ");
 }
 
+/** Patient and study of a DICOM input, carried into DICOM outputs. */
+DicomExportInfo g_exportInfo;
+
 /** Loads INPUT; for a DICOM folder with --info prints the series and returns nothing. */
 std::optional<Volume> loadInput(const Args& a) {
     const std::string prefix = "phantom:";
@@ -286,6 +290,9 @@ std::optional<Volume> loadInput(const Args& a) {
                          scan.series.size(), a.input.c_str(), chosen->key.c_str(), chosen->frameCount);
         auto loaded = loadDicomSeries(*chosen);
         printWarnings(loaded.warnings);
+        g_exportInfo.patientName = chosen->patientName;
+        g_exportInfo.patientId = chosen->patientId;
+        g_exportInfo.studyInstanceUid = chosen->studyUid;
         return std::move(loaded.volume);
     }
     std::string ext = path.extension().string();
@@ -573,8 +580,10 @@ int run(int argc, char** argv) {
         }
         std::string ext = std::filesystem::path(a.out).extension().string();
         std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-        if (ext != ".npy" && ext != ".pfm" && ext != ".png")
-            throw SettingsError("--out: unknown output format '" + ext + "' (expected .npy, .pfm or .png)");
+        if (ext != ".npy" && ext != ".pfm" && ext != ".png" && ext != ".dcm")
+            throw SettingsError("--out: unknown output format '" + ext + "' (expected .npy, .pfm, .png or .dcm)");
+        g_exportInfo.valueDescription =
+            a.beerLambert ? "transmitted intensity exp(-mu_water x line integral)" : projectionUnits(a.values, volume.units);
         const bool stacked = views.size() > 1 && ext == ".npy" && !a.numbered;
         std::vector<float> stack;
         std::vector<std::string> written;
@@ -595,6 +604,7 @@ int run(int argc, char** argv) {
             } else {
                 const std::string path = views.size() > 1 ? numberedPath(a.out, i) : a.out;
                 if (ext == ".png") writePng(path, img.pixels.data(), M, M, autoWindow(img.pixels), a.bitDepth);
+                else if (ext == ".dcm") writeDicomProjection(path, img, g_exportInfo);
                 else writeProjection(path, img);
                 written.push_back(path);
             }

@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <fvr/core/dicom.h>
 #include <fvr/core/image_io.h>
 #include <fvr/core/phantom.h>
 
@@ -265,4 +266,16 @@ TEST(FvrRender, KaiserBesselDeapodizedBeatsThePapersSetting) {
     EXPECT_NE(json.find("\"deapodized\": true"), std::string::npos);
     const Result bad = run(common + "--kernel linear --kernel-width 6 --out " + tmp("x.npy"));
     EXPECT_EQ(bad.status, 2);
+}
+
+TEST(FvrRender, WritesDicomThatLoadsBackAsTheProjection) {
+    const std::string common = "phantom:shepp-logan:32 --size 128 --values mu --dir 0.2,0.3,0.9 ";
+    ASSERT_EQ(run(common + "--out " + tmp("d.npy")).status, 0);
+    const Result r = run(common + "--out " + tmp("d.dcm"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::vector<std::int64_t> shape;
+    const auto ref = readNpy(tmp("d.npy"), shape);
+    const auto back = fvr::core::loadDicomFile(tmp("d.dcm"));
+    ASSERT_EQ(back.volume.voxels.size(), ref.size());
+    EXPECT_GT(fvr::test::compare(back.volume.voxels, ref).psnr, 90.0); // 16-bit quantisation only
 }
