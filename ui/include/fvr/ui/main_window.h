@@ -5,6 +5,9 @@
 #include <QMainWindow>
 #include <QPointer>
 
+#include <atomic>
+#include <thread>
+
 #include <fvr/core/patient_views.h>
 #include <fvr/ui/projection_view.h>
 #include <fvr/ui/study.h>
@@ -40,6 +43,15 @@ public:
     bool exportScreenshot(const QString& path);
     bool exportProjection(const QString& path); ///< .npy (float), .png (16-bit), .pfm
     bool exportSweep(const QString& folder, int frames, const core::Vec3& axis);
+    /** Accuracy readout: view 1's projection against the spatial (ray-casting) projector of the
+     *  same voxels and view, computed on a worker thread; the result (PSNR, relative RMSE) goes to
+     *  the Messages panel and accuracyMeasured(). */
+    void measureAccuracy();
+
+signals:
+    void accuracyMeasured(double psnr, double relRmse);
+
+public:
     /** Panel controls (tests drive them like a user). */
     QComboBox* kernelCombo() const { return m_kernel; }
     QComboBox* sizeCombo() const { return m_size; }
@@ -109,6 +121,8 @@ private:
     QLabel* m_backend = nullptr;
     QMenu* m_recentMenu = nullptr;
     QAction* m_overlayAction = nullptr;
+    std::thread m_accuracyWorker;
+    std::atomic<bool> m_accuracyDone{true};
 };
 
 } // namespace fvr::ui
