@@ -8,7 +8,7 @@ JOBS ?= $(shell nproc)
 STUDY ?=
 SHARED_DATA ?= $(abspath $(CURDIR)/../shared/data)
 
-.PHONY: all deps configure build run test bench sanitize clean
+.PHONY: all deps configure build run test bench package sanitize clean
 
 all: build
 
@@ -30,6 +30,10 @@ run: build
 test: build
 	@cd $(BUILD_DIR) && xvfb-run -a -s "-screen 0 1280x1024x24" \
 	  ctest --output-on-failure --parallel $(JOBS) --timeout 900
+
+# Debian package (fvr-workstation_VERSION_ARCH.deb in the build folder).
+package: build
+	@cd $(BUILD_DIR) && cpack -G DEB
 
 bench: build
 	@$(BUILD_DIR)/bench/fvr_bench

@@ -5,7 +5,7 @@
 set -euo pipefail
 
 packages=(
-  build-essential cmake pkg-config ninja-build
+  build-essential dpkg-dev cmake pkg-config ninja-build
   libfftw3-dev libglm-dev zlib1g-dev
   libdcmtk-dev
   qt6-base-dev libqt6opengl6-dev libgl-dev
