@@ -5,6 +5,10 @@
 #include <QOpenGLVersionFunctionsFactory>
 
 #include <algorithm>
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <tuple>
 #include <cstring>
 
 #include <fvr/core/errors.h>
@@ -19,6 +23,24 @@ using core::Kernel;
 namespace {
 constexpr GLenum kGpuMemoryInfoAvailableNvx = 0x9049; // GL_GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX (KiB)
 constexpr GLenum kTextureFreeMemoryAti = 0x87FC;      // GL_TEXTURE_FREE_MEMORY_ATI (KiB)
+
+/** Spectrum textures shared by the renderers of one share group (keyed by spectrum, precision
+ *  and share group; the entry keeps the spectrum alive so its address cannot be reused). */
+struct SharedTexture {
+    GLuint id = 0;
+    std::size_t bytes = 0;
+    int refs = 0;
+    std::shared_ptr<const core::Spectrum> spectrum;
+};
+using TextureKey = std::tuple<const void*, const void*, const void*>;
+std::mutex& textureMutex() {
+    static std::mutex m;
+    return m;
+}
+std::map<TextureKey, SharedTexture>& textureCache() {
+    static std::map<TextureKey, SharedTexture> cache;
+    return cache;
+}
 
 int tapsOf(Kernel k) { return core::kernelTaps(k); }
 int workGroupSize(int M) { return std::min(256, M / 2); }
@@ -68,9 +90,9 @@ void GpuFourierRenderer::releaseGl() {
     del(m_bufB);
     del(m_image);
     del(m_hartleyT);
-    if (m_texture) m_gl->glDeleteTextures(1, &m_texture);
+    releaseTexture();
     if (m_display) m_gl->glDeleteTextures(1, &m_display);
-    m_texture = m_display = 0;
+    m_display = 0;
     if (m_queries[0]) m_gl->glDeleteQueries(4, m_queries);
     std::fill(std::begin(m_queries), std::end(m_queries), 0u);
     m_size = 0;
@@ -122,8 +144,54 @@ unsigned GpuFourierRenderer::program(const std::string& path,
     return prog;
 }
 
+void GpuFourierRenderer::releaseTexture() {
+    if (!m_texture) return;
+    std::lock_guard lock(textureMutex());
+    auto& cache = textureCache();
+    const TextureKey key{m_textureKey[0], m_textureKey[1], m_textureKey[2]};
+    auto it = cache.find(key);
+    if (it != cache.end() && it->second.id == m_texture) {
+        if (--it->second.refs == 0) {
+            m_gl->glDeleteTextures(1, &it->second.id);
+            cache.erase(it);
+        }
+    } else {
+        m_gl->glDeleteTextures(1, &m_texture);
+    }
+    m_texture = 0;
+    m_textureBytes = 0;
+    m_textureKey[0] = m_textureKey[1] = m_textureKey[2] = nullptr;
+}
+
 void GpuFourierRenderer::setSpectrum(std::shared_ptr<const core::Spectrum> s, SpectrumPrecision precision) {
     if (!s || !s->data) throw GlError("GPU renderer: no spectrum");
+    const void* group = QOpenGLContext::currentContext()->shareGroup();
+    const TextureKey key{s.get(), reinterpret_cast<const void*>(std::uintptr_t(precision) + 1), group};
+    if (m_texture && TextureKey{m_textureKey[0], m_textureKey[1], m_textureKey[2]} == key) {
+        m_spectrum = std::move(s);
+        return; // already this texture
+    }
+    GLuint sharedId = 0;
+    std::size_t sharedBytes = 0;
+    {
+        std::lock_guard lock(textureMutex());
+        auto it = textureCache().find(key);
+        if (it != textureCache().end()) { // another renderer of this share group uploaded it
+            ++it->second.refs;
+            sharedId = it->second.id;
+            sharedBytes = it->second.bytes;
+        }
+    }
+    if (sharedId) {
+        releaseTexture();
+        m_texture = sharedId;
+        m_textureBytes = sharedBytes;
+        m_textureKey[0] = std::get<0>(key);
+        m_textureKey[1] = std::get<1>(key);
+        m_textureKey[2] = std::get<2>(key);
+        m_spectrum = std::move(s);
+        return;
+    }
     const bool fht = s->kind == core::TransformKind::Fht;
     const GLint width = GLint(fht ? s->padded[0] : s->padded[0] / 2 + 1);
     const GLint height = GLint(s->padded[1]), depth = GLint(s->padded[2]);
@@ -149,7 +217,7 @@ void GpuFourierRenderer::setSpectrum(std::shared_ptr<const core::Spectrum> s, Sp
         throw GpuMemoryError("spectrum needs " + std::to_string(bytes >> 20) + " MiB of GPU memory, " +
                              std::to_string((freeBytes + current) >> 20) +
                              " MiB are free (try fp16 storage or a smaller oversampling)");
-    if (m_texture) m_gl->glDeleteTextures(1, &m_texture);
+    releaseTexture();
     m_gl->glGenTextures(1, &m_texture);
     m_gl->glBindTexture(GL_TEXTURE_3D, m_texture);
     m_gl->glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
@@ -180,8 +248,15 @@ void GpuFourierRenderer::setSpectrum(std::shared_ptr<const core::Spectrum> s, Sp
                                  " MiB does not fit in GPU memory (try fp16 storage or a smaller oversampling)");
         throw GlError("spectrum upload failed: " + glErrorName(err));
     }
-    m_spectrum = std::move(s);
     m_textureBytes = bytes;
+    {
+        std::lock_guard lock(textureMutex());
+        textureCache()[key] = SharedTexture{m_texture, bytes, 1, s};
+    }
+    m_textureKey[0] = std::get<0>(key);
+    m_textureKey[1] = std::get<1>(key);
+    m_textureKey[2] = std::get<2>(key);
+    m_spectrum = std::move(s);
 }
 
 void GpuFourierRenderer::ensureSize(int M) {

@@ -271,3 +271,21 @@ TEST(GpuRendererNoContext, RefusesWithoutContext) {
     fvr::test::glContext().context()->doneCurrent();
     EXPECT_THROW(GpuFourierRenderer(), GlError);
 }
+
+TEST_F(GlTest, RenderersShareOneSpectrumTexture) {
+    const Volume v = makeSheppLoganVolume(32);
+    auto s = spectrumOf(v, TransformKind::Fft, 1.25);
+    CpuFourierRenderer cpu(s, 2);
+    const RenderParams p{ViewFrame::fromDirUp({0.3, 0.4, 0.85}, {0, -1, 0}),
+                         {128, defaultPixelSize(v.dims, v.spacing, 128)}, Kernel::CatmullRom};
+    auto a = std::make_unique<GpuFourierRenderer>();
+    GpuFourierRenderer b;
+    a->setSpectrum(s);
+    b.setSpectrum(s);
+    EXPECT_EQ(a->spectrumTexture(), b.spectrumTexture()); // one upload for both views
+    a.reset();                                            // the other keeps it
+    EXPECT_GT(fvr::test::compare(b.renderImage(p).pixels, cpu.render(p).pixels).psnr, 90.0);
+    GpuFourierRenderer c;
+    c.setSpectrum(s, SpectrumPrecision::Float16); // another precision: its own texture
+    EXPECT_NE(c.spectrumTexture(), b.spectrumTexture());
+}

@@ -45,6 +45,9 @@ public:
                      SpectrumPrecision precision = SpectrumPrecision::Float32);
     bool hasSpectrum() const { return bool(m_spectrum); }
     std::size_t spectrumTextureBytes() const { return m_textureBytes; }
+    /** The spectrum's 3D texture. Renderers in one OpenGL share group (the workstation's views)
+     *  share one texture per spectrum and precision, so comparing 4 views costs 1 upload. */
+    unsigned spectrumTexture() const { return m_texture; }
 
     /** Slice the spectrum inside the first (row) FFT pass instead of a separate pass (faster;
      *  the per-stage times then merge slice and inverse). Default on. */
@@ -82,11 +85,13 @@ private:
     void runRows(int M, bool fused, bool hartley, core::Kernel kernel, const core::RenderParams* params);
     void runCols(int M, const char* outputMode);
     void runHartleyCorrection(int M);
+    void releaseTexture();
 
     QOpenGLFunctions_4_3_Core* m_gl = nullptr;
     std::shared_ptr<const core::Spectrum> m_spectrum;
     std::size_t m_textureBytes = 0;
     unsigned m_texture = 0;
+    const void* m_textureKey[3] = {nullptr, nullptr, nullptr}; // spectrum, precision, share group
     bool m_fuse = true;
     std::map<std::string, unsigned> m_programs;
     std::map<core::Kernel, unsigned> m_kernelBuffers;
