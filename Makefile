@@ -17,6 +17,7 @@ deps:
 
 configure: deps
 	@cmake -S . -B $(BUILD_DIR) -G Ninja -DCMAKE_BUILD_TYPE=$(BUILD_TYPE) \
+	  -DFVR_BUILD_GUI=ON -DFVR_BUILD_TESTS=ON -DFVR_BUILD_BENCH=ON \
 	  -DFVR_SHARED_DATA_DIR=$(SHARED_DATA) > $(BUILD_DIR).configure.log 2>&1 \
 	  || (cat $(BUILD_DIR).configure.log; exit 1)
 

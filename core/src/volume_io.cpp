@@ -610,6 +610,19 @@ ElementType parseElementType(const std::string& name) {
         quoteValue(name));
 }
 
+/** A volume with its geometry and room for its voxels (allocated after every check passed). */
+static Volume emptyVolume(const Dims3& dims, const Vec3& spacing, const Vec3& origin, const std::array<Vec3, 3>& direction,
+                   std::string name, std::int64_t voxelCount, const fs::path& file) {
+    Volume vol;
+    vol.dims = dims;
+    vol.spacing = spacing;
+    vol.origin = origin;
+    vol.direction = direction;
+    vol.name = std::move(name);
+    vol.voxels = allocateVoxels(voxelCount, file);
+    return vol;
+}
+
 Volume loadVolume(const fs::path& path) {
     const std::string l = lower(path.filename().string());
     if (endsWith(l, ".mhd") || endsWith(l, ".mha")) return loadMetaImage(path);
@@ -988,13 +1001,7 @@ Volume loadMetaImage(const fs::path& path) {
     }
 
     // --- Read.
-    Volume vol;
-    vol.dims = dims;
-    vol.spacing = spacing;
-    vol.origin = origin;
-    vol.direction = direction;
-    vol.name = volumeName(path);
-    vol.voxels = allocateVoxels(voxelCount, path);
+    Volume vol = emptyVolume(dims, spacing, origin, direction, volumeName(path), voxelCount, path);
     float* dst = vol.voxels.data();
     for (const DataPart& p : parts) {
         std::unique_ptr<ByteSource> src;
@@ -1290,13 +1297,7 @@ Volume loadNifti(const fs::path& path) {
         }
     }
 
-    Volume vol;
-    vol.dims = dims;
-    vol.spacing = spacing;
-    vol.origin = origin;
-    vol.direction = direction;
-    vol.name = volumeName(path);
-    vol.voxels = allocateVoxels(voxelCount, path);
+    Volume vol = emptyVolume(dims, spacing, origin, direction, volumeName(path), voxelCount, path);
     const std::uint64_t read =
         readElements(src, *type, swap, scaling, std::size_t(voxelCount), vol.voxels.data());
     if (read != dataBytes)
@@ -1342,11 +1343,8 @@ Volume loadRaw(const fs::path& path, const RawSpec& spec) {
     }
     FileSource src(path, spec.headerBytes);
     if (!src.ok()) fail(path, "file", "cannot open file");
-    Volume vol;
-    vol.dims = spec.dims;
-    vol.spacing = spec.spacing;
-    vol.name = path.stem().string();
-    vol.voxels = allocateVoxels(voxelCount, path);
+    Volume vol = emptyVolume(spec.dims, spec.spacing, Vec3{0, 0, 0}, Volume{}.direction, path.stem().string(),
+                             voxelCount, path);
     const std::uint64_t read = readElements(src, spec.type, spec.bigEndian, Scaling{},
                                             std::size_t(voxelCount), vol.voxels.data());
     if (read != dataBytes)
