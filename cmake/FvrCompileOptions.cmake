@@ -1,7 +1,10 @@
 # Warnings and sanitizers shared by every target of the project (via fvr_compile_options).
+# Aggregates such as RenderParams are meant to be brace-initialised partially (the rest keeps its
+# defaults), so -Wmissing-field-initializers is off.
 add_library(fvr_compile_options INTERFACE)
 target_compile_options(fvr_compile_options INTERFACE
-  $<$<CXX_COMPILER_ID:GNU,Clang>:-Wall -Wextra -Wpedantic -Wshadow -Wno-unused-parameter>
+  $<$<CXX_COMPILER_ID:GNU,Clang>:-Wall -Wextra -Wpedantic -Wshadow -Wno-unused-parameter
+                                  -Wno-missing-field-initializers>
   $<$<BOOL:${FVR_STRICT_BUILD}>:-Werror>)
 if(FVR_SANITIZE)
   target_compile_options(fvr_compile_options INTERFACE

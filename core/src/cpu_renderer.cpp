@@ -4,6 +4,7 @@
 #include <cmath>
 #include <complex>
 #include <cstring>
+#include <numbers>
 
 #include <fvr/core/errors.h>
 
@@ -16,6 +17,7 @@ using cfloat = std::complex<float>;
 
 std::string projectionUnits(ValueMapping mapping, ValueUnits source) {
     if (mapping == ValueMapping::Mu) return "mm (mu/mu_water x mm)";
+    if (mapping == ValueMapping::MuBone) return "mm (bone-enhanced mu/mu_water x mm)";
     if (source == ValueUnits::HounsfieldUnits) return "HU x mm";
     return "value x mm";
 }
@@ -75,6 +77,45 @@ struct SliceContext {
     const KernelTable* table;
     int taps;
     int first;
+    // Depth cueing: value a G(k) + i E.grad G(k) (FFT) or a H(k) + E.grad H(-k) (FHT), with
+    // E_a = b/(2 pi) D_a s_a P_a (xray.h; the derivative theorem with the centred spectrum).
+    float depthA = 1.0f;
+    float E[3] = {0, 0, 0};
+};
+
+/** The slice filter H(m, n) at signed image frequencies, from 1D tables (the Gaussian is
+ *  separable; the Butterworth term costs three multiplications). */
+struct FilterLut {
+    bool on = false;
+    float amount = 0.0f;
+    std::vector<float> g; // exp(-2 pi^2 sigma^2 (j / (M d))^2), j = 0..M/2; empty: no sharpening
+    bool band = false;
+    float invCut2 = 0.0f; // 1 / (nu_c M d)^2
+
+    FilterLut(const SliceFilter& f, int M, double d) {
+        on = f.active();
+        if (f.sharpenAmount > 0.0) {
+            amount = float(f.sharpenAmount);
+            g.resize(std::size_t(M / 2 + 1));
+            const double c = 2.0 * std::numbers::pi * std::numbers::pi * f.sharpenSigmaMm * f.sharpenSigmaMm;
+            for (int j = 0; j <= M / 2; ++j) g[std::size_t(j)] = float(std::exp(-c * std::pow(j / (M * d), 2)));
+        }
+        if (f.bandLimitLpMm > 0.0) {
+            band = true;
+            invCut2 = float(1.0 / std::pow(f.bandLimitLpMm * M * d, 2));
+        }
+    }
+    float operator()(int m, int n) const {
+        float h = 1.0f;
+        if (!g.empty()) h *= 1.0f + amount * (1.0f - g[std::size_t(std::abs(m))] * g[std::size_t(std::abs(n))]);
+        if (band) {
+            float q = float(m * m + n * n) * invCut2;
+            q *= q;
+            q *= q;
+            h /= 1.0f + q * q;
+        }
+        return h;
+    }
 };
 
 inline std::int64_t wrapSmall(std::int64_t i, std::int64_t p) {
@@ -89,6 +130,13 @@ inline void axisWeights(const SliceContext& c, double k, std::int64_t& base, flo
     if constexpr (T == 1) {
         base = std::int64_t(std::floor(k + 0.5));
         w[0] = 1.0f;
+    } else if constexpr (T == 3) {
+        // The linear kernel over three taps (depth cueing, see axisDerivWeights).
+        const double f = std::floor(k);
+        base = std::int64_t(f) - 1;
+        w[0] = 0.0f;
+        w[2] = float(k - f);
+        w[1] = 1.0f - w[2];
     } else if constexpr (T == 2) {
         // The linear table is exact; computing the two weights directly is cheaper.
         const double f = std::floor(k);
@@ -102,6 +150,34 @@ inline void axisWeights(const SliceContext& c, double k, std::int64_t& base, flo
     }
 }
 
+/** Weights and their derivatives (depth cueing; T >= 2). */
+template <int T>
+inline void axisDerivWeights(const SliceContext& c, double k, std::int64_t& base, float* w, float* dw) {
+    const double f = std::floor(k);
+    if constexpr (T == 3) {
+        // The linear kernel: its derivative is -1, +1 between integers and undefined on them,
+        // where the slice samples lie for every view along an axis (k_D = 0). There it takes the
+        // mean of both sides, the central difference (G[j+1] - G[j-1]) / 2, which needs a third
+        // tap; the symmetric choice also keeps the FFT and the FHT paths equal.
+        const double r = std::nearbyint(k);
+        if (std::abs(k - r) < 1e-6) {
+            base = std::int64_t(r) - 1;
+            w[0] = 0.0f, w[1] = 1.0f, w[2] = 0.0f;
+            dw[0] = -0.5f, dw[1] = 0.0f, dw[2] = 0.5f;
+        } else {
+            base = std::int64_t(f) - 1;
+            w[0] = 0.0f;
+            w[2] = float(k - f);
+            w[1] = 1.0f - w[2];
+            dw[0] = 0.0f, dw[1] = -1.0f, dw[2] = 1.0f;
+        }
+    } else {
+        base = std::int64_t(f) + c.first;
+        c.table->weights(k - f, w);
+        c.table->derivativeWeights(k - f, dw);
+    }
+}
+
 /** Prefetches the spectrum rows a later sample will read (the slice walks the spectrum along a
  *  plane: the loads are cache misses, so issuing them early overlaps their latency). */
 template <int T>
@@ -112,7 +188,7 @@ inline void prefetchComplex(const SliceContext& c, double kx, double ky, double 
         ky = -ky;
         kz = -kz;
     }
-    const std::int64_t off = T >= 4 ? -(T / 2 - 1) : 0;
+    const std::int64_t off = T >= 4 ? -(T / 2 - 1) : (T == 3 ? -1 : 0);
     const std::int64_t bx = std::int64_t(T == 1 ? std::floor(kx + 0.5) : std::floor(kx)) + off;
     const std::int64_t by = std::int64_t(T == 1 ? std::floor(ky + 0.5) : std::floor(ky)) + off;
     const std::int64_t bz = std::int64_t(T == 1 ? std::floor(kz + 0.5) : std::floor(kz)) + off;
@@ -123,8 +199,9 @@ inline void prefetchComplex(const SliceContext& c, double kx, double ky, double 
             __builtin_prefetch(base + (wrapSmall(by + yc, c.P1) + c.P1 * wrapSmall(bz + zc, c.P2)) * c.rs);
 }
 
-/** Interpolated complex G at continuous signed frequency k from the half spectrum. */
-template <int T>
+/** Interpolated complex G at continuous signed frequency k from the half spectrum (with Depth:
+ *  a G + i E.grad G, the depth-cued slice value). */
+template <int T, bool Depth>
 inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double kz) {
     if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return {};
     bool conjugate = false;
@@ -135,10 +212,16 @@ inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double 
         conjugate = true;
     }
     std::int64_t bx, by, bz;
-    float wx[T], wy[T], wz[T];
-    axisWeights<T>(c, kx, bx, wx);
-    axisWeights<T>(c, ky, by, wy);
-    axisWeights<T>(c, kz, bz, wz);
+    float wx[T], wy[T], wz[T], dx[T], dy[T], dz[T];
+    if constexpr (Depth) {
+        axisDerivWeights<T>(c, kx, bx, wx, dx);
+        axisDerivWeights<T>(c, ky, by, wy, dy);
+        axisDerivWeights<T>(c, kz, bz, wz, dz);
+    } else {
+        axisWeights<T>(c, kx, bx, wx);
+        axisWeights<T>(c, ky, by, wy);
+        axisWeights<T>(c, kz, bz, wz);
+    }
     std::int64_t ix[T], iy[T], iz[T];
     bool flip[T];
     bool anyFlip = false;
@@ -154,35 +237,41 @@ inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double 
     }
     const cfloat* base = reinterpret_cast<const cfloat*>(c.data);
     const std::int64_t H = c.rs / 2; // complex per row
-    cfloat acc{};
-    if (!anyFlip) {
-        for (int zc = 0; zc < T; ++zc)
-            for (int yc = 0; yc < T; ++yc) {
-                const cfloat* row = base + (iy[yc] + c.P1 * iz[zc]) * H;
-                cfloat sx{};
-                for (int xc = 0; xc < T; ++xc) sx += wx[xc] * row[ix[xc]];
-                acc += (wz[zc] * wy[yc]) * sx;
-            }
-    } else {
-        for (int zc = 0; zc < T; ++zc)
-            for (int yc = 0; yc < T; ++yc) {
-                const cfloat* row = base + (iy[yc] + c.P1 * iz[zc]) * H;
+    cfloat acc{}, dacc{};
+    auto accumulate = [&](int zc, int yc, const cfloat* vals) {
+        cfloat sx{};
+        for (int xc = 0; xc < T; ++xc) sx += wx[xc] * vals[xc];
+        acc += (wz[zc] * wy[yc]) * sx;
+        if constexpr (Depth) {
+            cfloat dsx{};
+            for (int xc = 0; xc < T; ++xc) dsx += dx[xc] * vals[xc];
+            dacc += (wz[zc] * wy[yc] * c.E[0]) * dsx + (c.E[1] * dy[yc] * wz[zc] + c.E[2] * wy[yc] * dz[zc]) * sx;
+        }
+    };
+    cfloat vals[T];
+    for (int zc = 0; zc < T; ++zc)
+        for (int yc = 0; yc < T; ++yc) {
+            const cfloat* row = base + (iy[yc] + c.P1 * iz[zc]) * H;
+            if (!anyFlip) {
+                for (int xc = 0; xc < T; ++xc) vals[xc] = row[ix[xc]];
+            } else {
                 const std::int64_t my = iy[yc] == 0 ? 0 : c.P1 - iy[yc];
                 const std::int64_t mz = iz[zc] == 0 ? 0 : c.P2 - iz[zc];
                 const cfloat* mrow = base + (my + c.P1 * mz) * H;
-                cfloat sx{};
-                for (int xc = 0; xc < T; ++xc)
-                    sx += wx[xc] * (flip[xc] ? std::conj(mrow[ix[xc]]) : row[ix[xc]]);
-                acc += (wz[zc] * wy[yc]) * sx;
+                for (int xc = 0; xc < T; ++xc) vals[xc] = flip[xc] ? std::conj(mrow[ix[xc]]) : row[ix[xc]];
             }
-    }
-    return conjugate ? std::conj(acc) : acc;
+            accumulate(zc, yc, vals);
+        }
+    cfloat v = acc;
+    if constexpr (Depth) v = cfloat(c.depthA * acc.real() - dacc.imag(), c.depthA * acc.imag() + dacc.real());
+    // G(k) = conj G(-k), and then also grad G(k) = -conj grad G(-k): the whole value conjugates.
+    return conjugate ? std::conj(v) : v;
 }
 
 template <int T>
 inline void prefetchHartley(const SliceContext& c, double kx, double ky, double kz) {
     if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return;
-    const std::int64_t off = T >= 4 ? -(T / 2 - 1) : 0;
+    const std::int64_t off = T >= 4 ? -(T / 2 - 1) : (T == 3 ? -1 : 0);
     const std::int64_t bx = std::int64_t(T == 1 ? std::floor(kx + 0.5) : std::floor(kx)) + off;
     const std::int64_t by = std::int64_t(T == 1 ? std::floor(ky + 0.5) : std::floor(ky)) + off;
     const std::int64_t bz = std::int64_t(T == 1 ? std::floor(kz + 0.5) : std::floor(kz)) + off;
@@ -218,18 +307,47 @@ inline float sampleHartley(const SliceContext& c, double kx, double ky, double k
     return acc;
 }
 
+/** E.grad H at continuous signed frequency k (depth cueing, FHT path). */
+template <int T>
+inline float sampleHartleyDerivative(const SliceContext& c, double kx, double ky, double kz) {
+    if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return 0.0f;
+    std::int64_t bx, by, bz;
+    float wx[T], wy[T], wz[T], dx[T], dy[T], dz[T];
+    axisDerivWeights<T>(c, kx, bx, wx, dx);
+    axisDerivWeights<T>(c, ky, by, wy, dy);
+    axisDerivWeights<T>(c, kz, bz, wz, dz);
+    std::int64_t ix[T], iy[T], iz[T];
+    for (int t = 0; t < T; ++t) {
+        ix[t] = wrapSmall(bx + t, c.P0);
+        iy[t] = wrapSmall(by + t, c.P1);
+        iz[t] = wrapSmall(bz + t, c.P2);
+    }
+    float acc = 0.0f;
+    for (int zc = 0; zc < T; ++zc)
+        for (int yc = 0; yc < T; ++yc) {
+            const float* row = c.data + (iy[yc] + c.P1 * iz[zc]) * c.rs;
+            float sx = 0.0f, dsx = 0.0f;
+            for (int xc = 0; xc < T; ++xc) {
+                sx += wx[xc] * row[ix[xc]];
+                dsx += dx[xc] * row[ix[xc]];
+            }
+            acc += (wz[zc] * wy[yc] * c.E[0]) * dsx + (c.E[1] * dy[yc] * wz[zc] + c.E[2] * wy[yc] * dz[zc]) * sx;
+        }
+    return acc;
+}
+
 struct FrameMapping {
     // k(m, n) = m * A + n * B, spectrum index units, m and n signed image frequencies.
     double A[3], B[3];
     float scale;
 };
 
-template <int T>
-void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, int M, cfloat* out,
-                      ThreadPool& pool) {
+template <int T, bool Depth>
+void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const FilterLut& filter, int M,
+                      cfloat* out, ThreadPool& pool) {
     const int H = M / 2 + 1;
     auto sample = [&](double m, double n) {
-        return sampleComplex<T>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1],
+        return sampleComplex<T, Depth>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1],
                                 m * f.A[2] + n * f.B[2]);
     };
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
@@ -255,18 +373,21 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, int M, cfloa
                                        ma * f.A[2] + n * f.B[2]);
                     v = sample(m, n);
                 }
-                row[m] = v * sign;
+                row[m] = v * (filter.on ? sign * filter(m, n) : sign);
             }
         }
     });
 }
 
-template <int T>
-void sliceFullHartley(const SliceContext& c, const FrameMapping& f, int M, float* out,
-                      ThreadPool& pool) {
+template <int T, bool Depth>
+void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const FilterLut& filter, int M,
+                      float* out, ThreadPool& pool) {
     auto sample = [&](double m, double n) {
-        return sampleHartley<T>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1],
-                                m * f.A[2] + n * f.B[2]);
+        const double kx = m * f.A[0] + n * f.B[0], ky = m * f.A[1] + n * f.B[1], kz = m * f.A[2] + n * f.B[2];
+        if constexpr (Depth)
+            return c.depthA * sampleHartley<T>(c, kx, ky, kz) + sampleHartleyDerivative<T>(c, -kx, -ky, -kz);
+        else
+            return sampleHartley<T>(c, kx, ky, kz);
     };
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         for (std::int64_t r = r0; r < r1; ++r) {
@@ -291,7 +412,7 @@ void sliceFullHartley(const SliceContext& c, const FrameMapping& f, int M, float
                                        ma * f.A[2] + n * f.B[2]);
                     v = sample(m, n);
                 }
-                row[col] = v * sign;
+                row[col] = v * (filter.on ? sign * filter(m, n) : sign);
             }
         }
     });
@@ -319,8 +440,18 @@ void hartleyCorrection2D(float* d, int M, ThreadPool& pool) {
 
 } // namespace
 
-ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTimes* times) {
+void validateRenderParams(const RenderParams& params) {
     validateImageGeometry(params.image);
+    if (!(params.depthCue >= 0.0 && params.depthCue <= 1.0))
+        throw SettingsError("depth cueing: strength must be in [0, 1], found " + std::to_string(params.depthCue));
+    if (params.depthCue > 0.0 && params.kernel == Kernel::Nearest)
+        throw SettingsError("depth cueing: needs the derivative of the interpolation kernel; nearest has none "
+                            "(choose linear or better)");
+    validateSliceFilter(params.filter);
+}
+
+ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTimes* times) {
+    validateRenderParams(params);
     const auto t0 = Clock::now();
     const Spectrum& s = *m_spectrum;
     if (s.deapodizedFor && *s.deapodizedFor != params.kernel)
@@ -354,6 +485,15 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
     }
     f.scale = float(s.spacing[0] * s.spacing[1] * s.spacing[2] / ((M * d) * (M * d)));
 
+    const bool depth = params.depthCue > 0.0;
+    if (depth) {
+        const DepthCueWeights w = depthCueWeights(params.depthCue, s.volumeDims, s.spacing);
+        c.depthA = float(w.a);
+        for (int a = 0; a < 3; ++a)
+            c.E[a] = float(w.b / (2.0 * std::numbers::pi) * params.view.d[a] * s.spacing[a] * double(s.padded[a]));
+    }
+    const FilterLut filter(params.filter, M, d);
+
     ProjectionImage img;
     img.size = M;
     img.pixelSize = d;
@@ -364,11 +504,19 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
     Clock::time_point t1, t2;
     if (s.kind == TransformKind::Fft) {
         auto* slice = reinterpret_cast<cfloat*>(res.slice.get());
-        switch (c.taps) {
-        case 1: sliceHalfComplex<1>(c, f, M, slice, m_pool); break;
-        case 2: sliceHalfComplex<2>(c, f, M, slice, m_pool); break;
-        case 6: sliceHalfComplex<6>(c, f, M, slice, m_pool); break;
-        default: sliceHalfComplex<4>(c, f, M, slice, m_pool); break;
+        if (!depth) {
+            switch (c.taps) {
+            case 1: sliceHalfComplex<1, false>(c, f, filter, M, slice, m_pool); break;
+            case 2: sliceHalfComplex<2, false>(c, f, filter, M, slice, m_pool); break;
+            case 6: sliceHalfComplex<6, false>(c, f, filter, M, slice, m_pool); break;
+            default: sliceHalfComplex<4, false>(c, f, filter, M, slice, m_pool); break;
+            }
+        } else {
+            switch (c.taps) {
+            case 2: sliceHalfComplex<3, true>(c, f, filter, M, slice, m_pool); break;
+            case 6: sliceHalfComplex<6, true>(c, f, filter, M, slice, m_pool); break;
+            default: sliceHalfComplex<4, true>(c, f, filter, M, slice, m_pool); break;
+            }
         }
         t1 = Clock::now();
         fftwf_execute_dft_c2r(res.c2r.get(), reinterpret_cast<fftwf_complex*>(res.slice.get()),
@@ -377,11 +525,19 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
         t2 = Clock::now();
     } else {
         float* slice = res.slice.get();
-        switch (c.taps) {
-        case 1: sliceFullHartley<1>(c, f, M, slice, m_pool); break;
-        case 2: sliceFullHartley<2>(c, f, M, slice, m_pool); break;
-        case 6: sliceFullHartley<6>(c, f, M, slice, m_pool); break;
-        default: sliceFullHartley<4>(c, f, M, slice, m_pool); break;
+        if (!depth) {
+            switch (c.taps) {
+            case 1: sliceFullHartley<1, false>(c, f, filter, M, slice, m_pool); break;
+            case 2: sliceFullHartley<2, false>(c, f, filter, M, slice, m_pool); break;
+            case 6: sliceFullHartley<6, false>(c, f, filter, M, slice, m_pool); break;
+            default: sliceFullHartley<4, false>(c, f, filter, M, slice, m_pool); break;
+            }
+        } else {
+            switch (c.taps) {
+            case 2: sliceFullHartley<3, true>(c, f, filter, M, slice, m_pool); break;
+            case 6: sliceFullHartley<6, true>(c, f, filter, M, slice, m_pool); break;
+            default: sliceFullHartley<4, true>(c, f, filter, M, slice, m_pool); break;
+            }
         }
         t1 = Clock::now();
         fftwf_execute_r2r(res.dht.get(), slice, slice);

@@ -133,21 +133,25 @@ void writePfm(const fs::path& path, const float* data, int rows, int cols) {
     writeFileAtomic(path, out);
 }
 
+double DisplayWindow::map(double value) const {
+    const double v = transmission.active() ? transmission.intensity(value) : value;
+    double t = (v - low) / (high > low ? high - low : 1.0);
+    if (!std::isfinite(t)) t = 0.0;
+    t = std::clamp(t, 0.0, 1.0);
+    return invert ? 1.0 - t : t;
+}
+
 void writePng(const fs::path& path, const float* data, int rows, int cols, const DisplayWindow& w,
               int bitDepth) {
     if (bitDepth != 8 && bitDepth != 16) throw WriteError(path.string() + ": PNG bit depth must be 8 or 16");
     const int bpp = bitDepth / 8;
     const double maxv = bitDepth == 8 ? 255.0 : 65535.0;
-    const double scale = 1.0 / (w.high - w.low);
     std::string raw;
     raw.reserve(std::size_t(rows) * (1 + std::size_t(cols) * bpp));
     for (int r = 0; r < rows; ++r) {
         raw.push_back('\0'); // filter: none
         for (int c = 0; c < cols; ++c) {
-            double t = (double(data[std::size_t(r) * cols + c]) - w.low) * scale;
-            if (!std::isfinite(t)) t = 0.0;
-            t = std::clamp(t, 0.0, 1.0);
-            if (w.invert) t = 1.0 - t;
+            const double t = w.map(double(data[std::size_t(r) * cols + c]));
             const auto q = std::uint32_t(std::lround(t * maxv));
             if (bpp == 2) raw.push_back(char(q >> 8));
             raw.push_back(char(q & 0xff));

@@ -166,26 +166,49 @@ double kernelFourier(Kernel k, double u, double oversampling) {
     return 1.0;
 }
 
+void KernelTable::row(double frac, double* w) const {
+    if (m_taps == 1) {
+        w[0] = 1.0;
+        return;
+    }
+    double sum = 0.0;
+    for (int j = 0; j < m_taps; ++j) {
+        // Tap j sits at floor(t) + firstTapOffset() + j; its distance from t:
+        const double x = frac - (firstTapOffset() + j);
+        w[j] = kernelValue(m_kernel, x, m_oversampling);
+        sum += w[j];
+    }
+    if (m_kernel == Kernel::Sinc4)
+        for (int j = 0; j < m_taps; ++j) w[j] /= sum;
+}
+
 KernelTable::KernelTable(Kernel k, double oversampling)
     : m_kernel(k), m_oversampling(oversampling), m_taps(kernelTaps(k)) {
     m_table.resize(std::size_t(kResolution + 1) * m_taps);
+    m_derivative.assign(std::size_t(kResolution + 1) * m_taps, 0.0f);
+    double w[kMaxTaps], a[kMaxTaps], b[kMaxTaps], c[kMaxTaps];
     for (int i = 0; i <= kResolution; ++i) {
         const double frac = double(i) / kResolution;
-        float* row = &m_table[std::size_t(i) * m_taps];
-        if (m_taps == 1) {
-            row[0] = 1.0f;
-            continue;
+        row(frac, w);
+        for (int j = 0; j < m_taps; ++j) m_table[std::size_t(i) * m_taps + j] = float(w[j]);
+        if (m_taps == 1) continue;
+        // Derivative of the row within (0, 1), where every tap stays on one piece of its kernel
+        // (the kernels have kinks or, Kaiser-Bessel, steps at integers): central differences
+        // inside, one-sided second-order differences at the ends.
+        constexpr double h = 1e-5, eps = 1e-9;
+        float* d = &m_derivative[std::size_t(i) * m_taps];
+        if (frac - h > 0.0 && frac + h < 1.0) {
+            row(frac - h, a);
+            row(frac + h, b);
+            for (int j = 0; j < m_taps; ++j) d[j] = float((b[j] - a[j]) / (2 * h));
+        } else {
+            const double s = frac < 0.5 ? 1.0 : -1.0; // step inwards
+            const double f0 = frac + s * eps;
+            row(f0, a);
+            row(f0 + s * h, b);
+            row(f0 + s * 2 * h, c);
+            for (int j = 0; j < m_taps; ++j) d[j] = float(s * (-3 * a[j] + 4 * b[j] - c[j]) / (2 * h));
         }
-        double sum = 0.0;
-        double w[kMaxTaps];
-        for (int j = 0; j < m_taps; ++j) {
-            // Tap j sits at floor(t) + firstTapOffset() + j; its distance from t:
-            const double x = frac - (firstTapOffset() + j);
-            w[j] = kernelValue(k, x, oversampling);
-            sum += w[j];
-        }
-        const bool normalise = (k == Kernel::Sinc4);
-        for (int j = 0; j < m_taps; ++j) row[j] = float(normalise ? w[j] / sum : w[j]);
     }
 }
 

@@ -6,6 +6,7 @@
 
 #include <fvr/core/errors.h>
 #include <fvr/core/thread_pool.h>
+#include <fvr/core/xray.h>
 
 namespace fvr::core {
 
@@ -17,12 +18,13 @@ Vec3 toLocal(const Ellipsoid& e, const Vec3& v) {
 }
 Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
 
-/** Chord of a line through the axis-aligned box [-h, h]. */
-double boxChord(const Vec3& o, const Vec3& dir, const Vec3& h) {
-    double t0 = -1e300, t1 = 1e300;
+/** Where the line o + t dir crosses the axis-aligned box [-h, h]; false if it misses. */
+bool boxInterval(const Vec3& o, const Vec3& dir, const Vec3& h, double& t0, double& t1) {
+    t0 = -1e300;
+    t1 = 1e300;
     for (int a = 0; a < 3; ++a) {
         if (std::abs(dir[a]) < 1e-15) {
-            if (std::abs(o[a]) >= h[a]) return 0.0;
+            if (std::abs(o[a]) >= h[a]) return false;
             continue;
         }
         double ta = (-h[a] - o[a]) / dir[a], tb = (h[a] - o[a]) / dir[a];
@@ -30,17 +32,30 @@ double boxChord(const Vec3& o, const Vec3& dir, const Vec3& h) {
         t0 = std::max(t0, ta);
         t1 = std::min(t1, tb);
     }
-    return t1 > t0 ? t1 - t0 : 0.0;
+    return t1 > t0;
+}
+
+/** Integral of a + b t over [t0, t1]. */
+double weightedLength(double t0, double t1, double a, double b) {
+    return a * (t1 - t0) + b * 0.5 * (t1 * t1 - t0 * t0);
 }
 } // namespace
 
-double Ellipsoid::chord(const Vec3& o, const Vec3& dir) const {
+bool Ellipsoid::interval(const Vec3& o, const Vec3& dir, double& t0, double& t1) const {
     const Vec3 a = toLocal(*this, dir);
     const Vec3 b = toLocal(*this, sub(o, centre));
     const double aa = dot(a, a), ab = dot(a, b), bb = dot(b, b);
     const double disc = ab * ab - aa * (bb - 1.0);
-    if (disc <= 0.0) return 0.0;
-    return 2.0 * std::sqrt(disc) / aa; // (t2 - t1) * |dir|, dir unit
+    if (disc <= 0.0) return false;
+    const double r = std::sqrt(disc);
+    t0 = (-ab - r) / aa;
+    t1 = (-ab + r) / aa;
+    return true;
+}
+
+double Ellipsoid::chord(const Vec3& o, const Vec3& dir) const {
+    double t0, t1;
+    return interval(o, dir, t0, t1) ? t1 - t0 : 0.0;
 }
 
 bool Ellipsoid::contains(const Vec3& p) const {
@@ -143,8 +158,11 @@ Volume EllipsoidPhantom::voxelize(const Dims3& dims, const Vec3& spacing, int su
 
 ProjectionImage EllipsoidPhantom::project(const ViewFrame& view, const ImageGeometry& image,
                                           ValueMapping mapping, const Dims3& dims,
-                                          const Vec3& spacing) const {
+                                          const Vec3& spacing, double depthCue) const {
     validateImageGeometry(image);
+    if (mapping == ValueMapping::MuBone)
+        throw SettingsError("phantom projection: the bone-enhanced mapping has no analytic projection");
+    const DepthCueWeights w = depthCueWeights(depthCue, dims, spacing);
     const int M = image.size;
     const double d = image.pixelSize;
     ProjectionImage img;
@@ -159,9 +177,12 @@ ProjectionImage EllipsoidPhantom::project(const ViewFrame& view, const ImageGeom
             Vec3 o;
             for (int a = 0; a < 3; ++a)
                 o[a] = (col - M / 2) * d * view.r[a] - (row - M / 2) * d * view.u[a];
-            double mu = 0.0;
-            for (const Ellipsoid& e : ellipsoids) mu += e.density * e.chord(o, view.d);
-            const double v = mapping == ValueMapping::Mu ? mu : 1000.0 * mu - 1000.0 * boxChord(o, view.d, half);
+            double mu = 0.0, t0, t1;
+            for (const Ellipsoid& e : ellipsoids)
+                if (e.interval(o, view.d, t0, t1)) mu += e.density * weightedLength(t0, t1, w.a, w.b);
+            double box = 0.0;
+            if (mapping != ValueMapping::Mu && boxInterval(o, view.d, half, t0, t1)) box = weightedLength(t0, t1, w.a, w.b);
+            const double v = mapping == ValueMapping::Mu ? mu : 1000.0 * mu - 1000.0 * box;
             img.pixels[std::size_t(row) * M + col] = float(v);
         }
     return img;

@@ -9,6 +9,7 @@
 
 #include <fvr/core/errors.h>
 #include <fvr/core/thread_pool.h>
+#include <fvr/core/xray.h>
 
 #include "fftw_support.h"
 
@@ -27,11 +28,19 @@ FftwBuffer allocateFftw(std::size_t floats) {
     return FftwBuffer(p);
 }
 
-const char* valueMappingName(ValueMapping m) { return m == ValueMapping::Mu ? "mu" : "raw"; }
+const char* valueMappingName(ValueMapping m) {
+    switch (m) {
+    case ValueMapping::Raw: return "raw";
+    case ValueMapping::Mu: return "mu";
+    case ValueMapping::MuBone: return "mu-bone";
+    }
+    return "?";
+}
 ValueMapping parseValueMapping(const std::string& s) {
     if (s == "raw") return ValueMapping::Raw;
     if (s == "mu") return ValueMapping::Mu;
-    throw SettingsError("values: expected raw|mu, found '" + s + "'");
+    if (s == "mu-bone") return ValueMapping::MuBone;
+    throw SettingsError("values: expected raw|mu|mu-bone, found '" + s + "'");
 }
 const char* transformName(TransformKind t) { return t == TransformKind::Fht ? "fht" : "fft"; }
 TransformKind parseTransform(const std::string& s) {
@@ -313,7 +322,6 @@ void fillPadded(const Volume& v, Spectrum& s, ValueMapping mapping, ThreadPool& 
     for (std::int64_t z = 0; z < N[2]; ++z) srcZ[std::size_t(wrap(z - m[2], P[2]))] = z;
     std::vector<std::int64_t> srcY(std::size_t(P[1]), -1);
     for (std::int64_t y = 0; y < N[1]; ++y) srcY[std::size_t(wrap(y - m[1], P[1]))] = y;
-    const bool mu = mapping == ValueMapping::Mu;
     std::atomic<std::int64_t> done{0};
     pool.parallelFor(P[2], 1, [&](std::int64_t z0, std::int64_t z1) {
         for (std::int64_t jz = z0; jz < z1; ++jz) {
@@ -334,7 +342,7 @@ void fillPadded(const Volume& v, Spectrum& s, ValueMapping mapping, ThreadPool& 
                     for (std::int64_t x = 0; x < N[0]; ++x) {
                         const std::int64_t jx = x >= m[0] ? x - m[0] : x - m[0] + P[0];
                         const float val = src[x];
-                        row[jx] = mu ? std::max(0.0f, 1.0f + val / 1000.0f) : val;
+                        row[jx] = mapValue(mapping, val);
                     }
                     continue;
                 }
@@ -342,7 +350,7 @@ void fillPadded(const Volume& v, Spectrum& s, ValueMapping mapping, ThreadPool& 
                 for (std::int64_t x = 0; x < N[0]; ++x) {
                     const std::int64_t jx = x >= m[0] ? x - m[0] : x - m[0] + P[0];
                     const float val = src[x];
-                    row[jx] = (mu ? std::max(0.0f, 1.0f + val / 1000.0f) : val) * (fyz * dx[std::size_t(jx)]);
+                    row[jx] = mapValue(mapping, val) * (fyz * dx[std::size_t(jx)]);
                 }
             }
         }

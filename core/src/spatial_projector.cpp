@@ -4,14 +4,15 @@
 #include <cmath>
 #include <limits>
 
+#include <fvr/core/xray.h>
+
 namespace fvr::core {
 
 SpatialProjector::SpatialProjector(const Volume& volume, SpatialProjectorOptions options)
     : m_volume(volume), m_options(options), m_pool(options.threads) {
-    if (options.mapping == ValueMapping::Mu) {
+    if (options.mapping != ValueMapping::Raw) {
         m_mapped.resize(volume.voxels.size());
-        for (std::size_t i = 0; i < m_mapped.size(); ++i)
-            m_mapped[i] = std::max(0.0f, 1.0f + volume.voxels[i] / 1000.0f);
+        for (std::size_t i = 0; i < m_mapped.size(); ++i) m_mapped[i] = mapValue(options.mapping, volume.voxels[i]);
     }
 }
 
@@ -24,6 +25,7 @@ ProjectionImage SpatialProjector::project(const ViewFrame& view, const ImageGeom
     const auto& N = v.dims;
     const auto& s = v.spacing;
     const double h = m_options.stepFraction * std::min({s[0], s[1], s[2]});
+    const DepthCueWeights w = depthCueWeights(m_options.depthCue, N, s);
 
     ProjectionImage img;
     img.size = M;
@@ -90,7 +92,7 @@ ProjectionImage SpatialProjector::project(const ViewFrame& view, const ImageGeom
                 double sum = 0.0;
                 for (std::int64_t i = 0; i < n; ++i) {
                     const double t = t0 + (i + 0.5) * step;
-                    sum += sample(o[0] + t * dir[0], o[1] + t * dir[1], o[2] + t * dir[2]);
+                    sum += (w.a + w.b * t) * sample(o[0] + t * dir[0], o[1] + t * dir[1], o[2] + t * dir[2]);
                 }
                 img.pixels[std::size_t(row) * M + col] = float(sum * step);
             }

@@ -42,7 +42,9 @@ std::map<TextureKey, SharedTexture>& textureCache() {
     return cache;
 }
 
-int tapsOf(Kernel k) { return core::kernelTaps(k); }
+/** Taps of a shader variant: the kernel's, except linear with depth cueing (3 taps, so that the
+ *  derivative on integer frequencies is the central difference, as on the CPU). */
+int tapsOf(Kernel k, bool depth = false) { return depth && k == Kernel::Linear ? 3 : core::kernelTaps(k); }
 int workGroupSize(int M) { return std::min(256, M / 2); }
 
 std::string glErrorName(GLenum e) {
@@ -85,6 +87,8 @@ void GpuFourierRenderer::releaseGl() {
     m_programs.clear();
     for (auto& [k, b] : m_kernelBuffers) m_gl->glDeleteBuffers(1, &b);
     m_kernelBuffers.clear();
+    for (auto& [k, b] : m_kernelDerivativeBuffers) m_gl->glDeleteBuffers(1, &b);
+    m_kernelDerivativeBuffers.clear();
     del(m_twiddles);
     del(m_bufA);
     del(m_bufB);
@@ -284,7 +288,7 @@ void GpuFourierRenderer::ensureSize(int M) {
     m_size = M;
 }
 
-void GpuFourierRenderer::bindKernel(unsigned prog, Kernel kernel) {
+void GpuFourierRenderer::bindKernel(unsigned prog, Kernel kernel, bool derivative) {
     // Kaiser-Bessel tables depend on the spectrum's oversampling: rebuild on a change.
     const double sigma = m_spectrum ? core::kernelOversampling(m_spectrum->volumeDims, m_spectrum->padded)
                                     : core::kDefaultKernelOversampling;
@@ -296,6 +300,10 @@ void GpuFourierRenderer::bindKernel(unsigned prog, Kernel kernel) {
             m_kernelBuffers.erase(it);
             it = m_kernelBuffers.end();
         }
+        if (auto d = m_kernelDerivativeBuffers.find(kernel); d != m_kernelDerivativeBuffers.end()) {
+            m_gl->glDeleteBuffers(1, &d->second);
+            m_kernelDerivativeBuffers.erase(d);
+        }
     }
     if (it == m_kernelBuffers.end()) {
         GLuint b = 0;
@@ -306,6 +314,18 @@ void GpuFourierRenderer::bindKernel(unsigned prog, Kernel kernel) {
         it = m_kernelBuffers.emplace(kernel, b).first;
     }
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, it->second);
+    if (derivative) {
+        auto d = m_kernelDerivativeBuffers.find(kernel);
+        if (d == m_kernelDerivativeBuffers.end()) {
+            GLuint b = 0;
+            m_gl->glGenBuffers(1, &b);
+            m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
+            const auto& t = m_tables.at(kernel)->derivativeTable();
+            m_gl->glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(t.size() * sizeof(float)), t.data(), GL_STATIC_DRAW);
+            d = m_kernelDerivativeBuffers.emplace(kernel, b).first;
+        }
+        m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, d->second);
+    }
     m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uKernelRes"), core::KernelTable::kResolution);
     m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uKernelFirst"), m_tables.at(kernel)->firstTapOffset());
 }
@@ -330,7 +350,22 @@ void GpuFourierRenderer::setSliceUniforms(unsigned prog, const core::RenderParam
     m_gl->glActiveTexture(GL_TEXTURE0);
     m_gl->glBindTexture(GL_TEXTURE_3D, m_texture);
     m_gl->glUniform1i(loc("uSpectrum"), 0);
-    bindKernel(prog, p.kernel);
+    const bool depth = p.depthCue > 0.0;
+    if (depth) {
+        const core::DepthCueWeights w = core::depthCueWeights(p.depthCue, s.volumeDims, s.spacing);
+        float E[3];
+        for (int a = 0; a < 3; ++a)
+            E[a] = float(w.b / (2.0 * 3.14159265358979323846) * p.view.d[a] * s.spacing[a] * double(s.padded[a]));
+        m_gl->glUniform1f(loc("uDepthA"), float(w.a));
+        m_gl->glUniform3f(loc("uDepthE"), E[0], E[1], E[2]);
+    }
+    const core::SliceFilter& f = p.filter;
+    m_gl->glUniform1i(loc("uFilterOn"), f.active() ? 1 : 0);
+    const double Md = M * d;
+    m_gl->glUniform1f(loc("uSharpenAmount"), float(f.sharpenAmount));
+    m_gl->glUniform1f(loc("uSharpenC"), float(2.0 * 9.86960440108935861883 * f.sharpenSigmaMm * f.sharpenSigmaMm / (Md * Md)));
+    m_gl->glUniform1f(loc("uBandInv2"), f.bandLimitLpMm > 0.0 ? float(1.0 / std::pow(f.bandLimitLpMm * Md, 2)) : 0.0f);
+    bindKernel(prog, p.kernel, depth);
 }
 
 void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel, const core::RenderParams* params) {
@@ -340,8 +375,9 @@ void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel,
                                                           {"WG_SIZE", std::to_string(workGroupSize(M))}};
     if (fused) {
         defs.emplace_back("FUSED_SLICE", "1");
-        defs.emplace_back("TAPS", std::to_string(tapsOf(kernel)));
+        defs.emplace_back("TAPS", std::to_string(tapsOf(kernel, params->depthCue > 0.0)));
         if (m_spectrum->kind == core::TransformKind::Fht) defs.emplace_back("SPECTRUM_FHT", "1");
+        if (params->depthCue > 0.0) defs.emplace_back("DEPTH_CUE", "1");
     }
     if (hartley) defs.emplace_back("HARTLEY_ROWS", "1");
     const GLuint prog = program("fft/rows.comp", defs);
@@ -385,7 +421,7 @@ void GpuFourierRenderer::runHartleyCorrection(int M) {
 }
 
 void GpuFourierRenderer::render(const core::RenderParams& p) {
-    core::validateImageGeometry(p.image);
+    core::validateRenderParams(p);
     if (!m_spectrum) throw GlError("GPU renderer: no spectrum uploaded");
     if (m_spectrum->deapodizedFor && *m_spectrum->deapodizedFor != p.kernel)
         throw core::SettingsError(std::string("kernel: the spectrum was deapodized for ") +
@@ -397,8 +433,9 @@ void GpuFourierRenderer::render(const core::RenderParams& p) {
     const bool fht = m_spectrum->kind == core::TransformKind::Fht;
     m_gl->glQueryCounter(m_queries[0], GL_TIMESTAMP);
     if (!m_fuse) {
-        std::vector<std::pair<std::string, std::string>> defs{{"TAPS", std::to_string(tapsOf(p.kernel))}};
+        std::vector<std::pair<std::string, std::string>> defs{{"TAPS", std::to_string(tapsOf(p.kernel, p.depthCue > 0.0))}};
         if (fht) defs.emplace_back("SPECTRUM_FHT", "1");
+        if (p.depthCue > 0.0) defs.emplace_back("DEPTH_CUE", "1");
         const GLuint prog = program("slice/slice.comp", defs);
         m_gl->glUseProgram(prog);
         m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
@@ -453,6 +490,8 @@ unsigned GpuFourierRenderer::displayTexture(const core::DisplayWindow& w) {
     m_gl->glUniform1f(m_gl->glGetUniformLocation(prog, "uLow"), float(w.low));
     m_gl->glUniform1f(m_gl->glGetUniformLocation(prog, "uHigh"), float(w.high > w.low ? w.high : w.low + 1.0));
     m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uInvert"), w.invert ? 1 : 0);
+    m_gl->glUniform1f(m_gl->glGetUniformLocation(prog, "uMuWater"), float(w.transmission.active() ? w.transmission.muWaterPerMm : 0.0));
+    m_gl->glUniform1f(m_gl->glGetUniformLocation(prog, "uExposure"), float(w.transmission.exposure));
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_image);
     m_gl->glBindImageTexture(0, m_display, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA8);
     m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
@@ -510,10 +549,13 @@ std::vector<float> GpuFourierRenderer::inverseFht2D(const std::vector<float>& da
 int GpuFourierRenderer::compileAll(int M) {
     const std::string mm = std::to_string(M), wg = std::to_string(workGroupSize(M));
     int count = 0;
-    for (int taps : {1, 2, 4, 6})
-        for (bool fht : {false, true}) {
+    for (int taps : {1, 2, 3, 4, 6})
+        for (bool fht : {false, true})
+            for (bool depth : {false, true}) {
+            if (depth != (taps == 3) && taps <= 3) continue; // nearest: no derivative; linear + depth: 3 taps
             std::vector<std::pair<std::string, std::string>> d{{"TAPS", std::to_string(taps)}};
             if (fht) d.emplace_back("SPECTRUM_FHT", "1");
+            if (depth) d.emplace_back("DEPTH_CUE", "1");
             program("slice/slice.comp", d), ++count;
             auto r = d;
             r.insert(r.begin(), {{"MAX_M", mm}, {"WG_SIZE", wg}});

@@ -216,7 +216,9 @@ TEST(Accuracy, DeapodizedKernelsAgainstAnalytic) {
         for (Kernel k : {Kernel::Linear, Kernel::BSpline, Kernel::CatmullRom, Kernel::KaiserBessel4,
                          Kernel::KaiserBessel6})
             EXPECT_GT(psnr(k, over, true), psnr(k, over, false)) << kernelName(k) << " oversampling " << over;
-        if (over <= 1.5) EXPECT_GT(psnr(Kernel::Sinc4, over, true), psnr(Kernel::Sinc4, over, false));
+        if (over <= 1.5) {
+            EXPECT_GT(psnr(Kernel::Sinc4, over, true), psnr(Kernel::Sinc4, over, false));
+        }
     }
     // Gridding: Kaiser-Bessel at oversampling 2 with deapodization beats the paper's trilinear at
     // oversampling 1 by a wide margin, and the spatial ray-casting reference.

@@ -373,10 +373,10 @@ void MainWindow::buildDocks() {
     connect(m_size, &QComboBox::currentIndexChanged, this, [this] { applyRenderSettings(); });
     connect(m_compareSlot, &QComboBox::currentIndexChanged, this, [this](int slot) {
         if (slot <= 0 || slot > int(m_views.size())) return;
-        const ViewSettings s = m_views[slot - 1]->settings();
+        const ViewSettings vs = m_views[slot - 1]->settings();
         const QSignalBlocker b1(m_kernel), b2(m_size);
-        m_kernel->setCurrentIndex(m_kernel->findData(int(s.kernel)));
-        m_size->setCurrentIndex(m_size->findData(s.size));
+        m_kernel->setCurrentIndex(m_kernel->findData(int(vs.kernel)));
+        m_size->setCurrentIndex(m_size->findData(vs.size));
     });
     connect(m_transform, &QComboBox::currentIndexChanged, this, [this] { applySpectrumSettings(); });
     connect(m_oversampling, &QComboBox::currentIndexChanged, this, [this] { applySpectrumSettings(); });

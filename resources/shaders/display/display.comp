@@ -1,18 +1,23 @@
 #version 430
-// Display mapping: line integrals -> 8-bit gray through a window (low -> black, high -> white),
-// optionally inverted. Image row 0 (the top) goes to texel row 0.
+// Display mapping (fvr::core::DisplayWindow::map): line integrals, or with uMuWater > 0 the
+// transmitted intensity uExposure exp(-uMuWater L) (Beer-Lambert), -> 8-bit gray through a window
+// (low -> black, high -> white), optionally inverted. Image row 0 (the top) goes to texel row 0.
 layout(local_size_x = 16, local_size_y = 16) in;
 uniform int uM;
 uniform float uLow;
 uniform float uHigh;
 uniform int uInvert;
+uniform float uMuWater;
+uniform float uExposure;
 layout(std430, binding = 1) readonly buffer ImageIn { float imageIn[]; };
 layout(rgba8, binding = 0) writeonly uniform image2D displayOut;
 
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);
     if (p.x >= uM || p.y >= uM) return;
-    float t = clamp((imageIn[p.y * uM + p.x] - uLow) / (uHigh - uLow), 0.0, 1.0);
+    float v = imageIn[p.y * uM + p.x];
+    if (uMuWater > 0.0) v = uExposure * exp(-uMuWater * v);
+    float t = clamp((v - uLow) / (uHigh - uLow), 0.0, 1.0);
     if (uInvert != 0) t = 1.0 - t;
     imageStore(displayOut, p, vec4(t, t, t, 1.0));
 }

@@ -9,6 +9,7 @@
 #include <fvr/core/spectrum.h>
 #include <fvr/core/thread_pool.h>
 #include <fvr/core/view.h>
+#include <fvr/core/xray.h>
 
 namespace fvr::core {
 
@@ -17,7 +18,16 @@ struct RenderParams {
     ViewFrame view;
     ImageGeometry image;
     Kernel kernel = Kernel::Linear;
+    /** Depth cueing strength in [0, 1] (xray.h), in the frequency domain: the slice adds
+     *  b/(2 pi) i times the spectrum's derivative along the view (with the kernel's derivative
+     *  weights) to a times the spectrum. Needs a kernel with a derivative (not nearest). */
+    double depthCue = 0.0;
+    /** Spectral filter multiplied into the slice before the inverse transform (xray.h). */
+    SliceFilter filter;
 };
+
+/** Checks geometry, depth cue and filter (SettingsError naming the problem). */
+void validateRenderParams(const RenderParams& params);
 
 /**
  * Per frame: resample the central slice perpendicular to D from the spectrum (separable kernel

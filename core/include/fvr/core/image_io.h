@@ -6,14 +6,22 @@
 #include <vector>
 
 #include <fvr/core/projection.h>
+#include <fvr/core/xray.h>
 
 namespace fvr::core {
 
-/** Window for display mapping: value `low` maps to black, `high` to white (inverted swaps). */
+/** Window for display mapping: value `low` maps to black, `high` to white (inverted swaps).
+ *  With an active transmission, the window applies to the transmitted intensity
+ *  exposure exp(-mu_water L) instead of the line integral L (Beer-Lambert; the film look is the
+ *  inverted transmission: bone white). */
 struct DisplayWindow {
     double low = 0.0;
     double high = 1.0;
     bool invert = false;
+    Transmission transmission;
+
+    /** The displayed brightness in [0, 1] of a projection value. */
+    double map(double value) const;
 };
 
 /** Window from the 0.5 and 99.5 percentiles of the image (robust auto window). */

@@ -81,14 +81,30 @@ public:
         const float* b = a + m_taps;
         for (int j = 0; j < m_taps; ++j) w[j] = a[j] + t * (b[j] - a[j]);
     }
+    /** Derivatives d w_j / d frac of the weights (the derivative of the interpolant along an
+     *  axis: depth cueing). Nearest has none (a zero row); linear gives -1, +1. */
+    void derivativeWeights(double frac, float* w) const {
+        const double pos = frac * kResolution;
+        int i = int(pos);
+        if (i >= kResolution) i = kResolution - 1;
+        const float t = float(pos - i);
+        const float* a = &m_derivative[std::size_t(i) * m_taps];
+        const float* b = a + m_taps;
+        for (int j = 0; j < m_taps; ++j) w[j] = a[j] + t * (b[j] - a[j]);
+    }
     /** The raw table: (kResolution + 1) rows of taps() weights. */
     const std::vector<float>& table() const { return m_table; }
+    /** The derivative table, same layout. */
+    const std::vector<float>& derivativeTable() const { return m_derivative; }
 
 private:
+    void row(double frac, double* w) const;
+
     Kernel m_kernel;
     double m_oversampling;
     int m_taps;
     std::vector<float> m_table;
+    std::vector<float> m_derivative;
 };
 
 } // namespace fvr::core

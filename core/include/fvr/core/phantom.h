@@ -19,6 +19,8 @@ struct Ellipsoid {
 
     /** Length (mm) of the chord of the line o + t dir (dir unit, o relative to the centre). */
     double chord(const Vec3& o, const Vec3& dir) const;
+    /** The parameters t0 < t1 where the line enters and leaves; false if it misses. */
+    bool interval(const Vec3& o, const Vec3& dir, double& t0, double& t1) const;
     bool contains(const Vec3& p) const;
 };
 
@@ -42,9 +44,12 @@ public:
 
     /** Exact line integrals for the same pixels as the renderers (see ViewFrame). Mu mapping:
      *  sum of density x chord (mm). Raw mapping (HU): -1000 x chord through the volume's box of
-     *  extent N*s plus 1000 x sum of density x chord. */
+     *  extent N*s plus 1000 x sum of density x chord. With depthCue > 0 every chord is weighted
+     *  by the depth cueing weight of xray.h (exactly: the weight is linear along the ray).
+     *  The bone-enhanced mapping has no closed form here (SettingsError). */
     ProjectionImage project(const ViewFrame& view, const ImageGeometry& image,
-                            ValueMapping mapping, const Dims3& dims, const Vec3& spacing) const;
+                            ValueMapping mapping, const Dims3& dims, const Vec3& spacing,
+                            double depthCue = 0.0) const;
 };
 
 /** The built-in demo study: Shepp-Logan with N^3 voxels over a 256 mm field, in HU. */

@@ -14,13 +14,16 @@ struct SpatialProjectorOptions {
     double stepFraction = 0.25;
     ValueMapping mapping = ValueMapping::Raw;
     int threads = 0;
+    /** Depth cueing strength (xray.h): each sample weighted by w(t) = a + b t, t its depth. */
+    double depthCue = 0.0;
 };
 
 class SpatialProjector {
 public:
     SpatialProjector(const Volume& volume, SpatialProjectorOptions options = {});
     /** Pixel (col,row) = integral along D through c + (col-M/2) d R - (row-M/2) d U, c the
-     *  volume's physical centre, of the trilinearly interpolated (mapped) volume. */
+     *  volume's physical centre, of the trilinearly interpolated (mapped) volume, weighted by the
+     *  depth cueing weight when options.depthCue > 0. */
     ProjectionImage project(const ViewFrame& view, const ImageGeometry& image);
 
 private:

@@ -59,7 +59,8 @@ public:
     core::ProjectionImage readback() const;
     /** render() + readback() with the stage times. */
     core::ProjectionImage renderImage(const core::RenderParams& params, GpuStageTimes* times = nullptr);
-    /** Maps the last render through the window into an RGBA8 M x M texture and returns its id. */
+    /** Maps the last render through the window (Beer-Lambert transmission first when the window
+     *  has one) into an RGBA8 M x M texture and returns its id. */
     unsigned displayTexture(const core::DisplayWindow& window);
     /** Stage times of the last render (and display pass, if any); waits for the GPU. */
     GpuStageTimes lastTimes();
@@ -80,7 +81,7 @@ private:
     struct Program;
     unsigned program(const std::string& path, const std::vector<std::pair<std::string, std::string>>& defines);
     void ensureSize(int size);
-    void bindKernel(unsigned prog, core::Kernel kernel);
+    void bindKernel(unsigned prog, core::Kernel kernel, bool derivative);
     void setSliceUniforms(unsigned prog, const core::RenderParams& params);
     void runRows(int M, bool fused, bool hartley, core::Kernel kernel, const core::RenderParams* params);
     void runCols(int M, const char* outputMode);
@@ -95,6 +96,7 @@ private:
     bool m_fuse = true;
     std::map<std::string, unsigned> m_programs;
     std::map<core::Kernel, unsigned> m_kernelBuffers;
+    std::map<core::Kernel, unsigned> m_kernelDerivativeBuffers;
     std::map<core::Kernel, std::unique_ptr<core::KernelTable>> m_tables;
     int m_size = 0;
     unsigned m_twiddles = 0, m_bufA = 0, m_bufB = 0, m_image = 0, m_hartleyT = 0, m_display = 0;
