@@ -6,6 +6,7 @@
 #include <QDoubleSpinBox>
 #include <QImage>
 #include <QPlainTextEdit>
+#include <QSpinBox>
 #include <QSettings>
 #include <QSignalSpy>
 #include <QStandardPaths>
@@ -20,6 +21,7 @@
 
 #include <fvr/core/cpu_renderer.h>
 #include <fvr/core/image_io.h>
+#include <fvr/core/xray.h>
 #include <fvr/ui/main_window.h>
 
 #include "image_metrics.h"
@@ -265,4 +267,107 @@ TEST_F(Workstation, AccuracyReadoutAgainstRayCasting) {
     std::printf("[ui] default setting vs ray casting: %.2f dB\n", psnr);
     EXPECT_GT(psnr, 35.0); // Kaiser-Bessel, deapodized, 1.25x against trilinear ray casting
     EXPECT_TRUE(window->messages()->toPlainText().contains("PSNR"));
+}
+
+TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    auto* v = window->views()[0];
+    const auto L = *v->projection(); // line integrals (mu)
+
+    // Beer-Lambert: the film look by default, window on the intensity.
+    window->energySpin()->setValue(60.0);
+    window->exposureSpin()->setValue(1.5);
+    window->outputCombo()->setCurrentIndex(1);
+    const double mu = core::waterAttenuationPerMm(60.0);
+    EXPECT_TRUE(v->window().transmission.active());
+    EXPECT_NEAR(v->window().transmission.muWaterPerMm, mu, 1e-12);
+    EXPECT_DOUBLE_EQ(v->window().transmission.exposure, 1.5);
+    EXPECT_TRUE(v->window().invert);
+    // The exported float image is exposure exp(-mu_water L) of the line integrals.
+    const auto npy = test::tmpDir() / "ui_transmission.npy";
+    ASSERT_TRUE(window->exportProjection(QString::fromStdString(npy.string())));
+    std::vector<std::int64_t> shape;
+    const auto I = core::readNpy(npy, shape);
+    ASSERT_EQ(I.size(), L.pixels.size());
+    double worst = 0;
+    for (std::size_t i = 0; i < I.size(); ++i) worst = std::max(worst, std::abs(I[i] - 1.5 * std::exp(-mu * L.pixels[i])));
+    EXPECT_LT(worst, 1.5e-5);
+    // The screen shows a radiograph: dark air (film exposed), bright skull.
+    const QImage shot = v->screenshot();
+    int dark = 0, bright = 0;
+    for (int y = 0; y < shot.height(); y += 4)
+        for (int x = 0; x < shot.width(); x += 4) {
+            dark += qGray(shot.pixel(x, y)) < 40;
+            bright += qGray(shot.pixel(x, y)) > 200;
+        }
+    EXPECT_GT(dark, 50);
+    EXPECT_GT(bright, 20);
+    // Raw values have no transmission: the output falls back to line integrals.
+    ASSERT_TRUE(waitSpectrum(*window, [&] {
+        window->valuesCombo()->setCurrentIndex(window->valuesCombo()->findData(int(core::ValueMapping::Raw)));
+    }));
+    EXPECT_EQ(window->outputCombo()->currentIndex(), 0);
+    EXPECT_FALSE(v->window().transmission.active());
+    ASSERT_TRUE(waitSpectrum(*window, [&] {
+        window->valuesCombo()->setCurrentIndex(window->valuesCombo()->findData(int(core::ValueMapping::MuBone)));
+    }));
+    EXPECT_EQ(window->study().spectrum()->mapping, core::ValueMapping::MuBone);
+
+    // Depth cueing and filters: every frame equals the CPU renderer with the same parameters.
+    window->depthCueSpin()->setValue(60);
+    window->sharpenSpin()->setValue(1.5);
+    window->sharpenRadiusSpin()->setValue(3.0);
+    window->bandLimitSpin()->setValue(0.4);
+    EXPECT_DOUBLE_EQ(v->effects().depthCue, 0.6);
+    EXPECT_EQ(v->effects().filter, (core::SliceFilter{1.5, 3.0, 0.4}));
+    core::CpuFourierRenderer r(window->study().spectrum(), 2);
+    const auto& vol = *window->study().volume();
+    const int M = v->settings().size;
+    core::RenderParams p{v->viewFrame(), {M, core::defaultPixelSize(vol.dims, vol.spacing, M)}, v->settings().kernel};
+    const auto plain = r.render(p);
+    p.depthCue = 0.6;
+    p.filter = {1.5, 3.0, 0.4};
+    const auto want = r.render(p);
+    const auto got = *v->projection();
+    EXPECT_GT(test::compare(got.pixels, want.pixels).psnr, 90.0);
+    EXPECT_LT(test::compare(plain.pixels, want.pixels).psnr, 40.0); // the effects change the image
+}
+
+TEST_F(Workstation, ProgressiveRefinementHoldsTheTargetWhileDragging) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    window->targetFpsSpin()->setValue(30);
+    auto* v = window->views()[0];
+    ASSERT_EQ(v->settings().size, 512);
+    v->setSimulatedExtraFrameMs(150.0); // a machine far too slow for 30 fps at full quality
+    v->update();
+    QTest::qWait(50);
+    const QPoint c(v->width() / 2, v->height() / 2);
+    QTest::mousePress(v, Qt::LeftButton, Qt::NoModifier, c);
+    EXPECT_TRUE(v->progressive().interacting());
+    for (int i = 1; i <= 6; ++i) {
+        const int before = v->framesRendered();
+        QTest::mouseMove(v, c + QPoint(6 * i, 2 * i));
+        ASSERT_TRUE(QTest::qWaitFor([&] { return v->framesRendered() > before; }, 20000));
+    }
+    QTest::qWait(20);
+    EXPECT_GT(v->displayedLevel(), 0);
+    EXPECT_LT(v->displayedSize(), 512);
+    std::printf("[ui] while dragging: level %d, %d x %d\n", v->displayedLevel(), v->displayedSize(), v->displayedSize());
+    // Letting go brings the full-quality frame back.
+    const int before = v->framesRendered();
+    QTest::mouseRelease(v, Qt::LeftButton, Qt::NoModifier, c + QPoint(36, 12));
+    ASSERT_TRUE(QTest::qWaitFor([&] { return v->framesRendered() > before && v->displayedLevel() == 0; }, 20000));
+    EXPECT_EQ(v->displayedSize(), 512);
+    EXPECT_FALSE(v->progressive().interacting());
+    EXPECT_EQ(v->projection()->size, 512);
+
+    // Off: the drag stays at full quality however slow.
+    window->targetFpsSpin()->setValue(0);
+    QTest::mousePress(v, Qt::LeftButton, Qt::NoModifier, c);
+    const int b2 = v->framesRendered();
+    QTest::mouseMove(v, c + QPoint(10, 0));
+    ASSERT_TRUE(QTest::qWaitFor([&] { return v->framesRendered() > b2; }, 20000));
+    QTest::qWait(20);
+    EXPECT_EQ(v->displayedLevel(), 0);
+    QTest::mouseRelease(v, Qt::LeftButton, Qt::NoModifier, c + QPoint(10, 0));
 }

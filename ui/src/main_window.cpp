@@ -26,6 +26,7 @@
 #include <QSaveFile>
 #include <QScrollArea>
 #include <QSettings>
+#include <QSpinBox>
 #include <QStatusBar>
 #include <QTime>
 #include <QToolBar>
@@ -37,6 +38,7 @@
 #include <fvr/core/errors.h>
 #include <fvr/core/image_io.h>
 #include <fvr/core/spatial_projector.h>
+#include <fvr/core/xray.h>
 #include <fvr/ui/app_info.h>
 
 namespace fvr::ui {
@@ -199,6 +201,12 @@ void MainWindow::setCompareCount(int n) {
         v->setViewFrame(frame);
         if (window) v->setWindow(*window);
         v->setOverlayVisible(m_overlayAction ? m_overlayAction->isChecked() : true);
+        if (m_depthCue) v->setEffects(currentEffects());
+        if (m_targetFps) v->setTargetFps(m_targetFps->value());
+        connect(v, &ProjectionView::interactionChanged, this, [this, v](bool on) {
+            for (auto* o : m_views)
+                if (o != v) o->setInteracting(on); // synchronised views follow at their own level
+        });
         if (n > 1) v->setTitle(tr("View %1: %2 %3×%3").arg(i + 1).arg(QString::fromUtf8(core::kernelName(s.kernel))).arg(s.size));
         m_viewGrid->addWidget(v, i / 2, i % 2);
         if (m_study->spectrum()) v->setStudy(m_study->volume(), m_study->spectrum());
@@ -280,7 +288,13 @@ void MainWindow::buildDocks() {
     rf->addRow(tr("Oversampling"), m_oversampling);
     m_values = new QComboBox(rw);
     m_values->addItem(tr("Attenuation μ (mm)"), int(core::ValueMapping::Mu));
+    m_values->addItem(tr("Bone-enhanced μ (mm)"), int(core::ValueMapping::MuBone));
     m_values->addItem(tr("Raw values (value × mm)"), int(core::ValueMapping::Raw));
+    m_values->setToolTip(tr("What the projection integrates. μ = μ_water (1 + HU/1000), clipped at 0; bone-enhanced "
+                            "makes the slope %1× steeper above %2 HU (bone stands out as on a low-kV film). The "
+                            "transform is linear only in these values: a change preprocesses again in the background.")
+                             .arg(core::kBoneGain)
+                             .arg(core::kBoneThresholdHu));
     rf->addRow(tr("Values"), m_values);
     m_deapodize = new QCheckBox(tr("Gridding correction (deapodize)"), rw);
     m_deapodize->setToolTip(tr("Divide the volume by the kernel's Fourier transform before the 3D FFT, as "
@@ -289,6 +303,14 @@ void MainWindow::buildDocks() {
     rf->addRow(QString(), m_deapodize);
     m_memory = new QLabel(rw);
     rf->addRow(tr("Spectrum memory"), m_memory);
+    m_targetFps = new QSpinBox(rw);
+    m_targetFps->setRange(0, 240);
+    m_targetFps->setSuffix(tr(" fps"));
+    m_targetFps->setSpecialValueText(tr("off (always full quality)"));
+    m_targetFps->setToolTip(tr("Progressive refinement: while you rotate, frames render at a lower slice resolution "
+                               "(or with linear interpolation when the spectrum allows) to hold this frame rate; "
+                               "the full-quality frame follows when you let go. The overlay shows the level."));
+    rf->addRow(tr("Interactive target"), m_targetFps);
     renderDock->setWidget(rw);
     addDockWidget(Qt::RightDockWidgetArea, renderDock);
 
@@ -310,7 +332,9 @@ void MainWindow::buildDocks() {
     m_level->setRange(-1e12, 1e12);
     m_level->setKeyboardTracking(false);
     df->addRow(tr("Window level"), m_level);
-    m_invert = new QCheckBox(tr("Invert (film look: bone dark)"), dw);
+    m_invert = new QCheckBox(tr("Invert"), dw);
+    m_invert->setToolTip(tr("Line integrals: bone dark. Transmitted intensity: the film look (bone white) when on, "
+                            "the fluoroscopy look (bone dark) when off."));
     df->addRow(QString(), m_invert);
     auto* autoBtn = new QPushButton(tr("Auto window"), dw);
     df->addRow(QString(), autoBtn);
@@ -321,6 +345,69 @@ void MainWindow::buildDocks() {
     df->addRow(hint);
     displayDock->setWidget(dw);
     addDockWidget(Qt::RightDockWidgetArea, displayDock);
+
+    // X-ray image: Beer-Lambert output, depth cueing, spectral filters
+    auto* xrayDock = new QDockWidget(tr("X-ray"), this);
+    xrayDock->setObjectName("dock.xray");
+    auto* xw = new QWidget(xrayDock);
+    auto* xf = new QFormLayout(xw);
+    m_output = new QComboBox(xw);
+    m_output->addItem(tr("Line integrals"), 0);
+    m_output->addItem(tr("Transmitted intensity (Beer-Lambert)"), 1);
+    m_output->setToolTip(tr("Transmitted intensity = exposure × exp(−μ_water × line integral of μ/μ_water): what a "
+                            "detector records. Needs attenuation values (μ or bone-enhanced μ)."));
+    xf->addRow(tr("Output"), m_output);
+    m_energy = new QDoubleSpinBox(xw);
+    m_energy->setRange(20.0, 150.0);
+    m_energy->setDecimals(0);
+    m_energy->setSuffix(tr(" keV"));
+    m_energy->setKeyboardTracking(false);
+    m_energy->setToolTip(tr("Effective photon energy: sets μ_water (NIST XCOM, water)"));
+    xf->addRow(tr("Energy"), m_energy);
+    m_muWater = new QLabel(xw);
+    xf->addRow(tr("μ water"), m_muWater);
+    m_exposure = new QDoubleSpinBox(xw);
+    m_exposure->setRange(0.05, 50.0);
+    m_exposure->setDecimals(2);
+    m_exposure->setSingleStep(0.1);
+    m_exposure->setKeyboardTracking(false);
+    m_exposure->setToolTip(tr("Relative exposure (mAs): the unattenuated beam reaches this fraction of full scale"));
+    xf->addRow(tr("Exposure"), m_exposure);
+    m_depthCue = new QSpinBox(xw);
+    m_depthCue->setRange(0, 100);
+    m_depthCue->setSuffix(tr(" %"));
+    m_depthCue->setSpecialValueText(tr("off"));
+    m_depthCue->setToolTip(tr("Depth cueing in the frequency domain (Totsuka & Levoy): structures at the back of the "
+                              "volume weigh up to this much less than those in front. Needs linear interpolation or "
+                              "better."));
+    xf->addRow(tr("Depth cueing"), m_depthCue);
+    m_sharpen = new QDoubleSpinBox(xw);
+    m_sharpen->setRange(0.0, 10.0);
+    m_sharpen->setSingleStep(0.25);
+    m_sharpen->setSpecialValueText(tr("off"));
+    m_sharpen->setKeyboardTracking(false);
+    m_sharpen->setToolTip(tr("Edge enhancement (unsharp mask): image + amount × (image − Gaussian blur), applied to "
+                             "the 2D slice before the inverse transform (free per frame)"));
+    xf->addRow(tr("Edge enhancement"), m_sharpen);
+    m_sharpenRadius = new QDoubleSpinBox(xw);
+    m_sharpenRadius->setRange(0.1, 50.0);
+    m_sharpenRadius->setSuffix(tr(" mm"));
+    m_sharpenRadius->setSingleStep(0.5);
+    m_sharpenRadius->setKeyboardTracking(false);
+    xf->addRow(tr("Edge radius (σ)"), m_sharpenRadius);
+    m_bandLimit = new QDoubleSpinBox(xw);
+    m_bandLimit->setRange(0.0, 20.0);
+    m_bandLimit->setDecimals(2);
+    m_bandLimit->setSingleStep(0.05);
+    m_bandLimit->setSuffix(tr(" lp/mm"));
+    m_bandLimit->setSpecialValueText(tr("off"));
+    m_bandLimit->setKeyboardTracking(false);
+    m_bandLimit->setToolTip(tr("Band limit: order-8 Butterworth low-pass on the slice, −3 dB at this frequency"));
+    xf->addRow(tr("Band limit"), m_bandLimit);
+    xrayDock->setWidget(xw);
+    addDockWidget(Qt::RightDockWidgetArea, xrayDock);
+    tabifyDockWidget(displayDock, xrayDock);
+    displayDock->raise();
 
     // Messages
     auto* msgDock = new QDockWidget(tr("Messages"), this);
@@ -359,6 +446,19 @@ void MainWindow::buildDocks() {
     m_deapodize->setChecked(s.value("render/deapodize", true).toBool());
     selectData(m_values, s.value("render/values", int(core::ValueMapping::Mu)));
     m_invert->setChecked(s.value("display/invert", false).toBool());
+    m_targetFps->setValue(s.value("render/targetFps", 30).toInt());
+    m_energy->setValue(s.value("xray/energyKeV", 70.0).toDouble());
+    m_exposure->setValue(s.value("xray/exposure", 1.0).toDouble());
+    m_output->setCurrentIndex(s.value("xray/output", 0).toInt() == 1 ? 1 : 0);
+    m_depthCue->setValue(s.value("xray/depthCue", 0).toInt());
+    m_sharpen->setValue(s.value("xray/sharpen", 0.0).toDouble());
+    m_sharpenRadius->setValue(s.value("xray/sharpenRadius", 1.0).toDouble());
+    m_bandLimit->setValue(s.value("xray/bandLimit", 0.0).toDouble());
+    m_muWater->setText(tr("%1 /mm").arg(core::waterAttenuationPerMm(m_energy->value()), 0, 'f', 4));
+    for (auto* v : m_views) {
+        v->setEffects(currentEffects());
+        v->setTargetFps(m_targetFps->value());
+    }
     m_viewSettings[0].kernel = core::Kernel(m_kernel->currentData().toInt());
     m_viewSettings[0].size = m_size->currentData().toInt();
     if (!m_views.empty()) m_views[0]->setSettings(m_viewSettings[0]);
@@ -380,12 +480,34 @@ void MainWindow::buildDocks() {
     });
     connect(m_transform, &QComboBox::currentIndexChanged, this, [this] { applySpectrumSettings(); });
     connect(m_oversampling, &QComboBox::currentIndexChanged, this, [this] { applySpectrumSettings(); });
-    connect(m_values, &QComboBox::currentIndexChanged, this, [this] { applySpectrumSettings(); });
+    connect(m_values, &QComboBox::currentIndexChanged, this, [this] {
+        if (m_output->currentData().toInt() == 1 &&
+            core::ValueMapping(m_values->currentData().toInt()) == core::ValueMapping::Raw) {
+            message(tr("Raw values have no transmission: the output is line integrals again."));
+            const QSignalBlocker b(m_output);
+            m_output->setCurrentIndex(0);
+            applyOutput(true);
+        }
+        applySpectrumSettings();
+    });
     connect(m_deapodize, &QCheckBox::toggled, this, [this] { applySpectrumSettings(); });
     connect(m_width, &QDoubleSpinBox::valueChanged, this, [this] { applyWindowFromPanel(); });
     connect(m_level, &QDoubleSpinBox::valueChanged, this, [this] { applyWindowFromPanel(); });
     connect(m_invert, &QCheckBox::toggled, this, [this] { applyWindowFromPanel(); });
     connect(autoBtn, &QPushButton::clicked, this, [this] { applyPreset(m_preset->itemText(0)); });
+    connect(m_targetFps, &QSpinBox::valueChanged, this, [this](int fps) {
+        for (auto* v : m_views) v->setTargetFps(fps);
+        QSettings().setValue("render/targetFps", fps);
+    });
+    connect(m_output, &QComboBox::currentIndexChanged, this, [this] { applyOutput(true); });
+    connect(m_energy, &QDoubleSpinBox::valueChanged, this, [this] { applyOutput(false); });
+    connect(m_exposure, &QDoubleSpinBox::valueChanged, this, [this] { applyOutput(false); });
+    for (auto* sb : {m_sharpen, m_sharpenRadius, m_bandLimit})
+        connect(sb, &QDoubleSpinBox::valueChanged, this, [this] { applyEffects(); });
+    connect(m_depthCue, &QSpinBox::valueChanged, this, [this] { applyEffects(); });
+    m_energy->setEnabled(m_output->currentIndex() == 1);
+    m_exposure->setEnabled(m_output->currentIndex() == 1);
+    if (m_output->currentIndex() == 1) applyOutput(true);
     connect(m_preset, &QComboBox::textActivated, this, [this](const QString& p) { applyPreset(p); });
 }
 
@@ -521,6 +643,7 @@ void MainWindow::applyWindowFromPanel() {
     w.low = m_level->value() - m_width->value() / 2;
     w.high = m_level->value() + m_width->value() / 2;
     w.invert = m_invert->isChecked();
+    w.transmission = currentTransmission();
     m_syncing = true;
     for (std::size_t i = 0; i < m_views.size(); ++i)
         if (i == 0 || !m_difference) m_views[i]->setWindow(w);
@@ -539,6 +662,8 @@ void MainWindow::applyPreset(const QString& name) {
     if (m_views.empty()) return;
     auto p = m_views[0]->projection();
     if (!p) return;
+    const core::Transmission t = currentTransmission();
+    if (t.active()) core::applyTransmission(p->pixels, t); // the window applies to the intensity
     std::vector<float> v = p->pixels;
     std::sort(v.begin(), v.end());
     auto q = [&](double f) { return double(v[std::size_t(f * (v.size() - 1))]); };
@@ -554,6 +679,75 @@ void MainWindow::applyPreset(const QString& name) {
     w.invert = m_invert->isChecked();
     syncWindowToPanel(w);
     applyWindowFromPanel();
+}
+
+core::Transmission MainWindow::currentTransmission() const {
+    if (!m_output || m_output->currentData().toInt() != 1) return {};
+    return {core::waterAttenuationPerMm(m_energy->value()), m_exposure->value()};
+}
+
+FrameEffects MainWindow::currentEffects() const {
+    FrameEffects e;
+    if (!m_depthCue) return e;
+    e.depthCue = m_depthCue->value() / 100.0;
+    e.filter.sharpenAmount = m_sharpen->value();
+    e.filter.sharpenSigmaMm = m_sharpenRadius->value();
+    e.filter.bandLimitLpMm = m_bandLimit->value();
+    return e;
+}
+
+void MainWindow::applyEffects() {
+    const FrameEffects e = currentEffects();
+    for (auto* v : m_views) v->setEffects(e);
+    QSettings st;
+    st.setValue("xray/depthCue", m_depthCue->value());
+    st.setValue("xray/sharpen", e.filter.sharpenAmount);
+    st.setValue("xray/sharpenRadius", e.filter.sharpenSigmaMm);
+    st.setValue("xray/bandLimit", e.filter.bandLimitLpMm);
+    if (e.depthCue > 0 && std::any_of(m_views.begin(), m_views.end(), [](ProjectionView* v) {
+            return v->settings().kernel == core::Kernel::Nearest;
+        }))
+        message(tr("Depth cueing needs the derivative of the interpolation kernel: views with nearest neighbour "
+                   "are not rendered until you choose linear or better."),
+                true);
+}
+
+void MainWindow::applyOutput(bool resetWindow) {
+    const bool transmission = m_output->currentData().toInt() == 1;
+    m_muWater->setText(tr("%1 /mm").arg(core::waterAttenuationPerMm(m_energy->value()), 0, 'f', 4));
+    m_energy->setEnabled(transmission);
+    m_exposure->setEnabled(transmission);
+    QSettings st;
+    st.setValue("xray/energyKeV", m_energy->value());
+    st.setValue("xray/exposure", m_exposure->value());
+    st.setValue("xray/output", transmission ? 1 : 0);
+    if (transmission && core::ValueMapping(m_values->currentData().toInt()) == core::ValueMapping::Raw) {
+        // Beer-Lambert needs attenuation: switch the values to mu (preprocesses again).
+        const auto vol = m_study->volume();
+        if (vol && vol->units != core::ValueUnits::HounsfieldUnits) {
+            message(tr("Transmitted intensity needs attenuation values; this study's values are not Hounsfield "
+                       "units (%1), so the output stays line integrals.")
+                        .arg(QString::fromUtf8(core::unitsName(vol->units))),
+                    true);
+            const QSignalBlocker b(m_output);
+            m_output->setCurrentIndex(0);
+            return applyOutput(true);
+        }
+        message(tr("Transmitted intensity needs attenuation values: switching the values to μ."));
+        m_values->setCurrentIndex(m_values->findData(int(core::ValueMapping::Mu))); // applySpectrumSettings
+    }
+    if (resetWindow) {
+        const QSignalBlocker b(m_invert);
+        m_invert->setChecked(transmission); // film look (bone white) for transmission
+        if (transmission) {
+            syncWindowToPanel({0.0, 1.0, true, currentTransmission()});
+            applyWindowFromPanel();
+        } else {
+            applyPreset(m_preset->itemText(0));
+        }
+    } else {
+        applyWindowFromPanel();
+    }
 }
 
 void MainWindow::onStudyLoaded(const QString& name) {
@@ -575,6 +769,14 @@ void MainWindow::onSpectrumReady() {
         m_values->setCurrentIndex(m_values->findData(int(s.mapping)));
         m_transform->setCurrentIndex(m_transform->findData(int(s.transform)));
         m_oversampling->setCurrentIndex(m_oversampling->findData(s.oversampling));
+    }
+    if (m_output->currentData().toInt() == 1 && m_study->spectrumSettings().mapping == core::ValueMapping::Raw) {
+        message(tr("This study integrates raw values (not Hounsfield units): no transmitted intensity, the output "
+                   "is line integrals."),
+                true);
+        const QSignalBlocker b(m_output);
+        m_output->setCurrentIndex(0);
+        applyOutput(true);
     }
     for (std::size_t i = 0; i < m_views.size(); ++i) m_views[i]->setSettings(m_viewSettings[i]);
     for (auto* v : m_views) v->setStudy(m_study->volume(), m_study->spectrum());
@@ -670,18 +872,28 @@ bool MainWindow::exportProjection(const QString& path) {
         message(tr("Nothing to export yet"), true);
         return false;
     }
+    // Float exports hold what the display shows before the window: the transmitted intensity in
+    // Beer-Lambert mode, else the line integrals. The PNG goes through the display window itself.
+    const core::Transmission t = currentTransmission();
     try {
         const QString ext = QFileInfo(path).suffix().toLower();
         const std::string out = path.toStdString();
-        if (ext == "npy") core::writeNpy(out, p->pixels.data(), p->size, p->size);
-        else if (ext == "pfm") core::writePfm(out, p->pixels.data(), p->size, p->size);
+        std::vector<float> values = p->pixels;
+        if (t.active() && ext != "png") core::applyTransmission(values, t);
+        if (ext == "npy") core::writeNpy(out, values.data(), p->size, p->size);
+        else if (ext == "pfm") core::writePfm(out, values.data(), p->size, p->size);
         else if (ext == "png") core::writePng(out, p->pixels.data(), p->size, p->size, m_views[0]->window(), 16);
         else throw core::WriteError(out + ": unknown format (expected .npy, .pfm or .png)");
     } catch (const std::exception& e) {
         message(tr("Could not export: %1").arg(QString::fromUtf8(e.what())), true);
         return false;
     }
-    message(tr("Exported projection %1 (%2 × %2, pixel %3 mm)").arg(path).arg(p->size).arg(p->pixelSize, 0, 'g', 4));
+    message(tr("Exported projection %1 (%2 × %2, pixel %3 mm, %4)")
+                .arg(path)
+                .arg(p->size)
+                .arg(p->pixelSize, 0, 'g', 4)
+                .arg(t.active() ? tr("transmitted intensity, μ_water %1/mm, exposure %2").arg(t.muWaterPerMm, 0, 'f', 4).arg(t.exposure)
+                                : tr("line integrals")));
     return true;
 }
 
@@ -711,7 +923,13 @@ bool MainWindow::exportSweep(const QString& folder, int frames, const core::Vec3
             break;
         }
         M = p->size;
-        stack.insert(stack.end(), p->pixels.begin(), p->pixels.end());
+        if (const core::Transmission t = currentTransmission(); t.active()) {
+            std::vector<float> intensity = p->pixels;
+            core::applyTransmission(intensity, t);
+            stack.insert(stack.end(), intensity.begin(), intensity.end());
+        } else {
+            stack.insert(stack.end(), p->pixels.begin(), p->pixels.end());
+        }
         try {
             core::writePng(QDir(folder).filePath(QStringLiteral("frame_%1.png").arg(i, 4, 10, QChar('0'))).toStdString(),
                            p->pixels.data(), M, M, v->window(), 8);

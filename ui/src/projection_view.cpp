@@ -81,6 +81,32 @@ void ProjectionView::setSettings(const ViewSettings& s) {
     update();
 }
 
+void ProjectionView::setEffects(const FrameEffects& e) {
+    if (e == m_effects) return;
+    m_effects = e;
+    m_renderDirty = true;
+    update();
+}
+
+void ProjectionView::setTargetFps(double fps) {
+    m_progressive.setTargetFps(fps);
+    m_renderDirty = true;
+    update();
+}
+
+void ProjectionView::setInteracting(bool on) {
+    if (on == m_progressive.interacting()) return;
+    if (on) {
+        m_progressive.beginInteraction();
+    } else {
+        m_progressive.endInteraction();
+        if (m_renderedLevel != 0) m_renderDirty = true; // the full-quality frame
+    }
+    update();
+}
+
+void ProjectionView::frameTimed(double ms) { m_progressive.frameRendered(ms + m_extraFrameMs); }
+
 void ProjectionView::setViewFrame(const core::ViewFrame& f) {
     m_view = f;
     m_renderDirty = true;
@@ -95,8 +121,10 @@ void ProjectionView::setWindow(const core::DisplayWindow& w) {
 
 void ProjectionView::autoWindow() {
     if (auto p = projection()) {
+        if (m_window.transmission.active()) core::applyTransmission(p->pixels, m_window.transmission);
         core::DisplayWindow w = core::autoWindow(p->pixels);
         w.invert = m_window.invert;
+        w.transmission = m_window.transmission;
         setWindow(w);
         emit windowChanged(m_window);
     }
@@ -156,7 +184,7 @@ void ProjectionView::initializeGL() {
 
 void ProjectionView::resizeGL(int, int) {}
 
-void ProjectionView::renderIfNeeded() {
+void ProjectionView::renderIfNeeded(bool fullQuality) {
     if (!m_spectrum || !m_volume) return;
     if (m_spectrumDirty) {
         m_spectrumDirty = false;
@@ -172,13 +200,21 @@ void ProjectionView::renderIfNeeded() {
         }
         if (!m_gpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
     }
+    m_progressive.setLevels(core::progressiveLevels(m_settings.size, m_settings.kernel,
+                                                    m_spectrum->deapodizedFor.has_value(),
+                                                    std::min(64, m_settings.size)));
+    const int level = fullQuality ? 0 : m_progressive.level();
+    if (level != m_renderedLevel) m_renderDirty = true;
     if (!m_renderDirty) return;
-    const int M = m_settings.size;
-    const core::RenderParams params{m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)},
-                                    m_settings.kernel};
+    const core::QualityLevel q = m_progressive.levels()[std::size_t(level)];
+    const int M = q.size; // same field of view at every level: d = diagonal / M
+    core::RenderParams params{m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)}, q.kernel};
+    params.depthCue = m_effects.depthCue;
+    params.filter = m_effects.filter;
     if (m_gpu) {
         m_gpu->render(params); // stage times are read after the display pass (paintGL)
         m_gpuTimesPending = true;
+        m_timedLevel = level;
         m_cpuImage.reset();
     } else {
         if (!m_cpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
@@ -188,7 +224,9 @@ void ProjectionView::renderIfNeeded() {
         m_stats.inverseMs = t.inverseMs;
         m_stats.totalMs = t.totalMs;
         m_stats.fused = false;
+        if (level == m_progressive.level()) frameTimed(t.totalMs);
     }
+    m_renderedLevel = level;
     if (m_reference && m_reference != this) {
         auto own = m_gpu ? std::optional<core::ProjectionImage>(m_gpu->readback()) : m_cpuImage;
         auto ref = m_reference->projection();
@@ -206,10 +244,12 @@ void ProjectionView::renderIfNeeded() {
         }
     }
     if (!m_windowSet) {
-        const auto img = m_cpuImage ? *m_cpuImage : m_gpu->readback();
-        const bool invert = m_window.invert;
+        auto img = m_cpuImage ? *m_cpuImage : m_gpu->readback();
+        const core::DisplayWindow old = m_window;
+        if (old.transmission.active()) core::applyTransmission(img.pixels, old.transmission);
         m_window = core::autoWindow(img.pixels);
-        m_window.invert = invert;
+        m_window.invert = old.invert;
+        m_window.transmission = old.transmission;
         m_windowSet = true;
         emit windowChanged(m_window);
     }
@@ -254,15 +294,13 @@ void ProjectionView::paintGL() {
             m_stats.fused = t.fused;
             m_stats.displayMs = t.displayMs;
             m_gpuTimesPending = false;
+            if (m_timedLevel == m_progressive.level()) frameTimed(t.totalMs);
         }
     } else if (m_cpuImage) {
         const int M = m_cpuImage->size;
         std::vector<unsigned char> rgba(std::size_t(M) * M * 4);
-        const double lo = m_window.low, scale = 1.0 / std::max(1e-30, m_window.high - m_window.low);
         for (std::size_t i = 0; i < std::size_t(M) * M; ++i) {
-            double t = std::clamp((m_cpuImage->pixels[i] - lo) * scale, 0.0, 1.0);
-            if (m_window.invert) t = 1.0 - t;
-            const auto v = static_cast<unsigned char>(std::lround(t * 255.0));
+            const auto v = static_cast<unsigned char>(std::lround(m_window.map(m_cpuImage->pixels[i]) * 255.0));
             rgba[4 * i] = rgba[4 * i + 1] = rgba[4 * i + 2] = v;
             rgba[4 * i + 3] = 255;
         }
@@ -282,6 +320,10 @@ void ProjectionView::paintGL() {
     } catch (const std::exception& e) { // nothing may leave paintGL
         m_renderError = tr("Not displayed: %1").arg(QString::fromUtf8(e.what()));
         tex = 0;
+    }
+    if (tex) {
+        m_displayedLevel = m_renderedLevel;
+        m_displayedSize = m_progressive.levels()[std::size_t(m_renderedLevel)].size;
     }
     if (tex && m_quad && m_quad->isLinked()) {
         const QRectF r = imageRect();
@@ -340,11 +382,27 @@ void ProjectionView::drawOverlay() {
     QStringList lines;
     if (!m_title.isEmpty()) lines << m_title;
     if (m_overlay) {
+        const core::QualityLevel shown = m_progressive.levels()[std::size_t(m_renderedLevel)];
         lines << QStringLiteral("%1 fps  %2  %3×%3  %4")
                      .arg(m_stats.fps > 0 ? QString::number(m_stats.fps, 'f', 0) : QStringLiteral("–"))
-                     .arg(QString::fromUtf8(core::kernelName(m_settings.kernel)))
-                     .arg(m_settings.size)
+                     .arg(QString::fromUtf8(core::kernelName(shown.kernel)))
+                     .arg(shown.size)
                      .arg(m_gpu ? QStringLiteral("GPU") : QStringLiteral("CPU"));
+        if (m_progressive.enabled())
+            lines << (m_renderedLevel == 0
+                          ? tr("full quality (interactive target %1 fps)").arg(m_progressive.targetFps(), 0, 'f', 0)
+                          : tr("interactive level %1/%2 (target %3 fps)")
+                                .arg(m_renderedLevel)
+                                .arg(m_progressive.levels().size() - 1)
+                                .arg(m_progressive.targetFps(), 0, 'f', 0));
+        QStringList fx;
+        if (m_effects.depthCue > 0) fx << tr("depth cue %1 %").arg(m_effects.depthCue * 100, 0, 'f', 0);
+        if (m_effects.filter.sharpenAmount > 0)
+            fx << tr("edges ×%1 (σ %2 mm)").arg(m_effects.filter.sharpenAmount, 0, 'g', 3).arg(m_effects.filter.sharpenSigmaMm, 0, 'g', 3);
+        if (m_effects.filter.bandLimitLpMm > 0) fx << tr("band limit %1 lp/mm").arg(m_effects.filter.bandLimitLpMm, 0, 'g', 3);
+        if (m_window.transmission.active())
+            fx << tr("Beer-Lambert μw %1/mm ×%2").arg(m_window.transmission.muWaterPerMm, 0, 'f', 4).arg(m_window.transmission.exposure, 0, 'g', 3);
+        if (!fx.isEmpty()) lines << fx.join(QStringLiteral("  "));
         if (m_stats.fused)
             lines << QStringLiteral("slice+inverse %1 ms  display %2 ms").arg(m_stats.inverseMs, 0, 'f', 2).arg(m_stats.displayMs, 0, 'f', 2);
         else
@@ -377,7 +435,7 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
     if (m_glReady) {
         makeCurrent();
         try {
-            renderIfNeeded();
+            renderIfNeeded(true); // exports and measurements always get the full-quality frame
         } catch (const std::exception&) {
             doneCurrent();
             return std::nullopt;
@@ -386,7 +444,8 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
         try {
             if (m_gpu) img = m_gpu->readback(); // the view's own projection, also in difference mode
             else if (m_reference && m_cpuImage)
-                img = m_cpu->render({m_view, {m_settings.size, m_cpuImage->pixelSize}, m_settings.kernel});
+                img = m_cpu->render({m_view, {m_settings.size, m_cpuImage->pixelSize}, m_settings.kernel,
+                                     m_effects.depthCue, m_effects.filter});
             else img = m_cpuImage;
         } catch (const std::exception&) {
             img.reset();
@@ -396,7 +455,8 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
     }
     if (!m_cpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
     const int M = m_settings.size;
-    return m_cpu->render({m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)}, m_settings.kernel});
+    return m_cpu->render({m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)}, m_settings.kernel,
+                          m_effects.depthCue, m_effects.filter});
 }
 
 QImage ProjectionView::screenshot() { return grabFramebuffer(); }
@@ -405,6 +465,10 @@ void ProjectionView::mousePressEvent(QMouseEvent* e) {
     m_dragButton = e->button();
     m_dragMods = e->modifiers();
     m_lastPos = e->position().toPoint();
+    if (m_dragButton == Qt::LeftButton && !(m_dragMods & Qt::ControlModifier)) { // rotation drag
+        setInteracting(true);
+        emit interactionChanged(true);
+    }
 }
 
 void ProjectionView::mouseMoveEvent(QMouseEvent* e) {
@@ -438,7 +502,13 @@ void ProjectionView::mouseMoveEvent(QMouseEvent* e) {
     }
 }
 
-void ProjectionView::mouseReleaseEvent(QMouseEvent*) { m_dragButton = Qt::NoButton; }
+void ProjectionView::mouseReleaseEvent(QMouseEvent*) {
+    m_dragButton = Qt::NoButton;
+    if (m_progressive.interacting()) {
+        setInteracting(false);
+        emit interactionChanged(false);
+    }
+}
 
 void ProjectionView::wheelEvent(QWheelEvent* e) {
     const double steps = e->angleDelta().y() / 120.0;

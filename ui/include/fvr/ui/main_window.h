@@ -15,6 +15,7 @@
 class QComboBox;
 class QCheckBox;
 class QDoubleSpinBox;
+class QSpinBox;
 class QLabel;
 class QPlainTextEdit;
 class QProgressBar;
@@ -63,6 +64,17 @@ public:
     QDoubleSpinBox* windowWidthSpin() const { return m_width; }
     QDoubleSpinBox* windowLevelSpin() const { return m_level; }
     QPlainTextEdit* messages() const { return m_messages; }
+    QComboBox* outputCombo() const { return m_output; }
+    QDoubleSpinBox* energySpin() const { return m_energy; }
+    QDoubleSpinBox* exposureSpin() const { return m_exposure; }
+    QSpinBox* depthCueSpin() const { return m_depthCue; }
+    QDoubleSpinBox* sharpenSpin() const { return m_sharpen; }
+    QDoubleSpinBox* sharpenRadiusSpin() const { return m_sharpenRadius; }
+    QDoubleSpinBox* bandLimitSpin() const { return m_bandLimit; }
+    QSpinBox* targetFpsSpin() const { return m_targetFps; }
+    /** The transmission the X-ray panel asks for (inactive for line integrals). */
+    core::Transmission currentTransmission() const;
+    FrameEffects currentEffects() const;
     QProgressBar* progressBar() const { return m_progress; }
 
 protected:
@@ -92,6 +104,8 @@ private:
     void exportSweepDialog();
     void copyToClipboard();
     void applyPreset(const QString& name);
+    void applyEffects();
+    void applyOutput(bool resetWindow);
 
     std::unique_ptr<StudyController> m_study;
     std::vector<ProjectionView*> m_views;
@@ -113,6 +127,15 @@ private:
     QDoubleSpinBox* m_width = nullptr;
     QDoubleSpinBox* m_level = nullptr;
     QCheckBox* m_invert = nullptr;
+    QComboBox* m_output = nullptr;
+    QDoubleSpinBox* m_energy = nullptr;
+    QDoubleSpinBox* m_exposure = nullptr;
+    QLabel* m_muWater = nullptr;
+    QSpinBox* m_depthCue = nullptr;
+    QDoubleSpinBox* m_sharpen = nullptr;
+    QDoubleSpinBox* m_sharpenRadius = nullptr;
+    QDoubleSpinBox* m_bandLimit = nullptr;
+    QSpinBox* m_targetFps = nullptr;
     QComboBox* m_preset = nullptr;
     QLabel* m_studyInfo = nullptr;
     QPlainTextEdit* m_messages = nullptr;

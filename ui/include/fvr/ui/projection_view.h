@@ -10,6 +10,7 @@
 
 #include <fvr/core/cpu_renderer.h>
 #include <fvr/core/image_io.h>
+#include <fvr/core/progressive.h>
 #include <fvr/core/spectrum.h>
 #include <fvr/core/view.h>
 #include <fvr/core/volume.h>
@@ -31,6 +32,13 @@ struct ViewSettings {
     bool operator==(const ViewSettings&) const = default;
 };
 
+/** Per-frame image effects shared by all views: depth cueing and the slice filters (xray.h). */
+struct FrameEffects {
+    double depthCue = 0.0;
+    core::SliceFilter filter;
+    bool operator==(const FrameEffects&) const = default;
+};
+
 class ProjectionView : public QOpenGLWidget {
     Q_OBJECT
 public:
@@ -40,6 +48,20 @@ public:
     void setStudy(std::shared_ptr<const core::Volume> volume, std::shared_ptr<const core::Spectrum> spectrum);
     void setSettings(const ViewSettings& s);
     const ViewSettings& settings() const { return m_settings; }
+    void setEffects(const FrameEffects& e);
+    const FrameEffects& effects() const { return m_effects; }
+    /** Progressive refinement: the frame rate to hold while dragging (0: off). */
+    void setTargetFps(double fps);
+    /** Marks a drag (also set by the main window on synchronised views): frames render at the
+     *  controller's interactive level; leaving it renders the full-quality frame. */
+    void setInteracting(bool on);
+    const core::ProgressiveController& progressive() const { return m_progressive; }
+    /** The quality level of the frame on screen (0: full quality). */
+    int displayedLevel() const { return m_displayedLevel; }
+    /** Size of the frame on screen (differs from settings().size at interactive levels). */
+    int displayedSize() const { return m_displayedSize; }
+    /** Tests: adds this many ms to every measured frame time (simulates a slow machine). */
+    void setSimulatedExtraFrameMs(double ms) { m_extraFrameMs = ms; }
     void setViewFrame(const core::ViewFrame& f);
     const core::ViewFrame& viewFrame() const { return m_view; }
     void setWindow(const core::DisplayWindow& w);
@@ -75,6 +97,8 @@ signals:
     void windowChanged(const core::DisplayWindow& w);
     void rendered();
     void backendChanged(bool gpu, const QString& notice);
+    /** A drag on this view started or ended (the main window mirrors it on the other views). */
+    void interactionChanged(bool on);
 
 protected:
     void initializeGL() override;
@@ -87,7 +111,8 @@ protected:
 
 private:
     void releaseGl();
-    void renderIfNeeded();
+    void renderIfNeeded(bool fullQuality = false);
+    void frameTimed(double ms);
     void drawOverlay();
     QRectF imageRect() const;
 
@@ -96,6 +121,10 @@ private:
     bool m_spectrumDirty = false;
     bool m_renderDirty = true;
     ViewSettings m_settings;
+    FrameEffects m_effects;
+    core::ProgressiveController m_progressive;
+    int m_renderedLevel = 0, m_displayedLevel = 0, m_displayedSize = 0, m_timedLevel = 0;
+    double m_extraFrameMs = 0.0;
     core::ViewFrame m_view;
     core::DisplayWindow m_window{0.0, 1.0, false};
     bool m_windowSet = false;
