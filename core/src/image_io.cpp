@@ -134,7 +134,7 @@ void writePfm(const fs::path& path, const float* data, int rows, int cols) {
 }
 
 double DisplayWindow::map(double value) const {
-    const double v = transmission.active() ? transmission.intensity(value) : value;
+    const double v = transmission.active() ? transmission.logExposure(value) : value;
     double t = (v - low) / (high > low ? high - low : 1.0);
     if (!std::isfinite(t)) t = 0.0;
     t = std::clamp(t, 0.0, 1.0);

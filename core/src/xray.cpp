@@ -1,5 +1,6 @@
 #include <fvr/core/xray.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <numbers>
@@ -31,6 +32,15 @@ double waterAttenuationPerMm(double keV) {
 
 double Transmission::intensity(double lineIntegral) const {
     return exposure * std::exp(-muWaterPerMm * lineIntegral);
+}
+
+double Transmission::logExposure(double lineIntegral) const {
+    return std::min(0.0, std::log10(exposure) - muWaterPerMm * lineIntegral / std::numbers::ln10);
+}
+
+void applyLogExposure(std::vector<float>& pixels, const Transmission& t) {
+    if (!t.active() || !(t.exposure > 0.0)) throw SettingsError("log exposure: needs an active transmission");
+    for (float& v : pixels) v = float(t.logExposure(double(v)));
 }
 
 void applyTransmission(std::vector<float>& pixels, const Transmission& t) {

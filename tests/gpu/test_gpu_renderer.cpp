@@ -327,8 +327,9 @@ TEST_F(GlTest, DepthCueAndSliceFiltersMatchCpu) {
 }
 
 TEST_F(GlTest, TransmissionDisplayIsExpOfTheLineIntegrals) {
-    // The display pass in Beer-Lambert mode: each 8-bit pixel is the window mapping of
-    // exposure exp(-mu_water L) of the read-back line integral L (film look: inverted).
+    // The display pass in Beer-Lambert mode: each 8-bit pixel is the window mapping of the log
+    // exposure min(0, log10(exposure exp(-mu_water L))) of the read-back line integral L (film
+    // look: inverted), as fvr::core::DisplayWindow::map computes it.
     const Volume v = makeSheppLoganVolume(32);
     GpuFourierRenderer gpu;
     gpu.setSpectrum(spectrumOf(v, TransformKind::Fft, 1.25));
@@ -337,7 +338,7 @@ TEST_F(GlTest, TransmissionDisplayIsExpOfTheLineIntegrals) {
                 Kernel::CatmullRom});
     const auto L = gpu.readback();
     for (bool film : {true, false}) {
-        const DisplayWindow w{0.05, 0.95, film, {waterAttenuationPerMm(60), 1.3}};
+        const DisplayWindow w{-2.5, -0.05, film, {waterAttenuationPerMm(60), 1.3}};
         const unsigned tex = gpu.displayTexture(w);
         auto* gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(QOpenGLContext::currentContext());
         std::vector<unsigned char> rgba(std::size_t(M) * M * 4);

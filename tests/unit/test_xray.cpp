@@ -195,14 +195,29 @@ TEST(XRay, BeerLambertIsExpOfTheLineIntegral) {
     EXPECT_THROW(applyTransmission(I, {0.0, 1.0}), SettingsError);
     EXPECT_THROW(applyTransmission(I, {0.02, -1.0}), SettingsError);
 
-    // Display: the window applies to the intensity; the film look (invert) shows bone white.
-    DisplayWindow film{0.0, 1.0, true, t};
-    const double air = film.map(0.0), bone = film.map(300.0);
-    EXPECT_NEAR(air, 0.0, 1e-12); // 1.7 exp(0) saturates: black film
-    EXPECT_NEAR(bone, 1.0 - std::min(1.0, 1.7 * std::exp(-t.muWaterPerMm * 300.0)), 1e-12);
-    EXPECT_GT(bone, 0.9);
-    DisplayWindow fluoro{0.0, 1.0, false, t};
+    // Display: the window applies to the log exposure min(0, log10(signal)), as film blackening;
+    // the film look (invert) shows bone white and air black.
+    for (double L : {0.0, 10.0, 120.0, 400.0})
+        EXPECT_NEAR(t.logExposure(L), std::min(0.0, std::log10(t.intensity(L))), 1e-12) << L;
+    EXPECT_TRUE(std::isfinite(t.logExposure(1e6))); // no underflow through thick paths
+    DisplayWindow film{-3.0, 0.0, true, t};
+    EXPECT_NEAR(film.map(0.0), 0.0, 1e-12); // 1.7 x exp(0) saturates the film: black
+    const double bone = film.map(300.0);
+    EXPECT_NEAR(bone, 1.0 - (t.logExposure(300.0) + 3.0) / 3.0, 1e-12);
+    EXPECT_GT(bone, 0.5);
+    DisplayWindow fluoro{-3.0, 0.0, false, t};
     EXPECT_NEAR(fluoro.map(300.0), 1.0 - bone, 1e-12);
+    // More exposure darkens the film (lower brightness for the same path); a higher energy
+    // attenuates less, so the same path also comes out darker.
+    DisplayWindow more = film;
+    more.transmission.exposure = 4.0;
+    EXPECT_LT(more.map(300.0), bone);
+    DisplayWindow harder = film;
+    harder.transmission.muWaterPerMm = waterAttenuationPerMm(120);
+    EXPECT_LT(harder.map(300.0), bone);
+    auto logE = img.pixels;
+    applyLogExposure(logE, t);
+    EXPECT_NEAR(logE[1234], t.logExposure(img.pixels[1234]), 1e-6);
 }
 
 // ---- Depth cueing -------------------------------------------------------------------------------

@@ -122,18 +122,25 @@ void MainWindow::measureAccuracy() {
         }
         m_accuracyWorker.join();
     }
+    if (m_views[0]->effects().filter.active()) {
+        message(tr("The accuracy readout compares with ray casting, which has no slice filters: turn edge "
+                   "enhancement and the band limit off to measure."),
+                true);
+        return;
+    }
     auto fvr = m_views[0]->projection();
     if (!fvr) return;
     const auto volume = m_study->volume();
     const core::ValueMapping mapping = m_study->spectrum()->mapping;
+    const double depthCue = m_views[0]->effects().depthCue; // the ray caster weights depth the same way
     const core::ViewFrame view = fvr->view;
     const core::ImageGeometry geom{fvr->size, fvr->pixelSize};
     message(tr("Measuring accuracy: ray casting the same view (trilinear, step s/4) in the background…"));
     m_accuracyDone.store(false);
-    m_accuracyWorker = std::thread([this, volume, mapping, view, geom, fvr = *fvr] {
+    m_accuracyWorker = std::thread([this, volume, mapping, view, geom, depthCue, fvr = *fvr] {
         double psnr = 0, rel = 0;
         try {
-            core::SpatialProjector sp(*volume, {0.25, mapping, 0});
+            core::SpatialProjector sp(*volume, {0.25, mapping, 0, depthCue});
             const auto ref = sp.project(view, geom);
             double e2 = 0, r2 = 0, peak = 0;
             for (std::size_t i = 0; i < ref.pixels.size(); ++i) {
@@ -663,7 +670,7 @@ void MainWindow::applyPreset(const QString& name) {
     auto p = m_views[0]->projection();
     if (!p) return;
     const core::Transmission t = currentTransmission();
-    if (t.active()) core::applyTransmission(p->pixels, t); // the window applies to the intensity
+    if (t.active()) core::applyLogExposure(p->pixels, t); // the window applies to the log exposure
     std::vector<float> v = p->pixels;
     std::sort(v.begin(), v.end());
     auto q = [&](double f) { return double(v[std::size_t(f * (v.size() - 1))]); };
@@ -739,12 +746,11 @@ void MainWindow::applyOutput(bool resetWindow) {
     if (resetWindow) {
         const QSignalBlocker b(m_invert);
         m_invert->setChecked(transmission); // film look (bone white) for transmission
-        if (transmission) {
-            syncWindowToPanel({0.0, 1.0, true, currentTransmission()});
-            applyWindowFromPanel();
-        } else {
-            applyPreset(m_preset->itemText(0));
-        }
+        // The window from the image (log exposure for transmission); before any image, the
+        // first three decades of exposure.
+        syncWindowToPanel({-3.0, 0.0, transmission, currentTransmission()});
+        applyWindowFromPanel();
+        applyPreset(m_preset->itemText(0));
     } else {
         applyWindowFromPanel();
     }

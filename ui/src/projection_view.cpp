@@ -121,7 +121,7 @@ void ProjectionView::setWindow(const core::DisplayWindow& w) {
 
 void ProjectionView::autoWindow() {
     if (auto p = projection()) {
-        if (m_window.transmission.active()) core::applyTransmission(p->pixels, m_window.transmission);
+        if (m_window.transmission.active()) core::applyLogExposure(p->pixels, m_window.transmission);
         core::DisplayWindow w = core::autoWindow(p->pixels);
         w.invert = m_window.invert;
         w.transmission = m_window.transmission;
@@ -246,7 +246,7 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
     if (!m_windowSet) {
         auto img = m_cpuImage ? *m_cpuImage : m_gpu->readback();
         const core::DisplayWindow old = m_window;
-        if (old.transmission.active()) core::applyTransmission(img.pixels, old.transmission);
+        if (old.transmission.active()) core::applyLogExposure(img.pixels, old.transmission);
         m_window = core::autoWindow(img.pixels);
         m_window.invert = old.invert;
         m_window.transmission = old.transmission;

@@ -11,9 +11,9 @@
 namespace fvr::core {
 
 /** Window for display mapping: value `low` maps to black, `high` to white (inverted swaps).
- *  With an active transmission, the window applies to the transmitted intensity
- *  exposure exp(-mu_water L) instead of the line integral L (Beer-Lambert; the film look is the
- *  inverted transmission: bone white). */
+ *  With an active transmission, the window applies to the log exposure of the Beer-Lambert
+ *  signal (Transmission::logExposure) instead of the line integral: not inverted, bone is dark
+ *  (fluoroscopy); inverted, the film look: bone white, air black. */
 struct DisplayWindow {
     double low = 0.0;
     double high = 1.0;

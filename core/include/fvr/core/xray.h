@@ -45,17 +45,24 @@ inline bool isAttenuation(ValueMapping m) { return m != ValueMapping::Raw; }
 double waterAttenuationPerMm(double keV);
 
 /** Beer-Lambert: the detector signal exposure * exp(-muWater * L) for a line integral L in mm of
- *  water (mu/mu_water x mm); exposure 1 is the unattenuated beam at full scale. */
+ *  water (mu/mu_water x mm); exposure 1 is the unattenuated beam at full scale.
+ *  The display shows it as film does: blackening follows the log exposure (the straight part of
+ *  the film's characteristic curve) and saturates at full scale, so the window applies to
+ *  logExposure() = min(0, log10(signal)); more exposure darkens, a higher energy flattens. */
 struct Transmission {
     double muWaterPerMm = 0.0; ///< 0: no transmission (the display shows line integrals)
     double exposure = 1.0;
 
     bool active() const { return muWaterPerMm > 0.0; }
     double intensity(double lineIntegral) const;
+    /** min(0, log10(intensity)), computed without underflow for thick paths. */
+    double logExposure(double lineIntegral) const;
 };
 /** Replaces line integrals by transmitted intensities, in place. Throws SettingsError for a
  *  non-positive mu or exposure. */
 void applyTransmission(std::vector<float>& pixels, const Transmission& t);
+/** Replaces line integrals by the log exposure the display windows (see Transmission). */
+void applyLogExposure(std::vector<float>& pixels, const Transmission& t);
 
 // ---- Depth cueing -----------------------------------------------------------------------------
 
