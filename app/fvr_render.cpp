@@ -66,7 +66,15 @@ Rendering:
                         (gridding correction; default on for kaiser-bessel, off otherwise)
   --transform T         fft | fht (default fft)
   --oversampling f      zero-padding factor 1..2 (default 1, as in the paper)
-  --values V            raw (stored values) | mu (attenuation rel. water, max(0,1+HU/1000))
+  --values V            raw (stored values) | mu (attenuation rel. water, max(0,1+HU/1000)) |
+                        mu-bone (as mu up to +100 HU, twice as steep above: bone stands out)
+  --depth-cue S         depth cueing strength 0..1 (default 0): weight 1 at the front of the
+                        volume's bounding sphere falling linearly to 1-S at its back (not with
+                        --kernel nearest)
+  --sharpen A           unsharp mask on the slice: image + A x (image - Gaussian blur), A >= 0
+                        (default 0, off)
+  --sharpen-radius mm   sigma of the unsharp mask's Gaussian (default 1.0)
+  --band-limit lp/mm    order-8 Butterworth low-pass, -3 dB at this frequency (default 0, off)
   --backend cpu|gpu     renderer (default cpu); gpu renders offscreen with OpenGL 4.3 compute
                         shaders and falls back to the CPU, saying why, when no GPU is usable
   --fp16                GPU: store the spectrum as float16 (2 bytes per voxel)
@@ -86,10 +94,14 @@ Output:
                         FILE_0000.ext, FILE_0001.ext, ... A JSON sidecar FILE.json records
                         every parameter and view.
   --bit-depth 8|16      PNG bit depth (default 8)
-  --beer-lambert        with --values mu: transmitted intensity exp(-mu_water x integral)
-                        instead of line integrals (a radiograph's physics)
+  --beer-lambert        with --values mu or mu-bone: transmitted intensity
+                        exposure x exp(-mu_water x integral) instead of line integrals (a
+                        radiograph's physics)
   --mu-water 1/mm       linear attenuation of water for --beer-lambert (default 0.0193,
                         about 70 keV)
+  --energy keV          photon energy 20..150 for --beer-lambert: mu_water from the NIST XCOM
+                        table (instead of --mu-water; 0.02059 per mm at 60 keV)
+  --exposure X          beam intensity for --beer-lambert, > 0 (default 1: full scale)
   --info                print the volume's facts as JSON
   --bench N             render N frames over varying views, print per-stage timings as JSON,
                         and the same views by ray casting (spatial projector) with the speed-up
@@ -120,11 +132,24 @@ struct Args {
     bool numbered = false;
     int bitDepth = 8;
     bool beerLambert = false;
-    double muWater = 0.0193;
+    std::optional<double> muWater; ///< --mu-water
+    std::optional<double> energy;  ///< --energy, keV
+    std::optional<double> exposure;
+    Transmission transmission;     ///< resolved from the three above; active with --beer-lambert
+    double depthCue = 0.0;
+    SliceFilter filter;
     std::string out;
     bool info = false;
     int bench = 0;
 };
+
+constexpr double kDefaultMuWater = 0.0193; // per mm, about 70 keV
+
+std::string numberText(double v) {
+    std::ostringstream o;
+    o << v;
+    return o.str();
+}
 
 double parseNumber(const std::string& opt, const std::string& s) {
     try {
@@ -176,6 +201,12 @@ Args parseArgs(int argc, char** argv) {
         else if (opt == "--bit-depth") a.bitDepth = parseInt(opt, value());
         else if (opt == "--beer-lambert") a.beerLambert = true;
         else if (opt == "--mu-water") a.muWater = parseNumber(opt, value());
+        else if (opt == "--energy") a.energy = parseNumber(opt, value());
+        else if (opt == "--exposure") a.exposure = parseNumber(opt, value());
+        else if (opt == "--depth-cue") a.depthCue = parseNumber(opt, value());
+        else if (opt == "--sharpen") a.filter.sharpenAmount = parseNumber(opt, value());
+        else if (opt == "--sharpen-radius") a.filter.sharpenSigmaMm = parseNumber(opt, value());
+        else if (opt == "--band-limit") a.filter.bandLimitLpMm = parseNumber(opt, value());
         else if (opt == "--size") a.size = parseInt(opt, value());
         else if (opt == "--pixel-size") a.pixelSize = parseNumber(opt, value());
         else if (opt == "--kernel") a.kernel = parseKernel(value());
@@ -221,9 +252,41 @@ Args parseArgs(int argc, char** argv) {
     if (a.sweep < 0 || a.sweep > 100000) throw SettingsError("--sweep: expected 1..100000 views");
     if (a.sweep > 0 && !a.viewsFile.empty()) throw SettingsError("--sweep and --views: give one of them");
     if (a.bitDepth != 8 && a.bitDepth != 16) throw SettingsError("--bit-depth: expected 8 or 16");
-    if (a.beerLambert && a.values != ValueMapping::Mu)
-        throw SettingsError("--beer-lambert: needs --values mu (transmission follows from attenuation)");
-    if (!(a.muWater > 0 && a.muWater < 10)) throw SettingsError("--mu-water: expected 0..10 per mm");
+    if (a.beerLambert && !isAttenuation(a.values))
+        throw SettingsError("--beer-lambert: needs --values mu or mu-bone (transmission follows from attenuation)");
+    if (a.muWater && !(*a.muWater > 0 && *a.muWater < 10)) throw SettingsError("--mu-water: expected 0..10 per mm");
+    if (a.energy) {
+        try {
+            a.transmission.muWaterPerMm = waterAttenuationPerMm(*a.energy);
+        } catch (const SettingsError& e) {
+            throw SettingsError(std::string("--energy: ") + e.what());
+        }
+    }
+    if (a.exposure && !(*a.exposure > 0))
+        throw SettingsError("--exposure: expected a positive beam intensity, found " + numberText(*a.exposure));
+    if (a.energy && a.muWater)
+        throw SettingsError("--energy and --mu-water: give one of them (--energy sets mu_water from the photon energy)");
+    if (!a.beerLambert && (a.energy || a.exposure))
+        throw SettingsError(std::string(a.energy ? "--energy" : "--exposure") + ": only with --beer-lambert");
+    if (!a.energy) a.transmission.muWaterPerMm = a.muWater.value_or(kDefaultMuWater);
+    a.transmission.exposure = a.exposure.value_or(1.0);
+    if (!(a.depthCue >= 0 && a.depthCue <= 1))
+        throw SettingsError("--depth-cue: expected a strength in 0..1, found " + numberText(a.depthCue));
+    if (a.depthCue > 0 && a.kernel == Kernel::Nearest)
+        throw SettingsError("--depth-cue: needs the derivative of the interpolation kernel; --kernel nearest has "
+                            "none (choose linear or better)");
+    // Each filter option on its own, so that the message names the option.
+    for (const auto& [name, field] : {std::pair{"--sharpen", &SliceFilter::sharpenAmount},
+                                      std::pair{"--sharpen-radius", &SliceFilter::sharpenSigmaMm},
+                                      std::pair{"--band-limit", &SliceFilter::bandLimitLpMm}}) {
+        SliceFilter f;
+        f.*field = a.filter.*field;
+        try {
+            validateSliceFilter(f);
+        } catch (const SettingsError& e) {
+            throw SettingsError(std::string(name) + ": " + e.what());
+        }
+    }
     if (a.threads < 0) throw SettingsError("--threads: expected a positive count");
     return a;
 }
@@ -351,7 +414,10 @@ std::string settingsJson(const Args& a, const Spectrum& s, double d, int threads
       << valueMappingName(a.values) << "\", \"deapodized\": " << (s.deapodizedFor ? "true" : "false")
       << ", \"volume_dims\": [" << s.volumeDims[0] << ", " << s.volumeDims[1] << ", "
       << s.volumeDims[2] << "], \"padded_dims\": [" << s.padded[0] << ", " << s.padded[1] << ", " << s.padded[2]
-      << "], \"spectrum_mb\": " << double(s.bytes()) / (1 << 20) << ", \"threads\": " << threads << "}";
+      << "], \"spectrum_mb\": " << double(s.bytes()) / (1 << 20) << ", \"threads\": " << threads
+      << ", \"depth_cue\": " << a.depthCue << ", \"filter\": {\"sharpen\": " << a.filter.sharpenAmount
+      << ", \"sharpen_radius_mm\": " << a.filter.sharpenSigmaMm << ", \"band_limit_lp_per_mm\": "
+      << a.filter.bandLimitLpMm << "}}";
     return o.str();
 }
 
@@ -502,6 +568,15 @@ int run(int argc, char** argv) {
 #endif
     if (backendName == "cpu") cpu = std::make_unique<CpuFourierRenderer>(spectrum, a.threads);
 
+    // Every view is rendered with the same settings (the CPU and the GPU renderer take the same).
+    auto params = [&](const ViewFrame& view) {
+        RenderParams p{view, geom, a.kernel};
+        p.depthCue = a.depthCue;
+        p.filter = a.filter;
+        return p;
+    };
+    validateRenderParams(params(base));
+
     if (a.bench > 0) {
         std::vector<double> sl, inv, tot, fusedTot;
         auto viewAt = [&](int i) {
@@ -509,10 +584,10 @@ int run(int argc, char** argv) {
             return base.rotated({0.3, 1.0, 0.2}, 2.0 * std::numbers::pi * i / a.bench);
         };
         if (cpu) {
-            cpu->render({base, geom, a.kernel}); // warm-up: plans and buffers
+            cpu->render(params(base)); // warm-up: plans and buffers
             for (int i = 0; i < a.bench; ++i) {
                 StageTimes t;
-                cpu->render({viewAt(i), geom, a.kernel}, &t);
+                cpu->render(params(viewAt(i)), &t);
                 sl.push_back(t.sliceMs);
                 inv.push_back(t.inverseMs);
                 tot.push_back(t.totalMs);
@@ -523,10 +598,10 @@ int run(int argc, char** argv) {
             auto& r = *gpu->renderer;
             for (bool fuse : {false, true}) {
                 r.setFuseSlice(fuse);
-                r.render({base, geom, a.kernel}); // warm-up: shader compilation, buffers
+                r.render(params(base)); // warm-up: shader compilation, buffers
                 r.lastTimes();
                 for (int i = 0; i < a.bench; ++i) {
-                    r.render({viewAt(i), geom, a.kernel});
+                    r.render(params(viewAt(i)));
                     const auto t = r.lastTimes(); // GPU timer queries
                     if (fuse) fusedTot.push_back(t.totalMs);
                     else {
@@ -553,8 +628,14 @@ int run(int argc, char** argv) {
             std::printf(",\n  \"total_fused\": {\"median_ms\": %.3f, \"p95_ms\": %.3f, \"fps\": %.1f}", s4.median,
                         s4.p95, 1000.0 / s4.median);
         }
-        // The same views by ray casting (the spatial reference projector, all cores), in this run.
-        SpatialProjector sp(volume, {0.25, a.values, a.threads});
+        // The same views by ray casting (the spatial reference projector, all cores), in this run,
+        // with the same depth cueing. It cannot apply the slice filters: said below.
+        SpatialProjectorOptions spo;
+        spo.stepFraction = 0.25;
+        spo.mapping = a.values;
+        spo.threads = a.threads;
+        spo.depthCue = a.depthCue;
+        SpatialProjector sp(volume, spo);
         std::vector<double> spatialMs;
         const int spatialViews = std::min(a.bench, 3);
         for (int i = 0; i < spatialViews; ++i) {
@@ -564,8 +645,11 @@ int run(int argc, char** argv) {
         }
         const Stat s5 = stats(spatialMs);
         std::printf(",\n  \"spatial_projector\": {\"median_ms\": %.3f, \"views\": %d, \"step\": \"s_min/4\", "
-                    "\"sampling\": \"trilinear\"},\n  \"speedup_per_view\": %.1f",
-                    s5.median, spatialViews, s5.median / fvrMs);
+                    "\"sampling\": \"trilinear\", \"depth_cue\": %g},\n  \"speedup_per_view\": %.1f",
+                    s5.median, spatialViews, a.depthCue, s5.median / fvrMs);
+        if (a.filter.active())
+            std::printf(",\n  \"note\": \"the spatial projector cannot apply the slice filter (--sharpen, --band-limit): "
+                        "it ray-casts unfiltered images, so only the timings compare, not the images\"");
         std::printf("\n}\n");
     }
     if (!a.out.empty()) {
@@ -582,8 +666,11 @@ int run(int argc, char** argv) {
         std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
         if (ext != ".npy" && ext != ".pfm" && ext != ".png" && ext != ".dcm")
             throw SettingsError("--out: unknown output format '" + ext + "' (expected .npy, .pfm, .png or .dcm)");
-        g_exportInfo.valueDescription =
-            a.beerLambert ? "transmitted intensity exp(-mu_water x line integral)" : projectionUnits(a.values, volume.units);
+        const std::string valuesText = a.beerLambert ? "transmitted intensity exposure x exp(-mu_water x line integral)"
+                                                     : projectionUnits(a.values, volume.units);
+        g_exportInfo.valueDescription = valuesText;
+        if (a.depthCue > 0) g_exportInfo.valueDescription += "; depth cue " + numberText(a.depthCue);
+        if (a.filter.active()) g_exportInfo.valueDescription += "; slice-filtered (sharpen, band limit)";
         const bool stacked = views.size() > 1 && ext == ".npy" && !a.numbered;
         std::vector<float> stack;
         std::vector<std::string> written;
@@ -593,17 +680,30 @@ int run(int argc, char** argv) {
         for (std::size_t i = 0; i < views.size(); ++i) {
             ProjectionImage img;
 #ifdef FVR_HAVE_GPU
-            if (gpu) img = gpu->renderer->renderImage({views[i], geom, a.kernel});
+            if (gpu) img = gpu->renderer->renderImage(params(views[i]));
 #endif
-            if (cpu) img = cpu->render({views[i], geom, a.kernel});
-            if (a.beerLambert)
-                for (float& v : img.pixels) v = float(std::exp(-a.muWater * double(v)));
+            if (cpu) img = cpu->render(params(views[i]));
+            // A Beer-Lambert PNG shows the film, as the workstation does: the window on the log
+            // exposure of the signal, bone white (the float outputs hold the intensity itself).
+            std::optional<DisplayWindow> film;
+            std::vector<float> lineIntegrals;
+            if (a.beerLambert && ext == ".png") {
+                lineIntegrals = img.pixels;
+                std::vector<float> logE = img.pixels;
+                applyLogExposure(logE, a.transmission);
+                film = autoWindow(logE);
+                film->invert = true;
+                film->transmission = a.transmission;
+            }
+            if (a.beerLambert) applyTransmission(img.pixels, a.transmission);
             if (stacked) {
                 if (stack.empty()) stack.reserve(views.size() * img.pixels.size());
                 stack.insert(stack.end(), img.pixels.begin(), img.pixels.end());
             } else {
                 const std::string path = views.size() > 1 ? numberedPath(a.out, i) : a.out;
-                if (ext == ".png") writePng(path, img.pixels.data(), M, M, autoWindow(img.pixels), a.bitDepth);
+                if (ext == ".png")
+                    writePng(path, film ? lineIntegrals.data() : img.pixels.data(), M, M,
+                             film ? *film : autoWindow(img.pixels), a.bitDepth);
                 else if (ext == ".dcm") writeDicomProjection(path, img, g_exportInfo);
                 else writeProjection(path, img);
                 written.push_back(path);
@@ -628,8 +728,10 @@ int run(int argc, char** argv) {
           << ", \"origin_mm\": " << vecJson(volume.origin) << ", \"direction\": [" << vecJson(volume.direction[0]) << ", "
           << vecJson(volume.direction[1]) << ", " << vecJson(volume.direction[2]) << "], \"units\": \""
           << unitsName(volume.units) << "\"},\n  \"output\": {\"values\": \""
-          << (a.beerLambert ? "transmitted intensity exp(-mu_water x line integral)" : projectionUnits(a.values, volume.units))
-          << "\", \"mu_water_per_mm\": " << (a.beerLambert ? a.muWater : 0.0) << ", \"stacked\": " << (stacked ? "true" : "false")
+          << valuesText << "\", \"mu_water_per_mm\": " << (a.beerLambert ? a.transmission.muWaterPerMm : 0.0)
+          << ", \"energy_kev\": " << (a.beerLambert && a.energy ? numberText(*a.energy) : std::string("null"))
+          << ", \"exposure\": " << (a.beerLambert ? a.transmission.exposure : 0.0)
+          << ", \"stacked\": " << (stacked ? "true" : "false")
           << ", \"files\": [";
         for (std::size_t i = 0; i < written.size(); ++i) j << (i ? ", " : "") << "\"" << jsonEscape(written[i]) << "\"";
         j << "], \"preprocess_ms\": " << preprocessMs << ", \"render_ms_per_view\": " << renderMs / double(views.size())

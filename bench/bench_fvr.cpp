@@ -6,6 +6,8 @@
  *   BM_Preprocess/N<n>/<fft|fht-fromfft|fht-dht>   3D transform of the Shepp-Logan phantom
  *   BM_Frame/N<n>/<fft|fht>/M<m>/<kernel>         one projection per iteration, rotating view
  *   BM_RayCast/N128/M<m>/step<0.25vox|1vox>       spatial ray casting (trilinear), same views
+ *   BM_Effects/N256/<fft|fht>/M512/<kernel>/<effect> the per-frame cost of depth cueing and the
+ *                                                  slice filters (plain, depth, filters, both)
  *
  * Per-frame counters are real measurements (StageTimes of every iteration): slice_ms, inverse_ms,
  * total_ms are means over the iterations (frames), *_p50 the medians; fps = 1000 / total_ms,
@@ -288,6 +290,42 @@ void BM_Frame(benchmark::State& state, int n, TransformKind kind, int M, Kernel 
     state.counters["other_cores"] = probe.otherCores();
 }
 
+// --- 2b. Beyond the paper: depth cueing and slice filters per frame ----------------------------
+
+enum class Effect { Plain, Depth, Filters, Both };
+const char* effectName(Effect e) {
+    switch (e) {
+    case Effect::Plain: return "plain";
+    case Effect::Depth: return "depthcue";
+    case Effect::Filters: return "filters";
+    case Effect::Both: return "depthcue+filters";
+    }
+    return "?";
+}
+
+void BM_Effects(benchmark::State& state, int n, TransformKind kind, int M, Kernel kernel, Effect e) {
+    CpuFourierRenderer& r = renderer(n, kind);
+    RenderParams p{views()[0], geometry(n, M), kernel};
+    if (e == Effect::Depth || e == Effect::Both) p.depthCue = 0.7;
+    if (e == Effect::Filters || e == Effect::Both) p.filter = {1.5, 2.0, 0.5};
+    benchmark::DoNotOptimize(r.render(p).pixels.data()); // plans for this M
+    std::vector<double> slice, inverse, total;
+    std::size_t i = 0;
+    for (auto _ : state) {
+        StageTimes t;
+        p.view = views()[i++ % views().size()];
+        ProjectionImage img = r.render(p, &t);
+        benchmark::DoNotOptimize(img.pixels.data());
+        slice.push_back(t.sliceMs);
+        inverse.push_back(t.inverseMs);
+        total.push_back(t.totalMs);
+    }
+    state.counters["slice_ms"] = mean(slice);
+    state.counters["inverse_ms"] = mean(inverse);
+    state.counters["total_ms"] = mean(total);
+    state.counters["fps"] = mean(total) > 0 ? 1000.0 / mean(total) : 0.0;
+}
+
 // --- 3. Spatial ray casting ---------------------------------------------------------------------
 
 SpatialProjector& projector(int n, double stepFraction) {
@@ -348,6 +386,17 @@ void registerAll(const std::vector<int>& sizes) {
                                              kernelName(k);
                     benchmark::RegisterBenchmark(name.c_str(), BM_Frame, n, kind, M, k)
                         ->Iterations(framesFor(M))
+                        ->Unit(benchmark::kMillisecond)
+                        ->UseRealTime();
+                }
+    if (std::find(sizes.begin(), sizes.end(), 256) != sizes.end())
+        for (TransformKind kind : {TransformKind::Fft, TransformKind::Fht})
+            for (Kernel k : {Kernel::Linear, Kernel::KaiserBessel4})
+                for (Effect e : {Effect::Plain, Effect::Depth, Effect::Filters, Effect::Both}) {
+                    const std::string name = std::string("BM_Effects/N256/") + transformName(kind) + "/M512/" +
+                                             kernelName(k) + "/" + effectName(e);
+                    benchmark::RegisterBenchmark(name.c_str(), BM_Effects, 256, kind, 512, k, e)
+                        ->Iterations(framesFor(512))
                         ->Unit(benchmark::kMillisecond)
                         ->UseRealTime();
                 }

@@ -5,13 +5,16 @@
 #include <fstream>
 #include <iterator>
 #include <cmath>
+#include <complex>
 #include <string>
 
+#include <fftw3.h>
 #include <gtest/gtest.h>
 
 #include <fvr/core/dicom.h>
 #include <fvr/core/image_io.h>
 #include <fvr/core/phantom.h>
+#include <fvr/core/xray.h>
 
 #include "image_metrics.h"
 #include "test_support.h"
@@ -40,6 +43,38 @@ Result run(const std::string& args, const std::string& envPrefix = {}) {
 }
 
 std::string tmp(const std::string& name) { return (fvr::test::tmpDir() / name).string(); }
+
+std::string readText(const std::string& path) {
+    std::ifstream in(path);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+/** The slice filter applied in double to an M x M image of pixel size d (mm): 2D DFT (FFTW),
+ *  times H(|(m, n)| / (M d)) with (m, n) the signed frequency indices, inverse DFT. */
+std::vector<float> filterInDouble(const std::vector<float>& image, int M, double d, const SliceFilter& filter) {
+    auto* buf = static_cast<fftw_complex*>(fftw_malloc(sizeof(fftw_complex) * std::size_t(M) * M));
+    const fftw_plan fwd = fftw_plan_dft_2d(M, M, buf, buf, FFTW_FORWARD, FFTW_ESTIMATE);
+    const fftw_plan inv = fftw_plan_dft_2d(M, M, buf, buf, FFTW_BACKWARD, FFTW_ESTIMATE);
+    for (std::size_t i = 0; i < image.size(); ++i) {
+        buf[i][0] = image[i];
+        buf[i][1] = 0.0;
+    }
+    fftw_execute(fwd);
+    for (int r = 0; r < M; ++r)
+        for (int c = 0; c < M; ++c) {
+            const double m = r < M / 2 ? r : r - M, n = c < M / 2 ? c : c - M;
+            const double h = filter.response(std::hypot(m, n) / (M * d)) / (double(M) * M);
+            buf[std::size_t(r) * M + c][0] *= h;
+            buf[std::size_t(r) * M + c][1] *= h;
+        }
+    fftw_execute(inv);
+    std::vector<float> out(image.size());
+    for (std::size_t i = 0; i < out.size(); ++i) out[i] = float(buf[i][0]);
+    fftw_destroy_plan(fwd);
+    fftw_destroy_plan(inv);
+    fftw_free(buf);
+    return out;
+}
 
 } // namespace
 
@@ -146,6 +181,13 @@ TEST(FvrRender, GpuBackendMatchesCpuOrFallsBackWithANotice) {
     const auto g = readNpy(tmp("gpu.npy"), shape);
     const auto c = readNpy(tmp("cpu.npy"), shape);
     EXPECT_GT(fvr::test::compare(g, c).psnr, 90.0);
+    // Depth cue and slice filter reach both renderers the same way.
+    const std::string xray = "--values mu --depth-cue 0.6 --sharpen 1 --sharpen-radius 2 --band-limit 0.1 ";
+    r = run("--backend gpu " + args + xray + "--out " + tmp("gpux.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    ASSERT_NE(r.output.find("gpu: "), std::string::npos) << "GPU backend not used: " << r.output;
+    ASSERT_EQ(run("--backend cpu " + args + xray + "--out " + tmp("cpux.npy")).status, 0);
+    EXPECT_GT(fvr::test::compare(readNpy(tmp("gpux.npy"), shape), readNpy(tmp("cpux.npy"), shape)).psnr, 90.0);
 }
 
 TEST(FvrRender, DicomFolderInfoListsSeriesWithWarnings) {
@@ -278,4 +320,145 @@ TEST(FvrRender, WritesDicomThatLoadsBackAsTheProjection) {
     const auto back = fvr::core::loadDicomFile(tmp("d.dcm"));
     ASSERT_EQ(back.volume.voxels.size(), ref.size());
     EXPECT_GT(fvr::test::compare(back.volume.voxels, ref).psnr, 90.0); // 16-bit quantisation only
+}
+
+TEST(FvrRender, BeerLambertEnergyAndExposureScaleTheTransmission) {
+    const std::string common = "phantom:shepp-logan:32 --size 128 --values mu --dir 0.2,0.3,0.9 ";
+    ASSERT_EQ(run(common + "--out " + tmp("xl.npy")).status, 0);
+    const Result r = run(common + "--beer-lambert --energy 60 --exposure 1.5 --out " + tmp("xbl.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::vector<std::int64_t> shape;
+    const auto L = readNpy(tmp("xl.npy"), shape);
+    const auto bl = readNpy(tmp("xbl.npy"), shape);
+    ASSERT_EQ(bl.size(), L.size());
+    const double mu = waterAttenuationPerMm(60.0);
+    double maxRel = 0, minI = 1e9;
+    for (std::size_t i = 0; i < L.size(); ++i) {
+        const double expect = 1.5 * std::exp(-mu * double(L[i]));
+        maxRel = std::max(maxRel, std::abs(bl[i] - expect) / expect);
+        minI = std::min(minI, double(bl[i]));
+    }
+    std::printf("[cli] beer-lambert 60 keV (mu_water %.5f/mm) exposure 1.5: max relative error %.2e, min %.4f\n", mu,
+                maxRel, minI);
+    EXPECT_LT(maxRel, 1e-5);
+    EXPECT_LT(minI, 1.0); // the phantom attenuates: the test sees the exponential, not just the exposure
+    const std::string json = readText(tmp("xbl.npy") + ".json");
+    for (const char* key : {"\"mu_water_per_mm\": 0.02059", "\"energy_kev\": 60", "\"exposure\": 1.5"})
+        EXPECT_NE(json.find(key), std::string::npos) << key << " in " << json;
+    // mu-bone is an attenuation mapping too.
+    const Result bone = run("phantom:shepp-logan:32 --size 128 --values mu-bone --beer-lambert --out " + tmp("xbb.npy"));
+    EXPECT_EQ(bone.status, 0) << bone.output;
+}
+
+TEST(FvrRender, DepthCueMatchesTheAnalyticDepthWeightedProjection) {
+    const std::string common = "phantom:shepp-logan:64 --dir 0.35,0.2,0.92 --up 0,-1,0 --size 128 "
+                               "--kernel catmull-rom --oversampling 2 --values mu ";
+    Result r = run(common + "--depth-cue 0.6 --out " + tmp("dc.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    r = run(common + "--out " + tmp("nodc.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::vector<std::int64_t> shape;
+    const auto cued = readNpy(tmp("dc.npy"), shape);
+    ASSERT_EQ(shape, (std::vector<std::int64_t>{128, 128}));
+    const auto plain = readNpy(tmp("nodc.npy"), shape);
+    const Volume v = makeSheppLoganVolume(64);
+    const ViewFrame view = ViewFrame::fromDirUp({0.35, 0.2, 0.92}, {0, -1, 0});
+    const ImageGeometry geom{128, defaultPixelSize(v.dims, v.spacing, 128)};
+    const auto phantom = EllipsoidPhantom::sheppLogan3D(256.0);
+    const auto truth = phantom.project(view, geom, ValueMapping::Mu, v.dims, v.spacing, 0.6);
+    const auto plainTruth = phantom.project(view, geom, ValueMapping::Mu, v.dims, v.spacing);
+    const double psnr = fvr::test::compare(cued, truth.pixels).psnr;
+    const double vsPlainTruth = fvr::test::compare(cued, plainTruth.pixels).psnr;
+    const double vsPlainRun = fvr::test::compare(cued, plain).psnr;
+    std::printf("[cli] depth cue 0.6: %.2f dB vs the depth-weighted oracle, %.2f dB vs the plain oracle, "
+                "%.2f dB vs the run without depth cue\n", psnr, vsPlainTruth, vsPlainRun);
+    EXPECT_GT(psnr, 37.0); // measured 40.3 dB
+    EXPECT_LT(vsPlainRun, 40.0); // the depth cue changes the image
+    EXPECT_GT(psnr, vsPlainTruth + 10.0);
+    EXPECT_NE(readText(tmp("dc.npy") + ".json").find("\"depth_cue\": 0.6"), std::string::npos);
+}
+
+TEST(FvrRender, SliceFilterEqualsTheFilterAppliedInDouble) {
+    // Pixel 1 mm: the slice reaches 0.5 lp/mm; the volume (2 mm voxels) holds up to 0.25 lp/mm per
+    // axis, about 0.35 along an oblique slice, so the band limit at 0.3 lp/mm acts as well.
+    const std::string common = "phantom:shepp-logan:128 --dir 0.35,0.2,0.92 --up 0,-1,0 --size 256 --pixel-size 1 "
+                               "--values mu ";
+    Result r = run(common + "--out " + tmp("unf.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    r = run(common + "--sharpen 1 --sharpen-radius 2 --band-limit 0.3 --out " + tmp("filt.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::vector<std::int64_t> shape;
+    const auto unfiltered = readNpy(tmp("unf.npy"), shape);
+    const auto filtered = readNpy(tmp("filt.npy"), shape);
+    ASSERT_EQ(shape, (std::vector<std::int64_t>{256, 256}));
+    SliceFilter f;
+    f.sharpenAmount = 1.0;
+    f.sharpenSigmaMm = 2.0;
+    f.bandLimitLpMm = 0.3;
+    const auto oracle = filterInDouble(unfiltered, 256, 1.0, f);
+    const auto c = fvr::test::compare(filtered, oracle);
+    const auto change = fvr::test::compare(unfiltered, oracle);
+    std::printf("[cli] slice filter vs FFTW double: max abs error %.3g (peak %.4g), %.2f dB; "
+                "filter's own change %.3g max, %.2f dB\n", c.maxAbsError, c.peak, c.psnr, change.maxAbsError, change.psnr);
+    EXPECT_LT(c.maxAbsError, 1e-5 * c.peak); // measured 4.6e-7 x peak (float rendering)
+    EXPECT_GT(change.maxAbsError, 0.02 * c.peak); // the filter does something measurable (6.6% of the peak)
+    const std::string json = readText(tmp("filt.npy") + ".json");
+    EXPECT_NE(json.find("\"filter\": {\"sharpen\": 1, \"sharpen_radius_mm\": 2, \"band_limit_lp_per_mm\": 0.3}"),
+              std::string::npos) << json;
+}
+
+TEST(FvrRender, XrayOptionsBadInputExitsTwoNamingTheOption) {
+    struct Case {
+        std::string args, expect;
+    };
+    const std::string common = "phantom:shepp-logan:32 --size 128 --out " + tmp("x.npy") + " ";
+    const Case cases[] = {
+        {"--depth-cue 2", "--depth-cue"},
+        {"--depth-cue 0.5 --kernel nearest", "--depth-cue"},
+        {"--values mu --beer-lambert --energy 5", "--energy"},
+        {"--values mu --beer-lambert --energy 60 --mu-water 0.02", "--mu-water"},
+        {"--values mu --beer-lambert --exposure 0", "--exposure"},
+        {"--sharpen -1", "--sharpen"},
+        {"--sharpen 1 --sharpen-radius 0", "--sharpen-radius"},
+        {"--band-limit -1", "--band-limit"},
+        {"--values mu --energy 60", "--beer-lambert"},
+        {"--values bone", "values"},
+    };
+    for (const Case& c : cases) {
+        const Result r = run(common + c.args);
+        EXPECT_EQ(r.status, 2) << c.args << "\n" << r.output;
+        EXPECT_NE(r.output.find(c.expect), std::string::npos) << c.args << "\n" << r.output;
+        EXPECT_EQ(r.output.find("terminate"), std::string::npos) << r.output;
+    }
+    // With --energy and --mu-water both named.
+    const Result both = run(common + "--values mu --beer-lambert --energy 60 --mu-water 0.02");
+    EXPECT_NE(both.output.find("--energy"), std::string::npos) << both.output;
+}
+
+TEST(FvrRender, MuBoneIntegratesMoreThanMu) {
+    const std::string common = "phantom:shepp-logan:32 --size 128 --dir 0.2,0.3,0.9 ";
+    Result r = run(common + "--values mu --out " + tmp("vmu.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    r = run(common + "--values mu-bone --out " + tmp("vbone.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::vector<std::int64_t> shape;
+    double mu = 0, bone = 0;
+    for (float v : readNpy(tmp("vmu.npy"), shape)) mu += v;
+    for (float v : readNpy(tmp("vbone.npy"), shape)) bone += v;
+    std::printf("[cli] total of the projection: mu %.1f, mu-bone %.1f (ratio %.3f)\n", mu, bone, bone / mu);
+    // The skull (+1000 HU) counts (1.1 + 2 x 0.9) / 2 = 1.45 times as much, the soft tissue (below
+    // the +100 HU knee) the same: measured 1.043 times in total.
+    EXPECT_GT(bone, 1.02 * mu);
+    EXPECT_NE(readText(tmp("vbone.npy") + ".json").find("\"values\": \"mu-bone\""), std::string::npos);
+}
+
+TEST(FvrRender, BenchPassesTheDepthCueToRayCastingAndNotesTheFilter) {
+    Result r = run("phantom:shepp-logan:32 --size 128 --bench 3 --depth-cue 0.5");
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_NE(r.output.find("\"depth_cue\": 0.5}"), std::string::npos) << r.output; // the spatial projector's
+    EXPECT_EQ(r.output.find("\"note\""), std::string::npos) << r.output;
+    r = run("phantom:shepp-logan:32 --size 128 --bench 3 --sharpen 1");
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_NE(r.output.find("\"note\": \"the spatial projector cannot apply the slice filter"), std::string::npos)
+        << r.output;
 }
