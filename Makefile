@@ -8,7 +8,7 @@ JOBS ?= $(shell nproc)
 STUDY ?=
 SHARED_DATA ?= $(abspath $(CURDIR)/../shared/data)
 
-.PHONY: all deps configure build run test bench package sanitize clean
+.PHONY: all deps configure build run test bench bench-gpu package sanitize clean
 
 all: build
 
@@ -38,6 +38,11 @@ package: build
 
 bench: build
 	@$(BUILD_DIR)/bench/fvr_bench
+
+# GPU Table 1 on the machine's GPU (under a display; headless: xvfb-run gives Mesa llvmpipe).
+bench-gpu: build
+	@if [ -n "$$DISPLAY" ]; then QT_QPA_PLATFORM=xcb $(BUILD_DIR)/bench/fvr_bench_gpu; \
+	 else xvfb-run -a env QT_QPA_PLATFORM=xcb $(BUILD_DIR)/bench/fvr_bench_gpu; fi
 
 # Loaders and tests under AddressSanitizer + UndefinedBehaviorSanitizer.
 sanitize: deps

@@ -1,0 +1,176 @@
+/**
+ * GPU benchmarks in the layout of Table 1 of Viola et al. 2004 (issue 4): per slice size M and
+ * kernel, the slicing pass and the inverse 2D transform measured separately with GL timer
+ * queries (slice pass unfused), and the end-to-end frame as the workstation renders it (slice
+ * fused into the row FFT pass), for the FFT and the FHT representation.
+ *
+ *   BM_GpuStages/N<n>/<fft|fht>/M<m>/<kernel>   unfused: slice_ms, inverse_ms, slice_fps, inverse_fps
+ *   BM_GpuFrame/N<n>/<fft|fht>/M<m>/<kernel>    fused end-to-end: gpu_ms (timer queries), fps,
+ *                                               and wall_fps (frames issued back to back, one
+ *                                               wait per batch of 16: what an interactive loop gets)
+ *
+ * Needs an OpenGL 4.3 context: run under a display (or xvfb-run with QT_QPA_PLATFORM=xcb; Mesa
+ * llvmpipe numbers are a sanity check only). N is 256 unless FVR_BENCH_GPU_N says otherwise
+ * (e.g. 128,256,512). The 3D Shepp-Logan phantom, mu values, no oversampling: the paper's setup.
+ */
+#include <QGuiApplication>
+#include <QOpenGLContext>
+#include <QOpenGLFunctions>
+
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <memory>
+#include <numbers>
+#include <numeric>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <fvr/core/phantom.h>
+#include <fvr/core/preprocess.h>
+#include <fvr/gpu/gpu_renderer.h>
+#include <fvr/gpu/offscreen_context.h>
+
+namespace {
+
+using namespace fvr::core;
+using fvr::gpu::GpuFourierRenderer;
+
+const Volume& phantom(int n) {
+    static std::map<int, std::unique_ptr<Volume>> cache;
+    auto& v = cache[n];
+    if (!v) v = std::make_unique<Volume>(makeSheppLoganVolume(n));
+    return *v;
+}
+
+GpuFourierRenderer& renderer(int n, TransformKind kind) {
+    static std::map<std::pair<int, TransformKind>, std::unique_ptr<GpuFourierRenderer>> cache;
+    auto& r = cache[{n, kind}];
+    if (!r) {
+        PreprocessOptions o;
+        o.mapping = ValueMapping::Mu;
+        o.transform = kind;
+        o.oversampling = 1.0;
+        r = std::make_unique<GpuFourierRenderer>();
+        r->setSpectrum(preprocess(phantom(n), o));
+    }
+    return *r;
+}
+
+const std::vector<ViewFrame>& views() {
+    static const std::vector<ViewFrame> v = [] {
+        std::vector<ViewFrame> out;
+        const ViewFrame base = ViewFrame::fromDirUp({0.3, -1.0, 0.2}, {0.0, 0.1, 1.0});
+        const double golden = std::numbers::pi * (3.0 - std::sqrt(5.0));
+        for (int i = 0; i < 64; ++i) out.push_back(base.rotated({0.25, 0.35, 1.0}, golden * i));
+        return out;
+    }();
+    return v;
+}
+
+double mean(const std::vector<double>& x) {
+    return x.empty() ? 0.0 : std::accumulate(x.begin(), x.end(), 0.0) / double(x.size());
+}
+
+void BM_GpuStages(benchmark::State& state, int n, TransformKind kind, int M, Kernel kernel) {
+    GpuFourierRenderer& r = renderer(n, kind);
+    const ImageGeometry g{M, defaultPixelSize(phantom(n).dims, phantom(n).spacing, M)};
+    r.setFuseSlice(false);
+    r.render({views()[0], g, kernel}); // compiles the variant
+    r.lastTimes();
+    std::vector<double> slice, inverse;
+    std::size_t i = 0;
+    for (auto _ : state) {
+        r.render({views()[i++ % views().size()], g, kernel});
+        const auto t = r.lastTimes();
+        slice.push_back(t.sliceMs);
+        inverse.push_back(t.inverseMs);
+    }
+    r.setFuseSlice(true);
+    const double s = mean(slice), inv = mean(inverse);
+    state.counters["slice_ms"] = s;
+    state.counters["inverse_ms"] = inv;
+    state.counters["slice_fps"] = s > 0 ? 1000.0 / s : 0.0;
+    state.counters["inverse_fps"] = inv > 0 ? 1000.0 / inv : 0.0;
+}
+
+void BM_GpuFrame(benchmark::State& state, int n, TransformKind kind, int M, Kernel kernel) {
+    GpuFourierRenderer& r = renderer(n, kind);
+    const ImageGeometry g{M, defaultPixelSize(phantom(n).dims, phantom(n).spacing, M)};
+    r.setFuseSlice(true);
+    r.render({views()[0], g, kernel});
+    r.lastTimes();
+    auto* gl = QOpenGLContext::currentContext()->functions();
+    std::vector<double> gpu, wall;
+    std::size_t i = 0;
+    constexpr int kBatch = 16;
+    for (auto _ : state) {
+        r.render({views()[i++ % views().size()], g, kernel});
+        gpu.push_back(r.lastTimes().totalMs);
+        // Back to back: kBatch frames, one wait at the end.
+        const auto t0 = std::chrono::steady_clock::now();
+        for (int b = 0; b < kBatch; ++b) r.render({views()[(i + b) % views().size()], g, kernel});
+        gl->glFinish();
+        wall.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / kBatch);
+    }
+    const double gm = mean(gpu), wm = mean(wall);
+    state.counters["gpu_ms"] = gm;
+    state.counters["fps"] = gm > 0 ? 1000.0 / gm : 0.0;
+    state.counters["wall_ms"] = wm;
+    state.counters["wall_fps"] = wm > 0 ? 1000.0 / wm : 0.0;
+}
+
+std::vector<int> volumeSizes() {
+    std::vector<int> out;
+    if (const char* e = std::getenv("FVR_BENCH_GPU_N")) {
+        std::stringstream ss(e);
+        std::string tok;
+        while (std::getline(ss, tok, ','))
+            if (!tok.empty()) out.push_back(std::stoi(tok));
+    }
+    if (out.empty()) out.push_back(256);
+    return out;
+}
+
+} // namespace
+
+int main(int argc, char** argv) {
+    QGuiApplication app(argc, argv);
+    std::unique_ptr<fvr::gpu::OffscreenContext> ctx;
+    try {
+        ctx = std::make_unique<fvr::gpu::OffscreenContext>();
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "fvr_bench_gpu: %s\n", e.what());
+        return 1;
+    }
+    benchmark::Initialize(&argc, argv);
+    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+    {
+        GpuFourierRenderer probe;
+        benchmark::AddCustomContext("gl_renderer", probe.rendererInfo());
+    }
+    for (int n : volumeSizes())
+        for (TransformKind kind : {TransformKind::Fft, TransformKind::Fht})
+            for (int M : {256, 512, 1024})
+                for (Kernel k : allKernels()) {
+                    const std::string suffix = "/N" + std::to_string(n) + "/" + transformName(kind) + "/M" +
+                                               std::to_string(M) + "/" + kernelName(k);
+                    const int iters = M <= 512 ? 30 : 15;
+                    benchmark::RegisterBenchmark(("BM_GpuStages" + suffix).c_str(), BM_GpuStages, n, kind, M, k)
+                        ->Iterations(iters)
+                        ->Unit(benchmark::kMillisecond)
+                        ->UseRealTime();
+                    benchmark::RegisterBenchmark(("BM_GpuFrame" + suffix).c_str(), BM_GpuFrame, n, kind, M, k)
+                        ->Iterations(iters)
+                        ->Unit(benchmark::kMillisecond)
+                        ->UseRealTime();
+                }
+    benchmark::RunSpecifiedBenchmarks();
+    benchmark::Shutdown();
+    return 0;
+}
