@@ -369,8 +369,6 @@ void GpuFourierRenderer::setSliceUniforms(unsigned prog, const core::RenderParam
 }
 
 void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel, const core::RenderParams* params) {
-    int log2 = 0;
-    while ((1 << log2) < M) ++log2;
     std::vector<std::pair<std::string, std::string>> defs{{"MAX_M", std::to_string(M)},
                                                           {"WG_SIZE", std::to_string(workGroupSize(M))}};
     if (fused) {
@@ -383,7 +381,6 @@ void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel,
     const GLuint prog = program("fft/rows.comp", defs);
     m_gl->glUseProgram(prog);
     m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
-    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uLog2M"), log2);
     if (fused) setSliceUniforms(prog, *params);
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_bufA); // input (unfused)
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_bufB); // transposed output
@@ -393,14 +390,11 @@ void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel,
 }
 
 void GpuFourierRenderer::runCols(int M, const char* outputMode) {
-    int log2 = 0;
-    while ((1 << log2) < M) ++log2;
     const GLuint prog = program("fft/cols.comp", {{"MAX_M", std::to_string(M)},
                                                   {"WG_SIZE", std::to_string(workGroupSize(M))},
                                                   {outputMode, "1"}});
     m_gl->glUseProgram(prog);
     m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
-    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uLog2M"), log2);
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_bufB);
     const bool complexOut = std::strcmp(outputMode, "OUTPUT_COMPLEX") == 0;
     const bool hartleyOut = std::strcmp(outputMode, "OUTPUT_HARTLEY") == 0;

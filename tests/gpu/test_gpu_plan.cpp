@@ -16,7 +16,7 @@ using namespace fvr::gpu;
 TEST(FftPlan, CpuExecutionMatchesFftwDouble) {
     std::mt19937 rng(3);
     std::normal_distribution<float> g;
-    for (int M : {2, 8, 64, 256, 1024, 4096}) {
+    for (int M : {2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096}) {
         for (int sign : {+1, -1}) {
             FftPlan plan(M, sign);
             std::vector<std::complex<float>> x(static_cast<std::size_t>(M));
@@ -48,9 +48,22 @@ TEST(FftPlan, ValidatesAtCreation) {
     EXPECT_THROW(FftPlan(64, 0), std::invalid_argument);
     FftPlan p(16, 1);
     EXPECT_EQ(p.log2Size(), 4);
-    EXPECT_EQ(p.bitReverse(1), 8);
-    EXPECT_EQ(p.bitReverse(6), 6);
-    EXPECT_EQ(p.twiddles().size(), 16u);
+    EXPECT_EQ(p.twiddles().size(), 32u); // M complex twiddles
+    EXPECT_NEAR(p.twiddles()[2 * 4 + 1], 1.0f, 0.0f); // exp(i pi/2) = i exactly: the shader's sign
+}
+
+TEST(FftPlan, RadixFourStockhamStages) {
+    // Radix 4 while it divides, one radix-2 stage for odd log2 M; the product is M.
+    const std::map<int, std::vector<int>> expected{{2, {2}},          {4, {4}},          {8, {4, 2}},
+                                                   {64, {4, 4, 4}},   {512, {4, 4, 4, 4, 2}},
+                                                   {1024, {4, 4, 4, 4, 4}}, {4096, {4, 4, 4, 4, 4, 4}}};
+    for (const auto& [M, radices] : expected) {
+        const FftPlan plan(M, 1);
+        EXPECT_EQ(plan.radices(), radices) << "M " << M;
+        int product = 1;
+        for (int r : plan.radices()) product *= r;
+        EXPECT_EQ(product, M);
+    }
 }
 
 TEST(ShaderSource, ResolvesIncludesOnceAndMapsLines) {

@@ -16,7 +16,7 @@ layout(std430, binding = 0) writeonly buffer ColsOut { float colsOut[]; };
 void main() {
     int c = int(gl_WorkGroupID.x);
     int lid = int(gl_LocalInvocationID.x);
-    for (int i = lid; i < uM; i += WG_SIZE) row[bitReverse(i)] = colsIn[c * uM + i];
+    for (int i = lid; i < uM; i += WG_SIZE) row[i] = colsIn[c * uM + i];
     memoryBarrierShared();
     barrier();
     fftInShared(uM);

@@ -21,9 +21,9 @@ void main() {
 #ifdef FUSED_SLICE
         int m = i < uM / 2 ? i : i - uM;
         int n = r < uM / 2 ? r : r - uM;
-        row[bitReverse(i)] = sliceValue(m, n);
+        row[i] = sliceValue(m, n);
 #else
-        row[bitReverse(i)] = rowsIn[r * uM + i];
+        row[i] = rowsIn[r * uM + i];
 #endif
     }
     memoryBarrierShared();

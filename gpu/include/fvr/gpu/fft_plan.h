@@ -9,10 +9,14 @@
 namespace fvr::gpu {
 
 /**
- * 1D complex FFT of size M (power of two, 2..4096) as the compute shaders run it: inputs loaded
- * in bit-reversed order into shared memory, then log2(M) in-place radix-2 butterfly stages
- * (Cooley-Tukey, decimation in time). Stage s pairs elements h = 2^s apart with twiddle
- * table[pos * (M / 2h)], table[k] = exp(sign * 2 pi i k / M), k < M/2.
+ * 1D complex FFT of size M (power of two, 2..4096) as the compute shaders run it in shared
+ * memory: a Stockham autosort FFT (natural order in and out, no bit reversal), radix-4 stages
+ * while they divide M and one radix-2 stage for odd log2 M (M = 512: 4, 4, 4, 4, 2), after
+ * Govindaraju et al. 2008. Stage with span Ns (the product of the earlier radices) and radix R
+ * takes butterfly j's inputs x[j + r M/R] times the twiddle table[(j mod Ns) r M/(Ns R)], runs
+ * the R-point DFT in registers and writes output r to (j div Ns) Ns R + (j mod Ns) + r Ns.
+ * table[k] = exp(sign 2 pi i k / M), k < M. Every thread reads its inputs before a barrier and
+ * writes after it, so one shared array suffices (32 KiB at M = 4096).
  */
 class FftPlan {
 public:
@@ -22,10 +26,10 @@ public:
     int size() const { return m_size; }
     int log2Size() const { return m_log2; }
     int sign() const { return m_sign; }
-    /** Twiddles as interleaved (re, im) floats, M/2 entries, computed in double. */
+    /** The radix of every stage, first to last (4s, then a 2 when log2 M is odd). */
+    const std::vector<int>& radices() const { return m_radices; }
+    /** Twiddles as interleaved (re, im) floats, M entries, computed in double. */
     const std::vector<float>& twiddles() const { return m_twiddles; }
-    /** Bit reversal of i over log2Size() bits. */
-    int bitReverse(int i) const;
 
     /** Runs the shader algorithm on the CPU in float (reference for the shaders' arithmetic). */
     void execute(std::vector<std::complex<float>>& data) const;
@@ -34,6 +38,7 @@ private:
     int m_size;
     int m_log2;
     int m_sign;
+    std::vector<int> m_radices;
     std::vector<float> m_twiddles;
 };
 
