@@ -3,6 +3,7 @@
 #include <QApplication>
 #include <QCheckBox>
 #include <QComboBox>
+#include <QDockWidget>
 #include <QDoubleSpinBox>
 #include <QImage>
 #include <QPlainTextEdit>
@@ -312,6 +313,18 @@ TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
         window->valuesCombo()->setCurrentIndex(window->valuesCombo()->findData(int(core::ValueMapping::MuBone)));
     }));
     EXPECT_EQ(window->study().spectrum()->mapping, core::ValueMapping::MuBone);
+
+    // The panel is usable: every control visible inside the dock (nothing clipped).
+    auto* dock = window->findChild<QDockWidget*>("dock.xray");
+    ASSERT_NE(dock, nullptr);
+    dock->raise();
+    QApplication::processEvents();
+    for (QWidget* c : {static_cast<QWidget*>(window->outputCombo()), static_cast<QWidget*>(window->bandLimitSpin())}) {
+        EXPECT_TRUE(c->isVisible());
+        const QRect r(c->mapTo(dock, QPoint(0, 0)), c->size());
+        EXPECT_TRUE(dock->rect().contains(r)) << "clipped control";
+    }
+    dock->grab().save(QString::fromStdString((test::tmpDir() / "xray_dock.png").string()));
 
     // Depth cueing and filters: every frame equals the CPU renderer with the same parameters.
     window->depthCueSpin()->setValue(60);

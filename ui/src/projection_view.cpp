@@ -203,7 +203,8 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
     m_progressive.setLevels(core::progressiveLevels(m_settings.size, m_settings.kernel,
                                                     m_spectrum->deapodizedFor.has_value(),
                                                     std::min(64, m_settings.size)));
-    const int level = fullQuality ? 0 : m_progressive.level();
+    // Difference views compare full-quality frames (the reference renders full quality too).
+    const int level = (fullQuality || m_reference) ? 0 : m_progressive.level();
     if (level != m_renderedLevel) m_renderDirty = true;
     if (!m_renderDirty) return;
     const core::QualityLevel q = m_progressive.levels()[std::size_t(level)];
