@@ -16,9 +16,11 @@
 #include <fvr/core/phantom.h>
 #include <fvr/core/preprocess.h>
 #include <fvr/core/spatial_projector.h>
+#include <fvr/core/volume_io.h>
 #include <fvr/core/xray.h>
 
 #include "image_metrics.h"
+#include "test_support.h"
 
 using namespace fvr::core;
 
@@ -359,5 +361,35 @@ TEST(XRay, BandLimitAndCombinedFilterMatchDefinitionInDouble) {
             EXPECT_LT(err, 1e-4);
             EXPECT_GT(maxRelError(plain.pixels, want), 1e-2);
         }
+    }
+}
+
+// The oracle on real data: depth-cued FVR against the depth-weighted spatial ray
+// integration of the same voxels (body CT in HU, 122x101x112 at 3 mm, mu values).
+TEST(XRay, DepthCuedFvrMatchesDepthWeightedRayCastingOnRealCt) {
+    const auto path = fvr::test::sharedData() / "volumes/body_ct_hu_3mm/example_ct.mhd";
+    FVR_REQUIRE_DATA("volumes/body_ct_hu_3mm/example_ct.mhd");
+    const Volume v = loadVolume(path);
+    const int M = 256;
+    const double d = defaultPixelSize(v.dims, v.spacing, M);
+    SpatialProjectorOptions so{0.25, ValueMapping::Mu, 0};
+    so.depthCue = 0.7;
+    SpatialProjector sp(v, so);
+    PreprocessOptions o;
+    o.effort = PlannerEffort::Estimate;
+    o.mapping = ValueMapping::Mu;
+    o.oversampling = 1.25;
+    o.deapodizeFor = Kernel::KaiserBessel4;
+    CpuFourierRenderer r(preprocess(v, o));
+    for (const ViewFrame& view : {ViewFrame::fromDirUp({0, 1, 0}, {0, 0, 1}), ViewFrame::fromDirUp({0.7, 0.6, 0.3}, {0, 0, 1})}) {
+        const auto ref = sp.project(view, {M, d});
+        RenderParams p{view, {M, d}, Kernel::KaiserBessel4};
+        const double uncued = fvr::test::compare(r.render(p).pixels, ref.pixels).psnr;
+        p.depthCue = 0.7;
+        const double cued = fvr::test::compare(r.render(p).pixels, ref.pixels).psnr;
+        std::printf("[xray] body CT, depth cue 0.7, KB4 deapodized 1.25x vs depth-weighted ray casting: %.2f dB "
+                    "(without the depth term %.2f dB)\n", cued, uncued);
+        EXPECT_GT(cued, 36.0); // measured 38.2 (axis view) and 53.8 dB (oblique)
+        EXPECT_GT(cued, uncued + 10.0);
     }
 }
