@@ -112,7 +112,7 @@ struct FilterLut {
             float q = float(m * m + n * n) * invCut2;
             q *= q;
             q *= q;
-            h /= 1.0f + q * q;
+            h /= std::sqrt(1.0f + q * q);
         }
         return h;
     }

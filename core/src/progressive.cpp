@@ -36,10 +36,14 @@ QualityLevel ProgressiveController::current() const { return m_levels[std::size_
 double ProgressiveController::expectedMs(int level) const {
     if (level < 0 || level >= int(m_levels.size())) return 0.0;
     if (m_measured[std::size_t(level)] > 0.0) return m_measured[std::size_t(level)];
-    // Scale the nearest measured level by the pixel count (the slice and the 2D FFT are ~M^2).
+    // Scale the nearest measured level with the same kernel by the pixel count (the slice and the
+    // 2D FFT are ~M^2); across kernels the cost ratio is unknown (unmeasured: worth a try).
+    const Kernel k = m_levels[std::size_t(level)].kernel;
     for (int dist = 1; dist < int(m_levels.size()); ++dist)
         for (int other : {level - dist, level + dist}) {
-            if (other < 0 || other >= int(m_levels.size()) || m_measured[std::size_t(other)] <= 0.0) continue;
+            if (other < 0 || other >= int(m_levels.size()) || m_measured[std::size_t(other)] <= 0.0 ||
+                m_levels[std::size_t(other)].kernel != k)
+                continue;
             const double r = double(m_levels[std::size_t(level)].size) / m_levels[std::size_t(other)].size;
             return m_measured[std::size_t(other)] * r * r;
         }
@@ -74,7 +78,8 @@ void ProgressiveController::frameRendered(double ms) {
         // predicts for it, so that one slow frame (a hiccup) does not lock the drag at low quality.
         auto& above = m_measured[std::size_t(m_level - 1)];
         const double r = double(m_levels[std::size_t(m_level - 1)].size) / m_levels[std::size_t(m_level)].size;
-        if (above > 0.0) above = 0.8 * above + 0.2 * ms * r * r;
+        const bool sameKernel = m_levels[std::size_t(m_level - 1)].kernel == m_levels[std::size_t(m_level)].kernel;
+        if (above > 0.0 && sameKernel) above = 0.8 * above + 0.2 * ms * r * r;
         const double up = expectedMs(m_level - 1);
         if (up > 0.0 && up < 0.7 * budget) --m_level;
     }

@@ -74,7 +74,7 @@ double SliceFilter::response(double nu) const {
     if (bandLimitLpMm > 0.0) {
         const double q = (nu * nu) / (bandLimitLpMm * bandLimitLpMm);
         const double q2 = q * q, q4 = q2 * q2;
-        h /= 1.0 + q4 * q4;
+        h /= std::sqrt(1.0 + q4 * q4);
     }
     return h;
 }

@@ -272,7 +272,7 @@ TEST_F(Workstation, AccuracyReadoutAgainstRayCasting) {
 
 TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
-    auto* v = window->views()[0];
+    ui::ProjectionView* v = window->views()[0];
     const auto L = *v->projection(); // line integrals (mu)
 
     // Beer-Lambert: the film look by default, window on the intensity.
@@ -303,12 +303,35 @@ TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
         }
     EXPECT_GT(dark, 50);
     EXPECT_GT(bright, 20);
+    // Leaving a difference comparison keeps the transmission on every view.
+    window->setCompareCount(2);
+    window->setDifferenceMode(true);
+    window->setDifferenceMode(false);
+    for (auto* view : window->views()) EXPECT_TRUE(view->window().transmission.active());
+    window->setCompareCount(1);
+    v = window->views()[0];
     // Raw values have no transmission: the output falls back to line integrals.
     ASSERT_TRUE(waitSpectrum(*window, [&] {
         window->valuesCombo()->setCurrentIndex(window->valuesCombo()->findData(int(core::ValueMapping::Raw)));
     }));
+    // (the compare round trip above started a preprocessing of its own: wait for the raw one)
+    ASSERT_TRUE(QTest::qWaitFor([&] {
+        return !window->study().busy() && window->study().spectrum()->mapping == core::ValueMapping::Raw;
+    }, 60000));
+    QApplication::processEvents();
     EXPECT_EQ(window->outputCombo()->currentIndex(), 0);
-    EXPECT_FALSE(v->window().transmission.active());
+    EXPECT_FALSE(v->window().transmission.active())
+        << v->window().low << " " << v->window().high << " views " << window->views().size() << " same "
+        << (v == window->views()[0]) << "\n" << window->messages()->toPlainText().toStdString();
+    // Transmission from raw values switches to mu; the window follows the new image (log exposure
+    // of a few decades, not the raw spectrum's range).
+    ASSERT_TRUE(waitSpectrum(*window, [&] { window->outputCombo()->setCurrentIndex(1); }));
+    QApplication::processEvents();
+    EXPECT_EQ(window->study().spectrum()->mapping, core::ValueMapping::Mu) << window->messages()->toPlainText().toStdString();
+    EXPECT_GT(v->window().low, -10.0);
+    EXPECT_LE(v->window().high, 0.01);
+    EXPECT_GT(v->window().high - v->window().low, 0.2);
+    window->outputCombo()->setCurrentIndex(0);
     ASSERT_TRUE(waitSpectrum(*window, [&] {
         window->valuesCombo()->setCurrentIndex(window->valuesCombo()->findData(int(core::ValueMapping::MuBone)));
     }));

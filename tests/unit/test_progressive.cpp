@@ -62,6 +62,21 @@ TEST(Progressive, AHiccupDoesNotLockTheDragAtLowQuality) {
     EXPECT_EQ(c.level(), 1);
 }
 
+TEST(Progressive, AKernelLevelIsTriedNotGuessedFromTheCostlierKernel) {
+    // Catmull-Rom 512: 60 ms, linear 512: 15 ms, linear 256: 4 ms, target 30 fps (33 ms).
+    ProgressiveController c(30.0);
+    c.setLevels(progressiveLevels(512, Kernel::CatmullRom, false)); // CR 512, lin 512, lin 256, ...
+    c.frameRendered(60.0);                                          // the still frame
+    c.beginInteraction();
+    EXPECT_EQ(c.level(), 1); // 512 linear: unmeasured, so tried (not assumed to cost 60 ms)
+    std::string trace;
+    for (int i = 0; i < 30; ++i) {
+        c.frameRendered(c.level() == 0 ? 60.0 : c.level() == 1 ? 15.0 : 4.0);
+        trace += char('0' + c.level());
+    }
+    EXPECT_EQ(trace, std::string(30, '1')) << trace; // holds 512 linear, no 60 ms frames
+}
+
 TEST(Progressive, DisabledNeverDrops) {
     ProgressiveController off(0.0);
     off.setLevels(progressiveLevels(512, Kernel::CatmullRom, false));

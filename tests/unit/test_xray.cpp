@@ -317,8 +317,9 @@ TEST(XRay, SliceFilterResponse) {
     EXPECT_NEAR(f.response(10.0), 3.0, 1e-9); // high frequencies gain 1 + a
     f = {};
     f.bandLimitLpMm = 0.5;
-    EXPECT_NEAR(f.response(0.5), 0.5, 1e-12); // -3 dB at the cutoff
-    EXPECT_LT(f.response(0.75), 0.002);
+    EXPECT_NEAR(f.response(0.5), 1.0 / std::sqrt(2.0), 1e-12); // -3 dB at the cutoff
+    EXPECT_LT(f.response(0.75), 0.04);
+    EXPECT_LT(f.response(1.0), 0.004);
     EXPECT_GT(f.response(0.3), 0.999);
     EXPECT_THROW(validateSliceFilter({-1.0, 1.0, 0.0}), SettingsError);
     EXPECT_THROW(validateSliceFilter({1.0, 0.0, 0.0}), SettingsError);

@@ -206,10 +206,9 @@ void MainWindow::setCompareCount(int n) {
         if (n == 1) s = m_viewSettings[0];
         v->setSettings(s);
         v->setViewFrame(frame);
-        if (window) v->setWindow(*window);
         v->setOverlayVisible(m_overlayAction ? m_overlayAction->isChecked() : true);
         if (m_depthCue) v->setEffects(currentEffects());
-        if (m_targetFps) v->setTargetFps(m_targetFps->value());
+        if (m_targetFps) v->setTargetFps(m_difference ? 0 : m_targetFps->value());
         connect(v, &ProjectionView::interactionChanged, this, [this, v](bool on) {
             for (auto* o : m_views)
                 if (o != v) o->setInteracting(on); // synchronised views follow at their own level
@@ -217,6 +216,9 @@ void MainWindow::setCompareCount(int n) {
         if (n > 1) v->setTitle(tr("View %1: %2 %3×%3").arg(i + 1).arg(QString::fromUtf8(core::kernelName(s.kernel))).arg(s.size));
         m_viewGrid->addWidget(v, i / 2, i % 2);
         if (m_study->spectrum()) v->setStudy(m_study->volume(), m_study->spectrum());
+        // After setStudy (a new view's first study would reset the window to an auto window
+        // computed whenever it first paints, possibly after the user changed the output).
+        if (window) v->setWindow(*window);
         connect(v, &ProjectionView::viewFrameChanged, this, [this, v](const core::ViewFrame& f) {
             if (m_syncing) return;
             m_syncing = true;
@@ -252,6 +254,11 @@ void MainWindow::setCompareCount(int n) {
 void MainWindow::setDifferenceMode(bool on) {
     m_difference = on;
     for (std::size_t i = 1; i < m_views.size(); ++i) m_views[i]->setDifferenceReference(on ? m_views[0] : nullptr);
+    // Differences compare full-quality frames: no progressive levels while they are shown.
+    for (auto* v : m_views) v->setTargetFps(on || !m_targetFps ? 0 : m_targetFps->value());
+    // Back from differences: the views take view 1's window again (transmission included).
+    if (!on && !m_views.empty())
+        for (std::size_t i = 1; i < m_views.size(); ++i) m_views[i]->setWindow(m_views[0]->window());
 }
 
 void MainWindow::buildDocks() {
@@ -495,6 +502,7 @@ void MainWindow::buildDocks() {
             m_output->setCurrentIndex(0);
             applyOutput(true);
         }
+        m_rewindow = true; // new values, new range: window again when the spectrum is ready
         applySpectrumSettings();
     });
     connect(m_deapodize, &QCheckBox::toggled, this, [this] { applySpectrumSettings(); });
@@ -503,7 +511,7 @@ void MainWindow::buildDocks() {
     connect(m_invert, &QCheckBox::toggled, this, [this] { applyWindowFromPanel(); });
     connect(autoBtn, &QPushButton::clicked, this, [this] { applyPreset(m_preset->itemText(0)); });
     connect(m_targetFps, &QSpinBox::valueChanged, this, [this](int fps) {
-        for (auto* v : m_views) v->setTargetFps(fps);
+        for (auto* v : m_views) v->setTargetFps(m_difference ? 0 : fps);
         QSettings().setValue("render/targetFps", fps);
     });
     connect(m_output, &QComboBox::currentIndexChanged, this, [this] { applyOutput(true); });
@@ -742,6 +750,7 @@ void MainWindow::applyOutput(bool resetWindow) {
         }
         message(tr("Transmitted intensity needs attenuation values: switching the values to μ."));
         m_values->setCurrentIndex(m_values->findData(int(core::ValueMapping::Mu))); // applySpectrumSettings
+        m_rewindow = true; // the window follows the new spectrum's image (onSpectrumReady)
     }
     if (resetWindow) {
         const QSignalBlocker b(m_invert);
@@ -767,16 +776,22 @@ void MainWindow::onStudyLoaded(const QString& name) {
 }
 
 void MainWindow::onSpectrumReady() {
-    m_progress->setVisible(false);
-    m_cancel->setVisible(false);
-    { // the controller may have adjusted the settings (e.g. raw values for non-HU data)
+    // A newer preprocessing started after this one (the user changed settings meanwhile): the
+    // views show this spectrum, but the panel keeps the newer settings and the progress bar.
+    const bool newer = m_study->busy();
+    if (!newer) {
+        m_progress->setVisible(false);
+        m_cancel->setVisible(false);
+    }
+    if (!newer) { // the controller may have adjusted the settings (e.g. raw values for non-HU data)
         const SpectrumSettings& s = m_study->spectrumSettings();
         const QSignalBlocker b1(m_values), b2(m_transform), b3(m_oversampling);
         m_values->setCurrentIndex(m_values->findData(int(s.mapping)));
         m_transform->setCurrentIndex(m_transform->findData(int(s.transform)));
         m_oversampling->setCurrentIndex(m_oversampling->findData(s.oversampling));
     }
-    if (m_output->currentData().toInt() == 1 && m_study->spectrumSettings().mapping == core::ValueMapping::Raw) {
+    if (!newer && m_output->currentData().toInt() == 1 &&
+        m_study->spectrumSettings().mapping == core::ValueMapping::Raw) {
         message(tr("This study integrates raw values (not Hounsfield units): no transmitted intensity, the output "
                    "is line integrals."),
                 true);
@@ -786,6 +801,10 @@ void MainWindow::onSpectrumReady() {
     }
     for (std::size_t i = 0; i < m_views.size(); ++i) m_views[i]->setSettings(m_viewSettings[i]);
     for (auto* v : m_views) v->setStudy(m_study->volume(), m_study->spectrum());
+    if (m_rewindow && !newer) {
+        m_rewindow = false;
+        applyPreset(m_preset->itemText(0));
+    }
     updateStudyInfo();
 }
 

@@ -228,6 +228,7 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
         if (level == m_progressive.level()) frameTimed(t.totalMs);
     }
     m_renderedLevel = level;
+    m_renderedQuality = q;
     if (m_reference && m_reference != this) {
         auto own = m_gpu ? std::optional<core::ProjectionImage>(m_gpu->readback()) : m_cpuImage;
         auto ref = m_reference->projection();
@@ -324,7 +325,7 @@ void ProjectionView::paintGL() {
     }
     if (tex) {
         m_displayedLevel = m_renderedLevel;
-        m_displayedSize = m_progressive.levels()[std::size_t(m_renderedLevel)].size;
+        m_displayedSize = m_renderedQuality.size;
     }
     if (tex && m_quad && m_quad->isLinked()) {
         const QRectF r = imageRect();
@@ -383,7 +384,7 @@ void ProjectionView::drawOverlay() {
     QStringList lines;
     if (!m_title.isEmpty()) lines << m_title;
     if (m_overlay) {
-        const core::QualityLevel shown = m_progressive.levels()[std::size_t(m_renderedLevel)];
+        const core::QualityLevel shown = m_renderedQuality;
         lines << QStringLiteral("%1 fps  %2  %3×%3  %4")
                      .arg(m_stats.fps > 0 ? QString::number(m_stats.fps, 'f', 0) : QStringLiteral("–"))
                      .arg(QString::fromUtf8(core::kernelName(shown.kernel)))
@@ -474,6 +475,10 @@ void ProjectionView::mousePressEvent(QMouseEvent* e) {
 
 void ProjectionView::mouseMoveEvent(QMouseEvent* e) {
     if (m_dragButton == Qt::NoButton) return;
+    if (!(e->buttons() & m_dragButton)) { // the release went elsewhere (a grab, a focus change)
+        endDrag();
+        return;
+    }
     const QPoint pos = e->position().toPoint();
     const QPoint delta = pos - m_lastPos;
     m_lastPos = pos;
@@ -503,7 +508,16 @@ void ProjectionView::mouseMoveEvent(QMouseEvent* e) {
     }
 }
 
-void ProjectionView::mouseReleaseEvent(QMouseEvent*) {
+void ProjectionView::mouseReleaseEvent(QMouseEvent* e) {
+    if (e->button() == m_dragButton) endDrag();
+}
+
+void ProjectionView::focusOutEvent(QFocusEvent* e) {
+    endDrag();
+    QOpenGLWidget::focusOutEvent(e);
+}
+
+void ProjectionView::endDrag() {
     m_dragButton = Qt::NoButton;
     if (m_progressive.interacting()) {
         setInteracting(false);

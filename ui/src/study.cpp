@@ -1,5 +1,7 @@
 #include <fvr/ui/study.h>
 
+#include <fvr/core/xray.h>
+
 #include <QDir>
 #include <QFileInfo>
 
@@ -176,7 +178,7 @@ void StudyController::open(const StudySource& source) {
             }
         }
         SpectrumSettings used = settings;
-        if (used.mapping == core::ValueMapping::Mu && vol->units != core::ValueUnits::HounsfieldUnits) {
+        if (core::isAttenuation(used.mapping) && vol->units != core::ValueUnits::HounsfieldUnits) {
             // mu = 1 + HU/1000 only means something for Hounsfield units.
             used.mapping = core::ValueMapping::Raw;
             warnings << tr("The values are not Hounsfield units (%1): integrating the raw values instead of "

@@ -8,7 +8,7 @@ layout(std430, binding = 3) readonly buffer TwiddleBuffer { vec2 twiddles[]; };
 
 shared vec2 row[MAX_M];
 
-const int R4_PER_THREAD = (MAX_M / 4 + WG_SIZE - 1) / WG_SIZE;
+const int R4_PER_THREAD = MAX_M >= 4 ? (MAX_M / 4 + WG_SIZE - 1) / WG_SIZE : 1;
 const int R2_PER_THREAD = (MAX_M / 2 + WG_SIZE - 1) / WG_SIZE;
 
 vec2 cmul(vec2 a, vec2 b) { return vec2(a.x * b.x - a.y * b.y, a.x * b.y + a.y * b.x); }

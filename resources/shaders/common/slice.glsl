@@ -159,7 +159,7 @@ float filterResponse(int m, int n) {
         float q = r2 * uBandInv2;
         q *= q;
         q *= q;
-        h /= 1.0 + q * q;
+        h /= sqrt(1.0 + q * q);
     }
     return h;
 }

@@ -52,7 +52,8 @@ public:
      *  Fast frames let a remembered slow time of the level above decay towards their prediction
      *  (20 % per frame), so a single hiccup does not keep the drag at low quality. */
     void frameRendered(double ms);
-    /** Expected time (ms) of a level: its last measured time, else an estimate; 0 if unknown. */
+    /** Expected time (ms) of a level: its measured time, else an estimate from the nearest
+     *  measured level with the same kernel (scaled by the pixel count); 0 if unknown. */
     double expectedMs(int level) const;
     /** "full quality" or "interactive 2/4: 256² linear". */
     std::string describe() const;

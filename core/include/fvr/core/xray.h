@@ -82,7 +82,7 @@ DepthCueWeights depthCueWeights(double strength, const Dims3& dims, const Vec3& 
 /**
  * A real, radially symmetric filter multiplied into the central slice before the inverse
  * transform (free per frame; the same for the FFT and the FHT path):
- *   H(nu) = (1 + a (1 - exp(-2 pi^2 sigma^2 nu^2))) / (1 + (nu / nu_c)^16)
+ *   H(nu) = (1 + a (1 - exp(-2 pi^2 sigma^2 nu^2))) / sqrt(1 + (nu / nu_c)^16)
  * for the spatial frequency nu (cycles per mm, |(m, n)| / (M d)): an unsharp mask (image plus a
  * times image minus its Gaussian blur of sigma mm) and an order-8 Butterworth band limit at
  * nu_c line pairs per mm (-3 dB there).

@@ -115,6 +115,7 @@ private:
     int m_compareCount = 1;
     bool m_difference = false;
     bool m_syncing = false;
+    bool m_rewindow = false; ///< auto window once the next spectrum is ready (values changed)
 
     QComboBox* m_kernel = nullptr;
     QComboBox* m_size = nullptr;

@@ -108,11 +108,13 @@ protected:
     void mouseMoveEvent(QMouseEvent* e) override;
     void mouseReleaseEvent(QMouseEvent* e) override;
     void wheelEvent(QWheelEvent* e) override;
+    void focusOutEvent(QFocusEvent* e) override;
 
 private:
     void releaseGl();
     void renderIfNeeded(bool fullQuality = false);
     void frameTimed(double ms);
+    void endDrag();
     void drawOverlay();
     QRectF imageRect() const;
 
@@ -124,6 +126,7 @@ private:
     FrameEffects m_effects;
     core::ProgressiveController m_progressive;
     int m_renderedLevel = 0, m_displayedLevel = 0, m_displayedSize = 0, m_timedLevel = 0;
+    core::QualityLevel m_renderedQuality; ///< what the last frame rendered with
     double m_extraFrameMs = 0.0;
     core::ViewFrame m_view;
     core::DisplayWindow m_window{0.0, 1.0, false};
