@@ -68,6 +68,8 @@ Rendering:
   --oversampling f      zero-padding factor 1..2 (default 1, as in the paper)
   --values V            raw (stored values) | mu (attenuation rel. water, max(0,1+HU/1000)) |
                         mu-bone (as mu up to +100 HU, twice as steep above: bone stands out)
+  --no-clip             keep what FVR puts outside the volume's shadow (ghost copies, ringing);
+                        by default pixels whose ray misses the volume are 0, as they truly are
   --depth-cue S         depth cueing strength 0..1 (default 0): weight 1 at the front of the
                         volume's bounding sphere falling linearly to 1-S at its back (not with
                         --kernel nearest)
@@ -137,6 +139,7 @@ struct Args {
     std::optional<double> exposure;
     Transmission transmission;     ///< resolved from the three above; active with --beer-lambert
     double depthCue = 0.0;
+    bool clip = true;
     SliceFilter filter;
     std::string out;
     bool info = false;
@@ -204,6 +207,7 @@ Args parseArgs(int argc, char** argv) {
         else if (opt == "--energy") a.energy = parseNumber(opt, value());
         else if (opt == "--exposure") a.exposure = parseNumber(opt, value());
         else if (opt == "--depth-cue") a.depthCue = parseNumber(opt, value());
+        else if (opt == "--no-clip") a.clip = false;
         else if (opt == "--sharpen") a.filter.sharpenAmount = parseNumber(opt, value());
         else if (opt == "--sharpen-radius") a.filter.sharpenSigmaMm = parseNumber(opt, value());
         else if (opt == "--band-limit") a.filter.bandLimitLpMm = parseNumber(opt, value());
@@ -415,7 +419,7 @@ std::string settingsJson(const Args& a, const Spectrum& s, double d, int threads
       << ", \"volume_dims\": [" << s.volumeDims[0] << ", " << s.volumeDims[1] << ", "
       << s.volumeDims[2] << "], \"padded_dims\": [" << s.padded[0] << ", " << s.padded[1] << ", " << s.padded[2]
       << "], \"spectrum_mb\": " << double(s.bytes()) / (1 << 20) << ", \"threads\": " << threads
-      << ", \"depth_cue\": " << a.depthCue << ", \"filter\": {\"sharpen\": " << a.filter.sharpenAmount
+      << ", \"clip_to_volume\": " << (a.clip ? "true" : "false") << ", \"depth_cue\": " << a.depthCue << ", \"filter\": {\"sharpen\": " << a.filter.sharpenAmount
       << ", \"sharpen_radius_mm\": " << a.filter.sharpenSigmaMm << ", \"band_limit_lp_per_mm\": "
       << a.filter.bandLimitLpMm << "}}";
     return o.str();
@@ -573,6 +577,7 @@ int run(int argc, char** argv) {
         RenderParams p{view, geom, a.kernel};
         p.depthCue = a.depthCue;
         p.filter = a.filter;
+        p.clipToVolume = a.clip;
         return p;
     };
     validateRenderParams(params(base));

@@ -545,6 +545,15 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
         std::memcpy(img.pixels.data(), slice, sizeof(float) * img.pixels.size());
         t2 = Clock::now();
     }
+    if (params.clipToVolume) {
+        m_pool.parallelFor(M, 8, [&](std::int64_t r0, std::int64_t r1) {
+            for (std::int64_t row = r0; row < r1; ++row)
+                for (int col = 0; col < M; ++col)
+                    if (rayMissesVolume(params.view, s.volumeDims, s.spacing, M, d, col, int(row)))
+                        img.pixels[std::size_t(row) * M + col] = 0.0f;
+        });
+        t2 = Clock::now();
+    }
     if (times) {
         auto ms = [](auto a, auto b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
         times->sliceMs = ms(t0, t1);

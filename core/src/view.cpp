@@ -1,5 +1,6 @@
 #include <fvr/core/view.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include <fvr/core/errors.h>
@@ -58,6 +59,23 @@ void validateImageGeometry(const ImageGeometry& g) {
     if (!(g.pixelSize > 0.0) || !std::isfinite(g.pixelSize))
         throw SettingsError("pixel size: expected a positive number of mm, found " +
                             std::to_string(g.pixelSize));
+}
+
+bool rayMissesVolume(const ViewFrame& view, const Dims3& dims, const Vec3& spacing, int M, double d, int col,
+                     int row) {
+    double t0 = -1e300, t1 = 1e300;
+    for (int a = 0; a < 3; ++a) {
+        const double h = (double(dims[a]) / 2.0 + 1.0) * spacing[a];
+        const double o = (col - M / 2) * d * view.r[a] - (row - M / 2) * d * view.u[a];
+        if (std::abs(view.d[a]) < 1e-9) {
+            if (std::abs(o) >= h) return true;
+            continue;
+        }
+        const double ta = (-h - o) / view.d[a], tb = (h - o) / view.d[a];
+        t0 = std::max(t0, std::min(ta, tb));
+        t1 = std::min(t1, std::max(ta, tb));
+    }
+    return !(t1 > t0);
 }
 
 } // namespace fvr::core

@@ -389,12 +389,13 @@ void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel,
     m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 }
 
-void GpuFourierRenderer::runCols(int M, const char* outputMode) {
+void GpuFourierRenderer::runCols(int M, const char* outputMode, const core::RenderParams* params) {
     const GLuint prog = program("fft/cols.comp", {{"MAX_M", std::to_string(M)},
                                                   {"WG_SIZE", std::to_string(workGroupSize(M))},
                                                   {outputMode, "1"}});
     m_gl->glUseProgram(prog);
     m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
+    if (std::strcmp(outputMode, "OUTPUT_REAL") == 0) setClipUniforms(prog, params);
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_bufB);
     const bool complexOut = std::strcmp(outputMode, "OUTPUT_COMPLEX") == 0;
     const bool hartleyOut = std::strcmp(outputMode, "OUTPUT_HARTLEY") == 0;
@@ -404,10 +405,25 @@ void GpuFourierRenderer::runCols(int M, const char* outputMode) {
     m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 }
 
-void GpuFourierRenderer::runHartleyCorrection(int M) {
+void GpuFourierRenderer::setClipUniforms(unsigned prog, const core::RenderParams* p) {
+    auto loc = [&](const char* n) { return m_gl->glGetUniformLocation(prog, n); };
+    const bool clip = p && p->clipToVolume && m_spectrum;
+    m_gl->glUniform1i(loc("uClip"), clip ? 1 : 0);
+    if (!clip) return;
+    const core::Spectrum& s = *m_spectrum;
+    m_gl->glUniform3f(loc("uBoxHalf"), float((s.volumeDims[0] / 2.0 + 1.0) * s.spacing[0]),
+                      float((s.volumeDims[1] / 2.0 + 1.0) * s.spacing[1]), float((s.volumeDims[2] / 2.0 + 1.0) * s.spacing[2]));
+    m_gl->glUniform3f(loc("uViewD"), float(p->view.d[0]), float(p->view.d[1]), float(p->view.d[2]));
+    m_gl->glUniform3f(loc("uViewR"), float(p->view.r[0]), float(p->view.r[1]), float(p->view.r[2]));
+    m_gl->glUniform3f(loc("uViewU"), float(p->view.u[0]), float(p->view.u[1]), float(p->view.u[2]));
+    m_gl->glUniform1f(loc("uPixel"), float(p->image.pixelSize));
+}
+
+void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* params) {
     const GLuint prog = program("fft/hartley_correct.comp", {});
     m_gl->glUseProgram(prog);
     m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
+    setClipUniforms(prog, params);
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_hartleyT);
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_image);
     m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
@@ -441,10 +457,10 @@ void GpuFourierRenderer::render(const core::RenderParams& p) {
     m_gl->glQueryCounter(m_queries[1], GL_TIMESTAMP);
     runRows(M, m_fuse, fht, p.kernel, &p);
     if (!fht) {
-        runCols(M, "OUTPUT_REAL");
+        runCols(M, "OUTPUT_REAL", &p);
     } else {
-        runCols(M, "OUTPUT_HARTLEY");
-        runHartleyCorrection(M);
+        runCols(M, "OUTPUT_HARTLEY", &p);
+        runHartleyCorrection(M, &p);
     }
     m_gl->glQueryCounter(m_queries[2], GL_TIMESTAMP);
     if (const GLenum err = m_gl->glGetError(); err != GL_NO_ERROR)
@@ -516,7 +532,7 @@ std::vector<std::complex<float>> GpuFourierRenderer::inverseFft2D(const std::vec
     m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
     m_gl->glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(data.size() * 8), data.data());
     runRows(M, false, false, Kernel::Linear, nullptr);
-    runCols(M, "OUTPUT_COMPLEX");
+    runCols(M, "OUTPUT_COMPLEX", nullptr);
     std::vector<std::complex<float>> out(data.size());
     m_gl->glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
@@ -531,8 +547,8 @@ std::vector<float> GpuFourierRenderer::inverseFht2D(const std::vector<float>& da
     m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
     m_gl->glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(in.size() * 8), in.data());
     runRows(M, false, true, Kernel::Linear, nullptr);
-    runCols(M, "OUTPUT_HARTLEY");
-    runHartleyCorrection(M);
+    runCols(M, "OUTPUT_HARTLEY", nullptr);
+    runHartleyCorrection(M, nullptr);
     m_gl->glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     std::vector<float> out(data.size());
     m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_image);

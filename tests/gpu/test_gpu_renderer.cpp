@@ -356,3 +356,25 @@ TEST_F(GlTest, TransmissionDisplayIsExpOfTheLineIntegrals) {
         EXPECT_GT(distinct, 50); // a real gray ramp, not a blank image
     }
 }
+
+TEST_F(GlTest, ClipToVolumeMatchesCpu) {
+    const Volume v = makeSheppLoganVolume(40);
+    const ViewFrame views[] = {ViewFrame::fromDirUp({0.35, 0.2, 0.92}, {0, -1, 0}),
+                               ViewFrame::fromDirUp({1, 0, 0}, {0, 0, 1})};
+    for (auto t : {TransformKind::Fft, TransformKind::Fht}) {
+        auto s = spectrumOf(v, t, 1.0);
+        CpuFourierRenderer cpu(s, 2);
+        GpuFourierRenderer gpu;
+        gpu.setSpectrum(s);
+        for (const auto& view : views) {
+            RenderParams p{view, {128, 1.5 * defaultPixelSize(v.dims, v.spacing, 128)}, Kernel::Linear};
+            p.clipToVolume = true;
+            const auto a = cpu.render(p);
+            const auto b = gpu.renderImage(p);
+            int zeros = 0;
+            for (float x : b.pixels) zeros += x == 0.0f;
+            EXPECT_GT(zeros, 128 * 128 / 10) << transformName(t);
+            EXPECT_GT(fvr::test::compare(b.pixels, a.pixels).psnr, 90.0) << transformName(t);
+        }
+    }
+}

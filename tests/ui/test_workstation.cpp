@@ -94,7 +94,9 @@ core::ProjectionImage cpuReference(MainWindow& w, const ui::ProjectionView& v) {
     core::CpuFourierRenderer r(w.study().spectrum(), 2);
     const auto& vol = *w.study().volume();
     const int M = v.settings().size;
-    return r.render({v.viewFrame(), {M, core::defaultPixelSize(vol.dims, vol.spacing, M)}, v.settings().kernel});
+    const auto& e = v.effects(); // depth cue, filters and the clip, as the view renders
+    return r.render({v.viewFrame(), {M, core::defaultPixelSize(vol.dims, vol.spacing, M)}, v.settings().kernel,
+                     e.depthCue, e.filter, e.clip});
 }
 
 } // namespace
@@ -360,6 +362,8 @@ TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
     const auto& vol = *window->study().volume();
     const int M = v->settings().size;
     core::RenderParams p{v->viewFrame(), {M, core::defaultPixelSize(vol.dims, vol.spacing, M)}, v->settings().kernel};
+    EXPECT_TRUE(v->effects().clip); // on by default
+    p.clipToVolume = v->effects().clip;
     const auto plain = r.render(p);
     p.depthCue = 0.6;
     p.filter = {1.5, 3.0, 0.4};

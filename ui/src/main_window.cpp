@@ -325,6 +325,10 @@ void MainWindow::buildDocks() {
                                "(or with linear interpolation when the spectrum allows) to hold this frame rate; "
                                "the full-quality frame follows when you let go. The overlay shows the level."));
     rf->addRow(tr("Interactive target"), m_targetFps);
+    m_clip = new QCheckBox(tr("Clip to the volume (no ghosts outside it)"), rw);
+    m_clip->setToolTip(tr("Pixels whose ray misses the volume are exactly 0 in a projection; Fourier rendering puts "
+                          "the kernel's ghost copies and ringing there. On: those pixels show 0."));
+    rf->addRow(QString(), m_clip);
     renderDock->setWidget(rw);
     addDockWidget(Qt::RightDockWidgetArea, renderDock);
 
@@ -461,6 +465,7 @@ void MainWindow::buildDocks() {
     selectData(m_values, s.value("render/values", int(core::ValueMapping::Mu)));
     m_invert->setChecked(s.value("display/invert", false).toBool());
     m_targetFps->setValue(s.value("render/targetFps", 30).toInt());
+    m_clip->setChecked(s.value("render/clip", true).toBool());
     m_energy->setValue(s.value("xray/energyKeV", 70.0).toDouble());
     m_exposure->setValue(s.value("xray/exposure", 1.0).toDouble());
     m_output->setCurrentIndex(s.value("xray/output", 0).toInt() == 1 ? 1 : 0);
@@ -520,6 +525,7 @@ void MainWindow::buildDocks() {
     for (auto* sb : {m_sharpen, m_sharpenRadius, m_bandLimit})
         connect(sb, &QDoubleSpinBox::valueChanged, this, [this] { applyEffects(); });
     connect(m_depthCue, &QSpinBox::valueChanged, this, [this] { applyEffects(); });
+    connect(m_clip, &QCheckBox::toggled, this, [this] { applyEffects(); });
     m_energy->setEnabled(m_output->currentIndex() == 1);
     m_exposure->setEnabled(m_output->currentIndex() == 1);
     if (m_output->currentIndex() == 1) applyOutput(true);
@@ -708,6 +714,7 @@ FrameEffects MainWindow::currentEffects() const {
     e.filter.sharpenAmount = m_sharpen->value();
     e.filter.sharpenSigmaMm = m_sharpenRadius->value();
     e.filter.bandLimitLpMm = m_bandLimit->value();
+    e.clip = m_clip->isChecked();
     return e;
 }
 
@@ -719,6 +726,7 @@ void MainWindow::applyEffects() {
     st.setValue("xray/sharpen", e.filter.sharpenAmount);
     st.setValue("xray/sharpenRadius", e.filter.sharpenSigmaMm);
     st.setValue("xray/bandLimit", e.filter.bandLimitLpMm);
+    st.setValue("render/clip", e.clip);
     if (e.depthCue > 0 && std::any_of(m_views.begin(), m_views.end(), [](ProjectionView* v) {
             return v->settings().kernel == core::Kernel::Nearest;
         }))

@@ -212,6 +212,7 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
     core::RenderParams params{m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)}, q.kernel};
     params.depthCue = m_effects.depthCue;
     params.filter = m_effects.filter;
+    params.clipToVolume = m_effects.clip;
     if (m_gpu) {
         m_gpu->render(params); // stage times are read after the display pass (paintGL)
         m_gpuTimesPending = true;
@@ -447,7 +448,7 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
             if (m_gpu) img = m_gpu->readback(); // the view's own projection, also in difference mode
             else if (m_reference && m_cpuImage)
                 img = m_cpu->render({m_view, {m_settings.size, m_cpuImage->pixelSize}, m_settings.kernel,
-                                     m_effects.depthCue, m_effects.filter});
+                                     m_effects.depthCue, m_effects.filter, m_effects.clip});
             else img = m_cpuImage;
         } catch (const std::exception&) {
             img.reset();
@@ -458,7 +459,7 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
     if (!m_cpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
     const int M = m_settings.size;
     return m_cpu->render({m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)}, m_settings.kernel,
-                          m_effects.depthCue, m_effects.filter});
+                          m_effects.depthCue, m_effects.filter, m_effects.clip});
 }
 
 QImage ProjectionView::screenshot() { return grabFramebuffer(); }

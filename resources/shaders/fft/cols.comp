@@ -6,6 +6,9 @@
 layout(local_size_x = WG_SIZE) in;
 #include "common/fft.glsl"
 uniform int uM;
+#ifdef OUTPUT_REAL
+#include "common/clip.glsl"
+#endif
 layout(std430, binding = 1) readonly buffer ColsIn { vec2 colsIn[]; };
 #ifdef OUTPUT_COMPLEX
 layout(std430, binding = 0) writeonly buffer ColsOut { vec2 colsOut[]; };
@@ -26,7 +29,7 @@ void main() {
 #elif defined(OUTPUT_HARTLEY)
         colsOut[i * uM + c] = row[i].x + row[i].y;
 #else
-        colsOut[i * uM + c] = row[i].x;
+        colsOut[i * uM + c] = (uClip != 0 && rayMissesVolume(c, i, uM)) ? 0.0 : row[i].x;
 #endif
     }
 }

@@ -3,6 +3,7 @@
 // transform, H(u,v) = 1/2 (T(u,v) + T(-u,v) + T(u,-v) - T(-u,-v)).
 layout(local_size_x = 16, local_size_y = 16) in;
 uniform int uM;
+#include "common/clip.glsl"
 layout(std430, binding = 1) readonly buffer TIn { float tIn[]; };
 layout(std430, binding = 0) writeonly buffer HOut { float hOut[]; };
 
@@ -11,5 +12,6 @@ void main() {
     if (u >= uM || v >= uM) return;
     int mu = u == 0 ? 0 : uM - u;
     int mv = v == 0 ? 0 : uM - v;
-    hOut[v * uM + u] = 0.5 * (tIn[v * uM + u] + tIn[v * uM + mu] + tIn[mv * uM + u] - tIn[mv * uM + mu]);
+    float h = 0.5 * (tIn[v * uM + u] + tIn[v * uM + mu] + tIn[mv * uM + u] - tIn[mv * uM + mu]);
+    hOut[v * uM + u] = (uClip != 0 && rayMissesVolume(u, v, uM)) ? 0.0 : h;
 }

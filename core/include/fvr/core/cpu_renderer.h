@@ -24,6 +24,9 @@ struct RenderParams {
     double depthCue = 0.0;
     /** Spectral filter multiplied into the slice before the inverse transform (xray.h). */
     SliceFilter filter;
+    /** Writes 0 to pixels whose ray misses the volume (rayMissesVolume): removes the kernel's
+     *  ghost copies and ringing outside the volume's shadow, where the true projection is 0. */
+    bool clipToVolume = false;
 };
 
 /** Checks geometry, depth cue and filter (SettingsError naming the problem). */

@@ -34,6 +34,12 @@ struct ImageGeometry {
  *  projection of any view fits the image period M*d (no overlapping copies). */
 double defaultPixelSize(const Dims3& dims, const Vec3& spacing, int size);
 
+/** Whether the ray of pixel (col, row) of an M x M image with pixel size d misses the volume's
+ *  box grown by one voxel per side (half extents (N_a / 2 + 1) s_a around the centre): its true
+ *  line integral is then exactly 0 (clipToVolume in RenderParams). */
+bool rayMissesVolume(const ViewFrame& view, const Dims3& dims, const Vec3& spacing, int M, double d, int col,
+                     int row);
+
 /** Checks that M is a power of two in [16, 4096] (the renderers accept 128..2048 in the UI; tests
  *  use smaller ones) and pixel size > 0; throws SettingsError. */
 void validateImageGeometry(const ImageGeometry& g);

@@ -84,8 +84,9 @@ private:
     void bindKernel(unsigned prog, core::Kernel kernel, bool derivative);
     void setSliceUniforms(unsigned prog, const core::RenderParams& params);
     void runRows(int M, bool fused, bool hartley, core::Kernel kernel, const core::RenderParams* params);
-    void runCols(int M, const char* outputMode);
-    void runHartleyCorrection(int M);
+    void runCols(int M, const char* outputMode, const core::RenderParams* params);
+    void runHartleyCorrection(int M, const core::RenderParams* params);
+    void setClipUniforms(unsigned prog, const core::RenderParams* params);
     void releaseTexture();
 
     QOpenGLFunctions_4_3_Core* m_gl = nullptr;

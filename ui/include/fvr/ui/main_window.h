@@ -72,6 +72,7 @@ public:
     QDoubleSpinBox* sharpenRadiusSpin() const { return m_sharpenRadius; }
     QDoubleSpinBox* bandLimitSpin() const { return m_bandLimit; }
     QSpinBox* targetFpsSpin() const { return m_targetFps; }
+    QCheckBox* clipCheck() const { return m_clip; }
     /** The transmission the X-ray panel asks for (inactive for line integrals). */
     core::Transmission currentTransmission() const;
     FrameEffects currentEffects() const;
@@ -137,6 +138,7 @@ private:
     QDoubleSpinBox* m_sharpenRadius = nullptr;
     QDoubleSpinBox* m_bandLimit = nullptr;
     QSpinBox* m_targetFps = nullptr;
+    QCheckBox* m_clip = nullptr;
     QComboBox* m_preset = nullptr;
     QLabel* m_studyInfo = nullptr;
     QPlainTextEdit* m_messages = nullptr;

@@ -36,6 +36,7 @@ struct ViewSettings {
 struct FrameEffects {
     double depthCue = 0.0;
     core::SliceFilter filter;
+    bool clip = true; ///< zero outside the volume's shadow (RenderParams::clipToVolume)
     bool operator==(const FrameEffects&) const = default;
 };
 
