@@ -462,3 +462,35 @@ TEST(FvrRender, BenchPassesTheDepthCueToRayCastingAndNotesTheFilter) {
     EXPECT_NE(r.output.find("\"note\": \"the spatial projector cannot apply the slice filter"), std::string::npos)
         << r.output;
 }
+
+TEST(FvrRender, ClipsOutsideTheVolumeUnlessNoClip) {
+    // A wide field (3 mm pixels, 384 mm) around a 256 mm phantom: the kernel's ghost copies land
+    // in the image outside the volume's shadow. By default those pixels are 0 (as in the exact
+    // projection); --no-clip keeps them.
+    const std::string common = "phantom:shepp-logan:64 --dir 0.35,0.2,0.92 --up 0,-1,0 --size 128 --pixel-size 3 "
+                               "--kernel linear --values mu --out ";
+    ASSERT_EQ(run(common + tmp("clip.npy")).status, 0);
+    const Result r = run(common + tmp("noclip.npy") + " --no-clip");
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::vector<std::int64_t> shape;
+    const auto clip = readNpy(tmp("clip.npy"), shape);
+    const auto noclip = readNpy(tmp("noclip.npy"), shape);
+    const Volume v = makeSheppLoganVolume(64);
+    const ViewFrame view = ViewFrame::fromDirUp({0.35, 0.2, 0.92}, {0, -1, 0});
+    const auto truth = EllipsoidPhantom::sheppLogan3D(256.0).project(view, {128, 3.0}, ValueMapping::Mu, v.dims, v.spacing);
+    int outside = 0;
+    double ghost = 0;
+    for (int row = 0; row < 128; ++row)
+        for (int col = 0; col < 128; ++col) {
+            if (!rayMissesVolume(view, v.dims, v.spacing, 128, 3.0, col, row)) continue;
+            const std::size_t i = std::size_t(row) * 128 + col;
+            ++outside;
+            EXPECT_EQ(clip[i], 0.0f);
+            ghost = std::max(ghost, double(std::abs(noclip[i])));
+        }
+    EXPECT_GT(outside, 1000);
+    EXPECT_GT(ghost, 1.0);
+    EXPECT_GT(fvr::test::compare(clip, truth.pixels).psnr, fvr::test::compare(noclip, truth.pixels).psnr);
+    EXPECT_NE(readText(tmp("noclip.npy") + ".json").find("\"clip_to_volume\": false"), std::string::npos);
+    EXPECT_NE(readText(tmp("clip.npy") + ".json").find("\"clip_to_volume\": true"), std::string::npos);
+}
