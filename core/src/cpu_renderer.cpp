@@ -1,10 +1,12 @@
 #include <fvr/core/cpu_renderer.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <complex>
 #include <cstring>
 #include <numbers>
+#include <type_traits>
 
 #include <fvr/core/errors.h>
 
@@ -281,15 +283,22 @@ inline void prefetchHartley(const SliceContext& c, double kx, double ky, double 
             __builtin_prefetch(base + (wrapSmall(by + yc, c.P1) + c.P1 * wrapSmall(bz + zc, c.P2)) * c.rs);
 }
 
-/** Interpolated Hartley value at continuous signed frequency k. */
-template <int T>
+/** Interpolated Hartley value at continuous signed frequency k; with Derivative, E.grad H there
+ *  instead (depth cueing, FHT path), from the same taps with the derivative weights. */
+template <int T, bool Derivative = false>
 inline float sampleHartley(const SliceContext& c, double kx, double ky, double kz) {
     if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return 0.0f;
     std::int64_t bx, by, bz;
-    float wx[T], wy[T], wz[T];
-    axisWeights<T>(c, kx, bx, wx);
-    axisWeights<T>(c, ky, by, wy);
-    axisWeights<T>(c, kz, bz, wz);
+    float wx[T], wy[T], wz[T], dx[T], dy[T], dz[T];
+    if constexpr (Derivative) {
+        axisDerivWeights<T>(c, kx, bx, wx, dx);
+        axisDerivWeights<T>(c, ky, by, wy, dy);
+        axisDerivWeights<T>(c, kz, bz, wz, dz);
+    } else {
+        axisWeights<T>(c, kx, bx, wx);
+        axisWeights<T>(c, ky, by, wy);
+        axisWeights<T>(c, kz, bz, wz);
+    }
     std::int64_t ix[T], iy[T], iz[T];
     for (int t = 0; t < T; ++t) {
         ix[t] = wrapSmall(bx + t, c.P0);
@@ -302,36 +311,13 @@ inline float sampleHartley(const SliceContext& c, double kx, double ky, double k
             const float* row = c.data + (iy[yc] + c.P1 * iz[zc]) * c.rs;
             float sx = 0.0f;
             for (int xc = 0; xc < T; ++xc) sx += wx[xc] * row[ix[xc]];
-            acc += (wz[zc] * wy[yc]) * sx;
-        }
-    return acc;
-}
-
-/** E.grad H at continuous signed frequency k (depth cueing, FHT path). */
-template <int T>
-inline float sampleHartleyDerivative(const SliceContext& c, double kx, double ky, double kz) {
-    if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return 0.0f;
-    std::int64_t bx, by, bz;
-    float wx[T], wy[T], wz[T], dx[T], dy[T], dz[T];
-    axisDerivWeights<T>(c, kx, bx, wx, dx);
-    axisDerivWeights<T>(c, ky, by, wy, dy);
-    axisDerivWeights<T>(c, kz, bz, wz, dz);
-    std::int64_t ix[T], iy[T], iz[T];
-    for (int t = 0; t < T; ++t) {
-        ix[t] = wrapSmall(bx + t, c.P0);
-        iy[t] = wrapSmall(by + t, c.P1);
-        iz[t] = wrapSmall(bz + t, c.P2);
-    }
-    float acc = 0.0f;
-    for (int zc = 0; zc < T; ++zc)
-        for (int yc = 0; yc < T; ++yc) {
-            const float* row = c.data + (iy[yc] + c.P1 * iz[zc]) * c.rs;
-            float sx = 0.0f, dsx = 0.0f;
-            for (int xc = 0; xc < T; ++xc) {
-                sx += wx[xc] * row[ix[xc]];
-                dsx += dx[xc] * row[ix[xc]];
+            if constexpr (Derivative) {
+                float dsx = 0.0f;
+                for (int xc = 0; xc < T; ++xc) dsx += dx[xc] * row[ix[xc]];
+                acc += (wz[zc] * wy[yc] * c.E[0]) * dsx + (c.E[1] * dy[yc] * wz[zc] + c.E[2] * wy[yc] * dz[zc]) * sx;
+            } else {
+                acc += (wz[zc] * wy[yc]) * sx;
             }
-            acc += (wz[zc] * wy[yc] * c.E[0]) * dsx + (c.E[1] * dy[yc] * wz[zc] + c.E[2] * wy[yc] * dz[zc]) * sx;
         }
     return acc;
 }
@@ -385,7 +371,7 @@ void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const Filter
     auto sample = [&](double m, double n) {
         const double kx = m * f.A[0] + n * f.B[0], ky = m * f.A[1] + n * f.B[1], kz = m * f.A[2] + n * f.B[2];
         if constexpr (Depth)
-            return c.depthA * sampleHartley<T>(c, kx, ky, kz) + sampleHartleyDerivative<T>(c, -kx, -ky, -kz);
+            return c.depthA * sampleHartley<T>(c, kx, ky, kz) + sampleHartley<T, true>(c, -kx, -ky, -kz);
         else
             return sampleHartley<T>(c, kx, ky, kz);
     };
@@ -416,6 +402,28 @@ void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const Filter
             }
         }
     });
+}
+
+/** Calls f(taps, depth) with compile-time constants for the kernel's tap count; linear with depth
+ *  cueing runs on 3 taps (the central difference on integer frequencies, axisDerivWeights). */
+template <class F>
+void dispatchTaps(int taps, bool depth, F&& f) {
+    using std::integral_constant;
+    using No = std::false_type;
+    using Yes = std::true_type;
+    if (!depth) {
+        switch (taps) {
+        case 1: return f(integral_constant<int, 1>{}, No{});
+        case 2: return f(integral_constant<int, 2>{}, No{});
+        case 6: return f(integral_constant<int, 6>{}, No{});
+        default: return f(integral_constant<int, 4>{}, No{});
+        }
+    }
+    switch (taps) {
+    case 2: return f(integral_constant<int, 3>{}, Yes{});
+    case 6: return f(integral_constant<int, 6>{}, Yes{});
+    default: return f(integral_constant<int, 4>{}, Yes{});
+    }
 }
 
 /** Eq. 4: H(u,v) = 1/2 (T(u,v) + T(-u,v) + T(u,-v) - T(-u,-v)), in place, 4 mirror points at once. */
@@ -504,20 +512,9 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
     Clock::time_point t1, t2;
     if (s.kind == TransformKind::Fft) {
         auto* slice = reinterpret_cast<cfloat*>(res.slice.get());
-        if (!depth) {
-            switch (c.taps) {
-            case 1: sliceHalfComplex<1, false>(c, f, filter, M, slice, m_pool); break;
-            case 2: sliceHalfComplex<2, false>(c, f, filter, M, slice, m_pool); break;
-            case 6: sliceHalfComplex<6, false>(c, f, filter, M, slice, m_pool); break;
-            default: sliceHalfComplex<4, false>(c, f, filter, M, slice, m_pool); break;
-            }
-        } else {
-            switch (c.taps) {
-            case 2: sliceHalfComplex<3, true>(c, f, filter, M, slice, m_pool); break;
-            case 6: sliceHalfComplex<6, true>(c, f, filter, M, slice, m_pool); break;
-            default: sliceHalfComplex<4, true>(c, f, filter, M, slice, m_pool); break;
-            }
-        }
+        dispatchTaps(c.taps, depth, [&](auto taps, auto cued) {
+            sliceHalfComplex<taps(), cued()>(c, f, filter, M, slice, m_pool);
+        });
         t1 = Clock::now();
         fftwf_execute_dft_c2r(res.c2r.get(), reinterpret_cast<fftwf_complex*>(res.slice.get()),
                               res.image.get());
@@ -525,20 +522,9 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
         t2 = Clock::now();
     } else {
         float* slice = res.slice.get();
-        if (!depth) {
-            switch (c.taps) {
-            case 1: sliceFullHartley<1, false>(c, f, filter, M, slice, m_pool); break;
-            case 2: sliceFullHartley<2, false>(c, f, filter, M, slice, m_pool); break;
-            case 6: sliceFullHartley<6, false>(c, f, filter, M, slice, m_pool); break;
-            default: sliceFullHartley<4, false>(c, f, filter, M, slice, m_pool); break;
-            }
-        } else {
-            switch (c.taps) {
-            case 2: sliceFullHartley<3, true>(c, f, filter, M, slice, m_pool); break;
-            case 6: sliceFullHartley<6, true>(c, f, filter, M, slice, m_pool); break;
-            default: sliceFullHartley<4, true>(c, f, filter, M, slice, m_pool); break;
-            }
-        }
+        dispatchTaps(c.taps, depth, [&](auto taps, auto cued) {
+            sliceFullHartley<taps(), cued()>(c, f, filter, M, slice, m_pool);
+        });
         t1 = Clock::now();
         fftwf_execute_r2r(res.dht.get(), slice, slice);
         hartleyCorrection2D(slice, M, m_pool);
@@ -546,11 +532,17 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
         t2 = Clock::now();
     }
     if (params.clipToVolume) {
-        m_pool.parallelFor(M, 8, [&](std::int64_t r0, std::int64_t r1) {
-            for (std::int64_t row = r0; row < r1; ++row)
-                for (int col = 0; col < M; ++col)
-                    if (rayMissesVolume(params.view, s.volumeDims, s.spacing, M, d, col, int(row)))
-                        img.pixels[std::size_t(row) * M + col] = 0.0f;
+        m_pool.parallelFor(M, 16, [&](std::int64_t r0, std::int64_t r1) {
+            for (std::int64_t row = r0; row < r1; ++row) {
+                const ColumnRange hit = volumeShadowColumns(params.view, s.volumeDims, s.spacing, M, d, int(row));
+                float* p = img.pixels.data() + std::size_t(row) * M;
+                if (hit.first > hit.last) {
+                    std::fill(p, p + M, 0.0f);
+                    continue;
+                }
+                std::fill(p, p + hit.first, 0.0f);
+                std::fill(p + hit.last + 1, p + M, 0.0f);
+            }
         });
         t2 = Clock::now();
     }

@@ -78,4 +78,52 @@ bool rayMissesVolume(const ViewFrame& view, const Dims3& dims, const Vec3& spaci
     return !(t1 > t0);
 }
 
+ColumnRange volumeShadowColumns(const ViewFrame& view, const Dims3& dims, const Vec3& spacing, int M, double d,
+                                int row) {
+    // The pixel ray x R + y (-U) + t D, y fixed by the row, hits the grown box where
+    // |x R_a - y U_a + t D_a| <= h_a for every axis: a convex polygon in (x, t). Its extent in x
+    // comes from its vertices (pairwise intersections of the 6 boundary lines that satisfy all
+    // constraints); the exact per-pixel test then settles the columns at either end.
+    const double y = (row - M / 2) * d;
+    double A[6], B[6], C[6];
+    for (int a = 0; a < 3; ++a) {
+        const double h = (double(dims[a]) / 2.0 + 1.0) * spacing[a];
+        for (int s = 0; s < 2; ++s) {
+            const double sg = s ? -1.0 : 1.0;
+            A[2 * a + s] = sg * view.r[a];
+            B[2 * a + s] = sg * view.d[a];
+            C[2 * a + s] = h + sg * y * view.u[a];
+        }
+    }
+    double xmin = 1e300, xmax = -1e300;
+    for (int i = 0; i < 6; ++i)
+        for (int j = i + 1; j < 6; ++j) {
+            const double det = A[i] * B[j] - A[j] * B[i];
+            if (std::abs(det) < 1e-12) continue;
+            const double x = (C[i] * B[j] - C[j] * B[i]) / det, t = (A[i] * C[j] - A[j] * C[i]) / det;
+            bool inside = true;
+            for (int k = 0; k < 6 && inside; ++k) inside = A[k] * x + B[k] * t <= C[k] + 1e-9 * (1.0 + std::abs(C[k]));
+            if (inside) {
+                xmin = std::min(xmin, x);
+                xmax = std::max(xmax, x);
+            }
+        }
+    auto misses = [&](int col) { return rayMissesVolume(view, dims, spacing, M, d, col, row); };
+    ColumnRange r;
+    if (xmin > xmax) { // no vertex: empty; confirm at the centre column
+        if (misses(M / 2)) return r;
+        xmin = xmax = 0.0;
+    }
+    r.first = std::clamp(int(std::ceil(xmin / d)) + M / 2, 0, M - 1);
+    r.last = std::clamp(int(std::floor(xmax / d)) + M / 2, 0, M - 1);
+    if (r.first > r.last) r.first = r.last = std::clamp(int(std::lround((xmin + xmax) / 2 / d)) + M / 2, 0, M - 1);
+    // Settle the ends with the exact test (the estimate is within rounding of them).
+    while (r.first > 0 && !misses(r.first - 1)) --r.first;
+    while (r.first <= r.last && misses(r.first)) ++r.first;
+    while (r.last < M - 1 && !misses(r.last + 1)) ++r.last;
+    while (r.last >= r.first && misses(r.last)) --r.last;
+    if (r.first > r.last) return ColumnRange{};
+    return r;
+}
+
 } // namespace fvr::core

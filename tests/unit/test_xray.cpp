@@ -6,6 +6,7 @@
 #include <complex>
 #include <cstdio>
 #include <numbers>
+#include <random>
 
 #include <fftw3.h>
 #include <gtest/gtest.h>
@@ -20,22 +21,19 @@
 #include <fvr/core/xray.h>
 
 #include "image_metrics.h"
+#include "phantom_fixture.h"
 #include "test_support.h"
 
 using namespace fvr::core;
 
 namespace {
 
-constexpr int kN = 64;
-constexpr int kM = 128;
+constexpr int kM = fvr::test::PhantomFixture::kM;
 
-struct Fixture {
-    EllipsoidPhantom phantom = EllipsoidPhantom::sheppLogan3D(256.0);
-    Volume volume = phantom.voxelize({kN, kN, kN}, {256.0 / kN, 256.0 / kN, 256.0 / kN}, 4);
+struct Fixture : fvr::test::PhantomFixture {
     std::vector<ViewFrame> views{ViewFrame::fromDirUp({0.35, 0.2, 0.92}, {0, -1, 0}),
                                  ViewFrame::fromDirUp({0.8, -0.45, 0.4}, {0, 0, 1}),
-                                 ViewFrame::fromDirUp({0, 1, 0}, {0, 0, 1})};
-    double d = defaultPixelSize(volume.dims, volume.spacing, kM);
+                                 ViewFrame::fromDirUp({0, 1, 0}, {0, 0, 1})}; // one axis view
 };
 
 const Fixture& fixture() {
@@ -430,4 +428,27 @@ TEST(XRay, ClipToVolumeRemovesGhostsOutsideTheShadow) {
         EXPECT_GT(after, before + 0.1); // measured +0.5, +0.2, +1.2 dB
         EXPECT_GT(ghost, 5.0);           // ghosts of 12-30 mm (peak ~500 mm) were there
     }
+}
+
+TEST(XRay, ShadowColumnsAreExactlyThePixelsWhoseRaysHit) {
+    // The per-row run the clip uses equals the per-pixel test, for oblique, axis and edge-on
+    // views, thin and flat volumes, fields narrower and wider than the volume.
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    std::vector<ViewFrame> views{ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0}), ViewFrame::fromDirUp({1, 0, 0}, {0, 0, 1}),
+                                 ViewFrame::fromDirUp({1, 1, 0}, {0, 0, 1})};
+    for (int i = 0; i < 20; ++i) views.push_back(ViewFrame::fromDirUp({u(rng), u(rng), u(rng) + 0.01}, {0, 0, 1}));
+    const std::pair<Dims3, Vec3> volumes[] = {{{64, 64, 64}, {4, 4, 4}}, {{512, 512, 40}, {0.5, 0.5, 3}}, {{10, 200, 30}, {1, 1, 2}}};
+    for (const auto& [dims, spacing] : volumes)
+        for (const ViewFrame& view : views)
+            for (double scale : {0.5, 1.0, 1.7}) {
+                const int M = 64;
+                const double d = scale * defaultPixelSize(dims, spacing, M);
+                for (int row = 0; row < M; ++row) {
+                    const ColumnRange r = volumeShadowColumns(view, dims, spacing, M, d, row);
+                    for (int col = 0; col < M; ++col)
+                        ASSERT_EQ(rayMissesVolume(view, dims, spacing, M, d, col, row), !(col >= r.first && col <= r.last))
+                            << "row " << row << " col " << col << " range " << r.first << ".." << r.last;
+                }
+            }
 }

@@ -40,6 +40,16 @@ double defaultPixelSize(const Dims3& dims, const Vec3& spacing, int size);
 bool rayMissesVolume(const ViewFrame& view, const Dims3& dims, const Vec3& spacing, int M, double d, int col,
                      int row);
 
+/** The columns [first, last] of image row `row` whose rays hit the volume (rayMissesVolume false
+ *  exactly there; the shadow of a box is convex, so they are one run). first > last: none.
+ *  Costs a few tests per row instead of one per pixel (the CPU renderer's clip). */
+struct ColumnRange {
+    int first = 0;
+    int last = -1;
+};
+ColumnRange volumeShadowColumns(const ViewFrame& view, const Dims3& dims, const Vec3& spacing, int M, double d,
+                                int row);
+
 /** Checks that M is a power of two in [16, 4096] (the renderers accept 128..2048 in the UI; tests
  *  use smaller ones) and pixel size > 0; throws SettingsError. */
 void validateImageGeometry(const ImageGeometry& g);
