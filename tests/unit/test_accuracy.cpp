@@ -16,21 +16,18 @@
 #include "test_support.h"
 
 #include "image_metrics.h"
+#include "phantom_fixture.h"
 
 using namespace fvr::core;
 
 namespace {
 
-constexpr int kN = 64;
-constexpr int kM = 128;
+constexpr int kM = fvr::test::PhantomFixture::kM;
 
-struct Fixture {
-    EllipsoidPhantom phantom = EllipsoidPhantom::sheppLogan3D(256.0);
-    Volume volume = phantom.voxelize({kN, kN, kN}, {256.0 / kN, 256.0 / kN, 256.0 / kN}, 4);
+struct Fixture : fvr::test::PhantomFixture {
     std::vector<ViewFrame> views{ViewFrame::fromDirUp({0.35, 0.2, 0.92}, {0, -1, 0}),
                                  ViewFrame::fromDirUp({0.8, -0.45, 0.4}, {0, 0, 1}),
                                  ViewFrame::fromDirUp({-0.3, 0.9, -0.3}, {0, 0, 1})};
-    double d = defaultPixelSize(volume.dims, volume.spacing, kM);
     std::vector<ProjectionImage> truth;
     Fixture() {
         for (const auto& v : views)

@@ -52,11 +52,7 @@ int wrapIndex(int i, int p) {
 layout(std430, binding = 4) readonly buffer KernelDerivativeBuffer { float kernelDerivative[]; };
 
 void axisWeightsD(float k, out int base, out float w[TAPS], out float dw[TAPS]) {
-#if TAPS == 1
-    base = int(floor(k + 0.5));
-    w[0] = 1.0;
-    dw[0] = 0.0;
-#elif TAPS == 3
+#if TAPS == 3
     // The linear kernel (TAPS 3 is linear with depth cueing): derivative -1, +1 between integers,
     // the central difference on them (mean of both sides; fvr::core's axisDerivWeights<3>).
     float r = floor(k + 0.5);
@@ -64,24 +60,23 @@ void axisWeightsD(float k, out int base, out float w[TAPS], out float dw[TAPS]) 
         base = int(r) - 1;
         w[0] = 0.0; w[1] = 1.0; w[2] = 0.0;
         dw[0] = -0.5; dw[1] = 0.0; dw[2] = 0.5;
-    } else {
-        float f = floor(k);
-        base = int(f) - 1;
-        w[0] = 0.0;
-        w[2] = k - f;
-        w[1] = 1.0 - w[2];
-        dw[0] = 0.0; dw[1] = -1.0; dw[2] = 1.0;
+        return;
     }
+#endif
+    axisWeights(k, base, w);
+#if TAPS == 1
+    dw[0] = 0.0;
+#elif TAPS == 2
+    dw[0] = -1.0;
+    dw[1] = 1.0;
+#elif TAPS == 3
+    dw[0] = 0.0; dw[1] = -1.0; dw[2] = 1.0;
 #else
-    float f = floor(k);
-    base = int(f) + uKernelFirst;
-    float pos = (k - f) * float(uKernelRes);
+    // The derivative table at the same fractional position as the weights.
+    float pos = (k - floor(k)) * float(uKernelRes);
     int i = min(int(pos), uKernelRes - 1);
     float t = pos - float(i);
     for (int j = 0; j < TAPS; ++j) {
-        float a = kernelTable[i * TAPS + j];
-        float b = kernelTable[(i + 1) * TAPS + j];
-        w[j] = a + t * (b - a);
         float da = kernelDerivative[i * TAPS + j];
         float db = kernelDerivative[(i + 1) * TAPS + j];
         dw[j] = da + t * (db - da);

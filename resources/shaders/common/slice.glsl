@@ -23,37 +23,24 @@ uniform float uSharpenC;       // 2 pi^2 sigma^2 / (M d)^2 (per squared image fr
 uniform float uBandInv2;       // 1 / (nu_c M d)^2; 0: no band limit
 
 #ifdef SPECTRUM_FHT
-float sampleHartley(vec3 k) {
-    if (any(greaterThan(abs(k), uHalf))) return 0.0;
-    int bx, by, bz;
-    float wx[TAPS], wy[TAPS], wz[TAPS];
-    axisWeights(k.x, bx, wx);
-    axisWeights(k.y, by, wy);
-    axisWeights(k.z, bz, wz);
-    int ix[TAPS], iy[TAPS], iz[TAPS];
-    for (int t = 0; t < TAPS; ++t) {
-        ix[t] = wrapIndex(bx + t, uPadded.x);
-        iy[t] = wrapIndex(by + t, uPadded.y);
-        iz[t] = wrapIndex(bz + t, uPadded.z);
-    }
-    float acc = 0.0;
-    for (int zc = 0; zc < TAPS; ++zc)
-        for (int yc = 0; yc < TAPS; ++yc) {
-            float sx = 0.0;
-            for (int xc = 0; xc < TAPS; ++xc)
-                sx += wx[xc] * texelFetch(uSpectrum, ivec3(ix[xc], iy[yc], iz[zc]), 0).r;
-            acc += (wz[zc] * wy[yc]) * sx;
-        }
-    return acc;
-}
-#ifdef DEPTH_CUE
-float sampleHartleyDerivative(vec3 k) {
+// The interpolated Hartley value at k, or with `derivative` E.grad H there (depth cueing) from
+// the same taps with the derivative weights (fvr::core's sampleHartley<T, Derivative>).
+float sampleHartley(vec3 k, bool derivative) {
     if (any(greaterThan(abs(k), uHalf))) return 0.0;
     int bx, by, bz;
     float wx[TAPS], wy[TAPS], wz[TAPS], dx[TAPS], dy[TAPS], dz[TAPS];
-    axisWeightsD(k.x, bx, wx, dx);
-    axisWeightsD(k.y, by, wy, dy);
-    axisWeightsD(k.z, bz, wz, dz);
+#ifdef DEPTH_CUE
+    if (derivative) {
+        axisWeightsD(k.x, bx, wx, dx);
+        axisWeightsD(k.y, by, wy, dy);
+        axisWeightsD(k.z, bz, wz, dz);
+    } else
+#endif
+    {
+        axisWeights(k.x, bx, wx);
+        axisWeights(k.y, by, wy);
+        axisWeights(k.z, bz, wz);
+    }
     int ix[TAPS], iy[TAPS], iz[TAPS];
     for (int t = 0; t < TAPS; ++t) {
         ix[t] = wrapIndex(bx + t, uPadded.x);
@@ -67,18 +54,18 @@ float sampleHartleyDerivative(vec3 k) {
             for (int xc = 0; xc < TAPS; ++xc) {
                 float v = texelFetch(uSpectrum, ivec3(ix[xc], iy[yc], iz[zc]), 0).r;
                 sx += wx[xc] * v;
-                dsx += dx[xc] * v;
+                if (derivative) dsx += dx[xc] * v;
             }
-            acc += (wz[zc] * wy[yc] * uDepthE.x) * dsx + (uDepthE.y * dy[yc] * wz[zc] + uDepthE.z * wy[yc] * dz[zc]) * sx;
+            acc += derivative ? (wz[zc] * wy[yc] * uDepthE.x) * dsx + (uDepthE.y * dy[yc] * wz[zc] + uDepthE.z * wy[yc] * dz[zc]) * sx
+                              : (wz[zc] * wy[yc]) * sx;
         }
     return acc;
 }
-#endif
 vec2 sampleSpectrum(vec3 k) {
 #ifdef DEPTH_CUE
-    return vec2(uDepthA * sampleHartley(k) + sampleHartleyDerivative(-k), 0.0);
+    return vec2(uDepthA * sampleHartley(k, false) + sampleHartley(-k, true), 0.0);
 #else
-    return vec2(sampleHartley(k), 0.0);
+    return vec2(sampleHartley(k, false), 0.0);
 #endif
 }
 #else

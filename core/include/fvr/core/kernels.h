@@ -72,26 +72,10 @@ public:
     int firstTapOffset() const { return m_taps == 1 ? 0 : -(m_taps / 2 - 1); }
 
     /** Fills weights[0..taps) for fractional part frac in [0,1). */
-    void weights(double frac, float* w) const {
-        const double pos = frac * kResolution;
-        int i = int(pos);
-        if (i >= kResolution) i = kResolution - 1;
-        const float t = float(pos - i);
-        const float* a = &m_table[std::size_t(i) * m_taps];
-        const float* b = a + m_taps;
-        for (int j = 0; j < m_taps; ++j) w[j] = a[j] + t * (b[j] - a[j]);
-    }
+    void weights(double frac, float* w) const { interpolate(m_table, frac, w); }
     /** Derivatives d w_j / d frac of the weights (the derivative of the interpolant along an
      *  axis: depth cueing). Nearest has none (a zero row); linear gives -1, +1. */
-    void derivativeWeights(double frac, float* w) const {
-        const double pos = frac * kResolution;
-        int i = int(pos);
-        if (i >= kResolution) i = kResolution - 1;
-        const float t = float(pos - i);
-        const float* a = &m_derivative[std::size_t(i) * m_taps];
-        const float* b = a + m_taps;
-        for (int j = 0; j < m_taps; ++j) w[j] = a[j] + t * (b[j] - a[j]);
-    }
+    void derivativeWeights(double frac, float* w) const { interpolate(m_derivative, frac, w); }
     /** The raw table: (kResolution + 1) rows of taps() weights. */
     const std::vector<float>& table() const { return m_table; }
     /** The derivative table, same layout. */
@@ -99,6 +83,16 @@ public:
 
 private:
     void row(double frac, double* w) const;
+    /** Linear interpolation between the rows of a (kResolution + 1) x taps table. */
+    void interpolate(const std::vector<float>& table, double frac, float* w) const {
+        const double pos = frac * kResolution;
+        int i = int(pos);
+        if (i >= kResolution) i = kResolution - 1;
+        const float t = float(pos - i);
+        const float* a = &table[std::size_t(i) * m_taps];
+        const float* b = a + m_taps;
+        for (int j = 0; j < m_taps; ++j) w[j] = a[j] + t * (b[j] - a[j]);
+    }
 
     Kernel m_kernel;
     double m_oversampling;
