@@ -7,7 +7,8 @@
  *   BM_Frame/N<n>/<fft|fht>/M<m>/<kernel>         one projection per iteration, rotating view
  *   BM_RayCast/N128/M<m>/step<0.25vox|1vox>       spatial ray casting (trilinear), same views
  *   BM_Effects/N256/<fft|fht>/M512/<kernel>/<effect> the per-frame cost of depth cueing and the
- *                                                  slice filters (plain, depth, filters, both)
+ *                                                  slice filters (plain, depth, filters, both) and
+ *                                                  of the clip to the volume
  *
  * Per-frame counters are real measurements (StageTimes of every iteration): slice_ms, inverse_ms,
  * total_ms are means over the iterations (frames), *_p50 the medians; fps = 1000 / total_ms,
@@ -292,13 +293,14 @@ void BM_Frame(benchmark::State& state, int n, TransformKind kind, int M, Kernel 
 
 // --- 2b. Beyond the paper: depth cueing and slice filters per frame ----------------------------
 
-enum class Effect { Plain, Depth, Filters, Both };
+enum class Effect { Plain, Depth, Filters, Both, Clip };
 const char* effectName(Effect e) {
     switch (e) {
     case Effect::Plain: return "plain";
     case Effect::Depth: return "depthcue";
     case Effect::Filters: return "filters";
     case Effect::Both: return "depthcue+filters";
+    case Effect::Clip: return "clip";
     }
     return "?";
 }
@@ -308,6 +310,7 @@ void BM_Effects(benchmark::State& state, int n, TransformKind kind, int M, Kerne
     RenderParams p{views()[0], geometry(n, M), kernel};
     if (e == Effect::Depth || e == Effect::Both) p.depthCue = 0.7;
     if (e == Effect::Filters || e == Effect::Both) p.filter = {1.5, 2.0, 0.5};
+    p.clipToVolume = e == Effect::Clip;
     benchmark::DoNotOptimize(r.render(p).pixels.data()); // plans for this M
     std::vector<double> slice, inverse, total;
     std::size_t i = 0;
@@ -392,7 +395,7 @@ void registerAll(const std::vector<int>& sizes) {
     if (std::find(sizes.begin(), sizes.end(), 256) != sizes.end())
         for (TransformKind kind : {TransformKind::Fft, TransformKind::Fht})
             for (Kernel k : {Kernel::Linear, Kernel::KaiserBessel4})
-                for (Effect e : {Effect::Plain, Effect::Depth, Effect::Filters, Effect::Both}) {
+                for (Effect e : {Effect::Plain, Effect::Depth, Effect::Filters, Effect::Both, Effect::Clip}) {
                     const std::string name = std::string("BM_Effects/N256/") + transformName(kind) + "/M512/" +
                                              kernelName(k) + "/" + effectName(e);
                     benchmark::RegisterBenchmark(name.c_str(), BM_Effects, 256, kind, 512, k, e)
