@@ -2,10 +2,12 @@
  * GPU benchmarks in the layout of Table 1 of Viola et al. 2004 (issue 4): per slice size M and
  * kernel, the slicing pass and the inverse 2D transform measured separately with GL timer
  * queries (slice pass unfused), and the end-to-end frame as the workstation renders it (slice
- * fused into the row FFT pass), for the FFT and the FHT representation.
+ * fused into the row FFT pass, display mapping into the last pass: line integrals to an 8-bit
+ * texture), for the FFT and the FHT representation.
  *
  *   BM_GpuStages/N<n>/<fft|fht>/M<m>/<kernel>   unfused: slice_ms, inverse_ms, slice_fps, inverse_fps
- *   BM_GpuFrame/N<n>/<fft|fht>/M<m>/<kernel>    fused end-to-end: gpu_ms (timer queries), fps,
+ *   BM_GpuFrame/N<n>/<fft|fht>/M<m>/<kernel>    fused end-to-end to the display texture:
+ *                                               gpu_ms (timer queries), fps,
  *                                               and wall_fps (frames issued back to back, one
  *                                               wait per batch of 16: what an interactive loop gets)
  *
@@ -103,18 +105,19 @@ void BM_GpuFrame(benchmark::State& state, int n, TransformKind kind, int M, Kern
     GpuFourierRenderer& r = renderer(n, kind);
     const ImageGeometry g{M, defaultPixelSize(phantom(n).dims, phantom(n).spacing, M)};
     r.setFuseSlice(true);
-    r.render({views()[0], g, kernel});
+    const DisplayWindow window{0.0, 0.5 * phantom(n).dims[0] * phantom(n).spacing[0], true, {}};
+    r.render({views()[0], g, kernel}, &window);
     r.lastTimes();
     auto* gl = QOpenGLContext::currentContext()->functions();
     std::vector<double> gpu, wall;
     std::size_t i = 0;
     constexpr int kBatch = 16;
     for (auto _ : state) {
-        r.render({views()[i++ % views().size()], g, kernel});
+        r.render({views()[i++ % views().size()], g, kernel}, &window);
         gpu.push_back(r.lastTimes().totalMs);
         // Back to back: kBatch frames, one wait at the end.
         const auto t0 = std::chrono::steady_clock::now();
-        for (int b = 0; b < kBatch; ++b) r.render({views()[(i + b) % views().size()], g, kernel});
+        for (int b = 0; b < kBatch; ++b) r.render({views()[(i + b) % views().size()], g, kernel}, &window);
         gl->glFinish();
         wall.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / kBatch);
     }

@@ -97,6 +97,7 @@ void GpuFourierRenderer::releaseGl() {
     releaseTexture();
     if (m_display) m_gl->glDeleteTextures(1, &m_display);
     m_display = 0;
+    m_displayed.reset();
     if (m_queries[0]) m_gl->glDeleteQueries(4, m_queries);
     std::fill(std::begin(m_queries), std::end(m_queries), 0u);
     m_size = 0;
@@ -389,13 +390,19 @@ void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel,
     m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 }
 
-void GpuFourierRenderer::runCols(int M, const char* outputMode, const core::RenderParams* params) {
-    const GLuint prog = program("fft/cols.comp", {{"MAX_M", std::to_string(M)},
-                                                  {"WG_SIZE", std::to_string(workGroupSize(M))},
-                                                  {outputMode, "1"}});
+void GpuFourierRenderer::runCols(int M, const char* outputMode, const core::RenderParams* params,
+                                 const core::DisplayWindow* display) {
+    std::vector<std::pair<std::string, std::string>> defs{{"MAX_M", std::to_string(M)},
+                                                          {"WG_SIZE", std::to_string(workGroupSize(M))},
+                                                          {outputMode, "1"}};
+    const bool real = std::strcmp(outputMode, "OUTPUT_REAL") == 0;
+    if (display && !real) throw std::logic_error("runCols: the display mapping fuses into OUTPUT_REAL only");
+    if (display) defs.emplace_back("FUSED_DISPLAY", "1");
+    const GLuint prog = program("fft/cols.comp", defs);
     m_gl->glUseProgram(prog);
     m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
-    if (std::strcmp(outputMode, "OUTPUT_REAL") == 0) setClipUniforms(prog, params);
+    if (real) setClipUniforms(prog, params);
+    if (display) setDisplayUniforms(prog, *display);
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_bufB);
     const bool complexOut = std::strcmp(outputMode, "OUTPUT_COMPLEX") == 0;
     const bool hartleyOut = std::strcmp(outputMode, "OUTPUT_HARTLEY") == 0;
@@ -419,18 +426,32 @@ void GpuFourierRenderer::setClipUniforms(unsigned prog, const core::RenderParams
     m_gl->glUniform1f(loc("uPixel"), float(p->image.pixelSize));
 }
 
-void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* params) {
-    const GLuint prog = program("fft/hartley_correct.comp", {});
+void GpuFourierRenderer::setDisplayUniforms(unsigned prog, const core::DisplayWindow& w) {
+    auto loc = [&](const char* n) { return m_gl->glGetUniformLocation(prog, n); };
+    m_gl->glUniform1f(loc("uLow"), float(w.low));
+    m_gl->glUniform1f(loc("uHigh"), float(w.high > w.low ? w.high : w.low + 1.0));
+    m_gl->glUniform1i(loc("uInvert"), w.invert ? 1 : 0);
+    m_gl->glUniform1f(loc("uMuWater"), float(w.transmission.active() ? w.transmission.muWaterPerMm : 0.0));
+    m_gl->glUniform1f(loc("uExposure"), float(w.transmission.exposure));
+    m_gl->glBindImageTexture(0, m_display, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA8);
+}
+
+void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* params, const core::DisplayWindow* display) {
+    const GLuint prog = program("fft/hartley_correct.comp",
+                                display ? std::vector<std::pair<std::string, std::string>>{{"FUSED_DISPLAY", "1"}}
+                                        : std::vector<std::pair<std::string, std::string>>{});
     m_gl->glUseProgram(prog);
     m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
     setClipUniforms(prog, params);
+    if (display) setDisplayUniforms(prog, *display);
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_hartleyT);
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_image);
     m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
-    m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT |
+                          (display ? GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT : 0));
 }
 
-void GpuFourierRenderer::render(const core::RenderParams& p) {
+void GpuFourierRenderer::render(const core::RenderParams& p, const core::DisplayWindow* display) {
     core::validateRenderParams(p);
     if (!m_spectrum) throw GlError("GPU renderer: no spectrum uploaded");
     if (m_spectrum->deapodizedFor && *m_spectrum->deapodizedFor != p.kernel)
@@ -457,10 +478,10 @@ void GpuFourierRenderer::render(const core::RenderParams& p) {
     m_gl->glQueryCounter(m_queries[1], GL_TIMESTAMP);
     runRows(M, m_fuse, fht, p.kernel, &p);
     if (!fht) {
-        runCols(M, "OUTPUT_REAL", &p);
+        runCols(M, "OUTPUT_REAL", &p, display);
     } else {
         runCols(M, "OUTPUT_HARTLEY", &p);
-        runHartleyCorrection(M, &p);
+        runHartleyCorrection(M, &p, display);
     }
     m_gl->glQueryCounter(m_queries[2], GL_TIMESTAMP);
     if (const GLenum err = m_gl->glGetError(); err != GL_NO_ERROR)
@@ -468,6 +489,7 @@ void GpuFourierRenderer::render(const core::RenderParams& p) {
     m_timesPending = true;
     m_displayTimed = false;
     m_last = p;
+    m_displayed = display ? std::optional<core::DisplayWindow>(*display) : std::nullopt;
 }
 
 core::ProjectionImage GpuFourierRenderer::readback() const {
@@ -491,23 +513,28 @@ core::ProjectionImage GpuFourierRenderer::renderImage(const core::RenderParams& 
     return img;
 }
 
+namespace {
+bool sameWindow(const core::DisplayWindow& a, const core::DisplayWindow& b) {
+    return a.low == b.low && a.high == b.high && a.invert == b.invert &&
+           a.transmission.muWaterPerMm == b.transmission.muWaterPerMm &&
+           a.transmission.exposure == b.transmission.exposure;
+}
+} // namespace
+
 unsigned GpuFourierRenderer::displayTexture(const core::DisplayWindow& w) {
     if (!m_size) throw GlError("GPU renderer: nothing rendered yet");
+    if (m_displayed && sameWindow(*m_displayed, w)) return m_display; // fused into the render
     const int M = m_size;
     const GLuint prog = program("display/display.comp", {});
     m_gl->glUseProgram(prog);
     m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
-    m_gl->glUniform1f(m_gl->glGetUniformLocation(prog, "uLow"), float(w.low));
-    m_gl->glUniform1f(m_gl->glGetUniformLocation(prog, "uHigh"), float(w.high > w.low ? w.high : w.low + 1.0));
-    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uInvert"), w.invert ? 1 : 0);
-    m_gl->glUniform1f(m_gl->glGetUniformLocation(prog, "uMuWater"), float(w.transmission.active() ? w.transmission.muWaterPerMm : 0.0));
-    m_gl->glUniform1f(m_gl->glGetUniformLocation(prog, "uExposure"), float(w.transmission.exposure));
+    setDisplayUniforms(prog, w);
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_image);
-    m_gl->glBindImageTexture(0, m_display, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA8);
     m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
     m_gl->glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
     m_gl->glQueryCounter(m_queries[3], GL_TIMESTAMP);
     m_displayTimed = m_timesPending;
+    m_displayed = w;
     return m_display;
 }
 
@@ -517,6 +544,7 @@ GpuStageTimes GpuFourierRenderer::lastTimes() {
     const int n = m_displayTimed ? 4 : 3;
     for (int i = 0; i < n; ++i) m_gl->glGetQueryObjectui64v(m_queries[i], GL_QUERY_RESULT, &t[i]);
     m_times.fused = m_fuse;
+    m_times.displayFused = m_displayed.has_value() && !m_displayTimed;
     m_times.sliceMs = double(t[1] - t[0]) * 1e-6;
     m_times.inverseMs = double(t[2] - t[1]) * 1e-6;
     m_times.displayMs = m_displayTimed ? double(t[3] - t[2]) * 1e-6 : 0.0;
@@ -529,6 +557,7 @@ std::vector<std::complex<float>> GpuFourierRenderer::inverseFft2D(const std::vec
                                                                  int M) {
     if (data.size() != std::size_t(M) * M) throw core::SettingsError("inverseFft2D: data size is not M*M");
     ensureSize(M);
+    m_displayed.reset();
     m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
     m_gl->glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(data.size() * 8), data.data());
     runRows(M, false, false, Kernel::Linear, nullptr);
@@ -543,6 +572,7 @@ std::vector<std::complex<float>> GpuFourierRenderer::inverseFft2D(const std::vec
 std::vector<float> GpuFourierRenderer::inverseFht2D(const std::vector<float>& data, int M) {
     if (data.size() != std::size_t(M) * M) throw core::SettingsError("inverseFht2D: data size is not M*M");
     ensureSize(M);
+    m_displayed.reset();
     std::vector<std::complex<float>> in(data.begin(), data.end());
     m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
     m_gl->glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(in.size() * 8), in.data());
@@ -580,7 +610,9 @@ int GpuFourierRenderer::compileAll(int M) {
     }
     for (const char* mode : {"OUTPUT_REAL", "OUTPUT_HARTLEY", "OUTPUT_COMPLEX"})
         program("fft/cols.comp", {{"MAX_M", mm}, {"WG_SIZE", wg}, {mode, "1"}}), ++count;
+    program("fft/cols.comp", {{"MAX_M", mm}, {"WG_SIZE", wg}, {"OUTPUT_REAL", "1"}, {"FUSED_DISPLAY", "1"}}), ++count;
     program("fft/hartley_correct.comp", {}), ++count;
+    program("fft/hartley_correct.comp", {{"FUSED_DISPLAY", "1"}}), ++count;
     program("display/display.comp", {}), ++count;
     return count;
 }

@@ -6,6 +6,7 @@
 
 #include <complex>
 #include <random>
+#include <set>
 
 #include <fftw3.h>
 #include <gtest/gtest.h>
@@ -56,7 +57,7 @@ std::shared_ptr<const Spectrum> spectrumOf(const Volume& v, TransformKind t, dou
 
 TEST_F(GlTest, EveryShaderCompiles) {
     GpuFourierRenderer r;
-    for (int M : {64, 512, 2048}) EXPECT_EQ(r.compileAll(M), 35) << "M " << M;
+    for (int M : {64, 512, 2048}) EXPECT_EQ(r.compileAll(M), 37) << "M " << M;
 }
 
 TEST_F(GlTest, CompileErrorsNameTheShaderFileAndLine) {
@@ -354,6 +355,63 @@ TEST_F(GlTest, TransmissionDisplayIsExpOfTheLineIntegrals) {
         }
         EXPECT_LE(worst, 1) << "film " << film;
         EXPECT_GT(distinct, 50); // a real gray ramp, not a blank image
+    }
+}
+
+namespace {
+std::vector<unsigned char> readTexture(unsigned tex, int M) {
+    auto* gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(QOpenGLContext::currentContext());
+    std::vector<unsigned char> rgba(std::size_t(M) * M * 4);
+    gl->glBindTexture(GL_TEXTURE_2D, tex);
+    gl->glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    gl->glGetTexImage(GL_TEXTURE_2D, 0, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+    return rgba;
+}
+} // namespace
+
+TEST_F(GlTest, DisplayFusedIntoTheLastPassEqualsTheDisplayPass) {
+    // render(p, &window) maps the projection in the last pass of the inverse transform (the column
+    // pass for FFT, the eq. 4 pass for FHT): the same bytes as the separate display pass over the
+    // same render, the same float projection, and a later window change still runs the pass.
+    const Volume v = makeSheppLoganVolume(32);
+    const int M = 128;
+    const RenderParams base{ViewFrame::fromDirUp({0.3, -0.2, 0.93}, {0, 1, 0}),
+                            {M, 1.3 * defaultPixelSize(v.dims, v.spacing, M)}, Kernel::CatmullRom};
+    const DisplayWindow windows[] = {{-1.0, 40.0, false, {}}, {-2.5, -0.05, true, {waterAttenuationPerMm(70), 1.5}}};
+    for (auto t : {TransformKind::Fft, TransformKind::Fht}) {
+        GpuFourierRenderer gpu;
+        gpu.setSpectrum(spectrumOf(v, t, 1.25));
+        for (bool clip : {false, true})
+            for (const auto& w : windows) {
+                RenderParams p = base;
+                p.clipToVolume = clip;
+                const std::string what = std::string(transformName(t)) + (clip ? " clip" : "") +
+                                         (w.transmission.active() ? " film" : " integrals");
+                gpu.render(p);
+                const auto plain = gpu.readback();
+                const auto separate = readTexture(gpu.displayTexture(w), M);
+                EXPECT_FALSE(gpu.lastTimes().displayFused) << what;
+
+                gpu.render(p, &w);
+                EXPECT_EQ(gpu.readback().pixels, plain.pixels) << what;
+                const auto fused = readTexture(gpu.displayTexture(w), M);
+                const auto times = gpu.lastTimes();
+                EXPECT_TRUE(times.displayFused) << what;
+                EXPECT_EQ(times.displayMs, 0.0) << what;
+                EXPECT_EQ(fused, separate) << what;
+                std::set<unsigned char> levels;
+                for (std::size_t i = 0; i < fused.size(); i += 4) levels.insert(fused[i]);
+                EXPECT_GT(levels.size(), 40u) << what; // a gray ramp, not a blank image
+
+                // A new window after the fused render: the display pass maps it.
+                DisplayWindow other = w;
+                other.invert = !other.invert;
+                const auto inverted = readTexture(gpu.displayTexture(other), M);
+                int worst = 0;
+                for (std::size_t i = 0; i < fused.size(); i += 4)
+                    worst = std::max(worst, std::abs(int(inverted[i]) - (255 - int(fused[i]))));
+                EXPECT_LE(worst, 1) << what;
+            }
     }
 }
 

@@ -373,6 +373,35 @@ TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
     EXPECT_LT(test::compare(plain.pixels, want.pixels).psnr, 40.0); // the effects change the image
 }
 
+TEST_F(Workstation, NewFramesMapTheDisplayInTheLastGpuPass) {
+    // Once a window is set, a new GPU frame writes the display texture in the last pass of the
+    // inverse transform: the view shows the same pixels as the separate display pass does after a
+    // window round trip, and the overlay's stage times say so.
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    ui::ProjectionView* v = window->views()[0];
+    if (!v->usingGpu()) GTEST_SKIP() << "no GPU renderer: " << v->backendNotice().toStdString();
+    v->setOverlayVisible(false);
+    const core::DisplayWindow w = v->window();
+    v->setViewFrame(v->viewFrame().rotated({0.2, 0.9, 0.3}, 0.4));
+    const QImage fused = v->screenshot();
+    EXPECT_TRUE(v->frameStats().fused);
+    EXPECT_TRUE(v->frameStats().displayFused);
+    const int frames = v->framesRendered();
+    core::DisplayWindow other = w;
+    other.high = w.low + 0.5 * (w.high - w.low);
+    v->setWindow(other);
+    const QImage narrower = v->screenshot();
+    v->setWindow(w);
+    const QImage separate = v->screenshot();
+    EXPECT_EQ(v->framesRendered(), frames); // window changes do not render again
+    EXPECT_EQ(fused, separate);
+    EXPECT_NE(fused, narrower);
+    std::set<int> grays;
+    for (int y = 0; y < fused.height(); y += 3)
+        for (int x = 0; x < fused.width(); x += 3) grays.insert(qGray(fused.pixel(x, y)));
+    EXPECT_GT(grays.size(), 40u); // a projection, not a blank view
+}
+
 TEST_F(Workstation, ProgressiveRefinementHoldsTheTargetWhileDragging) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
     window->targetFpsSpin()->setValue(30);

@@ -2,12 +2,16 @@
 // Column pass: one work group per column of the image (a row of the transposed buffer).
 // OUTPUT_REAL: the projection (real part; the slice was Hermitian). OUTPUT_HARTLEY: Re + Im, the
 // separable 2D Hartley product T that the eq. 4 pass corrects. OUTPUT_COMPLEX: the complex
-// result (tests), row-major.
+// result (tests), row-major. FUSED_DISPLAY (with OUTPUT_REAL): also maps the projection through
+// the display window into the display texture, saving the display pass a read of the image.
 layout(local_size_x = WG_SIZE) in;
 #include "common/fft.glsl"
 uniform int uM;
 #ifdef OUTPUT_REAL
 #include "common/clip.glsl"
+#ifdef FUSED_DISPLAY
+#include "common/display.glsl"
+#endif
 #endif
 layout(std430, binding = 1) readonly buffer ColsIn { vec2 colsIn[]; };
 #ifdef OUTPUT_COMPLEX
@@ -29,7 +33,11 @@ void main() {
 #elif defined(OUTPUT_HARTLEY)
         colsOut[i * uM + c] = row[i].x + row[i].y;
 #else
-        colsOut[i * uM + c] = (uClip != 0 && rayMissesVolume(c, i, uM)) ? 0.0 : row[i].x;
+        float p = (uClip != 0 && rayMissesVolume(c, i, uM)) ? 0.0 : row[i].x;
+        colsOut[i * uM + c] = p;
+#ifdef FUSED_DISPLAY
+        storeDisplay(c, i, p);
+#endif
 #endif
     }
 }

@@ -1,9 +1,13 @@
 #version 430
 // The paper's eq. 4: the separable product T of 1D Hartley transforms becomes the 2D Hartley
-// transform, H(u,v) = 1/2 (T(u,v) + T(-u,v) + T(u,-v) - T(-u,-v)).
+// transform, H(u,v) = 1/2 (T(u,v) + T(-u,v) + T(u,-v) - T(-u,-v)). FUSED_DISPLAY: also maps the
+// result through the display window into the display texture.
 layout(local_size_x = 16, local_size_y = 16) in;
 uniform int uM;
 #include "common/clip.glsl"
+#ifdef FUSED_DISPLAY
+#include "common/display.glsl"
+#endif
 layout(std430, binding = 1) readonly buffer TIn { float tIn[]; };
 layout(std430, binding = 0) writeonly buffer HOut { float hOut[]; };
 
@@ -13,5 +17,9 @@ void main() {
     int mu = u == 0 ? 0 : uM - u;
     int mv = v == 0 ? 0 : uM - v;
     float h = 0.5 * (tIn[v * uM + u] + tIn[v * uM + mu] + tIn[mv * uM + u] - tIn[mv * uM + mu]);
-    hOut[v * uM + u] = (uClip != 0 && rayMissesVolume(u, v, uM)) ? 0.0 : h;
+    float p = (uClip != 0 && rayMissesVolume(u, v, uM)) ? 0.0 : h;
+    hOut[v * uM + u] = p;
+#ifdef FUSED_DISPLAY
+    storeDisplay(u, v, p);
+#endif
 }

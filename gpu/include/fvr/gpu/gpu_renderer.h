@@ -5,6 +5,7 @@
 #include <complex>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -20,13 +21,15 @@ namespace fvr::gpu {
 enum class SpectrumPrecision { Float32, Float16 };
 
 /** GPU time per stage (timer queries), ms. When the slice is fused into the row FFT pass, the
- *  slice time is 0 and `inverseMs` holds both. */
+ *  slice time is 0 and `inverseMs` holds both; when the display mapping is fused into the last
+ *  pass (render() with a window), `displayMs` is 0 and `inverseMs` holds it too. */
 struct GpuStageTimes {
     double sliceMs = 0.0;
     double inverseMs = 0.0;
     double displayMs = 0.0;
     double totalMs = 0.0;
     bool fused = false;
+    bool displayFused = false;
 };
 
 class GpuFourierRenderer {
@@ -53,14 +56,17 @@ public:
      *  the per-stage times then merge slice and inverse). Default on. */
     void setFuseSlice(bool fuse) { m_fuse = fuse; }
 
-    /** Renders into GPU buffers (no readback). Throws SettingsError, GlError. */
-    void render(const core::RenderParams& params);
+    /** Renders into GPU buffers (no readback). With a window, the last pass of the inverse
+     *  transform also maps the projection through it into the display texture (no display pass:
+     *  displayTexture() with the same window then returns at once). Throws SettingsError, GlError. */
+    void render(const core::RenderParams& params, const core::DisplayWindow* display = nullptr);
     /** The last render's float line integrals (row 0 at the top). */
     core::ProjectionImage readback() const;
     /** render() + readback() with the stage times. */
     core::ProjectionImage renderImage(const core::RenderParams& params, GpuStageTimes* times = nullptr);
-    /** Maps the last render through the window (Beer-Lambert transmission first when the window
-     *  has one) into an RGBA8 M x M texture and returns its id. */
+    /** The last render mapped through the window (Beer-Lambert transmission first when the window
+     *  has one) as an RGBA8 M x M texture: runs the display pass unless the render already fused
+     *  this window. */
     unsigned displayTexture(const core::DisplayWindow& window);
     /** Stage times of the last render (and display pass, if any); waits for the GPU. */
     GpuStageTimes lastTimes();
@@ -84,9 +90,11 @@ private:
     void bindKernel(unsigned prog, core::Kernel kernel, bool derivative);
     void setSliceUniforms(unsigned prog, const core::RenderParams& params);
     void runRows(int M, bool fused, bool hartley, core::Kernel kernel, const core::RenderParams* params);
-    void runCols(int M, const char* outputMode, const core::RenderParams* params);
-    void runHartleyCorrection(int M, const core::RenderParams* params);
+    void runCols(int M, const char* outputMode, const core::RenderParams* params,
+                 const core::DisplayWindow* display = nullptr);
+    void runHartleyCorrection(int M, const core::RenderParams* params, const core::DisplayWindow* display = nullptr);
     void setClipUniforms(unsigned prog, const core::RenderParams* params);
+    void setDisplayUniforms(unsigned prog, const core::DisplayWindow& window);
     void releaseTexture();
 
     QOpenGLFunctions_4_3_Core* m_gl = nullptr;
@@ -105,6 +113,7 @@ private:
     bool m_timesPending = false, m_displayTimed = false;
     GpuStageTimes m_times;
     core::RenderParams m_last;
+    std::optional<core::DisplayWindow> m_displayed; ///< the window the display texture holds the last render in
 };
 
 } // namespace fvr::gpu

@@ -88,6 +88,7 @@ public:
     struct FrameStats {
         double sliceMs = 0, inverseMs = 0, displayMs = 0, totalMs = 0, fps = 0;
         bool fused = false;
+        bool displayFused = false;
     };
     FrameStats frameStats() const { return m_stats; }
     /** Number of frames rendered (tests). */
