@@ -178,6 +178,25 @@ void readFunctionalGroups(DcmItem* fg, FrameInfo& fi, std::string& rescaleType,
         if (auto s = getString(it, DCM_DiffusionBValue); !s.empty()) fi.diffusion = s;
 }
 
+/** A pixel padding attribute (US or SS, VR per PixelRepresentation; UL/SL for 32-bit data) as a
+ *  stored value: signed when the pixels are, whatever VR the file used. */
+std::optional<std::int64_t> readPaddingValue(DcmItem* ds, const DcmTagKey& tag, bool signedPixels,
+                                             std::vector<std::string>& problems) {
+    DcmElement* e = nullptr;
+    if (ds->findAndGetElement(tag, e).bad() || !e || e->getLength() == 0) return std::nullopt;
+    Uint16 u16 = 0;
+    Sint16 s16 = 0;
+    Uint32 u32 = 0;
+    Sint32 s32 = 0;
+    if (e->getUint16(u16).good()) return signedPixels ? std::int64_t(static_cast<Sint16>(u16)) : std::int64_t(u16);
+    if (e->getSint16(s16).good()) return signedPixels ? std::int64_t(s16) : std::int64_t(static_cast<Uint16>(s16));
+    if (e->getUint32(u32).good()) return signedPixels ? std::int64_t(static_cast<Sint32>(u32)) : std::int64_t(u32);
+    if (e->getSint32(s32).good()) return signedPixels ? std::int64_t(s32) : std::int64_t(static_cast<Uint32>(s32));
+    problems.push_back(std::string(DcmTag(tag).getTagName()) + " " + tag.toString().c_str() +
+                       ": not a US/SS/UL/SL number: ignored");
+    return std::nullopt;
+}
+
 /** LUTDescriptor (entries, first mapped value, bits) and LUTData of a Modality LUT item. */
 void readModalityLut(DcmItem* lut, DicomHeader& h) {
     DcmElement* desc = nullptr;
@@ -320,6 +339,11 @@ DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* kee
     h.pixelRepresentation = ds->findAndGetUint16(DCM_PixelRepresentation, u).good() ? u : 0;
     h.photometric = getString(ds, DCM_PhotometricInterpretation);
     if (h.photometric.empty()) h.photometric = "MONOCHROME2";
+    if (!h.floatPixelData && !h.doublePixelData) {
+        h.paddingValue = readPaddingValue(ds, DCM_PixelPaddingValue, h.pixelRepresentation == 1, h.problems);
+        if (h.paddingValue)
+            h.paddingLimit = readPaddingValue(ds, DCM_PixelPaddingRangeLimit, h.pixelRepresentation == 1, h.problems);
+    }
 
     if (present(ds, DCM_NumberOfFrames)) {
         Sint32 n = 0;

@@ -89,6 +89,9 @@ struct DicomHeader {
     std::string lutType;                 ///< ModalityLUTType (HU, OD, US...)
     bool enhanced = false;               ///< per-frame functional groups present
     std::string gantryTilt;              ///< GantryDetectorTilt as written
+    /// PixelPaddingValue (0028,0120) and PixelPaddingRangeLimit (0028,0121), in stored-value
+    /// units (before inversion and rescale; signed when PixelRepresentation is 1).
+    std::optional<std::int64_t> paddingValue, paddingLimit;
     std::vector<FrameInfo> frameInfo;    ///< one per frame
     std::vector<std::string> problems;   ///< malformed geometry attributes (become warnings)
 };

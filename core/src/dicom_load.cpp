@@ -58,11 +58,35 @@ inline std::int64_t storedValue(std::uint32_t word, const PixelFormat& pf) {
     return pf.invert ? pf.invertSum - v : v;
 }
 
-/** Converts the listed frames of one file into their slots of `stack`. Returns the number of
- *  non-finite float pixels replaced by 0. */
-std::int64_t decodeFile(const DicomHeader& h, DcmFileFormat& ff,
+/** Pixel padding (PixelPaddingValue, up to PixelPaddingRangeLimit when given) marks pixels that
+ *  hold no measurement (outside a CT's reconstruction circle, say). They are matched on stored
+ *  values before inversion and written as `fill`: air (-1000) for Hounsfield units, else 0 (no
+ *  signal), so that they add nothing to a projection. */
+struct Padding {
+    bool on = false;
+    std::int64_t lo = 0, hi = 0;
+    float fill = 0.0f;
+    Padding(const DicomHeader& h, bool hu) : fill(hu ? -1000.0f : 0.0f) {
+        if (!h.paddingValue) return;
+        on = true;
+        lo = hi = *h.paddingValue;
+        if (h.paddingLimit) {
+            lo = std::min(lo, *h.paddingLimit);
+            hi = std::max(hi, *h.paddingLimit);
+        }
+    }
+    bool operator()(std::int64_t stored) const { return on && stored >= lo && stored <= hi; }
+};
+
+struct DecodeCounts {
+    std::int64_t nonFinite = 0; ///< non-finite float pixels replaced by 0
+    std::int64_t padded = 0;    ///< padding pixels whose value changed to the fill
+};
+
+/** Converts the listed frames of one file into their slots of `stack`. */
+DecodeCounts decodeFile(const DicomHeader& h, DcmFileFormat& ff,
                         const std::vector<std::pair<int, std::int64_t>>& frames, float* stack,
-                        std::int64_t sliceVox, bool invert) {
+                        std::int64_t sliceVox, bool invert, bool hu) {
     const fs::path& path = h.path;
     DcmDataset* ds = ff.getDataset();
     const std::uint64_t frameVox = std::uint64_t(h.rows) * std::uint64_t(h.cols);
@@ -117,9 +141,19 @@ std::int64_t decodeFile(const DicomHeader& h, DcmFileFormat& ff,
                        std::string(c.bad() ? c.text() : "no value") + " (truncated file?)");
 
     const PixelFormat pf = pixelFormat(h, invert);
+    PixelFormat uninverted = pf;
+    uninverted.invert = false;
+    const Padding padding(h, hu);
     std::vector<float> lut;
+    std::vector<std::uint8_t> padChanged; // per word: padding whose value the fill changes
+    auto padWord = [&](std::size_t w, float value) {
+        const bool pad = padding(storedValue(std::uint32_t(w), uninverted));
+        padChanged[w] = pad && value != padding.fill;
+        return pad ? padding.fill : value;
+    };
     double lutSlope = NAN, lutIntercept = NAN;
-    std::int64_t nonFinite = 0;
+    DecodeCounts counts;
+    std::int64_t& nonFinite = counts.nonFinite;
     for (const auto& [frame, slot] : frames) {
         const FrameInfo& fi = h.frameInfo[static_cast<std::size_t>(frame)];
         const double slope = fi.hasRescale ? fi.slope : 1.0;
@@ -146,38 +180,50 @@ std::int64_t decodeFile(const DicomHeader& h, DcmFileFormat& ff,
                 const auto n = std::int64_t(h.modalityLut.size());
                 const std::int64_t top = (std::int64_t(1) << h.lutBits) - 1;
                 lut.resize(std::size_t(1) << h.bitsAllocated);
+                padChanged.assign(lut.size(), 0);
                 for (std::size_t w = 0; w < lut.size(); ++w) {
                     const std::int64_t i =
                         std::clamp<std::int64_t>(storedValue(std::uint32_t(w), plain) - h.lutFirst, 0, n - 1);
                     const std::int64_t out = std::min<std::int64_t>(h.modalityLut[std::size_t(i)], top);
-                    lut[w] = static_cast<float>(pf.invert ? top - out : out);
+                    lut[w] = padWord(w, static_cast<float>(pf.invert ? top - out : out));
                 }
             } else if (!h.hasModalityLut &&
                        (lut.empty() || slope != lutSlope || intercept != lutIntercept)) {
                 lut.resize(std::size_t(1) << h.bitsAllocated);
+                padChanged.assign(lut.size(), 0);
                 for (std::size_t w = 0; w < lut.size(); ++w)
-                    lut[w] = static_cast<float>(double(storedValue(std::uint32_t(w), pf)) * slope + intercept);
+                    lut[w] = padWord(w, static_cast<float>(double(storedValue(std::uint32_t(w), pf)) * slope + intercept));
                 lutSlope = slope;
                 lutIntercept = intercept;
             }
-            if (h.bitsAllocated == 8) {
-                const auto* src = static_cast<const Uint8*>(raw) + first;
-                for (std::uint64_t i = 0; i < frameVox; ++i) dst[i] = lut[src[i]];
-            } else {
-                const auto* src = static_cast<const Uint16*>(raw) + first;
-                for (std::uint64_t i = 0; i < frameVox; ++i) dst[i] = lut[src[i]];
-            }
+            auto convert = [&](const auto* src) {
+                if (!padding.on) {
+                    for (std::uint64_t i = 0; i < frameVox; ++i) dst[i] = lut[src[i]];
+                    return;
+                }
+                std::int64_t changed = 0;
+                for (std::uint64_t i = 0; i < frameVox; ++i) {
+                    dst[i] = lut[src[i]];
+                    changed += padChanged[src[i]];
+                }
+                counts.padded += changed;
+            };
+            if (h.bitsAllocated == 8) convert(static_cast<const Uint8*>(raw) + first);
+            else convert(static_cast<const Uint16*>(raw) + first);
         } else {
             static_assert(std::endian::native == std::endian::little, "32-bit pixel words assume a little endian host");
             const auto* src = static_cast<const Uint16*>(raw) + 2 * first;
             for (std::uint64_t i = 0; i < frameVox; ++i) {
                 std::uint32_t w;
                 std::memcpy(&w, src + 2 * i, 4);
-                dst[i] = static_cast<float>(double(storedValue(w, pf)) * slope + intercept);
+                const float value = static_cast<float>(double(storedValue(w, pf)) * slope + intercept);
+                const bool pad = padding(storedValue(w, uninverted));
+                counts.padded += pad && value != padding.fill;
+                dst[i] = pad ? padding.fill : value;
             }
         }
     }
-    return nonFinite;
+    return counts;
 }
 
 /** Bilinear sample of slice `s` (cols x rows) at (fx, fy); `fill` outside it. */
@@ -380,7 +426,7 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
         const FrameRef& ref = refs[static_cast<std::size_t>(plan.order[k])];
         perFile[static_cast<std::size_t>(ref.file)].emplace_back(ref.frame, std::int64_t(k));
     }
-    std::atomic<std::int64_t> nonFinite{0};
+    std::atomic<std::int64_t> nonFinite{0}, padded{0};
     {
         Progress prog(progress, "decoding DICOM pixels", 0.1, plan.resample ? 0.8 : 1.0,
                       std::int64_t(nFiles));
@@ -388,13 +434,24 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
             checkCancel(cancel);
             const auto k = static_cast<std::size_t>(i);
             const bool invert = hs[k].photometric == "MONOCHROME1" && !hu;
-            nonFinite += decodeFile(hs[k], *ffs[k], perFile[k], stack.data(), sliceVox, invert);
+            const DecodeCounts c = decodeFile(hs[k], *ffs[k], perFile[k], stack.data(), sliceVox, invert, hu);
+            nonFinite += c.nonFinite;
+            padded += c.padded;
             ffs[k].reset(); // frees the file's pixel data at once
             prog.step();
         });
     }
     if (nonFinite > 0)
         warn(std::to_string(nonFinite.load()) + " non-finite float pixel values (NaN/Inf) set to 0");
+    if (padded > 0) {
+        const auto h = std::find_if(hs.begin(), hs.end(), [](const DicomHeader& x) { return x.paddingValue.has_value(); });
+        std::string what = "PixelPaddingValue (0028,0120) " + std::to_string(*h->paddingValue);
+        if (h->paddingLimit) what += " to PixelPaddingRangeLimit (0028,0121) " + std::to_string(*h->paddingLimit);
+        char share[32];
+        std::snprintf(share, sizeof share, "%.1f", 100.0 * double(padded.load()) / double(stack.size()));
+        warn(what + ": " + std::to_string(padded.load()) + " padding pixels (" + share +
+             " %, no measurement there) set to " + (hu ? "air (-1000 HU)" : "0 (no signal)"));
+    }
 
     DicomVolume result;
     Volume& vol = result.volume;

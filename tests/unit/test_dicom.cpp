@@ -147,6 +147,7 @@ struct SliceSpec {
     std::string acquisitionNumber, echoNumbers, instanceNumber;
     std::vector<std::uint16_t> words; // raw words, cols * rows * frames
     std::optional<std::uint16_t> rowsOverride; // written Rows (a lying header)
+    std::optional<std::int32_t> padding, paddingLimit; // PixelPaddingValue, PixelPaddingRangeLimit
 };
 
 std::string ds(double v) {
@@ -202,6 +203,19 @@ void writeSlice(const fs::path& path, const SliceSpec& s) {
     d->putAndInsertUint16(DCM_BitsStored, std::uint16_t(s.bitsStored));
     d->putAndInsertUint16(DCM_HighBit, std::uint16_t(s.highBit));
     d->putAndInsertUint16(DCM_PixelRepresentation, std::uint16_t(s.pixelRepresentation));
+    auto putPadding = [&](const DcmTagKey& key, std::int32_t v) { // VR SS or US, per PixelRepresentation
+        if (s.pixelRepresentation == 1) {
+            auto* e = new DcmSignedShort(DcmTag(key, EVR_SS));
+            e->putSint16(Sint16(v));
+            d->insert(e, true);
+        } else {
+            auto* e = new DcmUnsignedShort(DcmTag(key, EVR_US));
+            e->putUint16(Uint16(v));
+            d->insert(e, true);
+        }
+    };
+    if (s.padding) putPadding(DCM_PixelPaddingValue, *s.padding);
+    if (s.paddingLimit) putPadding(DCM_PixelPaddingRangeLimit, *s.paddingLimit);
     if (s.bitsAllocated == 8) {
         std::vector<Uint8> bytes(s.words.begin(), s.words.end());
         d->putAndInsertUint8Array(DCM_PixelData, bytes.data(), static_cast<unsigned long>(bytes.size()));
@@ -572,6 +586,10 @@ TEST(Dicom, GantryTiltWarnsAndDeshearsConsistentWithSlices) {
     expectVec(v.volume.direction[1], {0, 0.9483237, -0.3173047}, 1e-6, "column direction");
     expectVec(v.volume.direction[2], {0, 0.3173047, 0.9483237}, 1e-6, "normal");
     EXPECT_EQ(v.volume.units, ValueUnits::HounsfieldUnits);
+    // Outside the reconstruction circle the files hold PixelPaddingValue -1500 (no
+    // measurement): air now, so the lowest value is the scanner's -1023 HU, not the padding.
+    EXPECT_TRUE(contains(all, "PixelPaddingValue (0028,0120) -1500: 1741040 padding pixels (23.7 %")) << all;
+    EXPECT_EQ(v.volume.valueRange().first, -1023.0f);
 
     // Every resampled voxel must be the value of the original slices at the same physical point:
     // load each file alone and interpolate it here, independently of the loader's resampler.
@@ -854,6 +872,86 @@ TEST(Dicom, Monochrome1InvertedBeforeRescaleExceptHounsfield) {
     EXPECT_EQ(ct.volume.units, ValueUnits::HounsfieldUnits);
     EXPECT_TRUE(anyWarningContains(ct.warnings, "MONOCHROME1: Hounsfield units kept"));
     EXPECT_EQ(ct.volume.at(5, 0, 0), float(1000 + 5 - 1024));
+}
+
+TEST(Dicom, PixelPaddingBecomesAirOrTheLowestValue) {
+    const fs::path dir = scratch("padding");
+    // CT, signed, HU: a disk of 40 HU in -1000 HU air, padded with -2000 outside a circle (the
+    // reconstruction field of view). Padding becomes air; every other value stays.
+    SliceSpec s;
+    s.modality = "CT";
+    s.cols = s.rows = 16;
+    s.pixelRepresentation = 1;
+    s.rescale = std::make_pair(1.0, 0.0);
+    s.padding = -2000;
+    auto ctValue = [](std::int64_t x, std::int64_t y) {
+        const double r = std::hypot(double(x) - 7.5, double(y) - 7.5);
+        return r > 7.0 ? -2000 : (r < 4.0 ? 40 : -1000);
+    };
+    s.words = pattern(16, 16, [&](std::int64_t x, std::int64_t y) { return std::uint16_t(std::int16_t(ctValue(x, y))); });
+    writeSlice(dir / "ct.dcm", s);
+    const DicomVolume ct = fvr::core::loadDicomFile(dir / "ct.dcm");
+    EXPECT_EQ(ct.volume.units, ValueUnits::HounsfieldUnits);
+    int padded = 0;
+    for (std::int64_t y = 0; y < 16; ++y)
+        for (std::int64_t x = 0; x < 16; ++x) {
+            const int want = ctValue(x, y);
+            padded += want == -2000;
+            EXPECT_EQ(ct.volume.at(x, y, 0), want == -2000 ? -1000.0f : float(want)) << x << "," << y;
+        }
+    ASSERT_GT(padded, 20);
+    EXPECT_TRUE(anyWarningContains(ct.warnings, "PixelPaddingValue (0028,0120) -2000: " + std::to_string(padded) +
+                                                    " padding pixels"))
+        << joined(ct.warnings);
+    EXPECT_TRUE(anyWarningContains(ct.warnings, "set to air (-1000 HU)")) << joined(ct.warnings);
+
+    // MR, unsigned, a padding range 0..5 (limit below or above the value: the same range): those
+    // stored values become 0 (no signal); the rescale applies to the rest.
+    SliceSpec m;
+    m.rescale = std::make_pair(2.0, 1.0);
+    m.words = pattern(8, 8, [](std::int64_t x, std::int64_t y) { return std::uint16_t(x * 10 + y); });
+    for (auto [value, limit] : {std::pair{0, 5}, std::pair{5, 0}}) {
+        m.padding = value;
+        m.paddingLimit = limit;
+        writeSlice(dir / "mr.dcm", m);
+        const DicomVolume mr = fvr::core::loadDicomFile(dir / "mr.dcm");
+        EXPECT_EQ(mr.volume.units, ValueUnits::Intensity);
+        for (std::int64_t y = 0; y < 8; ++y)
+            for (std::int64_t x = 0; x < 8; ++x) {
+                const int stored = int(x * 10 + y);
+                EXPECT_EQ(mr.volume.at(x, y, 0), stored <= 5 ? 0.0f : float(2 * stored + 1)) << x << "," << y;
+            }
+        EXPECT_TRUE(anyWarningContains(mr.warnings, "PixelPaddingRangeLimit (0028,0121) " + std::to_string(limit)))
+            << joined(mr.warnings);
+        EXPECT_TRUE(anyWarningContains(mr.warnings, ": 6 padding pixels")) << joined(mr.warnings);
+        EXPECT_TRUE(anyWarningContains(mr.warnings, "set to 0 (no signal)")) << joined(mr.warnings);
+    }
+
+    // MONOCHROME1: the padding value is a stored value, compared before the inversion.
+    m.photometric = "MONOCHROME1";
+    m.bitsStored = 12;
+    m.highBit = 11;
+    m.padding = 100;
+    m.paddingLimit.reset();
+    m.rescale.reset();
+    m.words = pattern(8, 8, [](std::int64_t x, std::int64_t y) { return std::uint16_t(x == 0 && y == 0 ? 100 : x * 10 + y); });
+    writeSlice(dir / "mono1.dcm", m);
+    const DicomVolume m1 = fvr::core::loadDicomFile(dir / "mono1.dcm");
+    EXPECT_EQ(m1.volume.at(0, 0, 0), 0.0f);             // padding (stored 100)
+    EXPECT_EQ(m1.volume.at(1, 0, 0), 4095.0f - 10.0f);  // inverted
+    EXPECT_TRUE(anyWarningContains(m1.warnings, ": 1 padding pixels")) << joined(m1.warnings);
+
+    // Padding pixels that already hold the fill change nothing and are not reported; a padding
+    // value no pixel holds changes nothing either.
+    for (int pad : {4095, 4000}) {
+        m.padding = pad;
+        m.words[0] = 4095; // inverted: 0
+        writeSlice(dir / "nopad.dcm", m);
+        const DicomVolume np = fvr::core::loadDicomFile(dir / "nopad.dcm");
+        EXPECT_FALSE(anyWarningContains(np.warnings, "padding")) << pad << ": " << joined(np.warnings);
+        EXPECT_EQ(np.volume.at(0, 0, 0), 0.0f);
+        EXPECT_EQ(np.volume.at(1, 0, 0), 4095.0f - 10.0f);
+    }
 }
 
 TEST(Dicom, BitsAboveHighBitMaskedAndShiftedHighBit) {

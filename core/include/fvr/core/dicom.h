@@ -22,7 +22,10 @@
  *  of the BitsStored range) - v before the rescale (with a Modality LUT: its output range is
  *  inverted), so that larger means brighter, with a warning; except Hounsfield units, which are
  *  physical and stay as they are (MONOCHROME1 only tells a viewer to show low values white),
- *  also with a warning.
+ *  also with a warning. Pixel padding: stored values equal to PixelPaddingValue (or between it
+ *  and PixelPaddingRangeLimit) hold no measurement (outside a CT's reconstruction circle, say);
+ *  they become air (-1000) for Hounsfield units, else 0, so that they add nothing to a
+ *  projection, with a warning that counts them.
  *
  *  Geometry (decided per case; a user never gets a silently distorted volume):
  *  - Order: slices sorted by ImagePositionPatient projected on the normal n = row x column
