@@ -54,9 +54,11 @@ namespace {
 
 std::string trim(const OFString& s) {
     std::string r(s.c_str(), s.length());
-    const auto b = r.find_first_not_of(" \t\r\n");
+    // Padding: spaces, and NULs that some writers use instead (OsiriX's "MONOCHROME2\0").
+    static const std::string pad(" \t\r\n\0", 5);
+    const auto b = r.find_first_not_of(pad);
     if (b == std::string::npos) return {};
-    const auto e = r.find_last_not_of(" \t\r\n");
+    const auto e = r.find_last_not_of(pad);
     // Control bytes (a malformed file) are replaced so that messages stay printable.
     std::string out = r.substr(b, e - b + 1);
     for (char& c : out)
@@ -301,7 +303,17 @@ DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* kee
     h.encapsulated = xf.isEncapsulated();
     h.bigEndian = xf.isBigEndian();
     if (h.encapsulated)
-        h.decodable = h.decodable && DcmCodecList::canChangeCoding(xfer, EXS_LittleEndianExplicit);
+        h.decodable = h.decodable &&
+                      (isJpeg2000(xfer) || DcmCodecList::canChangeCoding(xfer, EXS_LittleEndianExplicit));
+    h.lossyDeclared = getString(ds, DCM_LossyImageCompression) == "01";
+    if (h.lossyDeclared) {
+        const std::string ratio = getString(ds, DCM_LossyImageCompressionRatio);
+        const std::string method = getString(ds, DCM_LossyImageCompressionMethod);
+        h.problems.push_back("lossy compressed image (LossyImageCompression (0028,2110) 01" +
+                             (method.empty() ? std::string() : ", " + method) +
+                             (ratio.empty() ? std::string() : ", ratio " + ratio) +
+                             "): the values are approximations of the original");
+    }
 
     h.studyUid = getString(ds, DCM_StudyInstanceUID);
     h.seriesUid = getString(ds, DCM_SeriesInstanceUID);

@@ -19,6 +19,7 @@
 #include <fvr/core/volume.h>
 
 class DcmFileFormat;
+class DcmDataset;
 
 namespace fvr::core::dicom_detail {
 
@@ -92,6 +93,7 @@ struct DicomHeader {
     /// PixelPaddingValue (0028,0120) and PixelPaddingRangeLimit (0028,0121), in stored-value
     /// units (before inversion and rescale; signed when PixelRepresentation is 1).
     std::optional<std::int64_t> paddingValue, paddingLimit;
+    bool lossyDeclared = false;          ///< LossyImageCompression (0028,2110) is 01
     std::vector<FrameInfo> frameInfo;    ///< one per frame
     std::vector<std::string> problems;   ///< malformed geometry attributes (become warnings)
 };
@@ -100,6 +102,18 @@ struct DicomHeader {
  *  disk). Throws DicomError naming the file for unreadable files and non-images. When `keep`
  *  is given, the parsed file is handed over (its pixel data loads on demand). */
 DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* keep = nullptr);
+
+/** JPEG 2000 (1.2.840.10008.1.2.4.90/.91): decoded with OpenJPEG, DCMTK has no codec for it. */
+bool isJpeg2000(int xfer);
+struct Jpeg2000Frames {
+    std::vector<std::uint8_t> words;  ///< little-endian words of BitsAllocated, samples in the low bits
+    bool signReinterpreted = false;   ///< the codestream's signedness differs from PixelRepresentation
+    bool irreversible = false;        ///< a codestream uses the 9/7 wavelet (lossy)
+};
+/** Decodes the listed frames (0-based) of a JPEG 2000 file, frame f at f * rows * cols words (the
+ *  other frames stay 0). Throws DicomError naming the file (fragments that do not split into the
+ *  frames, colour, size or more bits than the header's, a corrupt or truncated codestream). */
+Jpeg2000Frames decodeJpeg2000(const DicomHeader& h, DcmDataset& ds, const std::vector<int>& frames);
 
 /** Empty when the header's pixel format can be loaded, else the reason (unsupported
  *  transfer syntax, colour, bit depth...). */

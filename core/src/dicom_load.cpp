@@ -81,6 +81,8 @@ struct Padding {
 struct DecodeCounts {
     std::int64_t nonFinite = 0; ///< non-finite float pixels replaced by 0
     std::int64_t padded = 0;    ///< padding pixels whose value changed to the fill
+    bool j2kSignReinterpreted = false;
+    bool j2kLossyUndeclared = false; ///< 9/7 wavelet without LossyImageCompression 01
 };
 
 /** Converts the listed frames of one file into their slots of `stack`. */
@@ -99,46 +101,57 @@ DecodeCounts decodeFile(const DicomHeader& h, DcmFileFormat& ff,
                              std::to_string(h.frames) + " frames x " + std::to_string(bytesPer) +
                              " bytes";
 
-    if (h.encapsulated) {
-        // Sizes against the compressed data were checked by readHeader.
-        const OFCondition c = ds->chooseRepresentation(EXS_LittleEndianExplicit, nullptr);
-        if (c.bad() || !ds->canWriteXfer(EXS_LittleEndianExplicit))
-            fail(path, "cannot decode the " + h.xferName + " pixel data: " +
-                           (c.bad() ? std::string(c.text()) : std::string("no decoder")));
-    }
-
-    const DcmTagKey tag = h.floatPixelData    ? DCM_FloatPixelData
-                          : h.doublePixelData ? DCM_DoubleFloatPixelData
-                                              : DCM_PixelData;
-    DcmElement* pe = nullptr;
-    if (ds->findAndGetElement(tag, pe).bad() || !pe) fail(path, "Pixel Data (7FE0,0010) missing");
-    const std::uint64_t have = pe->getLength();
-    if (have < need)
-        fail(path, "Pixel Data (7FE0,0010): expected " + dims + " = " + std::to_string(need) +
-                       " bytes, found " + std::to_string(have) + " (truncated file or wrong header)");
-
-    OFCondition c = EC_Normal;
+    DecodeCounts counts;
+    Jpeg2000Frames j2k; // JPEG 2000: decoded here with OpenJPEG
     const void* raw = nullptr;
-    if (h.floatPixelData) {
-        Float32* p = nullptr;
-        c = pe->getFloat32Array(p);
-        raw = p;
-    } else if (h.doublePixelData) {
-        Float64* p = nullptr;
-        c = pe->getFloat64Array(p);
-        raw = p;
-    } else if (h.bitsAllocated == 8) {
-        Uint8* p = nullptr;
-        c = pe->getUint8Array(p);
-        raw = p;
+    if (isJpeg2000(h.xfer)) {
+        std::vector<int> wanted;
+        for (const auto& fr : frames) wanted.push_back(fr.first);
+        j2k = decodeJpeg2000(h, *ds, wanted);
+        raw = j2k.words.data();
+        counts.j2kSignReinterpreted = j2k.signReinterpreted;
+        counts.j2kLossyUndeclared = j2k.irreversible && !h.lossyDeclared;
     } else {
-        Uint16* p = nullptr; // 32-bit words: two 16-bit halves in little endian order
-        c = pe->getUint16Array(p);
-        raw = p;
+        if (h.encapsulated) {
+            // Sizes against the compressed data were checked by readHeader.
+            const OFCondition c = ds->chooseRepresentation(EXS_LittleEndianExplicit, nullptr);
+            if (c.bad() || !ds->canWriteXfer(EXS_LittleEndianExplicit))
+                fail(path, "cannot decode the " + h.xferName + " pixel data: " +
+                               (c.bad() ? std::string(c.text()) : std::string("no decoder")));
+        }
+
+        const DcmTagKey tag = h.floatPixelData    ? DCM_FloatPixelData
+                              : h.doublePixelData ? DCM_DoubleFloatPixelData
+                                                  : DCM_PixelData;
+        DcmElement* pe = nullptr;
+        if (ds->findAndGetElement(tag, pe).bad() || !pe) fail(path, "Pixel Data (7FE0,0010) missing");
+        const std::uint64_t have = pe->getLength();
+        if (have < need)
+            fail(path, "Pixel Data (7FE0,0010): expected " + dims + " = " + std::to_string(need) +
+                           " bytes, found " + std::to_string(have) + " (truncated file or wrong header)");
+
+        OFCondition c = EC_Normal;
+        if (h.floatPixelData) {
+            Float32* p = nullptr;
+            c = pe->getFloat32Array(p);
+            raw = p;
+        } else if (h.doublePixelData) {
+            Float64* p = nullptr;
+            c = pe->getFloat64Array(p);
+            raw = p;
+        } else if (h.bitsAllocated == 8) {
+            Uint8* p = nullptr;
+            c = pe->getUint8Array(p);
+            raw = p;
+        } else {
+            Uint16* p = nullptr; // 32-bit words: two 16-bit halves in little endian order
+            c = pe->getUint16Array(p);
+            raw = p;
+        }
+        if (c.bad() || !raw)
+            fail(path, "Pixel Data (7FE0,0010) could not be read: " +
+                           std::string(c.bad() ? c.text() : "no value") + " (truncated file?)");
     }
-    if (c.bad() || !raw)
-        fail(path, "Pixel Data (7FE0,0010) could not be read: " +
-                       std::string(c.bad() ? c.text() : "no value") + " (truncated file?)");
 
     const PixelFormat pf = pixelFormat(h, invert);
     PixelFormat uninverted = pf;
@@ -152,7 +165,6 @@ DecodeCounts decodeFile(const DicomHeader& h, DcmFileFormat& ff,
         return pad ? padding.fill : value;
     };
     double lutSlope = NAN, lutIntercept = NAN;
-    DecodeCounts counts;
     std::int64_t& nonFinite = counts.nonFinite;
     for (const auto& [frame, slot] : frames) {
         const FrameInfo& fi = h.frameInfo[static_cast<std::size_t>(frame)];
@@ -427,6 +439,7 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
         perFile[static_cast<std::size_t>(ref.file)].emplace_back(ref.frame, std::int64_t(k));
     }
     std::atomic<std::int64_t> nonFinite{0}, padded{0};
+    std::atomic<bool> j2kSign{false}, j2kLossy{false};
     {
         Progress prog(progress, "decoding DICOM pixels", 0.1, plan.resample ? 0.8 : 1.0,
                       std::int64_t(nFiles));
@@ -437,12 +450,21 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
             const DecodeCounts c = decodeFile(hs[k], *ffs[k], perFile[k], stack.data(), sliceVox, invert, hu);
             nonFinite += c.nonFinite;
             padded += c.padded;
+            if (c.j2kSignReinterpreted) j2kSign = true;
+            if (c.j2kLossyUndeclared) j2kLossy = true;
             ffs[k].reset(); // frees the file's pixel data at once
             prog.step();
         });
     }
     if (nonFinite > 0)
         warn(std::to_string(nonFinite.load()) + " non-finite float pixel values (NaN/Inf) set to 0");
+    if (j2kSign)
+        warn("JPEG 2000 codestream signedness differs from PixelRepresentation (0028,0103) " +
+             std::to_string(hs[0].pixelRepresentation) + ": the samples' BitsStored bits are read as the header declares (" +
+             (hs[0].pixelRepresentation == 1 ? "two's complement" : "unsigned") + ")");
+    if (j2kLossy)
+        warn("lossy JPEG 2000 (irreversible 9/7 wavelet) although LossyImageCompression (0028,2110) does not "
+             "say so: the values are approximations of the original");
     if (padded > 0) {
         const auto h = std::find_if(hs.begin(), hs.end(), [](const DicomHeader& x) { return x.paddingValue.has_value(); });
         std::string what = "PixelPaddingValue (0028,0120) " + std::to_string(*h->paddingValue);

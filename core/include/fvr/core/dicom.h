@@ -4,11 +4,13 @@
  *
  *  Supported: Explicit/Implicit VR Little Endian, Explicit VR Big Endian, Deflated, RLE, JPEG
  *  (baseline, extended, lossless incl. frames split over several fragments), JPEG-LS (lossless
- *  and near-lossless); single-frame series, classic multi-frame and enhanced multi-frame
+ *  and near-lossless), JPEG 2000 (lossless and lossy; OpenJPEG, strict: truncated codestreams
+ *  are refused; the header's PixelRepresentation decides the sign; irreversible codestreams are
+ *  reported as lossy); single-frame series, classic multi-frame and enhanced multi-frame
  *  (shared and per-frame functional groups: PlanePosition, PlaneOrientation, PixelMeasures,
  *  PixelValueTransformation); monochrome, 8/16/32-bit integer (signed or not, any BitsStored and
  *  HighBit) and Float/Double Float Pixel Data. Refused with a DicomError naming the file and the
- *  reason: JPEG 2000 and other transfer syntaxes without a decoder in Debian's DCMTK 3.6.7,
+ *  reason: transfer syntaxes without a decoder (JPEG 2000 multi-component, JPEG XL, HTJ2K),
  *  colour (SamplesPerPixel > 1, PALETTE COLOR), BitsAllocated 1 (segmentations), headers the
  *  pixel data cannot hold (checked before anything is allocated; compressed data may claim at
  *  most 1024 times its size, or 256 MiB).
@@ -97,7 +99,7 @@ struct DicomScanResult {
 
 /** Recursive scan (reads DICOMDIR when present, else every file), in parallel, headers only
  *  (pixel data stays on disk); progress and cancellation as for preprocessing. Non-DICOM and
- *  broken files are listed in `skipped`; series that cannot be loaded (e.g. JPEG 2000) are
+ *  broken files are listed in `skipped`; series that cannot be loaded (e.g. colour) are
  *  listed with a "cannot be loaded" warning. `folder` may also be a single file. Throws
  *  DicomError when the folder does not exist or holds no image series. */
 DicomScanResult scanDicomFolder(const std::filesystem::path& folder, const ProgressFn& progress = {},
