@@ -180,6 +180,22 @@ inline void axisDerivWeights(const SliceContext& c, double k, std::int64_t& base
     }
 }
 
+/** The taps' weights along x, y and z, with their derivatives when Derivative (dx..dz are then
+ *  written; otherwise left alone). */
+template <int T, bool Derivative>
+inline void tapWeights(const SliceContext& c, double kx, double ky, double kz, std::int64_t& bx, std::int64_t& by,
+                       std::int64_t& bz, float* wx, float* wy, float* wz, float* dx, float* dy, float* dz) {
+    if constexpr (Derivative) {
+        axisDerivWeights<T>(c, kx, bx, wx, dx);
+        axisDerivWeights<T>(c, ky, by, wy, dy);
+        axisDerivWeights<T>(c, kz, bz, wz, dz);
+    } else {
+        axisWeights<T>(c, kx, bx, wx);
+        axisWeights<T>(c, ky, by, wy);
+        axisWeights<T>(c, kz, bz, wz);
+    }
+}
+
 /** Prefetches the spectrum rows a later sample will read (the slice walks the spectrum along a
  *  plane: the loads are cache misses, so issuing them early overlaps their latency). */
 template <int T>
@@ -215,15 +231,7 @@ inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double 
     }
     std::int64_t bx, by, bz;
     float wx[T], wy[T], wz[T], dx[T], dy[T], dz[T];
-    if constexpr (Depth) {
-        axisDerivWeights<T>(c, kx, bx, wx, dx);
-        axisDerivWeights<T>(c, ky, by, wy, dy);
-        axisDerivWeights<T>(c, kz, bz, wz, dz);
-    } else {
-        axisWeights<T>(c, kx, bx, wx);
-        axisWeights<T>(c, ky, by, wy);
-        axisWeights<T>(c, kz, bz, wz);
-    }
+    tapWeights<T, Depth>(c, kx, ky, kz, bx, by, bz, wx, wy, wz, dx, dy, dz);
     std::int64_t ix[T], iy[T], iz[T];
     bool flip[T];
     bool anyFlip = false;
@@ -290,15 +298,7 @@ inline float sampleHartley(const SliceContext& c, double kx, double ky, double k
     if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return 0.0f;
     std::int64_t bx, by, bz;
     float wx[T], wy[T], wz[T], dx[T], dy[T], dz[T];
-    if constexpr (Derivative) {
-        axisDerivWeights<T>(c, kx, bx, wx, dx);
-        axisDerivWeights<T>(c, ky, by, wy, dy);
-        axisDerivWeights<T>(c, kz, bz, wz, dz);
-    } else {
-        axisWeights<T>(c, kx, bx, wx);
-        axisWeights<T>(c, ky, by, wy);
-        axisWeights<T>(c, kz, bz, wz);
-    }
+    tapWeights<T, Derivative>(c, kx, ky, kz, bx, by, bz, wx, wy, wz, dx, dy, dz);
     std::int64_t ix[T], iy[T], iz[T];
     for (int t = 0; t < T; ++t) {
         ix[t] = wrapSmall(bx + t, c.P0);

@@ -181,7 +181,8 @@ void decodeFrame(const DicomHeader& h, const Bytes& code, int frame, std::uint8_
     opj_dparameters_t params;
     opj_set_default_decoder_parameters(&params);
     if (!opj_setup_decoder(codec.get(), &params)) fail(h.path, "JPEG 2000: decoder setup failed");
-    // A truncated codestream is an error, not a partly decoded image.
+    // A truncated codestream is an error, not a partly decoded image (OpenJPEG 2.5's default,
+    // made explicit: the corrupt-codestream test fails without it).
     opj_decoder_set_strict_mode(codec.get(), OPJ_TRUE);
 
     opj_image_t* raw = nullptr;

@@ -306,25 +306,19 @@ void GpuFourierRenderer::bindKernel(unsigned prog, Kernel kernel, bool derivativ
             m_kernelDerivativeBuffers.erase(d);
         }
     }
-    if (it == m_kernelBuffers.end()) {
+    auto upload = [&](const std::vector<float>& t) {
         GLuint b = 0;
         m_gl->glGenBuffers(1, &b);
         m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
-        const auto& t = m_tables.at(kernel)->table();
         m_gl->glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(t.size() * sizeof(float)), t.data(), GL_STATIC_DRAW);
-        it = m_kernelBuffers.emplace(kernel, b).first;
-    }
+        return b;
+    };
+    if (it == m_kernelBuffers.end()) it = m_kernelBuffers.emplace(kernel, upload(m_tables.at(kernel)->table())).first;
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, it->second);
     if (derivative) {
         auto d = m_kernelDerivativeBuffers.find(kernel);
-        if (d == m_kernelDerivativeBuffers.end()) {
-            GLuint b = 0;
-            m_gl->glGenBuffers(1, &b);
-            m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
-            const auto& t = m_tables.at(kernel)->derivativeTable();
-            m_gl->glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(t.size() * sizeof(float)), t.data(), GL_STATIC_DRAW);
-            d = m_kernelDerivativeBuffers.emplace(kernel, b).first;
-        }
+        if (d == m_kernelDerivativeBuffers.end())
+            d = m_kernelDerivativeBuffers.emplace(kernel, upload(m_tables.at(kernel)->derivativeTable())).first;
         m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, d->second);
     }
     m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uKernelRes"), core::KernelTable::kResolution);

@@ -434,7 +434,9 @@ TEST(Dicom, Jpeg2000EdgeCasesMatchGdcmAndTheUncompressedCopies) {
         EXPECT_EQ(lo, c.lo);
         EXPECT_EQ(hi, c.hi);
         EXPECT_EQ(voxelSum(v.volume), c.sum);
-        if (c.warning) EXPECT_TRUE(anyWarningContains(v.warnings, c.warning)) << joined(v.warnings);
+        if (c.warning) {
+            EXPECT_TRUE(anyWarningContains(v.warnings, c.warning)) << joined(v.warnings);
+        }
     }
 }
 
