@@ -4,7 +4,9 @@
 #include <chrono>
 #include <cmath>
 #include <complex>
+#include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <numbers>
 #include <type_traits>
 
@@ -75,7 +77,7 @@ namespace {
 struct SliceContext {
     const float* data;
     std::int64_t P0, P1, P2, rs;
-    double half0, half1, half2; // band limits P/2 (+ tiny tolerance)
+    double half0, half1, half2; // band limits P/2 (+ tiny tolerance); infinite for compact models
     const KernelTable* table;
     int taps;
     int first;
@@ -83,6 +85,11 @@ struct SliceContext {
     // E_a = b/(2 pi) D_a s_a P_a (xray.h; the derivative theorem with the centred spectrum).
     float depthA = 1.0f;
     float E[3] = {0, 0, 0};
+    // Axes of an even voxel count: the spectrum changes sign from one period to the next.
+    bool anti[3] = {false, false, false};
+    // The voxel model's transfer function (null: band-limited), at nu_a = k_a / P_a.
+    const TransferTable* model = nullptr;
+    double invP[3] = {1, 1, 1};
 };
 
 /** The slice filter H(m, n) at signed image frequencies, from 1D tables (the Gaussian is
@@ -125,6 +132,25 @@ inline std::int64_t wrapSmall(std::int64_t i, std::int64_t p) {
     while (i < 0) i += p;
     while (i >= p) i -= p;
     return i;
+}
+
+/** Signed index in (-P/2, P/2] of the T taps base, base + 1, ... of one axis; where the axis is
+ *  antiperiodic, the taps of odd periods negate their weights (and derivative weights): the
+ *  interpolation then runs over the spectrum's true continuation (Spectrum, voxel_model.h). */
+template <int T>
+inline void wrapAxis(std::int64_t base, std::int64_t P, bool anti, std::int64_t* idx, float* w, float* dw) {
+    const std::int64_t hi = P / 2;
+    std::int64_t r = base, q = 0;
+    while (r > hi) r -= P, ++q;
+    while (r <= hi - P) r += P, --q;
+    for (int t = 0; t < T; ++t) {
+        idx[t] = r;
+        if (anti && (q & 1)) {
+            w[t] = -w[t];
+            if (dw) dw[t] = -dw[t];
+        }
+        if (++r > hi) r -= P, ++q;
+    }
 }
 
 template <int T>
@@ -180,11 +206,12 @@ inline void axisDerivWeights(const SliceContext& c, double k, std::int64_t& base
     }
 }
 
-/** The taps' weights along x, y and z, with their derivatives when Derivative (dx..dz are then
- *  written; otherwise left alone). */
+/** The taps' signed indices and weights along x, y and z (with the period signs folded in),
+ *  with their derivatives when Derivative (dx..dz are then written; otherwise left alone). */
 template <int T, bool Derivative>
-inline void tapWeights(const SliceContext& c, double kx, double ky, double kz, std::int64_t& bx, std::int64_t& by,
-                       std::int64_t& bz, float* wx, float* wy, float* wz, float* dx, float* dy, float* dz) {
+inline void tapWeights(const SliceContext& c, double kx, double ky, double kz, std::int64_t* ix, std::int64_t* iy,
+                       std::int64_t* iz, float* wx, float* wy, float* wz, float* dx, float* dy, float* dz) {
+    std::int64_t bx, by, bz;
     if constexpr (Derivative) {
         axisDerivWeights<T>(c, kx, bx, wx, dx);
         axisDerivWeights<T>(c, ky, by, wy, dy);
@@ -193,14 +220,22 @@ inline void tapWeights(const SliceContext& c, double kx, double ky, double kz, s
         axisWeights<T>(c, kx, bx, wx);
         axisWeights<T>(c, ky, by, wy);
         axisWeights<T>(c, kz, bz, wz);
+        dx = dy = dz = nullptr;
     }
+    wrapAxis<T>(bx, c.P0, c.anti[0], ix, wx, dx);
+    wrapAxis<T>(by, c.P1, c.anti[1], iy, wy, dy);
+    wrapAxis<T>(bz, c.P2, c.anti[2], iz, wz, dz);
+}
+
+inline bool outOfBand(const SliceContext& c, double kx, double ky, double kz) {
+    return std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2;
 }
 
 /** Prefetches the spectrum rows a later sample will read (the slice walks the spectrum along a
  *  plane: the loads are cache misses, so issuing them early overlaps their latency). */
 template <int T>
 inline void prefetchComplex(const SliceContext& c, double kx, double ky, double kz) {
-    if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return;
+    if (outOfBand(c, kx, ky, kz)) return;
     if (kx < 0) {
         kx = -kx;
         ky = -ky;
@@ -210,18 +245,25 @@ inline void prefetchComplex(const SliceContext& c, double kx, double ky, double 
     const std::int64_t bx = std::int64_t(T == 1 ? std::floor(kx + 0.5) : std::floor(kx)) + off;
     const std::int64_t by = std::int64_t(T == 1 ? std::floor(ky + 0.5) : std::floor(ky)) + off;
     const std::int64_t bz = std::int64_t(T == 1 ? std::floor(kz + 0.5) : std::floor(kz)) + off;
-    const std::int64_t ix = std::max<std::int64_t>(0, std::min(bx, c.P0 / 2));
-    const float* base = c.data + 2 * ix;
+    std::int64_t jx = wrapSmall(bx, c.P0);
+    if (jx > c.P0 / 2) jx = c.P0 - jx;
+    const float* base = c.data + 2 * jx;
     for (int zc = 0; zc < T; ++zc)
         for (int yc = 0; yc < T; ++yc)
             __builtin_prefetch(base + (wrapSmall(by + yc, c.P1) + c.P1 * wrapSmall(bz + zc, c.P2)) * c.rs);
 }
 
-/** Interpolated complex G at continuous signed frequency k from the half spectrum (with Depth:
- *  a G + i E.grad G, the depth-cued slice value). */
+/** The interpolated spectrum and, with Depth, E.grad of it, at one continuous frequency. */
+template <class V>
+struct Sampled {
+    V v{};
+    V dv{};
+};
+
+/** Interpolated complex G at continuous signed frequency k from the half spectrum (with Depth
+ *  also E.grad G), the period signs included; no band cut, no model. */
 template <int T, bool Depth>
-inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double kz) {
-    if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return {};
+inline Sampled<cfloat> interpolateComplex(const SliceContext& c, double kx, double ky, double kz) {
     bool conjugate = false;
     if (kx < 0) {
         kx = -kx;
@@ -229,21 +271,17 @@ inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double 
         kz = -kz;
         conjugate = true;
     }
-    std::int64_t bx, by, bz;
-    float wx[T], wy[T], wz[T], dx[T], dy[T], dz[T];
-    tapWeights<T, Depth>(c, kx, ky, kz, bx, by, bz, wx, wy, wz, dx, dy, dz);
     std::int64_t ix[T], iy[T], iz[T];
+    float wx[T], wy[T], wz[T], dx[T], dy[T], dz[T];
+    tapWeights<T, Depth>(c, kx, ky, kz, ix, iy, iz, wx, wy, wz, dx, dy, dz);
     bool flip[T];
     bool anyFlip = false;
-    const std::int64_t hx = c.P0 / 2;
     for (int t = 0; t < T; ++t) {
-        std::int64_t jx = bx + t;
-        if (jx > hx) jx -= c.P0; // beyond the stored half: its negative image
-        flip[t] = jx < 0;
-        ix[t] = flip[t] ? -jx : jx;
+        flip[t] = ix[t] < 0; // beyond the stored half: its negative image
+        if (flip[t]) ix[t] = -ix[t];
         anyFlip |= flip[t];
-        iy[t] = wrapSmall(by + t, c.P1);
-        iz[t] = wrapSmall(bz + t, c.P2);
+        if (iy[t] < 0) iy[t] += c.P1;
+        if (iz[t] < 0) iz[t] += c.P2;
     }
     const cfloat* base = reinterpret_cast<const cfloat*>(c.data);
     const std::int64_t H = c.rs / 2; // complex per row
@@ -272,15 +310,43 @@ inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double 
             }
             accumulate(zc, yc, vals);
         }
-    cfloat v = acc;
-    if constexpr (Depth) v = cfloat(c.depthA * acc.real() - dacc.imag(), c.depthA * acc.imag() + dacc.real());
-    // G(k) = conj G(-k), and then also grad G(k) = -conj grad G(-k): the whole value conjugates.
-    return conjugate ? std::conj(v) : v;
+    // G(k) = conj G(-k), and then grad G(k) = -conj grad G(-k).
+    if (conjugate) return {std::conj(acc), -std::conj(dacc)};
+    return {acc, dacc};
+}
+
+/** The voxel model's transfer function T(k) = prod_a t(k_a / P_a) and, with Depth, E.grad T. */
+template <bool Depth>
+inline void modelTransfer(const SliceContext& c, double kx, double ky, double kz, float& t, float& gt) {
+    const double nu[3] = {kx * c.invP[0], ky * c.invP[1], kz * c.invP[2]};
+    const float tx = c.model->value(nu[0]), ty = c.model->value(nu[1]), tz = c.model->value(nu[2]);
+    t = tx * ty * tz;
+    if constexpr (Depth) {
+        gt = c.E[0] * float(c.invP[0]) * c.model->derivative(nu[0]) * ty * tz +
+             c.E[1] * float(c.invP[1]) * tx * c.model->derivative(nu[1]) * tz +
+             c.E[2] * float(c.invP[2]) * tx * ty * c.model->derivative(nu[2]);
+    }
+}
+
+/** The slice value at continuous signed frequency k: the model's spectrum (band cut or transfer
+ *  function), with Depth the depth-cued a G + i E.grad G of it. */
+template <int T, bool Depth>
+inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double kz) {
+    if (outOfBand(c, kx, ky, kz)) return {};
+    Sampled<cfloat> s = interpolateComplex<T, Depth>(c, kx, ky, kz);
+    if (c.model) {
+        float t, gt = 0.0f;
+        modelTransfer<Depth>(c, kx, ky, kz, t, gt);
+        if constexpr (Depth) s.dv = t * s.dv + gt * s.v; // E.grad (T G)
+        s.v *= t;
+    }
+    if constexpr (Depth) return {c.depthA * s.v.real() - s.dv.imag(), c.depthA * s.v.imag() + s.dv.real()};
+    return s.v;
 }
 
 template <int T>
 inline void prefetchHartley(const SliceContext& c, double kx, double ky, double kz) {
-    if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return;
+    if (outOfBand(c, kx, ky, kz)) return;
     const std::int64_t off = T >= 4 ? -(T / 2 - 1) : (T == 3 ? -1 : 0);
     const std::int64_t bx = std::int64_t(T == 1 ? std::floor(kx + 0.5) : std::floor(kx)) + off;
     const std::int64_t by = std::int64_t(T == 1 ? std::floor(ky + 0.5) : std::floor(ky)) + off;
@@ -291,35 +357,54 @@ inline void prefetchHartley(const SliceContext& c, double kx, double ky, double 
             __builtin_prefetch(base + (wrapSmall(by + yc, c.P1) + c.P1 * wrapSmall(bz + zc, c.P2)) * c.rs);
 }
 
-/** Interpolated Hartley value at continuous signed frequency k; with Derivative, E.grad H there
- *  instead (depth cueing, FHT path), from the same taps with the derivative weights. */
+/** Interpolated Hartley value at continuous signed frequency k; with Derivative also E.grad H
+ *  there (depth cueing, FHT path), from the same taps with the derivative weights. Period signs
+ *  included; no band cut, no model. */
 template <int T, bool Derivative = false>
-inline float sampleHartley(const SliceContext& c, double kx, double ky, double kz) {
-    if (std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2) return 0.0f;
-    std::int64_t bx, by, bz;
-    float wx[T], wy[T], wz[T], dx[T], dy[T], dz[T];
-    tapWeights<T, Derivative>(c, kx, ky, kz, bx, by, bz, wx, wy, wz, dx, dy, dz);
+inline Sampled<float> interpolateHartley(const SliceContext& c, double kx, double ky, double kz) {
     std::int64_t ix[T], iy[T], iz[T];
+    float wx[T], wy[T], wz[T], dx[T], dy[T], dz[T];
+    tapWeights<T, Derivative>(c, kx, ky, kz, ix, iy, iz, wx, wy, wz, dx, dy, dz);
     for (int t = 0; t < T; ++t) {
-        ix[t] = wrapSmall(bx + t, c.P0);
-        iy[t] = wrapSmall(by + t, c.P1);
-        iz[t] = wrapSmall(bz + t, c.P2);
+        if (ix[t] < 0) ix[t] += c.P0;
+        if (iy[t] < 0) iy[t] += c.P1;
+        if (iz[t] < 0) iz[t] += c.P2;
     }
-    float acc = 0.0f;
+    float acc = 0.0f, dacc = 0.0f;
     for (int zc = 0; zc < T; ++zc)
         for (int yc = 0; yc < T; ++yc) {
             const float* row = c.data + (iy[yc] + c.P1 * iz[zc]) * c.rs;
             float sx = 0.0f;
             for (int xc = 0; xc < T; ++xc) sx += wx[xc] * row[ix[xc]];
+            acc += (wz[zc] * wy[yc]) * sx;
             if constexpr (Derivative) {
                 float dsx = 0.0f;
                 for (int xc = 0; xc < T; ++xc) dsx += dx[xc] * row[ix[xc]];
-                acc += (wz[zc] * wy[yc] * c.E[0]) * dsx + (c.E[1] * dy[yc] * wz[zc] + c.E[2] * wy[yc] * dz[zc]) * sx;
-            } else {
-                acc += (wz[zc] * wy[yc]) * sx;
+                dacc += (wz[zc] * wy[yc] * c.E[0]) * dsx + (c.E[1] * dy[yc] * wz[zc] + c.E[2] * wy[yc] * dz[zc]) * sx;
             }
         }
-    return acc;
+    return {acc, dacc};
+}
+
+/** The Hartley slice value at continuous signed frequency k: the model's Hartley spectrum H_m
+ *  (band cut or transfer function), with Depth a H_m(k) + E.grad H_m(-k). */
+template <int T, bool Depth>
+inline float sampleHartley(const SliceContext& c, double kx, double ky, double kz) {
+    if (outOfBand(c, kx, ky, kz)) return 0.0f;
+    const float h = interpolateHartley<T>(c, kx, ky, kz).v;
+    if constexpr (!Depth) {
+        if (!c.model) return h;
+        float t, gt;
+        modelTransfer<false>(c, kx, ky, kz, t, gt);
+        return t * h;
+    } else {
+        const Sampled<float> m = interpolateHartley<T, true>(c, -kx, -ky, -kz); // H(-k), E.grad H(-k)
+        if (!c.model) return c.depthA * h + m.dv;
+        // T is even, grad T odd: E.grad (T H)(-k) = T(k) E.grad H(-k) - H(-k) E.grad T(k).
+        float t, gt;
+        modelTransfer<true>(c, kx, ky, kz, t, gt);
+        return c.depthA * t * h + t * m.dv - gt * m.v;
+    }
 }
 
 struct FrameMapping {
@@ -369,11 +454,7 @@ template <int T, bool Depth>
 void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const FilterLut& filter, int M,
                       float* out, ThreadPool& pool) {
     auto sample = [&](double m, double n) {
-        const double kx = m * f.A[0] + n * f.B[0], ky = m * f.A[1] + n * f.B[1], kz = m * f.A[2] + n * f.B[2];
-        if constexpr (Depth)
-            return c.depthA * sampleHartley<T>(c, kx, ky, kz) + sampleHartley<T, true>(c, -kx, -ky, -kz);
-        else
-            return sampleHartley<T>(c, kx, ky, kz);
+        return sampleHartley<T, Depth>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1], m * f.A[2] + n * f.B[2]);
     };
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         for (std::int64_t r = r0; r < r1; ++r) {
@@ -476,12 +557,18 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
     c.P1 = s.padded[1];
     c.P2 = s.padded[2];
     c.rs = s.rowStride();
-    c.half0 = c.P0 / 2.0 + 1e-9;
-    c.half1 = c.P1 / 2.0 + 1e-9;
-    c.half2 = c.P2 / 2.0 + 1e-9;
     c.table = m_tables.at(params.kernel).get();
     c.taps = c.table->taps();
     c.first = c.table->firstTapOffset();
+    const bool banded = params.voxelModel == VoxelModel::BandLimited;
+    const double inf = std::numeric_limits<double>::infinity();
+    c.half0 = banded ? c.P0 / 2.0 + 1e-9 : inf;
+    c.half1 = banded ? c.P1 / 2.0 + 1e-9 : inf;
+    c.half2 = banded ? c.P2 / 2.0 + 1e-9 : inf;
+    for (int a = 0; a < 3; ++a) {
+        c.anti[a] = s.volumeDims[a] % 2 == 0;
+        c.invP[a] = 1.0 / double(s.padded[a]);
+    }
 
     FrameMapping f{};
     const Vec3& R = params.view.r;
@@ -501,6 +588,16 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
             c.E[a] = float(w.b / (2.0 * std::numbers::pi) * params.view.d[a] * s.spacing[a] * double(s.padded[a]));
     }
     const FilterLut filter(params.filter, M, d);
+    if (!banded) {
+        auto& table = m_transfer[params.voxelModel];
+        if (!table) table = std::make_unique<TransferTable>(params.voxelModel);
+        // The slice's highest frequency per axis, in cycles per voxel: |k_a| <= (M/2)(|A_a| + |B_a|).
+        double maxNu = 0.0;
+        for (int a = 0; a < 3; ++a)
+            maxNu = std::max(maxNu, (M / 2.0 + 1.0) * (std::abs(f.A[a]) + std::abs(f.B[a])) * c.invP[a]);
+        table->cover(maxNu);
+        c.model = table.get();
+    }
 
     ProjectionImage img;
     img.size = M;
@@ -532,9 +629,10 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
         t2 = Clock::now();
     }
     if (params.clipToVolume) {
+        const Vec3 half = supportHalfExtents(s.volumeDims, s.spacing, voxelModelReach(params.voxelModel));
         m_pool.parallelFor(M, 16, [&](std::int64_t r0, std::int64_t r1) {
             for (std::int64_t row = r0; row < r1; ++row) {
-                const ColumnRange hit = volumeShadowColumns(params.view, s.volumeDims, s.spacing, M, d, int(row));
+                const ColumnRange hit = volumeShadowColumns(params.view, half, M, d, int(row));
                 float* p = img.pixels.data() + std::size_t(row) * M;
                 if (hit.first > hit.last) {
                     std::fill(p, p + M, 0.0f);

@@ -4,16 +4,65 @@
 #include <cmath>
 #include <limits>
 
+#include <fvr/core/errors.h>
 #include <fvr/core/xray.h>
 
 namespace fvr::core {
 
+namespace {
+
+/** Margin of the B-spline coefficient volume: the coefficients outside the voxels decay by
+ *  |sqrt(3) - 2| = 0.268 per voxel, so 10 voxels leave 2e-6 of the boundary coefficient. */
+constexpr int kSplineMargin = 10;
+
+/** In-place recursive cubic B-spline prefilter of n values at stride `stride` that are zero
+ *  before the first and after the last (Unser 1999, with the infinite-domain initial values). */
+void prefilterLine(float* v, std::int64_t n, std::int64_t stride, std::vector<double>& cp) {
+    const double z = std::sqrt(3.0) - 2.0;
+    cp.resize(std::size_t(n));
+    double prev = 0.0;
+    for (std::int64_t i = 0; i < n; ++i) prev = cp[std::size_t(i)] = v[i * stride] + z * prev;
+    double cm = z / (z * z - 1.0) * cp[std::size_t(n - 1)];
+    v[(n - 1) * stride] = float(6.0 * cm);
+    for (std::int64_t i = n - 2; i >= 0; --i) {
+        cm = z * (cm - cp[std::size_t(i)]);
+        v[i * stride] = float(6.0 * cm);
+    }
+}
+
+} // namespace
+
+std::vector<float> bsplineCoefficients(const std::vector<float>& voxels, const Dims3& dims, int margin) {
+    const std::int64_t L[3] = {dims[0] + 2 * margin, dims[1] + 2 * margin, dims[2] + 2 * margin};
+    std::vector<float> c(std::size_t(L[0] * L[1] * L[2]), 0.0f);
+    for (std::int64_t z = 0; z < dims[2]; ++z)
+        for (std::int64_t y = 0; y < dims[1]; ++y)
+            std::copy_n(voxels.data() + (z * dims[1] + y) * dims[0], dims[0],
+                        c.data() + ((z + margin) * L[1] + (y + margin)) * L[0] + margin);
+    std::vector<double> cp;
+    for (std::int64_t z = 0; z < L[2]; ++z)
+        for (std::int64_t y = 0; y < L[1]; ++y) prefilterLine(c.data() + (z * L[1] + y) * L[0], L[0], 1, cp);
+    for (std::int64_t z = 0; z < L[2]; ++z)
+        for (std::int64_t x = 0; x < L[0]; ++x) prefilterLine(c.data() + z * L[1] * L[0] + x, L[1], L[0], cp);
+    for (std::int64_t y = 0; y < L[1]; ++y)
+        for (std::int64_t x = 0; x < L[0]; ++x) prefilterLine(c.data() + y * L[0] + x, L[2], L[0] * L[1], cp);
+    return c;
+}
+
 SpatialProjector::SpatialProjector(const Volume& volume, SpatialProjectorOptions options)
     : m_volume(volume), m_options(options), m_pool(options.threads) {
+    if (options.voxelModel == VoxelModel::BandLimited)
+        throw SettingsError("spatial projector: no ray caster for the band-limited voxel model (its sinc "
+                            "interpolant has infinite support); use trilinear or bspline");
+    if (options.pixelSubsamples < 1 || options.pixelSubsamples > 16)
+        throw SettingsError("spatial projector: pixel subsamples must be 1..16, found " +
+                            std::to_string(options.pixelSubsamples));
     if (options.mapping != ValueMapping::Raw) {
         m_mapped.resize(volume.voxels.size());
         for (std::size_t i = 0; i < m_mapped.size(); ++i) m_mapped[i] = mapValue(options.mapping, volume.voxels[i]);
     }
+    if (options.voxelModel == VoxelModel::BSpline)
+        m_coefficients = bsplineCoefficients(m_mapped.empty() ? volume.voxels : m_mapped, volume.dims, kSplineMargin);
 }
 
 ProjectionImage SpatialProjector::project(const ViewFrame& view, const ImageGeometry& image) {
@@ -26,6 +75,7 @@ ProjectionImage SpatialProjector::project(const ViewFrame& view, const ImageGeom
     const auto& s = v.spacing;
     const double h = m_options.stepFraction * std::min({s[0], s[1], s[2]});
     const DepthCueWeights w = depthCueWeights(m_options.depthCue, N, s);
+    const bool spline = m_options.voxelModel == VoxelModel::BSpline;
 
     ProjectionImage img;
     img.size = M;
@@ -42,8 +92,15 @@ ProjectionImage SpatialProjector::project(const ViewFrame& view, const ImageGeom
         dwn[a] = -view.u[a] * d / s[a];
         c[a] = (N[a] - 1) / 2.0;
     }
+    // The model's support in index coordinates: [-1, N] for trilinear; for the spline the
+    // coefficient volume less one voxel, so that all 4 taps of every sample lie inside it.
+    double lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) {
+        lo[a] = spline ? -kSplineMargin + 1.0 : -1.0;
+        hi[a] = spline ? double(N[a] + kSplineMargin - 2) : double(N[a]);
+    }
     const std::int64_t sx = 1, sy = N[0], sz = N[0] * N[1];
-    auto sample = [&](double x, double y, double z) -> double {
+    auto trilinear = [&](double x, double y, double z) -> double {
         // Trilinear, zero outside the voxel grid (support [-1, N]).
         const double fx = std::floor(x), fy = std::floor(y), fz = std::floor(z);
         const std::int64_t ix = std::int64_t(fx), iy = std::int64_t(fy), iz = std::int64_t(fz);
@@ -64,37 +121,72 @@ ProjectionImage SpatialProjector::project(const ViewFrame& view, const ImageGeom
         }
         return acc;
     };
+    const std::int64_t L0 = N[0] + 2 * kSplineMargin, L1 = N[1] + 2 * kSplineMargin;
+    const float* coef = m_coefficients.data();
+    auto bspline = [&](double x, double y, double z) -> double {
+        auto weights = [](double t, double* wt) {
+            const double t2 = t * t, t3 = t2 * t, u = 1.0 - t;
+            wt[0] = u * u * u / 6.0;
+            wt[1] = (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0;
+            wt[2] = (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0;
+            wt[3] = t3 / 6.0;
+        };
+        const double fx = std::floor(x), fy = std::floor(y), fz = std::floor(z);
+        double wx[4], wy[4], wz[4];
+        weights(x - fx, wx);
+        weights(y - fy, wy);
+        weights(z - fz, wz);
+        const std::int64_t ix = std::int64_t(fx) - 1 + kSplineMargin, iy = std::int64_t(fy) - 1 + kSplineMargin,
+                           iz = std::int64_t(fz) - 1 + kSplineMargin;
+        double acc = 0.0;
+        for (int cz = 0; cz < 4; ++cz)
+            for (int cy = 0; cy < 4; ++cy) {
+                const float* row = coef + ((iz + cz) * L1 + (iy + cy)) * L0 + ix;
+                acc += wz[cz] * wy[cy] * (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3]);
+            }
+        return acc;
+    };
+    // The line integral along D through o (index coordinates), midpoint rule with steps <= h.
+    auto integrate = [&](const double* o) -> double {
+        double t0 = -std::numeric_limits<double>::infinity();
+        double t1 = std::numeric_limits<double>::infinity();
+        for (int a = 0; a < 3; ++a) {
+            if (std::abs(dir[a]) < 1e-15) {
+                if (o[a] <= lo[a] || o[a] >= hi[a]) return 0.0;
+                continue;
+            }
+            double ta = (lo[a] - o[a]) / dir[a], tb = (hi[a] - o[a]) / dir[a];
+            if (ta > tb) std::swap(ta, tb);
+            t0 = std::max(t0, ta);
+            t1 = std::min(t1, tb);
+        }
+        if (!(t1 > t0)) return 0.0;
+        const std::int64_t n = std::max<std::int64_t>(1, std::int64_t(std::ceil((t1 - t0) / h)));
+        const double step = (t1 - t0) / double(n);
+        double sum = 0.0;
+        for (std::int64_t i = 0; i < n; ++i) {
+            const double t = t0 + (i + 0.5) * step;
+            const double x = o[0] + t * dir[0], y = o[1] + t * dir[1], z = o[2] + t * dir[2];
+            sum += (w.a + w.b * t) * (spline ? bspline(x, y, z) : trilinear(x, y, z));
+        }
+        return sum * step;
+    };
 
+    const int sub = m_options.pixelSubsamples;
     m_pool.parallelFor(M, 2, [&](std::int64_t r0, std::int64_t r1) {
         for (std::int64_t row = r0; row < r1; ++row)
             for (int col = 0; col < M; ++col) {
-                double o[3];
-                for (int a = 0; a < 3; ++a)
-                    o[a] = c[a] + (col - M / 2) * rgt[a] + (row - M / 2) * dwn[a];
-                // Clip the ray (in mm along D) to the support box [-1, N] per axis.
-                double t0 = -std::numeric_limits<double>::infinity();
-                double t1 = std::numeric_limits<double>::infinity();
-                bool miss = false;
-                for (int a = 0; a < 3; ++a) {
-                    if (std::abs(dir[a]) < 1e-15) {
-                        if (o[a] <= -1.0 || o[a] >= double(N[a])) miss = true;
-                        continue;
-                    }
-                    double ta = (-1.0 - o[a]) / dir[a], tb = (double(N[a]) - o[a]) / dir[a];
-                    if (ta > tb) std::swap(ta, tb);
-                    t0 = std::max(t0, ta);
-                    t1 = std::min(t1, tb);
-                }
-                if (miss || !(t1 > t0)) continue;
-                // Midpoint rule with steps of at most h.
-                const std::int64_t n = std::max<std::int64_t>(1, std::int64_t(std::ceil((t1 - t0) / h)));
-                const double step = (t1 - t0) / double(n);
                 double sum = 0.0;
-                for (std::int64_t i = 0; i < n; ++i) {
-                    const double t = t0 + (i + 0.5) * step;
-                    sum += (w.a + w.b * t) * sample(o[0] + t * dir[0], o[1] + t * dir[1], o[2] + t * dir[2]);
-                }
-                img.pixels[std::size_t(row) * M + col] = float(sum * step);
+                for (int j = 0; j < sub; ++j)
+                    for (int i = 0; i < sub; ++i) {
+                        // Sub-ray offsets spread evenly over the pixel, (i + 1/2) / n - 1/2.
+                        const double du = (i + 0.5) / sub - 0.5, dv = (j + 0.5) / sub - 0.5;
+                        double o[3];
+                        for (int a = 0; a < 3; ++a)
+                            o[a] = c[a] + (col - M / 2 + du) * rgt[a] + (row - M / 2 + dv) * dwn[a];
+                        sum += integrate(o);
+                    }
+                img.pixels[std::size_t(row) * M + col] = float(sum / double(sub * sub));
             }
     });
     return img;

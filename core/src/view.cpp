@@ -61,11 +61,16 @@ void validateImageGeometry(const ImageGeometry& g) {
                             std::to_string(g.pixelSize));
 }
 
-bool rayMissesVolume(const ViewFrame& view, const Dims3& dims, const Vec3& spacing, int M, double d, int col,
-                     int row) {
+Vec3 supportHalfExtents(const Dims3& dims, const Vec3& spacing, double reach) {
+    Vec3 h;
+    for (int a = 0; a < 3; ++a) h[a] = ((double(dims[a]) - 1.0) / 2.0 + reach) * spacing[a];
+    return h;
+}
+
+bool rayMissesVolume(const ViewFrame& view, const Vec3& half, int M, double d, int col, int row) {
     double t0 = -1e300, t1 = 1e300;
     for (int a = 0; a < 3; ++a) {
-        const double h = (double(dims[a]) / 2.0 + 1.0) * spacing[a];
+        const double h = half[a];
         const double o = (col - M / 2) * d * view.r[a] - (row - M / 2) * d * view.u[a];
         if (std::abs(view.d[a]) < 1e-9) {
             if (std::abs(o) >= h) return true;
@@ -78,8 +83,7 @@ bool rayMissesVolume(const ViewFrame& view, const Dims3& dims, const Vec3& spaci
     return !(t1 > t0);
 }
 
-ColumnRange volumeShadowColumns(const ViewFrame& view, const Dims3& dims, const Vec3& spacing, int M, double d,
-                                int row) {
+ColumnRange volumeShadowColumns(const ViewFrame& view, const Vec3& half, int M, double d, int row) {
     // The pixel ray x R + y (-U) + t D, y fixed by the row, hits the grown box where
     // |x R_a - y U_a + t D_a| <= h_a for every axis: a convex polygon in (x, t). Its extent in x
     // comes from its vertices (pairwise intersections of the 6 boundary lines that satisfy all
@@ -87,7 +91,7 @@ ColumnRange volumeShadowColumns(const ViewFrame& view, const Dims3& dims, const 
     const double y = (row - M / 2) * d;
     double A[6], B[6], C[6];
     for (int a = 0; a < 3; ++a) {
-        const double h = (double(dims[a]) / 2.0 + 1.0) * spacing[a];
+        const double h = half[a];
         for (int s = 0; s < 2; ++s) {
             const double sg = s ? -1.0 : 1.0;
             A[2 * a + s] = sg * view.r[a];
@@ -108,7 +112,7 @@ ColumnRange volumeShadowColumns(const ViewFrame& view, const Dims3& dims, const 
                 xmax = std::max(xmax, x);
             }
         }
-    auto misses = [&](int col) { return rayMissesVolume(view, dims, spacing, M, d, col, row); };
+    auto misses = [&](int col) { return rayMissesVolume(view, half, M, d, col, row); };
     ColumnRange r;
     if (xmin > xmax) { // no vertex: empty; confirm at the centre column
         if (misses(M / 2)) return r;

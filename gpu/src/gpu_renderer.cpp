@@ -337,8 +337,15 @@ void GpuFourierRenderer::setSliceUniforms(unsigned prog, const core::RenderParam
     }
     auto loc = [&](const char* n) { return m_gl->glGetUniformLocation(prog, n); };
     m_gl->glUniform3i(loc("uPadded"), GLint(s.padded[0]), GLint(s.padded[1]), GLint(s.padded[2]));
-    m_gl->glUniform3f(loc("uHalf"), float(s.padded[0] / 2.0 + 1e-4), float(s.padded[1] / 2.0 + 1e-4),
-                      float(s.padded[2] / 2.0 + 1e-4));
+    // The band cut of the band-limited model; the other models read every frequency.
+    const bool banded = p.voxelModel == core::VoxelModel::BandLimited;
+    m_gl->glUniform3f(loc("uHalf"), banded ? float(s.padded[0] / 2.0 + 1e-4) : 1e30f,
+                      banded ? float(s.padded[1] / 2.0 + 1e-4) : 1e30f, banded ? float(s.padded[2] / 2.0 + 1e-4) : 1e30f);
+    m_gl->glUniform1i(loc("uVoxelModel"), banded ? 0 : (p.voxelModel == core::VoxelModel::Trilinear ? 1 : 2));
+    m_gl->glUniform3i(loc("uAnti"), GLint(s.volumeDims[0] % 2 == 0), GLint(s.volumeDims[1] % 2 == 0),
+                      GLint(s.volumeDims[2] % 2 == 0));
+    m_gl->glUniform3f(loc("uInvP"), float(1.0 / double(s.padded[0])), float(1.0 / double(s.padded[1])),
+                      float(1.0 / double(s.padded[2])));
     m_gl->glUniform3f(loc("uA"), A[0], A[1], A[2]);
     m_gl->glUniform3f(loc("uB"), B[0], B[1], B[2]);
     m_gl->glUniform1f(loc("uScale"), float(s.spacing[0] * s.spacing[1] * s.spacing[2] / ((M * d) * (M * d))));
@@ -412,8 +419,8 @@ void GpuFourierRenderer::setClipUniforms(unsigned prog, const core::RenderParams
     m_gl->glUniform1i(loc("uClip"), clip ? 1 : 0);
     if (!clip) return;
     const core::Spectrum& s = *m_spectrum;
-    m_gl->glUniform3f(loc("uBoxHalf"), float((s.volumeDims[0] / 2.0 + 1.0) * s.spacing[0]),
-                      float((s.volumeDims[1] / 2.0 + 1.0) * s.spacing[1]), float((s.volumeDims[2] / 2.0 + 1.0) * s.spacing[2]));
+    const core::Vec3 half = core::supportHalfExtents(s.volumeDims, s.spacing, core::voxelModelReach(p->voxelModel));
+    m_gl->glUniform3f(loc("uBoxHalf"), float(half[0]), float(half[1]), float(half[2]));
     m_gl->glUniform3f(loc("uViewD"), float(p->view.d[0]), float(p->view.d[1]), float(p->view.d[2]));
     m_gl->glUniform3f(loc("uViewR"), float(p->view.r[0]), float(p->view.r[1]), float(p->view.r[2]));
     m_gl->glUniform3f(loc("uViewU"), float(p->view.u[0]), float(p->view.u[1]), float(p->view.u[2]));

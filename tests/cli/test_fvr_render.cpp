@@ -14,6 +14,7 @@
 #include <fvr/core/dicom.h>
 #include <fvr/core/image_io.h>
 #include <fvr/core/phantom.h>
+#include <fvr/core/voxel_model.h>
 #include <fvr/core/xray.h>
 
 #include "image_metrics.h"
@@ -478,11 +479,12 @@ TEST(FvrRender, ClipsOutsideTheVolumeUnlessNoClip) {
     const Volume v = makeSheppLoganVolume(64);
     const ViewFrame view = ViewFrame::fromDirUp({0.35, 0.2, 0.92}, {0, -1, 0});
     const auto truth = EllipsoidPhantom::sheppLogan3D(256.0).project(view, {128, 3.0}, ValueMapping::Mu, v.dims, v.spacing);
+    const Vec3 half = supportHalfExtents(v.dims, v.spacing, voxelModelReach(VoxelModel::BandLimited));
     int outside = 0;
     double ghost = 0;
     for (int row = 0; row < 128; ++row)
         for (int col = 0; col < 128; ++col) {
-            if (!rayMissesVolume(view, v.dims, v.spacing, 128, 3.0, col, row)) continue;
+            if (!rayMissesVolume(view, half, 128, 3.0, col, row)) continue;
             const std::size_t i = std::size_t(row) * 128 + col;
             ++outside;
             EXPECT_EQ(clip[i], 0.0f);

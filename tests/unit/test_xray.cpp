@@ -406,12 +406,13 @@ TEST(XRay, ClipToVolumeRemovesGhostsOutsideTheShadow) {
         const auto plain = r.render(p);
         p.clipToVolume = true;
         const auto clipped = r.render(p);
+        const Vec3 half = supportHalfExtents(f.volume.dims, f.volume.spacing, voxelModelReach(p.voxelModel));
         int outside = 0;
         double ghost = 0;
         for (int row = 0; row < kM; ++row)
             for (int col = 0; col < kM; ++col) {
                 const std::size_t i = std::size_t(row) * kM + col;
-                if (rayMissesVolume(v, f.volume.dims, f.volume.spacing, kM, d, col, row)) {
+                if (rayMissesVolume(v, half, kM, d, col, row)) {
                     ++outside;
                     EXPECT_EQ(clipped.pixels[i], 0.0f);
                     EXPECT_EQ(truth.pixels[i], 0.0f); // the oracle agrees: nothing out there
@@ -444,10 +445,11 @@ TEST(XRay, ShadowColumnsAreExactlyThePixelsWhoseRaysHit) {
             for (double scale : {0.5, 1.0, 1.7}) {
                 const int M = 64;
                 const double d = scale * defaultPixelSize(dims, spacing, M);
+                const Vec3 half = supportHalfExtents(dims, spacing, scale < 1.0 ? 1.0 : 1.5);
                 for (int row = 0; row < M; ++row) {
-                    const ColumnRange r = volumeShadowColumns(view, dims, spacing, M, d, row);
+                    const ColumnRange r = volumeShadowColumns(view, half, M, d, row);
                     for (int col = 0; col < M; ++col)
-                        ASSERT_EQ(rayMissesVolume(view, dims, spacing, M, d, col, row), !(col >= r.first && col <= r.last))
+                        ASSERT_EQ(rayMissesVolume(view, half, M, d, col, row), !(col >= r.first && col <= r.last))
                             << "row " << row << " col " << col << " range " << r.first << ".." << r.last;
                 }
             }

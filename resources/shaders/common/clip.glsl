@@ -1,8 +1,8 @@
-// Clip to the volume's support (fvr::core::rayMissesVolume): pixels whose ray misses the volume's
-// box, grown by one voxel per side, hold exactly 0 in the true projection; FVR puts the kernel's
-// ghost copies and ringing there, so the last pass writes 0 for them when uClip is set.
+// Clip to the volume's support (fvr::core::rayMissesVolume): pixels whose ray misses the voxel
+// model's support box hold exactly 0 in the true projection; FVR puts the kernel's ghost copies
+// and ringing there, so the last pass writes 0 for them when uClip is set.
 uniform int uClip;
-uniform vec3 uBoxHalf; // (N_a / 2 + 1) s_a, mm
+uniform vec3 uBoxHalf; // fvr::core::supportHalfExtents, mm
 uniform vec3 uViewD;
 uniform vec3 uViewR;
 uniform vec3 uViewU;

@@ -37,13 +37,14 @@ void axisWeights(float k, out int base, out float w[TAPS]) {
 #endif
 }
 
-// i lies within two periods of [0, p): GLSL's % is undefined for negative operands.
-int wrapIndex(int i, int p) {
-    if (i < 0) i += p;
-    if (i < 0) i += p;
-    if (i >= p) i -= p;
-    if (i >= p) i -= p;
-    return i;
+// Signed index in (-p/2, p/2] of index i, and the sign of its period where the axis is
+// antiperiodic (an even voxel count: the spectrum changes sign from one period to the next;
+// fvr::core's wrapAxis). q = ceil((i - p/2) / p) periods are taken off.
+int wrapSigned(int i, int p, bool anti, out float sgn) {
+    int hi = p / 2;
+    int q = i > hi ? (i - hi + p - 1) / p : -((hi - i) / p);
+    sgn = (anti && (q & 1) != 0) ? -1.0 : 1.0;
+    return i - q * p;
 }
 
 #ifdef DEPTH_CUE

@@ -9,6 +9,7 @@
 #include <fvr/core/spectrum.h>
 #include <fvr/core/thread_pool.h>
 #include <fvr/core/view.h>
+#include <fvr/core/voxel_model.h>
 #include <fvr/core/xray.h>
 
 namespace fvr::core {
@@ -24,9 +25,16 @@ struct RenderParams {
     double depthCue = 0.0;
     /** Spectral filter multiplied into the slice before the inverse transform (xray.h). */
     SliceFilter filter;
-    /** Writes 0 to pixels whose ray misses the volume (rayMissesVolume): removes the kernel's
-     *  ghost copies and ringing outside the volume's shadow, where the true projection is 0. */
+    /** Writes 0 to pixels whose ray misses the voxel model's support (rayMissesVolume with
+     *  voxelModelReach): removes the kernel's ghost copies and ringing outside the volume's
+     *  shadow, where the true projection is 0. */
     bool clipToVolume = false;
+    /** What lies between the voxels (voxel_model.h): BandLimited samples the spectrum inside the
+     *  volume's band only; Trilinear and BSpline sample it at every frequency of the slice (the
+     *  voxels' spectrum repeats outside the band) and multiply by the model's transfer function,
+     *  giving the projection of that interpolant (what a ray caster with that interpolation
+     *  integrates). Costs one product per slice sample. */
+    VoxelModel voxelModel = VoxelModel::BandLimited;
 };
 
 /** Checks geometry, depth cue and filter (SettingsError naming the problem). */
@@ -37,8 +45,10 @@ void validateRenderParams(const RenderParams& params);
  * tables; Hermitian lookups into the half spectrum; the output centring (-1)^(m+n) and the
  * physical scale (s_x s_y s_z)/(M d)^2 folded into the slice), then one inverse 2D transform:
  * complex-to-real FFT (only the half slice is sampled) or FHT with the eq. 4 correction.
- * Spatial frequencies outside the volume's band (|k_a| > P_a/2) are zero. The Nyquist row and
- * column average their two aliases, so the FFT and FHT paths compute the same image.
+ * With the band-limited voxel model, spatial frequencies outside the volume's band (|k_a| > P_a/2)
+ * are zero; the other models read the spectrum's periodic continuation (taps carry the (-1)-per-
+ * period sign of axes with an even voxel count) times the model's transfer function. The Nyquist
+ * row and column average their two aliases, so the FFT and FHT paths compute the same image.
  * Not thread-safe: one renderer per thread (each owns its pool, plans and buffers).
  */
 class CpuFourierRenderer {
@@ -61,6 +71,7 @@ private:
     int m_threads;
     std::map<int, std::unique_ptr<SizeResources>> m_resources;
     std::map<Kernel, std::unique_ptr<KernelTable>> m_tables;
+    std::map<VoxelModel, std::unique_ptr<TransferTable>> m_transfer;
 };
 
 } // namespace fvr::core

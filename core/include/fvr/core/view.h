@@ -34,21 +34,24 @@ struct ImageGeometry {
  *  projection of any view fits the image period M*d (no overlapping copies). */
 double defaultPixelSize(const Dims3& dims, const Vec3& spacing, int size);
 
-/** Whether the ray of pixel (col, row) of an M x M image with pixel size d misses the volume's
- *  box grown by one voxel per side (half extents (N_a / 2 + 1) s_a around the centre): its true
- *  line integral is then exactly 0 (clipToVolume in RenderParams). */
-bool rayMissesVolume(const ViewFrame& view, const Dims3& dims, const Vec3& spacing, int M, double d, int col,
-                     int row);
+/** Half extents (mm, around the volume's centre) of the box outside which the voxel model is 0:
+ *  ((N_a - 1) / 2 + reach) s_a, reach in voxels beyond the outermost voxel centres
+ *  (voxelModelReach: 1 for trilinear, exactly). */
+Vec3 supportHalfExtents(const Dims3& dims, const Vec3& spacing, double reach);
 
-/** The columns [first, last] of image row `row` whose rays hit the volume (rayMissesVolume false
+/** Whether the ray of pixel (col, row) of an M x M image with pixel size d misses the box of half
+ *  extents `half` around the volume's centre (supportHalfExtents): its true line integral is then
+ *  exactly 0 (clipToVolume in RenderParams). */
+bool rayMissesVolume(const ViewFrame& view, const Vec3& half, int M, double d, int col, int row);
+
+/** The columns [first, last] of image row `row` whose rays hit the box (rayMissesVolume false
  *  exactly there; the shadow of a box is convex, so they are one run). first > last: none.
  *  Costs a few tests per row instead of one per pixel (the CPU renderer's clip). */
 struct ColumnRange {
     int first = 0;
     int last = -1;
 };
-ColumnRange volumeShadowColumns(const ViewFrame& view, const Dims3& dims, const Vec3& spacing, int M, double d,
-                                int row);
+ColumnRange volumeShadowColumns(const ViewFrame& view, const Vec3& half, int M, double d, int row);
 
 /** Checks that M is a power of two in [16, 4096] (the renderers accept 128..2048 in the UI; tests
  *  use smaller ones) and pixel size > 0; throws SettingsError. */

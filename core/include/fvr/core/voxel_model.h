@@ -1,0 +1,77 @@
+#pragma once
+/** The voxel model: what lies between the voxels (DESIGN.md, "Voxel model"). Every renderer and
+ *  the spatial reference projector take one; each model is a separable 1D transfer function
+ *  t(nu) per axis on the voxels' spectrum (nu in cycles per voxel):
+ *   - BandLimited: t = 1 for |nu| <= 1/2, 0 beyond (the sinc interpolant; plain FVR, sharpest,
+ *     rings at truncation and between coarse slices and can go negative).
+ *   - Trilinear: t = sinc^2(nu) over all frequencies (the triangle's transform): the projection
+ *     a trilinear DRR ray caster integrates; never negative for non-negative voxels.
+ *   - BSpline: t = sinc^4(nu) * 3 / (2 + cos 2 pi nu): the cubic B-spline through the voxels
+ *     (prefilter inverse times the B-spline's transform), padded with zeros.
+ *  Outside the band the voxels' spectrum V is periodic with period 1 cycle per voxel (times
+ *  (-1) per period along an axis of an even voxel count: the centre lies half-way between two
+ *  voxels, see Spectrum), which the renderers sample from the stored spectrum. */
+#include <array>
+#include <string>
+#include <vector>
+
+namespace fvr::core {
+
+enum class VoxelModel { BandLimited, Trilinear, BSpline };
+
+/** "bandlimited", "trilinear", "bspline". */
+const char* voxelModelName(VoxelModel m);
+/** A short label for overlays and tables: "band-limited", "trilinear", "cubic B-spline". */
+const char* voxelModelLabel(VoxelModel m);
+/** Inverse of voxelModelName (also "band-limited", "sinc", "linear", "b-spline", "cubic");
+ *  throws SettingsError naming the accepted names. */
+VoxelModel parseVoxelModel(const std::string& name);
+const std::array<VoxelModel, 3>& allVoxelModels();
+
+/** How far (voxels) beyond the outermost voxel centres the model reaches: 1 for trilinear
+ *  (exactly: its projection is 0 outside); 3 for the B-spline (its interpolant of zeros rings on,
+ *  below 1 % of the last voxel beyond 3); 1.5 for band-limited (the sinc never ends: the clip keeps
+ *  a voxel and a half). The clip to the volume (RenderParams::clipToVolume) uses it. */
+double voxelModelReach(VoxelModel m);
+
+/** The model's 1D transfer function t(nu) (1 at nu = 0, even). */
+double voxelModelTransfer(VoxelModel m, double nu);
+/** d t / d nu (depth cueing differentiates the model's spectrum). 0 for BandLimited. */
+double voxelModelTransferDerivative(VoxelModel m, double nu);
+
+/**
+ * t and dt/dnu tabulated for the CPU renderer's per-sample product (3 lookups instead of 3 sines):
+ * kPerUnit intervals per cycle per voxel with linear interpolation (error below 1e-6 of t's
+ * peak), covering |nu| <= the largest frequency asked for so far (grown on demand; beyond the
+ * table the functions are evaluated directly). Not for BandLimited.
+ */
+class TransferTable {
+public:
+    static constexpr int kPerUnit = 1024;
+    explicit TransferTable(VoxelModel m, double maxNu = 2.0);
+
+    VoxelModel model() const { return m_model; }
+    /** Makes the table cover |nu| <= maxNu (not thread-safe: call before sampling). */
+    void cover(double maxNu);
+    float value(double nu) const { return lookup(m_value, nu, false); }
+    float derivative(double nu) const { return lookup(m_derivative, nu, true); }
+
+private:
+    float lookup(const std::vector<float>& t, double nu, bool odd) const {
+        const double a = nu < 0 ? -nu : nu;
+        const double pos = a * kPerUnit;
+        const std::size_t i = std::size_t(pos);
+        if (i + 1 >= t.size()) {
+            const double v = odd ? voxelModelTransferDerivative(m_model, a) : voxelModelTransfer(m_model, a);
+            return float(odd && nu < 0 ? -v : v);
+        }
+        const float f = float(pos - double(i));
+        const float v = t[i] + f * (t[i + 1] - t[i]);
+        return odd && nu < 0 ? -v : v;
+    }
+
+    VoxelModel m_model;
+    std::vector<float> m_value, m_derivative;
+};
+
+} // namespace fvr::core
