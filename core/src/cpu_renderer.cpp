@@ -93,16 +93,18 @@ struct SliceContext {
 };
 
 /** The slice filter H(m, n) at signed image frequencies, from 1D tables (the Gaussian is
- *  separable; the Butterworth term costs three multiplications). */
+ *  separable; the Butterworth term costs three multiplications), times the pixel aperture
+ *  sinc(m / M) sinc(n / M) when it is on. */
 struct FilterLut {
     bool on = false;
     float amount = 0.0f;
     std::vector<float> g; // exp(-2 pi^2 sigma^2 (j / (M d))^2), j = 0..M/2; empty: no sharpening
     bool band = false;
     float invCut2 = 0.0f; // 1 / (nu_c M d)^2
+    std::vector<float> aperture; // sinc(j / M), j = 0..M/2; empty: point pixels
 
-    FilterLut(const SliceFilter& f, int M, double d) {
-        on = f.active();
+    FilterLut(const SliceFilter& f, bool pixelAperture, int M, double d) {
+        on = f.active() || pixelAperture;
         if (f.sharpenAmount > 0.0) {
             amount = float(f.sharpenAmount);
             g.resize(std::size_t(M / 2 + 1));
@@ -112,6 +114,10 @@ struct FilterLut {
         if (f.bandLimitLpMm > 0.0) {
             band = true;
             invCut2 = float(1.0 / std::pow(f.bandLimitLpMm * M * d, 2));
+        }
+        if (pixelAperture) {
+            aperture.resize(std::size_t(M / 2 + 1));
+            for (int j = 0; j <= M / 2; ++j) aperture[std::size_t(j)] = float(pixelApertureResponse(double(j) / M));
         }
     }
     float operator()(int m, int n) const {
@@ -123,6 +129,7 @@ struct FilterLut {
             q *= q;
             h /= std::sqrt(1.0f + q * q);
         }
+        if (!aperture.empty()) h *= aperture[std::size_t(std::abs(m))] * aperture[std::size_t(std::abs(n))];
         return h;
     }
 };
@@ -587,7 +594,7 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
         for (int a = 0; a < 3; ++a)
             c.E[a] = float(w.b / (2.0 * std::numbers::pi) * params.view.d[a] * s.spacing[a] * double(s.padded[a]));
     }
-    const FilterLut filter(params.filter, M, d);
+    const FilterLut filter(params.filter, params.pixelAperture, M, d);
     if (!banded) {
         auto& table = m_transfer[params.voxelModel];
         if (!table) table = std::make_unique<TransferTable>(params.voxelModel);
@@ -628,18 +635,26 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
         std::memcpy(img.pixels.data(), slice, sizeof(float) * img.pixels.size());
         t2 = Clock::now();
     }
-    if (params.clipToVolume) {
+    // The last pass: zero outside the model's support, and no negative line integrals of a
+    // non-negative volume.
+    const bool clamp = params.nonNegative && s.nonNegative;
+    if (params.clipToVolume || clamp) {
         const Vec3 half = supportHalfExtents(s.volumeDims, s.spacing, voxelModelReach(params.voxelModel));
         m_pool.parallelFor(M, 16, [&](std::int64_t r0, std::int64_t r1) {
             for (std::int64_t row = r0; row < r1; ++row) {
-                const ColumnRange hit = volumeShadowColumns(params.view, half, M, d, int(row));
                 float* p = img.pixels.data() + std::size_t(row) * M;
-                if (hit.first > hit.last) {
-                    std::fill(p, p + M, 0.0f);
-                    continue;
+                ColumnRange hit{0, M - 1};
+                if (params.clipToVolume) {
+                    hit = volumeShadowColumns(params.view, half, M, d, int(row));
+                    if (hit.first > hit.last) {
+                        std::fill(p, p + M, 0.0f);
+                        continue;
+                    }
+                    std::fill(p, p + hit.first, 0.0f);
+                    std::fill(p + hit.last + 1, p + M, 0.0f);
                 }
-                std::fill(p, p + hit.first, 0.0f);
-                std::fill(p + hit.last + 1, p + M, 0.0f);
+                if (clamp)
+                    for (int col = hit.first; col <= hit.last; ++col) p[col] = std::max(p[col], 0.0f);
             }
         });
         t2 = Clock::now();

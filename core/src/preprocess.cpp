@@ -484,6 +484,7 @@ std::shared_ptr<const Spectrum> preprocess(const Volume& volume, const Preproces
     s->padded = paddedDimsFor(volume.dims, options);
     s->name = volume.name;
     s->deapodizedFor = options.deapodizeFor;
+    s->nonNegative = isAttenuation(options.mapping) || volume.valueRange().first >= 0.0f;
     s->data = allocateFftw(s->floatCount());
 
     ThreadPool pool(options.threads);

@@ -93,6 +93,12 @@ double voxelModelTransferDerivative(VoxelModel m, double nu) {
     return 0.0;
 }
 
+double pixelApertureResponse(double f) {
+    double s, ds;
+    sincAndDerivative(f, s, ds);
+    return s;
+}
+
 TransferTable::TransferTable(VoxelModel m, double maxNu) : m_model(m) {
     if (m == VoxelModel::BandLimited) throw SettingsError("transfer table: the band-limited model has none");
     cover(maxNu);

@@ -362,7 +362,8 @@ void GpuFourierRenderer::setSliceUniforms(unsigned prog, const core::RenderParam
         m_gl->glUniform3f(loc("uDepthE"), E[0], E[1], E[2]);
     }
     const core::SliceFilter& f = p.filter;
-    m_gl->glUniform1i(loc("uFilterOn"), f.active() ? 1 : 0);
+    m_gl->glUniform1i(loc("uFilterOn"), f.active() || p.pixelAperture ? 1 : 0);
+    m_gl->glUniform1i(loc("uAperture"), p.pixelAperture ? 1 : 0);
     const double Md = M * d;
     m_gl->glUniform1f(loc("uSharpenAmount"), float(f.sharpenAmount));
     m_gl->glUniform1f(loc("uSharpenC"), float(2.0 * 9.86960440108935861883 * f.sharpenSigmaMm * f.sharpenSigmaMm / (Md * Md)));
@@ -417,6 +418,7 @@ void GpuFourierRenderer::setClipUniforms(unsigned prog, const core::RenderParams
     auto loc = [&](const char* n) { return m_gl->glGetUniformLocation(prog, n); };
     const bool clip = p && p->clipToVolume && m_spectrum;
     m_gl->glUniform1i(loc("uClip"), clip ? 1 : 0);
+    m_gl->glUniform1i(loc("uNonNegative"), p && p->nonNegative && m_spectrum && m_spectrum->nonNegative ? 1 : 0);
     if (!clip) return;
     const core::Spectrum& s = *m_spectrum;
     const core::Vec3 half = core::supportHalfExtents(s.volumeDims, s.spacing, core::voxelModelReach(p->voxelModel));

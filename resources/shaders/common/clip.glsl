@@ -2,6 +2,7 @@
 // model's support box hold exactly 0 in the true projection; FVR puts the kernel's ghost copies
 // and ringing there, so the last pass writes 0 for them when uClip is set.
 uniform int uClip;
+uniform int uNonNegative; // fvr::core::RenderParams::nonNegative for a non-negative spectrum
 uniform vec3 uBoxHalf; // fvr::core::supportHalfExtents, mm
 uniform vec3 uViewD;
 uniform vec3 uViewR;
@@ -21,4 +22,11 @@ bool rayMissesVolume(int col, int row, int M) {
         t1 = min(t1, max(ta, tb));
     }
     return !(t1 > t0);
+}
+
+// The value the last pass stores for pixel (col, row): 0 outside the support when clipping, never
+// below 0 for a non-negative volume.
+float finalValue(int col, int row, int M, float p) {
+    if (uClip != 0 && rayMissesVolume(col, row, M)) return 0.0;
+    return uNonNegative != 0 ? max(p, 0.0) : p;
 }

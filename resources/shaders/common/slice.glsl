@@ -23,6 +23,7 @@ uniform int uFilterOn;
 uniform float uSharpenAmount;  // 0: no unsharp mask
 uniform float uSharpenC;       // 2 pi^2 sigma^2 / (M d)^2 (per squared image frequency index)
 uniform float uBandInv2;       // 1 / (nu_c M d)^2; 0: no band limit
+uniform int uAperture;         // 1: pixels integrate over their area (sinc(m/M) sinc(n/M))
 uniform int uVoxelModel;       // 0 band-limited, 1 trilinear, 2 cubic B-spline
 uniform ivec3 uAnti;           // 1 on axes of an even voxel count
 uniform vec3 uInvP;            // 1 / P_a: spectrum index to cycles per voxel
@@ -222,10 +223,14 @@ vec2 sampleSpectrum(vec3 k) {
 
 vec3 sliceK(int m, int n) { return float(m) * uA + float(n) * uB; }
 
-// The slice filter of fvr::core::SliceFilter at signed image frequency (m, n).
+float sinc(float x) { return abs(x) < 1e-4 ? 1.0 : sin(3.14159265358979 * x) / (3.14159265358979 * x); }
+
+// The slice filter of fvr::core::SliceFilter at signed image frequency (m, n), times the pixel
+// aperture (fvr::core::pixelApertureResponse) when it is on.
 float filterResponse(int m, int n) {
     float r2 = float(m * m + n * n);
     float h = 1.0;
+    if (uAperture != 0) h *= sinc(float(m) / float(uM)) * sinc(float(n) / float(uM));
     if (uSharpenAmount > 0.0) h *= 1.0 + uSharpenAmount * (1.0 - exp(-uSharpenC * r2));
     if (uBandInv2 > 0.0) {
         float q = r2 * uBandInv2;

@@ -33,7 +33,7 @@ void main() {
 #elif defined(OUTPUT_HARTLEY)
         colsOut[i * uM + c] = row[i].x + row[i].y;
 #else
-        float p = (uClip != 0 && rayMissesVolume(c, i, uM)) ? 0.0 : row[i].x;
+        float p = finalValue(c, i, uM, row[i].x);
         colsOut[i * uM + c] = p;
 #ifdef FUSED_DISPLAY
         storeDisplay(c, i, p);

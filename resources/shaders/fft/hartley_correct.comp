@@ -17,7 +17,7 @@ void main() {
     int mu = u == 0 ? 0 : uM - u;
     int mv = v == 0 ? 0 : uM - v;
     float h = 0.5 * (tIn[v * uM + u] + tIn[v * uM + mu] + tIn[mv * uM + u] - tIn[mv * uM + mu]);
-    float p = (uClip != 0 && rayMissesVolume(u, v, uM)) ? 0.0 : h;
+    float p = finalValue(u, v, uM, h);
     hOut[v * uM + u] = p;
 #ifdef FUSED_DISPLAY
     storeDisplay(u, v, p);

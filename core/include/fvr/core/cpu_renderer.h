@@ -35,6 +35,14 @@ struct RenderParams {
      *  giving the projection of that interpolant (what a ray caster with that interpolation
      *  integrates). Costs one product per slice sample. */
     VoxelModel voxelModel = VoxelModel::BandLimited;
+    /** Detector pixels that integrate over their area (d x d) instead of sampling the
+     *  projection at their centre: the slice is multiplied by pixelApertureResponse(m / M)
+     *  pixelApertureResponse(n / M). Compare with a spatial projector with pixelSubsamples. */
+    bool pixelAperture = false;
+    /** Writes max(0, p) where the spectrum's values are all >= 0 (Spectrum::nonNegative: their
+     *  line integrals cannot be negative): removes what is left of the interpolation's ringing
+     *  and aliases below zero. No effect on other spectra (raw HU, say). */
+    bool nonNegative = false;
 };
 
 /** Checks geometry, depth cue and filter (SettingsError naming the problem). */

@@ -57,6 +57,9 @@ struct Spectrum {
     /** Set when the volume was divided by this kernel's Fourier transform before the 3D
      *  transform (deapodization): the renderers then accept only this kernel. */
     std::optional<Kernel> deapodizedFor;
+    /** Every mapped voxel value is >= 0 (attenuation, or raw data without negative values), so
+     *  every true line integral is too (RenderParams::nonNegative). */
+    bool nonNegative = false;
     FftwBuffer data;
 
     std::int64_t rowStride() const { return 2 * (padded[0] / 2 + 1); }

@@ -39,6 +39,10 @@ double voxelModelTransfer(VoxelModel m, double nu);
 /** d t / d nu (depth cueing differentiates the model's spectrum). 0 for BandLimited. */
 double voxelModelTransferDerivative(VoxelModel m, double nu);
 
+/** The transfer function of a square pixel's area along one image axis, sinc(f) at f cycles per
+ *  pixel (the box of one pixel width): RenderParams::pixelAperture. */
+double pixelApertureResponse(double cyclesPerPixel);
+
 /**
  * t and dt/dnu tabulated for the CPU renderer's per-sample product (3 lookups instead of 3 sines):
  * kPerUnit intervals per cycle per voxel with linear interpolation (error below 1e-6 of t's
