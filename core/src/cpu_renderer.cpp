@@ -283,10 +283,13 @@ inline Sampled<cfloat> interpolateComplex(const SliceContext& c, double kx, doub
     tapWeights<T, Depth>(c, kx, ky, kz, ix, iy, iz, wx, wy, wz, dx, dy, dz);
     bool flip[T];
     bool anyFlip = false;
+    float my[T], mz[T]; // the mirror's sign: -(+P/2) is stored as +P/2, one period away
     for (int t = 0; t < T; ++t) {
         flip[t] = ix[t] < 0; // beyond the stored half: its negative image
         if (flip[t]) ix[t] = -ix[t];
         anyFlip |= flip[t];
+        my[t] = c.anti[1] && 2 * iy[t] == c.P1 ? -1.0f : 1.0f;
+        mz[t] = c.anti[2] && 2 * iz[t] == c.P2 ? -1.0f : 1.0f;
         if (iy[t] < 0) iy[t] += c.P1;
         if (iz[t] < 0) iz[t] += c.P2;
     }
@@ -310,10 +313,11 @@ inline Sampled<cfloat> interpolateComplex(const SliceContext& c, double kx, doub
             if (!anyFlip) {
                 for (int xc = 0; xc < T; ++xc) vals[xc] = row[ix[xc]];
             } else {
-                const std::int64_t my = iy[yc] == 0 ? 0 : c.P1 - iy[yc];
-                const std::int64_t mz = iz[zc] == 0 ? 0 : c.P2 - iz[zc];
-                const cfloat* mrow = base + (my + c.P1 * mz) * H;
-                for (int xc = 0; xc < T; ++xc) vals[xc] = flip[xc] ? std::conj(mrow[ix[xc]]) : row[ix[xc]];
+                const std::int64_t jy = iy[yc] == 0 ? 0 : c.P1 - iy[yc];
+                const std::int64_t jz = iz[zc] == 0 ? 0 : c.P2 - iz[zc];
+                const cfloat* mrow = base + (jy + c.P1 * jz) * H;
+                const float ms = my[yc] * mz[zc];
+                for (int xc = 0; xc < T; ++xc) vals[xc] = flip[xc] ? ms * std::conj(mrow[ix[xc]]) : row[ix[xc]];
             }
             accumulate(zc, yc, vals);
         }

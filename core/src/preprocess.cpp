@@ -56,25 +56,46 @@ std::int64_t wrap(std::int64_t k, std::int64_t p) {
 }
 } // namespace
 
+namespace {
+/** The signed index in (-P/2, P/2] that stores frequency k, and the parity of the periods between
+ *  them: the spectrum changes sign from one period to the next along an axis of an even voxel
+ *  count (its centre lies half-way between two voxels). */
+std::int64_t signedIndex(std::int64_t k, std::int64_t p, bool& oddPeriods) {
+    std::int64_t r = wrap(k, p);
+    if (r > p / 2) r -= p;
+    oddPeriods = ((k - r) / p) % 2 != 0;
+    return r;
+}
+} // namespace
+
 std::complex<double> Spectrum::valueAt(std::int64_t kx, std::int64_t ky, std::int64_t kz) const {
-    kx = wrap(kx, padded[0]);
-    ky = wrap(ky, padded[1]);
-    kz = wrap(kz, padded[2]);
-    if (kind == TransformKind::Fft) {
-        bool conj = false;
-        if (kx > padded[0] / 2) {
-            kx = padded[0] - kx;
-            ky = wrap(-ky, padded[1]);
-            kz = wrap(-kz, padded[2]);
-            conj = true;
-        }
-        const float* p = data.get() + (ky + padded[1] * kz) * rowStride() + 2 * kx;
-        return {p[0], conj ? -p[1] : p[1]};
+    if (kind == TransformKind::Fht) {
+        // G = E - i O with E, O the even and odd parts of H.
+        const double h = hartleyAt(kx, ky, kz);
+        const double hm = hartleyAt(-kx, -ky, -kz);
+        return {0.5 * (h + hm), -0.5 * (h - hm)};
     }
-    // Hartley: G = E - i O with E, O the even and odd parts of H.
-    const double h = hartleyAt(kx, ky, kz);
-    const double hm = hartleyAt(-kx, -ky, -kz);
-    return {0.5 * (h + hm), -0.5 * (h - hm)};
+    std::int64_t r[3];
+    double sign = 1.0;
+    const std::int64_t k[3] = {kx, ky, kz};
+    for (int a = 0; a < 3; ++a) {
+        bool odd;
+        r[a] = signedIndex(k[a], padded[a], odd);
+        if (odd && volumeDims[a] % 2 == 0) sign = -sign;
+    }
+    bool conj = false;
+    if (r[0] < 0) { // G(k) = conj G(-k); -P/2 is stored as +P/2, one period away
+        conj = true;
+        for (int a = 0; a < 3; ++a) {
+            r[a] = -r[a];
+            if (padded[a] % 2 == 0 && r[a] == -padded[a] / 2) {
+                r[a] = padded[a] / 2;
+                if (volumeDims[a] % 2 == 0) sign = -sign;
+            }
+        }
+    }
+    const float* p = data.get() + (wrap(r[1], padded[1]) + padded[1] * wrap(r[2], padded[2])) * rowStride() + 2 * r[0];
+    return sign * std::complex<double>(p[0], conj ? -p[1] : p[1]);
 }
 
 double Spectrum::hartleyAt(std::int64_t kx, std::int64_t ky, std::int64_t kz) const {
@@ -82,10 +103,15 @@ double Spectrum::hartleyAt(std::int64_t kx, std::int64_t ky, std::int64_t kz) co
         const auto g = valueAt(kx, ky, kz);
         return g.real() - g.imag();
     }
-    kx = wrap(kx, padded[0]);
-    ky = wrap(ky, padded[1]);
-    kz = wrap(kz, padded[2]);
-    return data.get()[(ky + padded[1] * kz) * rowStride() + kx];
+    double sign = 1.0;
+    const std::int64_t k[3] = {kx, ky, kz};
+    std::int64_t r[3];
+    for (int a = 0; a < 3; ++a) {
+        bool odd;
+        r[a] = wrap(signedIndex(k[a], padded[a], odd), padded[a]);
+        if (odd && volumeDims[a] % 2 == 0) sign = -sign;
+    }
+    return sign * data.get()[(r[1] + padded[1] * r[2]) * rowStride() + r[0]];
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -168,16 +194,17 @@ private:
 };
 
 /** Per-axis centring phase: the FFT origin holds voxel floor(N/2), the true centre is (N-1)/2,
- *  so G = F * exp(-2 pi i k sigma / P) with sigma = floor(N/2) - (N-1)/2 in {0, 1/2}. At the
- *  Nyquist index of an even P the symmetric (real) factor cos(pi sigma) keeps G Hermitian. */
+ *  so G = F * exp(-2 pi i k sigma / P) with sigma = floor(N/2) - (N-1)/2 in {0, 1/2}, for the
+ *  signed index k in (-P/2, P/2] (the Nyquist index of an even P holds +P/2). G is then the
+ *  centred spectrum itself at every stored index; beyond them it repeats with the sign
+ *  (-1)^(periods) where sigma = 1/2 (Spectrum). */
 std::vector<std::complex<double>> centringPhase(std::int64_t n, std::int64_t p) {
     const double sigma = double(n / 2) - double(n - 1) / 2.0;
     std::vector<std::complex<double>> ph(std::size_t(p), {1.0, 0.0});
     if (sigma == 0.0) return ph;
     for (std::int64_t k = 0; k < p; ++k) {
         const std::int64_t ks = k <= p / 2 ? k : k - p;
-        if (p % 2 == 0 && k == p / 2) ph[k] = {std::cos(std::numbers::pi * sigma), 0.0};
-        else ph[k] = std::polar(1.0, -2.0 * std::numbers::pi * double(ks) * sigma / double(p));
+        ph[k] = std::polar(1.0, -2.0 * std::numbers::pi * double(ks) * sigma / double(p));
     }
     return ph;
 }
@@ -394,27 +421,23 @@ void complexToHartley(Spectrum& s, const Dims3& N, ThreadPool& pool) {
             if (rm < r) continue; // handled with its partner
             float* ra = s.data.get() + r * rs;
             float* rb = s.data.get() + rm * rs;
-            const std::complex<double> fa = py[y] * pz[z], fb = py[my] * pz[mz];
+            // The unphased F is periodic and Hermitian: F(kx > P0/2, y, z) = conj F(P0 - kx, -y, -z),
+            // read from the partner row; the phase then follows each stored index (centringPhase).
             for (std::int64_t x = 0; x < H; ++x) {
-                a[x] = std::complex<double>(ra[2 * x], ra[2 * x + 1]) * (px[x] * fa);
-                b[x] = std::complex<double>(rb[2 * x], rb[2 * x + 1]) * (px[x] * fb);
+                a[x] = std::complex<double>(ra[2 * x], ra[2 * x + 1]);
+                b[x] = std::complex<double>(rb[2 * x], rb[2 * x + 1]);
             }
-            // Row (y,z): kx <= P0/2 from a; kx > P0/2 is -k' with k' = (P0-kx, -y, -z) in row b.
-            for (std::int64_t x = 0; x < P[0]; ++x) {
-                if (x < H) ra[x] = float(a[x].real() - a[x].imag());
-                else {
-                    const auto g = b[P[0] - x]; // G(-k) = conj(g)
-                    ra[x] = float(g.real() + g.imag());
+            auto hartley = [&](const std::vector<std::complex<double>>& own, const std::vector<std::complex<double>>& other,
+                               std::int64_t yy, std::int64_t zz, float* out) {
+                const std::complex<double> fyz = py[yy] * pz[zz];
+                for (std::int64_t x = 0; x < P[0]; ++x) {
+                    const std::complex<double> f = x < H ? own[x] : std::conj(other[P[0] - x]);
+                    const std::complex<double> g = f * (px[x] * fyz);
+                    out[x] = float(g.real() - g.imag());
                 }
-            }
-            if (rm == r) continue;
-            for (std::int64_t x = 0; x < P[0]; ++x) {
-                if (x < H) rb[x] = float(b[x].real() - b[x].imag());
-                else {
-                    const auto g = a[P[0] - x];
-                    rb[x] = float(g.real() + g.imag());
-                }
-            }
+            };
+            hartley(a, b, y, z, ra);
+            if (rm != r) hartley(b, a, my, mz, rb);
         }
     });
 }

@@ -168,9 +168,12 @@ vec2 sampleSpectrum(vec3 k) {
     wrapTaps(bz, uPadded.z, uAnti.z != 0, iz, wz);
 #endif
     bool flip[TAPS];
+    float msy[TAPS], msz[TAPS]; // the mirror's sign: -(+P/2) is stored as +P/2, one period away
     for (int t = 0; t < TAPS; ++t) {
         flip[t] = ix[t] < 0; // beyond the stored half: its negative image
         ix[t] = abs(ix[t]);
+        msy[t] = (uAnti.y != 0 && 2 * iy[t] == uPadded.y) ? -1.0 : 1.0;
+        msz[t] = (uAnti.z != 0 && 2 * iz[t] == uPadded.z) ? -1.0 : 1.0;
         if (iy[t] < 0) iy[t] += uPadded.y;
         if (iz[t] < 0) iz[t] += uPadded.z;
         my[t] = iy[t] == 0 ? 0 : uPadded.y - iy[t];
@@ -188,6 +191,7 @@ vec2 sampleSpectrum(vec3 k) {
                 if (flip[xc]) {
                     v = texelFetch(uSpectrum, ivec3(ix[xc], my[yc], mz[zc]), 0).rg;
                     v.y = -v.y;
+                    v *= msy[yc] * msz[zc];
                 } else {
                     v = texelFetch(uSpectrum, ivec3(ix[xc], iy[yc], iz[zc]), 0).rg;
                 }

@@ -1,0 +1,269 @@
+// Voxel models (voxel_model.h): the transfer functions against the Fourier transforms of their
+// interpolants, the B-spline prefilter, and FVR with each model against independent oracles: an
+// exact 2D computation in double for axis views, and the spatial projector with the same model
+// on the shared real CTs and MR.
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <numbers>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include <fvr/core/cpu_renderer.h>
+#include <fvr/core/dicom.h>
+#include <fvr/core/errors.h>
+#include <fvr/core/patient_views.h>
+#include <fvr/core/preprocess.h>
+#include <fvr/core/spatial_projector.h>
+#include <fvr/core/volume_io.h>
+#include <fvr/core/voxel_model.h>
+
+#include "image_metrics.h"
+#include "test_support.h"
+
+using namespace fvr::core;
+using cd = std::complex<double>;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+double tent(double x) { return std::max(0.0, 1.0 - std::abs(x)); }
+double cubicBSpline(double x) {
+    x = std::abs(x);
+    if (x < 1.0) return (4.0 - 6.0 * x * x + 3.0 * x * x * x) / 6.0;
+    if (x < 2.0) return (2.0 - x) * (2.0 - x) * (2.0 - x) / 6.0;
+    return 0.0;
+}
+/** Continuous Fourier transform of an even function supported on [-r, r] (Simpson). */
+double fourierOf(double (*f)(double), double r, double nu) {
+    const int n = 4000;
+    const double h = 2.0 * r / n;
+    double s = 0.0;
+    for (int i = 0; i <= n; ++i) {
+        const double x = -r + i * h;
+        s += (i == 0 || i == n ? 1.0 : (i % 2 ? 4.0 : 2.0)) * f(x) * std::cos(2.0 * kPi * nu * x);
+    }
+    return s * h / 3.0;
+}
+
+std::vector<float> randomVoxels(const Dims3& dims, unsigned seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    std::vector<float> v(std::size_t(dims[0] * dims[1] * dims[2]));
+    for (float& x : v) x = u(rng);
+    return v;
+}
+
+Volume randomVolume(const Dims3& dims, const Vec3& spacing, unsigned seed) {
+    Volume v;
+    v.dims = dims;
+    v.spacing = spacing;
+    v.voxels = randomVoxels(dims, seed);
+    v.name = "random";
+    return v;
+}
+
+/**
+ * The oracle for a view along +z (up -y): the projection of the voxel model band-limited to the
+ * image's frequencies, computed in 2D, in double, from the plain voxel sums S[x, y] = sum_z v:
+ * p = s_x s_y s_z / (M d)^2 sum_{m,n} S~(m, n) t(m s_x / (M d)) t(n s_y / (M d))
+ *     e^{2 pi i (m (col - M/2) + n (row - M/2)) / M},
+ * S~ the 2D DTFT of S about the volume's centre, t the model's transfer function, the Nyquist
+ * row and column averaged over their two aliases. No 3D spectrum, no gridding.
+ */
+std::vector<float> axisViewOracle(const Volume& v, VoxelModel model, int M, double d) {
+    const auto& N = v.dims;
+    const auto& s = v.spacing;
+    std::vector<double> S(std::size_t(N[0] * N[1]), 0.0);
+    for (std::int64_t z = 0; z < N[2]; ++z)
+        for (std::int64_t y = 0; y < N[1]; ++y)
+            for (std::int64_t x = 0; x < N[0]; ++x) S[std::size_t(y * N[0] + x)] += v.voxels[std::size_t(v.index(x, y, z))];
+    const int F = M + 1; // m = -M/2 .. M/2
+    const double c0 = (N[0] - 1) / 2.0, c1 = (N[1] - 1) / 2.0;
+    std::vector<cd> A(std::size_t(F * N[1]));
+    for (int mi = 0; mi < F; ++mi) {
+        const double f = double(mi - M / 2) * s[0] / (M * d);
+        for (std::int64_t y = 0; y < N[1]; ++y) {
+            cd acc = 0.0;
+            for (std::int64_t x = 0; x < N[0]; ++x)
+                acc += S[std::size_t(y * N[0] + x)] * std::polar(1.0, -2.0 * kPi * f * (x - c0));
+            A[std::size_t(mi * N[1] + y)] = acc;
+        }
+    }
+    std::vector<cd> X(std::size_t(F * F));
+    for (int mi = 0; mi < F; ++mi)
+        for (int ni = 0; ni < F; ++ni) {
+            const double f = double(ni - M / 2) * s[1] / (M * d);
+            cd acc = 0.0;
+            for (std::int64_t y = 0; y < N[1]; ++y) acc += A[std::size_t(mi * N[1] + y)] * std::polar(1.0, -2.0 * kPi * f * (y - c1));
+            const double tm = voxelModelTransfer(model, double(mi - M / 2) * s[0] / (M * d));
+            const double tn = voxelModelTransfer(model, double(ni - M / 2) * s[1] / (M * d));
+            X[std::size_t(mi * F + ni)] = acc * tm * tn;
+        }
+    // Fold the Nyquist aliases: index -M/2 holds the mean of -M/2 and +M/2.
+    std::vector<cd> Y(std::size_t(M * M));
+    for (int m = 0; m < M; ++m)
+        for (int n = 0; n < M; ++n) {
+            cd sum = 0.0;
+            int count = 0;
+            for (int a : {m, m == 0 ? M : -1})
+                for (int b : {n, n == 0 ? M : -1}) {
+                    if (a < 0 || b < 0) continue;
+                    sum += X[std::size_t(a * F + b)];
+                    ++count;
+                }
+            Y[std::size_t(m * M + n)] = sum / double(count);
+        }
+    const double scale = s[0] * s[1] * s[2] / ((M * d) * (M * d));
+    std::vector<cd> B(std::size_t(M * M)); // B[col][n]
+    for (int col = 0; col < M; ++col)
+        for (int n = 0; n < M; ++n) {
+            cd acc = 0.0;
+            for (int m = 0; m < M; ++m) acc += Y[std::size_t(m * M + n)] * std::polar(1.0, 2.0 * kPi * (m - M / 2) * (col - M / 2) / M);
+            B[std::size_t(col * M + n)] = acc;
+        }
+    std::vector<float> img(std::size_t(M * M));
+    for (int row = 0; row < M; ++row)
+        for (int col = 0; col < M; ++col) {
+            cd acc = 0.0;
+            for (int n = 0; n < M; ++n) acc += B[std::size_t(col * M + n)] * std::polar(1.0, 2.0 * kPi * (n - M / 2) * (row - M / 2) / M);
+            img[std::size_t(row * M + col)] = float(scale * acc.real());
+        }
+    return img;
+}
+
+double minFraction(const std::vector<float>& p) {
+    float lo = 0.0f, hi = 0.0f;
+    for (float x : p) lo = std::min(lo, x), hi = std::max(hi, x);
+    return hi > 0 ? lo / hi : 0.0;
+}
+
+} // namespace
+
+TEST(VoxelModel, NamesAndErrors) {
+    for (VoxelModel m : allVoxelModels()) EXPECT_EQ(parseVoxelModel(voxelModelName(m)), m);
+    EXPECT_EQ(parseVoxelModel("band-limited"), VoxelModel::BandLimited);
+    try {
+        parseVoxelModel("cubic-catmull");
+        FAIL() << "expected SettingsError";
+    } catch (const SettingsError& e) {
+        EXPECT_NE(std::string(e.what()).find("bandlimited|trilinear|bspline"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("cubic-catmull"), std::string::npos) << e.what();
+    }
+    SpatialProjectorOptions o;
+    o.voxelModel = VoxelModel::BandLimited;
+    const Volume v = randomVolume({4, 4, 4}, {1, 1, 1}, 1);
+    EXPECT_THROW(SpatialProjector(v, o), SettingsError);
+}
+
+TEST(VoxelModel, TransferFunctionsAreTheInterpolantsFourierTransforms) {
+    for (double nu : {0.0, 0.13, 0.5, 0.77, 1.0, 1.3, 2.6, -0.4}) {
+        // Trilinear: the tent's transform. B-spline: the cubic B-spline's transform over the
+        // transform of its samples (the prefilter, sum_n beta3(n) e^{-2 pi i nu n}).
+        EXPECT_NEAR(voxelModelTransfer(VoxelModel::Trilinear, nu), fourierOf(tent, 1.0, nu), 1e-9) << nu;
+        const double samples = cubicBSpline(0) + 2.0 * cubicBSpline(1) * std::cos(2.0 * kPi * nu);
+        EXPECT_NEAR(voxelModelTransfer(VoxelModel::BSpline, nu), fourierOf(cubicBSpline, 2.0, nu) / samples, 1e-9) << nu;
+        EXPECT_EQ(voxelModelTransfer(VoxelModel::BandLimited, nu), std::abs(nu) <= 0.5 ? 1.0 : 0.0);
+        for (VoxelModel m : {VoxelModel::Trilinear, VoxelModel::BSpline}) {
+            const double h = 1e-5;
+            const double fd = (voxelModelTransfer(m, nu + h) - voxelModelTransfer(m, nu - h)) / (2 * h);
+            EXPECT_NEAR(voxelModelTransferDerivative(m, nu), fd, 1e-7) << voxelModelName(m) << " " << nu;
+        }
+    }
+    // The tables the CPU renderer reads, inside their range and beyond it.
+    for (VoxelModel m : {VoxelModel::Trilinear, VoxelModel::BSpline}) {
+        TransferTable t(m, 3.0);
+        double worst = 0.0, worstD = 0.0;
+        for (double nu = -4.0; nu <= 4.0; nu += 0.000731) {
+            worst = std::max(worst, std::abs(t.value(nu) - voxelModelTransfer(m, nu)));
+            worstD = std::max(worstD, std::abs(t.derivative(nu) - voxelModelTransferDerivative(m, nu)));
+        }
+        // Linear interpolation at h = 1/1024: h^2/8 max|t2| (a few 1e-6 for the B-spline's second
+        // derivative, then float rounding), and h/2 max|t3| for the derivative.
+        EXPECT_LT(worst, 5e-6) << voxelModelName(m);
+        EXPECT_LT(worstD, 1e-4) << voxelModelName(m);
+    }
+    EXPECT_NEAR(pixelApertureResponse(0.5), 2.0 / kPi, 1e-12);
+    EXPECT_EQ(voxelModelReach(VoxelModel::Trilinear), 1.0);
+}
+
+TEST(VoxelModel, BSplineCoefficientsInterpolateTheVoxelsAndTheZerosAround) {
+    const Dims3 dims{9, 8, 7};
+    const auto voxels = randomVoxels(dims, 3);
+    const int margin = 10;
+    const auto c = bsplineCoefficients(voxels, dims, margin);
+    const std::int64_t L0 = dims[0] + 2 * margin, L1 = dims[1] + 2 * margin;
+    auto coef = [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+        return double(c[std::size_t(((z + margin) * L1 + (y + margin)) * L0 + (x + margin))]);
+    };
+    double worst = 0.0;
+    for (std::int64_t z = -4; z < dims[2] + 4; ++z)
+        for (std::int64_t y = -4; y < dims[1] + 4; ++y)
+            for (std::int64_t x = -4; x < dims[0] + 4; ++x) {
+                // At an integer point only the taps at offsets -1, 0, 1 weigh (1/6, 4/6, 1/6).
+                double val = 0.0;
+                for (int k = -1; k <= 1; ++k)
+                    for (int j = -1; j <= 1; ++j)
+                        for (int i = -1; i <= 1; ++i)
+                            val += cubicBSpline(i) * cubicBSpline(j) * cubicBSpline(k) * coef(x + i, y + j, z + k);
+                const bool inside = x >= 0 && y >= 0 && z >= 0 && x < dims[0] && y < dims[1] && z < dims[2];
+                const double want = inside ? voxels[std::size_t((z * dims[1] + y) * dims[0] + x)] : 0.0;
+                worst = std::max(worst, std::abs(val - want));
+            }
+    EXPECT_LT(worst, 1e-5);
+}
+
+// An axis view against the exact 2D oracle: every model, the FFT and the FHT path, an even and an
+// odd voxel count across the image (the period signs), pixels of s, s/2 and s/3 (the compact
+// models read the spectrum up to 1.5 cycles per voxel). With voxel-aligned pixels (d = s) the
+// band-limited model gives the plain voxel sums; the trilinear model gives them bilinearly
+// interpolated and band-limited to the image (what a trilinear ray caster samples, less the
+// aliases beyond the image's Nyquist frequency, which FVR never sees).
+TEST(VoxelModel, AxisViewEqualsTheExactProjectionOfEachModel) {
+    const Volume v = randomVolume({30, 25, 12}, {2.0, 2.0, 3.0}, 7);
+    const int M = 64;
+    const ViewFrame view = ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0});
+    for (auto t : {TransformKind::Fft, TransformKind::Fht}) {
+        PreprocessOptions o;
+        o.effort = PlannerEffort::Estimate;
+        o.transform = t;
+        o.oversampling = 2.0;
+        o.deapodizeFor = Kernel::KaiserBessel6;
+        CpuFourierRenderer r(preprocess(v, o));
+        for (VoxelModel model : allVoxelModels())
+            for (int K : {1, 2, 3}) {
+                if (model == VoxelModel::BandLimited && K > 1) continue; // its band edge falls on samples
+                const double d = 2.0 / K;
+                RenderParams p{view, {M, d}, Kernel::KaiserBessel6};
+                p.voxelModel = model;
+                const auto got = r.render(p);
+                const auto want = axisViewOracle(v, model, M, d);
+                const double psnr = fvr::test::compare(got.pixels, want).psnr;
+                std::printf("[voxel model] axis view vs exact 2D oracle: %s %-11s d = s/%d  %.1f dB\n", transformName(t),
+                            voxelModelName(model), K, psnr);
+                EXPECT_GT(psnr, 75.0) << transformName(t) << " " << voxelModelName(model) << " K " << K;
+            }
+    }
+}
+
+// The oracle's conventions (centre, orientation, scale) on a case worked out by hand: pixels on
+// the voxel centres (odd counts, d = s), the band-limited model, where the projection at a voxel
+// centre is exactly s_z times the plain voxel sum, and 0 at the centres of the zero padding.
+TEST(VoxelModel, AxisViewOracleGivesThePlainVoxelSumsOnVoxelCentres) {
+    const Volume v = randomVolume({31, 25, 12}, {2.0, 2.0, 3.0}, 8);
+    const int M = 64;
+    const auto img = axisViewOracle(v, VoxelModel::BandLimited, M, 2.0);
+    double worst = 0.0, peak = 0.0;
+    for (int row = 0; row < M; ++row)
+        for (int col = 0; col < M; ++col) {
+            const std::int64_t x = col - M / 2 + 15, y = row - M / 2 + 12;
+            double want = 0.0;
+            if (x >= 0 && x < 31 && y >= 0 && y < 25)
+                for (std::int64_t z = 0; z < 12; ++z) want += 3.0 * v.voxels[std::size_t(v.index(x, y, z))];
+            worst = std::max(worst, std::abs(img[std::size_t(row * M + col)] - want));
+            peak = std::max(peak, want);
+        }
+    EXPECT_LT(worst, 1e-5 * peak);
+}
