@@ -329,6 +329,36 @@ void BM_Effects(benchmark::State& state, int n, TransformKind kind, int M, Kerne
     state.counters["fps"] = mean(total) > 0 ? 1000.0 / mean(total) : 0.0;
 }
 
+// --- 2c. Voxel models: the band cut against the transfer function over the whole slice ----------
+
+void BM_VoxelModel(benchmark::State& state, int n, TransformKind kind, int M, Kernel kernel, VoxelModel model,
+                   double pixelScale) {
+    CpuFourierRenderer& r = renderer(n, kind);
+    RenderParams p{views()[0], geometry(n, M), kernel};
+    p.image.pixelSize *= pixelScale;
+    p.voxelModel = model;
+    p.clipToVolume = true;
+    benchmark::DoNotOptimize(r.render(p).pixels.data()); // plans for this M
+    std::vector<double> slice, inverse, total;
+    std::size_t i = 0;
+    const LoadProbe probe;
+    for (auto _ : state) {
+        StageTimes t;
+        p.view = views()[i++ % views().size()];
+        ProjectionImage img = r.render(p, &t);
+        benchmark::DoNotOptimize(img.pixels.data());
+        slice.push_back(t.sliceMs);
+        inverse.push_back(t.inverseMs);
+        total.push_back(t.totalMs);
+    }
+    state.counters["slice_ms"] = mean(slice);
+    state.counters["inverse_ms"] = mean(inverse);
+    state.counters["total_ms"] = mean(total);
+    state.counters["total_p50"] = median(total);
+    state.counters["fps"] = mean(total) > 0 ? 1000.0 / mean(total) : 0.0;
+    state.counters["other_cores"] = probe.otherCores();
+}
+
 // --- 3. Spatial ray casting ---------------------------------------------------------------------
 
 SpatialProjector& projector(int n, double stepFraction) {
@@ -399,6 +429,21 @@ void registerAll(const std::vector<int>& sizes) {
                     const std::string name = std::string("BM_Effects/N256/") + transformName(kind) + "/M512/" +
                                              kernelName(k) + "/" + effectName(e);
                     benchmark::RegisterBenchmark(name.c_str(), BM_Effects, 256, kind, 512, k, e)
+                        ->Iterations(framesFor(512))
+                        ->Unit(benchmark::kMillisecond)
+                        ->UseRealTime();
+                }
+    if (std::find(sizes.begin(), sizes.end(), 256) != sizes.end())
+        for (TransformKind kind : {TransformKind::Fft, TransformKind::Fht})
+            for (Kernel k : {Kernel::Linear, Kernel::KaiserBessel4})
+                for (double scale : {1.0, 2.0})
+                for (VoxelModel m : allVoxelModels()) {
+                    // Pixel 1x: the default (0.87 voxel: a quarter of the slice lies beyond the
+                    // band); 2x: the whole slice lies inside it, so every model samples the same.
+                    const std::string name = std::string("BM_VoxelModel/N256/") + transformName(kind) + "/M512/" +
+                                             kernelName(k) + "/pixel" + (scale == 1.0 ? "1x/" : "2x/") +
+                                             voxelModelName(m);
+                    benchmark::RegisterBenchmark(name.c_str(), BM_VoxelModel, 256, kind, 512, k, m, scale)
                         ->Iterations(framesFor(512))
                         ->Unit(benchmark::kMillisecond)
                         ->UseRealTime();

@@ -92,6 +92,12 @@ struct SliceContext {
     double invP[3] = {1, 1, 1};
 };
 
+/** k(m, n) = m * A + n * B in spectrum index units, m and n signed image frequencies. */
+struct FrameMapping {
+    double A[3], B[3];
+    float scale;
+};
+
 /** The slice filter H(m, n) at signed image frequencies, from 1D tables (the Gaussian is
  *  separable; the Butterworth term costs three multiplications), times the pixel aperture
  *  sinc(m / M) sinc(n / M) when it is on. */
@@ -330,7 +336,8 @@ inline Sampled<cfloat> interpolateComplex(const SliceContext& c, double kx, doub
 template <bool Depth>
 inline void modelTransfer(const SliceContext& c, double kx, double ky, double kz, float& t, float& gt) {
     const double nu[3] = {kx * c.invP[0], ky * c.invP[1], kz * c.invP[2]};
-    const float tx = c.model->value(nu[0]), ty = c.model->value(nu[1]), tz = c.model->value(nu[2]);
+    const float tx = c.model->valueCovered(float(nu[0])), ty = c.model->valueCovered(float(nu[1])),
+                tz = c.model->valueCovered(float(nu[2]));
     t = tx * ty * tz;
     if constexpr (Depth) {
         gt = c.E[0] * float(c.invP[0]) * c.model->derivative(nu[0]) * ty * tz +
@@ -342,12 +349,10 @@ inline void modelTransfer(const SliceContext& c, double kx, double ky, double kz
 /** The slice value at continuous signed frequency k: the model's spectrum (band cut or transfer
  *  function), with Depth the depth-cued a G + i E.grad G of it. */
 template <int T, bool Depth>
-inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double kz) {
+inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double kz, float t, float gt) {
     if (outOfBand(c, kx, ky, kz)) return {};
     Sampled<cfloat> s = interpolateComplex<T, Depth>(c, kx, ky, kz);
     if (c.model) {
-        float t, gt = 0.0f;
-        modelTransfer<Depth>(c, kx, ky, kz, t, gt);
         if constexpr (Depth) s.dv = t * s.dv + gt * s.v; // E.grad (T G)
         s.v *= t;
     }
@@ -400,42 +405,70 @@ inline Sampled<float> interpolateHartley(const SliceContext& c, double kx, doubl
 /** The Hartley slice value at continuous signed frequency k: the model's Hartley spectrum H_m
  *  (band cut or transfer function), with Depth a H_m(k) + E.grad H_m(-k). */
 template <int T, bool Depth>
-inline float sampleHartley(const SliceContext& c, double kx, double ky, double kz) {
+inline float sampleHartley(const SliceContext& c, double kx, double ky, double kz, float t, float gt) {
     if (outOfBand(c, kx, ky, kz)) return 0.0f;
     const float h = interpolateHartley<T>(c, kx, ky, kz).v;
     if constexpr (!Depth) {
-        if (!c.model) return h;
-        float t, gt;
-        modelTransfer<false>(c, kx, ky, kz, t, gt);
-        return t * h;
+        return c.model ? t * h : h;
     } else {
         const Sampled<float> m = interpolateHartley<T, true>(c, -kx, -ky, -kz); // H(-k), E.grad H(-k)
         if (!c.model) return c.depthA * h + m.dv;
         // T is even, grad T odd: E.grad (T H)(-k) = T(k) E.grad H(-k) - H(-k) E.grad T(k).
-        float t, gt;
-        modelTransfer<true>(c, kx, ky, kz, t, gt);
         return c.depthA * t * h + t * m.dv - gt * m.v;
     }
 }
 
-struct FrameMapping {
-    // k(m, n) = m * A + n * B, spectrum index units, m and n signed image frequencies.
-    double A[3], B[3];
-    float scale;
+/** The model's transfer function along the slice: a row's products at once (vectorised), single
+ *  samples (Nyquist aliases, depth cueing) from the tables. */
+struct RowTransfer {
+    const SliceContext& c;
+    const FrameMapping& f;
+    std::vector<float> row;
+
+    RowTransfer(const SliceContext& ctx, const FrameMapping& map, int M) : c(ctx), f(map) {
+        if (c.model) row.resize(std::size_t(M));
+    }
+    /** T at m = m0 .. m0 + count - 1 of image row n into row[first ...]. */
+    void fill(int first, int m0, int count, int n) {
+        if (!c.model) return;
+        float nu0[3], dnu[3];
+        for (int a = 0; a < 3; ++a) {
+            nu0[a] = float((m0 * f.A[a] + n * f.B[a]) * c.invP[a]);
+            dnu[a] = float(f.A[a] * c.invP[a]);
+        }
+        voxelModelTransferRow(c.model->model(), nu0, dnu, count, row.data() + first);
+    }
+    /** T and E.grad T at image frequency (m, n); the row's value when Depth is off. */
+    template <bool Depth>
+    void at(double m, double n, int index, float& t, float& gt) const {
+        gt = 0.0f;
+        if (!c.model) {
+            t = 1.0f;
+        } else if (Depth || index < 0) {
+            modelTransfer<Depth>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1], m * f.A[2] + n * f.B[2], t, gt);
+        } else {
+            t = row[std::size_t(index)];
+        }
+    }
 };
 
 template <int T, bool Depth>
 void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const FilterLut& filter, int M,
                       cfloat* out, ThreadPool& pool) {
     const int H = M / 2 + 1;
-    auto sample = [&](double m, double n) {
-        return sampleComplex<T, Depth>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1],
-                                m * f.A[2] + n * f.B[2]);
-    };
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
+        RowTransfer model(c, f, M);
+        // index: the sample's place in the row's transfer values (-1: compute it on its own).
+        auto sample = [&](double m, double n, int index) {
+            float t, gt;
+            model.at<Depth>(m, n, index, t, gt);
+            return sampleComplex<T, Depth>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1], m * f.A[2] + n * f.B[2],
+                                           t, gt);
+        };
         for (std::int64_t r = r0; r < r1; ++r) {
             const int n = int(r < M / 2 ? r : r - M);
             const bool nyqRow = (n == -M / 2);
+            if (!Depth && !nyqRow) model.fill(0, 0, H, n);
             cfloat* row = out + r * H;
             float sign = ((n & 1) ? -1.0f : 1.0f) * f.scale;
             for (int m = 0; m < H; ++m, sign = -sign) {
@@ -446,14 +479,14 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const Filter
                     const int ns = nyqRow ? 2 : 1;
                     cfloat sum{};
                     for (int a = 0; a < ms; ++a)
-                        for (int b = 0; b < ns; ++b) sum += sample(a ? -m : m, b ? -n : n);
+                        for (int b = 0; b < ns; ++b) sum += sample(a ? -m : m, b ? -n : n, -1);
                     v = sum / float(ms * ns);
                 } else {
                     constexpr int kAhead = 6;
                     const double ma = m + kAhead;
                     prefetchComplex<T>(c, ma * f.A[0] + n * f.B[0], ma * f.A[1] + n * f.B[1],
                                        ma * f.A[2] + n * f.B[2]);
-                    v = sample(m, n);
+                    v = sample(m, n, m);
                 }
                 row[m] = v * (filter.on ? sign * filter(m, n) : sign);
             }
@@ -464,13 +497,21 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const Filter
 template <int T, bool Depth>
 void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const FilterLut& filter, int M,
                       float* out, ThreadPool& pool) {
-    auto sample = [&](double m, double n) {
-        return sampleHartley<T, Depth>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1], m * f.A[2] + n * f.B[2]);
-    };
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
+        RowTransfer model(c, f, M);
+        auto sample = [&](double m, double n, int index) {
+            float t, gt;
+            model.at<Depth>(m, n, index, t, gt);
+            return sampleHartley<T, Depth>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1], m * f.A[2] + n * f.B[2],
+                                           t, gt);
+        };
         for (std::int64_t r = r0; r < r1; ++r) {
             const int n = int(r < M / 2 ? r : r - M);
             const bool nyqRow = (n == -M / 2);
+            if (!Depth && !nyqRow) {
+                model.fill(0, 0, M / 2, n);          // columns 0 .. M/2-1: m = col
+                model.fill(M / 2, -M / 2, M / 2, n); // columns M/2 .. M-1: m = col - M
+            }
             float* row = out + r * M;
             for (int col = 0; col < M; ++col) {
                 const int m = col < M / 2 ? col : col - M;
@@ -481,14 +522,14 @@ void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const Filter
                     const int ns = nyqRow ? 2 : 1;
                     float sum = 0.0f;
                     for (int a = 0; a < ms; ++a)
-                        for (int b = 0; b < ns; ++b) sum += sample(a ? -m : m, b ? -n : n);
+                        for (int b = 0; b < ns; ++b) sum += sample(a ? -m : m, b ? -n : n, -1);
                     v = sum / float(ms * ns);
                 } else {
                     constexpr int kAhead = 6;
                     const double ma = m + kAhead;
                     prefetchHartley<T>(c, ma * f.A[0] + n * f.B[0], ma * f.A[1] + n * f.B[1],
                                        ma * f.A[2] + n * f.B[2]);
-                    v = sample(m, n);
+                    v = sample(m, n, col);
                 }
                 row[col] = v * (filter.on ? sign * filter(m, n) : sign);
             }

@@ -12,6 +12,7 @@
  *  (-1) per period along an axis of an even voxel count: the centre lies half-way between two
  *  voxels, see Spectrum), which the renderers sample from the stored spectrum. */
 #include <array>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,12 @@ double voxelModelTransfer(VoxelModel m, double nu);
 /** d t / d nu (depth cueing differentiates the model's spectrum). 0 for BandLimited. */
 double voxelModelTransferDerivative(VoxelModel m, double nu);
 
+/** The product T = prod_a t(nu_a) along a row of slice samples, nu_a = nu0[a] + j dnu[a] for
+ *  j = 0..count-1, into out (not BandLimited). Float arithmetic without tables (sin(pi r)/(pi r)
+ *  as a polynomial on the reduced argument r in [-1/2, 1/2], error below 1e-7), written so the
+ *  compiler vectorises it: the CPU renderer's per-row product. */
+void voxelModelTransferRow(VoxelModel m, const float nu0[3], const float dnu[3], int count, float* out);
+
 /** The transfer function of a square pixel's area along one image axis, sinc(f) at f cycles per
  *  pixel (the box of one pixel width): RenderParams::pixelAperture. */
 double pixelApertureResponse(double cyclesPerPixel);
@@ -59,6 +66,15 @@ public:
     void cover(double maxNu);
     float value(double nu) const { return lookup(m_value, nu, false); }
     float derivative(double nu) const { return lookup(m_derivative, nu, true); }
+    /** value() without the range check: |nu| must lie within what cover() was given (the
+     *  renderers' per-sample path; cover() is called with the frame's largest frequency). */
+    float valueCovered(float nu) const {
+        const float pos = std::abs(nu) * float(kPerUnit);
+        const int i = int(pos);
+        const float f = pos - float(i);
+        const float* t = m_value.data() + i;
+        return t[0] + f * (t[1] - t[0]);
+    }
 
 private:
     float lookup(const std::vector<float>& t, double nu, bool odd) const {
