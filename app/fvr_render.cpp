@@ -23,6 +23,7 @@
 #include <fvr/core/patient_views.h>
 #include <fvr/core/errors.h>
 #include <fvr/core/image_io.h>
+#include <fvr/core/image_metrics.h>
 #include <fvr/core/phantom.h>
 #include <fvr/core/preprocess.h>
 #include <fvr/core/spatial_projector.h>
@@ -68,8 +69,17 @@ Rendering:
   --oversampling f      zero-padding factor 1..2 (default 1, as in the paper)
   --values V            raw (stored values) | mu (attenuation rel. water, max(0,1+HU/1000)) |
                         mu-bone (as mu up to +100 HU, twice as steep above: bone stands out)
+  --voxel-model V       what lies between the voxels: trilinear (default: the projection a
+                        trilinear DRR ray caster computes, no ringing) | bspline (the cubic
+                        B-spline through the voxels) | bandlimited (the plain FVR image, sharpest,
+                        rings at scan ends and between coarse slices)
+  --pixel-aperture      detector pixels integrate over their area (sinc per image axis) instead
+                        of sampling the projection at their centres
   --no-clip             keep what FVR puts outside the volume's shadow (ghost copies, ringing);
-                        by default pixels whose ray misses the volume are 0, as they truly are
+                        by default pixels whose ray misses the voxel model's support are 0, as
+                        they truly are
+  --keep-negative       keep negative line integrals of a volume without negative values
+                        (mu values, or raw data >= 0); by default they are 0, as they truly are
   --depth-cue S         depth cueing strength 0..1 (default 0): weight 1 at the front of the
                         volume's bounding sphere falling linearly to 1-S at its back (not with
                         --kernel nearest)
@@ -140,6 +150,9 @@ struct Args {
     Transmission transmission;     ///< resolved from the three above; active with --beer-lambert
     double depthCue = 0.0;
     bool clip = true;
+    VoxelModel voxelModel = VoxelModel::Trilinear;
+    bool pixelAperture = false;
+    bool keepNegative = false;
     SliceFilter filter;
     std::string out;
     bool info = false;
@@ -208,6 +221,14 @@ Args parseArgs(int argc, char** argv) {
         else if (opt == "--exposure") a.exposure = parseNumber(opt, value());
         else if (opt == "--depth-cue") a.depthCue = parseNumber(opt, value());
         else if (opt == "--no-clip") a.clip = false;
+        else if (opt == "--voxel-model") {
+            try {
+                a.voxelModel = parseVoxelModel(value());
+            } catch (const SettingsError& e) {
+                throw SettingsError(std::string("--voxel-model: ") + e.what());
+            }
+        } else if (opt == "--pixel-aperture") a.pixelAperture = true;
+        else if (opt == "--keep-negative") a.keepNegative = true;
         else if (opt == "--sharpen") a.filter.sharpenAmount = parseNumber(opt, value());
         else if (opt == "--sharpen-radius") a.filter.sharpenSigmaMm = parseNumber(opt, value());
         else if (opt == "--band-limit") a.filter.bandLimitLpMm = parseNumber(opt, value());
@@ -419,6 +440,8 @@ std::string settingsJson(const Args& a, const Spectrum& s, double d, int threads
       << ", \"volume_dims\": [" << s.volumeDims[0] << ", " << s.volumeDims[1] << ", "
       << s.volumeDims[2] << "], \"padded_dims\": [" << s.padded[0] << ", " << s.padded[1] << ", " << s.padded[2]
       << "], \"spectrum_mb\": " << double(s.bytes()) / (1 << 20) << ", \"threads\": " << threads
+      << ", \"voxel_model\": \"" << voxelModelName(a.voxelModel) << "\", \"pixel_aperture\": " << (a.pixelAperture ? "true" : "false")
+      << ", \"non_negative\": " << (!a.keepNegative && s.nonNegative ? "true" : "false")
       << ", \"clip_to_volume\": " << (a.clip ? "true" : "false") << ", \"depth_cue\": " << a.depthCue << ", \"filter\": {\"sharpen\": " << a.filter.sharpenAmount
       << ", \"sharpen_radius_mm\": " << a.filter.sharpenSigmaMm << ", \"band_limit_lp_per_mm\": "
       << a.filter.bandLimitLpMm << "}}";
@@ -578,9 +601,19 @@ int run(int argc, char** argv) {
         p.depthCue = a.depthCue;
         p.filter = a.filter;
         p.clipToVolume = a.clip;
+        p.voxelModel = a.voxelModel;
+        p.pixelAperture = a.pixelAperture;
+        p.nonNegative = !a.keepNegative;
         return p;
     };
     validateRenderParams(params(base));
+    // One view on whichever renderer runs (the line integrals, before any transmission).
+    auto renderOne = [&](const ViewFrame& view) {
+#ifdef FVR_HAVE_GPU
+        if (gpu) return gpu->renderer->renderImage(params(view));
+#endif
+        return cpu->render(params(view));
+    };
 
     if (a.bench > 0) {
         std::vector<double> sl, inv, tot, fusedTot;
@@ -638,27 +671,31 @@ int run(int argc, char** argv) {
                         s4.median, s4.p95, 1000.0 / s4.median, spectrum->kind == TransformKind::Fht ? ", eq. 4" : "");
         }
         // The same views by ray casting (the spatial reference projector, all cores), in this run,
-        // with the same depth cueing. It cannot apply the slice filters: said below.
-        SpatialProjectorOptions spo;
-        spo.stepFraction = 0.25;
-        spo.mapping = a.values;
-        spo.threads = a.threads;
-        spo.depthCue = a.depthCue;
+        // with the same voxel model, depth cueing and pixel sampling, and the accuracy against it.
+        // It cannot apply the slice filters: said below, and then only the timings compare.
+        const SpatialProjectorOptions spo = matchingProjectorOptions(params(base), a.values, a.threads);
         SpatialProjector sp(volume, spo);
         std::vector<double> spatialMs;
+        std::ostringstream psnr, lowest;
         const int spatialViews = std::min(a.bench, 3);
         for (int i = 0; i < spatialViews; ++i) {
             const auto t0 = std::chrono::steady_clock::now();
-            sp.project(viewAt(i), geom);
+            const ProjectionImage ref = sp.project(viewAt(i), geom);
             spatialMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+            const ProjectionImage img = renderOne(viewAt(i));
+            psnr << (i ? ", " : "") << numberText(std::round(compareImages(img.pixels, ref.pixels).psnr * 100) / 100);
+            lowest << (i ? ", " : "") << numberText(std::round(mostNegativeFraction(img.pixels) * 1e5) / 1e3);
         }
         const Stat s5 = stats(spatialMs);
-        std::printf(",\n  \"spatial_projector\": {\"median_ms\": %.3f, \"views\": %d, \"step\": \"s_min/4\", "
-                    "\"sampling\": \"trilinear\", \"depth_cue\": %g},\n  \"speedup_per_view\": %.1f",
-                    s5.median, spatialViews, a.depthCue, s5.median / fvrMs);
+        std::printf(",\n  \"spatial_projector\": {\"median_ms\": %.3f, \"views\": %d, \"reference\": \"%s\"},"
+                    "\n  \"speedup_per_view\": %.1f",
+                    s5.median, spatialViews, jsonEscape(describeProjector(spo, a.voxelModel)).c_str(), s5.median / fvrMs);
         if (a.filter.active())
             std::printf(",\n  \"note\": \"the spatial projector cannot apply the slice filter (--sharpen, --band-limit): "
                         "it ray-casts unfiltered images, so only the timings compare, not the images\"");
+        else
+            std::printf(",\n  \"accuracy\": {\"psnr_db\": [%s], \"most_negative_percent\": [%s]}", psnr.str().c_str(),
+                        lowest.str().c_str());
         std::printf("\n}\n");
     }
     if (!a.out.empty()) {
@@ -687,11 +724,7 @@ int run(int argc, char** argv) {
         const auto t0 = std::chrono::steady_clock::now();
         auto lastReport = t0;
         for (std::size_t i = 0; i < views.size(); ++i) {
-            ProjectionImage img;
-#ifdef FVR_HAVE_GPU
-            if (gpu) img = gpu->renderer->renderImage(params(views[i]));
-#endif
-            if (cpu) img = cpu->render(params(views[i]));
+            ProjectionImage img = renderOne(views[i]);
             // A Beer-Lambert PNG shows the film, as the workstation does: the window on the log
             // exposure of the signal, bone white (the float outputs hold the intensity itself).
             std::optional<DisplayWindow> film;

@@ -49,6 +49,30 @@ std::vector<float> bsplineCoefficients(const std::vector<float>& voxels, const D
     return c;
 }
 
+SpatialProjectorOptions matchingProjectorOptions(const RenderParams& params, ValueMapping mapping, int threads) {
+    SpatialProjectorOptions o;
+    o.stepFraction = 0.25;
+    o.mapping = mapping;
+    o.threads = threads;
+    o.depthCue = params.depthCue;
+    o.voxelModel = params.voxelModel == VoxelModel::BandLimited ? VoxelModel::Trilinear : params.voxelModel;
+    o.pixelSubsamples = params.pixelAperture ? 3 : 1;
+    return o;
+}
+
+std::string describeProjector(const SpatialProjectorOptions& o, VoxelModel rendered) {
+    std::string s = std::string(voxelModelLabel(o.voxelModel)) + " ray casting (step s/" +
+                    std::to_string(int(std::lround(1.0 / o.stepFraction))) + ", " +
+                    (o.pixelSubsamples > 1 ? std::to_string(o.pixelSubsamples) + " x " + std::to_string(o.pixelSubsamples) +
+                                                 " rays per pixel"
+                                           : std::string("one ray per pixel")) +
+                    (o.depthCue > 0 ? ", depth-weighted" : "") + ")";
+    if (rendered != o.voxelModel)
+        s += "; the frame uses the " + std::string(voxelModelLabel(rendered)) +
+             " voxel model, which has no ray caster: the difference includes the models'";
+    return s;
+}
+
 SpatialProjector::SpatialProjector(const Volume& volume, SpatialProjectorOptions options)
     : m_volume(volume), m_options(options), m_pool(options.threads) {
     if (options.voxelModel == VoxelModel::BandLimited)

@@ -3,6 +3,9 @@
  *  voxel model (trilinear, or the cubic B-spline through the voxels; zero outside, with the
  *  model's ramp across the boundary) and a fine step. O(M^2 N) per view: for tests, for the
  *  accuracy readout, and as the ray-casting baseline in benchmarks. */
+#include <string>
+
+#include <fvr/core/cpu_renderer.h>
 #include <fvr/core/projection.h>
 #include <fvr/core/spectrum.h>
 #include <fvr/core/thread_pool.h>
@@ -32,6 +35,15 @@ struct SpatialProjectorOptions {
  *  prefilter, pole sqrt(3) - 2, with the exact infinite-domain boundary values). Layout: x fastest,
  *  dims + 2 margin per axis, voxel (0,0,0) at (margin, margin, margin). */
 std::vector<float> bsplineCoefficients(const std::vector<float>& voxels, const Dims3& dims, int margin);
+
+/** The ray caster for what a frame rendered with `params` approximates (the accuracy readout,
+ *  fvr-render --bench): the same voxel model (trilinear for the band-limited model, which has no
+ *  ray caster here), the same depth cueing, and with the pixel aperture the pixel's area (3 x 3
+ *  rays per pixel). Step s/4. */
+SpatialProjectorOptions matchingProjectorOptions(const RenderParams& params, ValueMapping mapping, int threads = 0);
+/** The reference in words, e.g. "trilinear ray casting (step s/4, 3 x 3 rays per pixel)"; for a
+ *  band-limited frame it adds that the difference includes the voxel model. */
+std::string describeProjector(const SpatialProjectorOptions& options, VoxelModel rendered);
 
 class SpatialProjector {
 public:
