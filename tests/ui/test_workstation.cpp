@@ -92,11 +92,8 @@ protected:
 
 core::ProjectionImage cpuReference(MainWindow& w, const ui::ProjectionView& v) {
     core::CpuFourierRenderer r(w.study().spectrum(), 2);
-    const auto& vol = *w.study().volume();
-    const int M = v.settings().size;
-    const auto& e = v.effects(); // depth cue, filters and the clip, as the view renders
-    return r.render({v.viewFrame(), {M, core::defaultPixelSize(vol.dims, vol.spacing, M)}, v.settings().kernel,
-                     e.depthCue, e.filter, e.clip});
+    // The view's full-quality parameters: voxel model, depth cue, filters, clip, as it renders.
+    return r.render(v.renderParams(v.settings().size, v.settings().kernel));
 }
 
 } // namespace
@@ -364,6 +361,10 @@ TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
     core::RenderParams p{v->viewFrame(), {M, core::defaultPixelSize(vol.dims, vol.spacing, M)}, v->settings().kernel};
     EXPECT_TRUE(v->effects().clip); // on by default
     p.clipToVolume = v->effects().clip;
+    EXPECT_EQ(v->effects().voxelModel, core::VoxelModel::Trilinear); // the default voxel model
+    EXPECT_TRUE(v->effects().nonNegative);
+    p.voxelModel = core::VoxelModel::Trilinear;
+    p.nonNegative = true;
     const auto plain = r.render(p);
     p.depthCue = 0.6;
     p.filter = {1.5, 3.0, 0.4};
@@ -439,4 +440,44 @@ TEST_F(Workstation, ProgressiveRefinementHoldsTheTargetWhileDragging) {
     QTest::qWait(20);
     EXPECT_EQ(v->displayedLevel(), 0);
     QTest::mouseRelease(v, Qt::LeftButton, Qt::NoModifier, c + QPoint(10, 0));
+}
+
+TEST_F(Workstation, VoxelModelControlChangesTheImageNotTheSpectrum) {
+    // The body CT ends inside the body at the top and the bottom: the band-limited model rings
+    // there (stripes, negative line integrals); the default trilinear model does not.
+    FVR_REQUIRE_DATA("volumes/body_ct_hu_3mm/example_ct.mhd");
+    const auto path = test::sharedData() / "volumes/body_ct_hu_3mm/example_ct.mhd";
+    ASSERT_TRUE(openAndWait(*window, StudySource::fromPath(QString::fromStdString(path.string()))));
+    ui::ProjectionView* v = window->views()[0];
+    EXPECT_EQ(core::VoxelModel(window->voxelModelCombo()->currentData().toInt()), core::VoxelModel::Trilinear);
+    const auto spectrum = window->study().spectrum();
+    const auto trilinear = *v->projection();
+    EXPECT_EQ(core::mostNegativeFraction(trilinear.pixels), 0.0);
+
+    window->nonNegativeCheck()->setChecked(false);
+    EXPECT_FALSE(v->effects().nonNegative);
+    auto* model = window->voxelModelCombo();
+    model->setCurrentIndex(model->findData(int(core::VoxelModel::BandLimited)));
+    EXPECT_EQ(v->effects().voxelModel, core::VoxelModel::BandLimited);
+    EXPECT_EQ(window->study().spectrum(), spectrum); // the same spectrum: no preprocessing
+    const auto band = *v->projection();
+    EXPECT_GT(test::compare(band.pixels, cpuReference(*window, *v).pixels).psnr, 90.0);
+    EXPECT_LT(test::compare(band.pixels, trilinear.pixels).psnr, 50.0); // a different image
+    EXPECT_LT(core::mostNegativeFraction(band.pixels), -0.02);          // the ringing
+    EXPECT_EQ(QSettings().value("render/voxelModel").toString(), QString("bandlimited"));
+
+    // The accuracy readout says which ray caster it compares with.
+    QSignalSpy measured(window.get(), &MainWindow::accuracyMeasured);
+    window->measureAccuracy();
+    ASSERT_TRUE(measured.wait(60000));
+    const double bandPsnr = measured.takeFirst().at(0).toDouble();
+    EXPECT_TRUE(window->messages()->toPlainText().contains("which has no ray caster"));
+    model->setCurrentIndex(model->findData(int(core::VoxelModel::Trilinear)));
+    window->measureAccuracy();
+    ASSERT_TRUE(measured.wait(60000));
+    const double triPsnr = measured.takeFirst().at(0).toDouble();
+    std::printf("[ui] body CT, view 1 against trilinear ray casting: band-limited %.2f dB, trilinear %.2f dB\n", bandPsnr,
+                triPsnr);
+    EXPECT_GT(triPsnr, bandPsnr + 5.0);
+    EXPECT_TRUE(window->messages()->toPlainText().contains("trilinear ray casting (step s/4, one ray per pixel)"));
 }

@@ -37,6 +37,7 @@
 
 #include <fvr/core/errors.h>
 #include <fvr/core/image_io.h>
+#include <fvr/core/image_metrics.h>
 #include <fvr/core/spatial_projector.h>
 #include <fvr/core/xray.h>
 #include <fvr/ui/app_info.h>
@@ -131,27 +132,25 @@ void MainWindow::measureAccuracy() {
     auto fvr = m_views[0]->projection();
     if (!fvr) return;
     const auto volume = m_study->volume();
-    const core::ValueMapping mapping = m_study->spectrum()->mapping;
-    const double depthCue = m_views[0]->effects().depthCue; // the ray caster weights depth the same way
+    // The ray caster with the same voxel model, depth weighting and pixel sampling as the frame.
+    const FrameEffects& fx = m_views[0]->effects();
+    core::RenderParams rendered;
+    rendered.voxelModel = fx.voxelModel;
+    rendered.pixelAperture = fx.pixelAperture;
+    rendered.depthCue = fx.depthCue;
+    const core::SpatialProjectorOptions options = core::matchingProjectorOptions(rendered, m_study->spectrum()->mapping);
+    const QString reference = QString::fromStdString(core::describeProjector(options, fx.voxelModel));
     const core::ViewFrame view = fvr->view;
     const core::ImageGeometry geom{fvr->size, fvr->pixelSize};
-    message(tr("Measuring accuracy: ray casting the same view (trilinear, step s/4) in the background…"));
+    message(tr("Measuring accuracy: %1 of the same view, in the background…").arg(reference));
     m_accuracyDone.store(false);
-    m_accuracyWorker = std::thread([this, volume, mapping, view, geom, depthCue, fvr = *fvr] {
+    m_accuracyWorker = std::thread([this, volume, options, reference, view, geom, fvr = *fvr] {
         double psnr = 0, rel = 0;
         try {
-            core::SpatialProjector sp(*volume, {0.25, mapping, 0, depthCue});
-            const auto ref = sp.project(view, geom);
-            double e2 = 0, r2 = 0, peak = 0;
-            for (std::size_t i = 0; i < ref.pixels.size(); ++i) {
-                const double e = double(fvr.pixels[i]) - ref.pixels[i];
-                e2 += e * e;
-                r2 += double(ref.pixels[i]) * ref.pixels[i];
-                peak = std::max(peak, std::abs(double(ref.pixels[i])));
-            }
-            const double rmse = std::sqrt(e2 / double(ref.pixels.size()));
-            psnr = rmse > 0 ? 20 * std::log10(peak / rmse) : 300.0;
-            rel = r2 > 0 ? std::sqrt(e2 / r2) : 0.0;
+            core::SpatialProjector sp(*volume, options);
+            const core::ImageComparison c = core::compareImages(fvr.pixels, sp.project(view, geom).pixels);
+            psnr = c.psnr;
+            rel = c.relRmse;
         } catch (const std::exception& e) {
             const QString what = QString::fromUtf8(e.what());
             QMetaObject::invokeMethod(this, [this, what] { message(tr("Accuracy measurement failed: %1").arg(what), true); },
@@ -159,8 +158,9 @@ void MainWindow::measureAccuracy() {
             m_accuracyDone.store(true);
             return;
         }
-        QMetaObject::invokeMethod(this, [this, psnr, rel] {
-            message(tr("Accuracy of view 1 against ray casting: PSNR %1 dB, relative RMSE %2 %")
+        QMetaObject::invokeMethod(this, [this, psnr, rel, reference] {
+            message(tr("Accuracy of view 1 against %1: PSNR %2 dB, relative RMSE %3 %")
+                        .arg(reference)
                         .arg(psnr, 0, 'f', 2)
                         .arg(rel * 100.0, 0, 'f', 2));
             emit accuracyMeasured(psnr, rel);
@@ -325,10 +325,29 @@ void MainWindow::buildDocks() {
                                "(or with linear interpolation when the spectrum allows) to hold this frame rate; "
                                "the full-quality frame follows when you let go. The overlay shows the level."));
     rf->addRow(tr("Interactive target"), m_targetFps);
+    m_voxelModel = new QComboBox(rw);
+    m_voxelModel->addItem(tr("Trilinear (as a DRR ray caster)"), int(core::VoxelModel::Trilinear));
+    m_voxelModel->addItem(tr("Cubic B-spline through the voxels"), int(core::VoxelModel::BSpline));
+    m_voxelModel->addItem(tr("Band-limited (sharpest, rings)"), int(core::VoxelModel::BandLimited));
+    m_voxelModel->setToolTip(tr("What lies between the voxels. Trilinear: the projection a trilinear DRR ray caster "
+                                "computes, no ringing at the scan ends. Band-limited: the plain Fourier image, the "
+                                "sharpest, but it rings (stripes, negative values) where the scan ends inside the body "
+                                "and between coarse slices. Same spectrum: changing it costs no preprocessing."));
+    rf->addRow(tr("Voxel model"), m_voxelModel);
+    m_pixelAperture = new QCheckBox(tr("Detector pixels integrate over their area"), rw);
+    m_pixelAperture->setToolTip(tr("Off: each pixel samples the projection at its centre, as ray casters do. On: each "
+                                   "pixel averages the projection over its area, as a detector does (less aliasing "
+                                   "when the pixels are coarser than the voxels)."));
+    rf->addRow(QString(), m_pixelAperture);
     m_clip = new QCheckBox(tr("Clip to the volume (no ghosts outside it)"), rw);
     m_clip->setToolTip(tr("Pixels whose ray misses the volume are exactly 0 in a projection; Fourier rendering puts "
                           "the kernel's ghost copies and ringing there. On: those pixels show 0."));
     rf->addRow(QString(), m_clip);
+    m_nonNegative = new QCheckBox(tr("No negative line integrals"), rw);
+    m_nonNegative->setToolTip(tr("For values that are never negative (attenuation, or raw data without negative "
+                                 "values) no line integral is: what is left of the interpolation's ringing below 0 "
+                                 "is shown as 0. No effect on raw Hounsfield units."));
+    rf->addRow(QString(), m_nonNegative);
     renderDock->setWidget(rw);
     addDockWidget(Qt::RightDockWidgetArea, renderDock);
 
@@ -466,6 +485,13 @@ void MainWindow::buildDocks() {
     m_invert->setChecked(s.value("display/invert", false).toBool());
     m_targetFps->setValue(s.value("render/targetFps", 30).toInt());
     m_clip->setChecked(s.value("render/clip", true).toBool());
+    m_nonNegative->setChecked(s.value("render/nonNegative", true).toBool());
+    m_pixelAperture->setChecked(s.value("render/pixelAperture", false).toBool());
+    try {
+        selectData(m_voxelModel, int(core::parseVoxelModel(s.value("render/voxelModel", "trilinear").toString().toStdString())));
+    } catch (const core::SettingsError&) {
+        selectData(m_voxelModel, int(core::VoxelModel::Trilinear)); // an unknown saved name: the default
+    }
     m_energy->setValue(s.value("xray/energyKeV", 70.0).toDouble());
     m_exposure->setValue(s.value("xray/exposure", 1.0).toDouble());
     m_output->setCurrentIndex(s.value("xray/output", 0).toInt() == 1 ? 1 : 0);
@@ -526,6 +552,9 @@ void MainWindow::buildDocks() {
         connect(sb, &QDoubleSpinBox::valueChanged, this, [this] { applyEffects(); });
     connect(m_depthCue, &QSpinBox::valueChanged, this, [this] { applyEffects(); });
     connect(m_clip, &QCheckBox::toggled, this, [this] { applyEffects(); });
+    connect(m_nonNegative, &QCheckBox::toggled, this, [this] { applyEffects(); });
+    connect(m_pixelAperture, &QCheckBox::toggled, this, [this] { applyEffects(); });
+    connect(m_voxelModel, &QComboBox::currentIndexChanged, this, [this] { applyEffects(); });
     m_energy->setEnabled(m_output->currentIndex() == 1);
     m_exposure->setEnabled(m_output->currentIndex() == 1);
     if (m_output->currentIndex() == 1) applyOutput(true);
@@ -715,6 +744,9 @@ FrameEffects MainWindow::currentEffects() const {
     e.filter.sharpenSigmaMm = m_sharpenRadius->value();
     e.filter.bandLimitLpMm = m_bandLimit->value();
     e.clip = m_clip->isChecked();
+    e.nonNegative = m_nonNegative->isChecked();
+    e.pixelAperture = m_pixelAperture->isChecked();
+    e.voxelModel = core::VoxelModel(m_voxelModel->currentData().toInt());
     return e;
 }
 
@@ -727,6 +759,9 @@ void MainWindow::applyEffects() {
     st.setValue("xray/sharpenRadius", e.filter.sharpenSigmaMm);
     st.setValue("xray/bandLimit", e.filter.bandLimitLpMm);
     st.setValue("render/clip", e.clip);
+    st.setValue("render/nonNegative", e.nonNegative);
+    st.setValue("render/pixelAperture", e.pixelAperture);
+    st.setValue("render/voxelModel", QString::fromUtf8(core::voxelModelName(e.voxelModel)));
     if (e.depthCue > 0 && std::any_of(m_views.begin(), m_views.end(), [](ProjectionView* v) {
             return v->settings().kernel == core::Kernel::Nearest;
         }))

@@ -209,10 +209,7 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
     if (!m_renderDirty) return;
     const core::QualityLevel q = m_progressive.levels()[std::size_t(level)];
     const int M = q.size; // same field of view at every level: d = diagonal / M
-    core::RenderParams params{m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)}, q.kernel};
-    params.depthCue = m_effects.depthCue;
-    params.filter = m_effects.filter;
-    params.clipToVolume = m_effects.clip;
+    const core::RenderParams params = renderParams(M, q.kernel);
     if (m_gpu) {
         // With a window already set (and no difference to map), the last pass of the inverse
         // transform also writes the display texture; paintGL's displayTexture() then costs nothing.
@@ -392,11 +389,13 @@ void ProjectionView::drawOverlay() {
     if (!m_title.isEmpty()) lines << m_title;
     if (m_overlay) {
         const core::QualityLevel shown = m_renderedQuality;
-        lines << QStringLiteral("%1 fps  %2  %3×%3  %4")
+        lines << QStringLiteral("%1 fps  %2  %3×%3  %4  %5 voxels%6")
                      .arg(m_stats.fps > 0 ? QString::number(m_stats.fps, 'f', 0) : QStringLiteral("–"))
                      .arg(QString::fromUtf8(core::kernelName(shown.kernel)))
                      .arg(shown.size)
-                     .arg(m_gpu ? QStringLiteral("GPU") : QStringLiteral("CPU"));
+                     .arg(m_gpu ? QStringLiteral("GPU") : QStringLiteral("CPU"))
+                     .arg(QString::fromUtf8(core::voxelModelLabel(m_effects.voxelModel)))
+                     .arg(m_effects.pixelAperture ? tr(", area pixels") : QString());
         if (m_progressive.enabled())
             lines << (m_renderedLevel == 0
                           ? tr("full quality (interactive target %1 fps)").arg(m_progressive.targetFps(), 0, 'f', 0)
@@ -454,9 +453,7 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
         std::optional<core::ProjectionImage> img;
         try {
             if (m_gpu) img = m_gpu->readback(); // the view's own projection, also in difference mode
-            else if (m_reference && m_cpuImage)
-                img = m_cpu->render({m_view, {m_settings.size, m_cpuImage->pixelSize}, m_settings.kernel,
-                                     m_effects.depthCue, m_effects.filter, m_effects.clip});
+            else if (m_reference && m_cpuImage) img = m_cpu->render(renderParams(m_settings.size, m_settings.kernel));
             else img = m_cpuImage;
         } catch (const std::exception&) {
             img.reset();
@@ -465,9 +462,18 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
         return img;
     }
     if (!m_cpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
-    const int M = m_settings.size;
-    return m_cpu->render({m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)}, m_settings.kernel,
-                          m_effects.depthCue, m_effects.filter, m_effects.clip});
+    return m_cpu->render(renderParams(m_settings.size, m_settings.kernel));
+}
+
+core::RenderParams ProjectionView::renderParams(int M, core::Kernel kernel) const {
+    core::RenderParams p{m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)}, kernel};
+    p.voxelModel = m_effects.voxelModel;
+    p.pixelAperture = m_effects.pixelAperture;
+    p.depthCue = m_effects.depthCue;
+    p.filter = m_effects.filter;
+    p.clipToVolume = m_effects.clip;
+    p.nonNegative = m_effects.nonNegative;
+    return p;
 }
 
 QImage ProjectionView::screenshot() { return grabFramebuffer(); }

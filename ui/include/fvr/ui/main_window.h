@@ -73,6 +73,9 @@ public:
     QDoubleSpinBox* bandLimitSpin() const { return m_bandLimit; }
     QSpinBox* targetFpsSpin() const { return m_targetFps; }
     QCheckBox* clipCheck() const { return m_clip; }
+    QComboBox* voxelModelCombo() const { return m_voxelModel; }
+    QCheckBox* pixelApertureCheck() const { return m_pixelAperture; }
+    QCheckBox* nonNegativeCheck() const { return m_nonNegative; }
     /** The transmission the X-ray panel asks for (inactive for line integrals). */
     core::Transmission currentTransmission() const;
     FrameEffects currentEffects() const;
@@ -139,6 +142,9 @@ private:
     QDoubleSpinBox* m_bandLimit = nullptr;
     QSpinBox* m_targetFps = nullptr;
     QCheckBox* m_clip = nullptr;
+    QComboBox* m_voxelModel = nullptr;
+    QCheckBox* m_pixelAperture = nullptr;
+    QCheckBox* m_nonNegative = nullptr;
     QComboBox* m_preset = nullptr;
     QLabel* m_studyInfo = nullptr;
     QPlainTextEdit* m_messages = nullptr;

@@ -32,11 +32,15 @@ struct ViewSettings {
     bool operator==(const ViewSettings&) const = default;
 };
 
-/** Per-frame image effects shared by all views: depth cueing and the slice filters (xray.h). */
+/** Per-frame image effects shared by all views: the voxel model, depth cueing, the slice filters
+ *  (xray.h) and what the last pass removes. */
 struct FrameEffects {
+    core::VoxelModel voxelModel = core::VoxelModel::Trilinear;
+    bool pixelAperture = false; ///< RenderParams::pixelAperture
     double depthCue = 0.0;
     core::SliceFilter filter;
-    bool clip = true; ///< zero outside the volume's shadow (RenderParams::clipToVolume)
+    bool clip = true;        ///< zero outside the volume's shadow (RenderParams::clipToVolume)
+    bool nonNegative = true; ///< never below 0 for a non-negative volume (RenderParams::nonNegative)
     bool operator==(const FrameEffects&) const = default;
 };
 
@@ -78,6 +82,9 @@ public:
     /** Title drawn in the top-left corner (compare mode). */
     void setTitle(const QString& title);
 
+    /** What a frame of size M with this kernel renders: the view, the same field of view at every
+     *  M (the volume's diagonal), and the effects. Needs a study. */
+    core::RenderParams renderParams(int M, core::Kernel kernel) const;
     /** The float projection of the current view and settings (renders if needed). */
     std::optional<core::ProjectionImage> projection();
     /** What the view shows, as an image of the widget's framebuffer. */
