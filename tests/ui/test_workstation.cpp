@@ -361,7 +361,7 @@ TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
     core::RenderParams p{v->viewFrame(), {M, core::defaultPixelSize(vol.dims, vol.spacing, M)}, v->settings().kernel};
     EXPECT_TRUE(v->effects().clip); // on by default
     p.clipToVolume = v->effects().clip;
-    EXPECT_EQ(v->effects().voxelModel, core::VoxelModel::Trilinear); // the default voxel model
+    EXPECT_EQ(v->settings().voxelModel, core::VoxelModel::Trilinear); // the default voxel model
     EXPECT_TRUE(v->effects().nonNegative);
     p.voxelModel = core::VoxelModel::Trilinear;
     p.nonNegative = true;
@@ -458,7 +458,7 @@ TEST_F(Workstation, VoxelModelControlChangesTheImageNotTheSpectrum) {
     EXPECT_FALSE(v->effects().nonNegative);
     auto* model = window->voxelModelCombo();
     model->setCurrentIndex(model->findData(int(core::VoxelModel::BandLimited)));
-    EXPECT_EQ(v->effects().voxelModel, core::VoxelModel::BandLimited);
+    EXPECT_EQ(v->settings().voxelModel, core::VoxelModel::BandLimited);
     EXPECT_EQ(window->study().spectrum(), spectrum); // the same spectrum: no preprocessing
     const auto band = *v->projection();
     EXPECT_GT(test::compare(band.pixels, cpuReference(*window, *v).pixels).psnr, 90.0);

@@ -134,12 +134,13 @@ void MainWindow::measureAccuracy() {
     const auto volume = m_study->volume();
     // The ray caster with the same voxel model, depth weighting and pixel sampling as the frame.
     const FrameEffects& fx = m_views[0]->effects();
+    const core::VoxelModel model = m_views[0]->settings().voxelModel;
     core::RenderParams rendered;
-    rendered.voxelModel = fx.voxelModel;
+    rendered.voxelModel = model;
     rendered.pixelAperture = fx.pixelAperture;
     rendered.depthCue = fx.depthCue;
     const core::SpatialProjectorOptions options = core::matchingProjectorOptions(rendered, m_study->spectrum()->mapping);
-    const QString reference = QString::fromStdString(core::describeProjector(options, fx.voxelModel));
+    const QString reference = QString::fromStdString(core::describeProjector(options, model));
     const core::ViewFrame view = fvr->view;
     const core::ImageGeometry geom{fvr->size, fvr->pixelSize};
     message(tr("Measuring accuracy: %1 of the same view, in the background…").arg(reference));
@@ -195,7 +196,8 @@ void MainWindow::setCompareCount(int n) {
                                       core::Kernel::CatmullRom, core::Kernel::BSpline};
         int slot = 1;
         for (core::Kernel k : order)
-            if (k != m_viewSettings[0].kernel && slot < 4) m_viewSettings[slot++] = {k, m_viewSettings[0].size};
+            if (k != m_viewSettings[0].kernel && slot < 4)
+                m_viewSettings[slot++] = {k, m_viewSettings[0].size, m_viewSettings[0].voxelModel};
     }
     for (auto* v : m_views) v->deleteLater();
     m_views.clear();
@@ -213,7 +215,7 @@ void MainWindow::setCompareCount(int n) {
             for (auto* o : m_views)
                 if (o != v) o->setInteracting(on); // synchronised views follow at their own level
         });
-        if (n > 1) v->setTitle(tr("View %1: %2 %3×%3").arg(i + 1).arg(QString::fromUtf8(core::kernelName(s.kernel))).arg(s.size));
+        if (n > 1) v->setTitle(viewTitle(i, s));
         m_viewGrid->addWidget(v, i / 2, i % 2);
         if (m_study->spectrum()) v->setStudy(m_study->volume(), m_study->spectrum());
         // After setStudy (a new view's first study would reset the window to an auto window
@@ -293,6 +295,15 @@ void MainWindow::buildDocks() {
     m_size = new QComboBox(rw);
     for (int s : kSizes) m_size->addItem(QStringLiteral("%1 × %1").arg(s), s);
     rf->addRow(tr("Slice resolution"), m_size);
+    m_voxelModel = new QComboBox(rw);
+    m_voxelModel->addItem(tr("Trilinear (as a DRR ray caster)"), int(core::VoxelModel::Trilinear));
+    m_voxelModel->addItem(tr("Cubic B-spline through the voxels"), int(core::VoxelModel::BSpline));
+    m_voxelModel->addItem(tr("Band-limited (sharpest, rings)"), int(core::VoxelModel::BandLimited));
+    m_voxelModel->setToolTip(tr("What lies between the voxels. Trilinear: the projection a trilinear DRR ray caster "
+                                "computes, no ringing at the scan ends. Band-limited: the plain Fourier image, the "
+                                "sharpest, but it rings (stripes, negative values) where the scan ends inside the body "
+                                "and between coarse slices. Same spectrum: changing it costs no preprocessing."));
+    rf->addRow(tr("Voxel model"), m_voxelModel);
     m_transform = new QComboBox(rw);
     m_transform->addItem(tr("FFT (complex half spectrum)"), int(core::TransformKind::Fft));
     m_transform->addItem(tr("FHT (Hartley)"), int(core::TransformKind::Fht));
@@ -325,15 +336,6 @@ void MainWindow::buildDocks() {
                                "(or with linear interpolation when the spectrum allows) to hold this frame rate; "
                                "the full-quality frame follows when you let go. The overlay shows the level."));
     rf->addRow(tr("Interactive target"), m_targetFps);
-    m_voxelModel = new QComboBox(rw);
-    m_voxelModel->addItem(tr("Trilinear (as a DRR ray caster)"), int(core::VoxelModel::Trilinear));
-    m_voxelModel->addItem(tr("Cubic B-spline through the voxels"), int(core::VoxelModel::BSpline));
-    m_voxelModel->addItem(tr("Band-limited (sharpest, rings)"), int(core::VoxelModel::BandLimited));
-    m_voxelModel->setToolTip(tr("What lies between the voxels. Trilinear: the projection a trilinear DRR ray caster "
-                                "computes, no ringing at the scan ends. Band-limited: the plain Fourier image, the "
-                                "sharpest, but it rings (stripes, negative values) where the scan ends inside the body "
-                                "and between coarse slices. Same spectrum: changing it costs no preprocessing."));
-    rf->addRow(tr("Voxel model"), m_voxelModel);
     m_pixelAperture = new QCheckBox(tr("Detector pixels integrate over their area"), rw);
     m_pixelAperture->setToolTip(tr("Off: each pixel samples the projection at its centre, as ray casters do. On: each "
                                    "pixel averages the projection over its area, as a detector does (less aliasing "
@@ -506,6 +508,7 @@ void MainWindow::buildDocks() {
     }
     m_viewSettings[0].kernel = core::Kernel(m_kernel->currentData().toInt());
     m_viewSettings[0].size = m_size->currentData().toInt();
+    m_viewSettings[0].voxelModel = core::VoxelModel(m_voxelModel->currentData().toInt());
     if (!m_views.empty()) m_views[0]->setSettings(m_viewSettings[0]);
     SpectrumSettings ss;
     ss.mapping = core::ValueMapping(m_values->currentData().toInt());
@@ -519,9 +522,10 @@ void MainWindow::buildDocks() {
     connect(m_compareSlot, &QComboBox::currentIndexChanged, this, [this](int slot) {
         if (slot <= 0 || slot > int(m_views.size())) return;
         const ViewSettings vs = m_views[slot - 1]->settings();
-        const QSignalBlocker b1(m_kernel), b2(m_size);
+        const QSignalBlocker b1(m_kernel), b2(m_size), b3(m_voxelModel);
         m_kernel->setCurrentIndex(m_kernel->findData(int(vs.kernel)));
         m_size->setCurrentIndex(m_size->findData(vs.size));
+        m_voxelModel->setCurrentIndex(m_voxelModel->findData(int(vs.voxelModel)));
     });
     connect(m_transform, &QComboBox::currentIndexChanged, this, [this] { applySpectrumSettings(); });
     connect(m_oversampling, &QComboBox::currentIndexChanged, this, [this] { applySpectrumSettings(); });
@@ -554,7 +558,7 @@ void MainWindow::buildDocks() {
     connect(m_clip, &QCheckBox::toggled, this, [this] { applyEffects(); });
     connect(m_nonNegative, &QCheckBox::toggled, this, [this] { applyEffects(); });
     connect(m_pixelAperture, &QCheckBox::toggled, this, [this] { applyEffects(); });
-    connect(m_voxelModel, &QComboBox::currentIndexChanged, this, [this] { applyEffects(); });
+    connect(m_voxelModel, &QComboBox::currentIndexChanged, this, [this] { applyRenderSettings(); });
     m_energy->setEnabled(m_output->currentIndex() == 1);
     m_exposure->setEnabled(m_output->currentIndex() == 1);
     if (m_output->currentIndex() == 1) applyOutput(true);
@@ -643,10 +647,17 @@ void MainWindow::openStudy(const StudySource& source) {
     m_study->open(source);
 }
 
+QString MainWindow::viewTitle(int index, const ViewSettings& s) const {
+    // Short enough to clear the orientation label above the image; the overlay's first line
+    // names the voxel model.
+    return tr("View %1: %2 %3×%3").arg(index + 1).arg(QString::fromUtf8(core::kernelName(s.kernel))).arg(s.size);
+}
+
 void MainWindow::applyRenderSettings() {
     ViewSettings s;
     s.kernel = core::Kernel(m_kernel->currentData().toInt());
     s.size = m_size->currentData().toInt();
+    s.voxelModel = core::VoxelModel(m_voxelModel->currentData().toInt());
     const int slot = m_compareSlot->currentIndex();
     const bool respectrum = m_deapodize->isChecked() && m_study->spectrum() &&
                             m_study->spectrum()->deapodizedFor && *m_study->spectrum()->deapodizedFor != s.kernel;
@@ -656,12 +667,12 @@ void MainWindow::applyRenderSettings() {
         // A spectrum deapodized for another kernel cannot render this one: the views switch when
         // the new spectrum is ready (onSpectrumReady).
         if (!respectrum) m_views[i]->setSettings(s);
-        if (m_compareCount > 1)
-            m_views[i]->setTitle(tr("View %1: %2 %3×%3").arg(i + 1).arg(QString::fromUtf8(core::kernelName(s.kernel))).arg(s.size));
+        if (m_compareCount > 1) m_views[i]->setTitle(viewTitle(i, s));
     }
     QSettings st;
     st.setValue("render/kernel", int(s.kernel));
     st.setValue("render/size", s.size);
+    st.setValue("render/voxelModel", QString::fromUtf8(core::voxelModelName(s.voxelModel)));
     if (m_deapodize->isChecked()) applySpectrumSettings();
 }
 
@@ -746,7 +757,6 @@ FrameEffects MainWindow::currentEffects() const {
     e.clip = m_clip->isChecked();
     e.nonNegative = m_nonNegative->isChecked();
     e.pixelAperture = m_pixelAperture->isChecked();
-    e.voxelModel = core::VoxelModel(m_voxelModel->currentData().toInt());
     return e;
 }
 
@@ -761,7 +771,6 @@ void MainWindow::applyEffects() {
     st.setValue("render/clip", e.clip);
     st.setValue("render/nonNegative", e.nonNegative);
     st.setValue("render/pixelAperture", e.pixelAperture);
-    st.setValue("render/voxelModel", QString::fromUtf8(core::voxelModelName(e.voxelModel)));
     if (e.depthCue > 0 && std::any_of(m_views.begin(), m_views.end(), [](ProjectionView* v) {
             return v->settings().kernel == core::Kernel::Nearest;
         }))

@@ -394,7 +394,7 @@ void ProjectionView::drawOverlay() {
                      .arg(QString::fromUtf8(core::kernelName(shown.kernel)))
                      .arg(shown.size)
                      .arg(m_gpu ? QStringLiteral("GPU") : QStringLiteral("CPU"))
-                     .arg(QString::fromUtf8(core::voxelModelLabel(m_effects.voxelModel)))
+                     .arg(QString::fromUtf8(core::voxelModelLabel(m_settings.voxelModel)))
                      .arg(m_effects.pixelAperture ? tr(", area pixels") : QString());
         if (m_progressive.enabled())
             lines << (m_renderedLevel == 0
@@ -467,7 +467,7 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
 
 core::RenderParams ProjectionView::renderParams(int M, core::Kernel kernel) const {
     core::RenderParams p{m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)}, kernel};
-    p.voxelModel = m_effects.voxelModel;
+    p.voxelModel = m_settings.voxelModel;
     p.pixelAperture = m_effects.pixelAperture;
     p.depthCue = m_effects.depthCue;
     p.filter = m_effects.filter;

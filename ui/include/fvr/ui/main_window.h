@@ -74,6 +74,7 @@ public:
     QSpinBox* targetFpsSpin() const { return m_targetFps; }
     QCheckBox* clipCheck() const { return m_clip; }
     QComboBox* voxelModelCombo() const { return m_voxelModel; }
+    QComboBox* compareSlotCombo() const { return m_compareSlot; }
     QCheckBox* pixelApertureCheck() const { return m_pixelAperture; }
     QCheckBox* nonNegativeCheck() const { return m_nonNegative; }
     /** The transmission the X-ray panel asks for (inactive for line integrals). */
@@ -92,6 +93,8 @@ private:
     void buildDocks();
     void buildMenus();
     void applyRenderSettings();
+    /** "View 2: linear 512×512": a compare view's title. */
+    QString viewTitle(int index, const ViewSettings& s) const;
     void applySpectrumSettings();
     void applyWindowFromPanel();
     void syncWindowToPanel(const core::DisplayWindow& w);

@@ -29,13 +29,13 @@ namespace fvr::ui {
 struct ViewSettings {
     core::Kernel kernel = core::Kernel::CatmullRom;
     int size = 512;
+    core::VoxelModel voxelModel = core::VoxelModel::Trilinear; ///< RenderParams::voxelModel
     bool operator==(const ViewSettings&) const = default;
 };
 
-/** Per-frame image effects shared by all views: the voxel model, depth cueing, the slice filters
- *  (xray.h) and what the last pass removes. */
+/** Per-frame image effects shared by all views: the pixel aperture, depth cueing, the slice
+ *  filters (xray.h) and what the last pass removes. */
 struct FrameEffects {
-    core::VoxelModel voxelModel = core::VoxelModel::Trilinear;
     bool pixelAperture = false; ///< RenderParams::pixelAperture
     double depthCue = 0.0;
     core::SliceFilter filter;
