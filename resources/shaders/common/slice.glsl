@@ -51,13 +51,27 @@ float modelT(float nu, out float dt) {
     return s3 * s * g;
 }
 
-// T(k) = prod_a t(k_a / P_a), and E.grad T (depth cueing).
+// t(nu) alone: one sine (cos 2 pi nu = 1 - 2 sin^2 pi nu for the B-spline).
+float modelValue(float nu) {
+    float x = 3.14159265358979 * nu;
+    float sn = sin(x);
+    float s = abs(x) < 1e-3 ? 1.0 - x * x / 6.0 : sn / x;
+    float s2 = s * s;
+    return uVoxelModel == 1 ? s2 : s2 * s2 * 3.0 / (3.0 - 2.0 * sn * sn);
+}
+
+// T(k) = prod_a t(k_a / P_a), and with DEPTH_CUE E.grad T.
 float modelTransfer(vec3 k, out float gt) {
     vec3 nu = k * uInvP;
+#ifdef DEPTH_CUE
     float dx, dy, dz;
     float tx = modelT(nu.x, dx), ty = modelT(nu.y, dy), tz = modelT(nu.z, dz);
     gt = uDepthE.x * uInvP.x * dx * ty * tz + uDepthE.y * uInvP.y * tx * dy * tz + uDepthE.z * uInvP.z * tx * ty * dz;
     return tx * ty * tz;
+#else
+    gt = 0.0;
+    return modelValue(nu.x) * modelValue(nu.y) * modelValue(nu.z);
+#endif
 }
 
 // The taps' signed indices of one axis with the period signs folded into the weights.
