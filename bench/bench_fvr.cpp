@@ -305,39 +305,9 @@ const char* effectName(Effect e) {
     return "?";
 }
 
-void BM_Effects(benchmark::State& state, int n, TransformKind kind, int M, Kernel kernel, Effect e) {
-    CpuFourierRenderer& r = renderer(n, kind);
-    RenderParams p{views()[0], geometry(n, M), kernel};
-    if (e == Effect::Depth || e == Effect::Both) p.depthCue = 0.7;
-    if (e == Effect::Filters || e == Effect::Both) p.filter = {1.5, 2.0, 0.5};
-    p.clipToVolume = e == Effect::Clip;
-    benchmark::DoNotOptimize(r.render(p).pixels.data()); // plans for this M
-    std::vector<double> slice, inverse, total;
-    std::size_t i = 0;
-    for (auto _ : state) {
-        StageTimes t;
-        p.view = views()[i++ % views().size()];
-        ProjectionImage img = r.render(p, &t);
-        benchmark::DoNotOptimize(img.pixels.data());
-        slice.push_back(t.sliceMs);
-        inverse.push_back(t.inverseMs);
-        total.push_back(t.totalMs);
-    }
-    state.counters["slice_ms"] = mean(slice);
-    state.counters["inverse_ms"] = mean(inverse);
-    state.counters["total_ms"] = mean(total);
-    state.counters["fps"] = mean(total) > 0 ? 1000.0 / mean(total) : 0.0;
-}
-
-// --- 2c. Voxel models: the band cut against the transfer function over the whole slice ----------
-
-void BM_VoxelModel(benchmark::State& state, int n, TransformKind kind, int M, Kernel kernel, VoxelModel model,
-                   double pixelScale) {
-    CpuFourierRenderer& r = renderer(n, kind);
-    RenderParams p{views()[0], geometry(n, M), kernel};
-    p.image.pixelSize *= pixelScale;
-    p.voxelModel = model;
-    p.clipToVolume = true;
+/** Times frames of `p` over the rotating views (plans for this M made first) and sets the
+ *  per-stage counters: the loop of BM_Effects and BM_VoxelModel. */
+void timeFrames(benchmark::State& state, CpuFourierRenderer& r, RenderParams p) {
     benchmark::DoNotOptimize(r.render(p).pixels.data()); // plans for this M
     std::vector<double> slice, inverse, total;
     std::size_t i = 0;
@@ -357,6 +327,25 @@ void BM_VoxelModel(benchmark::State& state, int n, TransformKind kind, int M, Ke
     state.counters["total_p50"] = median(total);
     state.counters["fps"] = mean(total) > 0 ? 1000.0 / mean(total) : 0.0;
     state.counters["other_cores"] = probe.otherCores();
+}
+
+void BM_Effects(benchmark::State& state, int n, TransformKind kind, int M, Kernel kernel, Effect e) {
+    RenderParams p{views()[0], geometry(n, M), kernel};
+    if (e == Effect::Depth || e == Effect::Both) p.depthCue = 0.7;
+    if (e == Effect::Filters || e == Effect::Both) p.filter = {1.5, 2.0, 0.5};
+    p.clipToVolume = e == Effect::Clip;
+    timeFrames(state, renderer(n, kind), p);
+}
+
+// --- 2c. Voxel models: the band cut against the transfer function over the whole slice ----------
+
+void BM_VoxelModel(benchmark::State& state, int n, TransformKind kind, int M, Kernel kernel, VoxelModel model,
+                   double pixelScale) {
+    RenderParams p{views()[0], geometry(n, M), kernel};
+    p.image.pixelSize *= pixelScale;
+    p.voxelModel = model;
+    p.clipToVolume = true;
+    timeFrames(state, renderer(n, kind), p);
 }
 
 // --- 3. Spatial ray casting ---------------------------------------------------------------------

@@ -452,19 +452,26 @@ struct RowTransfer {
     }
 };
 
+/** The slice value at image frequency (m, n): the complex or the Hartley sample, with the voxel
+ *  model's transfer value from the row's (index) or computed on its own (index < 0: the
+ *  Nyquist aliases, depth cueing). */
+template <int T, bool Depth, bool Hartley>
+inline auto slicePoint(const SliceContext& c, const FrameMapping& f, const RowTransfer& model, double m, double n,
+                       int index) {
+    float t, gt;
+    model.at<Depth>(m, n, index, t, gt);
+    const double kx = m * f.A[0] + n * f.B[0], ky = m * f.A[1] + n * f.B[1], kz = m * f.A[2] + n * f.B[2];
+    if constexpr (Hartley) return sampleHartley<T, Depth>(c, kx, ky, kz, t, gt);
+    else return sampleComplex<T, Depth>(c, kx, ky, kz, t, gt);
+}
+
 template <int T, bool Depth>
 void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const FilterLut& filter, int M,
                       cfloat* out, ThreadPool& pool) {
     const int H = M / 2 + 1;
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         RowTransfer model(c, f, M);
-        // index: the sample's place in the row's transfer values (-1: compute it on its own).
-        auto sample = [&](double m, double n, int index) {
-            float t, gt;
-            model.at<Depth>(m, n, index, t, gt);
-            return sampleComplex<T, Depth>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1], m * f.A[2] + n * f.B[2],
-                                           t, gt);
-        };
+        auto sample = [&](double m, double n, int index) { return slicePoint<T, Depth, false>(c, f, model, m, n, index); };
         for (std::int64_t r = r0; r < r1; ++r) {
             const int n = int(r < M / 2 ? r : r - M);
             const bool nyqRow = (n == -M / 2);
@@ -499,12 +506,7 @@ void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const Filter
                       float* out, ThreadPool& pool) {
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         RowTransfer model(c, f, M);
-        auto sample = [&](double m, double n, int index) {
-            float t, gt;
-            model.at<Depth>(m, n, index, t, gt);
-            return sampleHartley<T, Depth>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1], m * f.A[2] + n * f.B[2],
-                                           t, gt);
-        };
+        auto sample = [&](double m, double n, int index) { return slicePoint<T, Depth, true>(c, f, model, m, n, index); };
         for (std::int64_t r = r0; r < r1; ++r) {
             const int n = int(r < M / 2 ? r : r - M);
             const bool nyqRow = (n == -M / 2);
