@@ -69,7 +69,7 @@ std::string describeProjector(const SpatialProjectorOptions& o, VoxelModel rende
                     (o.depthCue > 0 ? ", depth-weighted" : "") + ")";
     if (rendered != o.voxelModel)
         s += "; the frame uses the " + std::string(voxelModelLabel(rendered)) +
-             " voxel model, which has no ray caster: the difference includes the models'";
+             " voxel model, which has no ray caster: the difference includes that between the two models";
     return s;
 }
 
@@ -117,11 +117,12 @@ ProjectionImage SpatialProjector::project(const ViewFrame& view, const ImageGeom
         c[a] = (N[a] - 1) / 2.0;
     }
     // The model's support in index coordinates: [-1, N] for trilinear; for the spline the
-    // coefficient volume less one voxel, so that all 4 taps of every sample lie inside it.
+    // coefficient volume less one voxel below and two above, so that all 4 taps of every sample,
+    // floor(x) - 1 .. floor(x) + 2, lie inside it even for a sample on the upper bound.
     double lo[3], hi[3];
     for (int a = 0; a < 3; ++a) {
         lo[a] = spline ? -kSplineMargin + 1.0 : -1.0;
-        hi[a] = spline ? double(N[a] + kSplineMargin - 2) : double(N[a]);
+        hi[a] = spline ? double(N[a] + kSplineMargin - 3) : double(N[a]);
     }
     const std::int64_t sx = 1, sy = N[0], sz = N[0] * N[1];
     auto trilinear = [&](double x, double y, double z) -> double {

@@ -41,7 +41,7 @@ double voxelModelReach(VoxelModel m) {
     switch (m) {
     case VoxelModel::BandLimited: return 1.5;
     case VoxelModel::Trilinear: return 1.0;
-    case VoxelModel::BSpline: return 3.0;
+    case VoxelModel::BSpline: return 6.0;
     }
     return 1.5;
 }

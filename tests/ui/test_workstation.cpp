@@ -480,4 +480,36 @@ TEST_F(Workstation, VoxelModelControlChangesTheImageNotTheSpectrum) {
                 triPsnr);
     EXPECT_GT(triPsnr, bandPsnr + 5.0);
     EXPECT_TRUE(window->messages()->toPlainText().contains("trilinear ray casting (step s/4, one ray per pixel)"));
+
+    // The pixel aperture reaches the frame (parameters built here, independently of the view).
+    window->pixelApertureCheck()->setChecked(true);
+    const auto& vol = *window->study().volume();
+    core::RenderParams p{v->viewFrame(), {v->settings().size, core::defaultPixelSize(vol.dims, vol.spacing, v->settings().size)},
+                         v->settings().kernel};
+    p.voxelModel = core::VoxelModel::Trilinear;
+    p.pixelAperture = true;
+    p.clipToVolume = true;
+    core::CpuFourierRenderer cpu(window->study().spectrum(), 2);
+    EXPECT_GT(test::compare(v->projection()->pixels, cpu.render(p).pixels).psnr, 90.0);
+    EXPECT_TRUE(QSettings().value("render/pixelAperture").toBool());
+    EXPECT_FALSE(QSettings().value("render/nonNegative").toBool());
+    window->pixelApertureCheck()->setChecked(false);
+
+    // Compare mode: each view has its own voxel model ("Applies to"), side by side; changing it
+    // for all views keeps each view's kernel.
+    ASSERT_TRUE(waitSpectrum(*window, [&] { window->setCompareCount(2); })); // gridding off: a new spectrum
+    const core::Kernel k0 = window->views()[0]->settings().kernel, k1 = window->views()[1]->settings().kernel;
+    ASSERT_NE(k0, k1);
+    window->compareSlotCombo()->setCurrentIndex(2); // view 2
+    model->setCurrentIndex(model->findData(int(core::VoxelModel::BandLimited)));
+    EXPECT_EQ(window->views()[0]->settings().voxelModel, core::VoxelModel::Trilinear);
+    EXPECT_EQ(window->views()[1]->settings().voxelModel, core::VoxelModel::BandLimited);
+    EXPECT_EQ(QSettings().value("render/voxelModel").toString(), QString("trilinear")); // view 1's
+    window->compareSlotCombo()->setCurrentIndex(1); // the panel shows view 1's model again
+    EXPECT_EQ(core::VoxelModel(model->currentData().toInt()), core::VoxelModel::Trilinear);
+    window->compareSlotCombo()->setCurrentIndex(0); // all views
+    model->setCurrentIndex(model->findData(int(core::VoxelModel::BSpline)));
+    for (auto* view : window->views()) EXPECT_EQ(view->settings().voxelModel, core::VoxelModel::BSpline);
+    EXPECT_EQ(window->views()[0]->settings().kernel, k0);
+    EXPECT_EQ(window->views()[1]->settings().kernel, k1);
 }

@@ -4,6 +4,7 @@
 // on the shared real CTs and MR.
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <complex>
 #include <cstdio>
 #include <numbers>
@@ -66,21 +67,42 @@ Volume randomVolume(const Dims3& dims, const Vec3& spacing, unsigned seed) {
     return v;
 }
 
+/** An axis view: along +e_a, the image's right = sr e_b, its down (-up) = sd e_c. */
+struct AxisView {
+    int a, b, c;
+    double sr, sd;
+    ViewFrame frame() const {
+        Vec3 dir{0, 0, 0}, up{0, 0, 0};
+        dir[std::size_t(a)] = 1.0;
+        up[std::size_t(c)] = -sd;
+        const ViewFrame f = ViewFrame::fromDirUp(dir, up);
+        EXPECT_EQ(f.r[std::size_t(b)], sr); // the frame's own right-hand rule agrees with sr
+        return f;
+    }
+};
+
 /**
- * The oracle for a view along +z (up -y): the projection of the voxel model band-limited to the
- * image's frequencies, computed in 2D, in double, from the plain voxel sums S[x, y] = sum_z v:
- * p = s_x s_y s_z / (M d)^2 sum_{m,n} S~(m, n) t(m s_x / (M d)) t(n s_y / (M d))
+ * The oracle for an axis view: the projection of the voxel model band-limited to the image's
+ * frequencies, computed in 2D, in double, from the plain voxel sums S[xb, xc] = sum_xa v:
+ * p = s_a s_b s_c / (M d)^2 sum_{m,n} S~(m, n) t(m s_b / (M d)) t(n s_c / (M d))
  *     e^{2 pi i (m (col - M/2) + n (row - M/2)) / M},
- * S~ the 2D DTFT of S about the volume's centre, t the model's transfer function, the Nyquist
- * row and column averaged over their two aliases. No 3D spectrum, no gridding.
+ * S~ the 2D DTFT of S about the volume's centre (coordinates signed by sr, sd), t the model's
+ * transfer function, the Nyquist row and column averaged over their two aliases. No 3D spectrum,
+ * no gridding.
  */
-std::vector<float> axisViewOracle(const Volume& v, VoxelModel model, int M, double d) {
-    const auto& N = v.dims;
-    const auto& s = v.spacing;
+std::vector<float> axisViewOracle(const Volume& v, VoxelModel model, int M, double d, const AxisView& av = {2, 0, 1, 1, 1}) {
+    const auto& Nv = v.dims;
+    const auto& sv = v.spacing;
+    // In the view's axes: N[0], s[0] along the image's columns (b), N[1], s[1] along its rows (c).
+    const std::int64_t N[2] = {Nv[std::size_t(av.b)], Nv[std::size_t(av.c)]};
+    const double s[3] = {sv[std::size_t(av.b)], sv[std::size_t(av.c)], sv[std::size_t(av.a)]};
     std::vector<double> S(std::size_t(N[0] * N[1]), 0.0);
-    for (std::int64_t z = 0; z < N[2]; ++z)
-        for (std::int64_t y = 0; y < N[1]; ++y)
-            for (std::int64_t x = 0; x < N[0]; ++x) S[std::size_t(y * N[0] + x)] += v.voxels[std::size_t(v.index(x, y, z))];
+    for (std::int64_t z = 0; z < Nv[2]; ++z)
+        for (std::int64_t y = 0; y < Nv[1]; ++y)
+            for (std::int64_t x = 0; x < Nv[0]; ++x) {
+                const std::int64_t i[3] = {x, y, z};
+                S[std::size_t(i[av.c] * N[0] + i[av.b])] += v.voxels[std::size_t(v.index(x, y, z))];
+            }
     const int F = M + 1; // m = -M/2 .. M/2
     const double c0 = (N[0] - 1) / 2.0, c1 = (N[1] - 1) / 2.0;
     std::vector<cd> A(std::size_t(F * N[1]));
@@ -89,7 +111,7 @@ std::vector<float> axisViewOracle(const Volume& v, VoxelModel model, int M, doub
         for (std::int64_t y = 0; y < N[1]; ++y) {
             cd acc = 0.0;
             for (std::int64_t x = 0; x < N[0]; ++x)
-                acc += S[std::size_t(y * N[0] + x)] * std::polar(1.0, -2.0 * kPi * f * (x - c0));
+                acc += S[std::size_t(y * N[0] + x)] * std::polar(1.0, -2.0 * kPi * f * av.sr * (x - c0));
             A[std::size_t(mi * N[1] + y)] = acc;
         }
     }
@@ -98,7 +120,8 @@ std::vector<float> axisViewOracle(const Volume& v, VoxelModel model, int M, doub
         for (int ni = 0; ni < F; ++ni) {
             const double f = double(ni - M / 2) * s[1] / (M * d);
             cd acc = 0.0;
-            for (std::int64_t y = 0; y < N[1]; ++y) acc += A[std::size_t(mi * N[1] + y)] * std::polar(1.0, -2.0 * kPi * f * (y - c1));
+            for (std::int64_t y = 0; y < N[1]; ++y)
+                acc += A[std::size_t(mi * N[1] + y)] * std::polar(1.0, -2.0 * kPi * f * av.sd * (y - c1));
             const double tm = voxelModelTransfer(model, double(mi - M / 2) * s[0] / (M * d));
             const double tn = voxelModelTransfer(model, double(ni - M / 2) * s[1] / (M * d));
             X[std::size_t(mi * F + ni)] = acc * tm * tn;
@@ -220,8 +243,12 @@ TEST(VoxelModel, BSplineCoefficientsInterpolateTheVoxelsAndTheZerosAround) {
 TEST(VoxelModel, AxisViewEqualsTheExactProjectionOfEachModel) {
     const Volume v = randomVolume({30, 25, 12}, {2.0, 2.0, 3.0}, 7);
     const int M = 64;
-    const ViewFrame view = ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0});
+    // Along z (the slices' plain sum), x (image right -y, down -z) and y (right x, down -z): every
+    // axis's period signs and transfer function in the image plane once.
+    const AxisView axisViews[] = {{2, 0, 1, 1, 1}, {0, 1, 2, -1, -1}, {1, 0, 2, 1, -1}};
+    for (const AxisView& av : axisViews)
     for (auto t : {TransformKind::Fft, TransformKind::Fht}) {
+        const ViewFrame view = av.frame();
         PreprocessOptions o;
         o.effort = PlannerEffort::Estimate;
         o.transform = t;
@@ -235,11 +262,11 @@ TEST(VoxelModel, AxisViewEqualsTheExactProjectionOfEachModel) {
                 RenderParams p{view, {M, d}, Kernel::KaiserBessel6};
                 p.voxelModel = model;
                 const auto got = r.render(p);
-                const auto want = axisViewOracle(v, model, M, d);
+                const auto want = axisViewOracle(v, model, M, d, av);
                 const double psnr = fvr::test::compare(got.pixels, want).psnr;
-                std::printf("[voxel model] axis view vs exact 2D oracle: %s %-11s d = s/%d  %.1f dB\n", transformName(t),
-                            voxelModelName(model), K, psnr);
-                EXPECT_GT(psnr, 75.0) << transformName(t) << " " << voxelModelName(model) << " K " << K;
+                std::printf("[voxel model] view along axis %d vs exact 2D oracle: %s %-11s d = 2 mm/%d  %.1f dB\n", av.a,
+                            transformName(t), voxelModelName(model), K, psnr);
+                EXPECT_GT(psnr, 75.0) << "axis " << av.a << " " << transformName(t) << " " << voxelModelName(model) << " K " << K;
             }
     }
 }
@@ -276,7 +303,13 @@ struct RealCase {
     double floors[2][4];     // [trilinear, bspline][AP, LEFT, oblique 1, oblique 2], dB
     double minTrilinear;     // most negative trilinear pixel (fraction of the maximum), clamp off
     double bandLimitedBelow; // the band-limited model's most negative pixel on AP is below this
+    // How much closer than the band-limited model the trilinear one comes to trilinear ray
+    // casting per view (dB; NaN: not asserted, where pixels coarser than the voxels let the
+    // point-sampled ray caster alias and the band-limited image scores as well).
+    double gainOverBandLimited[4];
 };
+
+constexpr double kNotAsserted = std::numeric_limits<double>::quiet_NaN();
 
 Volume loadReal(const char* rel) {
     const auto path = fvr::test::sharedData() / rel;
@@ -323,7 +356,6 @@ void checkRealData(const RealCase& rc) {
             p.nonNegative = true;
             const auto clamped = r.render(p);
             EXPECT_EQ(mostNegativeFraction(clamped.pixels), 0.0);
-            EXPECT_GE(fvr::test::compare(clamped.pixels, ref.pixels).psnr, psnr - 1e-9);
             // The band-limited model against the same trilinear ray caster: lower, and ringing.
             p.nonNegative = false;
             p.voxelModel = VoxelModel::BandLimited;
@@ -332,6 +364,8 @@ void checkRealData(const RealCase& rc) {
             std::printf("[voxel model] %s %-18s %-9s vs trilinear ray casting %6.2f dB, most negative %.3f %%\n",
                         rc.path, views[i].first, "bandlimited", bandPsnr, 100 * mostNegativeFraction(band.pixels));
             if (i == 0) EXPECT_LT(mostNegativeFraction(band.pixels), rc.bandLimitedBelow) << rc.path;
+            if (!std::isnan(rc.gainOverBandLimited[i]))
+                EXPECT_GT(psnr, bandPsnr + rc.gainOverBandLimited[i]) << rc.path << " " << views[i].first;
         }
     }
 }
@@ -341,19 +375,19 @@ void checkRealData(const RealCase& rc) {
 TEST(VoxelModel, BodyCtMatchesRayCastingWithTheSameModel) {
     FVR_REQUIRE_DATA("volumes/body_ct_hu_3mm/example_ct.mhd");
     checkRealData({"volumes/body_ct_hu_3mm/example_ct.mhd", ValueMapping::Mu, {{48, 50, 55, 59}, {49.5, 52, 55, 59}}, -0.003,
-                   -0.10});
+                   -0.10, {8, 8, 2, 4}}); // measured gains 10.1, 10.3, 3.1, 5.3 dB
 }
 
 TEST(VoxelModel, PhilipsCtMatchesRayCastingWithTheSameModel) {
     FVR_REQUIRE_DATA("dicom/ct_phantom_philips_512x512x140");
     checkRealData({"dicom/ct_phantom_philips_512x512x140", ValueMapping::Mu, {{53.5, 47, 60.5, 60}, {52, 46, 59, 59}},
-                   -0.005, -0.005});
+                   -0.005, -0.005, {kNotAsserted, kNotAsserted, 1.5, 0.5}}); // gains -1.3, -0.3, 2.5, 1.1 dB
 }
 
 TEST(VoxelModel, MrHeadMatchesRayCastingWithTheSameModel) {
     FVR_REQUIRE_DATA("dicom/mr_head_coronal_256x256x100");
     checkRealData({"dicom/mr_head_coronal_256x256x100", ValueMapping::Raw, {{50, 52.5, 54, 55}, {48.5, 52.5, 51.5, 52}},
-                   -0.006, -0.005});
+                   -0.006, -0.005, {0.5, 5, 5, 4}}); // gains 1.0, 6.2, 6.0, 5.2 dB
 }
 
 // Depth cueing with a compact model differentiates the model's spectrum T G, so its slice value
@@ -380,4 +414,34 @@ TEST(VoxelModel, DepthCueDifferentiatesTheModelsTransferFunction) {
     const double psnr = fvr::test::compare(r.render(p).pixels, sp.project(view, g).pixels).psnr;
     std::printf("[voxel model] depth cue 0.8, anisotropic noise, trilinear vs depth-weighted ray casting: %.2f dB\n", psnr);
     EXPECT_GT(psnr, 71.0);
+}
+
+// The FFT and the FHT path compute the same image for every voxel model, with depth cueing too
+// (different storage, different derivative formula: a G + i E.grad(T G) against
+// a T H(k) + T E.grad H(-k) - H(-k) E.grad T). Even and odd voxel counts, oblique view, fine
+// pixels so that most samples lie beyond the band.
+TEST(VoxelModel, FftEqualsFhtForEveryModelWithDepthCue) {
+    for (const Dims3& dims : {Dims3{24, 19, 16}, Dims3{21, 25, 15}}) {
+        const Volume v = randomVolume(dims, {1.0, 1.5, 2.0}, 11);
+        std::shared_ptr<const Spectrum> spectra[2];
+        for (int i = 0; i < 2; ++i) {
+            PreprocessOptions o;
+            o.effort = PlannerEffort::Estimate;
+            o.transform = i ? TransformKind::Fht : TransformKind::Fft;
+            o.oversampling = 1.25;
+            spectra[i] = preprocess(v, o);
+        }
+        CpuFourierRenderer fft(spectra[0], 1), fht(spectra[1], 1);
+        const ViewFrame view = ViewFrame::fromDirUp({0.45, -0.3, 0.84}, {0, -1, 0});
+        for (VoxelModel model : allVoxelModels())
+            for (Kernel k : {Kernel::Linear, Kernel::CatmullRom})
+                for (double depth : {0.0, 0.7}) {
+                    RenderParams p{view, {64, 0.5}, k};
+                    p.voxelModel = model;
+                    p.depthCue = depth;
+                    const double psnr = fvr::test::compare(fht.render(p).pixels, fft.render(p).pixels).psnr;
+                    EXPECT_GT(psnr, 110.0) << dims[0] << " " << voxelModelName(model) << " " << kernelName(k) << " depth "
+                                           << depth;
+                }
+    }
 }

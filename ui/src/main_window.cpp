@@ -558,7 +558,7 @@ void MainWindow::buildDocks() {
     connect(m_clip, &QCheckBox::toggled, this, [this] { applyEffects(); });
     connect(m_nonNegative, &QCheckBox::toggled, this, [this] { applyEffects(); });
     connect(m_pixelAperture, &QCheckBox::toggled, this, [this] { applyEffects(); });
-    connect(m_voxelModel, &QComboBox::currentIndexChanged, this, [this] { applyRenderSettings(); });
+    connect(m_voxelModel, &QComboBox::currentIndexChanged, this, [this] { applyVoxelModel(); });
     m_energy->setEnabled(m_output->currentIndex() == 1);
     m_exposure->setEnabled(m_output->currentIndex() == 1);
     if (m_output->currentIndex() == 1) applyOutput(true);
@@ -653,6 +653,23 @@ QString MainWindow::viewTitle(int index, const ViewSettings& s) const {
     return tr("View %1: %2 %3×%3").arg(index + 1).arg(QString::fromUtf8(core::kernelName(s.kernel))).arg(s.size);
 }
 
+void MainWindow::applyVoxelModel() {
+    // Only the voxel model of the views "Applies to" names: their kernels and sizes stay (in
+    // compare mode each view keeps its own). Same spectrum: nothing is preprocessed again.
+    const core::VoxelModel model = core::VoxelModel(m_voxelModel->currentData().toInt());
+    const int slot = m_compareSlot->currentIndex();
+    for (int i = 0; i < int(m_views.size()); ++i) {
+        if (m_compareCount > 1 && slot > 0 && slot - 1 != i) continue;
+        ViewSettings s = m_views[i]->settings();
+        s.voxelModel = model;
+        m_viewSettings[i].voxelModel = model;
+        m_views[i]->setSettings(s);
+    }
+    // The startup setting follows view 1.
+    if (!m_views.empty())
+        QSettings().setValue("render/voxelModel", QString::fromUtf8(core::voxelModelName(m_views[0]->settings().voxelModel)));
+}
+
 void MainWindow::applyRenderSettings() {
     ViewSettings s;
     s.kernel = core::Kernel(m_kernel->currentData().toInt());
@@ -672,7 +689,8 @@ void MainWindow::applyRenderSettings() {
     QSettings st;
     st.setValue("render/kernel", int(s.kernel));
     st.setValue("render/size", s.size);
-    st.setValue("render/voxelModel", QString::fromUtf8(core::voxelModelName(s.voxelModel)));
+    if (!m_views.empty())
+        st.setValue("render/voxelModel", QString::fromUtf8(core::voxelModelName(m_views[0]->settings().voxelModel)));
     if (m_deapodize->isChecked()) applySpectrumSettings();
 }
 

@@ -30,9 +30,10 @@ VoxelModel parseVoxelModel(const std::string& name);
 const std::array<VoxelModel, 3>& allVoxelModels();
 
 /** How far (voxels) beyond the outermost voxel centres the model reaches: 1 for trilinear
- *  (exactly: its projection is 0 outside); 3 for the B-spline (its interpolant of zeros rings on,
- *  below 1 % of the last voxel beyond 3); 1.5 for band-limited (the sinc never ends: the clip keeps
- *  a voxel and a half). The clip to the volume (RenderParams::clipToVolume) uses it. */
+ *  (exactly: its projection is 0 outside); 6 for the B-spline (its interpolant of the zeros
+ *  around the volume rings on, decaying by |sqrt(3) - 2| = 0.268 per voxel: below 0.02 % of the
+ *  last voxel beyond 6); 1.5 for band-limited (the sinc never ends: the clip keeps a voxel and a
+ *  half). The clip to the volume (RenderParams::clipToVolume) uses it. */
 double voxelModelReach(VoxelModel m);
 
 /** The model's 1D transfer function t(nu) (1 at nu = 0, even). */

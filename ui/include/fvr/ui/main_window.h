@@ -93,6 +93,8 @@ private:
     void buildDocks();
     void buildMenus();
     void applyRenderSettings();
+    /** The voxel model combo: changes only the voxel model of the views it applies to. */
+    void applyVoxelModel();
     /** "View 2: linear 512×512": a compare view's title. */
     QString viewTitle(int index, const ViewSettings& s) const;
     void applySpectrumSettings();
