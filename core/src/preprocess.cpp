@@ -54,9 +54,7 @@ std::int64_t wrap(std::int64_t k, std::int64_t p) {
     k %= p;
     return k < 0 ? k + p : k;
 }
-} // namespace
 
-namespace {
 /** The signed index in (-P/2, P/2] that stores frequency k, and the parity of the periods between
  *  them: the spectrum changes sign from one period to the next along an axis of an even voxel
  *  count (its centre lies half-way between two voxels). */

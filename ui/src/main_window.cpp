@@ -133,14 +133,9 @@ void MainWindow::measureAccuracy() {
     if (!fvr) return;
     const auto volume = m_study->volume();
     // The ray caster with the same voxel model, depth weighting and pixel sampling as the frame.
-    const FrameEffects& fx = m_views[0]->effects();
-    const core::VoxelModel model = m_views[0]->settings().voxelModel;
-    core::RenderParams rendered;
-    rendered.voxelModel = model;
-    rendered.pixelAperture = fx.pixelAperture;
-    rendered.depthCue = fx.depthCue;
+    const core::RenderParams rendered = m_views[0]->renderParams(fvr->size, m_views[0]->settings().kernel);
     const core::SpatialProjectorOptions options = core::matchingProjectorOptions(rendered, m_study->spectrum()->mapping);
-    const QString reference = QString::fromStdString(core::describeProjector(options, model));
+    const QString reference = QString::fromStdString(core::describeProjector(options, rendered.voxelModel));
     const core::ViewFrame view = fvr->view;
     const core::ImageGeometry geom{fvr->size, fvr->pixelSize};
     message(tr("Measuring accuracy: %1 of the same view, in the background…").arg(reference));
@@ -665,6 +660,10 @@ void MainWindow::applyVoxelModel() {
         m_viewSettings[i].voxelModel = model;
         m_views[i]->setSettings(s);
     }
+    saveVoxelModelSetting();
+}
+
+void MainWindow::saveVoxelModelSetting() {
     // The startup setting follows view 1.
     if (!m_views.empty())
         QSettings().setValue("render/voxelModel", QString::fromUtf8(core::voxelModelName(m_views[0]->settings().voxelModel)));
@@ -689,8 +688,7 @@ void MainWindow::applyRenderSettings() {
     QSettings st;
     st.setValue("render/kernel", int(s.kernel));
     st.setValue("render/size", s.size);
-    if (!m_views.empty())
-        st.setValue("render/voxelModel", QString::fromUtf8(core::voxelModelName(m_views[0]->settings().voxelModel)));
+    saveVoxelModelSetting();
     if (m_deapodize->isChecked()) applySpectrumSettings();
 }
 

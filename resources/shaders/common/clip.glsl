@@ -1,6 +1,6 @@
 // Clip to the volume's support (fvr::core::rayMissesVolume): pixels whose ray misses the voxel
-// model's support box hold exactly 0 in the true projection; FVR puts the kernel's ghost copies
-// and ringing there, so the last pass writes 0 for them when uClip is set.
+// model's support box (fvr::core::voxelModelReach) hold 0 in the true projection; FVR puts the
+// kernel's ghost copies and ringing there, so the last pass writes 0 for them when uClip is set.
 uniform int uClip;
 uniform int uNonNegative; // fvr::core::RenderParams::nonNegative for a non-negative spectrum
 uniform vec3 uBoxHalf; // fvr::core::supportHalfExtents, mm

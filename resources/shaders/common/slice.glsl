@@ -51,13 +51,15 @@ float modelT(float nu, out float dt) {
     return s3 * s * g;
 }
 
-// t(nu) alone: one sine (cos 2 pi nu = 1 - 2 sin^2 pi nu for the B-spline).
+float sinc(float x) { return abs(x) < 1e-4 ? 1.0 : sin(3.14159265358979 * x) / (3.14159265358979 * x); }
+
+// t(nu) alone: one sine (for the B-spline, cos 2 pi nu = 1 - 2 sin^2 pi nu, sin pi nu = pi nu sinc).
 float modelValue(float nu) {
-    float x = 3.14159265358979 * nu;
-    float sn = sin(x);
-    float s = abs(x) < 1e-3 ? 1.0 - x * x / 6.0 : sn / x;
+    float s = sinc(nu);
     float s2 = s * s;
-    return uVoxelModel == 1 ? s2 : s2 * s2 * 3.0 / (3.0 - 2.0 * sn * sn);
+    if (uVoxelModel == 1) return s2;
+    float x = 3.14159265358979 * nu;
+    return s2 * s2 * 3.0 / (3.0 - 2.0 * x * x * s2);
 }
 
 // T(k) = prod_a t(k_a / P_a), and with DEPTH_CUE E.grad T.
@@ -240,8 +242,6 @@ vec2 sampleSpectrum(vec3 k) {
 #endif
 
 vec3 sliceK(int m, int n) { return float(m) * uA + float(n) * uB; }
-
-float sinc(float x) { return abs(x) < 1e-4 ? 1.0 : sin(3.14159265358979 * x) / (3.14159265358979 * x); }
 
 // The slice filter of fvr::core::SliceFilter at signed image frequency (m, n), times the pixel
 // aperture (fvr::core::pixelApertureResponse) when it is on.

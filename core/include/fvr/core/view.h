@@ -41,7 +41,7 @@ Vec3 supportHalfExtents(const Dims3& dims, const Vec3& spacing, double reach);
 
 /** Whether the ray of pixel (col, row) of an M x M image with pixel size d misses the box of half
  *  extents `half` around the volume's centre (supportHalfExtents): its true line integral is then
- *  exactly 0 (clipToVolume in RenderParams). */
+ *  0 (exactly for the trilinear model; voxelModelReach; clipToVolume in RenderParams). */
 bool rayMissesVolume(const ViewFrame& view, const Vec3& half, int M, double d, int col, int row);
 
 /** The columns [first, last] of image row `row` whose rays hit the box (rayMissesVolume false

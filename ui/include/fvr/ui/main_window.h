@@ -95,6 +95,7 @@ private:
     void applyRenderSettings();
     /** The voxel model combo: changes only the voxel model of the views it applies to. */
     void applyVoxelModel();
+    void saveVoxelModelSetting();
     /** "View 2: linear 512×512": a compare view's title. */
     QString viewTitle(int index, const ViewSettings& s) const;
     void applySpectrumSettings();
