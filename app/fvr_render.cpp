@@ -17,17 +17,17 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <fvr/core/cpu_renderer.h>
-#include <fvr/core/dicom.h>
-#include <fvr/core/dicom_export.h>
-#include <fvr/core/patient_views.h>
+#include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/dicom/dicom.h>
+#include <fvr/core/dicom/dicom_export.h>
+#include <fvr/core/xray/patient_views.h>
 #include <fvr/core/errors.h>
-#include <fvr/core/image_io.h>
-#include <fvr/core/image_metrics.h>
-#include <fvr/core/phantom.h>
-#include <fvr/core/preprocess.h>
-#include <fvr/core/spatial_projector.h>
-#include <fvr/core/volume_io.h>
+#include <fvr/core/io/image_io.h>
+#include <fvr/core/render/image_metrics.h>
+#include <fvr/core/xray/phantom.h>
+#include <fvr/core/render/preprocess.h>
+#include <fvr/core/render/spatial_projector.h>
+#include <fvr/core/io/volume_io.h>
 #ifdef FVR_HAVE_GPU
 #include <QGuiApplication>
 

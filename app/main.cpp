@@ -5,7 +5,7 @@
 
 #include <cstdio>
 
-#include <fvr/core/patient_views.h>
+#include <fvr/core/xray/patient_views.h>
 #include <fvr/ui/app_info.h>
 #include <fvr/ui/main_window.h>
 

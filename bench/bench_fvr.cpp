@@ -22,12 +22,12 @@
  */
 #include <benchmark/benchmark.h>
 
-#include <fvr/core/cpu_renderer.h>
-#include <fvr/core/kernels.h>
-#include <fvr/core/phantom.h>
-#include <fvr/core/preprocess.h>
-#include <fvr/core/spatial_projector.h>
-#include <fvr/core/view.h>
+#include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/render/kernels.h>
+#include <fvr/core/xray/phantom.h>
+#include <fvr/core/render/preprocess.h>
+#include <fvr/core/render/spatial_projector.h>
+#include <fvr/core/render/view.h>
 
 #include <algorithm>
 #include <chrono>

@@ -33,8 +33,8 @@
 #include <string>
 #include <vector>
 
-#include <fvr/core/phantom.h>
-#include <fvr/core/preprocess.h>
+#include <fvr/core/xray/phantom.h>
+#include <fvr/core/render/preprocess.h>
 #include <fvr/gpu/gpu_renderer.h>
 #include <fvr/gpu/offscreen_context.h>
 

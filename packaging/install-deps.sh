@@ -6,11 +6,11 @@ set -euo pipefail
 
 packages=(
   build-essential dpkg-dev cmake pkg-config ninja-build
-  libfftw3-dev libglm-dev zlib1g-dev
+  libfftw3-dev zlib1g-dev libcli11-dev nlohmann-json3-dev
   libdcmtk-dev libopenjp2-7-dev
   qt6-base-dev libqt6opengl6-dev libgl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  clang libclang-rt-14-dev
+  clang libclang-rt-14-dev clang-format
   xvfb xauth libgl1-mesa-dri
 )
 

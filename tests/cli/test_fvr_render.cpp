@@ -13,13 +13,13 @@
 #include <fftw3.h>
 #include <gtest/gtest.h>
 
-#include <fvr/core/dicom.h>
-#include <fvr/core/image_io.h>
-#include <fvr/core/cpu_renderer.h>
-#include <fvr/core/phantom.h>
-#include <fvr/core/preprocess.h>
-#include <fvr/core/voxel_model.h>
-#include <fvr/core/xray.h>
+#include <fvr/core/dicom/dicom.h>
+#include <fvr/core/io/image_io.h>
+#include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/xray/phantom.h>
+#include <fvr/core/render/preprocess.h>
+#include <fvr/core/render/voxel_model.h>
+#include <fvr/core/xray/xray.h>
 
 #include "image_metrics.h"
 #include "test_support.h"

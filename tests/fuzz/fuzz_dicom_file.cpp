@@ -2,7 +2,7 @@
 // The bytes go to a private temporary file (the reader takes paths: DCMTK reads pixel data
 // lazily from the file). Any DicomError is an expected outcome; every other exception, crash,
 // sanitizer report, leak, timeout or oversized allocation is a finding.
-#include <fvr/core/dicom.h>
+#include <fvr/core/dicom/dicom.h>
 
 #include <cstdint>
 #include <cstdio>

@@ -11,11 +11,11 @@
 #include <fftw3.h>
 #include <gtest/gtest.h>
 
-#include <fvr/core/cpu_renderer.h>
+#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/errors.h>
-#include <fvr/core/phantom.h>
-#include <fvr/core/preprocess.h>
-#include <fvr/core/volume_io.h>
+#include <fvr/core/xray/phantom.h>
+#include <fvr/core/render/preprocess.h>
+#include <fvr/core/io/volume_io.h>
 #include <fvr/gpu/gpu_renderer.h>
 #include <fvr/gpu/shader_source.h>
 

@@ -20,9 +20,9 @@
 
 #include <gtest/gtest.h>
 
-#include <fvr/core/cpu_renderer.h>
-#include <fvr/core/image_io.h>
-#include <fvr/core/xray.h>
+#include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/io/image_io.h>
+#include <fvr/core/xray/xray.h>
 #include <fvr/ui/main_window.h>
 
 #include "image_metrics.h"

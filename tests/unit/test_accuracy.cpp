@@ -7,11 +7,11 @@
 
 #include <gtest/gtest.h>
 
-#include <fvr/core/cpu_renderer.h>
-#include <fvr/core/phantom.h>
-#include <fvr/core/preprocess.h>
-#include <fvr/core/spatial_projector.h>
-#include <fvr/core/volume_io.h>
+#include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/xray/phantom.h>
+#include <fvr/core/render/preprocess.h>
+#include <fvr/core/render/spatial_projector.h>
+#include <fvr/core/io/volume_io.h>
 
 #include "test_support.h"
 

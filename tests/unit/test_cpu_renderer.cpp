@@ -4,9 +4,9 @@
 
 #include <gtest/gtest.h>
 
-#include <fvr/core/cpu_renderer.h>
+#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/errors.h>
-#include <fvr/core/preprocess.h>
+#include <fvr/core/render/preprocess.h>
 
 #include "image_metrics.h"
 

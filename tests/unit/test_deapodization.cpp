@@ -5,10 +5,10 @@
 
 #include <gtest/gtest.h>
 
-#include <fvr/core/cpu_renderer.h>
+#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/errors.h>
-#include <fvr/core/kernels.h>
-#include <fvr/core/preprocess.h>
+#include <fvr/core/render/kernels.h>
+#include <fvr/core/render/preprocess.h>
 
 using namespace fvr::core;
 

@@ -3,7 +3,7 @@
 // for the compressed ones), identical pixels across transfer syntaxes, geometry (order, spacing,
 // direction, gantry tilt, uneven gaps) checked against the single slices in physical space, and
 // synthetic series written here with DCMTK for every geometry decision and pixel format rule.
-#include <fvr/core/dicom.h>
+#include <fvr/core/dicom/dicom.h>
 #include <fvr/core/errors.h>
 #include <fvr/core/volume.h>
 

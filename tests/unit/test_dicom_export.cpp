@@ -2,8 +2,8 @@
 
 #include <gtest/gtest.h>
 
-#include <fvr/core/dicom.h>
-#include <fvr/core/dicom_export.h>
+#include <fvr/core/dicom/dicom.h>
+#include <fvr/core/dicom/dicom_export.h>
 #include <fvr/core/errors.h>
 
 #include "test_support.h"

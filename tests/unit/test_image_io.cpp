@@ -6,7 +6,7 @@
 #include <zlib.h>
 
 #include <fvr/core/errors.h>
-#include <fvr/core/image_io.h>
+#include <fvr/core/io/image_io.h>
 
 #include "test_support.h"
 

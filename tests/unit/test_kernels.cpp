@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <fvr/core/errors.h>
-#include <fvr/core/kernels.h>
+#include <fvr/core/render/kernels.h>
 
 using namespace fvr::core;
 

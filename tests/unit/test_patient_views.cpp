@@ -1,7 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <fvr/core/errors.h>
-#include <fvr/core/patient_views.h>
+#include <fvr/core/xray/patient_views.h>
 
 using namespace fvr::core;
 

@@ -8,7 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <fvr/core/errors.h>
-#include <fvr/core/preprocess.h>
+#include <fvr/core/render/preprocess.h>
 #include <fvr/core/thread_pool.h>
 
 using namespace fvr::core;

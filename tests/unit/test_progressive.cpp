@@ -2,7 +2,7 @@
 // returns to full quality when the drag ends.
 #include <gtest/gtest.h>
 
-#include <fvr/core/progressive.h>
+#include <fvr/core/render/progressive.h>
 
 using namespace fvr::core;
 

@@ -3,7 +3,7 @@
 // and layout, and malformed files whose messages must name the file and the field.
 #include <fvr/core/errors.h>
 #include <fvr/core/volume.h>
-#include <fvr/core/volume_io.h>
+#include <fvr/core/io/volume_io.h>
 
 #include <algorithm>
 #include <array>

@@ -12,14 +12,14 @@
 
 #include <gtest/gtest.h>
 
-#include <fvr/core/cpu_renderer.h>
-#include <fvr/core/dicom.h>
+#include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/dicom/dicom.h>
 #include <fvr/core/errors.h>
-#include <fvr/core/patient_views.h>
-#include <fvr/core/preprocess.h>
-#include <fvr/core/spatial_projector.h>
-#include <fvr/core/volume_io.h>
-#include <fvr/core/voxel_model.h>
+#include <fvr/core/xray/patient_views.h>
+#include <fvr/core/render/preprocess.h>
+#include <fvr/core/render/spatial_projector.h>
+#include <fvr/core/io/volume_io.h>
+#include <fvr/core/render/voxel_model.h>
 
 #include "image_metrics.h"
 #include "test_support.h"

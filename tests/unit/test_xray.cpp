@@ -11,14 +11,14 @@
 #include <fftw3.h>
 #include <gtest/gtest.h>
 
-#include <fvr/core/cpu_renderer.h>
+#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/errors.h>
-#include <fvr/core/image_io.h>
-#include <fvr/core/phantom.h>
-#include <fvr/core/preprocess.h>
-#include <fvr/core/spatial_projector.h>
-#include <fvr/core/volume_io.h>
-#include <fvr/core/xray.h>
+#include <fvr/core/io/image_io.h>
+#include <fvr/core/xray/phantom.h>
+#include <fvr/core/render/preprocess.h>
+#include <fvr/core/render/spatial_projector.h>
+#include <fvr/core/io/volume_io.h>
+#include <fvr/core/xray/xray.h>
 
 #include "image_metrics.h"
 #include "phantom_fixture.h"

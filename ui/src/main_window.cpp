@@ -36,10 +36,10 @@
 #include <numbers>
 
 #include <fvr/core/errors.h>
-#include <fvr/core/image_io.h>
-#include <fvr/core/image_metrics.h>
-#include <fvr/core/spatial_projector.h>
-#include <fvr/core/xray.h>
+#include <fvr/core/io/image_io.h>
+#include <fvr/core/render/image_metrics.h>
+#include <fvr/core/render/spatial_projector.h>
+#include <fvr/core/xray/xray.h>
 #include <fvr/ui/app_info.h>
 
 namespace fvr::ui {

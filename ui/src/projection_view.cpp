@@ -12,7 +12,7 @@
 #include <cmath>
 #include <numbers>
 
-#include <fvr/core/patient_views.h>
+#include <fvr/core/xray/patient_views.h>
 #include <fvr/gpu/errors.h>
 #include <fvr/gpu/gpu_renderer.h>
 

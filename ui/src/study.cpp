@@ -1,13 +1,13 @@
 #include <fvr/ui/study.h>
 
-#include <fvr/core/xray.h>
+#include <fvr/core/xray/xray.h>
 
 #include <QDir>
 #include <QFileInfo>
 
 #include <fvr/core/errors.h>
-#include <fvr/core/phantom.h>
-#include <fvr/core/volume_io.h>
+#include <fvr/core/xray/phantom.h>
+#include <fvr/core/io/volume_io.h>
 
 namespace fvr::ui {
 

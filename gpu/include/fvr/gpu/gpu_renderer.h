@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include <fvr/core/cpu_renderer.h>
-#include <fvr/core/image_io.h>
-#include <fvr/core/spectrum.h>
+#include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/io/image_io.h>
+#include <fvr/core/render/spectrum.h>
 
 class QOpenGLFunctions_4_3_Core;
 

@@ -8,7 +8,7 @@
 #include <atomic>
 #include <thread>
 
-#include <fvr/core/patient_views.h>
+#include <fvr/core/xray/patient_views.h>
 #include <fvr/ui/projection_view.h>
 #include <fvr/ui/study.h>
 

@@ -8,11 +8,11 @@
 #include <memory>
 #include <optional>
 
-#include <fvr/core/cpu_renderer.h>
-#include <fvr/core/image_io.h>
-#include <fvr/core/progressive.h>
-#include <fvr/core/spectrum.h>
-#include <fvr/core/view.h>
+#include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/io/image_io.h>
+#include <fvr/core/render/progressive.h>
+#include <fvr/core/render/spectrum.h>
+#include <fvr/core/render/view.h>
 #include <fvr/core/volume.h>
 
 class QOpenGLShaderProgram;

@@ -14,10 +14,10 @@
 #include <memory>
 #include <thread>
 
-#include <fvr/core/dicom.h>
-#include <fvr/core/kernels.h>
-#include <fvr/core/preprocess.h>
-#include <fvr/core/spectrum.h>
+#include <fvr/core/dicom/dicom.h>
+#include <fvr/core/render/kernels.h>
+#include <fvr/core/render/preprocess.h>
+#include <fvr/core/render/spectrum.h>
 #include <fvr/core/volume.h>
 
 namespace fvr::ui {

@@ -5,7 +5,7 @@
  *  spatial reference projector, the analytic phantom and the display all use these definitions. */
 #include <vector>
 
-#include <fvr/core/spectrum.h>
+#include <fvr/core/render/spectrum.h>
 #include <fvr/core/volume.h>
 
 namespace fvr::core {

@@ -5,8 +5,8 @@
 #include <filesystem>
 #include <vector>
 
-#include <fvr/core/projection.h>
-#include <fvr/core/xray.h>
+#include <fvr/core/render/projection.h>
+#include <fvr/core/xray/xray.h>
 
 namespace fvr::core {
 

@@ -3,8 +3,8 @@
 #include <string>
 #include <vector>
 
-#include <fvr/core/spectrum.h>
-#include <fvr/core/view.h>
+#include <fvr/core/render/spectrum.h>
+#include <fvr/core/render/view.h>
 
 namespace fvr::core {
 

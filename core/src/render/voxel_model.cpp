@@ -1,4 +1,4 @@
-#include <fvr/core/voxel_model.h>
+#include <fvr/core/render/voxel_model.h>
 
 #include <cmath>
 #include <numbers>

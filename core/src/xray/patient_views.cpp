@@ -1,4 +1,4 @@
-#include <fvr/core/patient_views.h>
+#include <fvr/core/xray/patient_views.h>
 
 #include <algorithm>
 #include <cctype>

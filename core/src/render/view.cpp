@@ -1,4 +1,4 @@
-#include <fvr/core/view.h>
+#include <fvr/core/render/view.h>
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include <fvr/core/preprocess.h>
+#include <fvr/core/render/preprocess.h>
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +9,7 @@
 
 #include <fvr/core/errors.h>
 #include <fvr/core/thread_pool.h>
-#include <fvr/core/xray.h>
+#include <fvr/core/xray/xray.h>
 
 #include "fftw_support.h"
 

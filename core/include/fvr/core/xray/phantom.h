@@ -2,9 +2,9 @@
 /** Analytic ellipsoid phantoms: the embedded default study and the exact test oracle. */
 #include <vector>
 
-#include <fvr/core/projection.h>
-#include <fvr/core/spectrum.h>
-#include <fvr/core/view.h>
+#include <fvr/core/render/projection.h>
+#include <fvr/core/render/spectrum.h>
+#include <fvr/core/render/view.h>
 #include <fvr/core/volume.h>
 
 namespace fvr::core {

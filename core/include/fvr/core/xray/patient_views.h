@@ -8,7 +8,7 @@
  *  image's right (the axial CT display convention). */
 #include <string>
 
-#include <fvr/core/view.h>
+#include <fvr/core/render/view.h>
 #include <fvr/core/volume.h>
 
 namespace fvr::core {

@@ -3,7 +3,7 @@
 #include <filesystem>
 #include <string>
 
-#include <fvr/core/projection.h>
+#include <fvr/core/render/projection.h>
 #include <fvr/core/volume.h>
 
 namespace fvr::core {

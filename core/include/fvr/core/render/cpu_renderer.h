@@ -4,13 +4,13 @@
 #include <map>
 #include <memory>
 
-#include <fvr/core/kernels.h>
-#include <fvr/core/projection.h>
-#include <fvr/core/spectrum.h>
+#include <fvr/core/render/kernels.h>
+#include <fvr/core/render/projection.h>
+#include <fvr/core/render/spectrum.h>
 #include <fvr/core/thread_pool.h>
-#include <fvr/core/view.h>
-#include <fvr/core/voxel_model.h>
-#include <fvr/core/xray.h>
+#include <fvr/core/render/view.h>
+#include <fvr/core/render/voxel_model.h>
+#include <fvr/core/xray/xray.h>
 
 namespace fvr::core {
 

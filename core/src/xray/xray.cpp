@@ -1,4 +1,4 @@
-#include <fvr/core/xray.h>
+#include <fvr/core/xray/xray.h>
 
 #include <algorithm>
 #include <array>

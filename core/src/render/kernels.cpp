@@ -1,4 +1,4 @@
-#include <fvr/core/kernels.h>
+#include <fvr/core/render/kernels.h>
 
 #include <algorithm>
 #include <cmath>

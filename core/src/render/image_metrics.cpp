@@ -1,4 +1,4 @@
-#include <fvr/core/image_metrics.h>
+#include <fvr/core/render/image_metrics.h>
 
 #include <algorithm>
 #include <cmath>

@@ -5,7 +5,7 @@
 #include <memory>
 #include <optional>
 
-#include <fvr/core/kernels.h>
+#include <fvr/core/render/kernels.h>
 
 #include <fvr/core/volume.h>
 

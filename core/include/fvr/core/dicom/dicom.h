@@ -61,7 +61,7 @@
 #include <vector>
 
 #include <fvr/core/errors.h>
-#include <fvr/core/preprocess.h> // ProgressFn, CancelToken
+#include <fvr/core/render/preprocess.h> // ProgressFn, CancelToken
 #include <fvr/core/volume.h>
 
 namespace fvr::core {

@@ -5,12 +5,12 @@
  *  accuracy readout, and as the ray-casting baseline in benchmarks. */
 #include <string>
 
-#include <fvr/core/cpu_renderer.h>
-#include <fvr/core/projection.h>
-#include <fvr/core/spectrum.h>
+#include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/render/projection.h>
+#include <fvr/core/render/spectrum.h>
 #include <fvr/core/thread_pool.h>
 #include <fvr/core/volume.h>
-#include <fvr/core/voxel_model.h>
+#include <fvr/core/render/voxel_model.h>
 
 namespace fvr::core {
 

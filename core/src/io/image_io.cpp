@@ -1,4 +1,4 @@
-#include <fvr/core/image_io.h>
+#include <fvr/core/io/image_io.h>
 
 #include <algorithm>
 #include <cmath>

@@ -5,7 +5,7 @@
 // allocate the volume and read it in bulk (1 MiB chunks converted to float). Nothing about the
 // input is trusted before it has been checked, so garbage files end in a LoadError, not a crash
 // or a huge allocation.
-#include <fvr/core/volume_io.h>
+#include <fvr/core/io/volume_io.h>
 
 #include <algorithm>
 #include <bit>

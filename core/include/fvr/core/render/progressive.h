@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include <fvr/core/kernels.h>
+#include <fvr/core/render/kernels.h>
 
 namespace fvr::core {
 

@@ -1,4 +1,4 @@
-#include <fvr/core/phantom.h>
+#include <fvr/core/xray/phantom.h>
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 
 #include <fvr/core/errors.h>
 #include <fvr/core/thread_pool.h>
-#include <fvr/core/xray.h>
+#include <fvr/core/xray/xray.h>
 
 namespace fvr::core {
 

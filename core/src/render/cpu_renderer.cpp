@@ -1,4 +1,4 @@
-#include <fvr/core/cpu_renderer.h>
+#include <fvr/core/render/cpu_renderer.h>
 
 #include <algorithm>
 #include <chrono>

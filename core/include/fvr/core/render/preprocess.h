@@ -11,8 +11,8 @@
 #include <thread>
 #include <vector>
 
-#include <fvr/core/kernels.h>
-#include <fvr/core/spectrum.h>
+#include <fvr/core/render/kernels.h>
+#include <fvr/core/render/spectrum.h>
 #include <fvr/core/volume.h>
 
 namespace fvr::core {

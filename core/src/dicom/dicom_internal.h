@@ -14,8 +14,8 @@
 #include <thread>
 #include <vector>
 
-#include <fvr/core/dicom.h>
-#include <fvr/core/preprocess.h>
+#include <fvr/core/dicom/dicom.h>
+#include <fvr/core/render/preprocess.h>
 #include <fvr/core/volume.h>
 
 class DcmFileFormat;

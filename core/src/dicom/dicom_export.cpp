@@ -1,4 +1,4 @@
-#include <fvr/core/dicom_export.h>
+#include <fvr/core/dicom/dicom_export.h>
 
 #include <dcmtk/dcmdata/dctk.h>
 

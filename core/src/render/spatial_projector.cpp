@@ -1,11 +1,11 @@
-#include <fvr/core/spatial_projector.h>
+#include <fvr/core/render/spatial_projector.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
 #include <fvr/core/errors.h>
-#include <fvr/core/xray.h>
+#include <fvr/core/xray/xray.h>
 
 namespace fvr::core {
 

@@ -1,4 +1,4 @@
-#include <fvr/core/progressive.h>
+#include <fvr/core/render/progressive.h>
 
 #include <algorithm>
 #include <cmath>
