@@ -610,7 +610,7 @@ int run(int argc, char** argv) {
     // One view on whichever renderer runs (the line integrals, before any transmission).
     auto renderOne = [&](const ViewFrame& view) {
 #ifdef FVR_HAVE_GPU
-        if (gpu) return gpu->renderer->renderImage(params(view));
+        if (gpu) return gpu->renderer->render(params(view));
 #endif
         return cpu->render(params(view));
     };
@@ -639,10 +639,10 @@ int run(int argc, char** argv) {
             const DisplayWindow window{0.0, 1.0, false, {}};
             for (bool fuse : {false, true}) {
                 r.setFuseSlice(fuse);
-                r.render(params(base), fuse ? &window : nullptr); // warm-up: shader compilation, buffers
+                r.renderToGpu(params(base), fuse ? &window : nullptr); // warm-up: shader compilation, buffers
                 r.lastTimes();
                 for (int i = 0; i < a.bench; ++i) {
-                    r.render(params(viewAt(i)), fuse ? &window : nullptr);
+                    r.renderToGpu(params(viewAt(i)), fuse ? &window : nullptr);
                     const auto t = r.lastTimes(); // GPU timer queries
                     if (fuse) fusedTot.push_back(t.totalMs);
                     else {

@@ -83,12 +83,12 @@ void BM_GpuStages(benchmark::State& state, int n, TransformKind kind, int M, Ker
     GpuFourierRenderer& r = renderer(n, kind);
     const ImageGeometry g{M, defaultPixelSize(phantom(n).dims, phantom(n).spacing, M)};
     r.setFuseSlice(false);
-    r.render({views()[0], g, kernel}); // compiles the variant
+    r.renderToGpu({views()[0], g, kernel}); // compiles the variant
     r.lastTimes();
     std::vector<double> slice, inverse;
     std::size_t i = 0;
     for (auto _ : state) {
-        r.render({views()[i++ % views().size()], g, kernel});
+        r.renderToGpu({views()[i++ % views().size()], g, kernel});
         const auto t = r.lastTimes();
         slice.push_back(t.sliceMs);
         inverse.push_back(t.inverseMs);
@@ -106,18 +106,18 @@ void BM_GpuFrame(benchmark::State& state, int n, TransformKind kind, int M, Kern
     const ImageGeometry g{M, defaultPixelSize(phantom(n).dims, phantom(n).spacing, M)};
     r.setFuseSlice(true);
     const DisplayWindow window{0.0, 0.5 * phantom(n).dims[0] * phantom(n).spacing[0], true, {}};
-    r.render({views()[0], g, kernel}, &window);
+    r.renderToGpu({views()[0], g, kernel}, &window);
     r.lastTimes();
     auto* gl = QOpenGLContext::currentContext()->functions();
     std::vector<double> gpu, wall;
     std::size_t i = 0;
     constexpr int kBatch = 16;
     for (auto _ : state) {
-        r.render({views()[i++ % views().size()], g, kernel}, &window);
+        r.renderToGpu({views()[i++ % views().size()], g, kernel}, &window);
         gpu.push_back(r.lastTimes().totalMs);
         // Back to back: kBatch frames, one wait at the end.
         const auto t0 = std::chrono::steady_clock::now();
-        for (int b = 0; b < kBatch; ++b) r.render({views()[(i + b) % views().size()], g, kernel}, &window);
+        for (int b = 0; b < kBatch; ++b) r.renderToGpu({views()[(i + b) % views().size()], g, kernel}, &window);
         gl->glFinish();
         wall.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / kBatch);
     }

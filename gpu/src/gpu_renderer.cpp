@@ -454,7 +454,7 @@ void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* p
                           (display ? GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT : 0));
 }
 
-void GpuFourierRenderer::render(const core::RenderParams& p, const core::DisplayWindow* display) {
+void GpuFourierRenderer::renderToGpu(const core::RenderParams& p, const core::DisplayWindow* display) {
     core::validateRenderParams(p);
     if (!m_spectrum) throw GlError("GPU renderer: no spectrum uploaded");
     if (m_spectrum->deapodizedFor && *m_spectrum->deapodizedFor != p.kernel)
@@ -509,12 +509,21 @@ core::ProjectionImage GpuFourierRenderer::readback() const {
     return img;
 }
 
+core::ProjectionImage GpuFourierRenderer::render(const core::RenderParams& p, core::StageTimes* times) {
+    GpuStageTimes t;
+    auto img = renderImage(p, times ? &t : nullptr);
+    if (times) *times = {t.sliceMs, t.inverseMs + t.displayMs, t.totalMs};
+    return img;
+}
+
 core::ProjectionImage GpuFourierRenderer::renderImage(const core::RenderParams& p, GpuStageTimes* times) {
-    render(p);
+    renderToGpu(p);
     auto img = readback();
     if (times) *times = lastTimes();
     return img;
 }
+
+std::string GpuFourierRenderer::describe() const { return "GPU: " + rendererInfo(); }
 
 namespace {
 bool sameWindow(const core::DisplayWindow& a, const core::DisplayWindow& b) {

@@ -157,7 +157,7 @@ TEST_F(GlTest, ProjectionsMatchCpuRendererOnPhantom) {
                     for (const auto& view : views) {
                         const RenderParams p{view, {M, defaultPixelSize(v.dims, v.spacing, M)}, k};
                         const auto a = cpu.render(p);
-                        const auto b = gpu.renderImage(p);
+                        const auto b = gpu.render(p);
                         const auto c = fvr::test::compare(b.pixels, a.pixels);
                         EXPECT_GT(c.psnr, 90.0) << transformName(t) << " " << kernelName(k) << " M " << M
                                                 << " fused " << fuse;
@@ -187,14 +187,14 @@ TEST_F(GlTest, DeapodizedKaiserBesselMatchesCpu) {
                     gpu.setFuseSlice(fuse);
                     for (const auto& view : views) {
                         const RenderParams p{view, {128, defaultPixelSize(v.dims, v.spacing, 128)}, k};
-                        const auto c = fvr::test::compare(gpu.renderImage(p).pixels, cpu.render(p).pixels);
+                        const auto c = fvr::test::compare(gpu.render(p).pixels, cpu.render(p).pixels);
                         std::printf("[gpu vs cpu] deapodized %s %s oversampling %.2f fused %d PSNR %.1f dB\n",
                                     transformName(t), kernelName(k), over, int(fuse), c.psnr);
                         EXPECT_GT(c.psnr, 90.0) << transformName(t) << " " << kernelName(k) << " " << over;
                     }
                 }
                 // The spectrum was made for k: the GPU renderer refuses another kernel too.
-                EXPECT_THROW(gpu.renderImage({views[0], {64, defaultPixelSize(v.dims, v.spacing, 64)},
+                EXPECT_THROW(gpu.render({views[0], {64, defaultPixelSize(v.dims, v.spacing, 64)},
                                               Kernel::Linear}),
                              SettingsError);
             }
@@ -211,7 +211,7 @@ TEST_F(GlTest, ProjectionMatchesCpuOnRealVolume) {
         gpu.setSpectrum(s);
         for (Kernel k : {Kernel::Linear, Kernel::CatmullRom, Kernel::Sinc4}) {
             const RenderParams p{view, {256, defaultPixelSize(v.dims, v.spacing, 256)}, k};
-            const auto c = fvr::test::compare(gpu.renderImage(p).pixels, cpu.render(p).pixels);
+            const auto c = fvr::test::compare(gpu.render(p).pixels, cpu.render(p).pixels);
             std::printf("[gpu vs cpu] headsq %s %s PSNR %.1f dB\n", transformName(t), kernelName(k), c.psnr);
             EXPECT_GT(c.psnr, 90.0);
         }
@@ -227,10 +227,10 @@ TEST_F(GlTest, HalfPrecisionSpectrumCostIsMeasured) {
     const auto truth = ph.project(view, p.image, ValueMapping::Mu, v.dims, v.spacing);
     GpuFourierRenderer gpu;
     gpu.setSpectrum(s, SpectrumPrecision::Float32);
-    const auto full = gpu.renderImage(p);
+    const auto full = gpu.render(p);
     const std::size_t bytes32 = gpu.spectrumTextureBytes();
     gpu.setSpectrum(s, SpectrumPrecision::Float16);
-    const auto half = gpu.renderImage(p);
+    const auto half = gpu.render(p);
     EXPECT_EQ(gpu.spectrumTextureBytes() * 2, bytes32);
     const double vsFull = fvr::test::compare(half.pixels, full.pixels).psnr;
     const double psnr32 = fvr::test::compare(full.pixels, truth.pixels).psnr;
@@ -260,7 +260,7 @@ TEST_F(GlTest, DisplayTextureAndTimes) {
     const Volume v = makeSheppLoganVolume(32);
     GpuFourierRenderer gpu;
     gpu.setSpectrum(spectrumOf(v, TransformKind::Fft, 1.0));
-    gpu.render({ViewFrame{}, {128, defaultPixelSize(v.dims, v.spacing, 128)}, Kernel::Linear});
+    gpu.renderToGpu({ViewFrame{}, {128, defaultPixelSize(v.dims, v.spacing, 128)}, Kernel::Linear});
     EXPECT_NE(gpu.displayTexture({0.0, 100.0, false}), 0u);
     const auto t = gpu.lastTimes();
     EXPECT_GT(t.totalMs, 0.0);
@@ -285,7 +285,7 @@ TEST_F(GlTest, RenderersShareOneSpectrumTexture) {
     b.setSpectrum(s);
     EXPECT_EQ(a->spectrumTexture(), b.spectrumTexture()); // one upload for both views
     a.reset();                                            // the other keeps it
-    EXPECT_GT(fvr::test::compare(b.renderImage(p).pixels, cpu.render(p).pixels).psnr, 90.0);
+    EXPECT_GT(fvr::test::compare(b.render(p).pixels, cpu.render(p).pixels).psnr, 90.0);
     GpuFourierRenderer c;
     c.setSpectrum(s, SpectrumPrecision::Float16); // another precision: its own texture
     EXPECT_NE(c.spectrumTexture(), b.spectrumTexture());
@@ -309,13 +309,13 @@ TEST_F(GlTest, DepthCueAndSliceFiltersMatchCpu) {
                 for (const auto& view : views) {
                     RenderParams p{view, {64, defaultPixelSize(v.dims, v.spacing, 64)}, k};
                     p.depthCue = 0.7;
-                    const auto c1 = fvr::test::compare(gpu.renderImage(p).pixels, cpu.render(p).pixels);
+                    const auto c1 = fvr::test::compare(gpu.render(p).pixels, cpu.render(p).pixels);
                     EXPECT_GT(c1.psnr, 90.0) << "depth " << transformName(t) << " " << kernelName(k) << " fused " << fuse;
                     p.filter = {1.2, 3.0, 0.2};
-                    const auto c2 = fvr::test::compare(gpu.renderImage(p).pixels, cpu.render(p).pixels);
+                    const auto c2 = fvr::test::compare(gpu.render(p).pixels, cpu.render(p).pixels);
                     EXPECT_GT(c2.psnr, 90.0) << "depth+filter " << transformName(t) << " " << kernelName(k);
                     p.depthCue = 0.0;
-                    const auto c3 = fvr::test::compare(gpu.renderImage(p).pixels, cpu.render(p).pixels);
+                    const auto c3 = fvr::test::compare(gpu.render(p).pixels, cpu.render(p).pixels);
                     EXPECT_GT(c3.psnr, 90.0) << "filter " << transformName(t) << " " << kernelName(k);
                 }
         }
@@ -324,7 +324,7 @@ TEST_F(GlTest, DepthCueAndSliceFiltersMatchCpu) {
     auto s = spectrumOf(v, TransformKind::Fft, 1.0);
     GpuFourierRenderer gpu;
     gpu.setSpectrum(s);
-    EXPECT_THROW(gpu.render(bad), SettingsError);
+    EXPECT_THROW(gpu.renderToGpu(bad), SettingsError);
 }
 
 TEST_F(GlTest, TransmissionDisplayIsExpOfTheLineIntegrals) {
@@ -335,7 +335,7 @@ TEST_F(GlTest, TransmissionDisplayIsExpOfTheLineIntegrals) {
     GpuFourierRenderer gpu;
     gpu.setSpectrum(spectrumOf(v, TransformKind::Fft, 1.25));
     const int M = 128;
-    gpu.render({ViewFrame::fromDirUp({0.2, 0.3, 0.93}, {0, -1, 0}), {M, defaultPixelSize(v.dims, v.spacing, M)},
+    gpu.renderToGpu({ViewFrame::fromDirUp({0.2, 0.3, 0.93}, {0, -1, 0}), {M, defaultPixelSize(v.dims, v.spacing, M)},
                 Kernel::CatmullRom});
     const auto L = gpu.readback();
     for (bool film : {true, false}) {
@@ -387,12 +387,12 @@ TEST_F(GlTest, DisplayFusedIntoTheLastPassEqualsTheDisplayPass) {
                 p.clipToVolume = clip;
                 const std::string what = std::string(transformName(t)) + (clip ? " clip" : "") +
                                          (w.transmission.active() ? " film" : " integrals");
-                gpu.render(p);
+                gpu.renderToGpu(p);
                 const auto plain = gpu.readback();
                 const auto separate = readTexture(gpu.displayTexture(w), M);
                 EXPECT_FALSE(gpu.lastTimes().displayFused) << what;
 
-                gpu.render(p, &w);
+                gpu.renderToGpu(p, &w);
                 EXPECT_EQ(gpu.readback().pixels, plain.pixels) << what;
                 const auto fused = readTexture(gpu.displayTexture(w), M);
                 const auto times = gpu.lastTimes();
@@ -428,7 +428,7 @@ TEST_F(GlTest, ClipToVolumeMatchesCpu) {
             RenderParams p{view, {128, 1.5 * defaultPixelSize(v.dims, v.spacing, 128)}, Kernel::Linear};
             p.clipToVolume = true;
             const auto a = cpu.render(p);
-            const auto b = gpu.renderImage(p);
+            const auto b = gpu.render(p);
             int zeros = 0;
             for (float x : b.pixels) zeros += x == 0.0f;
             EXPECT_GT(zeros, 128 * 128 / 10) << transformName(t);
@@ -470,7 +470,7 @@ TEST_F(GlTest, VoxelModelsApertureAndClampMatchCpu) {
                                 p.depthCue = variant == 1 ? 0.7 : 0.0;
                                 p.pixelAperture = variant == 2;
                                 p.clipToVolume = p.nonNegative = variant == 2;
-                                const auto c = fvr::test::compare(gpu.renderImage(p).pixels, cpu.render(p).pixels);
+                                const auto c = fvr::test::compare(gpu.render(p).pixels, cpu.render(p).pixels);
                                 EXPECT_GT(c.psnr, 90.0)
                                     << "N " << v->dims[0] << " " << transformName(t) << " " << kernelName(k) << " "
                                     << voxelModelName(model) << " fused " << fuse << " variant " << variant;

@@ -215,7 +215,7 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
         // transform also writes the display texture; paintGL's displayTexture() then costs nothing.
         // Stage times are read in paintGL.
         const bool fuseDisplay = m_windowSet && !(m_reference && m_reference != this);
-        m_gpu->render(params, fuseDisplay ? &m_window : nullptr);
+        m_gpu->renderToGpu(params, fuseDisplay ? &m_window : nullptr);
         m_gpuTimesPending = true;
         m_timedLevel = level;
         m_cpuImage.reset();

@@ -582,6 +582,10 @@ void hartleyCorrection2D(float* d, int M, ThreadPool& pool) {
 
 } // namespace
 
+std::string CpuFourierRenderer::describe() const {
+    return "CPU, " + std::to_string(m_threads) + (m_threads == 1 ? " thread" : " threads");
+}
+
 void validateRenderParams(const RenderParams& params) {
     validateImageGeometry(params.image);
     if (!(params.depthCue >= 0.0 && params.depthCue <= 1.0))

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/render/renderer.h>
 #include <fvr/core/io/image_io.h>
 #include <fvr/core/render/spectrum.h>
 
@@ -32,7 +32,7 @@ struct GpuStageTimes {
     bool displayFused = false;
 };
 
-class GpuFourierRenderer {
+class GpuFourierRenderer final : public core::Renderer {
 public:
     /** Needs a current OpenGL >= 4.3 context; throws GlError otherwise. All later calls need the
      *  same context current; releaseGl() (or the destructor) frees the GL objects. */
@@ -59,11 +59,15 @@ public:
     /** Renders into GPU buffers (no readback). With a window, the last pass of the inverse
      *  transform also maps the projection through it into the display texture (no display pass:
      *  displayTexture() with the same window then returns at once). Throws SettingsError, GlError. */
-    void render(const core::RenderParams& params, const core::DisplayWindow* display = nullptr);
+    void renderToGpu(const core::RenderParams& params, const core::DisplayWindow* display = nullptr);
     /** The last render's float line integrals (row 0 at the top). */
     core::ProjectionImage readback() const;
-    /** render() + readback() with the stage times. */
+    /** renderToGpu() + readback() with the GPU's per-stage times. */
     core::ProjectionImage renderImage(const core::RenderParams& params, GpuStageTimes* times = nullptr);
+    /** core::Renderer: renderImage() with the times as core::StageTimes (display in inverse). */
+    core::ProjectionImage render(const core::RenderParams& params, core::StageTimes* times = nullptr) override;
+    std::string describe() const override;
+    bool isGpu() const override { return true; }
     /** The last render mapped through the window (Beer-Lambert transmission first when the window
      *  has one) as an RGBA8 M x M texture: runs the display pass unless the render already fused
      *  this window. */
