@@ -8,7 +8,7 @@ JOBS ?= $(shell nproc)
 STUDY ?=
 SHARED_DATA ?= $(abspath $(CURDIR)/../shared/data)
 
-.PHONY: all deps configure build run test bench bench-gpu package sanitize clean
+.PHONY: all deps configure build run test bench bench-gpu package sanitize format format-check clean
 
 all: build
 
@@ -50,6 +50,15 @@ sanitize: deps
 	  -DFVR_BUILD_BENCH=OFF -DFVR_BUILD_GUI=OFF -DFVR_SHARED_DATA_DIR=$(SHARED_DATA) > /dev/null
 	@cmake --build build-asan --parallel $(JOBS)
 	@cd build-asan && ctest --output-on-failure --parallel $(JOBS) -L unit
+
+# Formats the C++ sources in place with .clang-format (STYLE.md: 100 columns, 4 spaces);
+# format-check lists the files it would change and fails if there are any.
+FORMAT_FILES = $(shell git ls-files '*.cpp' '*.h')
+format: deps
+	@clang-format -i $(FORMAT_FILES)
+
+format-check: deps
+	@clang-format --dry-run -Werror $(FORMAT_FILES)
 
 clean:
 	@rm -rf $(BUILD_DIR) build-asan out
