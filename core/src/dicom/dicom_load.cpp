@@ -8,6 +8,8 @@
 // (except Hounsfield units, see dicom.h), then rescaled (RescaleSlope/Intercept per frame).
 #include "dicom_internal.h"
 
+#include <fvr/core/io/open_study.h>
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -363,7 +365,8 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
 
     std::vector<std::string> warnings;
     for (const std::string& w : series.warnings)
-        if (w.rfind("cannot be loaded", 0) != 0) warnings.push_back(w);
+        if (series.loadable() || w.find(series.unloadableReason) == std::string::npos)
+            warnings.push_back(w);
     auto warn = [&](const std::string& w) {
         if (std::find(warnings.begin(), warnings.end(), w) == warnings.end()) warnings.push_back(w);
     };
@@ -501,46 +504,13 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
 }
 
 DicomVolume loadDicomFolder(const std::filesystem::path& folder, const std::string& key) {
-    DicomScanResult scan = scanDicomFolder(folder);
-    const DicomSeriesInfo* chosen = nullptr;
-    std::vector<std::string> notes;
-    if (key.empty()) {
-        // The loadable series with most slices (an unloadable one only when nothing else is).
-        auto loadable = [](const DicomSeriesInfo& s) {
-            return std::none_of(s.warnings.begin(), s.warnings.end(), [](const std::string& w) {
-                return w.rfind("cannot be loaded", 0) == 0;
-            });
-        };
-        for (const auto& s : scan.series) {
-            if (!chosen || (loadable(s) && !loadable(*chosen)) ||
-                (loadable(s) == loadable(*chosen) && s.frameCount > chosen->frameCount))
-                chosen = &s;
-        }
-        if (scan.series.size() > 1)
-            notes.push_back(folder.string() + " holds " + std::to_string(scan.series.size()) +
-                            " series; loaded " + chosen->key + " (the loadable one with most slices, " +
-                            std::to_string(chosen->frameCount) + ")");
-    } else {
-        for (const auto& s : scan.series)
-            if (s.key == key) chosen = &s;
-        if (!chosen)
-            for (const auto& s : scan.series)
-                if (s.seriesUid == key) {
-                    if (chosen) {
-                        notes.push_back("series " + key + " was split; loaded its first part " + chosen->key);
-                        break;
-                    }
-                    chosen = &s;
-                }
-        if (!chosen) {
-            std::string keys;
-            for (const auto& s : scan.series) keys += (keys.empty() ? "" : ", ") + s.key;
-            throw DicomError(folder.string() + ": no series '" + key + "' (found: " + keys + ")");
-        }
-    }
-    DicomVolume v = loadDicomSeries(*chosen);
-    v.warnings.insert(v.warnings.begin(), notes.begin(), notes.end());
-    return v;
+    InputSource source;
+    source.kind = InputKind::DicomFolder;
+    source.path = folder;
+    OpenOptions options;
+    options.seriesKey = key;
+    OpenedStudy study = openStudy(source, options);
+    return {std::move(study.volume), std::move(study.warnings)};
 }
 
 DicomVolume loadDicomFile(const std::filesystem::path& file) {

@@ -389,7 +389,10 @@ std::vector<DicomSeriesInfo> groupIntoSeries(const std::vector<DicomHeader>& hs,
             } catch (const DicomError& e) {
                 if (cannot.empty()) cannot = e.what();
             }
-            if (!cannot.empty()) si.warnings.push_back("cannot be loaded: " + cannot);
+            if (!cannot.empty()) {
+                si.unloadableReason = cannot;
+                si.warnings.push_back("cannot be loaded: " + cannot);
+            }
 
             // Files in slice order, with the frames each contributes when not all of them.
             std::unordered_map<int, std::size_t> fileIndex;

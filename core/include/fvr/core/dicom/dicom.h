@@ -90,6 +90,10 @@ struct DicomSeriesInfo {
     std::vector<std::vector<std::int32_t>> frames;
     std::vector<std::string> warnings; ///< problems visible at scan time; "cannot be loaded: ..."
                                        ///< when loading would refuse (and why)
+    /** Why loadDicomSeries would refuse this series (colour, mixed sizes, duplicate positions,
+     *  ...); empty when it loads. The warnings carry it too, for display. */
+    std::string unloadableReason;
+    bool loadable() const { return unloadableReason.empty(); }
 };
 
 struct DicomScanResult {
@@ -119,8 +123,7 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
                             const CancelToken* cancel = nullptr);
 
 /** Convenience: scan `folder` and load the series whose key or SeriesInstanceUID is `key`
- *  (empty: the only series, or the loadable one with most slices when there are several; a
- *  warning says which). */
+ *  (empty: the default series, io/open_study.h's defaultSeriesIndex; a warning says which). */
 DicomVolume loadDicomFolder(const std::filesystem::path& folder, const std::string& key = {});
 
 /** Loads one file (single image or multi-frame) as a volume; throws DicomError. A file that

@@ -1,0 +1,91 @@
+#pragma once
+/** How a path becomes a volume: the one rule fvr-render, the workstation and the Python module
+ *  follow (which kind of input a path names, which DICOM series is opened by default, when values
+ *  without units are taken for Hounsfield units). */
+#include <cstddef>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <fvr/core/dicom/dicom.h>
+#include <fvr/core/io/volume_io.h>
+#include <fvr/core/render/preprocess.h> // ProgressFn, CancelToken
+#include <fvr/core/volume.h>
+
+namespace fvr::core {
+
+enum class InputKind {
+    Phantom,     ///< "phantom:shepp-logan[:N]": the built-in Shepp-Logan phantom, N^3 voxels
+    DicomFolder, ///< a folder (scanned recursively; its DICOMDIR is read when present)
+    DicomFile,   ///< one DICOM file (single image or multi-frame)
+    VolumeFile,  ///< .mhd, .mha, .nii, .nii.gz (or a headerless raw file with a RawSpec)
+};
+
+/** What an input names. */
+struct InputSource {
+    InputKind kind = InputKind::Phantom;
+    std::filesystem::path path; ///< the folder or file (a DICOMDIR names its folder)
+    int phantomSize = 128;      ///< Phantom: voxels per axis
+};
+
+/**
+ * The rule, in this order: "phantom:shepp-logan[:N]" (N in [8, 1024], default 128) is the
+ * phantom; a folder is a DICOM folder; a file named DICOMDIR stands for its folder; .mhd, .mha,
+ * .nii and .nii.gz are volume files; any other file is read as DICOM (.dcm, .dicom, no extension,
+ * and whatever starts with the DICM preamble). Throws SettingsError for a bad phantom spec and
+ * LoadError naming the path when it does not exist.
+ */
+InputSource classifyInput(const std::string& input);
+
+/**
+ * The series a folder opens with when none is named: the loadable one with most slices; an
+ * unloadable one only when nothing is loadable; ties keep scan order. Returns an index into
+ * scan.series; throws DicomError when there is none.
+ */
+std::size_t defaultSeriesIndex(const DicomScanResult& scan);
+
+/**
+ * The series `key` names: the series with that key, else the first with that SeriesInstanceUID
+ * (a series split at scan time answers to its UID with its first part; `note` then says so).
+ * Throws DicomError listing the keys found.
+ */
+const DicomSeriesInfo& findSeries(const DicomScanResult& scan, const std::string& key,
+                                  const std::filesystem::path& folder, std::string* note = nullptr);
+
+/**
+ * Values without stated units (NIfTI, MetaImage, raw) are taken for Hounsfield units when their
+ * range looks like CT: the minimum in [-3100, -900] (air is -1000; some scanners pad with -3024)
+ * and the maximum at least 200 (soft tissue and bone). Changes `volume.units` only when they are
+ * Unknown and the range fits; returns the warning to show then.
+ */
+std::optional<std::string> guessHounsfieldUnits(Volume& volume);
+
+struct OpenOptions {
+    std::string seriesKey;           ///< DICOM folder: the series to open (empty: the default)
+    std::optional<RawSpec> raw;      ///< VolumeFile: read as headerless raw with this geometry
+    /** DICOM folder: a scan of the same folder made before (the workstation scans first to let
+     *  the user choose); null: scan now. */
+    std::shared_ptr<const DicomScanResult> scan;
+};
+
+struct OpenedStudy {
+    Volume volume;
+    /** Which series was opened and why, the loader's warnings, the scan's warnings for the
+     *  series and the Hounsfield guess; each once. */
+    std::vector<std::string> warnings;
+    /** DICOM inputs: the series opened (patient and study for exports). */
+    std::optional<DicomSeriesInfo> series;
+};
+
+/**
+ * Opens `source` by the rule above: the phantom, a volume file, a DICOM file or a folder's
+ * series (OpenOptions::seriesKey, else defaultSeriesIndex), then guessHounsfieldUnits. Progress
+ * covers scan and load; throws LoadError/DicomError/SettingsError naming the file and the
+ * problem, Cancelled when cancelled.
+ */
+OpenedStudy openStudy(const InputSource& source, const OpenOptions& options = {},
+                      const ProgressFn& progress = {}, const CancelToken* cancel = nullptr);
+
+} // namespace fvr::core

@@ -1,0 +1,206 @@
+// The one rule for opening a path (classifyInput, the default series, the Hounsfield guess) and
+// openStudy, which follows it for every front end.
+#include <fvr/core/io/open_study.h>
+
+#include <algorithm>
+#include <cctype>
+#include <fstream>
+#include <sstream>
+
+#include <fvr/core/errors.h>
+#include <fvr/core/xray/phantom.h>
+
+namespace fvr::core {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string lower(std::string s) {
+    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    return s;
+}
+
+InputSource parsePhantom(const std::string& spec) {
+    const std::string rest = spec.substr(std::string("phantom:").size());
+    const auto colon = rest.find(':');
+    const std::string kind = rest.substr(0, colon);
+    if (kind != "shepp-logan")
+        throw SettingsError("INPUT: unknown phantom '" + kind + "' (expected shepp-logan)");
+    InputSource s;
+    s.kind = InputKind::Phantom;
+    if (colon != std::string::npos) {
+        const std::string n = rest.substr(colon + 1);
+        std::size_t used = 0;
+        try {
+            s.phantomSize = std::stoi(n, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (used == 0 || used != n.size())
+            throw SettingsError("phantom size: expected an integer, found '" + n + "'");
+    }
+    if (s.phantomSize < 8 || s.phantomSize > 1024)
+        throw SettingsError("phantom size: expected 8..1024, found " + std::to_string(s.phantomSize));
+    return s;
+}
+
+bool hasDicomPreamble(const fs::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    char magic[4] = {};
+    in.seekg(128);
+    return in.read(magic, 4) && std::string(magic, 4) == "DICM";
+}
+
+bool isVolumeFileName(const fs::path& path) {
+    const std::string name = lower(path.filename().string());
+    auto endsWith = [&](const std::string& e) {
+        return name.size() >= e.size() && name.compare(name.size() - e.size(), e.size(), e) == 0;
+    };
+    return endsWith(".mhd") || endsWith(".mha") || endsWith(".nii") || endsWith(".nii.gz");
+}
+
+bool loadable(const DicomSeriesInfo& s) { return s.loadable(); }
+
+void addOnce(std::vector<std::string>& list, const std::string& w) {
+    if (std::find(list.begin(), list.end(), w) == list.end()) list.push_back(w);
+}
+
+/** The scan's choice for a folder, with the note saying which series was opened and why. */
+const DicomSeriesInfo& chooseSeries(const DicomScanResult& scan, const OpenOptions& options,
+                                    const fs::path& folder, std::vector<std::string>& notes) {
+    std::string note;
+    if (!options.seriesKey.empty()) {
+        const DicomSeriesInfo& s = findSeries(scan, options.seriesKey, folder, &note);
+        if (!note.empty()) notes.push_back(note);
+        return s;
+    }
+    const DicomSeriesInfo& s = scan.series[defaultSeriesIndex(scan)];
+    if (scan.series.size() > 1)
+        notes.push_back(folder.string() + " holds " + std::to_string(scan.series.size()) +
+                        " series; loaded " + s.key + " (the loadable one with most slices, " +
+                        std::to_string(s.frameCount) + ")");
+    return s;
+}
+
+OpenedStudy openDicomFolder(const InputSource& source, const OpenOptions& options,
+                            const ProgressFn& progress, const CancelToken* cancel) {
+    auto scan = options.scan;
+    const bool scanning = !scan;
+    auto scaled = [&](double from, double to) -> ProgressFn {
+        if (!progress) return {};
+        return [=](double f, std::string_view stage) { progress(from + (to - from) * f, stage); };
+    };
+    if (scanning)
+        scan = std::make_shared<const DicomScanResult>(
+            scanDicomFolder(source.path, scaled(0.0, 0.4), cancel));
+    OpenedStudy study;
+    const DicomSeriesInfo& chosen = chooseSeries(*scan, options, source.path, study.warnings);
+    DicomVolume loaded = loadDicomSeries(chosen, scaled(scanning ? 0.4 : 0.0, 1.0), cancel);
+    study.volume = std::move(loaded.volume);
+    for (const auto& w : loaded.warnings) addOnce(study.warnings, w);
+    for (const auto& w : chosen.warnings) addOnce(study.warnings, w);
+    study.series = chosen;
+    return study;
+}
+
+} // namespace
+
+InputSource classifyInput(const std::string& input) {
+    if (input.rfind("phantom:", 0) == 0) return parsePhantom(input);
+    InputSource s;
+    s.path = fs::path(input);
+    std::error_code ec;
+    if (!fs::exists(s.path, ec)) throw LoadError(input + ": no such file or folder");
+    if (fs::is_directory(s.path, ec)) {
+        s.kind = InputKind::DicomFolder;
+    } else if (lower(s.path.filename().string()) == "dicomdir") {
+        s.kind = InputKind::DicomFolder;
+        s.path = s.path.has_parent_path() ? s.path.parent_path() : fs::path(".");
+    } else if (isVolumeFileName(s.path) && !hasDicomPreamble(s.path)) {
+        s.kind = InputKind::VolumeFile;
+    } else {
+        s.kind = InputKind::DicomFile;
+    }
+    return s;
+}
+
+std::size_t defaultSeriesIndex(const DicomScanResult& scan) {
+    if (scan.series.empty()) throw DicomError("no image series in the scan");
+    std::size_t best = 0;
+    for (std::size_t i = 1; i < scan.series.size(); ++i) {
+        const auto& s = scan.series[i];
+        const auto& b = scan.series[best];
+        if ((loadable(s) && !loadable(b)) ||
+            (loadable(s) == loadable(b) && s.frameCount > b.frameCount))
+            best = i;
+    }
+    return best;
+}
+
+const DicomSeriesInfo& findSeries(const DicomScanResult& scan, const std::string& key,
+                                  const fs::path& folder, std::string* note) {
+    for (const auto& s : scan.series)
+        if (s.key == key) return s;
+    const DicomSeriesInfo* first = nullptr;
+    int parts = 0;
+    for (const auto& s : scan.series)
+        if (s.seriesUid == key) {
+            if (!first) first = &s;
+            ++parts;
+        }
+    if (!first) {
+        std::string keys;
+        for (const auto& s : scan.series) keys += (keys.empty() ? "" : ", ") + s.key;
+        throw DicomError(folder.string() + ": no series '" + key + "' (found: " + keys + ")");
+    }
+    if (parts > 1 && note)
+        *note = "series " + key + " was split; loaded its first part " + first->key;
+    return *first;
+}
+
+std::optional<std::string> guessHounsfieldUnits(Volume& volume) {
+    if (volume.units != ValueUnits::Unknown) return std::nullopt;
+    const auto [lo, hi] = volume.valueRange();
+    if (!(lo <= -900.0f && lo >= -3100.0f && hi >= 200.0f)) return std::nullopt;
+    volume.units = ValueUnits::HounsfieldUnits;
+    std::ostringstream w;
+    w << "The file states no units; its values (" << lo << " … " << hi
+      << ") look like Hounsfield units and are treated as such.";
+    return w.str();
+}
+
+OpenedStudy openStudy(const InputSource& source, const OpenOptions& options,
+                      const ProgressFn& progress, const CancelToken* cancel) {
+    OpenedStudy study;
+    switch (source.kind) {
+    case InputKind::Phantom:
+        if (progress) progress(0.05, "building phantom");
+        study.volume = makeSheppLoganVolume(source.phantomSize);
+        break;
+    case InputKind::VolumeFile:
+        if (progress) progress(0.05, "reading file");
+        study.volume = options.raw ? loadRaw(source.path, *options.raw) : loadVolume(source.path);
+        break;
+    case InputKind::DicomFile: {
+        if (options.raw) { // headerless raw data whatever its name
+            if (progress) progress(0.05, "reading file");
+            study.volume = loadRaw(source.path, *options.raw);
+            break;
+        }
+        if (progress) progress(0.05, "reading DICOM file");
+        DicomVolume loaded = loadDicomFile(source.path);
+        study.volume = std::move(loaded.volume);
+        study.warnings = std::move(loaded.warnings);
+        break;
+    }
+    case InputKind::DicomFolder:
+        study = openDicomFolder(source, options, progress, cancel);
+        break;
+    }
+    if (cancel) cancel->check();
+    if (auto w = guessHounsfieldUnits(study.volume)) study.warnings.push_back(*w);
+    if (progress) progress(1.0, "study opened");
+    return study;
+}
+
+} // namespace fvr::core
