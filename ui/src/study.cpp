@@ -14,7 +14,8 @@ namespace fvr::ui {
 QString StudySource::displayName() const {
     switch (kind) {
     case Kind::Phantom: return QStringLiteral("Shepp-Logan phantom %1 (built-in)").arg(QString::number(phantomSize) + QStringLiteral("³"));
-    case Kind::VolumeFile: return QFileInfo(path).fileName();
+    case Kind::VolumeFile:
+    case Kind::DicomFile: return QFileInfo(path).fileName();
     case Kind::DicomFolder: return QDir(path).dirName() + (seriesKey.isEmpty() ? QString() : QStringLiteral(" (series)"));
     }
     return {};
@@ -30,7 +31,33 @@ StudySource StudySource::phantom(int n) {
 StudySource StudySource::fromPath(const QString& path) {
     StudySource s;
     s.path = path;
-    s.kind = QFileInfo(path).isDir() ? Kind::DicomFolder : Kind::VolumeFile;
+    try {
+        const core::InputSource in = core::classifyInput(path.toStdString());
+        s.path = QString::fromStdString(in.path.string());
+        s.phantomSize = in.phantomSize;
+        switch (in.kind) {
+        case core::InputKind::Phantom: s.kind = Kind::Phantom; break;
+        case core::InputKind::DicomFolder: s.kind = Kind::DicomFolder; break;
+        case core::InputKind::DicomFile: s.kind = Kind::DicomFile; break;
+        case core::InputKind::VolumeFile: s.kind = Kind::VolumeFile; break;
+        }
+    } catch (const std::exception&) {
+        s.kind = QFileInfo(path).isDir() ? Kind::DicomFolder : Kind::VolumeFile; // reported on open
+    }
+    return s;
+}
+
+core::InputSource StudySource::toCore() const {
+    if (kind == Kind::Phantom) return {core::InputKind::Phantom, {}, phantomSize};
+    return core::classifyInput(path.toStdString()); // throws for a path that vanished
+}
+
+SpectrumSettings workstationSpectrumDefaults() {
+    SpectrumSettings s;
+    s.mapping = core::ValueMapping::Mu;
+    s.transform = core::TransformKind::Fft;
+    s.oversampling = 1.25;
+    s.deapodizeFor = core::Kernel::KaiserBessel4;
     return s;
 }
 
@@ -46,9 +73,7 @@ StudyController::~StudyController() {
 
 double StudyController::estimatedSpectrumMiB(const SpectrumSettings& s) const {
     if (!m_volume) return 0.0;
-    core::PreprocessOptions o;
-    o.oversampling = s.oversampling;
-    return double(core::spectrumBytes(core::paddedDimsFor(m_volume->dims, o))) / (1 << 20);
+    return double(core::spectrumBytes(core::paddedDimsFor(m_volume->dims, s))) / (1 << 20);
 }
 
 void StudyController::report(double fraction, std::string_view stage) {
@@ -107,102 +132,82 @@ void StudyController::startJob(std::function<void(core::CancelToken&)> job) {
 
 void StudyController::open(const StudySource& source) {
     const SpectrumSettings settings = m_settings;
-    auto scan = (source.kind == StudySource::Kind::DicomFolder && source.path == m_scanFolder) ? m_scan : nullptr;
-    startJob([this, source, settings, scan](core::CancelToken& token) {
-        auto vol = std::make_shared<core::Volume>();
-        QStringList warnings;
-        switch (source.kind) {
-        case StudySource::Kind::Phantom:
-            report(0.05, "building phantom");
-            *vol = core::makeSheppLoganVolume(source.phantomSize);
-            break;
-        case StudySource::Kind::VolumeFile:
-            report(0.05, "reading file");
-            *vol = core::loadVolume(source.path.toStdString());
-            break;
-        case StudySource::Kind::DicomFolder: {
-            auto result = scan;
-            if (!result) {
-                result = std::make_shared<const core::DicomScanResult>(core::scanDicomFolder(
-                    source.path.toStdString(), [this](double f, std::string_view st) { report(f * 0.2, st); },
-                    &token));
-                QMetaObject::invokeMethod(this, [this, result, folder = source.path] {
-                    m_scan = result;
-                    m_scanFolder = folder;
-                }, Qt::QueuedConnection);
-            }
-            const core::DicomSeriesInfo* chosen = nullptr;
-            if (!source.seriesKey.isEmpty()) {
-                for (const auto& s : result->series)
-                    if (QString::fromStdString(s.key) == source.seriesKey ||
-                        QString::fromStdString(s.seriesUid) == source.seriesKey)
-                        chosen = &s;
-                if (!chosen) throw core::LoadError(source.path.toStdString() + ": series " +
-                                                   source.seriesKey.toStdString() + " not found");
-            } else if (result->series.size() == 1) {
-                chosen = &result->series.front();
-            } else {
-                QStringList keys, labels;
-                for (const auto& s : result->series) {
-                    keys << QString::fromStdString(s.key);
-                    labels << QStringLiteral("%1 %2 — %3 (%4 images, %5×%6×%7)")
-                                  .arg(QString::fromStdString(s.modality), QString::fromStdString(s.studyDate),
-                                       QString::fromStdString(s.description.empty() ? s.seriesUid : s.description))
-                                  .arg(s.imageCount)
-                                  .arg(s.dims[0])
-                                  .arg(s.dims[1])
-                                  .arg(s.dims[2]);
-                }
-                QMetaObject::invokeMethod(this, [this, source, keys, labels] {
-                    emit seriesChoiceNeeded(source, keys, labels);
-                }, Qt::QueuedConnection);
-                return;
-            }
-            auto loaded = core::loadDicomSeries(
-                *chosen, [this](double f, std::string_view st) { report(0.2 + f * 0.3, st); }, &token);
-            *vol = std::move(loaded.volume);
-            for (const auto& w : loaded.warnings) warnings << QString::fromStdString(w);
-            for (const auto& w : chosen->warnings)
-                if (!warnings.contains(QString::fromStdString(w))) warnings << QString::fromStdString(w);
-            break;
+    auto cached = (source.kind == StudySource::Kind::DicomFolder && source.path == m_scanFolder) ? m_scan : nullptr;
+    startJob([this, source, settings, cached](core::CancelToken& token) {
+        core::OpenOptions options;
+        options.seriesKey = source.seriesKey.toStdString();
+        core::ProgressFn progress = [this](double f, std::string_view st) { report(0.5 * f, st); };
+        if (source.kind == StudySource::Kind::DicomFolder) {
+            options.scan = scanFolder(source, cached, token);
+            if (needsSeriesChoice(source, *options.scan)) return;
+            progress = [this](double f, std::string_view st) { report(0.2 + 0.3 * f, st); };
         }
-        }
-        token.check();
-        if (vol->units == core::ValueUnits::Unknown) {
-            // Files without units (NIfTI, MetaImage) that hold CT: air near -1000, tissue above.
-            const auto [lo, hi] = vol->valueRange();
-            if (lo <= -900.0f && lo >= -3100.0f && hi >= 200.0f) {
-                vol->units = core::ValueUnits::HounsfieldUnits;
-                warnings << tr("The file states no units; its values (%1 … %2) look like Hounsfield units and are "
-                               "treated as such.").arg(lo).arg(hi);
-            }
-        }
-        SpectrumSettings used = settings;
-        if (core::isAttenuation(used.mapping) && vol->units != core::ValueUnits::HounsfieldUnits) {
-            // mu = 1 + HU/1000 only means something for Hounsfield units.
-            used.mapping = core::ValueMapping::Raw;
-            warnings << tr("The values are not Hounsfield units (%1): integrating the raw values instead of "
-                           "attenuation.").arg(QString::fromUtf8(core::unitsName(vol->units)));
-        }
-        core::PreprocessOptions o;
-        o.mapping = used.mapping;
-        o.transform = settings.transform;
-        o.oversampling = settings.oversampling;
-        o.deapodizeFor = settings.deapodizeFor;
-        auto spectrum = core::preprocess(*vol, o, [this](double f, std::string_view st) { report(0.5 + 0.5 * f, st); },
-                                         &token);
-        std::shared_ptr<const core::Volume> cvol = vol;
-        QMetaObject::invokeMethod(this, [this, source, cvol, spectrum, warnings, used] {
-            m_source = source;
-            m_volume = cvol;
-            m_spectrum = spectrum;
-            m_settings = used;
-            m_warnings = warnings;
-            emit warningsChanged(m_warnings);
-            emit studyLoaded(source.displayName());
-            emit spectrumReady();
-        }, Qt::QueuedConnection);
+        finishOpen(source, settings, core::openStudy(source.toCore(), options, progress, &token), token);
     });
+}
+
+std::shared_ptr<const core::DicomScanResult> StudyController::scanFolder(
+    const StudySource& source, std::shared_ptr<const core::DicomScanResult> cached, core::CancelToken& token) {
+    if (cached) return cached;
+    auto scan = std::make_shared<const core::DicomScanResult>(core::scanDicomFolder(
+        source.path.toStdString(), [this](double f, std::string_view st) { report(f * 0.2, st); }, &token));
+    QMetaObject::invokeMethod(this, [this, scan, folder = source.path] {
+        m_scan = scan;
+        m_scanFolder = folder;
+    }, Qt::QueuedConnection);
+    return scan;
+}
+
+bool StudyController::needsSeriesChoice(const StudySource& source, const core::DicomScanResult& scan) {
+    if (!source.seriesKey.isEmpty() || scan.series.size() <= 1) return false;
+    const std::size_t first = core::defaultSeriesIndex(scan);
+    QStringList keys, labels;
+    for (std::size_t n = 0; n < scan.series.size(); ++n) {
+        const auto& s = scan.series[n == 0 ? first : (n <= first ? n - 1 : n)];
+        keys << QString::fromStdString(s.key);
+        labels << QStringLiteral("%1 %2 — %3 (%4 images, %5×%6×%7)%8")
+                      .arg(QString::fromStdString(s.modality), QString::fromStdString(s.studyDate),
+                           QString::fromStdString(s.description.empty() ? s.seriesUid : s.description))
+                      .arg(s.imageCount)
+                      .arg(s.dims[0])
+                      .arg(s.dims[1])
+                      .arg(s.dims[2])
+                      .arg(n == 0 ? tr(" — default")
+                                  : s.loadable() ? QString()
+                                                 : tr(" — cannot be loaded: %1").arg(QString::fromStdString(s.unloadableReason)));
+    }
+    QMetaObject::invokeMethod(this, [this, source, keys, labels] {
+        emit seriesChoiceNeeded(source, keys, labels);
+    }, Qt::QueuedConnection);
+    return true;
+}
+
+void StudyController::finishOpen(const StudySource& source, const SpectrumSettings& settings,
+                                 core::OpenedStudy opened, core::CancelToken& token) {
+    token.check();
+    auto vol = std::make_shared<core::Volume>(std::move(opened.volume));
+    QStringList warnings;
+    for (const auto& w : opened.warnings) warnings << QString::fromStdString(w);
+    SpectrumSettings used = settings;
+    if (core::isAttenuation(used.mapping) && vol->units != core::ValueUnits::HounsfieldUnits) {
+        // mu = 1 + HU/1000 only means something for Hounsfield units.
+        used.mapping = core::ValueMapping::Raw;
+        warnings << tr("The values are not Hounsfield units (%1): integrating the raw values instead of "
+                       "attenuation.").arg(QString::fromUtf8(core::unitsName(vol->units)));
+    }
+    auto spectrum = core::preprocess(*vol, used, [this](double f, std::string_view st) { report(0.5 + 0.5 * f, st); },
+                                     &token);
+    std::shared_ptr<const core::Volume> cvol = vol;
+    QMetaObject::invokeMethod(this, [this, source, cvol, spectrum, warnings, used] {
+        m_source = source;
+        m_volume = cvol;
+        m_spectrum = spectrum;
+        m_settings = used;
+        m_warnings = warnings;
+        emit warningsChanged(m_warnings);
+        emit studyLoaded(source.displayName());
+        emit spectrumReady();
+    }, Qt::QueuedConnection);
 }
 
 void StudyController::setSpectrumSettings(const SpectrumSettings& settings) {
@@ -213,12 +218,7 @@ void StudyController::setSpectrumSettings(const SpectrumSettings& settings) {
     }
     auto vol = m_volume;
     startJob([this, vol, settings](core::CancelToken& token) {
-        core::PreprocessOptions o;
-        o.mapping = settings.mapping;
-        o.transform = settings.transform;
-        o.oversampling = settings.oversampling;
-        o.deapodizeFor = settings.deapodizeFor;
-        auto spectrum = core::preprocess(*vol, o, [this](double f, std::string_view st) { report(f, st); }, &token);
+        auto spectrum = core::preprocess(*vol, settings, [this](double f, std::string_view st) { report(f, st); }, &token);
         QMetaObject::invokeMethod(this, [this, spectrum, settings, vol] {
             if (vol != m_volume) return; // a newer study replaced it meanwhile
             m_spectrum = spectrum;

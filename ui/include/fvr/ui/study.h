@@ -15,6 +15,7 @@
 #include <thread>
 
 #include <fvr/core/dicom/dicom.h>
+#include <fvr/core/io/open_study.h>
 #include <fvr/core/render/kernels.h>
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/render/spectrum.h>
@@ -22,30 +23,28 @@
 
 namespace fvr::ui {
 
-/** Where a study comes from: the built-in phantom, a volume file or a DICOM folder/series. */
+/** Where a study comes from: the built-in phantom, a volume file, a DICOM file or a DICOM
+ *  folder/series. What a path names follows core::classifyInput, as in fvr-render. */
 struct StudySource {
-    enum class Kind { Phantom, VolumeFile, DicomFolder };
+    enum class Kind { Phantom, VolumeFile, DicomFolder, DicomFile };
     Kind kind = Kind::Phantom;
-    QString path;      ///< file or folder
-    QString seriesKey; ///< DICOM series (empty: the only/largest one)
+    QString path;      ///< file or folder (a DICOMDIR: its folder)
+    QString seriesKey; ///< DICOM series (empty: the only one, or the user is asked)
     int phantomSize = 128;
 
     QString displayName() const;
     static StudySource phantom(int n = 128);
-    /** Folder -> DICOM folder; otherwise a volume file. */
+    /** By core::classifyInput ("phantom:shepp-logan[:N]" included). A path that cannot be
+     *  classified (missing) keeps it as given; opening it then reports the error. */
     static StudySource fromPath(const QString& path);
+    core::InputSource toCore() const;
 };
 
-/** Preprocessing settings that need a new spectrum when they change. */
-struct SpectrumSettings {
-    core::ValueMapping mapping = core::ValueMapping::Mu;
-    core::TransformKind transform = core::TransformKind::Fft;
-    double oversampling = 1.25;
-    /** Gridding correction: the volume is divided by this kernel's Fourier transform before the
-     *  3D FFT; the spectrum then renders with that kernel only. Empty: none. */
-    std::optional<core::Kernel> deapodizeFor = core::Kernel::KaiserBessel4;
-    bool operator==(const SpectrumSettings&) const = default;
-};
+/** Preprocessing settings that need a new spectrum when they change: core's options, with the
+ *  workstation's defaults from workstationSpectrumDefaults(). */
+using SpectrumSettings = core::PreprocessOptions;
+/** Attenuation (mu), FFT, oversampling 1.25, gridding correction for Kaiser-Bessel 4. */
+SpectrumSettings workstationSpectrumDefaults();
 
 class StudyController : public QObject {
     Q_OBJECT
@@ -80,7 +79,8 @@ signals:
     void cancelled();
     void warningsChanged(const QStringList& warnings);
     /** A DICOM folder holds several series: the GUI asks the user and calls open() again with
-     *  the chosen key. `labels` describe the series (same order as `keys`). */
+     *  the chosen key. `labels` describe the series (same order as `keys`); the first is the
+     *  default series (core::defaultSeriesIndex, what fvr-render opens), marked so. */
     void seriesChoiceNeeded(const StudySource& source, const QStringList& keys, const QStringList& labels);
 
 private:
@@ -88,9 +88,18 @@ private:
     void poll();
     void preprocessAsync();
     void report(double fraction, std::string_view stage);
+    /** Worker: the scan of a DICOM folder (cached for the series choice). */
+    std::shared_ptr<const core::DicomScanResult> scanFolder(const StudySource& source,
+                                                            std::shared_ptr<const core::DicomScanResult> cached,
+                                                            core::CancelToken& token);
+    /** Worker: asks the GUI to choose a series (the default first); false when none is needed. */
+    bool needsSeriesChoice(const StudySource& source, const core::DicomScanResult& scan);
+    /** Worker: preprocesses the opened volume and hands volume and spectrum to the GUI thread. */
+    void finishOpen(const StudySource& source, const SpectrumSettings& settings, core::OpenedStudy opened,
+                    core::CancelToken& token);
 
     StudySource m_source;
-    SpectrumSettings m_settings;
+    SpectrumSettings m_settings = workstationSpectrumDefaults();
     std::shared_ptr<const core::Volume> m_volume;
     std::shared_ptr<const core::Spectrum> m_spectrum;
     QStringList m_warnings;

@@ -46,6 +46,7 @@ struct PreprocessOptions {
     /** FFTW planning: Measure (default) caches plans as wisdom on disk (XDG cache) so repeated
      *  loads plan instantly; Estimate plans at once without measuring. */
     PlannerEffort effort = PlannerEffort::Measure;
+    bool operator==(const PreprocessOptions&) const = default;
 };
 
 /** Raises Cancelled at the next check once cancel() was called. Thread-safe. */
