@@ -120,9 +120,59 @@ Json sidecarJson(const RunFacts& run, const core::Volume& volume, const WrittenO
         {"views", viewList}};
 }
 
-std::string jsonText(const Json& j) {
+namespace {
+
+std::string scalarText(const Json& j) {
     // Bytes that are not UTF-8 (a DICOM name in Latin-1, say) become U+FFFD instead of failing.
-    return j.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
+    return j.dump(-1, ' ', false, Json::error_handler_t::replace);
+}
+
+/** Text on one line: "[1, 2]", "{"a": 1, "b": [1, 2]}". */
+std::string inlineText(const Json& j) {
+    if (!j.is_structured()) return scalarText(j);
+    std::string out = j.is_array() ? "[" : "{";
+    for (auto it = j.begin(); it != j.end(); ++it) {
+        if (it != j.begin()) out += ", ";
+        if (j.is_object()) out += scalarText(Json(it.key())) + ": ";
+        out += inlineText(*it);
+    }
+    out += j.is_array() ? ']' : '}';
+    return out;
+}
+
+/** Arrays of numbers (or of arrays of numbers) and short objects of such values fit on a line. */
+bool fitsOnALine(const Json& j) {
+    if (!j.is_structured()) return true;
+    for (const auto& e : j)
+        if ((e.is_object() && j.is_array()) || !fitsOnALine(e)) return false;
+    return !j.is_object() || inlineText(j).size() <= 100;
+}
+
+void writeIndented(std::string& out, const Json& j, int indent) {
+    if (fitsOnALine(j) || j.empty()) {
+        out += inlineText(j);
+        return;
+    }
+    const std::string pad(std::size_t(indent) + 2, ' ');
+    out += j.is_array() ? "[\n" : "{\n";
+    for (auto it = j.begin(); it != j.end(); ++it) {
+        if (it != j.begin()) out += ",\n";
+        out += pad;
+        if (j.is_object()) out += scalarText(Json(it.key())) + ": ";
+        writeIndented(out, *it, indent + 2);
+    }
+    out += '\n';
+    out.append(std::size_t(indent), ' ');
+    out += j.is_array() ? ']' : '}';
+}
+
+} // namespace
+
+std::string jsonText(const Json& j) {
+    std::string out;
+    writeIndented(out, j, 0);
+    out += '\n';
+    return out;
 }
 
 void printJson(const Json& j) { std::cout << jsonText(j) << std::flush; }
