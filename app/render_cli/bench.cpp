@@ -20,8 +20,11 @@ struct Stat {
 
 Stat stats(std::vector<double> v) {
     std::sort(v.begin(), v.end());
-    auto q = [&](double f) { return v[std::min(v.size() - 1, std::size_t(std::ceil(f * v.size())) - 1)]; };
-    return {v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]), q(0.95)};
+    auto q = [&](double f) {
+        return v[std::min(v.size() - 1, std::size_t(std::ceil(f * v.size())) - 1)];
+    };
+    return {v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]),
+            q(0.95)};
 }
 
 Json statJson(const Stat& s) { return Json{{"median_ms", s.median}, {"p95_ms", s.p95}}; }
@@ -42,7 +45,8 @@ ViewFrame benchView(const Session& s, int i) {
  *  It cannot apply the slice filters: said in a note, and then only the timings compare. */
 void addRayCasting(const Session& s, double fvrMs, Json& j) {
     const Options& o = s.options;
-    const SpatialProjectorOptions spo = matchingProjectorOptions(s.params(s.base), o.values, o.threads);
+    const SpatialProjectorOptions spo =
+        matchingProjectorOptions(s.params(s.base), o.values, o.threads);
     SpatialProjector sp(s.volume, spo);
     std::vector<double> spatialMs;
     Json psnr = Json::array(), lowest = Json::array();
@@ -50,7 +54,9 @@ void addRayCasting(const Session& s, double fvrMs, Json& j) {
     for (int i = 0; i < spatialViews; ++i) {
         const auto t0 = std::chrono::steady_clock::now();
         const ProjectionImage ref = sp.project(benchView(s, i), s.geometry);
-        spatialMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+        spatialMs.push_back(
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                .count());
         const ProjectionImage img = s.backend.renderer().render(s.params(benchView(s, i)));
         // Identical images have an infinite PSNR: written as null.
         psnr.push_back(std::round(compareImages(img.pixels, ref.pixels).psnr * 100) / 100);
@@ -62,8 +68,9 @@ void addRayCasting(const Session& s, double fvrMs, Json& j) {
                               {"reference", describeProjector(spo, o.voxelModel)}};
     j["speedup_per_view"] = st.median / fvrMs;
     if (o.filter.active())
-        j["note"] = "the spatial projector cannot apply the slice filter (--sharpen, --band-limit): "
-                    "it ray-casts unfiltered images, so only the timings compare, not the images";
+        j["note"] =
+            "the spatial projector cannot apply the slice filter (--sharpen, --band-limit): "
+            "it ray-casts unfiltered images, so only the timings compare, not the images";
     else
         j["accuracy"] = {{"psnr_db", psnr}, {"most_negative_percent", lowest}};
 }
@@ -86,7 +93,8 @@ void runBench(const Session& s) {
         fvrMs = fused.median;
         j["total_fused"] = rateJson(fused);
         j["total_fused"]["passes"] = std::string("slice+row FFT, column FFT") +
-                                     (s.spectrum->kind == TransformKind::Fht ? ", eq. 4" : "") + "+display";
+                                     (s.spectrum->kind == TransformKind::Fht ? ", eq. 4" : "") +
+                                     "+display";
     }
     addRayCasting(s, fvrMs, j);
     printJson(j);

@@ -58,7 +58,8 @@ LoadedInput loadDicomFolder(const Options& o, const std::filesystem::path& path)
             chosen = &s;
     if (!chosen) throw LoadError(o.input + ": series '" + o.series + "' not found (see --info)");
     if (o.series.empty() && scan.series.size() > 1)
-        std::fprintf(stderr, "fvr-render: %zu series in %s; using %s (%d slices); pick one with --series\n",
+        std::fprintf(stderr,
+                     "fvr-render: %zu series in %s; using %s (%d slices); pick one with --series\n",
                      scan.series.size(), o.input.c_str(), chosen->key.c_str(), chosen->frameCount);
     auto loaded = loadDicomSeries(*chosen);
     printWarnings(loaded.warnings);
@@ -85,7 +86,8 @@ LoadedInput loadInput(const Options& o) {
     const std::filesystem::path path(o.input);
     if (std::filesystem::is_directory(path)) return loadDicomFolder(o, path);
     std::string ext = path.extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
     if (ext == ".dcm" || ext == ".dicom" || ext.empty()) {
         auto loaded = loadDicomFile(path);
         printWarnings(loaded.warnings);

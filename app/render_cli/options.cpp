@@ -31,7 +31,8 @@ headerless raw file with --raw-dims, or phantom:shepp-logan[:N] (built-in 3D She
 N^3 voxels, default 128).
 )";
 
-const char* kFooter = R"(JSON outputs (--info, --bench, the sidecar FILE.json) write numbers at full precision (they
+const char* kFooter =
+    R"(JSON outputs (--info, --bench, the sidecar FILE.json) write numbers at full precision (they
 read back to the same double) and write null for a number that is not finite (an infinite
 value in a volume, the PSNR of identical images).
 Exit status: 0 success, 2 bad input or settings, 1 other failure.)";
@@ -40,6 +41,13 @@ Exit status: 0 success, 2 bad input or settings, 1 other failure.)";
 class HelpFormatter : public CLI::Formatter {
 public:
     std::string make_usage(const CLI::App*, std::string) const override { return kUsage; }
+    /** One blank line between the option groups (CLI11 2.1 writes two). */
+    std::string make_help(const CLI::App* app, std::string name,
+                          CLI::AppFormatMode mode) const override {
+        std::string text = CLI::Formatter::make_help(app, std::move(name), mode);
+        for (std::size_t at; (at = text.find("\n\n\n")) != std::string::npos;) text.erase(at, 1);
+        return text;
+    }
 };
 
 /** A finite number, or nothing. */
@@ -83,7 +91,8 @@ CLI::Validator numberCheck(std::function<bool(double)> ok = {}, std::string expe
 
 /** Checks a value with a core function that throws SettingsError ("what: expected ...");
  *  the message without its "what: " (the option's name takes its place). */
-template <class Check> CLI::Validator coreCheck(Check check) {
+template <class Check>
+CLI::Validator coreCheck(Check check) {
     return CLI::Validator(
         [check](std::string& s) -> std::string {
             try {
@@ -210,8 +219,7 @@ void declareInput(CLI::App& app, Parsing& p) {
 void declareView(CLI::App& app, Options& o) {
     const std::string g = "View and image";
     addVec3(app, "--dir", o.dir, "viewing direction in the volume frame (default 0,0,1)")->group(g);
-    addVec3(app, "--up", o.up,
-            "up vector (default 0,-1,0: the plain sum of the slices, as stored)")
+    addVec3(app, "--up", o.up, "up vector (default 0,-1,0: the plain sum of the slices, as stored)")
         ->group(g);
     addParsed(app, "--view", o.view, core::parsePatientView, "V",
               "patient view from the direction cosines (instead of --dir/--up):\n"
@@ -229,9 +237,10 @@ void declareView(CLI::App& app, Options& o) {
             ""))
         ->option_text("M")
         ->group(g);
-    addNumber(app, "--pixel-size", o.pixelSize, "mm",
-              "output pixel size (default: volume diagonal / M, no overlapping copies)",
-              [](double v) { return v > 0; }, "expected a positive number of mm")
+    addNumber(
+        app, "--pixel-size", o.pixelSize, "mm",
+        "output pixel size (default: volume diagonal / M, no overlapping copies)",
+        [](double v) { return v > 0; }, "expected a positive number of mm")
         ->group(g);
 }
 
@@ -252,12 +261,12 @@ void declareSpectrum(CLI::App& app, Options& o) {
         ->check(CLI::IsMember({"on", "off"}))
         ->option_text("on|off")
         ->group(g);
-    addParsed(app, "--transform", o.transform, core::parseTransform, "T",
-              "fft | fht (default fft)")
+    addParsed(app, "--transform", o.transform, core::parseTransform, "T", "fft | fht (default fft)")
         ->group(g);
-    addNumber(app, "--oversampling", o.oversampling, "f",
-              "zero-padding factor 1..2 (default 1, as in the paper)",
-              [](double v) { return v >= 1 && v <= 2; }, "expected a factor in [1, 2]")
+    addNumber(
+        app, "--oversampling", o.oversampling, "f",
+        "zero-padding factor 1..2 (default 1, as in the paper)",
+        [](double v) { return v >= 1 && v <= 2; }, "expected a factor in [1, 2]")
         ->group(g);
     addParsed(app, "--values", o.values, core::parseValueMapping, "V",
               "raw (stored values) | mu (attenuation rel. water, max(0,1+HU/1000)) |\n"
@@ -287,11 +296,12 @@ void declareModel(CLI::App& app, Options& o) {
                  "keep negative line integrals of a volume without negative values\n"
                  "(mu values, or raw data >= 0); by default they are 0, as they truly are")
         ->group(g);
-    addNumber(app, "--depth-cue", o.depthCue, "S",
-              "depth cueing strength 0..1 (default 0): weight 1 at the front of the\n"
-              "volume's bounding sphere falling linearly to 1-S at its back (not with\n"
-              "--kernel nearest)",
-              [](double v) { return v >= 0 && v <= 1; }, "expected a strength in 0..1")
+    addNumber(
+        app, "--depth-cue", o.depthCue, "S",
+        "depth cueing strength 0..1 (default 0): weight 1 at the front of the\n"
+        "volume's bounding sphere falling linearly to 1-S at its back (not with\n"
+        "--kernel nearest)",
+        [](double v) { return v >= 0 && v <= 1; }, "expected a strength in 0..1")
         ->group(g);
     addFilterNumber(app, "--sharpen", o.filter, &core::SliceFilter::sharpenAmount, "A",
                     "unsharp mask on the slice: image + A x (image - Gaussian blur),\n"
@@ -371,10 +381,11 @@ void declareXray(CLI::App& app, Options& o) {
                               "exposure x exp(-mu_water x integral) instead of line integrals\n"
                               "(a radiograph's physics)")
                      ->group(g);
-    auto* muWater = addNumber(app, "--mu-water", o.muWater, "1/mm",
-                              "linear attenuation of water for --beer-lambert (default 0.0193,\n"
-                              "about 70 keV)",
-                              [](double v) { return v > 0 && v < 10; }, "expected 0..10 per mm")
+    auto* muWater = addNumber(
+                        app, "--mu-water", o.muWater, "1/mm",
+                        "linear attenuation of water for --beer-lambert (default 0.0193,\n"
+                        "about 70 keV)",
+                        [](double v) { return v > 0 && v < 10; }, "expected 0..10 per mm")
                         ->group(g);
     addNumber(app, "--energy", o.energy, "keV",
               "photon energy 20..150 for --beer-lambert: mu_water from the NIST XCOM\n"
@@ -383,9 +394,10 @@ void declareXray(CLI::App& app, Options& o) {
         ->excludes(muWater)
         ->needs(beer)
         ->group(g);
-    addNumber(app, "--exposure", o.exposure, "X",
-              "beam intensity for --beer-lambert, > 0 (default 1: full scale)",
-              [](double v) { return v > 0; }, "expected a positive beam intensity")
+    addNumber(
+        app, "--exposure", o.exposure, "X",
+        "beam intensity for --beer-lambert, > 0 (default 1: full scale)",
+        [](double v) { return v > 0; }, "expected a positive beam intensity")
         ->needs(beer)
         ->group(g);
 }
@@ -405,7 +417,8 @@ void checkCombinations(Options& o) {
     if (!o.info && o.bench <= 0 && o.out.empty())
         throw SettingsError("no --out FILE given (or --info, --bench N)");
     if (o.kernelWidth != 0) {
-        if (!o.kaiserBessel()) throw SettingsError("--kernel-width: only for --kernel kaiser-bessel");
+        if (!o.kaiserBessel())
+            throw SettingsError("--kernel-width: only for --kernel kaiser-bessel");
         o.kernel = core::kaiserBesselKernel(o.kernelWidth);
     }
     if (o.beerLambert && !core::isAttenuation(o.values))

@@ -43,7 +43,7 @@ struct Options {
     int bitDepth = 8;
     bool beerLambert = false;
     std::optional<double> muWater; ///< --mu-water
-    std::optional<double> energy;  ///< --energy, keV
+    std::optional<double> energy; ///< --energy, keV
     std::optional<double> exposure;
     core::Transmission transmission; ///< resolved from the three above; active with --beer-lambert
     double depthCue = 0.0;

@@ -36,7 +36,8 @@ std::vector<core::ViewFrame> readViewsFile(const std::string& path) {
         if (!ss.eof()) throw SettingsError(path + ":" + std::to_string(n) + ": expected numbers");
         if (v.empty()) continue;
         if (v.size() != 6)
-            throw SettingsError(path + ":" + std::to_string(n) + ": expected 6 numbers (dx dy dz ux uy uz), found " +
+            throw SettingsError(path + ":" + std::to_string(n) +
+                                ": expected 6 numbers (dx dy dz ux uy uz), found " +
                                 std::to_string(v.size()));
         try {
             views.push_back(core::ViewFrame::fromDirUp({v[0], v[1], v[2]}, {v[3], v[4], v[5]}));
@@ -79,14 +80,16 @@ void writeTextAtomic(const std::string& path, const std::string& text) {
     }
 }
 
-/** --sweep about --axis (default: the volume's head-feet axis), the views file, else the one view. */
+/** --sweep about --axis (default: the volume's head-feet axis), the views file, else the one view.
+ */
 std::vector<ViewFrame> outputViews(const Session& s, const std::vector<ViewFrame>& fileViews) {
     const Options& o = s.options;
     if (o.sweep > 0) {
         const auto& dir = s.volume.direction;
         const Vec3 axis = o.axis ? *o.axis : Vec3{dir[0][2], dir[1][2], dir[2][2]}; // head-feet
         std::vector<ViewFrame> views;
-        for (int i = 0; i < o.sweep; ++i) views.push_back(s.base.rotated(axis, 2.0 * std::numbers::pi * i / o.sweep));
+        for (int i = 0; i < o.sweep; ++i)
+            views.push_back(s.base.rotated(axis, 2.0 * std::numbers::pi * i / o.sweep));
         return views;
     }
     if (!o.viewsFile.empty()) return fileViews;
@@ -101,7 +104,8 @@ std::string valuesText(const Session& s) {
 
 /** A Beer-Lambert PNG shows the film, as the workstation does: the window on the log exposure of
  *  the signal, bone white (the float outputs hold the intensity itself). */
-DisplayWindow filmWindow(const std::vector<float>& lineIntegrals, const Transmission& transmission) {
+DisplayWindow filmWindow(const std::vector<float>& lineIntegrals,
+                         const Transmission& transmission) {
     std::vector<float> logE = lineIntegrals;
     applyLogExposure(logE, transmission);
     DisplayWindow film = autoWindow(logE);
@@ -139,8 +143,10 @@ public:
         if (m_o.format == OutputFormat::Png)
             writePng(path, film ? lineIntegrals.data() : img.pixels.data(), M, M,
                      film ? *film : autoWindow(img.pixels), m_o.bitDepth);
-        else if (m_o.format == OutputFormat::Dicom) writeDicomProjection(path, img, m_exportInfo);
-        else writeProjection(path, img);
+        else if (m_o.format == OutputFormat::Dicom)
+            writeDicomProjection(path, img, m_exportInfo);
+        else
+            writeProjection(path, img);
         m_written.push_back(path);
     }
 
@@ -162,8 +168,10 @@ private:
 /** The DICOM outputs' value description: the values, depth cue and slice filter. */
 DicomExportInfo dicomInfo(const Session& s, DicomExportInfo info) {
     info.valueDescription = valuesText(s);
-    if (s.options.depthCue > 0) info.valueDescription += "; depth cue " + numberText(s.options.depthCue);
-    if (s.options.filter.active()) info.valueDescription += "; slice-filtered (sharpen, band limit)";
+    if (s.options.depthCue > 0)
+        info.valueDescription += "; depth cue " + numberText(s.options.depthCue);
+    if (s.options.filter.active())
+        info.valueDescription += "; slice-filtered (sharpen, band limit)";
     return info;
 }
 
@@ -174,37 +182,44 @@ double renderViews(const Session& s, const std::vector<ViewFrame>& views, ViewWr
     for (std::size_t i = 0; i < views.size(); ++i) {
         writer.add(i, s.backend.renderer().render(s.params(views[i])));
         const auto now = std::chrono::steady_clock::now();
-        if (views.size() > 1 && (now - lastReport > std::chrono::seconds(1) || i + 1 == views.size())) {
-            std::fprintf(stderr, "%sview %zu/%zu%s", isatty(2) ? "\r" : "", i + 1, views.size(), isatty(2) ? "" : "\n");
+        if (views.size() > 1 &&
+            (now - lastReport > std::chrono::seconds(1) || i + 1 == views.size())) {
+            std::fprintf(stderr, "%sview %zu/%zu%s", isatty(2) ? "\r" : "", i + 1, views.size(),
+                         isatty(2) ? "" : "\n");
             lastReport = now;
         }
     }
     if (views.size() > 1 && isatty(2)) std::fprintf(stderr, "\n");
     writer.finish();
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() /
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+               .count() /
            double(views.size());
 }
 
 void printSummary(const Session& s, std::size_t viewCount, bool stacked, double msPerView) {
     const Options& o = s.options;
     const bool one = stacked || viewCount == 1;
-    std::fprintf(stderr, "wrote %s%s (%zu view%s, %dx%d, pixel %.4g mm, %s, %s, %s, %s; %.2f ms per view)\n",
-                 one ? o.out.c_str() : numberedPath(o.out, 0).c_str(), one ? "" : " ...", viewCount,
-                 viewCount > 1 ? "s" : "", o.size, o.size, s.geometry.pixelSize, kernelName(o.kernel),
-                 transformName(o.transform),
-                 o.beerLambert ? "transmission" : projectionUnits(o.values, s.volume.units).c_str(),
-                 s.backend.name().c_str(), msPerView);
+    std::fprintf(
+        stderr, "wrote %s%s (%zu view%s, %dx%d, pixel %.4g mm, %s, %s, %s, %s; %.2f ms per view)\n",
+        one ? o.out.c_str() : numberedPath(o.out, 0).c_str(), one ? "" : " ...", viewCount,
+        viewCount > 1 ? "s" : "", o.size, o.size, s.geometry.pixelSize, kernelName(o.kernel),
+        transformName(o.transform),
+        o.beerLambert ? "transmission" : projectionUnits(o.values, s.volume.units).c_str(),
+        s.backend.name().c_str(), msPerView);
 }
 
 } // namespace
 
-void writeOutputs(const Session& s, const std::vector<ViewFrame>& fileViews, const DicomExportInfo& exportInfo) {
+void writeOutputs(const Session& s, const std::vector<ViewFrame>& fileViews,
+                  const DicomExportInfo& exportInfo) {
     const std::vector<ViewFrame> views = outputViews(s, fileViews);
     ViewWriter writer(s, views.size(), dicomInfo(s, exportInfo));
     const double msPerView = renderViews(s, views, writer);
     // JSON sidecar: every parameter, so the output can be reproduced and registered.
-    const WrittenOutput output{valuesText(s), writer.stacked(), writer.written(), s.preprocessMs, msPerView};
-    writeTextAtomic(s.options.out + ".json", jsonText(sidecarJson(s.facts(), s.volume, output, views)));
+    const WrittenOutput output{valuesText(s), writer.stacked(), writer.written(), s.preprocessMs,
+                               msPerView};
+    writeTextAtomic(s.options.out + ".json",
+                    jsonText(sidecarJson(s.facts(), s.volume, output, views)));
     printSummary(s, views.size(), writer.stacked(), msPerView);
 }
 

@@ -36,22 +36,26 @@ namespace {
 using namespace fvr::core;
 
 /** The volume's spectrum, with a progress line on a terminal; `ms` gets the time it took. */
-std::shared_ptr<const Spectrum> preprocessVolume(const Options& o, const Volume& volume, double& ms) {
+std::shared_ptr<const Spectrum> preprocessVolume(const Options& o, const Volume& volume,
+                                                 double& ms) {
     PreprocessOptions po;
     po.mapping = o.values;
     po.transform = o.transform;
     po.oversampling = o.oversampling;
     po.threads = o.threads;
-    if (o.deapodize.value_or(o.kaiserBessel())) po.deapodizeFor = o.kernel;
+    if (o.deapodize.value_or(o.kaiserBessel()))
+        po.deapodizeFor = o.kernel;
     else if (o.kaiserBessel())
-        std::fprintf(stderr, "fvr-render: warning: kaiser-bessel without deapodization is less accurate than trilinear\n");
+        std::fprintf(stderr, "fvr-render: warning: kaiser-bessel without deapodization is less "
+                             "accurate than trilinear\n");
     const auto t0 = std::chrono::steady_clock::now();
     int lastPct = -1;
     const bool tty = isatty(2);
     auto spectrum = preprocess(volume, po, [&](double f, std::string_view stage) {
         const int pct = int(f * 100);
         if (tty && pct != lastPct) {
-            std::fprintf(stderr, "\rpreprocessing %3d%% %-28.*s", pct, int(stage.size()), stage.data());
+            std::fprintf(stderr, "\rpreprocessing %3d%% %-28.*s", pct, int(stage.size()),
+                         stage.data());
             lastPct = pct;
         }
     });
@@ -65,13 +69,17 @@ int renderVolume(const Options& o, const Volume& volume, const std::vector<ViewF
                  const DicomExportInfo& exportInfo) {
     double preprocessMs = 0.0;
     auto spectrum = preprocessVolume(o, volume, preprocessMs);
-    const double d = o.pixelSize ? *o.pixelSize : defaultPixelSize(volume.dims, volume.spacing, o.size);
+    const double d =
+        o.pixelSize ? *o.pixelSize : defaultPixelSize(volume.dims, volume.spacing, o.size);
     const ImageGeometry geometry{o.size, d};
     validateImageGeometry(geometry);
-    const ViewFrame base = o.view ? patientViewFrame(volume, *o.view) : ViewFrame::fromDirUp(o.dir, o.up);
+    const ViewFrame base =
+        o.view ? patientViewFrame(volume, *o.view) : ViewFrame::fromDirUp(o.dir, o.up);
     auto backend = makeRenderBackend(o, spectrum);
-    const Session s{o,        volume, spectrum, preprocessMs, geometry,
-                    o.threads > 0 ? o.threads : hardwareThreads(), base, *backend};
+    const Session s{o,        volume,
+                    spectrum, preprocessMs,
+                    geometry, o.threads > 0 ? o.threads : hardwareThreads(),
+                    base,     *backend};
     validateRenderParams(s.params(base));
     if (o.bench > 0) runBench(s);
     if (!o.out.empty()) writeOutputs(s, fileViews, exportInfo);
@@ -82,8 +90,9 @@ int renderVolume(const Options& o, const Volume& volume, const std::vector<ViewF
 
 int run(const Options& o) {
     // The views file is read before the input, so that its errors come before the loading.
-    const std::vector<ViewFrame> fileViews =
-        !o.out.empty() && !o.viewsFile.empty() ? readViewsFile(o.viewsFile) : std::vector<ViewFrame>{};
+    const std::vector<ViewFrame> fileViews = !o.out.empty() && !o.viewsFile.empty()
+                                                 ? readViewsFile(o.viewsFile)
+                                                 : std::vector<ViewFrame>{};
     const LoadedInput in = loadInput(o);
     if (in.seriesList) { // DICOM folder --info: the series list
         printJson(seriesListJson(*in.seriesList));

@@ -20,7 +20,7 @@ struct Session {
     std::shared_ptr<const core::Spectrum> spectrum;
     double preprocessMs = 0.0;
     core::ImageGeometry geometry;
-    int threads = 0;     ///< resolved (--threads, else all cores)
+    int threads = 0; ///< resolved (--threads, else all cores)
     core::ViewFrame base; ///< --view, else --dir/--up
     RenderBackend& backend;
 
