@@ -4,17 +4,22 @@
 #include <cstdio>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <cmath>
 #include <complex>
 #include <string>
 
+#include <unistd.h>
+
 #include <fftw3.h>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <fvr/core/dicom/dicom.h>
 #include <fvr/core/io/image_io.h>
+#include <fvr/core/io/volume_io.h>
 #include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/xray/phantom.h>
 #include <fvr/core/render/preprocess.h>
@@ -28,30 +33,57 @@ using namespace fvr::core;
 
 namespace {
 
+using Json = nlohmann::json;
+
 struct Result {
     int status = -1;
-    std::string output; // stdout and stderr
+    std::string out;    // stdout
+    std::string output; // stdout, then stderr
 };
-
-/** Runs fvr-render with `args`; `envPrefix` (e.g. "env -u DISPLAY") goes before the binary. */
-Result run(const std::string& args, const std::string& envPrefix = {}) {
-    const std::string cmd = envPrefix + " " + std::string(FVR_RENDER_EXE) + " " + args + " 2>&1";
-    Result r;
-    FILE* p = popen(cmd.c_str(), "r");
-    if (!p) return r;
-    char buf[4096];
-    std::size_t n;
-    while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.output.append(buf, n);
-    const int st = pclose(p);
-    r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-    return r;
-}
 
 std::string tmp(const std::string& name) { return (fvr::test::tmpDir() / name).string(); }
 
 std::string readText(const std::string& path) {
     std::ifstream in(path);
     return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+/** Runs fvr-render with `args`; `envPrefix` (e.g. "env -u DISPLAY") goes before the binary. */
+Result run(const std::string& args, const std::string& envPrefix = {}) {
+    static int calls = 0;
+    const std::string err = tmp("stderr_" + std::to_string(getpid()) + "_" + std::to_string(++calls) + ".txt");
+    const std::string cmd = envPrefix + " " + std::string(FVR_RENDER_EXE) + " " + args + " 2>" + err;
+    Result r;
+    FILE* p = popen(cmd.c_str(), "r");
+    if (!p) return r;
+    char buf[4096];
+    std::size_t n;
+    while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+    const int st = pclose(p);
+    r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+    r.output = r.out + readText(err);
+    std::remove(err.c_str());
+    return r;
+}
+
+/** The JSON fvr-render printed on stdout (a failed parse fails the test with the text). */
+Json stdoutJson(const Result& r) {
+    try {
+        return Json::parse(r.out);
+    } catch (const std::exception& e) {
+        ADD_FAILURE() << e.what() << " in " << r.output;
+        return Json::object();
+    }
+}
+
+/** A sidecar (or any JSON file) parsed. */
+Json jsonFile(const std::string& path) {
+    try {
+        return Json::parse(readText(path));
+    } catch (const std::exception& e) {
+        ADD_FAILURE() << path << ": " << e.what();
+        return Json::object();
+    }
 }
 
 /** The slice filter applied in double to an M x M image of pixel size d (mm): 2D DFT (FFTW),
@@ -116,22 +148,28 @@ TEST(FvrRender, WritesPfmAndPng) {
 TEST(FvrRender, InfoJsonForPhantomAndSharedVolume) {
     Result r = run("phantom:shepp-logan:48 --info");
     ASSERT_EQ(r.status, 0) << r.output;
-    EXPECT_NE(r.output.find("\"dims\": [48, 48, 48]"), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find("\"units\": \"HU\""), std::string::npos) << r.output;
+    Json j = stdoutJson(r);
+    EXPECT_EQ(j["dims"], Json::parse("[48, 48, 48]")) << r.output;
+    EXPECT_EQ(j["units"], "HU") << r.output;
     const auto headsq = fvr::test::sharedData() / "volumes/headsq/headsq.mhd";
     if (!std::filesystem::exists(headsq)) GTEST_SKIP() << "shared data not found: " << headsq;
     r = run(headsq.string() + " --info");
     ASSERT_EQ(r.status, 0) << r.output;
-    EXPECT_NE(r.output.find("\"dims\": [64, 64, 93]"), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find("\"spacing_mm\": [3.2, 3.2, 1.5]"), std::string::npos) << r.output;
+    j = stdoutJson(r);
+    EXPECT_EQ(j["dims"], Json::parse("[64, 64, 93]")) << r.output;
+    EXPECT_EQ(j["spacing_mm"].get<std::vector<double>>(), (std::vector<double>{3.2, 3.2, 1.5})) << r.output;
 }
 
 TEST(FvrRender, BenchPrintsStageJson) {
     const Result r = run("phantom:shepp-logan:32 --size 128 --bench 5 --kernel sinc4");
     ASSERT_EQ(r.status, 0) << r.output;
-    for (const char* key : {"\"preprocess\"", "\"slice\"", "\"inverse\"", "\"total\"", "\"median_ms\"",
-                            "\"p95_ms\"", "\"kernel\": \"sinc4\"", "\"frames\": 5"})
-        EXPECT_NE(r.output.find(key), std::string::npos) << key << " in " << r.output;
+    const Json j = stdoutJson(r);
+    for (const char* stage : {"preprocess", "slice", "inverse", "total"}) {
+        EXPECT_TRUE(j[stage]["median_ms"].is_number()) << stage << " in " << r.output;
+        EXPECT_TRUE(j[stage]["p95_ms"].is_number()) << stage << " in " << r.output;
+    }
+    EXPECT_EQ(j["settings"]["kernel"], "sinc4") << r.output;
+    EXPECT_EQ(j["frames"], 5) << r.output;
 }
 
 TEST(FvrRender, BadInputExitsTwoWithAClearMessage) {
@@ -200,11 +238,15 @@ TEST(FvrRender, DicomFolderInfoListsSeriesWithWarnings) {
     const auto dir = fvr::test::sharedData() / "dicom/ct_head_ge_gantrytilt_28";
     const Result r = run(dir.string() + " --info");
     ASSERT_EQ(r.status, 0) << r.output;
-    EXPECT_NE(r.output.find("\"series\": ["), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find("\"modality\": \"CT\""), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find("\"images\": 28"), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find("gantry tilt"), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find("uneven slice spacing"), std::string::npos) << r.output;
+    const Json j = stdoutJson(r);
+    ASSERT_TRUE(j["series"].is_array()) << r.output;
+    ASSERT_EQ(j["series"].size(), 1u) << r.output;
+    const Json& s = j["series"][0];
+    EXPECT_EQ(s["modality"], "CT") << r.output;
+    EXPECT_EQ(s["images"], 28) << r.output;
+    const std::string warnings = s["warnings"].dump();
+    EXPECT_NE(warnings.find("gantry tilt"), std::string::npos) << r.output;
+    EXPECT_NE(warnings.find("uneven slice spacing"), std::string::npos) << r.output;
 }
 
 TEST(FvrRender, DicomPatientViewsFollowTheDirectionCosines) {
@@ -245,11 +287,14 @@ TEST(FvrRender, SweepStackEqualsSingleViewsAndSidecarRecordsThem) {
     const auto single = readNpy(tmp("view1.npy"), shape);
     const std::vector<float> frame1(stack.begin() + 128 * 128, stack.begin() + 2 * 128 * 128);
     EXPECT_GT(fvr::test::compare(frame1, single).psnr, 100.0);
-    std::ifstream js(tmp("sweep.npy") + ".json");
-    const std::string json((std::istreambuf_iterator<char>(js)), std::istreambuf_iterator<char>());
-    for (const char* key : {"\"views\": [", "\"kernel\": \"catmull-rom\"", "\"stacked\": true", "\"pixel_size_mm\"",
-                            "\"spacing_mm\"", "\"right\""})
-        EXPECT_NE(json.find(key), std::string::npos) << key << " in " << json;
+    const Json j = jsonFile(tmp("sweep.npy") + ".json");
+    ASSERT_EQ(j["views"].size(), 4u) << j;
+    for (const Json& v : j["views"])
+        for (const char* axis : {"dir", "up", "right"}) EXPECT_EQ(v[axis].size(), 3u) << j;
+    EXPECT_EQ(j["settings"]["kernel"], "catmull-rom") << j;
+    EXPECT_EQ(j["output"]["stacked"], true) << j;
+    EXPECT_TRUE(j["image"]["pixel_size_mm"].is_number()) << j;
+    EXPECT_EQ(j["volume"]["spacing_mm"].size(), 3u) << j;
 }
 
 TEST(FvrRender, ViewsFileNumberedOutputsAndErrors) {
@@ -291,8 +336,9 @@ TEST(FvrRender, BeerLambertIsExpOfTheLineIntegrals) {
 TEST(FvrRender, BenchComparesWithRayCasting) {
     const Result r = run("phantom:shepp-logan:32 --size 128 --bench 4");
     ASSERT_EQ(r.status, 0) << r.output;
-    EXPECT_NE(r.output.find("\"spatial_projector\""), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find("\"speedup_per_view\""), std::string::npos) << r.output;
+    const Json j = stdoutJson(r);
+    EXPECT_TRUE(j["spatial_projector"]["median_ms"].is_number()) << r.output;
+    EXPECT_TRUE(j["speedup_per_view"].is_number()) << r.output;
 }
 
 TEST(FvrRender, KaiserBesselDeapodizedBeatsThePapersSetting) {
@@ -308,9 +354,7 @@ TEST(FvrRender, KaiserBesselDeapodizedBeatsThePapersSetting) {
     const double tl = fvr::test::compare(readNpy(tmp("tl.npy"), shape), truth.pixels).psnr;
     std::printf("[cli] kaiser-bessel4 oversampling 1.25 deapodized %.2f dB, trilinear oversampling 1 %.2f dB\n", kb, tl);
     EXPECT_GT(kb, tl + 12.0);
-    std::ifstream js(tmp("kb.npy") + ".json");
-    const std::string json((std::istreambuf_iterator<char>(js)), std::istreambuf_iterator<char>());
-    EXPECT_NE(json.find("\"deapodized\": true"), std::string::npos);
+    EXPECT_EQ(jsonFile(tmp("kb.npy") + ".json")["settings"]["deapodized"], true);
     const Result bad = run(common + "--kernel linear --kernel-width 6 --out " + tmp("x.npy"));
     EXPECT_EQ(bad.status, 2);
 }
@@ -347,9 +391,10 @@ TEST(FvrRender, BeerLambertEnergyAndExposureScaleTheTransmission) {
                 maxRel, minI);
     EXPECT_LT(maxRel, 1e-5);
     EXPECT_LT(minI, 1.0); // the phantom attenuates: the test sees the exponential, not just the exposure
-    const std::string json = readText(tmp("xbl.npy") + ".json");
-    for (const char* key : {"\"mu_water_per_mm\": 0.02059", "\"energy_kev\": 60", "\"exposure\": 1.5"})
-        EXPECT_NE(json.find(key), std::string::npos) << key << " in " << json;
+    const Json out = jsonFile(tmp("xbl.npy") + ".json")["output"];
+    EXPECT_EQ(out["mu_water_per_mm"].get<double>(), mu) << out; // full precision
+    EXPECT_EQ(out["energy_kev"], 60.0) << out;
+    EXPECT_EQ(out["exposure"], 1.5) << out;
     // mu-bone is an attenuation mapping too.
     const Result bone = run("phantom:shepp-logan:32 --size 128 --values mu-bone --beer-lambert --out " + tmp("xbb.npy"));
     EXPECT_EQ(bone.status, 0) << bone.output;
@@ -380,7 +425,7 @@ TEST(FvrRender, DepthCueMatchesTheAnalyticDepthWeightedProjection) {
     EXPECT_GT(psnr, 37.0); // measured 40.3 dB
     EXPECT_LT(vsPlainRun, 40.0); // the depth cue changes the image
     EXPECT_GT(psnr, vsPlainTruth + 10.0);
-    EXPECT_NE(readText(tmp("dc.npy") + ".json").find("\"depth_cue\": 0.6"), std::string::npos);
+    EXPECT_EQ(jsonFile(tmp("dc.npy") + ".json")["settings"]["depth_cue"], 0.6);
 }
 
 TEST(FvrRender, SliceFilterEqualsTheFilterAppliedInDouble) {
@@ -407,9 +452,9 @@ TEST(FvrRender, SliceFilterEqualsTheFilterAppliedInDouble) {
                 "filter's own change %.3g max, %.2f dB\n", c.maxAbsError, c.peak, c.psnr, change.maxAbsError, change.psnr);
     EXPECT_LT(c.maxAbsError, 1e-5 * c.peak); // measured 4.6e-7 x peak (float rendering)
     EXPECT_GT(change.maxAbsError, 0.02 * c.peak); // the filter does something measurable (6.6% of the peak)
-    const std::string json = readText(tmp("filt.npy") + ".json");
-    EXPECT_NE(json.find("\"filter\": {\"sharpen\": 1, \"sharpen_radius_mm\": 2, \"band_limit_lp_per_mm\": 0.3}"),
-              std::string::npos) << json;
+    const Json filter = jsonFile(tmp("filt.npy") + ".json")["settings"]["filter"];
+    EXPECT_EQ(filter, Json::parse(R"({"sharpen": 1.0, "sharpen_radius_mm": 2.0, "band_limit_lp_per_mm": 0.3})"))
+        << filter;
 }
 
 TEST(FvrRender, XrayOptionsBadInputExitsTwoNamingTheOption) {
@@ -454,21 +499,22 @@ TEST(FvrRender, MuBoneIntegratesMoreThanMu) {
     // The skull (+1000 HU) counts (1.1 + 2 x 0.9) / 2 = 1.45 times as much, the soft tissue (below
     // the +100 HU knee) the same: measured 1.043 times in total.
     EXPECT_GT(bone, 1.02 * mu);
-    EXPECT_NE(readText(tmp("vbone.npy") + ".json").find("\"values\": \"mu-bone\""), std::string::npos);
+    EXPECT_EQ(jsonFile(tmp("vbone.npy") + ".json")["settings"]["values"], "mu-bone");
 }
 
 TEST(FvrRender, BenchPassesTheDepthCueToRayCastingAndNotesTheFilter) {
     Result r = run("phantom:shepp-logan:32 --size 128 --bench 3 --depth-cue 0.5");
     ASSERT_EQ(r.status, 0) << r.output;
     // The spatial projector weights depth the same way (and integrates the same voxel model).
-    EXPECT_NE(r.output.find("\"reference\": \"trilinear ray casting (step s/4, one ray per pixel, depth-weighted)\""),
-              std::string::npos)
+    Json j = stdoutJson(r);
+    EXPECT_EQ(j["spatial_projector"]["reference"],
+              "trilinear ray casting (step s/4, one ray per pixel, depth-weighted)")
         << r.output;
-    EXPECT_EQ(r.output.find("\"note\""), std::string::npos) << r.output;
+    EXPECT_FALSE(j.contains("note")) << r.output;
     r = run("phantom:shepp-logan:32 --size 128 --bench 3 --sharpen 1");
     ASSERT_EQ(r.status, 0) << r.output;
-    EXPECT_NE(r.output.find("\"note\": \"the spatial projector cannot apply the slice filter"), std::string::npos)
-        << r.output;
+    j = stdoutJson(r);
+    EXPECT_EQ(j.value("note", "").rfind("the spatial projector cannot apply the slice filter", 0), 0u) << r.output;
 }
 
 TEST(FvrRender, ClipsOutsideTheVolumeUnlessNoClip) {
@@ -500,24 +546,10 @@ TEST(FvrRender, ClipsOutsideTheVolumeUnlessNoClip) {
     EXPECT_GT(outside, 1000);
     EXPECT_GT(ghost, 1.0);
     EXPECT_GT(fvr::test::compare(clip, truth.pixels).psnr, fvr::test::compare(noclip, truth.pixels).psnr);
-    EXPECT_NE(readText(tmp("noclip.npy") + ".json").find("\"clip_to_volume\": false"), std::string::npos);
-    EXPECT_NE(readText(tmp("clip.npy") + ".json").find("\"clip_to_volume\": true"), std::string::npos);
+    EXPECT_EQ(jsonFile(tmp("noclip.npy") + ".json")["settings"]["clip_to_volume"], false);
+    EXPECT_EQ(jsonFile(tmp("clip.npy") + ".json")["settings"]["clip_to_volume"], true);
 }
 
-namespace {
-/** The numbers of a JSON array field ("name": [a, b, ...]) in fvr-render's output. */
-std::vector<double> jsonNumbers(const std::string& text, const std::string& name) {
-    std::vector<double> v;
-    auto at = text.find("\"" + name + "\": [");
-    if (at == std::string::npos) return v;
-    at = text.find('[', at) + 1;
-    const auto end = text.find(']', at);
-    std::stringstream ss(text.substr(at, end - at));
-    std::string tok;
-    while (std::getline(ss, tok, ',')) v.push_back(std::stod(tok));
-    return v;
-}
-} // namespace
 
 TEST(FvrRender, VoxelModelsRenderRecordAndCompareLikeWithLike) {
     const Result bad = run("phantom:shepp-logan:32 --size 128 --voxel-model cubic-catmull --out " + tmp("vm.npy"));
@@ -541,9 +573,7 @@ TEST(FvrRender, VoxelModelsRenderRecordAndCompareLikeWithLike) {
         p.clipToVolume = p.nonNegative = true;
         std::vector<std::int64_t> shape;
         EXPECT_GT(fvr::test::compare(readNpy(out, shape), cpu.render(p).pixels).psnr, 120.0) << model;
-        EXPECT_NE(readText(out + ".json").find(std::string("\"voxel_model\": \"") + voxelModelName(p.voxelModel) + "\""),
-                  std::string::npos)
-            << model;
+        EXPECT_EQ(jsonFile(out + ".json")["settings"]["voxel_model"], voxelModelName(p.voxelModel)) << model;
     }
 }
 
@@ -555,14 +585,17 @@ TEST(FvrRender, BenchMeasuresTheModelAgainstItsRayCasterAndNegativesAreKeptOnReq
     for (const char* model : {"bandlimited", "trilinear"}) {
         const Result r = run(common + "--bench 1 --keep-negative --voxel-model " + model);
         ASSERT_EQ(r.status, 0) << r.output;
-        const auto p = jsonNumbers(r.output, "psnr_db");
-        const auto lowest = jsonNumbers(r.output, "most_negative_percent");
+        const Json j = stdoutJson(r);
+        const auto p = j["accuracy"]["psnr_db"].get<std::vector<double>>();
+        const auto lowest = j["accuracy"]["most_negative_percent"].get<std::vector<double>>();
         ASSERT_EQ(p.size(), 1u) << r.output;
         ASSERT_EQ(lowest.size(), 1u) << r.output;
         psnr[model] = p[0];
         std::printf("[cli] body CT AP, %s model against trilinear ray casting: %.2f dB, most negative %.3f %%\n", model,
                     p[0], lowest[0]);
-        EXPECT_NE(r.output.find("\"reference\": \"trilinear ray casting (step s/4, one ray per pixel"), std::string::npos);
+        EXPECT_EQ(j["spatial_projector"]["reference"].get<std::string>().rfind(
+                      "trilinear ray casting (step s/4, one ray per pixel", 0),
+                  0u);
         // The band-limited model rings below zero at the scan ends (measured -12.4 %); the
         // trilinear model does not (measured 0).
         if (std::string(model) == "bandlimited") EXPECT_LT(lowest[0], -5.0);
@@ -573,13 +606,113 @@ TEST(FvrRender, BenchMeasuresTheModelAgainstItsRayCasterAndNegativesAreKeptOnReq
     const Result ap = run(common + "--bench 1 --pixel-aperture");
     ASSERT_EQ(ap.status, 0) << ap.output;
     EXPECT_NE(ap.output.find("3 x 3 rays per pixel"), std::string::npos) << ap.output;
-    EXPECT_NE(ap.output.find("\"pixel_aperture\": true"), std::string::npos) << ap.output;
+    EXPECT_EQ(stdoutJson(ap)["settings"]["pixel_aperture"], true) << ap.output;
     // By default no line integral of this attenuation volume is negative, even band-limited.
     ASSERT_EQ(run(common + "--voxel-model bandlimited --out " + tmp("bl.npy")).status, 0);
     ASSERT_EQ(run(common + "--voxel-model bandlimited --keep-negative --out " + tmp("blneg.npy")).status, 0);
     std::vector<std::int64_t> shape;
     EXPECT_EQ(mostNegativeFraction(readNpy(tmp("bl.npy"), shape)), 0.0);
     EXPECT_LT(mostNegativeFraction(readNpy(tmp("blneg.npy"), shape)), -0.05);
-    EXPECT_NE(readText(tmp("bl.npy") + ".json").find("\"non_negative\": true"), std::string::npos);
-    EXPECT_NE(readText(tmp("blneg.npy") + ".json").find("\"non_negative\": false"), std::string::npos);
+    EXPECT_EQ(jsonFile(tmp("bl.npy") + ".json")["settings"]["non_negative"], true);
+    EXPECT_EQ(jsonFile(tmp("blneg.npy") + ".json")["settings"]["non_negative"], false);
+}
+
+TEST(FvrRender, BadSizeAndOutputFormatAreRejectedBeforeLoading) {
+    // The input does not exist: an error about --size or --out shows that they were checked
+    // before the input was opened (let alone preprocessed), and nothing is written.
+    const std::string missing = "/no/such/volume.mhd";
+    struct Case {
+        std::string args, expect;
+    };
+    const Case cases[] = {
+        {missing + " --size 100 --out " + tmp("early.npy"), "--size: expected a power of two in 128..2048, found 100"},
+        {missing + " --size 4096 --out " + tmp("early.npy"), "--size"},
+        {missing + " --out " + tmp("early.tiff"), "--out: unknown output format '.tiff'"},
+    };
+    for (const Case& c : cases) {
+        std::remove(tmp("early.npy").c_str());
+        const Result r = run(c.args);
+        EXPECT_EQ(r.status, 2) << c.args << "\n" << r.output;
+        EXPECT_NE(r.output.find(c.expect), std::string::npos) << c.args << "\n" << r.output;
+        EXPECT_EQ(r.output.find(missing), std::string::npos) << c.args << "\n" << r.output;
+        EXPECT_EQ(r.output.find("preprocessing"), std::string::npos) << r.output;
+        EXPECT_FALSE(std::filesystem::exists(tmp("early.npy")));
+        EXPECT_FALSE(std::filesystem::exists(tmp("early.tiff")));
+    }
+}
+
+TEST(FvrRender, ExclusiveOptionsAreRejectedNamingBoth) {
+    {
+        std::ofstream f(tmp("one_view.txt"));
+        f << "0 0 1 0 -1 0\n";
+    }
+    const std::string missing = "/no/such/volume.mhd ";
+    for (const std::string& args :
+         {"--sweep 3 --views " + tmp("one_view.txt"), std::string("--values mu --beer-lambert --energy 60 --mu-water 0.02")}) {
+        const Result r = run(missing + args + " --out " + tmp("excl.npy"));
+        EXPECT_EQ(r.status, 2) << args << "\n" << r.output;
+        const std::string first = args.substr(0, args.find(' '));
+        const std::string a = first == "--sweep" ? "--sweep" : "--energy";
+        const std::string b = first == "--sweep" ? "--views" : "--mu-water";
+        EXPECT_NE(r.output.find(a), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find(b), std::string::npos) << r.output;
+        EXPECT_EQ(r.output.find("/no/such"), std::string::npos) << "checked before loading: " << r.output;
+    }
+}
+
+TEST(FvrRender, SidecarOriginAndSpacingRoundTripExactly) {
+    // Spacing and origin with more digits than 6 significant ones: the sidecar must give the
+    // volume's doubles back exactly (it is meant for reproduction and registration).
+    const std::string mhd = tmp("odd_geometry.mhd");
+    {
+        std::ofstream f(mhd);
+        f << "NDims = 3\nDimSize = 8 8 8\nElementType = MET_SHORT\nElementSpacing = 0.48828125 0.7031250123456789 "
+             "1.2500000000000002\nOffset = -123.45678901234567 0.1 98765.4321012345\n"
+             "ElementDataFile = odd_geometry.raw\n";
+        std::ofstream raw(tmp("odd_geometry.raw"), std::ios::binary);
+        const std::vector<std::int16_t> voxels(512, 100);
+        raw.write(reinterpret_cast<const char*>(voxels.data()), std::streamsize(voxels.size() * 2));
+    }
+    const Volume v = loadVolume(mhd);
+    const std::string out = tmp("odd_geometry.npy");
+    const Result r = run(mhd + " --size 128 --out " + out);
+    ASSERT_EQ(r.status, 0) << r.output;
+    const Json volume = jsonFile(out + ".json")["volume"];
+    for (int a = 0; a < 3; ++a) {
+        EXPECT_EQ(volume["spacing_mm"][a].get<double>(), v.spacing[a]) << a << " " << volume;
+        EXPECT_EQ(volume["origin_mm"][a].get<double>(), v.origin[a]) << a << " " << volume;
+    }
+    EXPECT_EQ(volume["origin_mm"][0].get<double>(), -123.45678901234567);
+    // --info gives the same numbers.
+    const Json info = stdoutJson(run(mhd + " --info"));
+    EXPECT_EQ(info["spacing_mm"], volume["spacing_mm"]);
+    EXPECT_EQ(info["origin_mm"], volume["origin_mm"]);
+}
+
+TEST(FvrRender, InfoIsValidJsonForAVolumeHoldingInfinity) {
+    // A float volume with an infinite voxel: its value range ends at infinity, which JSON cannot
+    // hold; fvr-render writes null there.
+    const std::string mhd = tmp("inf_volume.mhd");
+    {
+        std::ofstream f(mhd);
+        f << "NDims = 3\nDimSize = 2 2 2\nElementType = MET_FLOAT\nElementDataFile = inf_volume.raw\n";
+        std::ofstream raw(tmp("inf_volume.raw"), std::ios::binary);
+        const float voxels[8] = {0, 1, 2, 3, 4, 5, 6, std::numeric_limits<float>::infinity()};
+        raw.write(reinterpret_cast<const char*>(voxels), sizeof voxels);
+    }
+    const Result r = run(mhd + " --info");
+    ASSERT_EQ(r.status, 0) << r.output;
+    const Json j = stdoutJson(r);
+    ASSERT_EQ(j["value_range"].size(), 2u) << r.output;
+    EXPECT_EQ(j["value_range"][0], 0.0) << r.output;
+    EXPECT_TRUE(j["value_range"][1].is_null()) << r.output;
+    EXPECT_EQ(j["dims"], Json::parse("[2, 2, 2]")) << r.output;
+}
+
+TEST(FvrRender, HelpListsEveryOptionGroupAndExitsZero) {
+    const Result r = run("--help");
+    EXPECT_EQ(r.status, 0) << r.output;
+    for (const char* text : {"usage: fvr-render INPUT", "Input:", "Output:", "Rendering:", "X-ray:", "Benchmark:",
+                             "--size M", "--energy keV", "--voxel-model V", "Exit status"})
+        EXPECT_NE(r.out.find(text), std::string::npos) << text << " in " << r.out;
 }

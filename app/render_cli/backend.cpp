@@ -1,0 +1,147 @@
+// fvr-render's renderer factory: the only FVR_HAVE_GPU branches of the program.
+#include "backend.h"
+
+#include <cstdio>
+#include <cstdlib>
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <fvr/core/render/cpu_renderer.h>
+#ifdef FVR_HAVE_GPU
+#include <QGuiApplication>
+
+#include <fvr/gpu/gpu_renderer.h>
+#include <fvr/gpu/offscreen_context.h>
+#endif
+
+namespace fvr::cli {
+
+BenchFrames RenderBackend::timeFrames(const core::RenderParams& warmUp,
+                                      const std::function<core::RenderParams(int)>& paramsAt,
+                                      int count) {
+    BenchFrames b;
+    renderer().render(warmUp); // warm-up: plans and buffers
+    for (int i = 0; i < count; ++i) {
+        core::StageTimes t;
+        renderer().render(paramsAt(i), &t);
+        b.slice.push_back(t.sliceMs);
+        b.inverse.push_back(t.inverseMs);
+        b.total.push_back(t.totalMs);
+    }
+    return b;
+}
+
+namespace {
+
+class CpuBackend final : public RenderBackend {
+public:
+    CpuBackend(std::shared_ptr<const core::Spectrum> spectrum, int threads)
+        : m_renderer(std::move(spectrum), threads) {}
+    core::Renderer& renderer() override { return m_renderer; }
+    std::string name() const override { return "cpu"; }
+
+private:
+    core::CpuFourierRenderer m_renderer;
+};
+
+#ifdef FVR_HAVE_GPU
+/** A Qt GUI application without windows, an offscreen GL 4.3 context and the GPU renderer. */
+class GpuBackend final : public RenderBackend {
+public:
+    explicit GpuBackend(bool fp16) : m_fp16(fp16) {
+        // Try X first, then Qt's offscreen platform; a missing display must not abort the program.
+        if (!std::getenv("QT_QPA_PLATFORM"))
+            setenv("QT_QPA_PLATFORM", std::getenv("DISPLAY") ? "xcb;offscreen" : "offscreen", 1);
+        if (!std::getenv("XDG_RUNTIME_DIR")) {
+            const std::string dir = "/tmp/fvr-runtime-" + std::to_string(getuid());
+            mkdir(dir.c_str(), 0700);
+            setenv("XDG_RUNTIME_DIR", dir.c_str(), 1);
+        }
+        m_app = std::make_unique<QGuiApplication>(m_argc, m_argv);
+        m_context = std::make_unique<fvr::gpu::OffscreenContext>();
+        m_renderer = std::make_unique<fvr::gpu::GpuFourierRenderer>();
+    }
+    /** Uploads the spectrum (after construction: a failure here still releases the GL objects
+     *  with the context current). */
+    void setSpectrum(std::shared_ptr<const core::Spectrum> spectrum) {
+        m_renderer->setSpectrum(std::move(spectrum), m_fp16 ? fvr::gpu::SpectrumPrecision::Float16
+                                                            : fvr::gpu::SpectrumPrecision::Float32);
+    }
+    ~GpuBackend() override {
+        if (m_renderer && m_context) {
+            m_context->makeCurrent();
+            m_renderer.reset();
+        }
+        m_context.reset();
+        m_app.reset();
+    }
+    core::Renderer& renderer() override { return *m_renderer; }
+    std::string name() const override {
+        return "gpu: " + m_renderer->rendererInfo() + (m_fp16 ? ", fp16" : "");
+    }
+    BenchFrames timeFrames(const core::RenderParams& warmUp,
+                           const std::function<core::RenderParams(int)>& paramsAt,
+                           int count) override;
+
+private:
+    int m_argc = 1;
+    char m_name[16] = "fvr-render";
+    char* m_argv[2] = {m_name, nullptr};
+    bool m_fp16 = false;
+    std::unique_ptr<QGuiApplication> m_app;
+    std::unique_ptr<fvr::gpu::OffscreenContext> m_context;
+    std::unique_ptr<fvr::gpu::GpuFourierRenderer> m_renderer;
+};
+
+BenchFrames GpuBackend::timeFrames(const core::RenderParams& warmUp,
+                                   const std::function<core::RenderParams(int)>& paramsAt,
+                                   int count) {
+    BenchFrames b;
+    auto& r = *m_renderer;
+    // Fused as the workstation renders a frame: slice in the row pass, display mapping
+    // (line integrals to an 8-bit texture) in the last pass.
+    const core::DisplayWindow window{0.0, 1.0, false, {}};
+    for (bool fuse : {false, true}) {
+        r.setFuseSlice(fuse);
+        r.renderToGpu(warmUp, fuse ? &window : nullptr); // warm-up: shader compilation, buffers
+        r.lastTimes();
+        for (int i = 0; i < count; ++i) {
+            r.renderToGpu(paramsAt(i), fuse ? &window : nullptr);
+            const auto t = r.lastTimes(); // GPU timer queries
+            if (fuse) {
+                b.fusedTotal.push_back(t.totalMs);
+            } else {
+                b.slice.push_back(t.sliceMs);
+                b.inverse.push_back(t.inverseMs);
+                b.total.push_back(t.totalMs);
+            }
+        }
+    }
+    return b;
+}
+#endif
+
+} // namespace
+
+std::unique_ptr<RenderBackend> makeRenderBackend(const Options& o,
+                                                 std::shared_ptr<const core::Spectrum> spectrum) {
+#ifdef FVR_HAVE_GPU
+    if (o.gpu) {
+        try {
+            auto gpu = std::make_unique<GpuBackend>(o.fp16);
+            gpu->setSpectrum(spectrum);
+            return gpu;
+        } catch (const std::exception& e) {
+            std::fprintf(stderr, "fvr-render: GPU backend unavailable (%s); rendering on the CPU\n",
+                         e.what());
+        }
+    }
+#else
+    if (o.gpu)
+        std::fprintf(stderr, "fvr-render: built without the GPU renderer; rendering on the CPU\n");
+#endif
+    return std::make_unique<CpuBackend>(std::move(spectrum), o.threads);
+}
+
+} // namespace fvr::cli

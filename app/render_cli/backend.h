@@ -1,0 +1,42 @@
+#pragma once
+/** The renderer fvr-render runs on: the CPU renderer, or the GPU renderer with the offscreen GL
+ *  context that it needs. The only place that knows whether the GPU renderer is built in. */
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <fvr/core/render/renderer.h>
+#include <fvr/core/render/spectrum.h>
+
+#include "options.h"
+
+namespace fvr::cli {
+
+/** Stage times of the frames of --bench, in ms. */
+struct BenchFrames {
+    std::vector<double> slice, inverse, total;
+    /** GPU only: frames rendered as the workstation renders them (slice fused into the row
+     *  pass, display mapping fused into the last pass); empty on the CPU. */
+    std::vector<double> fusedTotal;
+};
+
+class RenderBackend {
+public:
+    virtual ~RenderBackend() = default;
+    virtual core::Renderer& renderer() = 0;
+    /** "cpu", or "gpu: <GL renderer>" (", fp16" with a float16 spectrum). */
+    virtual std::string name() const = 0;
+    /** Renders `warmUp` once (plans, buffers, shaders), then times frames 0..count-1 with the
+     *  parameters of paramsAt(i). */
+    virtual BenchFrames timeFrames(const core::RenderParams& warmUp,
+                                   const std::function<core::RenderParams(int)>& paramsAt,
+                                   int count);
+};
+
+/** The renderer of --backend holding `spectrum`. The GPU falls back to the CPU, saying why on
+ *  stderr, where no GPU is usable or the program is built without the GPU renderer. */
+std::unique_ptr<RenderBackend> makeRenderBackend(const Options& o,
+                                                 std::shared_ptr<const core::Spectrum> spectrum);
+
+} // namespace fvr::cli

@@ -1,0 +1,473 @@
+// fvr-render's command line: every option declared once, with its help, its check and its group.
+#include "options.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <functional>
+#include <iostream>
+#include <sstream>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include <fvr/core/errors.h>
+#include <fvr/core/render/view.h>
+
+namespace fvr::cli {
+namespace {
+
+using core::SettingsError;
+
+constexpr double kDefaultMuWater = 0.0193; // per mm, about 70 keV
+
+const char* kUsage = R"(usage: fvr-render INPUT [options] --out FILE
+       fvr-render INPUT --info
+       fvr-render INPUT --bench N [options]
+
+INPUT is a DICOM folder (or one DICOM file), a volume file (.mhd, .mha, .nii, .nii.gz), a
+headerless raw file with --raw-dims, or phantom:shepp-logan[:N] (built-in 3D Shepp-Logan in HU,
+N^3 voxels, default 128).
+)";
+
+const char* kFooter =
+    R"(JSON outputs (--info, --bench, the sidecar FILE.json) write numbers at full precision (they
+read back to the same double) and write null for a number that is not finite (an infinite
+value in a volume, the PSNR of identical images).
+Exit status: 0 success, 2 bad input or settings, 1 other failure.)";
+
+/** The help's usage lines are fvr-render's own (CLI11 would print "[OPTIONS] INPUT" only). */
+class HelpFormatter : public CLI::Formatter {
+public:
+    std::string make_usage(const CLI::App*, std::string) const override { return kUsage; }
+    /** One blank line between the option groups (CLI11 2.1 writes two). */
+    std::string make_help(const CLI::App* app, std::string name,
+                          CLI::AppFormatMode mode) const override {
+        std::string text = CLI::Formatter::make_help(app, std::move(name), mode);
+        for (std::size_t at; (at = text.find("\n\n\n")) != std::string::npos;) text.erase(at, 1);
+        return text;
+    }
+};
+
+/** A finite number, or nothing. */
+std::optional<double> toNumber(const std::string& s) {
+    try {
+        std::size_t pos = 0;
+        const double v = std::stod(s, &pos);
+        if (pos != s.size() || !std::isfinite(v)) return std::nullopt;
+        return v;
+    } catch (const std::exception&) {
+        return std::nullopt;
+    }
+}
+
+/** "x,y,z" as three finite numbers, or nothing. */
+std::optional<core::Vec3> toVec3(const std::string& s) {
+    std::vector<double> v;
+    std::stringstream ss(s);
+    std::string tok;
+    while (std::getline(ss, tok, ',')) {
+        const auto x = toNumber(tok);
+        if (!x) return std::nullopt;
+        v.push_back(*x);
+    }
+    if (v.size() != 3) return std::nullopt;
+    return core::Vec3{v[0], v[1], v[2]};
+}
+
+/** Checks a number: finite, then `ok` (message "<expected>, found <value>"). CLI11 puts the
+ *  option's name in front of the message. */
+CLI::Validator numberCheck(std::function<bool(double)> ok = {}, std::string expected = {}) {
+    return CLI::Validator(
+        [ok = std::move(ok), expected = std::move(expected)](std::string& s) -> std::string {
+            const auto v = toNumber(s);
+            if (!v) return "expected a number, found '" + s + "'";
+            if (ok && !ok(*v)) return expected + ", found " + s;
+            return {};
+        },
+        "");
+}
+
+/** Checks a value with a core function that throws SettingsError ("what: expected ...");
+ *  the message without its "what: " (the option's name takes its place). */
+template <class Check>
+CLI::Validator coreCheck(Check check) {
+    return CLI::Validator(
+        [check](std::string& s) -> std::string {
+            try {
+                check(s);
+                return {};
+            } catch (const SettingsError& e) {
+                const std::string m = e.what();
+                const auto colon = m.find(": ");
+                return colon != std::string::npos && colon < m.find('\'') ? m.substr(colon + 2) : m;
+            }
+        },
+        "");
+}
+
+/** An option whose value a core parser turns into `target` (an enum, optional or not). */
+template <class Target, class Parse>
+CLI::Option* addParsed(CLI::App& app, const std::string& name, Target& target, Parse parse,
+                       const std::string& text, const std::string& help) {
+    return app
+        .add_option_function<std::string>(
+            name, [&target, parse](const std::string& s) { target = parse(s); }, help)
+        ->check(coreCheck(parse))
+        ->option_text(text);
+}
+
+/** An "x,y,z" option. */
+template <class Target>
+CLI::Option* addVec3(CLI::App& app, const std::string& name, Target& target,
+                     const std::string& help) {
+    return app
+        .add_option_function<std::string>(
+            name, [&target](const std::string& s) { target = *toVec3(s); }, help)
+        ->check(CLI::Validator(
+            [](std::string& s) -> std::string {
+                return toVec3(s) ? "" : "expected x,y,z, found '" + s + "'";
+            },
+            ""))
+        ->option_text("x,y,z");
+}
+
+/** A number option (`double` or `std::optional<double>`) checked by numberCheck. */
+template <class Target>
+CLI::Option* addNumber(CLI::App& app, const std::string& name, Target& target,
+                       const std::string& text, const std::string& help,
+                       std::function<bool(double)> ok = {}, std::string expected = {}) {
+    return app
+        .add_option_function<std::string>(
+            name, [&target](const std::string& s) { target = *toNumber(s); }, help)
+        ->check(numberCheck(std::move(ok), std::move(expected)))
+        ->option_text(text);
+}
+
+/** One slice filter setting, checked by the core rule on its own so that the message names
+ *  the option. */
+CLI::Option* addFilterNumber(CLI::App& app, const std::string& name, core::SliceFilter& filter,
+                             double core::SliceFilter::*field, const std::string& text,
+                             const std::string& help) {
+    return app
+        .add_option_function<std::string>(
+            name, [&filter, field](const std::string& s) { filter.*field = *toNumber(s); }, help)
+        ->check(numberCheck())
+        ->check(coreCheck([field](const std::string& s) {
+            core::SliceFilter f;
+            f.*field = *toNumber(s);
+            core::validateSliceFilter(f);
+        }))
+        ->option_text(text);
+}
+
+OutputFormat outputFormat(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
+    if (ext == ".npy") return OutputFormat::Npy;
+    if (ext == ".pfm") return OutputFormat::Pfm;
+    if (ext == ".png") return OutputFormat::Png;
+    if (ext == ".dcm") return OutputFormat::Dicom;
+    throw SettingsError("--out: unknown output format '" + ext +
+                        "' (expected .npy, .pfm, .png or .dcm)");
+}
+
+/** What the command line fills in: the options and the raw-file settings gathered apart. */
+struct Parsing {
+    Options o;
+    core::RawSpec raw;
+};
+
+void declareInput(CLI::App& app, Parsing& p) {
+    const std::string g = "Input";
+    app.add_option("INPUT", p.o.input, "DICOM folder or file, volume file, raw file or phantom")
+        ->option_text(" ");
+    app.add_option("--series", p.o.series,
+                   "the series to load from a DICOM folder (default: the only one, else the\n"
+                   "one with most slices); --info lists the folder's series as JSON")
+        ->option_text("UID")
+        ->group(g);
+    app.add_option_function<std::string>(
+           "--raw-dims",
+           [&p](const std::string& s) {
+               const core::Vec3 d = *toVec3(s);
+               p.raw.dims = {std::int64_t(d[0]), std::int64_t(d[1]), std::int64_t(d[2])};
+           },
+           "INPUT is a headerless raw file of these dimensions")
+        ->check(CLI::Validator(
+            [](std::string& s) -> std::string {
+                return toVec3(s) ? "" : "expected x,y,z, found '" + s + "'";
+            },
+            ""))
+        ->option_text("NX,NY,NZ")
+        ->group(g);
+    addParsed(app, "--raw-type", p.raw.type, core::parseElementType, "T",
+              "raw element type: int8|uint8|int16|uint16|int32|uint32|int64|uint64|\n"
+              "float32|float64 (default int16)")
+        ->group(g);
+    addVec3(app, "--raw-spacing", p.raw.spacing, "raw voxel spacing in mm (default 1,1,1)")
+        ->option_text("sx,sy,sz")
+        ->group(g);
+    app.add_flag("--raw-big-endian", p.raw.bigEndian, "raw values are big-endian")->group(g);
+    app.add_option("--raw-header", p.raw.headerBytes, "bytes to skip at the start of the raw file")
+        ->option_text("BYTES")
+        ->group(g);
+}
+
+void declareView(CLI::App& app, Options& o) {
+    const std::string g = "View and image";
+    addVec3(app, "--dir", o.dir, "viewing direction in the volume frame (default 0,0,1)")->group(g);
+    addVec3(app, "--up", o.up, "up vector (default 0,-1,0: the plain sum of the slices, as stored)")
+        ->group(g);
+    addParsed(app, "--view", o.view, core::parsePatientView, "V",
+              "patient view from the direction cosines (instead of --dir/--up):\n"
+              "AP | PA | LEFT | RIGHT | HEAD | FEET (AP: from anterior, head up,\n"
+              "patient's left on the image's right)")
+        ->group(g);
+    app.add_option("--size", o.size, "slice/image size, power of two 128..2048 (default 512)")
+        ->check(CLI::Validator(
+            [](std::string& s) -> std::string {
+                const int m = std::atoi(s.c_str());
+                return m >= 128 && m <= 2048 && (m & (m - 1)) == 0
+                           ? ""
+                           : "expected a power of two in 128..2048, found " + s;
+            },
+            ""))
+        ->option_text("M")
+        ->group(g);
+    addNumber(
+        app, "--pixel-size", o.pixelSize, "mm",
+        "output pixel size (default: volume diagonal / M, no overlapping copies)",
+        [](double v) { return v > 0; }, "expected a positive number of mm")
+        ->group(g);
+}
+
+void declareSpectrum(CLI::App& app, Options& o) {
+    const std::string g = "Rendering";
+    addParsed(app, "--kernel", o.kernel, core::parseKernel, "K",
+              "nearest | linear | bspline | catmull-rom | sinc4 | kaiser-bessel\n"
+              "(default linear)")
+        ->group(g);
+    app.add_option("--kernel-width", o.kernelWidth, "kaiser-bessel width: 4 (default) or 6")
+        ->check(CLI::IsMember({4, 6}))
+        ->option_text("W")
+        ->group(g);
+    app.add_option_function<std::string>(
+           "--deapodize", [&o](const std::string& s) { o.deapodize = s == "on"; },
+           "divide the volume by the kernel's Fourier transform before the 3D FFT\n"
+           "(gridding correction; default on for kaiser-bessel, off otherwise)")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->option_text("on|off")
+        ->group(g);
+    addParsed(app, "--transform", o.transform, core::parseTransform, "T", "fft | fht (default fft)")
+        ->group(g);
+    addNumber(
+        app, "--oversampling", o.oversampling, "f",
+        "zero-padding factor 1..2 (default 1, as in the paper)",
+        [](double v) { return v >= 1 && v <= 2; }, "expected a factor in [1, 2]")
+        ->group(g);
+    addParsed(app, "--values", o.values, core::parseValueMapping, "V",
+              "raw (stored values) | mu (attenuation rel. water, max(0,1+HU/1000)) |\n"
+              "mu-bone (as mu up to +100 HU, twice as steep above: bone stands out)")
+        ->group(g);
+}
+
+void declareModel(CLI::App& app, Options& o) {
+    const std::string g = "Rendering";
+    addParsed(app, "--voxel-model", o.voxelModel, core::parseVoxelModel, "V",
+              "what lies between the voxels: trilinear (default: the projection a\n"
+              "trilinear DRR ray caster computes, no ringing) | bspline (the cubic\n"
+              "B-spline through the voxels) | bandlimited (the plain FVR image,\n"
+              "sharpest, rings at scan ends and between coarse slices)")
+        ->group(g);
+    app.add_flag("--pixel-aperture", o.pixelAperture,
+                 "detector pixels integrate over their area (sinc per image axis)\n"
+                 "instead of sampling the projection at their centres")
+        ->group(g);
+    app.add_flag_callback(
+           "--no-clip", [&o] { o.clip = false; },
+           "keep what FVR puts outside the volume's shadow (ghost copies, ringing);\n"
+           "by default pixels whose ray misses the voxel model's support are 0,\n"
+           "as they truly are")
+        ->group(g);
+    app.add_flag("--keep-negative", o.keepNegative,
+                 "keep negative line integrals of a volume without negative values\n"
+                 "(mu values, or raw data >= 0); by default they are 0, as they truly are")
+        ->group(g);
+    addNumber(
+        app, "--depth-cue", o.depthCue, "S",
+        "depth cueing strength 0..1 (default 0): weight 1 at the front of the\n"
+        "volume's bounding sphere falling linearly to 1-S at its back (not with\n"
+        "--kernel nearest)",
+        [](double v) { return v >= 0 && v <= 1; }, "expected a strength in 0..1")
+        ->group(g);
+    addFilterNumber(app, "--sharpen", o.filter, &core::SliceFilter::sharpenAmount, "A",
+                    "unsharp mask on the slice: image + A x (image - Gaussian blur),\n"
+                    "A >= 0 (default 0, off)")
+        ->group(g);
+    addFilterNumber(app, "--sharpen-radius", o.filter, &core::SliceFilter::sharpenSigmaMm, "mm",
+                    "sigma of the unsharp mask's Gaussian (default 1.0)")
+        ->group(g);
+    addFilterNumber(app, "--band-limit", o.filter, &core::SliceFilter::bandLimitLpMm, "lp/mm",
+                    "order-8 Butterworth low-pass, -3 dB at this frequency (default 0, off)")
+        ->group(g);
+}
+
+void declareBackend(CLI::App& app, Options& o) {
+    const std::string g = "Rendering";
+    app.add_option_function<std::string>(
+           "--backend", [&o](const std::string& s) { o.gpu = s == "gpu"; },
+           "renderer (default cpu); gpu renders offscreen with OpenGL 4.3 compute\n"
+           "shaders and falls back to the CPU, saying why, when no GPU is usable")
+        ->check(CLI::IsMember({"cpu", "gpu"}))
+        ->option_text("cpu|gpu")
+        ->group(g);
+    app.add_flag("--fp16", o.fp16, "GPU: store the spectrum as float16 (2 bytes per voxel)")
+        ->group(g);
+    app.add_option("--threads", o.threads, "worker threads (default: all cores)")
+        ->check(CLI::NonNegativeNumber)
+        ->option_text("N")
+        ->group(g);
+}
+
+void declareViews(CLI::App& app, Options& o) {
+    const std::string g = "Many views (DRRs)";
+    auto* sweep = app.add_option("--sweep", o.sweep,
+                                 "N views rotating about --axis (default: the patient's\n"
+                                 "head-feet axis)")
+                      ->check(CLI::Range(0, 100000))
+                      ->option_text("N")
+                      ->group(g);
+    addVec3(app, "--axis", o.axis, "rotation axis of --sweep in the volume frame")->group(g);
+    app.add_option("--views", o.viewsFile,
+                   "one view per line: dx dy dz ux uy uz (commas or spaces; # comments)")
+        ->option_text("FILE")
+        ->excludes(sweep)
+        ->group(g);
+    app.add_flag("--numbered", o.numbered,
+                 "with several views and a .npy output: numbered files, not one stack")
+        ->group(g);
+}
+
+void declareOutput(CLI::App& app, Options& o) {
+    const std::string g = "Output";
+    app.add_option_function<std::string>(
+           "--out",
+           [&o](const std::string& s) {
+               o.out = s;
+               o.format = outputFormat(s);
+           },
+           ".npy (float32 line integrals, shape (M, M), row 0 at the top; several\n"
+           "views: one stacked (N, M, M) file), .pfm (float, rows bottom-to-top),\n"
+           ".png (display-mapped, auto window), .dcm (DICOM secondary capture);\n"
+           "several views and .pfm/.png/.dcm: FILE_0000.ext, FILE_0001.ext, ...\n"
+           "A JSON sidecar FILE.json records every parameter and view.")
+        ->check(coreCheck([](const std::string& s) { outputFormat(s); }))
+        ->option_text("FILE")
+        ->group(g);
+    app.add_option("--bit-depth", o.bitDepth, "PNG bit depth (default 8)")
+        ->check(CLI::IsMember({8, 16}))
+        ->option_text("8|16")
+        ->group(g);
+    app.add_flag("--info", o.info, "print the volume's facts as JSON")->group(g);
+}
+
+void declareXray(CLI::App& app, Options& o) {
+    const std::string g = "X-ray";
+    auto* beer = app.add_flag("--beer-lambert", o.beerLambert,
+                              "with --values mu or mu-bone: transmitted intensity\n"
+                              "exposure x exp(-mu_water x integral) instead of line integrals\n"
+                              "(a radiograph's physics)")
+                     ->group(g);
+    auto* muWater = addNumber(
+                        app, "--mu-water", o.muWater, "1/mm",
+                        "linear attenuation of water for --beer-lambert (default 0.0193,\n"
+                        "about 70 keV)",
+                        [](double v) { return v > 0 && v < 10; }, "expected 0..10 per mm")
+                        ->group(g);
+    addNumber(app, "--energy", o.energy, "keV",
+              "photon energy 20..150 for --beer-lambert: mu_water from the NIST XCOM\n"
+              "table (instead of --mu-water; 0.02059 per mm at 60 keV)")
+        ->check(coreCheck([](const std::string& s) { core::waterAttenuationPerMm(*toNumber(s)); }))
+        ->excludes(muWater)
+        ->needs(beer)
+        ->group(g);
+    addNumber(
+        app, "--exposure", o.exposure, "X",
+        "beam intensity for --beer-lambert, > 0 (default 1: full scale)",
+        [](double v) { return v > 0; }, "expected a positive beam intensity")
+        ->needs(beer)
+        ->group(g);
+}
+
+void declareBenchmark(CLI::App& app, Options& o) {
+    app.add_option("--bench", o.bench,
+                   "render N frames over varying views, print per-stage timings as JSON,\n"
+                   "and the same views by ray casting (spatial projector) with the speed-up")
+        ->check(CLI::NonNegativeNumber)
+        ->option_text("N")
+        ->group("Benchmark");
+}
+
+/** The rules that join several options (each option's own range is checked as it is parsed). */
+void checkCombinations(Options& o) {
+    if (o.input.empty()) throw SettingsError("no INPUT given (see --help)");
+    if (!o.info && o.bench <= 0 && o.out.empty())
+        throw SettingsError("no --out FILE given (or --info, --bench N)");
+    if (o.kernelWidth != 0) {
+        if (!o.kaiserBessel())
+            throw SettingsError("--kernel-width: only for --kernel kaiser-bessel");
+        o.kernel = core::kaiserBesselKernel(o.kernelWidth);
+    }
+    if (o.beerLambert && !core::isAttenuation(o.values))
+        throw SettingsError("--beer-lambert: needs --values mu or mu-bone (transmission follows "
+                            "from attenuation)");
+    if (o.depthCue > 0 && o.kernel == core::Kernel::Nearest)
+        throw SettingsError("--depth-cue: needs the derivative of the interpolation kernel; "
+                            "--kernel nearest has none (choose linear or better)");
+    // --dir and --up (unless --view replaces them): the message names the vector at fault.
+    if (!o.view) core::ViewFrame::fromDirUp(o.dir, o.up);
+    o.transmission.muWaterPerMm =
+        o.energy ? core::waterAttenuationPerMm(*o.energy) : o.muWater.value_or(kDefaultMuWater);
+    o.transmission.exposure = o.exposure.value_or(1.0);
+}
+
+void declareAll(CLI::App& app, Parsing& p) {
+    app.formatter(std::make_shared<HelpFormatter>());
+    app.get_formatter()->column_width(26);
+    app.footer(kFooter);
+    // As before: an option given twice takes its last value.
+    app.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
+    declareInput(app, p);
+    declareView(app, p.o);
+    declareSpectrum(app, p.o);
+    declareModel(app, p.o);
+    declareBackend(app, p.o);
+    declareViews(app, p.o);
+    declareOutput(app, p.o);
+    declareXray(app, p.o);
+    declareBenchmark(app, p.o);
+}
+
+} // namespace
+
+std::optional<Options> parseOptions(int argc, char** argv) {
+    CLI::App app("", "fvr-render");
+    Parsing p;
+    declareAll(app, p);
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        app.exit(e);
+        return std::nullopt;
+    } catch (const CLI::ParseError& e) {
+        throw SettingsError(std::string(e.what()) + " (see --help)");
+    }
+    if (app.count("--raw-dims") > 0) p.o.raw = p.raw;
+    checkCombinations(p.o);
+    return p.o;
+}
+
+} // namespace fvr::cli

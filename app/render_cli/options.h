@@ -1,0 +1,70 @@
+#pragma once
+/** fvr-render's settings, declared once with CLI11 (options.cpp): the help text, the parser and
+ *  the checks of every value and combination come from the same declarations, and all of them
+ *  run before any input is loaded. */
+#include <optional>
+#include <string>
+
+#include <fvr/core/io/volume_io.h>
+#include <fvr/core/render/kernels.h>
+#include <fvr/core/render/spectrum.h>
+#include <fvr/core/render/voxel_model.h>
+#include <fvr/core/volume.h>
+#include <fvr/core/xray/patient_views.h>
+#include <fvr/core/xray/xray.h>
+
+namespace fvr::cli {
+
+/** Output file formats, from the extension of --out. */
+enum class OutputFormat { None, Npy, Pfm, Png, Dicom };
+
+struct Options {
+    std::string input;
+    core::Vec3 dir{0, 0, 1};
+    core::Vec3 up{0, -1, 0};
+    int size = 512;
+    std::optional<double> pixelSize;
+    core::Kernel kernel = core::Kernel::Linear;
+    int kernelWidth = 0;
+    std::optional<bool> deapodize;
+    core::TransformKind transform = core::TransformKind::Fft;
+    double oversampling = 1.0;
+    core::ValueMapping values = core::ValueMapping::Raw;
+    int threads = 0;
+    bool gpu = false;
+    bool fp16 = false;
+    std::optional<core::RawSpec> raw;
+    std::optional<core::PatientView> view;
+    std::string series;
+    int sweep = 0;
+    std::optional<core::Vec3> axis;
+    std::string viewsFile;
+    bool numbered = false;
+    int bitDepth = 8;
+    bool beerLambert = false;
+    std::optional<double> muWater; ///< --mu-water
+    std::optional<double> energy; ///< --energy, keV
+    std::optional<double> exposure;
+    core::Transmission transmission; ///< resolved from the three above; active with --beer-lambert
+    double depthCue = 0.0;
+    bool clip = true;
+    core::VoxelModel voxelModel = core::VoxelModel::Trilinear;
+    bool pixelAperture = false;
+    bool keepNegative = false;
+    core::SliceFilter filter;
+    std::string out;
+    OutputFormat format = OutputFormat::None; ///< from the extension of `out`
+    bool info = false;
+    int bench = 0;
+
+    bool kaiserBessel() const {
+        return kernel == core::Kernel::KaiserBessel4 || kernel == core::Kernel::KaiserBessel6;
+    }
+};
+
+/** Parses and checks the command line. Returns nothing when --help was asked for (the help is
+ *  printed on stdout). Throws core::SettingsError naming the option for every bad value or
+ *  combination (exit status 2). */
+std::optional<Options> parseOptions(int argc, char** argv);
+
+} // namespace fvr::cli

@@ -1,0 +1,109 @@
+// fvr-render's run: load, preprocess, choose the renderer, then --info, --bench and --out.
+#include "run.h"
+
+#include <chrono>
+#include <cstdio>
+
+#include <unistd.h>
+
+#include <fvr/core/errors.h>
+#include <fvr/core/render/preprocess.h>
+#include <fvr/core/thread_pool.h>
+#include <fvr/core/xray/patient_views.h>
+
+#include "input.h"
+#include "session.h"
+
+namespace fvr::cli {
+
+core::RenderParams Session::params(const core::ViewFrame& view) const {
+    core::RenderParams p{view, geometry, options.kernel};
+    p.depthCue = options.depthCue;
+    p.filter = options.filter;
+    p.clipToVolume = options.clip;
+    p.voxelModel = options.voxelModel;
+    p.pixelAperture = options.pixelAperture;
+    p.nonNegative = !options.keepNegative;
+    return p;
+}
+
+RunFacts Session::facts() const {
+    return RunFacts{options, *spectrum, geometry.pixelSize, threads, backend.name()};
+}
+
+namespace {
+
+using namespace fvr::core;
+
+/** The volume's spectrum, with a progress line on a terminal; `ms` gets the time it took. */
+std::shared_ptr<const Spectrum> preprocessVolume(const Options& o, const Volume& volume,
+                                                 double& ms) {
+    PreprocessOptions po;
+    po.mapping = o.values;
+    po.transform = o.transform;
+    po.oversampling = o.oversampling;
+    po.threads = o.threads;
+    if (o.deapodize.value_or(o.kaiserBessel()))
+        po.deapodizeFor = o.kernel;
+    else if (o.kaiserBessel())
+        std::fprintf(stderr, "fvr-render: warning: kaiser-bessel without deapodization is less "
+                             "accurate than trilinear\n");
+    const auto t0 = std::chrono::steady_clock::now();
+    int lastPct = -1;
+    const bool tty = isatty(2);
+    auto spectrum = preprocess(volume, po, [&](double f, std::string_view stage) {
+        const int pct = int(f * 100);
+        if (tty && pct != lastPct) {
+            std::fprintf(stderr, "\rpreprocessing %3d%% %-28.*s", pct, int(stage.size()),
+                         stage.data());
+            lastPct = pct;
+        }
+    });
+    if (tty) std::fprintf(stderr, "\r%60s\r", "");
+    ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return spectrum;
+}
+
+/** Renders what the options ask for from the loaded volume. */
+int renderVolume(const Options& o, const Volume& volume, const std::vector<ViewFrame>& fileViews,
+                 const DicomExportInfo& exportInfo) {
+    double preprocessMs = 0.0;
+    auto spectrum = preprocessVolume(o, volume, preprocessMs);
+    const double d =
+        o.pixelSize ? *o.pixelSize : defaultPixelSize(volume.dims, volume.spacing, o.size);
+    const ImageGeometry geometry{o.size, d};
+    validateImageGeometry(geometry);
+    const ViewFrame base =
+        o.view ? patientViewFrame(volume, *o.view) : ViewFrame::fromDirUp(o.dir, o.up);
+    auto backend = makeRenderBackend(o, spectrum);
+    const Session s{o,        volume,
+                    spectrum, preprocessMs,
+                    geometry, o.threads > 0 ? o.threads : hardwareThreads(),
+                    base,     *backend};
+    validateRenderParams(s.params(base));
+    if (o.bench > 0) runBench(s);
+    if (!o.out.empty()) writeOutputs(s, fileViews, exportInfo);
+    return 0;
+}
+
+} // namespace
+
+int run(const Options& o) {
+    // The views file is read before the input, so that its errors come before the loading.
+    const std::vector<ViewFrame> fileViews = !o.out.empty() && !o.viewsFile.empty()
+                                                 ? readViewsFile(o.viewsFile)
+                                                 : std::vector<ViewFrame>{};
+    const LoadedInput in = loadInput(o);
+    if (in.seriesList) { // DICOM folder --info: the series list
+        printJson(seriesListJson(*in.seriesList));
+        return 0;
+    }
+    const Volume& volume = *in.volume;
+    if (o.info) {
+        printJson(volumeInfoJson(volume));
+        if (o.out.empty() && o.bench <= 0) return 0;
+    }
+    return renderVolume(o, volume, fileViews, in.exportInfo);
+}
+
+} // namespace fvr::cli

@@ -1,0 +1,45 @@
+#pragma once
+/** What the steps after preprocessing share: the volume, its spectrum, the renderer and the
+ *  settings every view is rendered with. */
+#include <memory>
+#include <vector>
+
+#include <fvr/core/dicom/dicom_export.h>
+#include <fvr/core/render/renderer.h>
+#include <fvr/core/volume.h>
+
+#include "backend.h"
+#include "json_output.h"
+#include "options.h"
+
+namespace fvr::cli {
+
+struct Session {
+    const Options& options;
+    const core::Volume& volume;
+    std::shared_ptr<const core::Spectrum> spectrum;
+    double preprocessMs = 0.0;
+    core::ImageGeometry geometry;
+    int threads = 0; ///< resolved (--threads, else all cores)
+    core::ViewFrame base; ///< --view, else --dir/--up
+    RenderBackend& backend;
+
+    /** Every view is rendered with the same settings (the CPU and the GPU renderer take the
+     *  same). */
+    core::RenderParams params(const core::ViewFrame& view) const;
+    RunFacts facts() const;
+};
+
+/** --bench: times the frames, ray-casts the same views and prints all of it as JSON. */
+void runBench(const Session& s);
+
+/** Views from --views FILE: "dx dy dz ux uy uz" per line. Throws SettingsError naming
+ *  file:line, LoadError where the file cannot be read. */
+std::vector<core::ViewFrame> readViewsFile(const std::string& path);
+
+/** --out: renders the views (--sweep, --views FILE, else the one view), writes the images and
+ *  the JSON sidecar FILE.json, and says what it wrote on stderr. */
+void writeOutputs(const Session& s, const std::vector<core::ViewFrame>& fileViews,
+                  const core::DicomExportInfo& exportInfo);
+
+} // namespace fvr::cli
