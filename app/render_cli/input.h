@@ -18,9 +18,10 @@ struct LoadedInput {
     core::DicomExportInfo exportInfo;
 };
 
-/** Opens INPUT: phantom:shepp-logan[:N], a raw file (--raw-dims), a DICOM folder (the series of
- *  --series, else the one with most slices), one DICOM file, or a volume file. Prints the
- *  loaders' warnings on stderr. Throws InputError for bad input. */
+/** Opens INPUT by core's rule (core::classifyInput, core::openStudy): phantom:shepp-logan[:N],
+ *  a raw file (--raw-dims), a DICOM folder or DICOMDIR (the series of --series, else the default
+ *  series: loadable, then most slices), one DICOM file, or a volume file; values without units
+ *  that look like CT are taken for HU. Prints the warnings on stderr. Throws InputError. */
 LoadedInput loadInput(const Options& o);
 
 } // namespace fvr::cli

@@ -1,6 +1,8 @@
 // fvr-render's JSON documents, built with nlohmann-json.
 #include "json_output.h"
 
+#include <fvr/core/io/open_study.h>
+
 #include <charconv>
 #include <iostream>
 
@@ -29,6 +31,8 @@ Json seriesJson(const core::DicomSeriesInfo& s) {
                 {"frames", s.frameCount},
                 {"dims", dimsJson(s.dims)},
                 {"spacing_mm", vecJson(s.spacing)},
+                {"loadable", s.loadable()},
+                {"unloadable_reason", s.unloadableReason},
                 {"warnings", s.warnings}};
 }
 
@@ -56,7 +60,12 @@ Json volumeInfoJson(const core::Volume& v) {
 
 Json seriesListJson(const core::DicomScanResult& scan) {
     Json series = Json::array();
-    for (const auto& s : scan.series) series.push_back(seriesJson(s));
+    const std::size_t byDefault = scan.series.empty() ? 0 : core::defaultSeriesIndex(scan);
+    for (std::size_t i = 0; i < scan.series.size(); ++i) {
+        Json s = seriesJson(scan.series[i]);
+        s["default"] = i == byDefault; // what fvr-render and the workstation open without --series
+        series.push_back(std::move(s));
+    }
     return Json{{"series", series}, {"skipped", scan.skipped}};
 }
 

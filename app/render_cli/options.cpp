@@ -26,9 +26,10 @@ const char* kUsage = R"(usage: fvr-render INPUT [options] --out FILE
        fvr-render INPUT --info
        fvr-render INPUT --bench N [options]
 
-INPUT is a DICOM folder (or one DICOM file), a volume file (.mhd, .mha, .nii, .nii.gz), a
-headerless raw file with --raw-dims, or phantom:shepp-logan[:N] (built-in 3D Shepp-Logan in HU,
-N^3 voxels, default 128).
+INPUT is a DICOM folder, its DICOMDIR or one DICOM file, a volume file (.mhd, .mha, .nii,
+.nii.gz; values without units that look like CT are taken for HU), a headerless raw file with
+--raw-dims, or phantom:shepp-logan[:N] (built-in 3D Shepp-Logan in HU, N^3 voxels, default
+128). The workstation opens paths by the same rule.
 )";
 
 const char* kFooter =
@@ -185,8 +186,9 @@ void declareInput(CLI::App& app, Parsing& p) {
     app.add_option("INPUT", p.o.input, "DICOM folder or file, volume file, raw file or phantom")
         ->option_text(" ");
     app.add_option("--series", p.o.series,
-                   "the series to load from a DICOM folder (default: the only one, else the\n"
-                   "one with most slices); --info lists the folder's series as JSON")
+                   "the series to load from a DICOM folder, by key or UID (default: the\n"
+                   "loadable one with most slices, as in the workstation); --info lists the\n"
+                   "folder's series as JSON, the default one marked")
         ->option_text("UID")
         ->group(g);
     app.add_option_function<std::string>(
