@@ -284,6 +284,51 @@ QRectF ProjectionView::imageRect() const {
     return {width() / 2.0 - side / 2.0 + m_pan.x(), height() / 2.0 - side / 2.0 + m_pan.y(), side, side};
 }
 
+GLuint ProjectionView::frameTexture() {
+    if (m_gpu && !m_cpuImage) {
+        const GLuint tex = m_gpu->displayTexture(m_window);
+        const auto t = m_gpu->lastTimes();
+        if (m_gpuTimesPending) {
+            m_stats.sliceMs = t.sliceMs;
+            m_stats.inverseMs = t.inverseMs;
+            m_stats.totalMs = t.totalMs;
+            m_stats.fused = t.fused;
+            m_stats.displayFused = t.displayFused;
+            m_stats.displayMs = t.displayMs;
+            m_gpuTimesPending = false;
+            if (m_timedLevel == m_progressive.level()) frameTimed(t.totalMs);
+        }
+        return tex;
+    }
+    if (m_cpuImage) {
+        uploadCpuTexture(*m_cpuImage);
+        return m_cpuTexture;
+    }
+    return 0;
+}
+
+void ProjectionView::uploadCpuTexture(const core::ProjectionImage& image) {
+    auto* f = context()->extraFunctions();
+    const int M = image.size;
+    std::vector<unsigned char> rgba(std::size_t(M) * M * 4);
+    for (std::size_t i = 0; i < std::size_t(M) * M; ++i) {
+        const auto v = static_cast<unsigned char>(std::lround(m_window.map(image.pixels[i]) * 255.0));
+        rgba[4 * i] = rgba[4 * i + 1] = rgba[4 * i + 2] = v;
+        rgba[4 * i + 3] = 255;
+    }
+    if (!m_cpuTexture) f->glGenTextures(1, &m_cpuTexture);
+    f->glBindTexture(GL_TEXTURE_2D, m_cpuTexture);
+    f->glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    if (m_cpuTextureSize != M) {
+        f->glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, M, M, 0, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+        f->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+        f->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        m_cpuTextureSize = M;
+    } else {
+        f->glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, M, M, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+    }
+}
+
 void ProjectionView::paintGL() {
     auto* f = context()->extraFunctions();
     f->glClearColor(0.08f, 0.08f, 0.09f, 1.0f);
@@ -302,40 +347,7 @@ void ProjectionView::paintGL() {
     }
     GLuint tex = 0;
     try {
-    if (m_gpu && !m_cpuImage) {
-        tex = m_gpu->displayTexture(m_window);
-        const auto t = m_gpu->lastTimes();
-        if (m_gpuTimesPending) {
-            m_stats.sliceMs = t.sliceMs;
-            m_stats.inverseMs = t.inverseMs;
-            m_stats.totalMs = t.totalMs;
-            m_stats.fused = t.fused;
-            m_stats.displayFused = t.displayFused;
-            m_stats.displayMs = t.displayMs;
-            m_gpuTimesPending = false;
-            if (m_timedLevel == m_progressive.level()) frameTimed(t.totalMs);
-        }
-    } else if (m_cpuImage) {
-        const int M = m_cpuImage->size;
-        std::vector<unsigned char> rgba(std::size_t(M) * M * 4);
-        for (std::size_t i = 0; i < std::size_t(M) * M; ++i) {
-            const auto v = static_cast<unsigned char>(std::lround(m_window.map(m_cpuImage->pixels[i]) * 255.0));
-            rgba[4 * i] = rgba[4 * i + 1] = rgba[4 * i + 2] = v;
-            rgba[4 * i + 3] = 255;
-        }
-        if (!m_cpuTexture) f->glGenTextures(1, &m_cpuTexture);
-        f->glBindTexture(GL_TEXTURE_2D, m_cpuTexture);
-        f->glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-        if (m_cpuTextureSize != M) {
-            f->glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, M, M, 0, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
-            f->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-            f->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-            m_cpuTextureSize = M;
-        } else {
-            f->glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, M, M, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
-        }
-        tex = m_cpuTexture;
-    }
+        tex = frameTexture();
     } catch (const std::exception& e) { // nothing may leave paintGL
         m_renderError = tr("Not displayed: %1").arg(QString::fromUtf8(e.what()));
         tex = 0;

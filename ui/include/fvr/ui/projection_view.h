@@ -136,6 +136,10 @@ private:
     void windowFromFrame();
     void frameTimed(double ms);
     void endDrag();
+    /** The texture showing the frame through the window (0: none): the GPU's display texture,
+     *  or the CPU image uploaded. */
+    unsigned frameTexture();
+    void uploadCpuTexture(const core::ProjectionImage& image);
     void drawOverlay();
     void drawOrientationLabels(QPainter& p);
     /** The performance overlay: fps, kernel, size, backend, level, effects, stage times, window. */
