@@ -23,7 +23,8 @@ void AccuracyReadout::measure(ProjectionView& view, const StudyController& study
         m_worker.join();
     }
     if (view.effects().filter.active()) {
-        emit message(tr("The accuracy readout compares with ray casting, which has no slice filters: turn edge "
+        emit message(tr("The accuracy readout compares with ray casting, which has no slice "
+                        "filters: turn edge "
                         "enhancement and the band limit off to measure."),
                      true);
         return;
@@ -33,23 +34,30 @@ void AccuracyReadout::measure(ProjectionView& view, const StudyController& study
     const auto volume = study.volume();
     // The ray caster with the same voxel model, depth weighting and pixel sampling as the frame.
     const core::RenderParams rendered = view.renderParams(fvr->size, view.settings().kernel);
-    const core::SpatialProjectorOptions options = core::matchingProjectorOptions(rendered, study.spectrum()->mapping);
-    const QString reference = QString::fromStdString(core::describeProjector(options, rendered.voxelModel));
+    const core::SpatialProjectorOptions options =
+        core::matchingProjectorOptions(rendered, study.spectrum()->mapping);
+    const QString reference =
+        QString::fromStdString(core::describeProjector(options, rendered.voxelModel));
     const core::ViewFrame frame = fvr->view;
     const core::ImageGeometry geom{fvr->size, fvr->pixelSize};
-    emit message(tr("Measuring accuracy: %1 of the same view, in the background…").arg(reference), false);
+    emit message(tr("Measuring accuracy: %1 of the same view, in the background…").arg(reference),
+                 false);
     m_done.store(false);
     m_worker = std::thread([this, volume, options, reference, frame, geom, fvr = *fvr] {
         double psnr = 0, rel = 0;
         try {
             core::SpatialProjector sp(*volume, options);
-            const core::ImageComparison c = core::compareImages(fvr.pixels, sp.project(frame, geom).pixels);
+            const core::ImageComparison c =
+                core::compareImages(fvr.pixels, sp.project(frame, geom).pixels);
             psnr = c.psnr;
             rel = c.relRmse;
         } catch (const std::exception& e) {
             const QString what = QString::fromUtf8(e.what());
             QMetaObject::invokeMethod(
-                this, [this, what] { emit message(tr("Accuracy measurement failed: %1").arg(what), true); },
+                this,
+                [this, what] {
+                    emit message(tr("Accuracy measurement failed: %1").arg(what), true);
+                },
                 Qt::QueuedConnection);
             m_done.store(true);
             return;

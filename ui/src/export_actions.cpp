@@ -22,7 +22,8 @@ namespace fvr::ui {
 
 bool MainWindow::exportScreenshot(const QString& path) {
     if (m_views.empty()) return false;
-    const QImage img = m_compareCount == 1 ? m_views[0]->screenshot() : m_viewHost->grab().toImage();
+    const QImage img =
+        m_compareCount == 1 ? m_views[0]->screenshot() : m_viewHost->grab().toImage();
     QSaveFile f(path);
     if (!f.open(QIODevice::WriteOnly) || !img.save(&f, "PNG") || !f.commit()) {
         message(tr("Could not write %1: %2").arg(path, f.errorString()), true);
@@ -47,10 +48,14 @@ bool MainWindow::exportProjection(const QString& path) {
         const std::string out = path.toStdString();
         std::vector<float> values = p->pixels;
         if (t.active() && ext != "png") core::applyTransmission(values, t);
-        if (ext == "npy") core::writeNpy(out, values.data(), p->size, p->size);
-        else if (ext == "pfm") core::writePfm(out, values.data(), p->size, p->size);
-        else if (ext == "png") core::writePng(out, p->pixels.data(), p->size, p->size, m_views[0]->window(), 16);
-        else throw core::WriteError(out + ": unknown format (expected .npy, .pfm or .png)");
+        if (ext == "npy")
+            core::writeNpy(out, values.data(), p->size, p->size);
+        else if (ext == "pfm")
+            core::writePfm(out, values.data(), p->size, p->size);
+        else if (ext == "png")
+            core::writePng(out, p->pixels.data(), p->size, p->size, m_views[0]->window(), 16);
+        else
+            throw core::WriteError(out + ": unknown format (expected .npy, .pfm or .png)");
     } catch (const std::exception& e) {
         message(tr("Could not export: %1").arg(QString::fromUtf8(e.what())), true);
         return false;
@@ -59,7 +64,9 @@ bool MainWindow::exportProjection(const QString& path) {
                 .arg(path)
                 .arg(p->size)
                 .arg(p->pixelSize, 0, 'g', 4)
-                .arg(t.active() ? tr("transmitted intensity, μ_water %1/mm, exposure %2").arg(t.muWaterPerMm, 0, 'f', 4).arg(t.exposure)
+                .arg(t.active() ? tr("transmitted intensity, μ_water %1/mm, exposure %2")
+                                      .arg(t.muWaterPerMm, 0, 'f', 4)
+                                      .arg(t.exposure)
                                 : tr("line integrals")));
     return true;
 }
@@ -98,7 +105,9 @@ bool MainWindow::exportSweep(const QString& folder, int frames, const core::Vec3
             stack.insert(stack.end(), p->pixels.begin(), p->pixels.end());
         }
         try {
-            core::writePng(QDir(folder).filePath(QStringLiteral("frame_%1.png").arg(i, 4, 10, QChar('0'))).toStdString(),
+            core::writePng(QDir(folder)
+                               .filePath(QStringLiteral("frame_%1.png").arg(i, 4, 10, QChar('0')))
+                               .toStdString(),
                            p->pixels.data(), M, M, v->window(), 8);
         } catch (const std::exception& e) {
             message(tr("Sweep export failed: %1").arg(QString::fromUtf8(e.what())), true);
@@ -110,7 +119,8 @@ bool MainWindow::exportSweep(const QString& folder, int frames, const core::Vec3
     v->setViewFrame(start);
     if (ok) {
         try {
-            core::writeNpy(QDir(folder).filePath("sweep.npy").toStdString(), stack.data(), M, M, frames);
+            core::writeNpy(QDir(folder).filePath("sweep.npy").toStdString(), stack.data(), M, M,
+                           frames);
         } catch (const std::exception& e) {
             message(tr("Sweep export failed: %1").arg(QString::fromUtf8(e.what())), true);
             return false;
@@ -123,24 +133,28 @@ bool MainWindow::exportSweep(const QString& folder, int frames, const core::Vec3
 }
 
 void MainWindow::exportScreenshotDialog() {
-    const QString path = QFileDialog::getSaveFileName(this, tr("Export screenshot"), QSettings().value(keys::kLastFolder).toString() + "/view.png",
-                                                      tr("PNG image (*.png)"));
+    const QString path = QFileDialog::getSaveFileName(
+        this, tr("Export screenshot"),
+        QSettings().value(keys::kLastFolder).toString() + "/view.png", tr("PNG image (*.png)"));
     if (!path.isEmpty()) exportScreenshot(path);
 }
 
 void MainWindow::exportProjectionDialog() {
     const QString path = QFileDialog::getSaveFileName(
-        this, tr("Export projection"), QSettings().value(keys::kLastFolder).toString() + "/projection.npy",
+        this, tr("Export projection"),
+        QSettings().value(keys::kLastFolder).toString() + "/projection.npy",
         tr("Float line integrals (*.npy);;16-bit PNG, current window (*.png);;PFM float (*.pfm)"));
     if (!path.isEmpty()) exportProjection(path);
 }
 
 void MainWindow::exportSweepDialog() {
     bool ok = false;
-    const int n = QInputDialog::getInt(this, tr("Rotation sweep"), tr("Frames around the patient's head-feet axis:"), 36, 1,
+    const int n = QInputDialog::getInt(this, tr("Rotation sweep"),
+                                       tr("Frames around the patient's head-feet axis:"), 36, 1,
                                        3600, 1, &ok);
     if (!ok) return;
-    const QString folder = QFileDialog::getExistingDirectory(this, tr("Folder for the sweep"), QSettings().value(keys::kLastFolder).toString());
+    const QString folder = QFileDialog::getExistingDirectory(
+        this, tr("Folder for the sweep"), QSettings().value(keys::kLastFolder).toString());
     if (folder.isEmpty() || !m_study->volume()) return;
     // Head-feet axis of the patient in the volume's index frame.
     const auto& d = m_study->volume()->direction;
@@ -149,7 +163,8 @@ void MainWindow::exportSweepDialog() {
 
 void MainWindow::copyToClipboard() {
     if (m_views.empty()) return;
-    QGuiApplication::clipboard()->setImage(m_compareCount == 1 ? m_views[0]->screenshot() : m_viewHost->grab().toImage());
+    QGuiApplication::clipboard()->setImage(m_compareCount == 1 ? m_views[0]->screenshot()
+                                                               : m_viewHost->grab().toImage());
     message(tr("Copied the view to the clipboard"));
 }
 

@@ -20,18 +20,24 @@ constexpr int kMaxRecent = 8;
 
 void MainWindow::buildMenus() {
     QMenu* file = menuBar()->addMenu(tr("&File"));
-    QAction* openFolder = file->addAction(tr("Open DICOM &folder…"), this, &MainWindow::openFolderDialog);
+    QAction* openFolder =
+        file->addAction(tr("Open DICOM &folder…"), this, &MainWindow::openFolderDialog);
     openFolder->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_D));
-    QAction* openFile = file->addAction(tr("&Open volume file…"), this, &MainWindow::openFileDialog);
+    QAction* openFile =
+        file->addAction(tr("&Open volume file…"), this, &MainWindow::openFileDialog);
     openFile->setShortcut(QKeySequence::Open);
-    file->addAction(tr("Open built-in &phantom"), this, [this] { openStudy(StudySource::phantom(128)); });
+    file->addAction(tr("Open built-in &phantom"), this,
+                    [this] { openStudy(StudySource::phantom(128)); });
     m_recentMenu = file->addMenu(tr("&Recent studies"));
     file->addSeparator();
-    QAction* shot = file->addAction(tr("Export &screenshot (PNG)…"), this, &MainWindow::exportScreenshotDialog);
+    QAction* shot =
+        file->addAction(tr("Export &screenshot (PNG)…"), this, &MainWindow::exportScreenshotDialog);
     shot->setShortcut(QKeySequence::Save);
-    file->addAction(tr("Export &projection (16-bit PNG, .npy, .pfm)…"), this, &MainWindow::exportProjectionDialog);
+    file->addAction(tr("Export &projection (16-bit PNG, .npy, .pfm)…"), this,
+                    &MainWindow::exportProjectionDialog);
     file->addAction(tr("Export rotation s&weep…"), this, &MainWindow::exportSweepDialog);
-    QAction* copy = file->addAction(tr("&Copy view to clipboard"), this, &MainWindow::copyToClipboard);
+    QAction* copy =
+        file->addAction(tr("&Copy view to clipboard"), this, &MainWindow::copyToClipboard);
     copy->setShortcut(QKeySequence::Copy);
     file->addSeparator();
     QAction* quit = file->addAction(tr("&Quit"), this, &QWidget::close);
@@ -47,11 +53,13 @@ void MainWindow::buildMenus() {
 
     QMenu* help = menuBar()->addMenu(tr("&Help"));
     help->addAction(tr("&About"), this, [this] {
-        QMessageBox::about(this, tr("About %1").arg(QString::fromUtf8(applicationName())),
-                           tr("<b>%1 %2</b><p>X-ray-like projections by Fourier volume rendering "
-                              "(Viola, Kanitsar, Gröller). Parallel projection, no occlusion: every "
-                              "pixel is a line integral through the whole volume.</p>")
-                               .arg(QString::fromUtf8(applicationName()), QString::fromUtf8(applicationVersion())));
+        QMessageBox::about(
+            this, tr("About %1").arg(QString::fromUtf8(applicationName())),
+            tr("<b>%1 %2</b><p>X-ray-like projections by Fourier volume rendering "
+               "(Viola, Kanitsar, Gröller). Parallel projection, no occlusion: every "
+               "pixel is a line integral through the whole volume.</p>")
+                .arg(QString::fromUtf8(applicationName()),
+                     QString::fromUtf8(applicationVersion())));
     });
 }
 
@@ -61,9 +69,12 @@ void MainWindow::buildViewMenu(QMenu* view, QToolBar* tb) {
         {core::PatientView::Left, Qt::Key_3}, {core::PatientView::Right, Qt::Key_4},
         {core::PatientView::Head, Qt::Key_5}, {core::PatientView::Feet, Qt::Key_6}};
     for (const auto& [pv, key] : views) {
-        QAction* a = view->addAction(QString::fromUtf8(core::patientViewName(pv)), this, [this, pv] { showPatientView(pv); });
+        QAction* a = view->addAction(QString::fromUtf8(core::patientViewName(pv)), this,
+                                     [this, pv] { showPatientView(pv); });
         a->setShortcut(QKeySequence(key));
-        a->setToolTip(tr("Patient view %1 (%2)").arg(QString::fromUtf8(core::patientViewName(pv))).arg(QKeySequence(key).toString()));
+        a->setToolTip(tr("Patient view %1 (%2)")
+                          .arg(QString::fromUtf8(core::patientViewName(pv)))
+                          .arg(QKeySequence(key).toString()));
         tb->addAction(a);
     }
     QAction* reset = view->addAction(tr("&Reset view"), this, [this] {
@@ -75,8 +86,8 @@ void MainWindow::buildViewMenu(QMenu* view, QToolBar* tb) {
     view->addSeparator();
     tb->addSeparator();
     for (int n : {1, 2, 4}) {
-        QAction* a = view->addAction(n == 1 ? tr("Single view") : tr("Compare %1 views").arg(n), this,
-                                     [this, n] { setCompareCount(n); });
+        QAction* a = view->addAction(n == 1 ? tr("Single view") : tr("Compare %1 views").arg(n),
+                                     this, [this, n] { setCompareCount(n); });
         tb->addAction(a);
     }
     QAction* diff = view->addAction(tr("&Difference to view 1"));
@@ -91,7 +102,8 @@ void MainWindow::buildViewMenu(QMenu* view, QToolBar* tb) {
         for (auto* v : m_views) v->setOverlayVisible(on);
     });
     for (auto* v : m_views) v->setOverlayVisible(m_overlayAction->isChecked());
-    QAction* acc = view->addAction(tr("&Accuracy against ray casting"), this, &MainWindow::measureAccuracy);
+    QAction* acc =
+        view->addAction(tr("&Accuracy against ray casting"), this, &MainWindow::measureAccuracy);
     acc->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_A));
     view->addAction(tr("Reset &zoom"), this, [this] {
         for (auto* v : m_views) v->resetPanZoom();
@@ -99,7 +111,9 @@ void MainWindow::buildViewMenu(QMenu* view, QToolBar* tb) {
 }
 
 void MainWindow::openStudy(const StudySource& source) {
-    message(tr("Opening %1…").arg(source.kind == StudySource::Kind::Phantom ? source.displayName() : source.path));
+    message(
+        tr("Opening %1…")
+            .arg(source.kind == StudySource::Kind::Phantom ? source.displayName() : source.path));
     if (source.kind != StudySource::Kind::Phantom) addRecent(source.path);
     m_study->open(source);
 }
@@ -125,13 +139,15 @@ void MainWindow::rebuildRecentMenu() {
 }
 
 void MainWindow::openFileDialog() {
-    const QString path = QFileDialog::getOpenFileName(this, tr("Open volume file"), QSettings().value(keys::kLastFolder).toString(),
-                                                      tr("Volumes (*.mhd *.mha *.nii *.nii.gz);;All files (*)"));
+    const QString path = QFileDialog::getOpenFileName(
+        this, tr("Open volume file"), QSettings().value(keys::kLastFolder).toString(),
+        tr("Volumes (*.mhd *.mha *.nii *.nii.gz);;All files (*)"));
     if (!path.isEmpty()) openStudy(StudySource::fromPath(path));
 }
 
 void MainWindow::openFolderDialog() {
-    const QString path = QFileDialog::getExistingDirectory(this, tr("Open DICOM folder"), QSettings().value(keys::kLastFolder).toString());
+    const QString path = QFileDialog::getExistingDirectory(
+        this, tr("Open DICOM folder"), QSettings().value(keys::kLastFolder).toString());
     if (!path.isEmpty()) openStudy(StudySource::fromPath(path));
 }
 

@@ -22,21 +22,24 @@ void MainWindow::setCompareCount(int n) {
     n = (n >= 4) ? 4 : (n >= 2 ? 2 : 1);
     if (n > 1 && m_rendering && m_rendering->values().deapodize) {
         // A deapodized spectrum serves one kernel; the comparison needs them all.
-        message(tr("Compare mode: gridding correction turned off so that each view can use its own kernel."));
+        message(tr("Compare mode: gridding correction turned off so that each view can use its own "
+                   "kernel."));
         RenderingPanel::Values r = m_rendering->values();
         r.deapodize = false;
         m_rendering->setValues(r);
         applySpectrumSettings();
     }
-    const core::ViewFrame frame =
-        m_views.empty() ? core::ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0}) : m_views[0]->viewFrame();
+    const core::ViewFrame frame = m_views.empty()
+                                      ? core::ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0})
+                                      : m_views[0]->viewFrame();
     const std::optional<core::DisplayWindow> window =
         m_views.empty() ? std::nullopt : std::optional<core::DisplayWindow>(m_views[0]->window());
     if (m_compareCount == 1 && !m_views.empty()) {
         m_viewSettings[0] = m_views[0]->settings();
         // The other views start with the other kernels, so the comparison shows something.
-        const core::Kernel order[] = {core::Kernel::Linear, core::Kernel::Nearest, core::Kernel::Sinc4,
-                                      core::Kernel::CatmullRom, core::Kernel::BSpline};
+        const core::Kernel order[] = {core::Kernel::Linear, core::Kernel::Nearest,
+                                      core::Kernel::Sinc4, core::Kernel::CatmullRom,
+                                      core::Kernel::BSpline};
         int slot = 1;
         for (core::Kernel k : order)
             if (k != m_viewSettings[0].kernel && slot < 4)
@@ -101,18 +104,24 @@ void MainWindow::connectView(ProjectionView* v) {
 
 void MainWindow::setDifferenceMode(bool on) {
     m_difference = on;
-    for (std::size_t i = 1; i < m_views.size(); ++i) m_views[i]->setDifferenceReference(on ? m_views[0] : nullptr);
+    for (std::size_t i = 1; i < m_views.size(); ++i)
+        m_views[i]->setDifferenceReference(on ? m_views[0] : nullptr);
     // Differences compare full-quality frames: no progressive levels while they are shown.
-    for (auto* v : m_views) v->setTargetFps(on || !m_rendering ? 0 : m_rendering->values().targetFps);
+    for (auto* v : m_views)
+        v->setTargetFps(on || !m_rendering ? 0 : m_rendering->values().targetFps);
     // Back from differences: the views take view 1's window again (transmission included).
     if (!on && !m_views.empty())
-        for (std::size_t i = 1; i < m_views.size(); ++i) m_views[i]->setWindow(m_views[0]->window());
+        for (std::size_t i = 1; i < m_views.size(); ++i)
+            m_views[i]->setWindow(m_views[0]->window());
 }
 
 QString MainWindow::viewTitle(int index, const ViewSettings& s) const {
     // Short enough to clear the orientation label above the image; the overlay's first line
     // names the voxel model.
-    return tr("View %1: %2 %3×%3").arg(index + 1).arg(QString::fromUtf8(core::kernelName(s.kernel))).arg(s.size);
+    return tr("View %1: %2 %3×%3")
+        .arg(index + 1)
+        .arg(QString::fromUtf8(core::kernelName(s.kernel)))
+        .arg(s.size);
 }
 
 void MainWindow::showPatientView(core::PatientView pv) {

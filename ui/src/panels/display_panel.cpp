@@ -33,14 +33,16 @@ DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
     m_level->setKeyboardTracking(false);
     df->addRow(tr("Window level"), m_level);
     m_invert = new QCheckBox(tr("Invert"), this);
-    m_invert->setToolTip(tr("Line integrals: bone dark. Transmitted intensity: the film look (bone white) when on, "
-                            "the fluoroscopy look (bone dark) when off."));
+    m_invert->setToolTip(
+        tr("Line integrals: bone dark. Transmitted intensity: the film look (bone white) when on, "
+           "the fluoroscopy look (bone dark) when off."));
     df->addRow(QString(), m_invert);
     auto* autoBtn = new QPushButton(tr("Auto window"), this);
     df->addRow(QString(), autoBtn);
-    auto* hint = new QLabel(tr("<small>Left drag: rotate · wheel: zoom · middle drag: pan · right drag or "
-                               "Ctrl+left: window/level · 1–6: AP, PA, left, right, head, feet · R: reset</small>"),
-                            this);
+    auto* hint = new QLabel(
+        tr("<small>Left drag: rotate · wheel: zoom · middle drag: pan · right drag or "
+           "Ctrl+left: window/level · 1–6: AP, PA, left, right, head, feet · R: reset</small>"),
+        this);
     hint->setWordWrap(true);
     df->addRow(hint);
 
@@ -51,9 +53,11 @@ DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
     connect(m_width, &QDoubleSpinBox::valueChanged, this, windowEdited);
     connect(m_level, &QDoubleSpinBox::valueChanged, this, windowEdited);
     connect(m_invert, &QCheckBox::toggled, this, windowEdited);
-    connect(autoBtn, &QPushButton::clicked, this, [this] { emit presetRequested(WindowPreset::Auto); });
-    connect(m_preset, &QComboBox::activated, this,
-            [this](int index) { emit presetRequested(WindowPreset(m_preset->itemData(index).toInt())); });
+    connect(autoBtn, &QPushButton::clicked, this,
+            [this] { emit presetRequested(WindowPreset::Auto); });
+    connect(m_preset, &QComboBox::activated, this, [this](int index) {
+        emit presetRequested(WindowPreset(m_preset->itemData(index).toInt()));
+    });
 }
 
 DisplayPanel::Values DisplayPanel::values() const {
@@ -74,7 +78,9 @@ DisplayPanel::Values DisplayPanel::load(const QSettings& s, Values v) {
     return v;
 }
 
-void DisplayPanel::save(QSettings& s, const Values& v) { s.setValue(keys::kDisplayInvert, v.invert); }
+void DisplayPanel::save(QSettings& s, const Values& v) {
+    s.setValue(keys::kDisplayInvert, v.invert);
+}
 
 core::DisplayWindow DisplayPanel::window(const core::Transmission& transmission) const {
     core::DisplayWindow w;
@@ -89,18 +95,26 @@ void DisplayPanel::showWindow(const core::DisplayWindow& w) {
     setValues({w.high - w.low, (w.high + w.low) / 2, w.invert});
 }
 
-core::DisplayWindow presetWindow(WindowPreset preset, const std::vector<float>& pixels, bool invert) {
+core::DisplayWindow presetWindow(WindowPreset preset, const std::vector<float>& pixels,
+                                 bool invert) {
     std::vector<float> v = pixels;
     std::sort(v.begin(), v.end());
     auto q = [&](double f) { return double(v[std::size_t(f * (v.size() - 1))]); };
     core::DisplayWindow w;
     switch (preset) {
-    case WindowPreset::FullRange: w = {v.front(), v.back(), false}; break;
-    case WindowPreset::Bone: w = {q(0.005) + 0.55 * (q(0.995) - q(0.005)), q(0.995), false}; break;
-    case WindowPreset::SoftTissue:
-        w = {q(0.005) + 0.10 * (q(0.995) - q(0.005)), q(0.005) + 0.70 * (q(0.995) - q(0.005)), false};
+    case WindowPreset::FullRange:
+        w = {v.front(), v.back(), false};
         break;
-    case WindowPreset::Auto: w = core::autoWindow(pixels); break;
+    case WindowPreset::Bone:
+        w = {q(0.005) + 0.55 * (q(0.995) - q(0.005)), q(0.995), false};
+        break;
+    case WindowPreset::SoftTissue:
+        w = {q(0.005) + 0.10 * (q(0.995) - q(0.005)), q(0.005) + 0.70 * (q(0.995) - q(0.005)),
+             false};
+        break;
+    case WindowPreset::Auto:
+        w = core::autoWindow(pixels);
+        break;
     }
     if (!(w.high > w.low)) w.high = w.low + 1.0;
     w.invert = invert;

@@ -39,7 +39,8 @@ void RenderingPanel::addViewRows(QFormLayout* rf) {
     m_appliesTo->setEnabled(false);
     rf->addRow(tr("Applies to"), m_appliesTo);
     m_kernel = new QComboBox(this);
-    for (core::Kernel k : core::allKernels()) m_kernel->addItem(QString::fromUtf8(core::kernelName(k)), int(k));
+    for (core::Kernel k : core::allKernels())
+        m_kernel->addItem(QString::fromUtf8(core::kernelName(k)), int(k));
     rf->addRow(tr("Interpolation"), m_kernel);
     m_size = new QComboBox(this);
     for (int s : kSizes) m_size->addItem(QStringLiteral("%1 × %1").arg(s), s);
@@ -48,10 +49,11 @@ void RenderingPanel::addViewRows(QFormLayout* rf) {
     m_voxelModel->addItem(tr("Trilinear (as a DRR ray caster)"), int(core::VoxelModel::Trilinear));
     m_voxelModel->addItem(tr("Cubic B-spline through the voxels"), int(core::VoxelModel::BSpline));
     m_voxelModel->addItem(tr("Band-limited (sharpest, rings)"), int(core::VoxelModel::BandLimited));
-    m_voxelModel->setToolTip(tr("What lies between the voxels. Trilinear: the projection a trilinear DRR ray caster "
-                                "computes, no ringing at the scan ends. Band-limited: the plain Fourier image, the "
-                                "sharpest, but it rings (stripes, negative values) where the scan ends inside the body "
-                                "and between coarse slices. Same spectrum: changing it costs no preprocessing."));
+    m_voxelModel->setToolTip(
+        tr("What lies between the voxels. Trilinear: the projection a trilinear DRR ray caster "
+           "computes, no ringing at the scan ends. Band-limited: the plain Fourier image, the "
+           "sharpest, but it rings (stripes, negative values) where the scan ends inside the body "
+           "and between coarse slices. Same spectrum: changing it costs no preprocessing."));
     rf->addRow(tr("Voxel model"), m_voxelModel);
 }
 
@@ -67,16 +69,20 @@ void RenderingPanel::addSpectrumRows(QFormLayout* rf) {
     m_values->addItem(tr("Attenuation μ (mm)"), int(core::ValueMapping::Mu));
     m_values->addItem(tr("Bone-enhanced μ (mm)"), int(core::ValueMapping::MuBone));
     m_values->addItem(tr("Raw values (value × mm)"), int(core::ValueMapping::Raw));
-    m_values->setToolTip(tr("What the projection integrates. μ = μ_water (1 + HU/1000), clipped at 0; bone-enhanced "
-                            "makes the slope %1× steeper above %2 HU (bone stands out as on a low-kV film). The "
-                            "transform is linear only in these values: a change preprocesses again in the background.")
-                             .arg(core::kBoneGain)
-                             .arg(core::kBoneThresholdHu));
+    m_values->setToolTip(
+        tr("What the projection integrates. μ = μ_water (1 + HU/1000), clipped at 0; bone-enhanced "
+           "makes the slope %1× steeper above %2 HU (bone stands out as on a low-kV film). The "
+           "transform is linear only in these values: a change preprocesses again in the "
+           "background.")
+            .arg(core::kBoneGain)
+            .arg(core::kBoneThresholdHu));
     rf->addRow(tr("Values"), m_values);
     m_deapodize = new QCheckBox(tr("Gridding correction (deapodize)"), this);
-    m_deapodize->setToolTip(tr("Divide the volume by the kernel's Fourier transform before the 3D FFT, as "
-                               "gridding codes do: Kaiser-Bessel with 1.25× oversampling is then more accurate than "
-                               "ray casting. The spectrum is made for one kernel; changing the kernel preprocesses again."));
+    m_deapodize->setToolTip(
+        tr("Divide the volume by the kernel's Fourier transform before the 3D FFT, as "
+           "gridding codes do: Kaiser-Bessel with 1.25× oversampling is then more accurate than "
+           "ray casting. The spectrum is made for one kernel; changing the kernel preprocesses "
+           "again."));
     rf->addRow(QString(), m_deapodize);
     m_memory = new QLabel(this);
     rf->addRow(tr("Spectrum memory"), m_memory);
@@ -87,23 +93,27 @@ void RenderingPanel::addFrameRows(QFormLayout* rf) {
     m_targetFps->setRange(0, 240);
     m_targetFps->setSuffix(tr(" fps"));
     m_targetFps->setSpecialValueText(tr("off (always full quality)"));
-    m_targetFps->setToolTip(tr("Progressive refinement: while you rotate, frames render at a lower slice resolution "
-                               "(or with linear interpolation when the spectrum allows) to hold this frame rate; "
-                               "the full-quality frame follows when you let go. The overlay shows the level."));
+    m_targetFps->setToolTip(
+        tr("Progressive refinement: while you rotate, frames render at a lower slice resolution "
+           "(or with linear interpolation when the spectrum allows) to hold this frame rate; "
+           "the full-quality frame follows when you let go. The overlay shows the level."));
     rf->addRow(tr("Interactive target"), m_targetFps);
     m_pixelAperture = new QCheckBox(tr("Detector pixels integrate over their area"), this);
-    m_pixelAperture->setToolTip(tr("Off: each pixel samples the projection at its centre, as ray casters do. On: each "
-                                   "pixel averages the projection over its area, as a detector does (less aliasing "
-                                   "when the pixels are coarser than the voxels)."));
+    m_pixelAperture->setToolTip(
+        tr("Off: each pixel samples the projection at its centre, as ray casters do. On: each "
+           "pixel averages the projection over its area, as a detector does (less aliasing "
+           "when the pixels are coarser than the voxels)."));
     rf->addRow(QString(), m_pixelAperture);
     m_clip = new QCheckBox(tr("Clip to the volume (no ghosts outside it)"), this);
-    m_clip->setToolTip(tr("Pixels whose ray misses the volume are exactly 0 in a projection; Fourier rendering puts "
-                          "the kernel's ghost copies and ringing there. On: those pixels show 0."));
+    m_clip->setToolTip(tr(
+        "Pixels whose ray misses the volume are exactly 0 in a projection; Fourier rendering puts "
+        "the kernel's ghost copies and ringing there. On: those pixels show 0."));
     rf->addRow(QString(), m_clip);
     m_nonNegative = new QCheckBox(tr("No negative line integrals"), this);
-    m_nonNegative->setToolTip(tr("For values that are never negative (attenuation, or raw data without negative "
-                                 "values) no line integral is: what is left of the interpolation's ringing below 0 "
-                                 "is shown as 0. No effect on raw Hounsfield units."));
+    m_nonNegative->setToolTip(
+        tr("For values that are never negative (attenuation, or raw data without negative "
+           "values) no line integral is: what is left of the interpolation's ringing below 0 "
+           "is shown as 0. No effect on raw Hounsfield units."));
     rf->addRow(QString(), m_nonNegative);
 }
 
@@ -118,7 +128,8 @@ void RenderingPanel::connectControls() {
     relay(m_size, &QComboBox::currentIndexChanged, &RenderingPanel::viewSettingsChanged);
     relay(m_voxelModel, &QComboBox::currentIndexChanged, &RenderingPanel::voxelModelChanged);
     relay(m_transform, &QComboBox::currentIndexChanged, &RenderingPanel::spectrumSettingsChanged);
-    relay(m_oversampling, &QComboBox::currentIndexChanged, &RenderingPanel::spectrumSettingsChanged);
+    relay(m_oversampling, &QComboBox::currentIndexChanged,
+          &RenderingPanel::spectrumSettingsChanged);
     relay(m_deapodize, &QCheckBox::toggled, &RenderingPanel::spectrumSettingsChanged);
     relay(m_values, &QComboBox::currentIndexChanged, &RenderingPanel::valueMappingChanged);
     for (QCheckBox* c : {m_pixelAperture, m_clip, m_nonNegative})
@@ -150,8 +161,9 @@ RenderingPanel::Values RenderingPanel::values() const {
 }
 
 void RenderingPanel::setValues(const Values& v) {
-    const QSignalBlocker b1(m_kernel), b2(m_size), b3(m_voxelModel), b4(m_transform), b5(m_oversampling),
-        b6(m_values), b7(m_deapodize), b8(m_targetFps), b9(m_pixelAperture), b10(m_clip), b11(m_nonNegative);
+    const QSignalBlocker b1(m_kernel), b2(m_size), b3(m_voxelModel), b4(m_transform),
+        b5(m_oversampling), b6(m_values), b7(m_deapodize), b8(m_targetFps), b9(m_pixelAperture),
+        b10(m_clip), b11(m_nonNegative);
     selectData(m_kernel, int(v.kernel));
     selectData(m_size, v.size);
     selectData(m_voxelModel, int(v.voxelModel));
@@ -179,7 +191,8 @@ RenderingPanel::Values RenderingPanel::load(const QSettings& s, Values v) {
     v.nonNegative = s.value(keys::kRenderNonNegative, v.nonNegative).toBool();
     v.pixelAperture = s.value(keys::kRenderPixelAperture, v.pixelAperture).toBool();
     try {
-        const QString name = s.value(keys::kRenderVoxelModel, core::voxelModelName(v.voxelModel)).toString();
+        const QString name =
+            s.value(keys::kRenderVoxelModel, core::voxelModelName(v.voxelModel)).toString();
         v.voxelModel = core::parseVoxelModel(name.toStdString());
     } catch (const core::SettingsError&) {
         // an unknown saved name: the default
@@ -223,6 +236,8 @@ void RenderingPanel::setViewCount(int n) {
 
 int RenderingPanel::appliesTo() const { return m_appliesTo->currentIndex(); }
 
-void RenderingPanel::setSpectrumMiB(double mib) { m_memory->setText(tr("%1 MiB").arg(mib, 0, 'f', 1)); }
+void RenderingPanel::setSpectrumMiB(double mib) {
+    m_memory->setText(tr("%1 MiB").arg(mib, 0, 'f', 1));
+}
 
 } // namespace fvr::ui

@@ -28,8 +28,10 @@ void StudyPanel::showStudy(const StudyController& study) {
     }
     const auto spec = study.spectrum();
     const auto [lo, hi] = vol->valueRange();
-    QString html = QStringLiteral("<b>%1</b><br>").arg(study.source().displayName().toHtmlEscaped());
-    html += tr("Dimensions: %1 × %2 × %3<br>").arg(vol->dims[0]).arg(vol->dims[1]).arg(vol->dims[2]);
+    QString html =
+        QStringLiteral("<b>%1</b><br>").arg(study.source().displayName().toHtmlEscaped());
+    html +=
+        tr("Dimensions: %1 × %2 × %3<br>").arg(vol->dims[0]).arg(vol->dims[1]).arg(vol->dims[2]);
     html += tr("Spacing: %1 × %2 × %3 mm<br>")
                 .arg(vol->spacing[0], 0, 'g', 4)
                 .arg(vol->spacing[1], 0, 'g', 4)
@@ -37,8 +39,9 @@ void StudyPanel::showStudy(const StudyController& study) {
     html += tr("Values: %1 … %2 %3<br>")
                 .arg(lo, 0, 'g', 5)
                 .arg(hi, 0, 'g', 5)
-                .arg(vol->units == core::ValueUnits::Unknown ? tr("(units not stated)")
-                                                             : QString::fromUtf8(core::unitsName(vol->units)));
+                .arg(vol->units == core::ValueUnits::Unknown
+                         ? tr("(units not stated)")
+                         : QString::fromUtf8(core::unitsName(vol->units)));
     if (spec)
         html += tr("Spectrum: %1 × %2 × %3 padded, %4 MiB, %5<br>")
                     .arg(spec->padded[0])
@@ -46,7 +49,8 @@ void StudyPanel::showStudy(const StudyController& study) {
                     .arg(spec->padded[2])
                     .arg(double(spec->bytes()) / (1 << 20), 0, 'f', 1)
                     .arg(QString::fromUtf8(core::transformName(spec->kind)).toUpper());
-    html += tr("<small>Parallel projection without occlusion: every pixel is a line integral.</small>");
+    html +=
+        tr("<small>Parallel projection without occlusion: every pixel is a line integral.</small>");
     for (const auto& w : study.warnings())
         html += QStringLiteral("<br><font color='#d04020'>⚠ %1</font>").arg(w.toHtmlEscaped());
     m_info->setText(html);

@@ -23,8 +23,9 @@ void XrayPanel::addOutputRows(QFormLayout* xf) {
     m_output = new QComboBox(this);
     m_output->addItem(tr("Line integrals"), int(XrayOutput::LineIntegrals));
     m_output->addItem(tr("Transmitted intensity (Beer-Lambert)"), int(XrayOutput::Transmission));
-    m_output->setToolTip(tr("Transmitted intensity = exposure × exp(−μ_water × line integral of μ/μ_water): what a "
-                            "detector records. Needs attenuation values (μ or bone-enhanced μ)."));
+    m_output->setToolTip(
+        tr("Transmitted intensity = exposure × exp(−μ_water × line integral of μ/μ_water): what a "
+           "detector records. Needs attenuation values (μ or bone-enhanced μ)."));
     xf->addRow(tr("Output"), m_output);
     m_energy = new QDoubleSpinBox(this);
     m_energy->setRange(20.0, 150.0);
@@ -40,7 +41,8 @@ void XrayPanel::addOutputRows(QFormLayout* xf) {
     m_exposure->setDecimals(2);
     m_exposure->setSingleStep(0.1);
     m_exposure->setKeyboardTracking(false);
-    m_exposure->setToolTip(tr("Relative exposure (mAs): the unattenuated beam reaches this fraction of full scale"));
+    m_exposure->setToolTip(
+        tr("Relative exposure (mAs): the unattenuated beam reaches this fraction of full scale"));
     xf->addRow(tr("Exposure"), m_exposure);
 }
 
@@ -49,17 +51,19 @@ void XrayPanel::addEffectRows(QFormLayout* xf) {
     m_depthCue->setRange(0, 100);
     m_depthCue->setSuffix(tr(" %"));
     m_depthCue->setSpecialValueText(tr("off"));
-    m_depthCue->setToolTip(tr("Depth cueing in the frequency domain (Totsuka & Levoy): structures at the back of the "
-                              "volume weigh up to this much less than those in front. Needs linear interpolation or "
-                              "better."));
+    m_depthCue->setToolTip(
+        tr("Depth cueing in the frequency domain (Totsuka & Levoy): structures at the back of the "
+           "volume weigh up to this much less than those in front. Needs linear interpolation or "
+           "better."));
     xf->addRow(tr("Depth cueing"), m_depthCue);
     m_sharpen = new QDoubleSpinBox(this);
     m_sharpen->setRange(0.0, 10.0);
     m_sharpen->setSingleStep(0.25);
     m_sharpen->setSpecialValueText(tr("off"));
     m_sharpen->setKeyboardTracking(false);
-    m_sharpen->setToolTip(tr("Edge enhancement (unsharp mask): image + amount × (image − Gaussian blur), applied to "
-                             "the 2D slice before the inverse transform (free per frame)"));
+    m_sharpen->setToolTip(
+        tr("Edge enhancement (unsharp mask): image + amount × (image − Gaussian blur), applied to "
+           "the 2D slice before the inverse transform (free per frame)"));
     xf->addRow(tr("Edge enhancement"), m_sharpen);
     m_sharpenRadius = new QDoubleSpinBox(this);
     m_sharpenRadius->setRange(0.1, 50.0);
@@ -74,7 +78,8 @@ void XrayPanel::addEffectRows(QFormLayout* xf) {
     m_bandLimit->setSuffix(tr(" lp/mm"));
     m_bandLimit->setSpecialValueText(tr("off"));
     m_bandLimit->setKeyboardTracking(false);
-    m_bandLimit->setToolTip(tr("Band limit: order-8 Butterworth low-pass on the slice, −3 dB at this frequency"));
+    m_bandLimit->setToolTip(
+        tr("Band limit: order-8 Butterworth low-pass on the slice, −3 dB at this frequency"));
     xf->addRow(tr("Band limit"), m_bandLimit);
 }
 
@@ -129,8 +134,9 @@ void XrayPanel::setValues(const Values& v) {
 XrayPanel::Values XrayPanel::load(const QSettings& s) { return load(s, Values()); }
 
 XrayPanel::Values XrayPanel::load(const QSettings& s, Values v) {
-    v.output = s.value(keys::kXrayOutput, int(v.output)).toInt() == int(XrayOutput::Transmission) ? XrayOutput::Transmission
-                                                                                     : XrayOutput::LineIntegrals;
+    v.output = s.value(keys::kXrayOutput, int(v.output)).toInt() == int(XrayOutput::Transmission)
+                   ? XrayOutput::Transmission
+                   : XrayOutput::LineIntegrals;
     v.energyKeV = s.value(keys::kXrayEnergyKeV, v.energyKeV).toDouble();
     v.exposure = s.value(keys::kXrayExposure, v.exposure).toDouble();
     v.depthCuePercent = s.value(keys::kXrayDepthCue, v.depthCuePercent).toInt();

@@ -64,7 +64,9 @@ private:
     QCheckBox* m_invert = nullptr;
 };
 
-/** The window a preset gives for an image (`pixels`: what the window applies to); keeps `invert`. */
-core::DisplayWindow presetWindow(WindowPreset preset, const std::vector<float>& pixels, bool invert);
+/** The window a preset gives for an image (`pixels`: what the window applies to); keeps `invert`.
+ */
+core::DisplayWindow presetWindow(WindowPreset preset, const std::vector<float>& pixels,
+                                 bool invert);
 
 } // namespace fvr::ui

@@ -29,9 +29,9 @@ public:
         double energyKeV = 70.0;
         double exposure = 1.0;
         int depthCuePercent = 0;
-        double sharpen = 0.0;       ///< SliceFilter::sharpenAmount
+        double sharpen = 0.0; ///< SliceFilter::sharpenAmount
         double sharpenRadius = 1.0; ///< SliceFilter::sharpenSigmaMm
-        double bandLimit = 0.0;     ///< SliceFilter::bandLimitLpMm
+        double bandLimit = 0.0; ///< SliceFilter::bandLimitLpMm
         bool operator==(const Values&) const = default;
     };
 
