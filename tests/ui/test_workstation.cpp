@@ -24,6 +24,10 @@
 #include <fvr/core/io/image_io.h>
 #include <fvr/core/xray/xray.h>
 #include <fvr/ui/main_window.h>
+#include <fvr/ui/panels/display_panel.h>
+#include <fvr/ui/panels/messages_panel.h>
+#include <fvr/ui/panels/rendering_panel.h>
+#include <fvr/ui/panels/xray_panel.h>
 
 #include "image_metrics.h"
 #include "test_support.h"
@@ -120,14 +124,14 @@ TEST_F(Workstation, PanelControlsChangeSettingsAndImage) {
     auto* v = window->views()[0];
     const auto before = *v->projection();
 
-    auto* kernel = window->kernelCombo();
+    auto* kernel = window->renderingPanel()->kernelCombo();
     // With the gridding correction on, a new kernel needs a spectrum made for it.
     ASSERT_TRUE(waitSpectrum(*window, [&] { kernel->setCurrentIndex(kernel->findData(int(core::Kernel::KaiserBessel6))); }));
     EXPECT_EQ(window->study().spectrum()->deapodizedFor, core::Kernel::KaiserBessel6);
     QApplication::processEvents();
     EXPECT_EQ(v->settings().kernel, core::Kernel::KaiserBessel6);
     EXPECT_GT(test::compare(v->projection()->pixels, cpuReference(*window, *v).pixels).psnr, 90.0);
-    ASSERT_TRUE(waitSpectrum(*window, [&] { window->deapodizeCheck()->setChecked(false); }));
+    ASSERT_TRUE(waitSpectrum(*window, [&] { window->renderingPanel()->deapodizeCheck()->setChecked(false); }));
     EXPECT_FALSE(window->study().spectrum()->deapodizedFor.has_value());
     kernel->setCurrentIndex(kernel->findData(int(core::Kernel::Nearest)));
     EXPECT_EQ(v->settings().kernel, core::Kernel::Nearest);
@@ -135,37 +139,37 @@ TEST_F(Workstation, PanelControlsChangeSettingsAndImage) {
     EXPECT_LT(test::compare(nearest.pixels, before.pixels).psnr, 80.0); // a different image
     EXPECT_GT(test::compare(nearest.pixels, cpuReference(*window, *v).pixels).psnr, 90.0);
 
-    auto* size = window->sizeCombo();
+    auto* size = window->renderingPanel()->sizeCombo();
     size->setCurrentIndex(size->findData(256));
     EXPECT_EQ(v->settings().size, 256);
     EXPECT_EQ(v->projection()->size, 256);
 
     ASSERT_TRUE(waitSpectrum(*window, [&] {
-        window->oversamplingCombo()->setCurrentIndex(window->oversamplingCombo()->findData(1.5));
+        window->renderingPanel()->oversamplingCombo()->setCurrentIndex(window->renderingPanel()->oversamplingCombo()->findData(1.5));
     }));
     EXPECT_EQ(window->study().spectrum()->padded[0], 60);
     ASSERT_TRUE(waitSpectrum(*window, [&] {
-        window->transformCombo()->setCurrentIndex(window->transformCombo()->findData(int(core::TransformKind::Fht)));
+        window->renderingPanel()->transformCombo()->setCurrentIndex(window->renderingPanel()->transformCombo()->findData(int(core::TransformKind::Fht)));
     }));
     EXPECT_EQ(window->study().spectrum()->kind, core::TransformKind::Fht);
     QTest::qWait(50);
     EXPECT_GT(test::compare(v->projection()->pixels, cpuReference(*window, *v).pixels).psnr, 90.0);
     ASSERT_TRUE(waitSpectrum(*window, [&] {
-        window->valuesCombo()->setCurrentIndex(window->valuesCombo()->findData(int(core::ValueMapping::Raw)));
+        window->renderingPanel()->valuesCombo()->setCurrentIndex(window->renderingPanel()->valuesCombo()->findData(int(core::ValueMapping::Raw)));
     }));
     EXPECT_EQ(window->study().spectrum()->mapping, core::ValueMapping::Raw);
 
-    window->invertCheck()->setChecked(true);
+    window->displayPanel()->invertCheck()->setChecked(true);
     EXPECT_TRUE(v->window().invert);
-    window->windowWidthSpin()->setValue(1234.0);
+    window->displayPanel()->windowWidthSpin()->setValue(1234.0);
     EXPECT_NEAR(v->window().high - v->window().low, 1234.0, 1e-6);
-    window->windowLevelSpin()->setValue(-50.0);
+    window->displayPanel()->windowLevelSpin()->setValue(-50.0);
     EXPECT_NEAR((v->window().high + v->window().low) / 2, -50.0, 1e-6);
 }
 
 TEST_F(Workstation, CompareViewRendersEachKernel) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
-    ASSERT_TRUE(window->deapodizeCheck()->isChecked()); // the default: Kaiser-Bessel, deapodized
+    ASSERT_TRUE(window->renderingPanel()->deapodizeCheck()->isChecked()); // the default: Kaiser-Bessel, deapodized
     ASSERT_TRUE(window->study().spectrum()->deapodizedFor.has_value());
     // Compare mode needs a spectrum every kernel can use: deapodization goes off.
     ASSERT_TRUE(waitSpectrum(*window, [&] { window->setCompareCount(4); }));
@@ -275,9 +279,9 @@ TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
     const auto L = *v->projection(); // line integrals (mu)
 
     // Beer-Lambert: the film look by default, window on the intensity.
-    window->energySpin()->setValue(60.0);
-    window->exposureSpin()->setValue(1.5);
-    window->outputCombo()->setCurrentIndex(1);
+    window->xrayPanel()->energySpin()->setValue(60.0);
+    window->xrayPanel()->exposureSpin()->setValue(1.5);
+    window->xrayPanel()->outputCombo()->setCurrentIndex(1);
     const double mu = core::waterAttenuationPerMm(60.0);
     EXPECT_TRUE(v->window().transmission.active());
     EXPECT_NEAR(v->window().transmission.muWaterPerMm, mu, 1e-12);
@@ -311,28 +315,28 @@ TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
     v = window->views()[0];
     // Raw values have no transmission: the output falls back to line integrals.
     ASSERT_TRUE(waitSpectrum(*window, [&] {
-        window->valuesCombo()->setCurrentIndex(window->valuesCombo()->findData(int(core::ValueMapping::Raw)));
+        window->renderingPanel()->valuesCombo()->setCurrentIndex(window->renderingPanel()->valuesCombo()->findData(int(core::ValueMapping::Raw)));
     }));
     // (the compare round trip above started a preprocessing of its own: wait for the raw one)
     ASSERT_TRUE(QTest::qWaitFor([&] {
         return !window->study().busy() && window->study().spectrum()->mapping == core::ValueMapping::Raw;
     }, 60000));
     QApplication::processEvents();
-    EXPECT_EQ(window->outputCombo()->currentIndex(), 0);
+    EXPECT_EQ(window->xrayPanel()->outputCombo()->currentIndex(), 0);
     EXPECT_FALSE(v->window().transmission.active())
         << v->window().low << " " << v->window().high << " views " << window->views().size() << " same "
         << (v == window->views()[0]) << "\n" << window->messages()->toPlainText().toStdString();
     // Transmission from raw values switches to mu; the window follows the new image (log exposure
     // of a few decades, not the raw spectrum's range).
-    ASSERT_TRUE(waitSpectrum(*window, [&] { window->outputCombo()->setCurrentIndex(1); }));
+    ASSERT_TRUE(waitSpectrum(*window, [&] { window->xrayPanel()->outputCombo()->setCurrentIndex(1); }));
     QApplication::processEvents();
     EXPECT_EQ(window->study().spectrum()->mapping, core::ValueMapping::Mu) << window->messages()->toPlainText().toStdString();
     EXPECT_GT(v->window().low, -10.0);
     EXPECT_LE(v->window().high, 0.01);
     EXPECT_GT(v->window().high - v->window().low, 0.2);
-    window->outputCombo()->setCurrentIndex(0);
+    window->xrayPanel()->outputCombo()->setCurrentIndex(0);
     ASSERT_TRUE(waitSpectrum(*window, [&] {
-        window->valuesCombo()->setCurrentIndex(window->valuesCombo()->findData(int(core::ValueMapping::MuBone)));
+        window->renderingPanel()->valuesCombo()->setCurrentIndex(window->renderingPanel()->valuesCombo()->findData(int(core::ValueMapping::MuBone)));
     }));
     EXPECT_EQ(window->study().spectrum()->mapping, core::ValueMapping::MuBone);
 
@@ -341,7 +345,7 @@ TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
     ASSERT_NE(dock, nullptr);
     dock->raise();
     QApplication::processEvents();
-    for (QWidget* c : {static_cast<QWidget*>(window->outputCombo()), static_cast<QWidget*>(window->bandLimitSpin())}) {
+    for (QWidget* c : {static_cast<QWidget*>(window->xrayPanel()->outputCombo()), static_cast<QWidget*>(window->xrayPanel()->bandLimitSpin())}) {
         EXPECT_TRUE(c->isVisible());
         const QRect r(c->mapTo(dock, QPoint(0, 0)), c->size());
         EXPECT_TRUE(dock->rect().contains(r)) << "clipped control";
@@ -349,10 +353,10 @@ TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
     dock->grab().save(QString::fromStdString((test::tmpDir() / "xray_dock.png").string()));
 
     // Depth cueing and filters: every frame equals the CPU renderer with the same parameters.
-    window->depthCueSpin()->setValue(60);
-    window->sharpenSpin()->setValue(1.5);
-    window->sharpenRadiusSpin()->setValue(3.0);
-    window->bandLimitSpin()->setValue(0.4);
+    window->xrayPanel()->depthCueSpin()->setValue(60);
+    window->xrayPanel()->sharpenSpin()->setValue(1.5);
+    window->xrayPanel()->sharpenRadiusSpin()->setValue(3.0);
+    window->xrayPanel()->bandLimitSpin()->setValue(0.4);
     EXPECT_DOUBLE_EQ(v->effects().depthCue, 0.6);
     EXPECT_EQ(v->effects().filter, (core::SliceFilter{1.5, 3.0, 0.4}));
     core::CpuFourierRenderer r(window->study().spectrum(), 2);
@@ -405,7 +409,7 @@ TEST_F(Workstation, NewFramesMapTheDisplayInTheLastGpuPass) {
 
 TEST_F(Workstation, ProgressiveRefinementHoldsTheTargetWhileDragging) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
-    window->targetFpsSpin()->setValue(30);
+    window->renderingPanel()->targetFpsSpin()->setValue(30);
     auto* v = window->views()[0];
     ASSERT_EQ(v->settings().size, 512);
     v->setSimulatedExtraFrameMs(150.0); // a machine far too slow for 30 fps at full quality
@@ -432,7 +436,7 @@ TEST_F(Workstation, ProgressiveRefinementHoldsTheTargetWhileDragging) {
     EXPECT_EQ(v->projection()->size, 512);
 
     // Off: the drag stays at full quality however slow.
-    window->targetFpsSpin()->setValue(0);
+    window->renderingPanel()->targetFpsSpin()->setValue(0);
     QTest::mousePress(v, Qt::LeftButton, Qt::NoModifier, c);
     const int b2 = v->framesRendered();
     QTest::mouseMove(v, c + QPoint(10, 0));
@@ -449,14 +453,14 @@ TEST_F(Workstation, VoxelModelControlChangesTheImageNotTheSpectrum) {
     const auto path = test::sharedData() / "volumes/body_ct_hu_3mm/example_ct.mhd";
     ASSERT_TRUE(openAndWait(*window, StudySource::fromPath(QString::fromStdString(path.string()))));
     ui::ProjectionView* v = window->views()[0];
-    EXPECT_EQ(core::VoxelModel(window->voxelModelCombo()->currentData().toInt()), core::VoxelModel::Trilinear);
+    EXPECT_EQ(core::VoxelModel(window->renderingPanel()->voxelModelCombo()->currentData().toInt()), core::VoxelModel::Trilinear);
     const auto spectrum = window->study().spectrum();
     const auto trilinear = *v->projection();
     EXPECT_EQ(core::mostNegativeFraction(trilinear.pixels), 0.0);
 
-    window->nonNegativeCheck()->setChecked(false);
+    window->renderingPanel()->nonNegativeCheck()->setChecked(false);
     EXPECT_FALSE(v->effects().nonNegative);
-    auto* model = window->voxelModelCombo();
+    auto* model = window->renderingPanel()->voxelModelCombo();
     model->setCurrentIndex(model->findData(int(core::VoxelModel::BandLimited)));
     EXPECT_EQ(v->settings().voxelModel, core::VoxelModel::BandLimited);
     EXPECT_EQ(window->study().spectrum(), spectrum); // the same spectrum: no preprocessing
@@ -482,7 +486,7 @@ TEST_F(Workstation, VoxelModelControlChangesTheImageNotTheSpectrum) {
     EXPECT_TRUE(window->messages()->toPlainText().contains("trilinear ray casting (step s/4, one ray per pixel)"));
 
     // The pixel aperture reaches the frame (parameters built here, independently of the view).
-    window->pixelApertureCheck()->setChecked(true);
+    window->renderingPanel()->pixelApertureCheck()->setChecked(true);
     const auto& vol = *window->study().volume();
     core::RenderParams p{v->viewFrame(), {v->settings().size, core::defaultPixelSize(vol.dims, vol.spacing, v->settings().size)},
                          v->settings().kernel};
@@ -493,23 +497,128 @@ TEST_F(Workstation, VoxelModelControlChangesTheImageNotTheSpectrum) {
     EXPECT_GT(test::compare(v->projection()->pixels, cpu.render(p).pixels).psnr, 90.0);
     EXPECT_TRUE(QSettings().value("render/pixelAperture").toBool());
     EXPECT_FALSE(QSettings().value("render/nonNegative").toBool());
-    window->pixelApertureCheck()->setChecked(false);
+    window->renderingPanel()->pixelApertureCheck()->setChecked(false);
 
     // Compare mode: each view has its own voxel model ("Applies to"), side by side; changing it
     // for all views keeps each view's kernel.
     ASSERT_TRUE(waitSpectrum(*window, [&] { window->setCompareCount(2); })); // gridding off: a new spectrum
     const core::Kernel k0 = window->views()[0]->settings().kernel, k1 = window->views()[1]->settings().kernel;
     ASSERT_NE(k0, k1);
-    window->compareSlotCombo()->setCurrentIndex(2); // view 2
+    window->renderingPanel()->appliesToCombo()->setCurrentIndex(2); // view 2
     model->setCurrentIndex(model->findData(int(core::VoxelModel::BandLimited)));
     EXPECT_EQ(window->views()[0]->settings().voxelModel, core::VoxelModel::Trilinear);
     EXPECT_EQ(window->views()[1]->settings().voxelModel, core::VoxelModel::BandLimited);
     EXPECT_EQ(QSettings().value("render/voxelModel").toString(), QString("trilinear")); // view 1's
-    window->compareSlotCombo()->setCurrentIndex(1); // the panel shows view 1's model again
+    window->renderingPanel()->appliesToCombo()->setCurrentIndex(1); // the panel shows view 1's model again
     EXPECT_EQ(core::VoxelModel(model->currentData().toInt()), core::VoxelModel::Trilinear);
-    window->compareSlotCombo()->setCurrentIndex(0); // all views
+    window->renderingPanel()->appliesToCombo()->setCurrentIndex(0); // all views
     model->setCurrentIndex(model->findData(int(core::VoxelModel::BSpline)));
     for (auto* view : window->views()) EXPECT_EQ(view->settings().voxelModel, core::VoxelModel::BSpline);
     EXPECT_EQ(window->views()[0]->settings().kernel, k0);
     EXPECT_EQ(window->views()[1]->settings().kernel, k1);
+}
+
+TEST_F(Workstation, PanelsRoundTripTheirValuesWithoutSignals) {
+    ui::RenderingPanel rendering;
+    ui::RenderingPanel::Values r;
+    r.kernel = core::Kernel::Linear;
+    r.size = 256;
+    r.voxelModel = core::VoxelModel::BSpline;
+    r.transform = core::TransformKind::Fht;
+    r.oversampling = 1.5;
+    r.mapping = core::ValueMapping::MuBone;
+    r.deapodize = false;
+    r.targetFps = 12;
+    r.pixelAperture = true;
+    r.clip = false;
+    r.nonNegative = false;
+    ASSERT_NE(r, rendering.values());
+    QSignalSpy renderingChanged(&rendering, &ui::RenderingPanel::changed);
+    rendering.setValues(r);
+    EXPECT_EQ(rendering.values(), r);
+    EXPECT_EQ(renderingChanged.count(), 0); // setValues never renders again by itself
+
+    ui::DisplayPanel display;
+    const ui::DisplayPanel::Values d{2.5, -1.25, true};
+    QSignalSpy displayChanged(&display, &ui::DisplayPanel::changed);
+    display.setValues(d);
+    EXPECT_EQ(display.values(), d);
+    EXPECT_EQ(displayChanged.count(), 0);
+    // Presets are chosen by their id, not their (translated) label.
+    std::vector<ui::WindowPreset> asked;
+    QObject::connect(&display, &ui::DisplayPanel::presetRequested, [&](ui::WindowPreset p) { asked.push_back(p); });
+    emit display.presetCombo()->activated(display.presetCombo()->findData(int(ui::WindowPreset::Bone)));
+    EXPECT_EQ(asked, std::vector<ui::WindowPreset>{ui::WindowPreset::Bone});
+
+    ui::XrayPanel xray;
+    const ui::XrayPanel::Values x{ui::XrayOutput::Transmission, 90.0, 2.5, 40, 1.25, 2.0, 0.5};
+    QSignalSpy xrayChanged(&xray, &ui::XrayPanel::changed);
+    EXPECT_FALSE(xray.energySpin()->isEnabled()); // line integrals: no beam
+    xray.setValues(x);
+    EXPECT_EQ(xray.values(), x);
+    EXPECT_EQ(xrayChanged.count(), 0);
+    EXPECT_TRUE(xray.energySpin()->isEnabled());
+    EXPECT_TRUE(xray.exposureSpin()->isEnabled());
+    EXPECT_NEAR(xray.transmission().muWaterPerMm, core::waterAttenuationPerMm(90.0), 1e-12);
+    EXPECT_EQ(xray.sliceFilter(), (core::SliceFilter{1.25, 2.0, 0.5}));
+    xray.setOutput(ui::XrayOutput::LineIntegrals);
+    EXPECT_FALSE(xray.transmission().active());
+    EXPECT_FALSE(xray.exposureSpin()->isEnabled());
+    EXPECT_EQ(xrayChanged.count(), 0);
+}
+
+TEST_F(Workstation, PanelSettingsPersistForTheNextWindow) {
+    // Changed like a user does (no study open), then read back by a fresh window.
+    auto* rp = window->renderingPanel();
+    auto* xp = window->xrayPanel();
+    EXPECT_EQ(rp->values(), ui::RenderingPanel::Values{}); // no settings saved: the defaults
+    EXPECT_EQ(xp->values(), ui::XrayPanel::Values{});
+    auto pick = [](QComboBox* c, const QVariant& data) { c->setCurrentIndex(c->findData(data)); };
+    pick(rp->kernelCombo(), int(core::Kernel::Linear));
+    pick(rp->sizeCombo(), 256);
+    pick(rp->voxelModelCombo(), int(core::VoxelModel::BSpline));
+    pick(rp->transformCombo(), int(core::TransformKind::Fht));
+    pick(rp->oversamplingCombo(), 1.5);
+    pick(rp->valuesCombo(), int(core::ValueMapping::MuBone));
+    rp->deapodizeCheck()->setChecked(false);
+    rp->targetFpsSpin()->setValue(12);
+    rp->pixelApertureCheck()->setChecked(true);
+    rp->clipCheck()->setChecked(false);
+    rp->nonNegativeCheck()->setChecked(false);
+    xp->energySpin()->setValue(90.0);
+    xp->exposureSpin()->setValue(2.5);
+    xp->depthCueSpin()->setValue(40);
+    xp->sharpenSpin()->setValue(1.25);
+    xp->sharpenRadiusSpin()->setValue(2.0);
+    xp->bandLimitSpin()->setValue(0.5);
+    xp->outputCombo()->setCurrentIndex(xp->outputCombo()->findData(int(ui::XrayOutput::Transmission)));
+    window->displayPanel()->invertCheck()->setChecked(true);
+    const auto rendering = rp->values();
+    const auto xray = xp->values();
+    ASSERT_EQ(rendering, (ui::RenderingPanel::Values{core::Kernel::Linear, 256, core::VoxelModel::BSpline,
+                                                     core::TransformKind::Fht, 1.5, core::ValueMapping::MuBone, false,
+                                                     12, true, false, false}));
+    ASSERT_EQ(xray, (ui::XrayPanel::Values{ui::XrayOutput::Transmission, 90.0, 2.5, 40, 1.25, 2.0, 0.5}));
+    window.reset();
+
+    // The keys users' saved settings already hold.
+    const QSettings s;
+    EXPECT_EQ(s.value("render/kernel").toInt(), int(core::Kernel::Linear));
+    EXPECT_EQ(s.value("render/size").toInt(), 256);
+    EXPECT_EQ(s.value("render/voxelModel").toString(), QString("bspline"));
+    EXPECT_EQ(s.value("render/oversampling").toDouble(), 1.5);
+    EXPECT_FALSE(s.value("render/deapodize").toBool());
+    EXPECT_EQ(s.value("render/targetFps").toInt(), 12);
+    EXPECT_EQ(s.value("xray/output").toInt(), 1);
+    EXPECT_EQ(s.value("xray/energyKeV").toDouble(), 90.0);
+    EXPECT_EQ(s.value("xray/sharpenRadius").toDouble(), 2.0);
+    EXPECT_TRUE(s.value("display/invert").toBool());
+
+    MainWindow fresh;
+    EXPECT_EQ(fresh.renderingPanel()->values(), rendering);
+    EXPECT_EQ(fresh.xrayPanel()->values(), xray);
+    EXPECT_TRUE(fresh.displayPanel()->values().invert);
+    EXPECT_TRUE(fresh.currentTransmission().active());
+    EXPECT_EQ(fresh.views()[0]->settings(), (ui::ViewSettings{core::Kernel::Linear, 256, core::VoxelModel::BSpline}));
+    EXPECT_EQ(fresh.views()[0]->effects().filter, (core::SliceFilter{1.25, 2.0, 0.5}));
 }

@@ -184,22 +184,31 @@ void ProjectionView::initializeGL() {
 
 void ProjectionView::resizeGL(int, int) {}
 
+core::Renderer& ProjectionView::floatRenderer() {
+    if (m_gpu) return *m_gpu;
+    if (!m_cpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
+    return *m_cpu;
+}
+
+void ProjectionView::uploadSpectrumIfNeeded() {
+    if (!m_spectrumDirty) return;
+    m_spectrumDirty = false;
+    m_renderDirty = true;
+    if (m_gpu) {
+        try {
+            m_gpu->setSpectrum(m_spectrum);
+        } catch (const std::exception& e) {
+            m_gpu.reset();
+            m_notice = tr("GPU renderer unavailable (%1): rendering on the CPU").arg(QString::fromUtf8(e.what()));
+            emit backendChanged(false, m_notice);
+        }
+    }
+    if (!m_gpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
+}
+
 void ProjectionView::renderIfNeeded(bool fullQuality) {
     if (!m_spectrum || !m_volume) return;
-    if (m_spectrumDirty) {
-        m_spectrumDirty = false;
-        m_renderDirty = true;
-        if (m_gpu) {
-            try {
-                m_gpu->setSpectrum(m_spectrum);
-            } catch (const std::exception& e) {
-                m_gpu.reset();
-                m_notice = tr("GPU renderer unavailable (%1): rendering on the CPU").arg(QString::fromUtf8(e.what()));
-                emit backendChanged(false, m_notice);
-            }
-        }
-        if (!m_gpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
-    }
+    uploadSpectrumIfNeeded();
     m_progressive.setLevels(core::progressiveLevels(m_settings.size, m_settings.kernel,
                                                     m_spectrum->deapodizedFor.has_value(),
                                                     std::min(64, m_settings.size)));
@@ -208,8 +217,20 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
     if (level != m_renderedLevel) m_renderDirty = true;
     if (!m_renderDirty) return;
     const core::QualityLevel q = m_progressive.levels()[std::size_t(level)];
-    const int M = q.size; // same field of view at every level: d = diagonal / M
-    const core::RenderParams params = renderParams(M, q.kernel);
+    renderFrame(renderParams(q.size, q.kernel), level); // same field of view at every level: d = diagonal / M
+    m_renderedLevel = level;
+    m_renderedQuality = q;
+    if (m_reference && m_reference != this) subtractReference();
+    if (!m_windowSet) windowFromFrame();
+    m_renderDirty = false; // only after a frame really exists
+    ++m_frames;
+    const double wall = m_frameClock.isValid() ? m_frameClock.restart() : 0.0;
+    m_stats.fps = wall > 0 ? 1000.0 / wall : 0.0;
+    if (!m_frameClock.isValid()) m_frameClock.start();
+    emit rendered();
+}
+
+void ProjectionView::renderFrame(const core::RenderParams& params, int level) {
     if (m_gpu) {
         // With a window already set (and no difference to map), the last pass of the inverse
         // transform also writes the display texture; paintGL's displayTexture() then costs nothing.
@@ -219,56 +240,93 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
         m_gpuTimesPending = true;
         m_timedLevel = level;
         m_cpuImage.reset();
-    } else {
-        if (!m_cpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
-        core::StageTimes t;
-        m_cpuImage = m_cpu->render(params, &t);
-        m_stats.sliceMs = t.sliceMs;
-        m_stats.inverseMs = t.inverseMs;
-        m_stats.totalMs = t.totalMs;
-        m_stats.fused = false;
-        m_stats.displayFused = false;
-        if (level == m_progressive.level()) frameTimed(t.totalMs);
+        return;
     }
-    m_renderedLevel = level;
-    m_renderedQuality = q;
-    if (m_reference && m_reference != this) {
-        auto own = m_gpu ? std::optional<core::ProjectionImage>(m_gpu->readback()) : m_cpuImage;
-        auto ref = m_reference->projection();
-        if (own && ref && ref->size == own->size) {
-            double maxAbs = 0;
-            for (std::size_t i = 0; i < own->pixels.size(); ++i) {
-                own->pixels[i] -= ref->pixels[i];
-                maxAbs = std::max(maxAbs, double(std::abs(own->pixels[i])));
-            }
-            m_cpuImage = own;
-            if (!m_windowSet) {
-                m_window = {-maxAbs, maxAbs > 0 ? maxAbs : 1.0, false};
-                m_windowSet = true;
-            }
-        }
+    core::StageTimes t;
+    m_cpuImage = floatRenderer().render(params, &t);
+    m_stats.sliceMs = t.sliceMs;
+    m_stats.inverseMs = t.inverseMs;
+    m_stats.totalMs = t.totalMs;
+    m_stats.fused = false;
+    m_stats.displayFused = false;
+    if (level == m_progressive.level()) frameTimed(t.totalMs);
+}
+
+void ProjectionView::subtractReference() {
+    auto own = m_gpu ? std::optional<core::ProjectionImage>(m_gpu->readback()) : m_cpuImage;
+    auto ref = m_reference->projection();
+    if (!own || !ref || ref->size != own->size) return;
+    double maxAbs = 0;
+    for (std::size_t i = 0; i < own->pixels.size(); ++i) {
+        own->pixels[i] -= ref->pixels[i];
+        maxAbs = std::max(maxAbs, double(std::abs(own->pixels[i])));
     }
+    m_cpuImage = own;
     if (!m_windowSet) {
-        auto img = m_cpuImage ? *m_cpuImage : m_gpu->readback();
-        const core::DisplayWindow old = m_window;
-        if (old.transmission.active()) core::applyLogExposure(img.pixels, old.transmission);
-        m_window = core::autoWindow(img.pixels);
-        m_window.invert = old.invert;
-        m_window.transmission = old.transmission;
+        m_window = {-maxAbs, maxAbs > 0 ? maxAbs : 1.0, false};
         m_windowSet = true;
-        emit windowChanged(m_window);
     }
-    m_renderDirty = false; // only after a frame really exists
-    ++m_frames;
-    const double wall = m_frameClock.isValid() ? m_frameClock.restart() : 0.0;
-    m_stats.fps = wall > 0 ? 1000.0 / wall : 0.0;
-    if (!m_frameClock.isValid()) m_frameClock.start();
-    emit rendered();
+}
+
+void ProjectionView::windowFromFrame() {
+    auto img = m_cpuImage ? *m_cpuImage : m_gpu->readback();
+    const core::DisplayWindow old = m_window;
+    if (old.transmission.active()) core::applyLogExposure(img.pixels, old.transmission);
+    m_window = core::autoWindow(img.pixels);
+    m_window.invert = old.invert;
+    m_window.transmission = old.transmission;
+    m_windowSet = true;
+    emit windowChanged(m_window);
 }
 
 QRectF ProjectionView::imageRect() const {
     const double side = std::min(width(), height()) * m_zoom;
     return {width() / 2.0 - side / 2.0 + m_pan.x(), height() / 2.0 - side / 2.0 + m_pan.y(), side, side};
+}
+
+GLuint ProjectionView::frameTexture() {
+    if (m_gpu && !m_cpuImage) {
+        const GLuint tex = m_gpu->displayTexture(m_window);
+        const auto t = m_gpu->lastTimes();
+        if (m_gpuTimesPending) {
+            m_stats.sliceMs = t.sliceMs;
+            m_stats.inverseMs = t.inverseMs;
+            m_stats.totalMs = t.totalMs;
+            m_stats.fused = t.fused;
+            m_stats.displayFused = t.displayFused;
+            m_stats.displayMs = t.displayMs;
+            m_gpuTimesPending = false;
+            if (m_timedLevel == m_progressive.level()) frameTimed(t.totalMs);
+        }
+        return tex;
+    }
+    if (m_cpuImage) {
+        uploadCpuTexture(*m_cpuImage);
+        return m_cpuTexture;
+    }
+    return 0;
+}
+
+void ProjectionView::uploadCpuTexture(const core::ProjectionImage& image) {
+    auto* f = context()->extraFunctions();
+    const int M = image.size;
+    std::vector<unsigned char> rgba(std::size_t(M) * M * 4);
+    for (std::size_t i = 0; i < std::size_t(M) * M; ++i) {
+        const auto v = static_cast<unsigned char>(std::lround(m_window.map(image.pixels[i]) * 255.0));
+        rgba[4 * i] = rgba[4 * i + 1] = rgba[4 * i + 2] = v;
+        rgba[4 * i + 3] = 255;
+    }
+    if (!m_cpuTexture) f->glGenTextures(1, &m_cpuTexture);
+    f->glBindTexture(GL_TEXTURE_2D, m_cpuTexture);
+    f->glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    if (m_cpuTextureSize != M) {
+        f->glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, M, M, 0, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+        f->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+        f->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        m_cpuTextureSize = M;
+    } else {
+        f->glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, M, M, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+    }
 }
 
 void ProjectionView::paintGL() {
@@ -289,40 +347,7 @@ void ProjectionView::paintGL() {
     }
     GLuint tex = 0;
     try {
-    if (m_gpu && !m_cpuImage) {
-        tex = m_gpu->displayTexture(m_window);
-        const auto t = m_gpu->lastTimes();
-        if (m_gpuTimesPending) {
-            m_stats.sliceMs = t.sliceMs;
-            m_stats.inverseMs = t.inverseMs;
-            m_stats.totalMs = t.totalMs;
-            m_stats.fused = t.fused;
-            m_stats.displayFused = t.displayFused;
-            m_stats.displayMs = t.displayMs;
-            m_gpuTimesPending = false;
-            if (m_timedLevel == m_progressive.level()) frameTimed(t.totalMs);
-        }
-    } else if (m_cpuImage) {
-        const int M = m_cpuImage->size;
-        std::vector<unsigned char> rgba(std::size_t(M) * M * 4);
-        for (std::size_t i = 0; i < std::size_t(M) * M; ++i) {
-            const auto v = static_cast<unsigned char>(std::lround(m_window.map(m_cpuImage->pixels[i]) * 255.0));
-            rgba[4 * i] = rgba[4 * i + 1] = rgba[4 * i + 2] = v;
-            rgba[4 * i + 3] = 255;
-        }
-        if (!m_cpuTexture) f->glGenTextures(1, &m_cpuTexture);
-        f->glBindTexture(GL_TEXTURE_2D, m_cpuTexture);
-        f->glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-        if (m_cpuTextureSize != M) {
-            f->glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, M, M, 0, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
-            f->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-            f->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-            m_cpuTextureSize = M;
-        } else {
-            f->glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, M, M, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
-        }
-        tex = m_cpuTexture;
-    }
+        tex = frameTexture();
     } catch (const std::exception& e) { // nothing may leave paintGL
         m_renderError = tr("Not displayed: %1").arg(QString::fromUtf8(e.what()));
         tex = 0;
@@ -350,78 +375,31 @@ void ProjectionView::paintGL() {
     drawOverlay();
 }
 
+namespace {
+/** Text with a dark halo stays readable on bright (bone) and dark (air) parts of the image. */
+void drawHaloText(QPainter& p, const QRectF& r, int flags, const QString& text, const QColor& color) {
+    p.setPen(QColor(0, 0, 0, 200));
+    for (const QPointF& o : {QPointF(-1, 0), QPointF(1, 0), QPointF(0, -1), QPointF(0, 1)}) p.drawText(r.translated(o), flags, text);
+    p.setPen(color);
+    p.drawText(r, flags, text);
+}
+} // namespace
+
 void ProjectionView::drawOverlay() {
     QPainter p(this);
     p.setRenderHint(QPainter::TextAntialiasing);
     QFont font = p.font();
     font.setPointSizeF(std::max(8.0, font.pointSizeF()));
     p.setFont(font);
-    const QColor label(255, 210, 80);
     if (!m_spectrum) {
         p.setPen(QColor(180, 180, 180));
         p.drawText(rect(), Qt::AlignCenter, tr("No study loaded\nFile ▸ Open, or drop a DICOM folder or volume file here"));
         return;
     }
-    // Text with a dark halo stays readable on bright (bone) and dark (air) parts of the image.
-    auto haloText = [&](const QRectF& r, int flags, const QString& text, const QColor& color) {
-        p.setPen(QColor(0, 0, 0, 200));
-        for (const QPointF& o : {QPointF(-1, 0), QPointF(1, 0), QPointF(0, -1), QPointF(0, 1)}) p.drawText(r.translated(o), flags, text);
-        p.setPen(color);
-        p.drawText(r, flags, text);
-    };
-    if (m_volume) {
-        const QRectF r = imageRect().intersected(QRectF(rect()));
-        auto lbl = [&](const core::Vec3& v) { return QString::fromStdString(core::patientDirectionLabel(*m_volume, v)); };
-        const core::Vec3 neg_r{-m_view.r[0], -m_view.r[1], -m_view.r[2]};
-        const core::Vec3 neg_u{-m_view.u[0], -m_view.u[1], -m_view.u[2]};
-        const int pad = 6;
-        QFont bold = p.font();
-        bold.setBold(true);
-        p.setFont(bold);
-        const QRectF inner(r.left() + pad, r.top() + pad, r.width() - 2 * pad, r.height() - 2 * pad);
-        haloText(inner, Qt::AlignLeft | Qt::AlignVCenter, lbl(neg_r), label);
-        haloText(inner, Qt::AlignRight | Qt::AlignVCenter, lbl(m_view.r), label);
-        haloText(inner, Qt::AlignHCenter | Qt::AlignTop, lbl(m_view.u), label);
-        haloText(inner, Qt::AlignHCenter | Qt::AlignBottom, lbl(neg_u), label);
-        p.setFont(font);
-    }
+    if (m_volume) drawOrientationLabels(p);
     QStringList lines;
     if (!m_title.isEmpty()) lines << m_title;
-    if (m_overlay) {
-        const core::QualityLevel shown = m_renderedQuality;
-        lines << QStringLiteral("%1 fps  %2  %3×%3  %4  %5 voxels%6")
-                     .arg(m_stats.fps > 0 ? QString::number(m_stats.fps, 'f', 0) : QStringLiteral("–"))
-                     .arg(QString::fromUtf8(core::kernelName(shown.kernel)))
-                     .arg(shown.size)
-                     .arg(m_gpu ? QStringLiteral("GPU") : QStringLiteral("CPU"))
-                     .arg(QString::fromUtf8(core::voxelModelLabel(m_settings.voxelModel)))
-                     .arg(m_effects.pixelAperture ? tr(", area pixels") : QString());
-        if (m_progressive.enabled())
-            lines << (m_renderedLevel == 0
-                          ? tr("full quality (interactive target %1 fps)").arg(m_progressive.targetFps(), 0, 'f', 0)
-                          : tr("interactive level %1/%2 (target %3 fps)")
-                                .arg(m_renderedLevel)
-                                .arg(m_progressive.levels().size() - 1)
-                                .arg(m_progressive.targetFps(), 0, 'f', 0));
-        QStringList fx;
-        if (m_effects.depthCue > 0) fx << tr("depth cue %1 %").arg(m_effects.depthCue * 100, 0, 'f', 0);
-        if (m_effects.filter.sharpenAmount > 0)
-            fx << tr("edges ×%1 (σ %2 mm)").arg(m_effects.filter.sharpenAmount, 0, 'g', 3).arg(m_effects.filter.sharpenSigmaMm, 0, 'g', 3);
-        if (m_effects.filter.bandLimitLpMm > 0) fx << tr("band limit %1 lp/mm").arg(m_effects.filter.bandLimitLpMm, 0, 'g', 3);
-        if (m_window.transmission.active())
-            fx << tr("Beer-Lambert μw %1/mm ×%2").arg(m_window.transmission.muWaterPerMm, 0, 'f', 4).arg(m_window.transmission.exposure, 0, 'g', 3);
-        if (!fx.isEmpty()) lines << fx.join(QStringLiteral("  "));
-        if (m_stats.fused && m_stats.displayFused)
-            lines << QStringLiteral("slice+inverse+display %1 ms (fused)").arg(m_stats.inverseMs, 0, 'f', 2);
-        else if (m_stats.fused)
-            lines << QStringLiteral("slice+inverse %1 ms  display %2 ms").arg(m_stats.inverseMs, 0, 'f', 2).arg(m_stats.displayMs, 0, 'f', 2);
-        else
-            lines << QStringLiteral("slice %1  inverse %2  display %3 ms")
-                         .arg(m_stats.sliceMs, 0, 'f', 2)
-                         .arg(m_stats.inverseMs, 0, 'f', 2)
-                         .arg(m_stats.displayMs, 0, 'f', 2);
-        lines << QStringLiteral("W %1  L %2").arg(m_window.high - m_window.low, 0, 'g', 4).arg((m_window.high + m_window.low) / 2, 0, 'g', 4);
-    }
+    if (m_overlay) lines << overlayLines();
     if (m_reference) lines << tr("difference to %1").arg(m_reference->m_title);
     if (!lines.isEmpty()) {
         const QString text = lines.join('\n');
@@ -440,6 +418,68 @@ void ProjectionView::drawOverlay() {
     }
 }
 
+void ProjectionView::drawOrientationLabels(QPainter& p) {
+    const QColor label(255, 210, 80);
+    const QFont font = p.font();
+    const QRectF r = imageRect().intersected(QRectF(rect()));
+    auto lbl = [&](const core::Vec3& v) { return QString::fromStdString(core::patientDirectionLabel(*m_volume, v)); };
+    const core::Vec3 neg_r{-m_view.r[0], -m_view.r[1], -m_view.r[2]};
+    const core::Vec3 neg_u{-m_view.u[0], -m_view.u[1], -m_view.u[2]};
+    const int pad = 6;
+    QFont bold = font;
+    bold.setBold(true);
+    p.setFont(bold);
+    const QRectF inner(r.left() + pad, r.top() + pad, r.width() - 2 * pad, r.height() - 2 * pad);
+    drawHaloText(p, inner, Qt::AlignLeft | Qt::AlignVCenter, lbl(neg_r), label);
+    drawHaloText(p, inner, Qt::AlignRight | Qt::AlignVCenter, lbl(m_view.r), label);
+    drawHaloText(p, inner, Qt::AlignHCenter | Qt::AlignTop, lbl(m_view.u), label);
+    drawHaloText(p, inner, Qt::AlignHCenter | Qt::AlignBottom, lbl(neg_u), label);
+    p.setFont(font);
+}
+
+QStringList ProjectionView::overlayLines() const {
+    QStringList lines;
+    const core::QualityLevel shown = m_renderedQuality;
+    lines << QStringLiteral("%1 fps  %2  %3×%3  %4  %5 voxels%6")
+                 .arg(m_stats.fps > 0 ? QString::number(m_stats.fps, 'f', 0) : QStringLiteral("–"))
+                 .arg(QString::fromUtf8(core::kernelName(shown.kernel)))
+                 .arg(shown.size)
+                 .arg(m_gpu ? QStringLiteral("GPU") : QStringLiteral("CPU"))
+                 .arg(QString::fromUtf8(core::voxelModelLabel(m_settings.voxelModel)))
+                 .arg(m_effects.pixelAperture ? tr(", area pixels") : QString());
+    if (m_progressive.enabled())
+        lines << (m_renderedLevel == 0
+                      ? tr("full quality (interactive target %1 fps)").arg(m_progressive.targetFps(), 0, 'f', 0)
+                      : tr("interactive level %1/%2 (target %3 fps)")
+                            .arg(m_renderedLevel)
+                            .arg(m_progressive.levels().size() - 1)
+                            .arg(m_progressive.targetFps(), 0, 'f', 0));
+    const QStringList fx = effectsSummary();
+    if (!fx.isEmpty()) lines << fx.join(QStringLiteral("  "));
+    if (m_stats.fused && m_stats.displayFused)
+        lines << QStringLiteral("slice+inverse+display %1 ms (fused)").arg(m_stats.inverseMs, 0, 'f', 2);
+    else if (m_stats.fused)
+        lines << QStringLiteral("slice+inverse %1 ms  display %2 ms").arg(m_stats.inverseMs, 0, 'f', 2).arg(m_stats.displayMs, 0, 'f', 2);
+    else
+        lines << QStringLiteral("slice %1  inverse %2  display %3 ms")
+                     .arg(m_stats.sliceMs, 0, 'f', 2)
+                     .arg(m_stats.inverseMs, 0, 'f', 2)
+                     .arg(m_stats.displayMs, 0, 'f', 2);
+    lines << QStringLiteral("W %1  L %2").arg(m_window.high - m_window.low, 0, 'g', 4).arg((m_window.high + m_window.low) / 2, 0, 'g', 4);
+    return lines;
+}
+
+QStringList ProjectionView::effectsSummary() const {
+    QStringList fx;
+    if (m_effects.depthCue > 0) fx << tr("depth cue %1 %").arg(m_effects.depthCue * 100, 0, 'f', 0);
+    if (m_effects.filter.sharpenAmount > 0)
+        fx << tr("edges ×%1 (σ %2 mm)").arg(m_effects.filter.sharpenAmount, 0, 'g', 3).arg(m_effects.filter.sharpenSigmaMm, 0, 'g', 3);
+    if (m_effects.filter.bandLimitLpMm > 0) fx << tr("band limit %1 lp/mm").arg(m_effects.filter.bandLimitLpMm, 0, 'g', 3);
+    if (m_window.transmission.active())
+        fx << tr("Beer-Lambert μw %1/mm ×%2").arg(m_window.transmission.muWaterPerMm, 0, 'f', 4).arg(m_window.transmission.exposure, 0, 'g', 3);
+    return fx;
+}
+
 std::optional<core::ProjectionImage> ProjectionView::projection() {
     if (!m_spectrum || !m_volume) return std::nullopt;
     if (m_glReady) {
@@ -453,7 +493,7 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
         std::optional<core::ProjectionImage> img;
         try {
             if (m_gpu) img = m_gpu->readback(); // the view's own projection, also in difference mode
-            else if (m_reference && m_cpuImage) img = m_cpu->render(renderParams(m_settings.size, m_settings.kernel));
+            else if (m_reference && m_cpuImage) img = floatRenderer().render(renderParams(m_settings.size, m_settings.kernel));
             else img = m_cpuImage;
         } catch (const std::exception&) {
             img.reset();
@@ -461,8 +501,7 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
         doneCurrent();
         return img;
     }
-    if (!m_cpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
-    return m_cpu->render(renderParams(m_settings.size, m_settings.kernel));
+    return floatRenderer().render(renderParams(m_settings.size, m_settings.kernel));
 }
 
 core::RenderParams ProjectionView::renderParams(int M, core::Kernel kernel) const {

@@ -1,29 +1,30 @@
 #pragma once
 /** The workstation's main window: the projection (or 2/4 synchronised views to compare
- *  kernels), dock panels for the study, rendering, display and messages, menus, toolbar, status
- *  bar with progress and Cancel. */
+ *  kernels), dock panels for the study, rendering, display, X-ray image and messages, menus,
+ *  toolbar, status bar with progress and Cancel. The panels own their controls; the window wires
+ *  their values to the views and the study controller. */
 #include <QMainWindow>
-#include <QPointer>
-
-#include <atomic>
-#include <thread>
 
 #include <fvr/core/xray/patient_views.h>
 #include <fvr/ui/projection_view.h>
 #include <fvr/ui/study.h>
 
-class QComboBox;
-class QCheckBox;
-class QDoubleSpinBox;
-class QSpinBox;
 class QLabel;
-class QPlainTextEdit;
 class QProgressBar;
 class QPushButton;
 class QGridLayout;
 class QMenu;
+class QToolBar;
 
 namespace fvr::ui {
+
+class AccuracyReadout;
+class DisplayPanel;
+class MessagesPanel;
+class RenderingPanel;
+class StudyPanel;
+class XrayPanel;
+enum class WindowPreset;
 
 class MainWindow : public QMainWindow {
     Q_OBJECT
@@ -40,70 +41,63 @@ public:
     void setCompareCount(int n);
     void setDifferenceMode(bool on);
     void showPatientView(core::PatientView v);
-    /** Exports; return false and report in the message panel on failure. */
+    /** Exports (export_actions.cpp); return false and report in the message panel on failure. */
     bool exportScreenshot(const QString& path);
     bool exportProjection(const QString& path); ///< .npy (float), .png (16-bit), .pfm
     bool exportSweep(const QString& folder, int frames, const core::Vec3& axis);
-    /** Accuracy readout: view 1's projection against the spatial (ray-casting) projector of the
-     *  same voxels and view, computed on a worker thread; the result (PSNR, relative RMSE) goes to
-     *  the Messages panel and accuracyMeasured(). */
+    /** Accuracy readout (AccuracyReadout): view 1's projection against the spatial (ray-casting)
+     *  projector of the same voxels and view, on a worker thread; the result (PSNR, relative
+     *  RMSE) goes to the Messages panel and accuracyMeasured(). */
     void measureAccuracy();
+
+    /** The panels (tests drive their controls like a user). */
+    StudyPanel* studyPanel() const { return m_studyPanel; }
+    RenderingPanel* renderingPanel() const { return m_rendering; }
+    DisplayPanel* displayPanel() const { return m_display; }
+    XrayPanel* xrayPanel() const { return m_xray; }
+    MessagesPanel* messages() const { return m_messages; }
+    QProgressBar* progressBar() const { return m_progress; }
+    /** The transmission the X-ray panel asks for (inactive for line integrals). */
+    core::Transmission currentTransmission() const;
+    /** The per-frame effects of the Rendering and X-ray panels. */
+    FrameEffects currentEffects() const;
 
 signals:
     void accuracyMeasured(double psnr, double relRmse);
-
-public:
-    /** Panel controls (tests drive them like a user). */
-    QComboBox* kernelCombo() const { return m_kernel; }
-    QComboBox* sizeCombo() const { return m_size; }
-    QComboBox* transformCombo() const { return m_transform; }
-    QComboBox* oversamplingCombo() const { return m_oversampling; }
-    QComboBox* valuesCombo() const { return m_values; }
-    QCheckBox* deapodizeCheck() const { return m_deapodize; }
-    QCheckBox* invertCheck() const { return m_invert; }
-    QDoubleSpinBox* windowWidthSpin() const { return m_width; }
-    QDoubleSpinBox* windowLevelSpin() const { return m_level; }
-    QPlainTextEdit* messages() const { return m_messages; }
-    QComboBox* outputCombo() const { return m_output; }
-    QDoubleSpinBox* energySpin() const { return m_energy; }
-    QDoubleSpinBox* exposureSpin() const { return m_exposure; }
-    QSpinBox* depthCueSpin() const { return m_depthCue; }
-    QDoubleSpinBox* sharpenSpin() const { return m_sharpen; }
-    QDoubleSpinBox* sharpenRadiusSpin() const { return m_sharpenRadius; }
-    QDoubleSpinBox* bandLimitSpin() const { return m_bandLimit; }
-    QSpinBox* targetFpsSpin() const { return m_targetFps; }
-    QCheckBox* clipCheck() const { return m_clip; }
-    QComboBox* voxelModelCombo() const { return m_voxelModel; }
-    QComboBox* compareSlotCombo() const { return m_compareSlot; }
-    QCheckBox* pixelApertureCheck() const { return m_pixelAperture; }
-    QCheckBox* nonNegativeCheck() const { return m_nonNegative; }
-    /** The transmission the X-ray panel asks for (inactive for line integrals). */
-    core::Transmission currentTransmission() const;
-    FrameEffects currentEffects() const;
-    QProgressBar* progressBar() const { return m_progress; }
 
 protected:
     void closeEvent(QCloseEvent* e) override;
     void dragEnterEvent(QDragEnterEvent* e) override;
     void dropEvent(QDropEvent* e) override;
-    void keyPressEvent(QKeyEvent* e) override;
 
 private:
     void buildViews();
     void buildDocks();
-    void buildMenus();
+    void buildStatusBar();
+    void connectStudy();
+    void connectPanels();
+    void restorePanels();
+    void buildMenus(); // main_window_menus.cpp
+    void buildViewMenu(QMenu* view, QToolBar* toolbar);
+    ProjectionView* addView(int index, int count, const core::ViewFrame& frame);
+    void connectView(ProjectionView* v);
     void applyRenderSettings();
     /** The voxel model combo: changes only the voxel model of the views it applies to. */
     void applyVoxelModel();
-    void saveVoxelModelSetting();
+    /** The Rendering panel's settings, with view 1's voxel model (the startup setting). */
+    void saveRenderingSettings();
     /** "View 2: linear 512×512": a compare view's title. */
     QString viewTitle(int index, const ViewSettings& s) const;
+    /** The spectrum settings the Rendering panel asks for. */
+    SpectrumSettings spectrumSettingsFromPanel() const;
     void applySpectrumSettings();
+    void applyValueMapping();
     void applyWindowFromPanel();
     void syncWindowToPanel(const core::DisplayWindow& w);
     void onStudyLoaded(const QString& name);
     void onSpectrumReady();
     void updateStudyInfo();
+    void showProgress(bool on);
     void message(const QString& text, bool error = false);
     void addRecent(const QString& path);
     void rebuildRecentMenu();
@@ -113,7 +107,7 @@ private:
     void exportProjectionDialog();
     void exportSweepDialog();
     void copyToClipboard();
-    void applyPreset(const QString& name);
+    void applyPreset(WindowPreset preset);
     void applyEffects();
     void applyOutput(bool resetWindow);
 
@@ -127,40 +121,17 @@ private:
     bool m_syncing = false;
     bool m_rewindow = false; ///< auto window once the next spectrum is ready (values changed)
 
-    QComboBox* m_kernel = nullptr;
-    QComboBox* m_size = nullptr;
-    QComboBox* m_transform = nullptr;
-    QComboBox* m_oversampling = nullptr;
-    QComboBox* m_values = nullptr;
-    QCheckBox* m_deapodize = nullptr;
-    QComboBox* m_compareSlot = nullptr;
-    QLabel* m_memory = nullptr;
-    QDoubleSpinBox* m_width = nullptr;
-    QDoubleSpinBox* m_level = nullptr;
-    QCheckBox* m_invert = nullptr;
-    QComboBox* m_output = nullptr;
-    QDoubleSpinBox* m_energy = nullptr;
-    QDoubleSpinBox* m_exposure = nullptr;
-    QLabel* m_muWater = nullptr;
-    QSpinBox* m_depthCue = nullptr;
-    QDoubleSpinBox* m_sharpen = nullptr;
-    QDoubleSpinBox* m_sharpenRadius = nullptr;
-    QDoubleSpinBox* m_bandLimit = nullptr;
-    QSpinBox* m_targetFps = nullptr;
-    QCheckBox* m_clip = nullptr;
-    QComboBox* m_voxelModel = nullptr;
-    QCheckBox* m_pixelAperture = nullptr;
-    QCheckBox* m_nonNegative = nullptr;
-    QComboBox* m_preset = nullptr;
-    QLabel* m_studyInfo = nullptr;
-    QPlainTextEdit* m_messages = nullptr;
+    StudyPanel* m_studyPanel = nullptr;
+    RenderingPanel* m_rendering = nullptr;
+    DisplayPanel* m_display = nullptr;
+    XrayPanel* m_xray = nullptr;
+    MessagesPanel* m_messages = nullptr;
     QProgressBar* m_progress = nullptr;
     QPushButton* m_cancel = nullptr;
     QLabel* m_backend = nullptr;
     QMenu* m_recentMenu = nullptr;
     QAction* m_overlayAction = nullptr;
-    std::thread m_accuracyWorker;
-    std::atomic<bool> m_accuracyDone{true};
+    std::unique_ptr<AccuracyReadout> m_accuracy;
 };
 
 } // namespace fvr::ui

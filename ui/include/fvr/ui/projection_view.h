@@ -15,6 +15,7 @@
 #include <fvr/core/render/view.h>
 #include <fvr/core/volume.h>
 
+class QPainter;
 class QOpenGLShaderProgram;
 class QOpenGLTexture;
 class QOpenGLVertexArrayObject;
@@ -122,9 +123,28 @@ protected:
 private:
     void releaseGl();
     void renderIfNeeded(bool fullQuality = false);
+    /** The renderer of float images: the GPU's when there is one, else the CPU's (made on demand). */
+    core::Renderer& floatRenderer();
+    /** A new spectrum goes to the GPU (the CPU renderer when that fails or there is no GPU). */
+    void uploadSpectrumIfNeeded();
+    /** One frame at a quality level: on the GPU into its buffers (and display texture), or the
+     *  CPU's float image with its stage times. */
+    void renderFrame(const core::RenderParams& params, int level);
+    /** Difference mode: the frame minus the reference view's projection. */
+    void subtractReference();
+    /** The first frame of a study sets the window from its image. */
+    void windowFromFrame();
     void frameTimed(double ms);
     void endDrag();
+    /** The texture showing the frame through the window (0: none): the GPU's display texture,
+     *  or the CPU image uploaded. */
+    unsigned frameTexture();
+    void uploadCpuTexture(const core::ProjectionImage& image);
     void drawOverlay();
+    void drawOrientationLabels(QPainter& p);
+    /** The performance overlay: fps, kernel, size, backend, level, effects, stage times, window. */
+    QStringList overlayLines() const;
+    QStringList effectsSummary() const;
     QRectF imageRect() const;
 
     std::shared_ptr<const core::Volume> m_volume;

@@ -1,0 +1,34 @@
+#pragma once
+/** The accuracy readout: a view's projection against the spatial (ray-casting) projector of the
+ *  same voxels and view, computed on a worker thread; the results arrive on the GUI thread. */
+#include <QObject>
+
+#include <atomic>
+#include <thread>
+
+namespace fvr::ui {
+
+class ProjectionView;
+class StudyController;
+
+class AccuracyReadout : public QObject {
+    Q_OBJECT
+public:
+    explicit AccuracyReadout(QObject* parent = nullptr);
+    ~AccuracyReadout() override;
+
+    /** Starts measuring `view` (nothing without a study or a projection; a message while the
+     *  previous measurement runs or when slice filters are on). */
+    void measure(ProjectionView& view, const StudyController& study);
+
+signals:
+    /** What to tell the user (the start, the result or why nothing was measured). */
+    void message(const QString& text, bool error);
+    void measured(double psnr, double relRmse);
+
+private:
+    std::thread m_worker;
+    std::atomic<bool> m_done{true};
+};
+
+} // namespace fvr::ui

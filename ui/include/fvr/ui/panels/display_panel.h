@@ -1,0 +1,72 @@
+#pragma once
+/** The Display panel: window presets, window width and level, invert, auto window, and the
+ *  mouse and key hints. */
+#include <QWidget>
+
+#include <vector>
+
+#include <fvr/core/io/image_io.h>
+
+class QCheckBox;
+class QComboBox;
+class QDoubleSpinBox;
+class QSettings;
+
+namespace fvr::ui {
+
+/** The window presets, stored as the preset combo's item data (never chosen by their label). */
+enum class WindowPreset { Auto, FullRange, Bone, SoftTissue };
+
+class DisplayPanel : public QWidget {
+    Q_OBJECT
+public:
+    struct Values {
+        double width = 1.0;
+        double level = 0.5;
+        bool invert = false;
+        bool operator==(const Values&) const = default;
+    };
+
+    explicit DisplayPanel(QWidget* parent = nullptr);
+
+    Values values() const;
+    /** Shows `v`; emits nothing. */
+    void setValues(const Values& v);
+    /** The saved values (settings_keys.h); `v`'s where none is saved. Only invert is saved (the
+     *  window follows each image). */
+    static Values load(const QSettings& s, Values v);
+    static Values load(const QSettings& s); ///< over the defaults
+    static void save(QSettings& s, const Values& v);
+
+    /** The window the controls describe, with the transmission it applies to. */
+    core::DisplayWindow window(const core::Transmission& transmission) const;
+    /** Shows a view's window (width, level, invert); emits nothing. */
+    void showWindow(const core::DisplayWindow& w);
+
+    /** The controls (tests drive them like a user). */
+    QComboBox* presetCombo() const { return m_preset; }
+    QDoubleSpinBox* windowWidthSpin() const { return m_width; }
+    QDoubleSpinBox* windowLevelSpin() const { return m_level; }
+    QCheckBox* invertCheck() const { return m_invert; }
+
+signals:
+    /** Any control changed by the user. */
+    void changed();
+    /** Width, level or invert changed by the user. */
+    void windowChanged();
+    /** A preset was chosen (the Auto window button asks for WindowPreset::Auto). */
+    void presetRequested(fvr::ui::WindowPreset preset);
+
+private:
+    QComboBox* m_preset = nullptr;
+    QDoubleSpinBox* m_width = nullptr;
+    QDoubleSpinBox* m_level = nullptr;
+    QCheckBox* m_invert = nullptr;
+};
+
+/** The window a preset gives for an image (`pixels`: what the window applies to); keeps `invert`.
+ */
+core::DisplayWindow presetWindow(WindowPreset preset, const std::vector<float>& pixels,
+                                 bool invert);
+
+} // namespace fvr::ui

@@ -1,0 +1,107 @@
+#pragma once
+/** The Rendering panel: which views the controls apply to, the interpolation kernel, slice
+ *  resolution and voxel model (per view), the spectrum's preprocessing (transform, oversampling,
+ *  values, gridding correction), the interactive frame rate and the per-frame options. */
+#include <QWidget>
+
+#include <fvr/core/render/kernels.h>
+#include <fvr/core/render/preprocess.h>
+#include <fvr/core/render/spectrum.h>
+#include <fvr/ui/projection_view.h>
+
+class QCheckBox;
+class QComboBox;
+class QFormLayout;
+class QLabel;
+class QSettings;
+class QSpinBox;
+
+namespace fvr::ui {
+
+class RenderingPanel : public QWidget {
+    Q_OBJECT
+public:
+    struct Values {
+        core::Kernel kernel = core::Kernel::KaiserBessel4;
+        int size = 512;
+        core::VoxelModel voxelModel = core::VoxelModel::Trilinear;
+        core::TransformKind transform = core::TransformKind::Fft;
+        double oversampling = 1.25;
+        core::ValueMapping mapping = core::ValueMapping::Mu;
+        bool deapodize = true;
+        int targetFps = 30;
+        bool pixelAperture = false;
+        bool clip = true;
+        bool nonNegative = true;
+        bool operator==(const Values&) const = default;
+    };
+
+    explicit RenderingPanel(QWidget* parent = nullptr);
+
+    /** What the controls show. */
+    Values values() const;
+    /** Shows `v` (a value a combo does not offer leaves that combo as it is); emits nothing. */
+    void setValues(const Values& v);
+    /** The saved values (settings_keys.h); `v`'s where none is saved. */
+    static Values load(const QSettings& s, Values v);
+    static Values load(const QSettings& s); ///< over the defaults
+    static void save(QSettings& s, const Values& v);
+
+    /** Kernel, size and voxel model as the controls show them. */
+    ViewSettings viewSettings() const;
+    /** Shows one view's kernel, size and voxel model; emits nothing. */
+    void showViewSettings(const ViewSettings& s);
+    /** The "Applies to" choices for n views side by side (enabled when n > 1); emits nothing. */
+    void setViewCount(int n);
+    /** 0: all views, i: view i. */
+    int appliesTo() const;
+    /** The "Spectrum memory" readout. */
+    void setSpectrumMiB(double mib);
+
+    /** The controls (tests drive them like a user). */
+    QComboBox* kernelCombo() const { return m_kernel; }
+    QComboBox* sizeCombo() const { return m_size; }
+    QComboBox* transformCombo() const { return m_transform; }
+    QComboBox* oversamplingCombo() const { return m_oversampling; }
+    QComboBox* valuesCombo() const { return m_values; }
+    QCheckBox* deapodizeCheck() const { return m_deapodize; }
+    QSpinBox* targetFpsSpin() const { return m_targetFps; }
+    QCheckBox* clipCheck() const { return m_clip; }
+    QComboBox* voxelModelCombo() const { return m_voxelModel; }
+    QComboBox* appliesToCombo() const { return m_appliesTo; }
+    QCheckBox* pixelApertureCheck() const { return m_pixelAperture; }
+    QCheckBox* nonNegativeCheck() const { return m_nonNegative; }
+
+signals:
+    /** Any control changed by the user (after the specific signal below). */
+    void changed();
+    void viewSettingsChanged(); ///< kernel or slice resolution
+    void voxelModelChanged();
+    void spectrumSettingsChanged(); ///< transform, oversampling or gridding correction
+    void valueMappingChanged();
+    void targetFpsChanged(int fps);
+    void frameOptionsChanged(); ///< pixel aperture, clip or non-negative
+    void appliesToChanged(int slot);
+
+private:
+    void addViewRows(QFormLayout* form);
+    void addSpectrumRows(QFormLayout* form);
+    void addFrameRows(QFormLayout* form);
+    void connectControls();
+
+    QComboBox* m_appliesTo = nullptr;
+    QComboBox* m_kernel = nullptr;
+    QComboBox* m_size = nullptr;
+    QComboBox* m_voxelModel = nullptr;
+    QComboBox* m_transform = nullptr;
+    QComboBox* m_oversampling = nullptr;
+    QComboBox* m_values = nullptr;
+    QCheckBox* m_deapodize = nullptr;
+    QLabel* m_memory = nullptr;
+    QSpinBox* m_targetFps = nullptr;
+    QCheckBox* m_pixelAperture = nullptr;
+    QCheckBox* m_clip = nullptr;
+    QCheckBox* m_nonNegative = nullptr;
+};
+
+} // namespace fvr::ui

@@ -1,0 +1,91 @@
+#pragma once
+/** The X-ray panel: the output (line integrals or Beer-Lambert transmitted intensity) with its
+ *  beam (energy, exposure), depth cueing and the slice filters (edge enhancement, band limit). */
+#include <QWidget>
+
+#include <fvr/core/xray/xray.h>
+
+class QComboBox;
+class QDoubleSpinBox;
+class QFormLayout;
+class QLabel;
+class QSettings;
+class QSpinBox;
+
+namespace fvr::ui {
+
+/** What the projection shows: its line integrals, or the intensity a detector records. The values
+ *  are the combo's item data and the saved setting. */
+enum class XrayOutput { LineIntegrals = 0, Transmission = 1 };
+
+/** True for the Beer-Lambert output. */
+inline bool isTransmission(XrayOutput o) { return o == XrayOutput::Transmission; }
+
+class XrayPanel : public QWidget {
+    Q_OBJECT
+public:
+    struct Values {
+        XrayOutput output = XrayOutput::LineIntegrals;
+        double energyKeV = 70.0;
+        double exposure = 1.0;
+        int depthCuePercent = 0;
+        double sharpen = 0.0; ///< SliceFilter::sharpenAmount
+        double sharpenRadius = 1.0; ///< SliceFilter::sharpenSigmaMm
+        double bandLimit = 0.0; ///< SliceFilter::bandLimitLpMm
+        bool operator==(const Values&) const = default;
+    };
+
+    explicit XrayPanel(QWidget* parent = nullptr);
+
+    Values values() const;
+    /** Shows `v` (energy and exposure enabled for transmission only); emits nothing. */
+    void setValues(const Values& v);
+    /** The saved values (settings_keys.h); `v`'s where none is saved. */
+    static Values load(const QSettings& s, Values v);
+    static Values load(const QSettings& s); ///< over the defaults
+    static void save(QSettings& s, const Values& v);
+
+    XrayOutput output() const;
+    /** Shows another output (enabling the beam controls to match); emits nothing. */
+    void setOutput(XrayOutput o);
+    /** The transmission the panel asks for (inactive for line integrals). */
+    core::Transmission transmission() const;
+    /** Edge enhancement and band limit. */
+    core::SliceFilter sliceFilter() const;
+    /** Depth cueing, 0..1. */
+    double depthCue() const;
+
+    /** The controls (tests drive them like a user). */
+    QComboBox* outputCombo() const { return m_output; }
+    QDoubleSpinBox* energySpin() const { return m_energy; }
+    QDoubleSpinBox* exposureSpin() const { return m_exposure; }
+    QSpinBox* depthCueSpin() const { return m_depthCue; }
+    QDoubleSpinBox* sharpenSpin() const { return m_sharpen; }
+    QDoubleSpinBox* sharpenRadiusSpin() const { return m_sharpenRadius; }
+    QDoubleSpinBox* bandLimitSpin() const { return m_bandLimit; }
+
+signals:
+    /** Any control changed by the user (after the specific signal below). */
+    void changed();
+    void outputChanged();
+    void beamChanged(); ///< energy or exposure
+    void effectsChanged(); ///< depth cueing or a slice filter
+
+private:
+    void addOutputRows(QFormLayout* form);
+    void addEffectRows(QFormLayout* form);
+    void connectControls();
+    /** μ water readout and the beam controls' enabling. */
+    void updateBeam();
+
+    QComboBox* m_output = nullptr;
+    QDoubleSpinBox* m_energy = nullptr;
+    QLabel* m_muWater = nullptr;
+    QDoubleSpinBox* m_exposure = nullptr;
+    QSpinBox* m_depthCue = nullptr;
+    QDoubleSpinBox* m_sharpen = nullptr;
+    QDoubleSpinBox* m_sharpenRadius = nullptr;
+    QDoubleSpinBox* m_bandLimit = nullptr;
+};
+
+} // namespace fvr::ui

@@ -1,0 +1,38 @@
+#pragma once
+/** Every QSettings key the workstation reads or writes, in one table. The strings are what
+ *  users' saved settings hold: never change one (a renamed key silently loses that setting). */
+namespace fvr::ui::keys {
+
+// Rendering panel
+inline constexpr char kRenderKernel[] = "render/kernel";
+inline constexpr char kRenderSize[] = "render/size";
+inline constexpr char kRenderTransform[] = "render/transform";
+inline constexpr char kRenderOversampling[] = "render/oversampling";
+inline constexpr char kRenderDeapodize[] = "render/deapodize";
+inline constexpr char kRenderValues[] = "render/values";
+inline constexpr char kRenderTargetFps[] = "render/targetFps";
+inline constexpr char kRenderClip[] = "render/clip";
+inline constexpr char kRenderNonNegative[] = "render/nonNegative";
+inline constexpr char kRenderPixelAperture[] = "render/pixelAperture";
+inline constexpr char kRenderVoxelModel[] = "render/voxelModel"; ///< a name (voxelModelName)
+
+// Display panel
+inline constexpr char kDisplayInvert[] = "display/invert";
+
+// X-ray panel
+inline constexpr char kXrayOutput[] = "xray/output"; ///< 0 line integrals, 1 transmission
+inline constexpr char kXrayEnergyKeV[] = "xray/energyKeV";
+inline constexpr char kXrayExposure[] = "xray/exposure";
+inline constexpr char kXrayDepthCue[] = "xray/depthCue";
+inline constexpr char kXraySharpen[] = "xray/sharpen";
+inline constexpr char kXraySharpenRadius[] = "xray/sharpenRadius";
+inline constexpr char kXrayBandLimit[] = "xray/bandLimit";
+
+// Main window
+inline constexpr char kWindowGeometry[] = "window/geometry";
+inline constexpr char kWindowState[] = "window/state";
+inline constexpr char kViewOverlay[] = "view/overlay";
+inline constexpr char kRecentStudies[] = "recent";
+inline constexpr char kLastFolder[] = "lastFolder";
+
+} // namespace fvr::ui::keys

@@ -1,0 +1,171 @@
+// The main window's exports: screenshot, float or 16-bit projection, rotation sweep, clipboard.
+#include <fvr/ui/main_window.h>
+
+#include <QClipboard>
+#include <QDir>
+#include <QFileDialog>
+#include <QFileInfo>
+#include <QGuiApplication>
+#include <QInputDialog>
+#include <QProgressDialog>
+#include <QSaveFile>
+#include <QSettings>
+
+#include <numbers>
+
+#include <fvr/core/errors.h>
+#include <fvr/core/io/image_io.h>
+#include <fvr/core/xray/xray.h>
+#include <fvr/ui/settings_keys.h>
+
+namespace fvr::ui {
+
+bool MainWindow::exportScreenshot(const QString& path) {
+    if (m_views.empty()) return false;
+    const QImage img =
+        m_compareCount == 1 ? m_views[0]->screenshot() : m_viewHost->grab().toImage();
+    QSaveFile f(path);
+    if (!f.open(QIODevice::WriteOnly) || !img.save(&f, "PNG") || !f.commit()) {
+        message(tr("Could not write %1: %2").arg(path, f.errorString()), true);
+        return false;
+    }
+    message(tr("Saved screenshot %1").arg(path));
+    return true;
+}
+
+bool MainWindow::exportProjection(const QString& path) {
+    if (m_views.empty()) return false;
+    const auto p = m_views[0]->projection();
+    if (!p) {
+        message(tr("Nothing to export yet"), true);
+        return false;
+    }
+    // Float exports hold what the display shows before the window: the transmitted intensity in
+    // Beer-Lambert mode, else the line integrals. The PNG goes through the display window itself.
+    const core::Transmission t = currentTransmission();
+    try {
+        const QString ext = QFileInfo(path).suffix().toLower();
+        const std::string out = path.toStdString();
+        std::vector<float> values = p->pixels;
+        if (t.active() && ext != "png") core::applyTransmission(values, t);
+        if (ext == "npy")
+            core::writeNpy(out, values.data(), p->size, p->size);
+        else if (ext == "pfm")
+            core::writePfm(out, values.data(), p->size, p->size);
+        else if (ext == "png")
+            core::writePng(out, p->pixels.data(), p->size, p->size, m_views[0]->window(), 16);
+        else
+            throw core::WriteError(out + ": unknown format (expected .npy, .pfm or .png)");
+    } catch (const std::exception& e) {
+        message(tr("Could not export: %1").arg(QString::fromUtf8(e.what())), true);
+        return false;
+    }
+    message(tr("Exported projection %1 (%2 × %2, pixel %3 mm, %4)")
+                .arg(path)
+                .arg(p->size)
+                .arg(p->pixelSize, 0, 'g', 4)
+                .arg(t.active() ? tr("transmitted intensity, μ_water %1/mm, exposure %2")
+                                      .arg(t.muWaterPerMm, 0, 'f', 4)
+                                      .arg(t.exposure)
+                                : tr("line integrals")));
+    return true;
+}
+
+bool MainWindow::exportSweep(const QString& folder, int frames, const core::Vec3& axis) {
+    if (m_views.empty() || !m_study->spectrum() || frames < 1) return false;
+    if (!QDir().mkpath(folder)) {
+        message(tr("Could not create %1").arg(folder), true);
+        return false;
+    }
+    ProjectionView* v = m_views[0];
+    const core::ViewFrame start = v->viewFrame();
+    QProgressDialog progress(tr("Exporting rotation sweep…"), tr("Cancel"), 0, frames, this);
+    progress.setWindowModality(Qt::WindowModal);
+    std::vector<float> stack;
+    int M = 0;
+    bool ok = true;
+    for (int i = 0; i < frames; ++i) {
+        progress.setValue(i);
+        if (progress.wasCanceled()) {
+            ok = false;
+            break;
+        }
+        v->setViewFrame(start.rotated(axis, 2.0 * std::numbers::pi * i / frames));
+        const auto p = v->projection();
+        if (!p) {
+            ok = false;
+            break;
+        }
+        M = p->size;
+        if (const core::Transmission t = currentTransmission(); t.active()) {
+            std::vector<float> intensity = p->pixels;
+            core::applyTransmission(intensity, t);
+            stack.insert(stack.end(), intensity.begin(), intensity.end());
+        } else {
+            stack.insert(stack.end(), p->pixels.begin(), p->pixels.end());
+        }
+        try {
+            core::writePng(QDir(folder)
+                               .filePath(QStringLiteral("frame_%1.png").arg(i, 4, 10, QChar('0')))
+                               .toStdString(),
+                           p->pixels.data(), M, M, v->window(), 8);
+        } catch (const std::exception& e) {
+            message(tr("Sweep export failed: %1").arg(QString::fromUtf8(e.what())), true);
+            ok = false;
+            break;
+        }
+    }
+    progress.setValue(frames);
+    v->setViewFrame(start);
+    if (ok) {
+        try {
+            core::writeNpy(QDir(folder).filePath("sweep.npy").toStdString(), stack.data(), M, M,
+                           frames);
+        } catch (const std::exception& e) {
+            message(tr("Sweep export failed: %1").arg(QString::fromUtf8(e.what())), true);
+            return false;
+        }
+        message(tr("Exported %1 frames to %2 (PNG frames and sweep.npy)").arg(frames).arg(folder));
+    } else {
+        message(tr("Sweep export stopped"), true);
+    }
+    return ok;
+}
+
+void MainWindow::exportScreenshotDialog() {
+    const QString path = QFileDialog::getSaveFileName(
+        this, tr("Export screenshot"),
+        QSettings().value(keys::kLastFolder).toString() + "/view.png", tr("PNG image (*.png)"));
+    if (!path.isEmpty()) exportScreenshot(path);
+}
+
+void MainWindow::exportProjectionDialog() {
+    const QString path = QFileDialog::getSaveFileName(
+        this, tr("Export projection"),
+        QSettings().value(keys::kLastFolder).toString() + "/projection.npy",
+        tr("Float line integrals (*.npy);;16-bit PNG, current window (*.png);;PFM float (*.pfm)"));
+    if (!path.isEmpty()) exportProjection(path);
+}
+
+void MainWindow::exportSweepDialog() {
+    bool ok = false;
+    const int n = QInputDialog::getInt(this, tr("Rotation sweep"),
+                                       tr("Frames around the patient's head-feet axis:"), 36, 1,
+                                       3600, 1, &ok);
+    if (!ok) return;
+    const QString folder = QFileDialog::getExistingDirectory(
+        this, tr("Folder for the sweep"), QSettings().value(keys::kLastFolder).toString());
+    if (folder.isEmpty() || !m_study->volume()) return;
+    // Head-feet axis of the patient in the volume's index frame.
+    const auto& d = m_study->volume()->direction;
+    exportSweep(folder, n, {d[0][2], d[1][2], d[2][2]});
+}
+
+void MainWindow::copyToClipboard() {
+    if (m_views.empty()) return;
+    QGuiApplication::clipboard()->setImage(m_compareCount == 1 ? m_views[0]->screenshot()
+                                                               : m_viewHost->grab().toImage());
+    message(tr("Copied the view to the clipboard"));
+}
+
+} // namespace fvr::ui

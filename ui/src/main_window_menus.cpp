@@ -1,0 +1,154 @@
+// The main window's menus, toolbar and recent studies (the File menu's open dialogs).
+#include <fvr/ui/main_window.h>
+
+#include <QAction>
+#include <QFileDialog>
+#include <QFileInfo>
+#include <QMenuBar>
+#include <QMessageBox>
+#include <QSettings>
+#include <QToolBar>
+
+#include <fvr/ui/app_info.h>
+#include <fvr/ui/settings_keys.h>
+
+namespace fvr::ui {
+
+namespace {
+constexpr int kMaxRecent = 8;
+} // namespace
+
+void MainWindow::buildMenus() {
+    QMenu* file = menuBar()->addMenu(tr("&File"));
+    QAction* openFolder =
+        file->addAction(tr("Open DICOM &folder…"), this, &MainWindow::openFolderDialog);
+    openFolder->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_D));
+    QAction* openFile =
+        file->addAction(tr("&Open volume file…"), this, &MainWindow::openFileDialog);
+    openFile->setShortcut(QKeySequence::Open);
+    file->addAction(tr("Open built-in &phantom"), this,
+                    [this] { openStudy(StudySource::phantom(128)); });
+    m_recentMenu = file->addMenu(tr("&Recent studies"));
+    file->addSeparator();
+    QAction* shot =
+        file->addAction(tr("Export &screenshot (PNG)…"), this, &MainWindow::exportScreenshotDialog);
+    shot->setShortcut(QKeySequence::Save);
+    file->addAction(tr("Export &projection (16-bit PNG, .npy, .pfm)…"), this,
+                    &MainWindow::exportProjectionDialog);
+    file->addAction(tr("Export rotation s&weep…"), this, &MainWindow::exportSweepDialog);
+    QAction* copy =
+        file->addAction(tr("&Copy view to clipboard"), this, &MainWindow::copyToClipboard);
+    copy->setShortcut(QKeySequence::Copy);
+    file->addSeparator();
+    QAction* quit = file->addAction(tr("&Quit"), this, &QWidget::close);
+    quit->setShortcut(QKeySequence::Quit);
+
+    QMenu* view = menuBar()->addMenu(tr("&View"));
+    QToolBar* tb = addToolBar(tr("Main"));
+    tb->setObjectName("toolbar.main");
+    tb->addAction(openFolder);
+    tb->addAction(openFile);
+    tb->addSeparator();
+    buildViewMenu(view, tb);
+
+    QMenu* help = menuBar()->addMenu(tr("&Help"));
+    help->addAction(tr("&About"), this, [this] {
+        QMessageBox::about(
+            this, tr("About %1").arg(QString::fromUtf8(applicationName())),
+            tr("<b>%1 %2</b><p>X-ray-like projections by Fourier volume rendering "
+               "(Viola, Kanitsar, Gröller). Parallel projection, no occlusion: every "
+               "pixel is a line integral through the whole volume.</p>")
+                .arg(QString::fromUtf8(applicationName()),
+                     QString::fromUtf8(applicationVersion())));
+    });
+}
+
+void MainWindow::buildViewMenu(QMenu* view, QToolBar* tb) {
+    const std::pair<core::PatientView, Qt::Key> views[] = {
+        {core::PatientView::AP, Qt::Key_1},   {core::PatientView::PA, Qt::Key_2},
+        {core::PatientView::Left, Qt::Key_3}, {core::PatientView::Right, Qt::Key_4},
+        {core::PatientView::Head, Qt::Key_5}, {core::PatientView::Feet, Qt::Key_6}};
+    for (const auto& [pv, key] : views) {
+        QAction* a = view->addAction(QString::fromUtf8(core::patientViewName(pv)), this,
+                                     [this, pv] { showPatientView(pv); });
+        a->setShortcut(QKeySequence(key));
+        a->setToolTip(tr("Patient view %1 (%2)")
+                          .arg(QString::fromUtf8(core::patientViewName(pv)))
+                          .arg(QKeySequence(key).toString()));
+        tb->addAction(a);
+    }
+    QAction* reset = view->addAction(tr("&Reset view"), this, [this] {
+        showPatientView(core::PatientView::AP);
+        for (auto* v : m_views) v->resetPanZoom();
+    });
+    reset->setShortcut(QKeySequence(Qt::Key_R));
+    tb->addAction(reset);
+    view->addSeparator();
+    tb->addSeparator();
+    for (int n : {1, 2, 4}) {
+        QAction* a = view->addAction(n == 1 ? tr("Single view") : tr("Compare %1 views").arg(n),
+                                     this, [this, n] { setCompareCount(n); });
+        tb->addAction(a);
+    }
+    QAction* diff = view->addAction(tr("&Difference to view 1"));
+    diff->setCheckable(true);
+    connect(diff, &QAction::toggled, this, [this](bool on) { setDifferenceMode(on); });
+    view->addSeparator();
+    m_overlayAction = view->addAction(tr("Performance &overlay"));
+    m_overlayAction->setCheckable(true);
+    m_overlayAction->setShortcut(QKeySequence(Qt::Key_F));
+    m_overlayAction->setChecked(QSettings().value(keys::kViewOverlay, true).toBool());
+    connect(m_overlayAction, &QAction::toggled, this, [this](bool on) {
+        for (auto* v : m_views) v->setOverlayVisible(on);
+    });
+    for (auto* v : m_views) v->setOverlayVisible(m_overlayAction->isChecked());
+    QAction* acc =
+        view->addAction(tr("&Accuracy against ray casting"), this, &MainWindow::measureAccuracy);
+    acc->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_A));
+    view->addAction(tr("Reset &zoom"), this, [this] {
+        for (auto* v : m_views) v->resetPanZoom();
+    });
+}
+
+void MainWindow::openStudy(const StudySource& source) {
+    message(
+        tr("Opening %1…")
+            .arg(source.kind == StudySource::Kind::Phantom ? source.displayName() : source.path));
+    if (source.kind != StudySource::Kind::Phantom) addRecent(source.path);
+    m_study->open(source);
+}
+
+void MainWindow::addRecent(const QString& path) {
+    QSettings s;
+    QStringList recent = s.value(keys::kRecentStudies).toStringList();
+    recent.removeAll(path);
+    recent.prepend(path);
+    while (recent.size() > kMaxRecent) recent.removeLast();
+    s.setValue(keys::kRecentStudies, recent);
+    s.setValue(keys::kLastFolder, QFileInfo(path).isDir() ? path : QFileInfo(path).absolutePath());
+    rebuildRecentMenu();
+}
+
+void MainWindow::rebuildRecentMenu() {
+    if (!m_recentMenu) return;
+    m_recentMenu->clear();
+    const QStringList recent = QSettings().value(keys::kRecentStudies).toStringList();
+    for (const QString& p : recent)
+        m_recentMenu->addAction(p, this, [this, p] { openStudy(StudySource::fromPath(p)); });
+    m_recentMenu->setEnabled(!recent.isEmpty());
+}
+
+void MainWindow::openFileDialog() {
+    const QString path = QFileDialog::getOpenFileName(
+        this, tr("Open volume file"), QSettings().value(keys::kLastFolder).toString(),
+        tr("Volumes (*.mhd *.mha *.nii *.nii.gz);;All files (*)"));
+    if (!path.isEmpty()) openStudy(StudySource::fromPath(path));
+}
+
+void MainWindow::openFolderDialog() {
+    const QString path = QFileDialog::getExistingDirectory(
+        this, tr("Open DICOM folder"), QSettings().value(keys::kLastFolder).toString());
+    if (!path.isEmpty()) openStudy(StudySource::fromPath(path));
+}
+
+} // namespace fvr::ui

@@ -1,0 +1,124 @@
+#include <fvr/ui/panels/display_panel.h>
+
+#include <QCheckBox>
+#include <QComboBox>
+#include <QDoubleSpinBox>
+#include <QFormLayout>
+#include <QLabel>
+#include <QPushButton>
+#include <QSettings>
+
+#include <algorithm>
+
+#include <fvr/ui/settings_keys.h>
+
+namespace fvr::ui {
+
+DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
+    auto* df = new QFormLayout(this);
+    m_preset = new QComboBox(this);
+    m_preset->addItem(tr("Auto (0.5–99.5 %)"), int(WindowPreset::Auto));
+    m_preset->addItem(tr("Full range"), int(WindowPreset::FullRange));
+    m_preset->addItem(tr("Bone (upper 45 %)"), int(WindowPreset::Bone));
+    m_preset->addItem(tr("Soft tissue (10–70 %)"), int(WindowPreset::SoftTissue));
+    df->addRow(tr("Preset"), m_preset);
+    m_width = new QDoubleSpinBox(this);
+    m_width->setDecimals(3);
+    m_width->setRange(1e-6, 1e12);
+    m_width->setKeyboardTracking(false);
+    df->addRow(tr("Window width"), m_width);
+    m_level = new QDoubleSpinBox(this);
+    m_level->setDecimals(3);
+    m_level->setRange(-1e12, 1e12);
+    m_level->setKeyboardTracking(false);
+    df->addRow(tr("Window level"), m_level);
+    m_invert = new QCheckBox(tr("Invert"), this);
+    m_invert->setToolTip(
+        tr("Line integrals: bone dark. Transmitted intensity: the film look (bone white) when on, "
+           "the fluoroscopy look (bone dark) when off."));
+    df->addRow(QString(), m_invert);
+    auto* autoBtn = new QPushButton(tr("Auto window"), this);
+    df->addRow(QString(), autoBtn);
+    auto* hint = new QLabel(
+        tr("<small>Left drag: rotate · wheel: zoom · middle drag: pan · right drag or "
+           "Ctrl+left: window/level · 1–6: AP, PA, left, right, head, feet · R: reset</small>"),
+        this);
+    hint->setWordWrap(true);
+    df->addRow(hint);
+
+    auto windowEdited = [this] {
+        emit windowChanged();
+        emit changed();
+    };
+    connect(m_width, &QDoubleSpinBox::valueChanged, this, windowEdited);
+    connect(m_level, &QDoubleSpinBox::valueChanged, this, windowEdited);
+    connect(m_invert, &QCheckBox::toggled, this, windowEdited);
+    connect(autoBtn, &QPushButton::clicked, this,
+            [this] { emit presetRequested(WindowPreset::Auto); });
+    connect(m_preset, &QComboBox::activated, this, [this](int index) {
+        emit presetRequested(WindowPreset(m_preset->itemData(index).toInt()));
+    });
+}
+
+DisplayPanel::Values DisplayPanel::values() const {
+    return {m_width->value(), m_level->value(), m_invert->isChecked()};
+}
+
+void DisplayPanel::setValues(const Values& v) {
+    const QSignalBlocker b1(m_width), b2(m_level), b3(m_invert);
+    m_width->setValue(v.width);
+    m_level->setValue(v.level);
+    m_invert->setChecked(v.invert);
+}
+
+DisplayPanel::Values DisplayPanel::load(const QSettings& s) { return load(s, Values()); }
+
+DisplayPanel::Values DisplayPanel::load(const QSettings& s, Values v) {
+    v.invert = s.value(keys::kDisplayInvert, v.invert).toBool();
+    return v;
+}
+
+void DisplayPanel::save(QSettings& s, const Values& v) {
+    s.setValue(keys::kDisplayInvert, v.invert);
+}
+
+core::DisplayWindow DisplayPanel::window(const core::Transmission& transmission) const {
+    core::DisplayWindow w;
+    w.low = m_level->value() - m_width->value() / 2;
+    w.high = m_level->value() + m_width->value() / 2;
+    w.invert = m_invert->isChecked();
+    w.transmission = transmission;
+    return w;
+}
+
+void DisplayPanel::showWindow(const core::DisplayWindow& w) {
+    setValues({w.high - w.low, (w.high + w.low) / 2, w.invert});
+}
+
+core::DisplayWindow presetWindow(WindowPreset preset, const std::vector<float>& pixels,
+                                 bool invert) {
+    std::vector<float> v = pixels;
+    std::sort(v.begin(), v.end());
+    auto q = [&](double f) { return double(v[std::size_t(f * (v.size() - 1))]); };
+    core::DisplayWindow w;
+    switch (preset) {
+    case WindowPreset::FullRange:
+        w = {v.front(), v.back(), false};
+        break;
+    case WindowPreset::Bone:
+        w = {q(0.005) + 0.55 * (q(0.995) - q(0.005)), q(0.995), false};
+        break;
+    case WindowPreset::SoftTissue:
+        w = {q(0.005) + 0.10 * (q(0.995) - q(0.005)), q(0.005) + 0.70 * (q(0.995) - q(0.005)),
+             false};
+        break;
+    case WindowPreset::Auto:
+        w = core::autoWindow(pixels);
+        break;
+    }
+    if (!(w.high > w.low)) w.high = w.low + 1.0;
+    w.invert = invert;
+    return w;
+}
+
+} // namespace fvr::ui

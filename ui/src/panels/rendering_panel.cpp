@@ -1,0 +1,243 @@
+#include <fvr/ui/panels/rendering_panel.h>
+
+#include <QCheckBox>
+#include <QComboBox>
+#include <QFormLayout>
+#include <QLabel>
+#include <QSettings>
+#include <QSpinBox>
+
+#include <fvr/core/errors.h>
+#include <fvr/core/render/voxel_model.h>
+#include <fvr/core/xray/xray.h>
+#include <fvr/ui/settings_keys.h>
+
+namespace fvr::ui {
+
+namespace {
+const int kSizes[] = {128, 256, 512, 1024, 2048};
+const double kOversampling[] = {1.0, 1.25, 1.5, 2.0};
+
+/** Selects the item holding `data`; a value the combo does not offer leaves it as it is. */
+void selectData(QComboBox* c, const QVariant& data) {
+    const int i = c->findData(data);
+    if (i >= 0) c->setCurrentIndex(i);
+}
+} // namespace
+
+RenderingPanel::RenderingPanel(QWidget* parent) : QWidget(parent) {
+    auto* form = new QFormLayout(this);
+    addViewRows(form);
+    addSpectrumRows(form);
+    addFrameRows(form);
+    connectControls();
+}
+
+void RenderingPanel::addViewRows(QFormLayout* rf) {
+    m_appliesTo = new QComboBox(this);
+    m_appliesTo->addItem(tr("All views"));
+    m_appliesTo->setEnabled(false);
+    rf->addRow(tr("Applies to"), m_appliesTo);
+    m_kernel = new QComboBox(this);
+    for (core::Kernel k : core::allKernels())
+        m_kernel->addItem(QString::fromUtf8(core::kernelName(k)), int(k));
+    rf->addRow(tr("Interpolation"), m_kernel);
+    m_size = new QComboBox(this);
+    for (int s : kSizes) m_size->addItem(QStringLiteral("%1 × %1").arg(s), s);
+    rf->addRow(tr("Slice resolution"), m_size);
+    m_voxelModel = new QComboBox(this);
+    m_voxelModel->addItem(tr("Trilinear (as a DRR ray caster)"), int(core::VoxelModel::Trilinear));
+    m_voxelModel->addItem(tr("Cubic B-spline through the voxels"), int(core::VoxelModel::BSpline));
+    m_voxelModel->addItem(tr("Band-limited (sharpest, rings)"), int(core::VoxelModel::BandLimited));
+    m_voxelModel->setToolTip(
+        tr("What lies between the voxels. Trilinear: the projection a trilinear DRR ray caster "
+           "computes, no ringing at the scan ends. Band-limited: the plain Fourier image, the "
+           "sharpest, but it rings (stripes, negative values) where the scan ends inside the body "
+           "and between coarse slices. Same spectrum: changing it costs no preprocessing."));
+    rf->addRow(tr("Voxel model"), m_voxelModel);
+}
+
+void RenderingPanel::addSpectrumRows(QFormLayout* rf) {
+    m_transform = new QComboBox(this);
+    m_transform->addItem(tr("FFT (complex half spectrum)"), int(core::TransformKind::Fft));
+    m_transform->addItem(tr("FHT (Hartley)"), int(core::TransformKind::Fht));
+    rf->addRow(tr("Transform"), m_transform);
+    m_oversampling = new QComboBox(this);
+    for (double f : kOversampling) m_oversampling->addItem(QStringLiteral("%1×").arg(f), f);
+    rf->addRow(tr("Oversampling"), m_oversampling);
+    m_values = new QComboBox(this);
+    m_values->addItem(tr("Attenuation μ (mm)"), int(core::ValueMapping::Mu));
+    m_values->addItem(tr("Bone-enhanced μ (mm)"), int(core::ValueMapping::MuBone));
+    m_values->addItem(tr("Raw values (value × mm)"), int(core::ValueMapping::Raw));
+    m_values->setToolTip(
+        tr("What the projection integrates. μ = μ_water (1 + HU/1000), clipped at 0; bone-enhanced "
+           "makes the slope %1× steeper above %2 HU (bone stands out as on a low-kV film). The "
+           "transform is linear only in these values: a change preprocesses again in the "
+           "background.")
+            .arg(core::kBoneGain)
+            .arg(core::kBoneThresholdHu));
+    rf->addRow(tr("Values"), m_values);
+    m_deapodize = new QCheckBox(tr("Gridding correction (deapodize)"), this);
+    m_deapodize->setToolTip(
+        tr("Divide the volume by the kernel's Fourier transform before the 3D FFT, as "
+           "gridding codes do: Kaiser-Bessel with 1.25× oversampling is then more accurate than "
+           "ray casting. The spectrum is made for one kernel; changing the kernel preprocesses "
+           "again."));
+    rf->addRow(QString(), m_deapodize);
+    m_memory = new QLabel(this);
+    rf->addRow(tr("Spectrum memory"), m_memory);
+}
+
+void RenderingPanel::addFrameRows(QFormLayout* rf) {
+    m_targetFps = new QSpinBox(this);
+    m_targetFps->setRange(0, 240);
+    m_targetFps->setSuffix(tr(" fps"));
+    m_targetFps->setSpecialValueText(tr("off (always full quality)"));
+    m_targetFps->setToolTip(
+        tr("Progressive refinement: while you rotate, frames render at a lower slice resolution "
+           "(or with linear interpolation when the spectrum allows) to hold this frame rate; "
+           "the full-quality frame follows when you let go. The overlay shows the level."));
+    rf->addRow(tr("Interactive target"), m_targetFps);
+    m_pixelAperture = new QCheckBox(tr("Detector pixels integrate over their area"), this);
+    m_pixelAperture->setToolTip(
+        tr("Off: each pixel samples the projection at its centre, as ray casters do. On: each "
+           "pixel averages the projection over its area, as a detector does (less aliasing "
+           "when the pixels are coarser than the voxels)."));
+    rf->addRow(QString(), m_pixelAperture);
+    m_clip = new QCheckBox(tr("Clip to the volume (no ghosts outside it)"), this);
+    m_clip->setToolTip(tr(
+        "Pixels whose ray misses the volume are exactly 0 in a projection; Fourier rendering puts "
+        "the kernel's ghost copies and ringing there. On: those pixels show 0."));
+    rf->addRow(QString(), m_clip);
+    m_nonNegative = new QCheckBox(tr("No negative line integrals"), this);
+    m_nonNegative->setToolTip(
+        tr("For values that are never negative (attenuation, or raw data without negative "
+           "values) no line integral is: what is left of the interpolation's ringing below 0 "
+           "is shown as 0. No effect on raw Hounsfield units."));
+    rf->addRow(QString(), m_nonNegative);
+}
+
+void RenderingPanel::connectControls() {
+    auto relay = [this](auto* sender, auto signal, void (RenderingPanel::*specific)()) {
+        connect(sender, signal, this, [this, specific] {
+            emit(this->*specific)();
+            emit changed();
+        });
+    };
+    relay(m_kernel, &QComboBox::currentIndexChanged, &RenderingPanel::viewSettingsChanged);
+    relay(m_size, &QComboBox::currentIndexChanged, &RenderingPanel::viewSettingsChanged);
+    relay(m_voxelModel, &QComboBox::currentIndexChanged, &RenderingPanel::voxelModelChanged);
+    relay(m_transform, &QComboBox::currentIndexChanged, &RenderingPanel::spectrumSettingsChanged);
+    relay(m_oversampling, &QComboBox::currentIndexChanged,
+          &RenderingPanel::spectrumSettingsChanged);
+    relay(m_deapodize, &QCheckBox::toggled, &RenderingPanel::spectrumSettingsChanged);
+    relay(m_values, &QComboBox::currentIndexChanged, &RenderingPanel::valueMappingChanged);
+    for (QCheckBox* c : {m_pixelAperture, m_clip, m_nonNegative})
+        relay(c, &QCheckBox::toggled, &RenderingPanel::frameOptionsChanged);
+    connect(m_targetFps, &QSpinBox::valueChanged, this, [this](int fps) {
+        emit targetFpsChanged(fps);
+        emit changed();
+    });
+    connect(m_appliesTo, &QComboBox::currentIndexChanged, this, [this](int slot) {
+        emit appliesToChanged(slot);
+        emit changed();
+    });
+}
+
+RenderingPanel::Values RenderingPanel::values() const {
+    Values v;
+    v.kernel = core::Kernel(m_kernel->currentData().toInt());
+    v.size = m_size->currentData().toInt();
+    v.voxelModel = core::VoxelModel(m_voxelModel->currentData().toInt());
+    v.transform = core::TransformKind(m_transform->currentData().toInt());
+    v.oversampling = m_oversampling->currentData().toDouble();
+    v.mapping = core::ValueMapping(m_values->currentData().toInt());
+    v.deapodize = m_deapodize->isChecked();
+    v.targetFps = m_targetFps->value();
+    v.pixelAperture = m_pixelAperture->isChecked();
+    v.clip = m_clip->isChecked();
+    v.nonNegative = m_nonNegative->isChecked();
+    return v;
+}
+
+void RenderingPanel::setValues(const Values& v) {
+    const QSignalBlocker b1(m_kernel), b2(m_size), b3(m_voxelModel), b4(m_transform),
+        b5(m_oversampling), b6(m_values), b7(m_deapodize), b8(m_targetFps), b9(m_pixelAperture),
+        b10(m_clip), b11(m_nonNegative);
+    selectData(m_kernel, int(v.kernel));
+    selectData(m_size, v.size);
+    selectData(m_voxelModel, int(v.voxelModel));
+    selectData(m_transform, int(v.transform));
+    selectData(m_oversampling, v.oversampling);
+    selectData(m_values, int(v.mapping));
+    m_deapodize->setChecked(v.deapodize);
+    m_targetFps->setValue(v.targetFps);
+    m_pixelAperture->setChecked(v.pixelAperture);
+    m_clip->setChecked(v.clip);
+    m_nonNegative->setChecked(v.nonNegative);
+}
+
+RenderingPanel::Values RenderingPanel::load(const QSettings& s) { return load(s, Values()); }
+
+RenderingPanel::Values RenderingPanel::load(const QSettings& s, Values v) {
+    v.kernel = core::Kernel(s.value(keys::kRenderKernel, int(v.kernel)).toInt());
+    v.size = s.value(keys::kRenderSize, v.size).toInt();
+    v.transform = core::TransformKind(s.value(keys::kRenderTransform, int(v.transform)).toInt());
+    v.oversampling = s.value(keys::kRenderOversampling, v.oversampling).toDouble();
+    v.deapodize = s.value(keys::kRenderDeapodize, v.deapodize).toBool();
+    v.mapping = core::ValueMapping(s.value(keys::kRenderValues, int(v.mapping)).toInt());
+    v.targetFps = s.value(keys::kRenderTargetFps, v.targetFps).toInt();
+    v.clip = s.value(keys::kRenderClip, v.clip).toBool();
+    v.nonNegative = s.value(keys::kRenderNonNegative, v.nonNegative).toBool();
+    v.pixelAperture = s.value(keys::kRenderPixelAperture, v.pixelAperture).toBool();
+    try {
+        const QString name =
+            s.value(keys::kRenderVoxelModel, core::voxelModelName(v.voxelModel)).toString();
+        v.voxelModel = core::parseVoxelModel(name.toStdString());
+    } catch (const core::SettingsError&) {
+        // an unknown saved name: the default
+    }
+    return v;
+}
+
+void RenderingPanel::save(QSettings& s, const Values& v) {
+    s.setValue(keys::kRenderKernel, int(v.kernel));
+    s.setValue(keys::kRenderSize, v.size);
+    s.setValue(keys::kRenderVoxelModel, QString::fromUtf8(core::voxelModelName(v.voxelModel)));
+    s.setValue(keys::kRenderTransform, int(v.transform));
+    s.setValue(keys::kRenderOversampling, v.oversampling);
+    s.setValue(keys::kRenderValues, int(v.mapping));
+    s.setValue(keys::kRenderDeapodize, v.deapodize);
+    s.setValue(keys::kRenderTargetFps, v.targetFps);
+    s.setValue(keys::kRenderPixelAperture, v.pixelAperture);
+    s.setValue(keys::kRenderClip, v.clip);
+    s.setValue(keys::kRenderNonNegative, v.nonNegative);
+}
+
+ViewSettings RenderingPanel::viewSettings() const {
+    const Values v = values();
+    return {v.kernel, v.size, v.voxelModel};
+}
+
+void RenderingPanel::showViewSettings(const ViewSettings& s) {
+    const QSignalBlocker b1(m_kernel), b2(m_size), b3(m_voxelModel);
+    m_kernel->setCurrentIndex(m_kernel->findData(int(s.kernel)));
+    m_size->setCurrentIndex(m_size->findData(s.size));
+    m_voxelModel->setCurrentIndex(m_voxelModel->findData(int(s.voxelModel)));
+}
+
+void RenderingPanel::setViewCount(int n) {
+    const QSignalBlocker b(m_appliesTo);
+    m_appliesTo->clear();
+    m_appliesTo->addItem(tr("All views"));
+    for (int i = 0; i < n && n > 1; ++i) m_appliesTo->addItem(tr("View %1").arg(i + 1));
+    m_appliesTo->setEnabled(n > 1);
+}
+
+int RenderingPanel::appliesTo() const { return m_appliesTo->currentIndex(); }
+
+void RenderingPanel::setSpectrumMiB(double mib) {
+    m_memory->setText(tr("%1 MiB").arg(mib, 0, 'f', 1));
+}
+
+} // namespace fvr::ui

@@ -1,0 +1,59 @@
+#include <fvr/ui/panels/study_panel.h>
+
+#include <QLabel>
+
+#include <fvr/ui/study.h>
+
+namespace fvr::ui {
+
+StudyPanel::StudyPanel(QWidget* parent) : QScrollArea(parent) {
+    m_info = new QLabel(tr("No study"), this);
+    m_info->setWordWrap(true);
+    m_info->setTextInteractionFlags(Qt::TextSelectableByMouse);
+    m_info->setAlignment(Qt::AlignTop | Qt::AlignLeft);
+    m_info->setMargin(6);
+    setWidget(m_info);
+    setWidgetResizable(true);
+    setFrameShape(QFrame::NoFrame);
+    setMinimumHeight(170);
+}
+
+QString StudyPanel::text() const { return m_info->text(); }
+
+void StudyPanel::showStudy(const StudyController& study) {
+    const auto vol = study.volume();
+    if (!vol) {
+        m_info->setText(tr("No study"));
+        return;
+    }
+    const auto spec = study.spectrum();
+    const auto [lo, hi] = vol->valueRange();
+    QString html =
+        QStringLiteral("<b>%1</b><br>").arg(study.source().displayName().toHtmlEscaped());
+    html +=
+        tr("Dimensions: %1 × %2 × %3<br>").arg(vol->dims[0]).arg(vol->dims[1]).arg(vol->dims[2]);
+    html += tr("Spacing: %1 × %2 × %3 mm<br>")
+                .arg(vol->spacing[0], 0, 'g', 4)
+                .arg(vol->spacing[1], 0, 'g', 4)
+                .arg(vol->spacing[2], 0, 'g', 4);
+    html += tr("Values: %1 … %2 %3<br>")
+                .arg(lo, 0, 'g', 5)
+                .arg(hi, 0, 'g', 5)
+                .arg(vol->units == core::ValueUnits::Unknown
+                         ? tr("(units not stated)")
+                         : QString::fromUtf8(core::unitsName(vol->units)));
+    if (spec)
+        html += tr("Spectrum: %1 × %2 × %3 padded, %4 MiB, %5<br>")
+                    .arg(spec->padded[0])
+                    .arg(spec->padded[1])
+                    .arg(spec->padded[2])
+                    .arg(double(spec->bytes()) / (1 << 20), 0, 'f', 1)
+                    .arg(QString::fromUtf8(core::transformName(spec->kind)).toUpper());
+    html +=
+        tr("<small>Parallel projection without occlusion: every pixel is a line integral.</small>");
+    for (const auto& w : study.warnings())
+        html += QStringLiteral("<br><font color='#d04020'>⚠ %1</font>").arg(w.toHtmlEscaped());
+    m_info->setText(html);
+}
+
+} // namespace fvr::ui
