@@ -16,6 +16,25 @@ namespace {
 [[noreturn]] void failWrite(const std::filesystem::path& path, const std::string& detail) {
     throw WriteError(path.string() + ": " + detail);
 }
+
+/** Saves `file` next to `path` (".part") and renames it into place, so that a failed write never
+ *  leaves a partial file under the final name. */
+void saveAtomically(DcmFileFormat& file, const std::filesystem::path& path) {
+    std::filesystem::path tmp = path;
+    tmp += ".part";
+    const OFCondition st = file.saveFile(tmp.c_str(), EXS_LittleEndianExplicit);
+    if (st.bad()) {
+        std::error_code ec;
+        std::filesystem::remove(tmp, ec);
+        failWrite(path, st.text());
+    }
+    std::error_code ec;
+    std::filesystem::rename(tmp, path, ec);
+    if (ec) {
+        std::filesystem::remove(tmp, ec);
+        failWrite(path, "cannot move the written file into place");
+    }
+}
 } // namespace
 
 void writeDicomProjection(const std::filesystem::path& path, const ProjectionImage& image,
@@ -83,21 +102,7 @@ void writeDicomProjection(const std::filesystem::path& path, const ProjectionIma
     put(DCM_ImageComments, c.str());
     if (ds->putAndInsertUint16Array(DCM_PixelData, stored.data(), stored.size()).bad())
         failWrite(path, "cannot store the pixel data");
-
-    std::filesystem::path tmp = path;
-    tmp += ".part";
-    const OFCondition st = file.saveFile(tmp.c_str(), EXS_LittleEndianExplicit);
-    if (st.bad()) {
-        std::error_code ec;
-        std::filesystem::remove(tmp, ec);
-        failWrite(path, st.text());
-    }
-    std::error_code ec;
-    std::filesystem::rename(tmp, path, ec);
-    if (ec) {
-        std::filesystem::remove(tmp, ec);
-        failWrite(path, "cannot move the written file into place");
-    }
+    saveAtomically(file, path);
 }
 
 } // namespace fvr::core
