@@ -11,11 +11,37 @@
 
 namespace fvr::core {
 
+namespace {
+/** Throws WriteError naming the file and the problem: "<path>: <detail>". */
+[[noreturn]] void failWrite(const std::filesystem::path& path, const std::string& detail) {
+    throw WriteError(path.string() + ": " + detail);
+}
+
+/** Saves `file` next to `path` (".part") and renames it into place, so that a failed write never
+ *  leaves a partial file under the final name. */
+void saveAtomically(DcmFileFormat& file, const std::filesystem::path& path) {
+    std::filesystem::path tmp = path;
+    tmp += ".part";
+    const OFCondition st = file.saveFile(tmp.c_str(), EXS_LittleEndianExplicit);
+    if (st.bad()) {
+        std::error_code ec;
+        std::filesystem::remove(tmp, ec);
+        failWrite(path, st.text());
+    }
+    std::error_code ec;
+    std::filesystem::rename(tmp, path, ec);
+    if (ec) {
+        std::filesystem::remove(tmp, ec);
+        failWrite(path, "cannot move the written file into place");
+    }
+}
+} // namespace
+
 void writeDicomProjection(const std::filesystem::path& path, const ProjectionImage& image,
                           const DicomExportInfo& info) {
     const int M = image.size;
     if (M <= 0 || image.pixels.size() != std::size_t(M) * M)
-        throw WriteError(path.string() + ": no image to export");
+        failWrite(path, "no image to export");
     float lo = image.pixels[0], hi = image.pixels[0];
     for (float v : image.pixels)
         if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
@@ -32,7 +58,7 @@ void writeDicomProjection(const std::filesystem::path& path, const ProjectionIma
     char uid[100];
     auto put = [&](const DcmTagKey& tag, const std::string& value) {
         if (ds->putAndInsertString(tag, value.c_str()).bad())
-            throw WriteError(path.string() + ": cannot set DICOM tag " + DcmTag(tag).getTagName());
+            failWrite(path, std::string("cannot set DICOM tag ") + DcmTag(tag).getTagName());
     };
     put(DCM_SOPClassUID, UID_SecondaryCaptureImageStorage);
     put(DCM_SOPInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_INSTANCE_UID_ROOT));
@@ -75,22 +101,8 @@ void writeDicomProjection(const std::filesystem::path& path, const ProjectionIma
       << " (volume index frame); pixel (col,row) at centre + (col - M/2) d right - (row - M/2) d up";
     put(DCM_ImageComments, c.str());
     if (ds->putAndInsertUint16Array(DCM_PixelData, stored.data(), stored.size()).bad())
-        throw WriteError(path.string() + ": cannot store the pixel data");
-
-    std::filesystem::path tmp = path;
-    tmp += ".part";
-    const OFCondition st = file.saveFile(tmp.c_str(), EXS_LittleEndianExplicit);
-    if (st.bad()) {
-        std::error_code ec;
-        std::filesystem::remove(tmp, ec);
-        throw WriteError(path.string() + ": " + st.text());
-    }
-    std::error_code ec;
-    std::filesystem::rename(tmp, path, ec);
-    if (ec) {
-        std::filesystem::remove(tmp, ec);
-        throw WriteError(path.string() + ": cannot move the written file into place");
-    }
+        failWrite(path, "cannot store the pixel data");
+    saveAtomically(file, path);
 }
 
 } // namespace fvr::core

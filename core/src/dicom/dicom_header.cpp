@@ -242,16 +242,11 @@ void readModalityLut(DcmItem* lut, DicomHeader& h) {
     h.modalityLut.assign(words, words + entries);
 }
 
-} // namespace
-
-DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* keep) {
-    initDcmtk();
-    DicomHeader h;
-    h.path = path;
-
+/** Checks the file and parses it with DCMTK (values above 4 KiB stay on disk). */
+std::unique_ptr<DcmFileFormat> parseFile(const fs::path& path, std::uintmax_t& fileSize) {
     std::error_code ec;
     if (!fs::is_regular_file(path, ec)) fail(path, "not a regular file");
-    const auto fileSize = fs::file_size(path, ec);
+    fileSize = fs::file_size(path, ec);
     if (ec) fail(path, "cannot read: " + ec.message());
     if (fileSize < 16) fail(path, "not a DICOM file (" + std::to_string(fileSize) + " bytes)");
 
@@ -265,11 +260,13 @@ DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* kee
         fail(path, std::string("not a readable DICOM file: ") + c.text() +
                        (premature ? " (truncated file?)" : " (corrupt or not DICOM)"));
     }
+    if (!ff->getDataset()) fail(path, "not a readable DICOM file: no data set");
+    return ff;
+}
 
-    DcmMetaInfo* meta = ff->getMetaInfo();
-    DcmDataset* ds = ff->getDataset();
-    if (!ds) fail(path, "not a readable DICOM file: no data set");
-
+/** SOP class and instance, and which pixel data element the image has (none: not an image). */
+void readSopAndPixelKind(DcmMetaInfo* meta, DcmDataset* ds, DicomHeader& h) {
+    const fs::path& path = h.path;
     const std::string mediaClass = getString(meta, DCM_MediaStorageSOPClassUID);
     if (mediaClass == UID_MediaStorageDirectoryStorage || present(ds, DCM_DirectoryRecordSequence))
         fail(path, "a DICOMDIR (media directory), not an image");
@@ -289,8 +286,11 @@ DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* kee
         fail(path, "not an image: no Pixel Data (7FE0,0010) (SOP class " +
                        (h.sopClassUid.empty() ? std::string("unknown") : h.sopClassUid) + ")");
     }
+}
 
-    // Transfer syntax: as written in the meta header, and as DCMTK read it.
+/** Transfer syntax: as written in the meta header, and as DCMTK read it; declared lossy
+ *  compression. */
+void readTransferSyntax(DcmMetaInfo* meta, DcmDataset* ds, DicomHeader& h) {
     const std::string metaXfer = getString(meta, DCM_TransferSyntaxUID);
     const E_TransferSyntax xfer = ds->getOriginalXfer();
     const DcmXfer xf(xfer);
@@ -298,8 +298,8 @@ DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* kee
     h.xferUid = xf.getXferID();
     h.xferName = xf.getXferName();
     if (!metaXfer.empty() && DcmXfer(metaXfer.c_str()).getXfer() == EXS_Unknown)
-        fail(path, "transfer syntax " + metaXfer + " (TransferSyntaxUID (0002,0010)) is not "
-                   "supported (unknown to this DCMTK build)");
+        fail(h.path, "transfer syntax " + metaXfer + " (TransferSyntaxUID (0002,0010)) is not "
+                     "supported (unknown to this DCMTK build)");
     h.encapsulated = xf.isEncapsulated();
     h.bigEndian = xf.isBigEndian();
     if (h.encapsulated)
@@ -314,7 +314,10 @@ DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* kee
                              (ratio.empty() ? std::string() : ", ratio " + ratio) +
                              "): the values are approximations of the original");
     }
+}
 
+/** Study, series and patient attributes, and the Modality LUT. */
+void readSeriesAttributes(DcmDataset* ds, DicomHeader& h) {
     h.studyUid = getString(ds, DCM_StudyInstanceUID);
     h.seriesUid = getString(ds, DCM_SeriesInstanceUID);
     h.seriesNumber = getString(ds, DCM_SeriesNumber);
@@ -333,8 +336,11 @@ DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* kee
         else
             readModalityLut(lut, h);
     }
+}
 
-    // Image pixel module.
+/** Image pixel module: size, bits, representation, photometric, padding, frames. */
+void readImagePixelModule(DcmDataset* ds, DicomHeader& h) {
+    const fs::path& path = h.path;
     Uint16 u = 0;
     if (ds->findAndGetUint16(DCM_Rows, u).bad()) fail(path, "not an image: Rows (0028,0010) missing");
     h.rows = u;
@@ -367,8 +373,13 @@ DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* kee
     if (h.frames > kMaxDimPerAxis)
         fail(path, "NumberOfFrames (0028,0008): expected at most " + std::to_string(kMaxDimPerAxis) +
                        ", found " + std::to_string(h.frames));
+}
 
-    // Pixel data size as stored (nothing is loaded here).
+/** Pixel data size as stored (nothing is loaded here): fragments and their bytes when
+ *  encapsulated, checked against the file size when not stream-compressed. */
+void readPixelDataLength(DcmDataset* ds, std::uintmax_t fileSize, DicomHeader& h) {
+    const fs::path& path = h.path;
+    const E_TransferSyntax xfer = ds->getOriginalXfer();
     const DcmTagKey pixelTag = h.hasPixelData     ? DCM_PixelData
                                : h.floatPixelData ? DCM_FloatPixelData
                                                   : DCM_DoubleFloatPixelData;
@@ -391,42 +402,47 @@ DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* kee
         if (h.pixelDataLength == DCM_UndefinedLength)
             fail(path, "Pixel Data (7FE0,0010): undefined length (encapsulated) in " + h.xferName);
     }
-    if (xf.getStreamCompression() == ESC_none && h.pixelDataLength > fileSize)
+    if (DcmXfer(xfer).getStreamCompression() == ESC_none && h.pixelDataLength > fileSize)
         fail(path, "Pixel Data (7FE0,0010): length " + std::to_string(h.pixelDataLength) +
                        " bytes exceeds the file size " + std::to_string(fileSize) + " (truncated file?)");
+}
 
-    // The pixel data must be able to hold what the header describes: checked here, before any
-    // decoder or the loader allocates the image from the header's numbers.
-    if (h.rows > 0 && h.cols > 0 && h.bitsAllocated > 0) {
-        const std::uint64_t bytesPer = h.floatPixelData    ? 4
-                                       : h.doublePixelData ? 8
-                                                           : std::uint64_t(std::max(h.bitsAllocated, 8) / 8);
-        // rows, cols <= 65535, frames <= 16384: no overflow.
-        const std::uint64_t need = std::uint64_t(h.rows) * std::uint64_t(h.cols) *
-                                   std::uint64_t(h.frames) * bytesPer;
-        const std::string what = std::to_string(h.cols) + " x " + std::to_string(h.rows) + " x " +
-                                 std::to_string(h.frames) + " frames x " + std::to_string(bytesPer) +
-                                 " bytes = " + std::to_string(need) + " bytes";
-        if (h.encapsulated) {
-            if (h.fragments < h.frames)
-                fail(path, "Pixel Data (7FE0,0010): NumberOfFrames is " + std::to_string(h.frames) +
-                               " but the encapsulated data holds " + std::to_string(h.fragments) +
-                               " fragments (each frame needs at least one)");
-            // More than 1024:1 is not compression but a lying header (a decoder would allocate
-            // the full size first); small images are let through whatever their ratio.
-            const std::uint64_t limit =
-                std::max<std::uint64_t>(256ull << 20, 1024ull * h.pixelDataLength);
-            if (need > limit)
-                fail(path, "Pixel Data (7FE0,0010): " + std::to_string(h.pixelDataLength) +
-                               " compressed bytes cannot hold " + what +
-                               " (more than 1024:1); refusing to decode");
-        } else if (h.bitsAllocated >= 8 && h.pixelDataLength < need) {
-            fail(path, "Pixel Data (7FE0,0010): expected " + what + ", found " +
-                           std::to_string(h.pixelDataLength) + " (truncated file or wrong header)");
-        }
+/** The pixel data must be able to hold what the header describes: checked here, before any
+ *  decoder or the loader allocates the image from the header's numbers. */
+void checkPixelDataHoldsImage(const DicomHeader& h) {
+    if (h.rows <= 0 || h.cols <= 0 || h.bitsAllocated <= 0) return;
+    const fs::path& path = h.path;
+    const std::uint64_t bytesPer = h.floatPixelData    ? 4
+                                   : h.doublePixelData ? 8
+                                                       : std::uint64_t(std::max(h.bitsAllocated, 8) / 8);
+    // rows, cols <= 65535, frames <= 16384: no overflow.
+    const std::uint64_t need = std::uint64_t(h.rows) * std::uint64_t(h.cols) *
+                               std::uint64_t(h.frames) * bytesPer;
+    const std::string what = std::to_string(h.cols) + " x " + std::to_string(h.rows) + " x " +
+                             std::to_string(h.frames) + " frames x " + std::to_string(bytesPer) +
+                             " bytes = " + std::to_string(need) + " bytes";
+    if (h.encapsulated) {
+        if (h.fragments < h.frames)
+            fail(path, "Pixel Data (7FE0,0010): NumberOfFrames is " + std::to_string(h.frames) +
+                           " but the encapsulated data holds " + std::to_string(h.fragments) +
+                           " fragments (each frame needs at least one)");
+        // More than 1024:1 is not compression but a lying header (a decoder would allocate
+        // the full size first); small images are let through whatever their ratio.
+        const std::uint64_t limit =
+            std::max<std::uint64_t>(256ull << 20, 1024ull * h.pixelDataLength);
+        if (need > limit)
+            fail(path, "Pixel Data (7FE0,0010): " + std::to_string(h.pixelDataLength) +
+                           " compressed bytes cannot hold " + what +
+                           " (more than 1024:1); refusing to decode");
+    } else if (h.bitsAllocated >= 8 && h.pixelDataLength < need) {
+        fail(path, "Pixel Data (7FE0,0010): expected " + what + ", found " +
+                       std::to_string(h.pixelDataLength) + " (truncated file or wrong header)");
     }
+}
 
-    // Geometry: classic attributes at top level, then enhanced functional groups.
+/** Geometry: classic attributes at top level, then enhanced functional groups; one FrameInfo per
+ *  frame. Each distinct problem is kept once in h.problems. */
+void readFrames(DcmDataset* ds, DicomHeader& h) {
     std::vector<std::string> problems;
     FrameInfo base;
     readGeometry(ds, base, problems);
@@ -445,9 +461,9 @@ DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* kee
         readFunctionalGroups(shared, base, h.rescaleType, problems);
         const std::int64_t items = perFrame ? static_cast<std::int64_t>(perFrame->card()) : 0;
         if (perFrame && items != h.frames)
-            fail(path, "PerFrameFunctionalGroupsSequence (5200,9230): expected " +
-                           std::to_string(h.frames) + " items (NumberOfFrames), found " +
-                           std::to_string(items));
+            fail(h.path, "PerFrameFunctionalGroupsSequence (5200,9230): expected " +
+                             std::to_string(h.frames) + " items (NumberOfFrames), found " +
+                             std::to_string(items));
         h.frameInfo.assign(static_cast<std::size_t>(h.frames), base);
         for (std::int64_t f = 0; f < items; ++f)
             readFunctionalGroups(perFrame->getItem(static_cast<unsigned long>(f)),
@@ -466,7 +482,25 @@ DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* kee
     std::sort(problems.begin(), problems.end());
     problems.erase(std::unique(problems.begin(), problems.end()), problems.end());
     h.problems = std::move(problems);
+}
 
+} // namespace
+
+DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* keep) {
+    initDcmtk();
+    DicomHeader h;
+    h.path = path;
+    std::uintmax_t fileSize = 0;
+    std::unique_ptr<DcmFileFormat> ff = parseFile(path, fileSize);
+    DcmMetaInfo* meta = ff->getMetaInfo();
+    DcmDataset* ds = ff->getDataset();
+    readSopAndPixelKind(meta, ds, h);
+    readTransferSyntax(meta, ds, h);
+    readSeriesAttributes(ds, h);
+    readImagePixelModule(ds, h);
+    readPixelDataLength(ds, fileSize, h);
+    checkPixelDataHoldsImage(h);
+    readFrames(ds, h);
     if (keep) *keep = std::move(ff);
     return h;
 }

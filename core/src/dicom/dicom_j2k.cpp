@@ -158,23 +158,26 @@ struct ImageDeleter {
     void operator()(opj_image_t* i) const { opj_image_destroy(i); }
 };
 
-/** Decodes one codestream into `dst` (cols * rows words of BitsAllocated / 8 bytes). */
-void decodeFrame(const DicomHeader& h, const Bytes& code, int frame, std::uint8_t* dst, Jpeg2000Frames& info) {
-    const std::string where = h.frames > 1 ? " (frame " + std::to_string(frame + 1) + ")" : "";
-    if (code.empty()) fail(h.path, "JPEG 2000 pixel data" + where + " is empty");
-    MemoryStream mem{code.data(), code.size(), 0};
-    std::unique_ptr<opj_stream_t, StreamDeleter> stream(opj_stream_create(OPJ_J2K_STREAM_CHUNK_SIZE, OPJ_TRUE));
+using StreamPtr = std::unique_ptr<opj_stream_t, StreamDeleter>;
+using CodecPtr = std::unique_ptr<opj_codec_t, CodecDeleter>;
+
+/** An OpenJPEG input stream reading `mem` (which must outlive it). */
+StreamPtr memoryStream(const DicomHeader& h, MemoryStream& mem) {
+    StreamPtr stream(opj_stream_create(OPJ_J2K_STREAM_CHUNK_SIZE, OPJ_TRUE));
     if (!stream) fail(h.path, "JPEG 2000: cannot create a decoding stream");
     opj_stream_set_user_data(stream.get(), &mem, nullptr);
-    opj_stream_set_user_data_length(stream.get(), code.size());
+    opj_stream_set_user_data_length(stream.get(), mem.size);
     opj_stream_set_read_function(stream.get(), streamRead);
     opj_stream_set_skip_function(stream.get(), streamSkip);
     opj_stream_set_seek_function(stream.get(), streamSeek);
+    return stream;
+}
 
+/** A strict decoder for a JP2 file or a raw J2K codestream; its first error goes to `error`. */
+CodecPtr strictDecoder(const DicomHeader& h, const Bytes& code, std::string& error) {
     const bool jp2 = startsWith(code, {0x00, 0x00, 0x00, 0x0C, 0x6A, 0x50, 0x20, 0x20});
-    std::unique_ptr<opj_codec_t, CodecDeleter> codec(opj_create_decompress(jp2 ? OPJ_CODEC_JP2 : OPJ_CODEC_J2K));
+    CodecPtr codec(opj_create_decompress(jp2 ? OPJ_CODEC_JP2 : OPJ_CODEC_J2K));
     if (!codec) fail(h.path, "JPEG 2000: cannot create a decoder");
-    std::string error;
     opj_set_error_handler(codec.get(), collectMessage, &error);
     opj_set_warning_handler(codec.get(), ignoreMessage, nullptr);
     opj_set_info_handler(codec.get(), ignoreMessage, nullptr);
@@ -184,25 +187,16 @@ void decodeFrame(const DicomHeader& h, const Bytes& code, int frame, std::uint8_
     // A truncated codestream is an error, not a partly decoded image (OpenJPEG 2.5's default,
     // made explicit: the corrupt-codestream test fails without it).
     opj_decoder_set_strict_mode(codec.get(), OPJ_TRUE);
+    return codec;
+}
 
-    opj_image_t* raw = nullptr;
-    const bool header = opj_read_header(stream.get(), codec.get(), &raw);
-    std::unique_ptr<opj_image_t, ImageDeleter> image(raw);
-    auto broken = [&](const char* stage) {
-        fail(h.path, std::string("JPEG 2000 pixel data") + where + ": " + stage + " failed" +
-                         (error.empty() ? std::string() : ": " + error) + " (truncated or corrupt codestream?)");
-    };
-    if (!header || !image) broken("reading the codestream header");
-    if (image->numcomps != 1)
-        fail(h.path, "JPEG 2000 pixel data" + where + " has " + std::to_string(image->numcomps) +
+/** The codestream header must describe one grayscale component of the header's size and at
+ *  most BitsAllocated bits. */
+void checkComponent(const DicomHeader& h, const opj_image_t& image, const std::string& where) {
+    if (image.numcomps != 1)
+        fail(h.path, "JPEG 2000 pixel data" + where + " has " + std::to_string(image.numcomps) +
                          " components; only grayscale (1) is supported");
-    if (opj_codestream_info_v2_t* cs = opj_get_cstr_info(codec.get())) {
-        // Wavelet 0: the irreversible 9/7 transform, lossy whatever the rate.
-        if (cs->m_default_tile_info.tccp_info && cs->m_default_tile_info.tccp_info[0].qmfbid == 0)
-            info.irreversible = true;
-        opj_destroy_cstr_info(&cs);
-    }
-    const opj_image_comp_t& c0 = image->comps[0];
+    const opj_image_comp_t& c0 = image.comps[0];
     if (c0.dx != 1 || c0.dy != 1 || std::int64_t(c0.w) != h.cols || std::int64_t(c0.h) != h.rows)
         fail(h.path, "JPEG 2000 pixel data" + where + " is " + std::to_string(c0.w) + " x " +
                          std::to_string(c0.h) + ", the header says " + std::to_string(h.cols) + " x " +
@@ -210,15 +204,15 @@ void decodeFrame(const DicomHeader& h, const Bytes& code, int frame, std::uint8_
     if (c0.prec < 1 || c0.prec > std::uint32_t(h.bitsAllocated))
         fail(h.path, "JPEG 2000 pixel data" + where + " holds " + std::to_string(c0.prec) +
                          "-bit samples, more than BitsAllocated " + std::to_string(h.bitsAllocated));
-    if (!opj_decode(codec.get(), stream.get(), image.get())) broken("decoding");
-    if (!opj_end_decompress(codec.get(), stream.get())) broken("finishing the decode");
-    const OPJ_INT32* s = image->comps[0].data;
-    if (!s) broken("decoding");
+}
 
-    // Samples must fit BitsStored bits; a codestream with more significant bits would be cut.
-    // Its signedness may differ from PixelRepresentation (some scanners write unsigned
-    // codestreams of signed pixels): the header decides, as for the other codecs, and the bits
-    // are read as BitsStored-bit two's complement, with a warning.
+/** Stores the decoded samples `s` of component c0 in `dst` as BitsAllocated-bit words.
+ *  Samples must fit BitsStored bits; a codestream with more significant bits would be cut.
+ *  Its signedness may differ from PixelRepresentation (some scanners write unsigned
+ *  codestreams of signed pixels): the header decides, as for the other codecs, and the bits
+ *  are read as BitsStored-bit two's complement, with a warning. */
+void storeSamples(const DicomHeader& h, const OPJ_INT32* s, const opj_image_comp_t& c0,
+                  const std::string& where, std::uint8_t* dst, Jpeg2000Frames& info) {
     const std::int64_t n = h.cols * h.rows;
     const int bits = h.bitsStored;
     const bool codestreamSigned = c0.sgnd != 0;
@@ -246,6 +240,37 @@ void decodeFrame(const DicomHeader& h, const Bytes& code, int frame, std::uint8_
             std::memcpy(dst + 4 * i, &w, 4);
         }
     }
+}
+
+/** Decodes one codestream into `dst` (cols * rows words of BitsAllocated / 8 bytes). */
+void decodeFrame(const DicomHeader& h, const Bytes& code, int frame, std::uint8_t* dst, Jpeg2000Frames& info) {
+    const std::string where = h.frames > 1 ? " (frame " + std::to_string(frame + 1) + ")" : "";
+    if (code.empty()) fail(h.path, "JPEG 2000 pixel data" + where + " is empty");
+    MemoryStream mem{code.data(), code.size(), 0};
+    const StreamPtr stream = memoryStream(h, mem);
+    std::string error;
+    const CodecPtr codec = strictDecoder(h, code, error);
+
+    opj_image_t* raw = nullptr;
+    const bool header = opj_read_header(stream.get(), codec.get(), &raw);
+    std::unique_ptr<opj_image_t, ImageDeleter> image(raw);
+    auto broken = [&](const char* stage) {
+        fail(h.path, std::string("JPEG 2000 pixel data") + where + ": " + stage + " failed" +
+                         (error.empty() ? std::string() : ": " + error) + " (truncated or corrupt codestream?)");
+    };
+    if (!header || !image) broken("reading the codestream header");
+    checkComponent(h, *image, where);
+    if (opj_codestream_info_v2_t* cs = opj_get_cstr_info(codec.get())) {
+        // Wavelet 0: the irreversible 9/7 transform, lossy whatever the rate.
+        if (cs->m_default_tile_info.tccp_info && cs->m_default_tile_info.tccp_info[0].qmfbid == 0)
+            info.irreversible = true;
+        opj_destroy_cstr_info(&cs);
+    }
+    if (!opj_decode(codec.get(), stream.get(), image.get())) broken("decoding");
+    if (!opj_end_decompress(codec.get(), stream.get())) broken("finishing the decode");
+    const OPJ_INT32* s = image->comps[0].data;
+    if (!s) broken("decoding");
+    storeSamples(h, s, image->comps[0], where, dst, info);
 }
 
 } // namespace

@@ -16,26 +16,32 @@ namespace fs = std::filesystem;
 
 namespace {
 
+/** Throws Error (LoadError or WriteError) naming the file and the problem: "<path>: <detail>". */
+template <class Error>
+[[noreturn]] void fail(const fs::path& path, const std::string& detail) {
+    throw Error(path.string() + ": " + detail);
+}
+
 /** Writes bytes to path atomically (temporary file in the same folder, then rename). */
 void writeFileAtomic(const fs::path& path, const std::string& bytes) {
     fs::path tmp = path;
     tmp += ".part";
     {
         std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        if (!out) throw WriteError(path.string() + ": cannot open for writing");
+        if (!out) fail<WriteError>(path, "cannot open for writing");
         out.write(bytes.data(), std::streamsize(bytes.size()));
         out.flush();
         if (!out) {
             std::error_code ec;
             fs::remove(tmp, ec);
-            throw WriteError(path.string() + ": write failed (disk full?)");
+            fail<WriteError>(path, "write failed (disk full?)");
         }
     }
     std::error_code ec;
     fs::rename(tmp, path, ec);
     if (ec) {
         fs::remove(tmp, ec);
-        throw WriteError(path.string() + ": cannot move the written file into place");
+        fail<WriteError>(path, "cannot move the written file into place");
     }
 }
 
@@ -97,14 +103,14 @@ void writeNpy(const fs::path& path, const float* data, std::int64_t rows, std::i
 
 std::vector<float> readNpy(const fs::path& path, std::vector<std::int64_t>& shape) {
     std::ifstream in(path, std::ios::binary);
-    if (!in) throw LoadError(path.string() + ": cannot open");
+    if (!in) fail<LoadError>(path, "cannot open");
     char pre[10];
     in.read(pre, 10);
-    if (!in || std::memcmp(pre, "\x93NUMPY", 6) != 0) throw LoadError(path.string() + ": not a .npy file");
+    if (!in || std::memcmp(pre, "\x93NUMPY", 6) != 0) fail<LoadError>(path, "not a .npy file");
     const std::size_t hlen = std::uint8_t(pre[8]) | (std::size_t(std::uint8_t(pre[9])) << 8);
     std::string h(hlen, '\0');
     in.read(h.data(), std::streamsize(hlen));
-    if (h.find("'<f4'") == std::string::npos) throw LoadError(path.string() + ": descr: expected '<f4'");
+    if (h.find("'<f4'") == std::string::npos) fail<LoadError>(path, "descr: expected '<f4'");
     shape.clear();
     const auto open = h.find('('), close = h.find(')');
     std::istringstream ss(h.substr(open + 1, close - open - 1));
@@ -118,11 +124,11 @@ std::vector<float> readNpy(const fs::path& path, std::vector<std::int64_t>& shap
     const auto dataStart = std::uint64_t(in.tellg());
     const auto fileSize = std::uint64_t(fs::file_size(path));
     if (total < 0 || std::uint64_t(total) * sizeof(float) != fileSize - dataStart)
-        throw LoadError(path.string() + ": shape: expected " + std::to_string(total) +
+        fail<LoadError>(path, "shape: expected " + std::to_string(total) +
                         " floats, found " + std::to_string((fileSize - dataStart) / sizeof(float)));
     std::vector<float> v(static_cast<std::size_t>(total));
     in.read(reinterpret_cast<char*>(v.data()), std::streamsize(v.size() * sizeof(float)));
-    if (!in) throw LoadError(path.string() + ": data: truncated");
+    if (!in) fail<LoadError>(path, "data: truncated");
     return v;
 }
 
@@ -143,7 +149,7 @@ double DisplayWindow::map(double value) const {
 
 void writePng(const fs::path& path, const float* data, int rows, int cols, const DisplayWindow& w,
               int bitDepth) {
-    if (bitDepth != 8 && bitDepth != 16) throw WriteError(path.string() + ": PNG bit depth must be 8 or 16");
+    if (bitDepth != 8 && bitDepth != 16) fail<WriteError>(path, "PNG bit depth must be 8 or 16");
     const int bpp = bitDepth / 8;
     const double maxv = bitDepth == 8 ? 255.0 : 65535.0;
     std::string raw;
@@ -161,7 +167,7 @@ void writePng(const fs::path& path, const float* data, int rows, int cols, const
     std::string z(zlen, '\0');
     if (compress2(reinterpret_cast<Bytef*>(z.data()), &zlen, reinterpret_cast<const Bytef*>(raw.data()),
                   uLong(raw.size()), 6) != Z_OK)
-        throw WriteError(path.string() + ": PNG compression failed");
+        fail<WriteError>(path, "PNG compression failed");
     z.resize(zlen);
     std::string png("\x89PNG\r\n\x1a\n", 8);
     std::string ihdr;
@@ -184,7 +190,7 @@ void writeProjection(const fs::path& path, const ProjectionImage& image) {
     if (ext == ".npy") writeNpy(path, image.pixels.data(), M, M);
     else if (ext == ".pfm") writePfm(path, image.pixels.data(), M, M);
     else if (ext == ".png") writePng(path, image.pixels.data(), M, M, autoWindow(image.pixels), 8);
-    else throw WriteError(path.string() + ": unknown output format '" + ext + "' (expected .npy, .pfm or .png)");
+    else fail<WriteError>(path, "unknown output format '" + ext + "' (expected .npy, .pfm or .png)");
 }
 
 } // namespace fvr::core

@@ -482,17 +482,6 @@ std::uint64_t maxInflatedBytes(std::uint64_t compressedBytes) {
     return compressedBytes * 1040 + 65536;
 }
 
-Vec3 normalized(const Vec3& v, bool& ok) {
-    const double n = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    ok = std::isfinite(n) && n > 1e-12;
-    if (!ok) return v;
-    return {v[0] / n, v[1] / n, v[2] / n};
-}
-
-Vec3 crossProduct(const Vec3& a, const Vec3& b) {
-    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-
 // ------------------------------------------------------------------------------------------------
 // MetaImage
 
@@ -632,18 +621,36 @@ Volume loadVolume(const fs::path& path) {
              quoteValue(path.extension().string()));
 }
 
-Volume loadMetaImage(const fs::path& path) {
-    const std::uint64_t headerFileSize = regularFileSize(path, path, "header");
-    std::ifstream in(path, std::ios::binary);
-    if (!in) fail(path, "header", "cannot open file");
+namespace {
 
-    // --- Header: "Key = Value" lines up to and including ElementDataFile (keys case-sensitive).
+/** The MetaImage header: "Key = Value" lines up to and including ElementDataFile. */
+struct MetaHeader {
     std::map<std::string, std::string, std::less<>> fields;
+    std::uint64_t fileSize = 0;    ///< size of the header file
+    std::uint64_t localOffset = 0; ///< the first byte after the ElementDataFile line
+
+    const std::string* get(std::string_view key) const {
+        const auto it = fields.find(key);
+        return it == fields.end() ? nullptr : &it->second;
+    }
+    /** The first of `keys` present, with its value; {nullptr, nullptr} when none is. */
+    std::pair<const char*, const std::string*>
+    firstOf(std::initializer_list<const char*> keys) const {
+        for (const char* k : keys)
+            if (const std::string* v = get(k)) return {k, v};
+        return {nullptr, nullptr};
+    }
+};
+
+/** Reads the header lines (keys case-sensitive); leaves `sb` just after ElementDataFile. */
+MetaHeader readMetaHeader(const fs::path& path, std::streambuf& sb, std::uint64_t fileSize) {
+    MetaHeader header;
+    header.fileSize = fileSize;
     std::string line;
     bool tooLong = false;
     bool sawDataFile = false;
     std::uint64_t consumed = 0;
-    while (readHeaderLine(*in.rdbuf(), line, kMaxHeaderLine, tooLong)) {
+    while (readHeaderLine(sb, line, kMaxHeaderLine, tooLong)) {
         consumed += line.size() + 1;
         if (tooLong || consumed > kMaxHeaderBytes)
             fail(path, "header",
@@ -655,7 +662,7 @@ Volume loadMetaImage(const fs::path& path) {
         if (eq == std::string_view::npos || trim(t.substr(0, eq)).empty())
             fail(path, "header", "expected 'Key = Value' lines, found " + quoteValue(t));
         const std::string key(trim(t.substr(0, eq)));
-        fields[key] = std::string(trim(t.substr(eq + 1)));
+        header.fields[key] = std::string(trim(t.substr(eq + 1)));
         if (key == "ElementDataFile") {
             sawDataFile = true;
             break;
@@ -663,57 +670,59 @@ Volume loadMetaImage(const fs::path& path) {
     }
     if (!sawDataFile)
         fail(path, "ElementDataFile", "expected the key (the last header line), found none");
-    const auto localPos = in.rdbuf()->pubseekoff(0, std::ios::cur, std::ios::in);
-    const std::uint64_t localOffset = localPos < 0 ? 0 : std::uint64_t(std::streamoff(localPos));
+    const auto localPos = sb.pubseekoff(0, std::ios::cur, std::ios::in);
+    header.localOffset = localPos < 0 ? 0 : std::uint64_t(std::streamoff(localPos));
+    return header;
+}
 
-    const auto get = [&](std::string_view key) -> const std::string* {
-        const auto it = fields.find(key);
-        return it == fields.end() ? nullptr : &it->second;
-    };
-    const auto firstOf =
-        [&](std::initializer_list<const char*> keys) -> std::pair<const char*, const std::string*> {
-        for (const char* k : keys)
-            if (const std::string* v = get(k)) return {k, v};
-        return {nullptr, nullptr};
-    };
+/** The grid of a MetaImage: NDims, DimSize, spacing, origin and axis directions. */
+struct MetaGeometry {
+    std::size_t ndims = 0;
+    std::vector<std::int64_t> dimSize; ///< the NDims sizes as written
+    Dims3 dims{1, 1, 1};
+    std::int64_t voxelCount = 0;
+    Vec3 spacing{1.0, 1.0, 1.0};
+    Vec3 origin{0.0, 0.0, 0.0};
+    std::array<Vec3, 3> direction = Volume{}.direction;
+};
 
-    if (const std::string* v = get("ObjectType"); v && *v != "Image")
-        fail(path, "ObjectType", "expected Image, found " + quoteValue(*v));
-
-    // NDims
-    const std::string* ndimsText = get("NDims");
+/** NDims and DimSize, checked against the per-axis and total voxel limits. */
+void readMetaDims(const fs::path& path, const MetaHeader& header, MetaGeometry& g) {
+    const std::string* ndimsText = header.get("NDims");
     if (!ndimsText) fail(path, "NDims", "expected 1, 2 or 3, found no NDims key");
     std::int64_t nd = 0;
     if (!parseInt(*ndimsText, nd) || nd < 1 || nd > 3)
         fail(path, "NDims", "expected 1, 2 or 3, found " + quoteValue(*ndimsText));
-    const std::size_t ndims = std::size_t(nd);
+    g.ndims = std::size_t(nd);
 
-    // DimSize
-    const std::string* dimText = get("DimSize");
+    const std::string* dimText = header.get("DimSize");
     if (!dimText)
-        fail(path, "DimSize", "expected " + std::to_string(ndims) + " sizes, found no DimSize key");
-    const auto dimSize = parseInts(*dimText, ndims);
+        fail(path, "DimSize",
+             "expected " + std::to_string(g.ndims) + " sizes, found no DimSize key");
+    const auto dimSize = parseInts(*dimText, g.ndims);
     if (!dimSize)
         fail(path, "DimSize",
-             "expected " + std::to_string(ndims) + " integers (NDims = " + std::to_string(ndims) +
-                 "), found " + quoteValue(*dimText));
+             "expected " + std::to_string(g.ndims) + " integers (NDims = " +
+                 std::to_string(g.ndims) + "), found " + quoteValue(*dimText));
     for (const std::int64_t d : *dimSize) {
         if (d < 1 || d > kMaxDimPerAxis)
             fail(path, "DimSize",
                  "expected 1.." + std::to_string(kMaxDimPerAxis) + " voxels per axis, found " +
                      quoteValue(*dimText));
     }
-    Dims3 dims{1, 1, 1};
-    for (std::size_t a = 0; a < ndims; ++a) dims[a] = (*dimSize)[a];
-    const std::int64_t voxelCount = dims[0] * dims[1] * dims[2];
-    if (voxelCount > kMaxVoxels)
+    g.dimSize = *dimSize;
+    for (std::size_t a = 0; a < g.ndims; ++a) g.dims[a] = g.dimSize[a];
+    g.voxelCount = g.dims[0] * g.dims[1] * g.dims[2];
+    if (g.voxelCount > kMaxVoxels)
         fail(path, "DimSize",
              "expected at most " + std::to_string(kMaxVoxels) + " voxels in total, found " +
-                 dimsText(*dimSize) + " = " + std::to_string(voxelCount));
+                 dimsText(g.dimSize) + " = " + std::to_string(g.voxelCount));
+}
 
-    // ElementSpacing (fallback ElementSize)
-    Vec3 spacing{1.0, 1.0, 1.0};
-    if (const auto [key, text] = firstOf({"ElementSpacing", "ElementSize"}); text) {
+/** ElementSpacing (fallback ElementSize) and Offset / Origin / Position. */
+void readMetaSpacingOrigin(const fs::path& path, const MetaHeader& header, MetaGeometry& g) {
+    const std::size_t ndims = g.ndims;
+    if (const auto [key, text] = header.firstOf({"ElementSpacing", "ElementSize"}); text) {
         const auto sp = parseDoubles(*text, ndims);
         bool ok = bool(sp);
         if (ok)
@@ -722,127 +731,143 @@ Volume loadMetaImage(const fs::path& path) {
             fail(path, key,
                  "expected " + std::to_string(ndims) + " finite numbers > 0 (mm), found " +
                      quoteValue(*text));
-        for (std::size_t a = 0; a < ndims; ++a) spacing[a] = (*sp)[a];
+        for (std::size_t a = 0; a < ndims; ++a) g.spacing[a] = (*sp)[a];
     }
-
-    // Offset / Origin / Position
-    Vec3 origin{0.0, 0.0, 0.0};
-    if (const auto [key, text] = firstOf({"Offset", "Origin", "Position"}); text) {
+    if (const auto [key, text] = header.firstOf({"Offset", "Origin", "Position"}); text) {
         const auto o = parseDoubles(*text, ndims);
         if (!o)
             fail(path, key,
                  "expected " + std::to_string(ndims) + " finite numbers, found " +
                      quoteValue(*text));
-        for (std::size_t a = 0; a < ndims; ++a) origin[a] = (*o)[a];
+        for (std::size_t a = 0; a < ndims; ++a) g.origin[a] = (*o)[a];
     }
+}
 
-    // TransformMatrix / Rotation / Orientation: the first NDims numbers are index axis 0's
-    // direction, and so on (as ITK's MetaImageIO reads them).
-    std::array<Vec3, 3> direction{Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
-    if (const auto [key, text] = firstOf({"TransformMatrix", "Rotation", "Orientation"}); text) {
-        const auto m = parseDoubles(*text, ndims * ndims);
-        if (!m)
-            fail(path, key,
-                 "expected " + std::to_string(ndims * ndims) + " finite numbers, found " +
-                     quoteValue(*text));
-        for (std::size_t a = 0; a < ndims; ++a) {
-            Vec3 axis{0, 0, 0};
-            for (std::size_t c = 0; c < ndims; ++c) axis[c] = (*m)[a * ndims + c];
-            bool ok = false;
-            direction[a] = normalized(axis, ok);
-            if (!ok) fail(path, key, "expected non-zero axis vectors, found " + quoteValue(*text));
-        }
-        if (ndims == 2) {
-            bool ok = false;
-            direction[2] = normalized(crossProduct(direction[0], direction[1]), ok);
-            if (!ok) direction[2] = {0, 0, 1};
-        }
+/** TransformMatrix / Rotation / Orientation: the first NDims numbers are index axis 0's
+ *  direction, and so on (as ITK's MetaImageIO reads them). */
+void readMetaDirection(const fs::path& path, const MetaHeader& header, MetaGeometry& g) {
+    const std::size_t ndims = g.ndims;
+    const auto [key, text] = header.firstOf({"TransformMatrix", "Rotation", "Orientation"});
+    if (!text) return;
+    const auto m = parseDoubles(*text, ndims * ndims);
+    if (!m)
+        fail(path, key,
+             "expected " + std::to_string(ndims * ndims) + " finite numbers, found " +
+                 quoteValue(*text));
+    for (std::size_t a = 0; a < ndims; ++a) {
+        Vec3 axis{0, 0, 0};
+        for (std::size_t c = 0; c < ndims; ++c) axis[c] = (*m)[a * ndims + c];
+        const auto unit = normalized(axis);
+        if (!unit) fail(path, key, "expected non-zero axis vectors, found " + quoteValue(*text));
+        g.direction[a] = *unit;
     }
+    if (ndims == 2)
+        g.direction[2] = normalized(cross(g.direction[0], g.direction[1])).value_or(Vec3{0, 0, 1});
+}
 
-    // ElementType
-    const std::string* typeText = get("ElementType");
+/** How the voxel bytes are stored: element type, byte order, compression, HeaderSize. */
+struct MetaEncoding {
+    ElementType type{};
+    std::string typeText; ///< the ElementType value as written
+    std::uint64_t es = 0; ///< bytes per element
+    bool bigEndian = false;
+    bool compressed = false;
+    std::uint64_t compressedDataSize = 0; ///< 0: not given
+    std::int64_t headerSize = 0;          ///< -1: the data ends the file
+
+    /** "int16 (MET_SHORT, 2 bytes)" */
+    std::string typeDesc() const {
+        return std::string(typeName(type)) + " (" + typeText + ", " + std::to_string(es) +
+               " bytes)";
+    }
+};
+
+/** ElementType and ElementNumberOfChannels (scalar volumes only). */
+void readMetaElementType(const fs::path& path, const MetaHeader& header, MetaEncoding& e) {
+    const std::string* typeText = header.get("ElementType");
     if (!typeText)
         fail(path, "ElementType", "expected MET_UCHAR, MET_SHORT, ..., found no ElementType key");
-    ElementType type{};
     try {
-        type = parseElementType(*typeText);
+        e.type = parseElementType(*typeText);
     } catch (const SettingsError&) {
         fail(path, "ElementType",
              "expected MET_CHAR, MET_UCHAR, MET_SHORT, MET_USHORT, MET_INT, MET_UINT, MET_LONG, "
              "MET_ULONG, MET_LONG_LONG, MET_ULONG_LONG, MET_FLOAT or MET_DOUBLE, found " +
                  quoteValue(*typeText));
     }
-    const std::uint64_t es = elementSize(type);
-
-    if (const std::string* v = get("ElementNumberOfChannels")) {
+    e.typeText = *typeText;
+    e.es = elementSize(e.type);
+    if (const std::string* v = header.get("ElementNumberOfChannels")) {
         std::int64_t ch = 0;
         if (!parseInt(*v, ch) || ch != 1)
             fail(path, "ElementNumberOfChannels",
                  "expected 1 (scalar volumes only), found " + quoteValue(*v));
     }
+}
 
-    bool bigEndian = false;
-    if (const auto [key, text] = firstOf({"ElementByteOrderMSB", "BinaryDataByteOrderMSB"}); text) {
+/** Byte order, BinaryData, CompressedData, CompressedDataSize and HeaderSize. */
+void readMetaStorage(const fs::path& path, const MetaHeader& header, MetaEncoding& e) {
+    if (const auto [key, text] = header.firstOf({"ElementByteOrderMSB", "BinaryDataByteOrderMSB"});
+        text) {
         const auto b = parseBool(*text);
         if (!b) fail(path, key, "expected True or False, found " + quoteValue(*text));
-        bigEndian = *b;
+        e.bigEndian = *b;
     }
-    if (const std::string* v = get("BinaryData")) {
+    if (const std::string* v = header.get("BinaryData")) {
         const auto b = parseBool(*v);
         if (!b || !*b)
             fail(path, "BinaryData",
                  "expected True (ASCII MetaImage data is not supported), found " + quoteValue(*v));
     }
-    bool compressed = false;
-    if (const std::string* v = get("CompressedData")) {
+    if (const std::string* v = header.get("CompressedData")) {
         const auto b = parseBool(*v);
         if (!b) fail(path, "CompressedData", "expected True or False, found " + quoteValue(*v));
-        compressed = *b;
+        e.compressed = *b;
     }
-    std::uint64_t compressedDataSize = 0;
-    if (const std::string* v = get("CompressedDataSize"); v && compressed) {
+    if (const std::string* v = header.get("CompressedDataSize"); v && e.compressed) {
         std::int64_t c = 0;
         if (!parseInt(*v, c) || c < 1)
             fail(path, "CompressedDataSize", "expected a byte count > 0, found " + quoteValue(*v));
-        compressedDataSize = std::uint64_t(c);
+        e.compressedDataSize = std::uint64_t(c);
     }
-    std::int64_t headerSize = 0;
-    if (const std::string* v = get("HeaderSize")) {
-        if (!parseInt(*v, headerSize) || headerSize < -1)
+    if (const std::string* v = header.get("HeaderSize")) {
+        if (!parseInt(*v, e.headerSize) || e.headerSize < -1)
             fail(path, "HeaderSize",
                  "expected -1 (data at the end of the file) or a byte count >= 0, found " +
                      quoteValue(*v));
     }
-    if (compressed && headerSize == -1)
+    if (e.compressed && e.headerSize == -1)
         fail(path, "HeaderSize", "expected a byte count >= 0 with CompressedData = True, found -1");
+}
 
-    validateGeometry(dims, spacing, path.string());
-
-    // --- Where the data is.
-    const std::string& dataFile = *get("ElementDataFile");
-    const std::uint64_t totalBytes = std::uint64_t(voxelCount) * es;
-    const std::string typeDesc =
-        std::string(typeName(type)) + " (" + *typeText + ", " + std::to_string(es) + " bytes)";
+/** Works out which bytes of which files hold the voxels (ElementDataFile as LOCAL, LIST, a
+ *  pattern or one file name) and checks that every file is long enough. */
+struct MetaDataLocator {
+    const fs::path& path;
+    const MetaHeader& header;
+    const MetaGeometry& geo;
+    const MetaEncoding& enc;
     std::vector<DataPart> parts;
 
-    // One external data file (or one of a LIST/pattern) holding `bytes` data bytes.
-    const auto externalPart = [&](const fs::path& name, std::uint64_t bytes,
-                                  const std::string& what) {
+    std::uint64_t totalBytes() const { return std::uint64_t(geo.voxelCount) * enc.es; }
+
+    /** One external data file (or one of a LIST/pattern) holding `bytes` data bytes. */
+    void external(const fs::path& name, std::uint64_t bytes, const std::string& what) {
         const fs::path file = name.is_absolute() ? name : path.parent_path() / name;
         const std::uint64_t size = regularFileSize(file, path, "ElementDataFile");
         DataPart p;
         p.file = file;
         p.bytes = bytes;
-        if (compressed) {
+        if (enc.compressed) {
             p.compressed = true;
-            p.offset = std::uint64_t(headerSize);
+            p.offset = std::uint64_t(enc.headerSize);
             if (size < p.offset)
                 fail(path, "ElementDataFile",
                      "'" + file.string() +
                          "': expected at least HeaderSize = " + std::to_string(p.offset) +
                          " bytes, found " + std::to_string(size) + " bytes");
             p.compressedBytes = size - p.offset;
-        } else if (headerSize == -1) {
+        } else if (enc.headerSize == -1) {
             if (size < bytes)
                 fail(path, "ElementDataFile",
                      "'" + file.string() + "': expected at least " + std::to_string(bytes) +
@@ -850,7 +875,7 @@ Volume loadMetaImage(const fs::path& path) {
                          " bytes");
             p.offset = size - bytes;
         } else {
-            p.offset = std::uint64_t(headerSize);
+            p.offset = std::uint64_t(enc.headerSize);
             if (size != p.offset + bytes)
                 fail(path, "ElementDataFile",
                      "'" + file.string() + "': expected " + std::to_string(p.offset + bytes) +
@@ -859,58 +884,67 @@ Volume loadMetaImage(const fs::path& path) {
                          std::to_string(size) + " bytes");
         }
         parts.push_back(p);
-    };
+    }
 
-    const std::vector<std::int64_t> dimVec(dimSize->begin(), dimSize->end());
-    const auto words = splitWords(dataFile);
-    if (dataFile.empty()) {
-        fail(path, "ElementDataFile",
-             "expected LOCAL, a file name, LIST or a pattern, found an empty value");
-    } else if (lower(dataFile) == "local") {
+    /** LOCAL, compressed: from HeaderSize (or the end of the header) to CompressedDataSize or
+     *  the end of the file. */
+    void localCompressed(DataPart& p) const {
+        const std::uint64_t fileSize = header.fileSize;
+        p.compressed = true;
+        p.offset = enc.headerSize > 0 ? std::uint64_t(enc.headerSize) : header.localOffset;
+        if (fileSize < p.offset)
+            fail(path, "HeaderSize",
+                 "expected at most the file size " + std::to_string(fileSize) + ", found " +
+                     std::to_string(p.offset));
+        p.compressedBytes = fileSize - p.offset;
+        if (enc.compressedDataSize > 0) {
+            if (enc.compressedDataSize > p.compressedBytes)
+                fail(path, "CompressedDataSize",
+                     "expected at most the " + std::to_string(p.compressedBytes) +
+                         " bytes after the header, found " +
+                         std::to_string(enc.compressedDataSize));
+            p.compressedBytes = enc.compressedDataSize;
+        }
+    }
+
+    /** LOCAL, uncompressed: at the end of the file (HeaderSize = -1) or after the header. */
+    void localPlain(DataPart& p) const {
+        const std::uint64_t fileSize = header.fileSize;
+        const std::uint64_t total = totalBytes();
+        if (enc.headerSize == -1) {
+            if (fileSize < total)
+                fail(path, "ElementDataFile",
+                     "LOCAL: expected at least " + std::to_string(total) + " bytes (" +
+                         dimsText(geo.dimSize) + " x " + enc.typeDesc() +
+                         ", HeaderSize = -1), found " + std::to_string(fileSize) + " bytes");
+            p.offset = fileSize - total;
+            return;
+        }
+        p.offset = enc.headerSize > 0 ? std::uint64_t(enc.headerSize) : header.localOffset;
+        if (fileSize < p.offset || fileSize - p.offset < total)
+            fail(path, "ElementDataFile",
+                 "LOCAL: expected " + std::to_string(total) + " data bytes (" +
+                     dimsText(geo.dimSize) + " x " + enc.typeDesc() + ") after byte " +
+                     std::to_string(p.offset) + ", found " +
+                     std::to_string(fileSize > p.offset ? fileSize - p.offset : 0) + " bytes");
+    }
+
+    void local() {
         DataPart p;
         p.file = path;
-        p.bytes = totalBytes;
-        if (compressed) {
-            p.compressed = true;
-            p.offset = headerSize > 0 ? std::uint64_t(headerSize) : localOffset;
-            if (headerFileSize < p.offset)
-                fail(path, "HeaderSize",
-                     "expected at most the file size " + std::to_string(headerFileSize) +
-                         ", found " + std::to_string(p.offset));
-            p.compressedBytes = headerFileSize - p.offset;
-            if (compressedDataSize > 0) {
-                if (compressedDataSize > p.compressedBytes)
-                    fail(path, "CompressedDataSize",
-                         "expected at most the " + std::to_string(p.compressedBytes) +
-                             " bytes after the header, found " +
-                             std::to_string(compressedDataSize));
-                p.compressedBytes = compressedDataSize;
-            }
-        } else {
-            if (headerSize == -1) {
-                if (headerFileSize < totalBytes)
-                    fail(path, "ElementDataFile",
-                         "LOCAL: expected at least " + std::to_string(totalBytes) + " bytes (" +
-                             dimsText(dimVec) + " x " + typeDesc + ", HeaderSize = -1), found " +
-                             std::to_string(headerFileSize) + " bytes");
-                p.offset = headerFileSize - totalBytes;
-            } else {
-                p.offset = headerSize > 0 ? std::uint64_t(headerSize) : localOffset;
-                if (headerFileSize < p.offset || headerFileSize - p.offset < totalBytes)
-                    fail(path, "ElementDataFile",
-                         "LOCAL: expected " + std::to_string(totalBytes) + " data bytes (" +
-                             dimsText(dimVec) + " x " + typeDesc + ") after byte " +
-                             std::to_string(p.offset) + ", found " +
-                             std::to_string(headerFileSize > p.offset ? headerFileSize - p.offset
-                                                                      : 0) +
-                             " bytes");
-            }
-        }
+        p.bytes = totalBytes();
+        if (enc.compressed)
+            localCompressed(p);
+        else
+            localPlain(p);
         parts.push_back(p);
-    } else if (words[0] == "LIST") {
-        // "LIST [nD]": file names one per line after the header, each an nD block (default
-        // NDims-1).
-        std::int64_t fileDim = std::int64_t(ndims) - 1;
+    }
+
+    /** "LIST [nD]": file names one per line after the header (read from `sb`), each an nD block
+     *  (default NDims-1). */
+    void list(const std::vector<std::string_view>& words, const std::string& dataFile,
+              std::streambuf& sb) {
+        std::int64_t fileDim = std::int64_t(geo.ndims) - 1;
         if (words.size() > 1) {
             std::int64_t d = 0;
             const std::string_view w = words[1];
@@ -920,97 +954,125 @@ Volume loadMetaImage(const fs::path& path) {
                  lower(std::string_view(ptr, w.data() + w.size() - ptr)) != "d"))
                 fail(path, "ElementDataFile",
                      "expected 'LIST' or 'LIST <n>D', found " + quoteValue(dataFile));
-            if (d >= 1 && d <= std::int64_t(ndims)) fileDim = d;
+            if (d >= 1 && d <= std::int64_t(geo.ndims)) fileDim = d;
         }
         std::int64_t perFile = 1;
-        for (std::int64_t a = 0; a < fileDim; ++a) perFile *= dimVec[std::size_t(a)];
-        const std::int64_t nFiles = voxelCount / perFile;
+        for (std::int64_t a = 0; a < fileDim; ++a) perFile *= geo.dimSize[std::size_t(a)];
+        const std::int64_t nFiles = geo.voxelCount / perFile;
         std::int64_t found = 0;
+        std::string line;
+        bool tooLong = false;
         while (found < nFiles) {
-            if (!readHeaderLine(*in.rdbuf(), line, kMaxHeaderLine, tooLong) || tooLong) break;
+            if (!readHeaderLine(sb, line, kMaxHeaderLine, tooLong) || tooLong) break;
             const std::string_view name = trim(line);
             if (name.empty()) continue;
-            externalPart(fs::path(std::string(name)), std::uint64_t(perFile) * es,
-                         "LIST file " + std::to_string(found + 1) + " of " +
-                             std::to_string(nFiles) + ": " + std::to_string(perFile) + " x " +
-                             typeDesc);
+            external(fs::path(std::string(name)), std::uint64_t(perFile) * enc.es,
+                     "LIST file " + std::to_string(found + 1) + " of " + std::to_string(nFiles) +
+                         ": " + std::to_string(perFile) + " x " + enc.typeDesc());
             ++found;
         }
         if (found < nFiles)
             fail(path, "ElementDataFile",
                  "LIST: expected " + std::to_string(nFiles) +
                      " file names after the header (one per " + std::to_string(fileDim) +
-                     "D block of " + dimsText(dimVec) + "), found " + std::to_string(found));
-    } else if (dataFile.find('%') != std::string::npos) {
-        // "pattern [start [end [step]]]": one file per slice of the last axis.
-        std::int64_t nums[3] = {1, 0, 1};
-        std::size_t nNums = 0;
-        for (std::size_t k = words.size(); k > 1 && nNums < 3; --k) {
-            std::int64_t v = 0;
-            if (!parseInt(words[k - 1], v)) break;
-            ++nNums;
-        }
-        if (words.size() - nNums < 1)
-            fail(path, "ElementDataFile",
-                 "expected 'pattern start end step', found " + quoteValue(dataFile));
-        // Pattern words may contain spaces: rejoin everything before the numbers.
-        const std::size_t nameWords = words.size() - nNums;
-        const char* begin = words[0].data();
-        const char* end = words[nameWords - 1].data() + words[nameWords - 1].size();
-        const std::string_view pattern(begin, std::size_t(end - begin));
-        std::int64_t parsed[3] = {0, 0, 0};
-        for (std::size_t k = 0; k < nNums; ++k) parseInt(words[nameWords + k], parsed[k]);
-        const std::int64_t nLast = dimVec.back();
-        if (nNums >= 1) nums[0] = parsed[0];
-        nums[1] = nNums >= 2 ? parsed[1] : nums[0] + nLast - 1;
-        if (nNums >= 3) nums[2] = parsed[2];
-        const std::int64_t start = nums[0], stop = nums[1], step = nums[2];
-        if (step == 0 || (stop - start != 0 && ((stop - start) > 0) != (step > 0)) ||
-            std::abs(start) > (std::int64_t(1) << 40) || std::abs(stop) > (std::int64_t(1) << 40))
-            fail(path, "ElementDataFile",
-                 "expected 'pattern start end step' with a step going from start to end, found " +
-                     quoteValue(dataFile));
-        const std::int64_t count = (stop - start) / step + 1;
-        if (count != nLast)
-            fail(path, "ElementDataFile",
-                 "expected " + std::to_string(nLast) + " files (one per slice, DimSize[" +
-                     std::to_string(ndims - 1) + "] = " + std::to_string(nLast) +
-                     "), found a pattern giving " + std::to_string(count) + " (" +
-                     quoteValue(dataFile) + ")");
-        if (!formatPattern(pattern, 0))
-            fail(path, "ElementDataFile",
-                 "expected a file pattern with one %d conversion (e.g. slice%03d.raw), found " +
-                     quoteValue(pattern));
-        const std::int64_t perFile = voxelCount / nLast;
-        for (std::int64_t k = 0; k < count; ++k) {
-            const std::int64_t number = start + k * step;
-            externalPart(fs::path(*formatPattern(pattern, number)), std::uint64_t(perFile) * es,
-                         "slice file " + std::to_string(k + 1) + " of " + std::to_string(count) +
-                             ": " + std::to_string(perFile) + " x " + typeDesc);
-        }
-    } else {
-        externalPart(fs::path(dataFile), totalBytes, dimsText(dimVec) + " x " + typeDesc);
+                     "D block of " + dimsText(geo.dimSize) + "), found " + std::to_string(found));
     }
 
-    for (const DataPart& p : parts) {
+    void pattern(const std::vector<std::string_view>& words, const std::string& dataFile);
+};
+
+/** "pattern [start [end [step]]]": one file per slice of the last axis. */
+void MetaDataLocator::pattern(const std::vector<std::string_view>& words,
+                              const std::string& dataFile) {
+    std::int64_t nums[3] = {1, 0, 1};
+    std::size_t nNums = 0;
+    for (std::size_t k = words.size(); k > 1 && nNums < 3; --k) {
+        std::int64_t v = 0;
+        if (!parseInt(words[k - 1], v)) break;
+        ++nNums;
+    }
+    if (words.size() - nNums < 1)
+        fail(path, "ElementDataFile",
+             "expected 'pattern start end step', found " + quoteValue(dataFile));
+    // Pattern words may contain spaces: rejoin everything before the numbers.
+    const std::size_t nameWords = words.size() - nNums;
+    const char* begin = words[0].data();
+    const char* end = words[nameWords - 1].data() + words[nameWords - 1].size();
+    const std::string_view pattern(begin, std::size_t(end - begin));
+    std::int64_t parsed[3] = {0, 0, 0};
+    for (std::size_t k = 0; k < nNums; ++k) parseInt(words[nameWords + k], parsed[k]);
+    const std::int64_t nLast = geo.dimSize.back();
+    if (nNums >= 1) nums[0] = parsed[0];
+    nums[1] = nNums >= 2 ? parsed[1] : nums[0] + nLast - 1;
+    if (nNums >= 3) nums[2] = parsed[2];
+    const std::int64_t start = nums[0], stop = nums[1], step = nums[2];
+    if (step == 0 || (stop - start != 0 && ((stop - start) > 0) != (step > 0)) ||
+        std::abs(start) > (std::int64_t(1) << 40) || std::abs(stop) > (std::int64_t(1) << 40))
+        fail(path, "ElementDataFile",
+             "expected 'pattern start end step' with a step going from start to end, found " +
+                 quoteValue(dataFile));
+    const std::int64_t count = (stop - start) / step + 1;
+    if (count != nLast)
+        fail(path, "ElementDataFile",
+             "expected " + std::to_string(nLast) + " files (one per slice, DimSize[" +
+                 std::to_string(geo.ndims - 1) + "] = " + std::to_string(nLast) +
+                 "), found a pattern giving " + std::to_string(count) + " (" +
+                 quoteValue(dataFile) + ")");
+    if (!formatPattern(pattern, 0))
+        fail(path, "ElementDataFile",
+             "expected a file pattern with one %d conversion (e.g. slice%03d.raw), found " +
+                 quoteValue(pattern));
+    const std::int64_t perFile = geo.voxelCount / nLast;
+    for (std::int64_t k = 0; k < count; ++k) {
+        const std::int64_t number = start + k * step;
+        external(fs::path(*formatPattern(pattern, number)), std::uint64_t(perFile) * enc.es,
+                 "slice file " + std::to_string(k + 1) + " of " + std::to_string(count) + ": " +
+                     std::to_string(perFile) + " x " + enc.typeDesc());
+    }
+}
+
+/** The data parts named by ElementDataFile, each checked against its file's size and, when
+ *  compressed, against what its compressed bytes can hold. `sb` is just after the header. */
+std::vector<DataPart> locateMetaData(const fs::path& path, const MetaHeader& header,
+                                     const MetaGeometry& geo, const MetaEncoding& enc,
+                                     std::streambuf& sb) {
+    MetaDataLocator locate{path, header, geo, enc, {}};
+    const std::string& dataFile = *header.get("ElementDataFile");
+    const auto words = splitWords(dataFile);
+    if (dataFile.empty())
+        fail(path, "ElementDataFile",
+             "expected LOCAL, a file name, LIST or a pattern, found an empty value");
+    else if (lower(dataFile) == "local")
+        locate.local();
+    else if (words[0] == "LIST")
+        locate.list(words, dataFile, sb);
+    else if (dataFile.find('%') != std::string::npos)
+        locate.pattern(words, dataFile);
+    else
+        locate.external(fs::path(dataFile), locate.totalBytes(),
+                        dimsText(geo.dimSize) + " x " + enc.typeDesc());
+
+    for (const DataPart& p : locate.parts) {
         if (p.compressed && p.bytes > maxInflatedBytes(p.compressedBytes))
             fail(path, "CompressedData",
                  "'" + p.file.string() + "': expected " + std::to_string(p.bytes) +
                      " bytes after decompression, found only " + std::to_string(p.compressedBytes) +
                      " compressed bytes, which cannot hold that much");
     }
+    return std::move(locate.parts);
+}
 
-    // --- Read.
-    Volume vol = emptyVolume(dims, spacing, origin, direction, volumeName(path), voxelCount, path);
-    float* dst = vol.voxels.data();
+/** Reads every part in turn into `dst` (room for all of them). */
+void readMetaData(const fs::path& path, const std::vector<DataPart>& parts,
+                  const MetaEncoding& enc, float* dst) {
     for (const DataPart& p : parts) {
         std::unique_ptr<ByteSource> src;
         if (p.compressed)
             src = std::make_unique<InflateSource>(p.file, p.offset, p.compressedBytes);
         else
             src = std::make_unique<FileSource>(p.file, p.offset);
-        const std::size_t count = std::size_t(p.bytes / es);
-        const std::uint64_t got = readElements(*src, type, bigEndian, Scaling{}, count, dst);
+        const std::size_t count = std::size_t(p.bytes / enc.es);
+        const std::uint64_t got = readElements(*src, enc.type, enc.bigEndian, Scaling{}, count, dst);
         if (got != p.bytes) {
             const std::string err = src->error();
             fail(path, "ElementDataFile",
@@ -1022,6 +1084,31 @@ Volume loadMetaImage(const fs::path& path) {
         }
         dst += count;
     }
+}
+
+} // namespace
+
+Volume loadMetaImage(const fs::path& path) {
+    const std::uint64_t headerFileSize = regularFileSize(path, path, "header");
+    std::ifstream in(path, std::ios::binary);
+    if (!in) fail(path, "header", "cannot open file");
+    const MetaHeader header = readMetaHeader(path, *in.rdbuf(), headerFileSize);
+    if (const std::string* v = header.get("ObjectType"); v && *v != "Image")
+        fail(path, "ObjectType", "expected Image, found " + quoteValue(*v));
+
+    MetaGeometry geo;
+    readMetaDims(path, header, geo);
+    readMetaSpacingOrigin(path, header, geo);
+    readMetaDirection(path, header, geo);
+    MetaEncoding enc;
+    readMetaElementType(path, header, enc);
+    readMetaStorage(path, header, enc);
+    validateGeometry(geo.dims, geo.spacing, path.string());
+
+    const std::vector<DataPart> parts = locateMetaData(path, header, geo, enc, *in.rdbuf());
+    Volume vol = emptyVolume(geo.dims, geo.spacing, geo.origin, geo.direction, volumeName(path),
+                             geo.voxelCount, path);
+    readMetaData(path, parts, enc, vol.voxels.data());
     return vol;
 }
 
@@ -1072,32 +1159,40 @@ const char* niftiTypeName(int code) {
     }
 }
 
-} // namespace
+/** Whether the file starts with the gzip magic bytes. */
+bool isGzipFile(const fs::path& path) {
+    std::ifstream f(path, std::ios::binary);
+    unsigned char magic[2] = {0, 0};
+    f.read(reinterpret_cast<char*>(magic), 2);
+    return f.gcount() == 2 && magic[0] == 0x1f && magic[1] == 0x8b;
+}
 
-Volume loadNifti(const fs::path& path) {
-    const std::uint64_t fileSize = regularFileSize(path, path, "file");
+/** The NIfTI byte stream (zlib reads plain files transparently) and how to name its errors. */
+struct NiftiStream {
+    GzSource& src;
     bool gz = false;
-    {
-        std::ifstream f(path, std::ios::binary);
-        unsigned char magic[2] = {0, 0};
-        f.read(reinterpret_cast<char*>(magic), 2);
-        gz = f.gcount() == 2 && magic[0] == 0x1f && magic[1] == 0x8b;
-    }
-    GzSource src(path); // zlib reads plain files transparently
-    if (!src.ok()) fail(path, "file", "cannot open file");
-    const auto readNote = [&]() -> std::string {
+    std::uint64_t fileSize = 0;
+
+    /** " (gzip: <zlib's error>)", or "" when the data simply ended. */
+    std::string readNote() const {
         if (src.error().empty()) return {};
         return (gz ? " (gzip: " : " (") + src.error() + ")";
-    };
+    }
+};
 
-    unsigned char h[348];
-    const std::size_t got = src.read(h, sizeof h);
-    if (got < sizeof h && !src.error().empty())
-        fail(path, "header", "expected 348 bytes, found " + std::to_string(got) + readNote());
+constexpr std::size_t kNiftiHeaderBytes = 348;
+
+/** Reads the 348-byte header into h and checks sizeof_hdr (which gives the byte order) and the
+ *  single-file magic. */
+NiftiHeaderReader readNiftiHeader(const fs::path& path, const NiftiStream& in,
+                                  unsigned char (&h)[kNiftiHeaderBytes]) {
+    const std::size_t got = in.src.read(h, sizeof h);
+    if (got < sizeof h && !in.src.error().empty())
+        fail(path, "header", "expected 348 bytes, found " + std::to_string(got) + in.readNote());
     if (got < 4)
         fail(path, "sizeof_hdr",
              "expected a 348-byte NIfTI-1 header, found a file of " + std::to_string(got) +
-                 " bytes" + readNote());
+                 " bytes" + in.readNote());
     std::int32_t sizeofHdr = 0;
     std::memcpy(&sizeofHdr, h, 4);
     bool swap = false;
@@ -1112,8 +1207,7 @@ Volume loadNifti(const fs::path& path) {
              "expected 348 (NIfTI-1, either byte order), found " + std::to_string(sizeofHdr));
     }
     if (got < sizeof h)
-        fail(path, "header", "expected 348 bytes, found " + std::to_string(got) + readNote());
-    const NiftiHeaderReader r{h, swap};
+        fail(path, "header", "expected 348 bytes, found " + std::to_string(got) + in.readNote());
 
     const std::string_view magic(reinterpret_cast<const char*>(h + 344), 4);
     if (magic == std::string_view("ni1\0", 4))
@@ -1122,12 +1216,18 @@ Volume loadNifti(const fs::path& path) {
              "supported)");
     if (magic != std::string_view("n+1\0", 4))
         fail(path, "magic", "expected \"n+1\" (single-file NIfTI-1), found " + quoteValue(magic));
+    return NiftiHeaderReader{h, swap};
+}
 
-    // dim
+/** dim: 2 or 3 dimensions (or up to 7 with extent 1 beyond the third). */
+Dims3 niftiDims(const fs::path& path, const NiftiHeaderReader& r) {
     std::int16_t dim[8];
     for (int i = 0; i < 8; ++i) dim[i] = r.get<std::int16_t>(40 + 2 * i);
     std::string dimText;
-    for (int i = 0; i < 8; ++i) dimText += (i ? " " : "") + std::to_string(dim[i]);
+    for (int i = 0; i < 8; ++i) {
+        if (i) dimText += ' '; // appended piecewise: GCC 12 warns falsely on "" + std::string here
+        dimText += std::to_string(dim[i]);
+    }
     if (dim[0] < 2 || dim[0] > 7)
         fail(path, "dim[0]",
              "expected 2 or 3 (or 4..7 with one time point), found " + std::to_string(dim[0]) +
@@ -1145,8 +1245,10 @@ Volume loadNifti(const fs::path& path) {
                  "expected 1.." + std::to_string(kMaxDimPerAxis) + ", found " +
                      std::to_string(dims[a]) + " (dim = " + dimText + ")");
     }
+    return dims;
+}
 
-    // datatype
+ElementType niftiElementType(const fs::path& path, const NiftiHeaderReader& r) {
     const int datatype = r.get<std::int16_t>(70);
     const auto type = niftiType(datatype);
     if (!type)
@@ -1154,167 +1256,222 @@ Volume loadNifti(const fs::path& path) {
              "expected a scalar type (2 uint8, 4 int16, 8 int32, 16 float32, 64 float64, 256 int8, "
              "512 uint16, 768 uint32, 1024 int64, 1280 uint64), found " +
                  std::to_string(datatype) + " (" + niftiTypeName(datatype) + ", not supported)");
-    const std::uint64_t es = elementSize(*type);
+    return *type;
+}
 
-    // units and spacing
-    float pixdim[8];
-    for (int i = 0; i < 8; ++i) pixdim[i] = r.get<float>(76 + 4 * i);
-    const int spaceUnits = h[123] & 0x07;
-    const double unitToMm = spaceUnits == 1   ? 1000.0
-                            : spaceUnits == 3 ? 0.001
-                                              : 1.0; // 0 unknown: mm
+/** mm per unit of xyzt_units' space unit (unknown: mm). */
+double niftiUnitToMm(const NiftiHeaderReader& r) {
+    const int spaceUnits = r.h[123] & 0x07;
+    return spaceUnits == 1 ? 1000.0 : spaceUnits == 3 ? 0.001 : 1.0;
+}
+
+/** Spacing (mm) from pixdim[1..3]. */
+Vec3 niftiSpacing(const fs::path& path, const NiftiHeaderReader& r, const Dims3& dims,
+                  double unitToMm) {
     Vec3 spacing{1.0, 1.0, 1.0};
     for (int a = 0; a < 3; ++a) {
-        const double p = std::fabs(double(pixdim[a + 1]));
+        const float pixdim = r.get<float>(76 + 4 * (a + 1));
+        const double p = std::fabs(double(pixdim));
         if (std::isfinite(p) && p > 0.0) {
             spacing[a] = p * unitToMm;
         } else if (dims[a] == 1) {
             spacing[a] = unitToMm; // a single slice: the spacing does not matter
         } else {
             fail(path, "pixdim[" + std::to_string(a + 1) + "]",
-                 "expected a finite voxel size > 0, found " + str(pixdim[a + 1]));
+                 "expected a finite voxel size > 0, found " + str(pixdim));
         }
     }
-    validateGeometry(dims, spacing, path.string());
+    return spacing;
+}
 
-    // data offset and scaling
+/** Where the voxels are and how they scale: vox_offset, scl_slope/scl_inter, sizes. */
+struct NiftiData {
+    std::uint64_t voxOffset = 0;
+    Scaling scaling;
+    std::uint64_t dataBytes = 0; ///< voxel bytes
+    std::uint64_t required = 0;  ///< voxOffset + dataBytes
+    std::string layout;          ///< "vox_offset 352 + 4 x 4 x 4 voxels x 2 bytes int16"
+};
+
+/** Reads vox_offset and the scaling and checks that the file can hold the data. */
+NiftiData niftiData(const fs::path& path, const NiftiHeaderReader& r, const NiftiStream& in,
+                    const Dims3& dims, ElementType type) {
+    NiftiData d;
     const float voxOffsetF = r.get<float>(108);
     if (!std::isfinite(voxOffsetF) || voxOffsetF < 352.0f || voxOffsetF > 1.0e12f ||
         voxOffsetF != std::floor(voxOffsetF))
         fail(path, "vox_offset",
              "expected a whole number of bytes >= 352 (single-file NIfTI-1), found " +
                  str(voxOffsetF));
-    const auto voxOffset = std::uint64_t(voxOffsetF);
-    Scaling scaling;
+    d.voxOffset = std::uint64_t(voxOffsetF);
     const float slope = r.get<float>(112);
     const float inter = r.get<float>(116);
     if (std::isfinite(slope) && slope != 0.0f) {
-        scaling.slope = slope;
-        scaling.inter = std::isfinite(inter) ? inter : 0.0;
-        scaling.apply = !(scaling.slope == 1.0 && scaling.inter == 0.0);
+        d.scaling.slope = slope;
+        d.scaling.inter = std::isfinite(inter) ? inter : 0.0;
+        d.scaling.apply = !(d.scaling.slope == 1.0 && d.scaling.inter == 0.0);
     }
 
-    const std::int64_t voxelCount = dims[0] * dims[1] * dims[2];
-    const std::uint64_t dataBytes = std::uint64_t(voxelCount) * es;
-    const std::uint64_t required = voxOffset + dataBytes;
-    const std::string layout = "vox_offset " + std::to_string(voxOffset) + " + " +
-                               std::to_string(dims[0]) + " x " + std::to_string(dims[1]) + " x " +
-                               std::to_string(dims[2]) + " voxels x " + std::to_string(es) +
-                               " bytes " + typeName(*type);
-    if (!gz && fileSize < required)
+    const std::uint64_t es = elementSize(type);
+    d.dataBytes = std::uint64_t(dims[0] * dims[1] * dims[2]) * es;
+    d.required = d.voxOffset + d.dataBytes;
+    d.layout = "vox_offset " + std::to_string(d.voxOffset) + " + " + std::to_string(dims[0]) +
+               " x " + std::to_string(dims[1]) + " x " + std::to_string(dims[2]) + " voxels x " +
+               std::to_string(es) + " bytes " + typeName(type);
+    if (!in.gz && in.fileSize < d.required)
         fail(path, "data",
-             "expected " + std::to_string(required) + " bytes (" + layout + "), found " +
-                 std::to_string(fileSize) + " bytes");
-    if (gz && required > maxInflatedBytes(fileSize))
+             "expected " + std::to_string(d.required) + " bytes (" + d.layout + "), found " +
+                 std::to_string(in.fileSize) + " bytes");
+    if (in.gz && d.required > maxInflatedBytes(in.fileSize))
         fail(path, "data",
-             "expected " + std::to_string(required) + " bytes after decompression (" + layout +
-                 "), found a gzip file of only " + std::to_string(fileSize) +
+             "expected " + std::to_string(d.required) + " bytes after decompression (" +
+                 d.layout + "), found a gzip file of only " + std::to_string(in.fileSize) +
                  " bytes, which cannot hold that much");
+    return d;
+}
 
-    // geometry: sform (preferred) or qform, in RAS, converted below to LPS
-    const int qformCode = r.get<std::int16_t>(252);
-    const int sformCode = r.get<std::int16_t>(254);
-    std::array<Vec3, 3> direction{Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
-    Vec3 origin{0.0, 0.0, 0.0};
-    bool oriented = false;
-    if (sformCode > 0) {
-        double srow[3][4];
-        bool finite = true;
-        for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 4; ++j) {
-                srow[i][j] = r.get<float>(280 + 16 * i + 4 * j);
-                finite = finite && std::isfinite(srow[i][j]);
-            }
-        if (!finite)
-            fail(path, "srow_x/srow_y/srow_z",
-                 "expected finite numbers (sform_code > 0), found non-finite");
-        bool ok0 = false, ok1 = false, ok2 = false;
-        const Vec3 c0 = normalized({srow[0][0], srow[1][0], srow[2][0]}, ok0);
-        const Vec3 c1 = normalized({srow[0][1], srow[1][1], srow[2][1]}, ok1);
-        Vec3 c2 = normalized({srow[0][2], srow[1][2], srow[2][2]}, ok2);
-        if (ok0 && ok1 && !ok2) c2 = normalized(crossProduct(c0, c1), ok2);
-        if (ok0 && ok1 && ok2) {
-            direction = {c0, c1, c2};
-            origin = {srow[0][3], srow[1][3], srow[2][3]};
-            oriented = true;
-        }
-    }
-    if (!oriented && qformCode > 0) {
-        double b = r.get<float>(256), c = r.get<float>(260), d = r.get<float>(264);
-        const double qx = r.get<float>(268), qy = r.get<float>(272), qz = r.get<float>(276);
-        if (!std::isfinite(b) || !std::isfinite(c) || !std::isfinite(d) || !std::isfinite(qx) ||
-            !std::isfinite(qy) || !std::isfinite(qz))
-            fail(path, "quatern_b/c/d, qoffset_x/y/z",
-                 "expected finite numbers (qform_code > 0), found non-finite");
-        double a = 1.0 - (b * b + c * c + d * d);
-        if (a < 1e-7) {
-            // b, c, d describe a 180 degree rotation: renormalise them (as nifti1_io does).
-            const double n = std::sqrt(b * b + c * c + d * d);
-            if (n > 0.0) {
-                b /= n;
-                c /= n;
-                d /= n;
-            }
-            a = 0.0;
-        } else {
-            a = std::sqrt(a);
-        }
-        const double qfac = pixdim[0] < 0.0f ? -1.0 : 1.0;
-        const double R[3][3] = {
-            {a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)},
-            {2 * (b * c + a * d), a * a + c * c - b * b - d * d, 2 * (c * d - a * b)},
-            {2 * (b * d - a * c), 2 * (c * d + a * b), a * a + d * d - c * c - b * b},
-        };
-        for (int ax = 0; ax < 3; ++ax) {
-            const double f = ax == 2 ? qfac : 1.0;
-            direction[ax] = {R[0][ax] * f, R[1][ax] * f, R[2][ax] * f};
-        }
-        origin = {qx, qy, qz};
-        oriented = true;
-    }
-    if (oriented) {
-        // NIfTI world coordinates are RAS; the Volume uses LPS like DICOM.
-        for (Vec3& axis : direction) {
-            axis[0] = -axis[0];
-            axis[1] = -axis[1];
-        }
-        origin = {-origin[0] * unitToMm, -origin[1] * unitToMm, origin[2] * unitToMm};
-    }
+/** Index axis directions and origin in the NIfTI world frame (RAS, the file's units). */
+struct NiftiOrientation {
+    std::array<Vec3, 3> direction;
+    Vec3 origin;
+};
 
-    // skip the extensions up to vox_offset
-    {
-        std::uint64_t toSkip = voxOffset - sizeof h;
-        unsigned char scratch[4096];
-        while (toSkip > 0) {
-            const std::size_t n = std::size_t(std::min<std::uint64_t>(toSkip, sizeof scratch));
-            const std::size_t g = src.read(scratch, n);
-            toSkip -= g;
-            if (g < n) {
-                fail(path, "data",
-                     "expected " + std::to_string(required) + " bytes (" + layout + "), found " +
-                         std::to_string(voxOffset - toSkip) + " bytes" + readNote());
-            }
+/** The sform (sform_code > 0); nullopt when absent or its axes are degenerate. */
+std::optional<NiftiOrientation> niftiSform(const fs::path& path, const NiftiHeaderReader& r) {
+    if (r.get<std::int16_t>(254) <= 0) return std::nullopt;
+    double srow[3][4];
+    bool finite = true;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 4; ++j) {
+            srow[i][j] = r.get<float>(280 + 16 * i + 4 * j);
+            finite = finite && std::isfinite(srow[i][j]);
+        }
+    if (!finite)
+        fail(path, "srow_x/srow_y/srow_z",
+             "expected finite numbers (sform_code > 0), found non-finite");
+    const auto c0 = normalized({srow[0][0], srow[1][0], srow[2][0]});
+    const auto c1 = normalized({srow[0][1], srow[1][1], srow[2][1]});
+    auto c2 = normalized({srow[0][2], srow[1][2], srow[2][2]});
+    if (c0 && c1 && !c2) c2 = normalized(cross(*c0, *c1));
+    if (!c0 || !c1 || !c2) return std::nullopt;
+    return NiftiOrientation{{*c0, *c1, *c2}, {srow[0][3], srow[1][3], srow[2][3]}};
+}
+
+/** The qform (qform_code > 0): a quaternion rotation, qfac flipping the third axis. */
+std::optional<NiftiOrientation> niftiQform(const fs::path& path, const NiftiHeaderReader& r) {
+    if (r.get<std::int16_t>(252) <= 0) return std::nullopt;
+    double b = r.get<float>(256), c = r.get<float>(260), d = r.get<float>(264);
+    const double qx = r.get<float>(268), qy = r.get<float>(272), qz = r.get<float>(276);
+    if (!std::isfinite(b) || !std::isfinite(c) || !std::isfinite(d) || !std::isfinite(qx) ||
+        !std::isfinite(qy) || !std::isfinite(qz))
+        fail(path, "quatern_b/c/d, qoffset_x/y/z",
+             "expected finite numbers (qform_code > 0), found non-finite");
+    double a = 1.0 - (b * b + c * c + d * d);
+    if (a < 1e-7) {
+        // b, c, d describe a 180 degree rotation: renormalise them (as nifti1_io does).
+        const double n = std::sqrt(b * b + c * c + d * d);
+        if (n > 0.0) {
+            b /= n;
+            c /= n;
+            d /= n;
+        }
+        a = 0.0;
+    } else {
+        a = std::sqrt(a);
+    }
+    const double qfac = r.get<float>(76) < 0.0f ? -1.0 : 1.0; // pixdim[0]
+    const double R[3][3] = {
+        {a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)},
+        {2 * (b * c + a * d), a * a + c * c - b * b - d * d, 2 * (c * d - a * b)},
+        {2 * (b * d - a * c), 2 * (c * d + a * b), a * a + d * d - c * c - b * b},
+    };
+    NiftiOrientation o;
+    for (int ax = 0; ax < 3; ++ax) {
+        const double f = ax == 2 ? qfac : 1.0;
+        o.direction[ax] = {R[0][ax] * f, R[1][ax] * f, R[2][ax] * f};
+    }
+    o.origin = {qx, qy, qz};
+    return o;
+}
+
+/** The Volume's direction and origin (LPS, mm) from the sform (preferred) or the qform;
+ *  identity and 0 when neither is usable. */
+NiftiOrientation niftiOrientation(const fs::path& path, const NiftiHeaderReader& r,
+                                  double unitToMm) {
+    auto o = niftiSform(path, r);
+    if (!o) o = niftiQform(path, r);
+    if (!o) return NiftiOrientation{Volume{}.direction, Vec3{0.0, 0.0, 0.0}};
+    // NIfTI world coordinates are RAS; the Volume uses LPS like DICOM.
+    for (Vec3& axis : o->direction) {
+        axis[0] = -axis[0];
+        axis[1] = -axis[1];
+    }
+    o->origin = {-o->origin[0] * unitToMm, -o->origin[1] * unitToMm, o->origin[2] * unitToMm};
+    return *o;
+}
+
+/** Skips the extensions between the header and vox_offset. */
+void skipNiftiExtensions(const fs::path& path, const NiftiStream& in, const NiftiData& data) {
+    std::uint64_t toSkip = data.voxOffset - kNiftiHeaderBytes;
+    unsigned char scratch[4096];
+    while (toSkip > 0) {
+        const std::size_t n = std::size_t(std::min<std::uint64_t>(toSkip, sizeof scratch));
+        const std::size_t g = in.src.read(scratch, n);
+        toSkip -= g;
+        if (g < n) {
+            fail(path, "data",
+                 "expected " + std::to_string(data.required) + " bytes (" + data.layout +
+                     "), found " + std::to_string(data.voxOffset - toSkip) + " bytes" +
+                     in.readNote());
         }
     }
+}
 
-    Volume vol = emptyVolume(dims, spacing, origin, direction, volumeName(path), voxelCount, path);
-    const std::uint64_t read =
-        readElements(src, *type, swap, scaling, std::size_t(voxelCount), vol.voxels.data());
-    if (read != dataBytes)
+/** Reads the voxels into vol and, for gzip, checks the stream's trailer. */
+void readNiftiVoxels(const fs::path& path, const NiftiStream& in, const NiftiData& data,
+                     ElementType type, bool swap, Volume& vol) {
+    const std::uint64_t read = readElements(in.src, type, swap, data.scaling,
+                                            std::size_t(vol.voxelCount()), vol.voxels.data());
+    if (read != data.dataBytes)
         fail(path, "data",
-             "expected " + std::to_string(required) + " bytes (" + layout + "), found " +
-                 std::to_string(voxOffset + read) + " bytes" + readNote());
-    if (gz) {
+             "expected " + std::to_string(data.required) + " bytes (" + data.layout + "), found " +
+                 std::to_string(data.voxOffset + read) + " bytes" + in.readNote());
+    if (in.gz) {
         // Reading one byte past the data makes zlib check the gzip trailer (CRC and length) when
         // the data ends the stream, as it does in every .nii.gz: corruption is reported, not
         // hidden.
         unsigned char extra = 0;
-        src.read(&extra, 1);
-        if (!src.error().empty())
+        in.src.read(&extra, 1);
+        if (!in.src.error().empty())
             fail(path, "data",
-                 "gzip stream corrupt or truncated after " + std::to_string(required) + " bytes (" +
-                     src.error() + ")");
+                 "gzip stream corrupt or truncated after " + std::to_string(data.required) +
+                     " bytes (" + in.src.error() + ")");
     }
+}
+
+} // namespace
+
+Volume loadNifti(const fs::path& path) {
+    const std::uint64_t fileSize = regularFileSize(path, path, "file");
+    const bool gz = isGzipFile(path);
+    GzSource src(path); // zlib reads plain files transparently
+    if (!src.ok()) fail(path, "file", "cannot open file");
+    const NiftiStream in{src, gz, fileSize};
+
+    unsigned char h[kNiftiHeaderBytes];
+    const NiftiHeaderReader r = readNiftiHeader(path, in, h);
+    const Dims3 dims = niftiDims(path, r);
+    const ElementType type = niftiElementType(path, r);
+    const double unitToMm = niftiUnitToMm(r);
+    const Vec3 spacing = niftiSpacing(path, r, dims, unitToMm);
+    validateGeometry(dims, spacing, path.string());
+    const NiftiData data = niftiData(path, r, in, dims, type);
+    const NiftiOrientation orientation = niftiOrientation(path, r, unitToMm);
+    skipNiftiExtensions(path, in, data);
+
+    Volume vol = emptyVolume(dims, spacing, orientation.origin, orientation.direction,
+                             volumeName(path), dims[0] * dims[1] * dims[2], path);
+    readNiftiVoxels(path, in, data, type, r.swap, vol);
     return vol;
 }
 

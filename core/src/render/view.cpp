@@ -8,10 +8,6 @@
 namespace fvr::core {
 
 namespace {
-Vec3 scaled(const Vec3& a, double s) { return {a[0] * s, a[1] * s, a[2] * s}; }
-Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
-
 Vec3 rotate(const Vec3& v, const Vec3& k, double angle) {
     // Rodrigues' formula, k unit.
     const double c = std::cos(angle), s = std::sin(angle);
@@ -27,12 +23,12 @@ ViewFrame ViewFrame::fromDirUp(const Vec3& dir, const Vec3& up) {
     if (!(nd > 1e-12) || !std::isfinite(nd))
         throw SettingsError("view direction: expected a non-zero finite vector");
     ViewFrame f;
-    f.d = scaled(dir, 1.0 / nd);
-    const Vec3 upOrtho = sub(up, scaled(f.d, dot(up, f.d)));
+    f.d = scale(dir, 1.0 / nd);
+    const Vec3 upOrtho = sub(up, scale(f.d, dot(up, f.d)));
     const double nu = norm(upOrtho);
     if (!(nu > 1e-9 * std::max(1.0, norm(up))) || !std::isfinite(nu))
         throw SettingsError("view up vector: expected a vector not parallel to the direction");
-    f.u = scaled(upOrtho, 1.0 / nu);
+    f.u = scale(upOrtho, 1.0 / nu);
     f.r = cross(f.d, f.u);
     return f;
 }
@@ -40,9 +36,9 @@ ViewFrame ViewFrame::fromDirUp(const Vec3& dir, const Vec3& up) {
 ViewFrame ViewFrame::rotated(const Vec3& axis, double angleRad) const {
     const double n = norm(axis);
     if (!(n > 1e-12)) throw SettingsError("rotation axis: expected a non-zero vector");
-    const Vec3 k = scaled(axis, 1.0 / n);
+    const Vec3 k = scale(axis, 1.0 / n);
     ViewFrame f = fromDirUp(rotate(d, k, angleRad), rotate(u, k, angleRad));
-    if (dot(r, cross(d, u)) < 0) f.r = scaled(f.r, -1.0); // keep a mirrored frame mirrored
+    if (dot(r, cross(d, u)) < 0) f.r = scale(f.r, -1.0); // keep a mirrored frame mirrored
     return f;
 }
 

@@ -16,7 +16,6 @@ Vec3 toLocal(const Ellipsoid& e, const Vec3& v) {
     return {dot(e.axes[0], v) / e.semiAxes[0], dot(e.axes[1], v) / e.semiAxes[1],
             dot(e.axes[2], v) / e.semiAxes[2]};
 }
-Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
 
 /** Where the line o + t dir crosses the axis-aligned box [-h, h]; false if it misses. */
 bool boxInterval(const Vec3& o, const Vec3& dir, const Vec3& h, double& t0, double& t1) {

@@ -6,9 +6,10 @@
 #include <string>
 #include <vector>
 
+#include <fvr/core/vec3.h>
+
 namespace fvr::core {
 
-using Vec3 = std::array<double, 3>;
 using Dims3 = std::array<std::int64_t, 3>;
 
 /** What the voxel values mean. */

@@ -1,6 +1,7 @@
 #pragma once
 /** View geometry shared by the CPU renderer, the GPU renderer, the spatial projector and the
  *  analytic phantom projections (DESIGN.md, "View and pixels, exactly"). */
+#include <fvr/core/vec3.h>
 #include <fvr/core/volume.h>
 
 namespace fvr::core {
@@ -56,10 +57,5 @@ ColumnRange volumeShadowColumns(const ViewFrame& view, const Vec3& half, int M, 
 /** Checks that M is a power of two in [16, 4096] (the renderers accept 128..2048 in the UI; tests
  *  use smaller ones) and pixel size > 0; throws SettingsError. */
 void validateImageGeometry(const ImageGeometry& g);
-
-inline Vec3 cross(const Vec3& a, const Vec3& b) {
-    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-inline double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
 } // namespace fvr::core
