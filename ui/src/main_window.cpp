@@ -191,7 +191,10 @@ void MainWindow::applyVoxelModel() {
 
 void MainWindow::saveRenderingSettings() {
     RenderingPanel::Values v = m_rendering->values();
-    // The startup voxel model follows view 1.
+    // The startup kernel, size and voxel model are view 1's (in compare mode the panel may be
+    // showing another view's).
+    v.kernel = m_viewSettings[0].kernel;
+    v.size = m_viewSettings[0].size;
     if (!m_views.empty()) v.voxelModel = m_views[0]->settings().voxelModel;
     QSettings st;
     RenderingPanel::save(st, v);
@@ -216,13 +219,7 @@ void MainWindow::applyRenderSettings() {
 }
 
 SpectrumSettings MainWindow::spectrumSettingsFromPanel() const {
-    const RenderingPanel::Values r = m_rendering->values();
-    SpectrumSettings s;
-    s.mapping = r.mapping;
-    s.transform = r.transform;
-    s.oversampling = r.oversampling;
-    s.deapodizeFor = r.deapodize ? std::optional<core::Kernel>(m_viewSettings[0].kernel) : std::nullopt;
-    return s;
+    return RenderingPanel::spectrumSettings(m_rendering->values(), m_viewSettings[0].kernel);
 }
 
 void MainWindow::applySpectrumSettings() {

@@ -8,6 +8,7 @@
 #include <fvr/core/errors.h>
 #include <fvr/core/xray/phantom.h>
 #include <fvr/core/io/volume_io.h>
+#include <fvr/ui/panels/rendering_panel.h>
 
 namespace fvr::ui {
 
@@ -53,12 +54,8 @@ core::InputSource StudySource::toCore() const {
 }
 
 SpectrumSettings workstationSpectrumDefaults() {
-    SpectrumSettings s;
-    s.mapping = core::ValueMapping::Mu;
-    s.transform = core::TransformKind::Fft;
-    s.oversampling = 1.25;
-    s.deapodizeFor = core::Kernel::KaiserBessel4;
-    return s;
+    const RenderingPanel::Values defaults;
+    return RenderingPanel::spectrumSettings(defaults, defaults.kernel);
 }
 
 StudyController::StudyController(QObject* parent) : QObject(parent) {

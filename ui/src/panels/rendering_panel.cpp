@@ -240,4 +240,13 @@ void RenderingPanel::setSpectrumMiB(double mib) {
     m_memory->setText(tr("%1 MiB").arg(mib, 0, 'f', 1));
 }
 
+core::PreprocessOptions RenderingPanel::spectrumSettings(const Values& v, core::Kernel kernel) {
+    core::PreprocessOptions s;
+    s.mapping = v.mapping;
+    s.transform = v.transform;
+    s.oversampling = v.oversampling;
+    s.deapodizeFor = v.deapodize ? std::optional<core::Kernel>(kernel) : std::nullopt;
+    return s;
+}
+
 } // namespace fvr::ui

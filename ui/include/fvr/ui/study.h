@@ -43,7 +43,8 @@ struct StudySource {
 /** Preprocessing settings that need a new spectrum when they change: core's options, with the
  *  workstation's defaults from workstationSpectrumDefaults(). */
 using SpectrumSettings = core::PreprocessOptions;
-/** Attenuation (mu), FFT, oversampling 1.25, gridding correction for Kaiser-Bessel 4. */
+/** The Rendering panel's default values' spectrum (attenuation, FFT, oversampling 1.25,
+ *  gridding correction for Kaiser-Bessel 4): the controller's settings until the window sets its own. */
 SpectrumSettings workstationSpectrumDefaults();
 
 class StudyController : public QObject {

@@ -46,6 +46,9 @@ public:
     static Values load(const QSettings& s, Values v);
     static Values load(const QSettings& s); ///< over the defaults
     static void save(QSettings& s, const Values& v);
+    /** The preprocessing `v` asks for, deapodized for `kernel` (view 1's) when gridding
+     *  correction is on. With Values{}: the workstation's default spectrum. */
+    static core::PreprocessOptions spectrumSettings(const Values& v, core::Kernel kernel);
 
     /** Kernel, size and voxel model as the controls show them. */
     ViewSettings viewSettings() const;
