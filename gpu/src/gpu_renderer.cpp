@@ -12,6 +12,8 @@
 #include <cstring>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/render/slice_filter.h>
+#include <fvr/core/render/slice_params.h>
 #include <fvr/gpu/errors.h>
 #include <fvr/gpu/fft_plan.h>
 #include <fvr/gpu/shader_source.h>
@@ -42,9 +44,6 @@ std::map<TextureKey, SharedTexture>& textureCache() {
     return cache;
 }
 
-/** Taps of a shader variant: the kernel's, except linear with depth cueing (3 taps, so that the
- *  derivative on integer frequencies is the central difference, as on the CPU). */
-int tapsOf(Kernel k, bool depth = false) { return depth && k == Kernel::Linear ? 3 : core::kernelTaps(k); }
 int workGroupSize(int M) { return std::min(256, M / 2); }
 
 std::string glErrorName(GLenum e) {
@@ -94,6 +93,7 @@ void GpuFourierRenderer::releaseGl() {
     del(m_bufB);
     del(m_image);
     del(m_hartleyT);
+    del(m_filterAxis);
     releaseTexture();
     if (m_display) m_gl->glDeleteTextures(1, &m_display);
     m_display = 0;
@@ -168,99 +168,128 @@ void GpuFourierRenderer::releaseTexture() {
     m_textureKey[0] = m_textureKey[1] = m_textureKey[2] = nullptr;
 }
 
+namespace {
+
+/** The spectrum's 3D texture: RG (complex half spectrum) or R (Hartley), float32 or float16. */
+struct TextureShape {
+    GLint width = 0, height = 0, depth = 0;
+    GLenum internal = 0, format = 0;
+    std::size_t bytes = 0;
+};
+
+TextureShape textureShape(const core::Spectrum& s, SpectrumPrecision precision) {
+    const bool fht = s.kind == core::TransformKind::Fht;
+    const bool half = precision == SpectrumPrecision::Float16;
+    TextureShape t;
+    t.width = GLint(fht ? s.padded[0] : s.padded[0] / 2 + 1);
+    t.height = GLint(s.padded[1]);
+    t.depth = GLint(s.padded[2]);
+    t.internal = fht ? (half ? GL_R16F : GL_R32F) : (half ? GL_RG16F : GL_RG32F);
+    t.format = fht ? GL_RED : GL_RG;
+    const std::size_t channels = fht ? 1 : 2;
+    t.bytes = std::size_t(t.width) * t.height * t.depth * channels * (half ? 2 : 4);
+    return t;
+}
+
+/** The texture another renderer of the share group uploaded for this key (one more reference),
+ *  or 0. */
+GLuint findSharedTexture(const TextureKey& key, std::size_t& bytes) {
+    std::lock_guard lock(textureMutex());
+    auto it = textureCache().find(key);
+    if (it == textureCache().end()) return 0;
+    ++it->second.refs;
+    bytes = it->second.bytes;
+    return it->second.id;
+}
+
+/** Throws GpuMemoryError when the texture exceeds the 3D texture limit or, where the driver
+ *  reports it (NVIDIA, AMD), the free memory plus what the current texture frees. */
+void checkTextureFits(QOpenGLFunctions_4_3_Core* gl, const TextureShape& t, std::size_t currentBytes) {
+    GLint max3d = 0;
+    gl->glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
+    if (t.width > max3d || t.height > max3d || t.depth > max3d)
+        throw GpuMemoryError("spectrum texture " + std::to_string(t.width) + "x" + std::to_string(t.height) + "x" +
+                             std::to_string(t.depth) + " exceeds the GPU's 3D texture limit of " +
+                             std::to_string(max3d) + " per axis");
+    // Free memory where the driver tells (NVIDIA, AMD); otherwise the upload's GL_OUT_OF_MEMORY.
+    GLint freeKiB[4] = {0, 0, 0, 0};
+    const QOpenGLContext* ctx = QOpenGLContext::currentContext();
+    if (ctx->hasExtension("GL_NVX_gpu_memory_info")) gl->glGetIntegerv(kGpuMemoryInfoAvailableNvx, freeKiB);
+    else if (ctx->hasExtension("GL_ATI_meminfo")) gl->glGetIntegerv(kTextureFreeMemoryAti, freeKiB);
+    while (gl->glGetError() != GL_NO_ERROR) {
+    }
+    const std::size_t freeBytes = std::size_t(freeKiB[0]) * 1024;
+    if (freeBytes > 0 && t.bytes > freeBytes + currentBytes)
+        throw GpuMemoryError("spectrum needs " + std::to_string(t.bytes >> 20) + " MiB of GPU memory, " +
+                             std::to_string((freeBytes + currentBytes) >> 20) +
+                             " MiB are free (try fp16 storage or a smaller oversampling)");
+}
+
+/** Allocates the bound 3D texture and uploads the spectrum in slabs; returns the first GL error. */
+GLenum uploadSpectrum(QOpenGLFunctions_4_3_Core* gl, const core::Spectrum& s, const TextureShape& t) {
+    gl->glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    gl->glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    gl->glTexStorage3D(GL_TEXTURE_3D, 1, t.internal, t.width, t.height, t.depth);
+    GLenum err = gl->glGetError();
+    if (err != GL_NO_ERROR) return err;
+    const bool fht = s.kind == core::TransformKind::Fht;
+    gl->glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    gl->glPixelStorei(GL_UNPACK_ROW_LENGTH, GLint(fht ? s.rowStride() : 0));
+    // Upload in slabs so the driver never copies the whole volume at once.
+    const GLint slab = std::max<GLint>(1, GLint((64 << 20) / (std::size_t(s.rowStride()) * t.height * 4)));
+    for (GLint z = 0; z < t.depth && err == GL_NO_ERROR; z += slab) {
+        const GLint n = std::min(slab, t.depth - z);
+        const float* src = s.data.get() + std::size_t(z) * s.rowStride() * t.height;
+        gl->glTexSubImage3D(GL_TEXTURE_3D, 0, 0, 0, z, t.width, t.height, n, t.format, GL_FLOAT, src);
+        err = gl->glGetError();
+    }
+    gl->glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+    return err;
+}
+
+} // namespace
+
+void GpuFourierRenderer::adoptTexture(unsigned id, std::size_t bytes, const void* const key[3]) {
+    m_texture = id;
+    m_textureBytes = bytes;
+    for (int i = 0; i < 3; ++i) m_textureKey[i] = key[i];
+}
+
 void GpuFourierRenderer::setSpectrum(std::shared_ptr<const core::Spectrum> s, SpectrumPrecision precision) {
     if (!s || !s->data) throw GlError("GPU renderer: no spectrum");
     const void* group = QOpenGLContext::currentContext()->shareGroup();
     const TextureKey key{s.get(), reinterpret_cast<const void*>(std::uintptr_t(precision) + 1), group};
+    const void* const keyParts[3] = {std::get<0>(key), std::get<1>(key), std::get<2>(key)};
     if (m_texture && TextureKey{m_textureKey[0], m_textureKey[1], m_textureKey[2]} == key) {
         m_spectrum = std::move(s);
         return; // already this texture
     }
-    GLuint sharedId = 0;
     std::size_t sharedBytes = 0;
-    {
-        std::lock_guard lock(textureMutex());
-        auto it = textureCache().find(key);
-        if (it != textureCache().end()) { // another renderer of this share group uploaded it
-            ++it->second.refs;
-            sharedId = it->second.id;
-            sharedBytes = it->second.bytes;
-        }
-    }
-    if (sharedId) {
+    if (const GLuint sharedId = findSharedTexture(key, sharedBytes)) { // another renderer uploaded it
         releaseTexture();
-        m_texture = sharedId;
-        m_textureBytes = sharedBytes;
-        m_textureKey[0] = std::get<0>(key);
-        m_textureKey[1] = std::get<1>(key);
-        m_textureKey[2] = std::get<2>(key);
+        adoptTexture(sharedId, sharedBytes, keyParts);
         m_spectrum = std::move(s);
         return;
     }
-    const bool fht = s->kind == core::TransformKind::Fht;
-    const GLint width = GLint(fht ? s->padded[0] : s->padded[0] / 2 + 1);
-    const GLint height = GLint(s->padded[1]), depth = GLint(s->padded[2]);
-    GLint max3d = 0;
-    m_gl->glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
-    if (width > max3d || height > max3d || depth > max3d)
-        throw GpuMemoryError("spectrum texture " + std::to_string(width) + "x" + std::to_string(height) + "x" +
-                             std::to_string(depth) + " exceeds the GPU's 3D texture limit of " +
-                             std::to_string(max3d) + " per axis");
-    const std::size_t channels = fht ? 1 : 2;
-    const std::size_t bytes = std::size_t(width) * height * depth * channels *
-                              (precision == SpectrumPrecision::Float16 ? 2 : 4);
-    // Free memory where the driver tells (NVIDIA, AMD); otherwise the upload's GL_OUT_OF_MEMORY.
-    GLint freeKiB[4] = {0, 0, 0, 0};
-    const QOpenGLContext* ctx = QOpenGLContext::currentContext();
-    if (ctx->hasExtension("GL_NVX_gpu_memory_info")) m_gl->glGetIntegerv(kGpuMemoryInfoAvailableNvx, freeKiB);
-    else if (ctx->hasExtension("GL_ATI_meminfo")) m_gl->glGetIntegerv(kTextureFreeMemoryAti, freeKiB);
-    while (m_gl->glGetError() != GL_NO_ERROR) {
-    }
-    const std::size_t freeBytes = std::size_t(freeKiB[0]) * 1024;
-    const std::size_t current = m_texture ? m_textureBytes : 0;
-    if (freeBytes > 0 && bytes > freeBytes + current)
-        throw GpuMemoryError("spectrum needs " + std::to_string(bytes >> 20) + " MiB of GPU memory, " +
-                             std::to_string((freeBytes + current) >> 20) +
-                             " MiB are free (try fp16 storage or a smaller oversampling)");
+    const TextureShape shape = textureShape(*s, precision);
+    checkTextureFits(m_gl, shape, m_texture ? m_textureBytes : 0);
     releaseTexture();
     m_gl->glGenTextures(1, &m_texture);
     m_gl->glBindTexture(GL_TEXTURE_3D, m_texture);
-    m_gl->glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    m_gl->glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    const GLenum internal = fht ? (precision == SpectrumPrecision::Float16 ? GL_R16F : GL_R32F)
-                                : (precision == SpectrumPrecision::Float16 ? GL_RG16F : GL_RG32F);
-    m_gl->glTexStorage3D(GL_TEXTURE_3D, 1, internal, width, height, depth);
-    GLenum err = m_gl->glGetError();
-    if (err == GL_NO_ERROR) {
-        m_gl->glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-        m_gl->glPixelStorei(GL_UNPACK_ROW_LENGTH, GLint(fht ? s->rowStride() : 0));
-        // Upload in slabs so the driver never copies the whole volume at once.
-        const GLint slab = std::max<GLint>(1, GLint((64 << 20) / (std::size_t(s->rowStride()) * height * 4)));
-        for (GLint z = 0; z < depth && err == GL_NO_ERROR; z += slab) {
-            const GLint n = std::min(slab, depth - z);
-            const float* src = s->data.get() + std::size_t(z) * s->rowStride() * height;
-            m_gl->glTexSubImage3D(GL_TEXTURE_3D, 0, 0, 0, z, width, height, n, fht ? GL_RED : GL_RG, GL_FLOAT, src);
-            err = m_gl->glGetError();
-        }
-        m_gl->glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
-    }
-    if (err != GL_NO_ERROR) {
+    if (const GLenum err = uploadSpectrum(m_gl, *s, shape); err != GL_NO_ERROR) {
         m_gl->glDeleteTextures(1, &m_texture);
         m_texture = 0;
         m_spectrum.reset();
         if (err == GL_OUT_OF_MEMORY)
-            throw GpuMemoryError("spectrum texture of " + std::to_string(bytes >> 20) +
+            throw GpuMemoryError("spectrum texture of " + std::to_string(shape.bytes >> 20) +
                                  " MiB does not fit in GPU memory (try fp16 storage or a smaller oversampling)");
         throw GlError("spectrum upload failed: " + glErrorName(err));
     }
-    m_textureBytes = bytes;
     {
         std::lock_guard lock(textureMutex());
-        textureCache()[key] = SharedTexture{m_texture, bytes, 1, s};
+        textureCache()[key] = SharedTexture{m_texture, shape.bytes, 1, s};
     }
-    m_textureKey[0] = std::get<0>(key);
-    m_textureKey[1] = std::get<1>(key);
-    m_textureKey[2] = std::get<2>(key);
+    adoptTexture(m_texture, shape.bytes, keyParts);
     m_spectrum = std::move(s);
 }
 
@@ -327,48 +356,48 @@ void GpuFourierRenderer::bindKernel(unsigned prog, Kernel kernel, bool derivativ
 
 void GpuFourierRenderer::setSliceUniforms(unsigned prog, const core::RenderParams& p) {
     const core::Spectrum& s = *m_spectrum;
-    const int M = p.image.size;
-    const double d = p.image.pixelSize;
-    float A[3], B[3];
-    for (int a = 0; a < 3; ++a) {
-        const double perIndex = s.spacing[a] * double(s.padded[a]) / (M * d);
-        A[a] = float(p.view.r[a] * perIndex);
-        B[a] = float(-p.view.u[a] * perIndex);
-    }
+    const core::SliceParams sp = core::sliceParams(s, p);
     auto loc = [&](const char* n) { return m_gl->glGetUniformLocation(prog, n); };
-    m_gl->glUniform3i(loc("uPadded"), GLint(s.padded[0]), GLint(s.padded[1]), GLint(s.padded[2]));
-    // The band cut of the band-limited model; the other models read every frequency.
-    const bool banded = p.voxelModel == core::VoxelModel::BandLimited;
-    m_gl->glUniform3f(loc("uHalf"), banded ? float(s.padded[0] / 2.0 + 1e-4) : 1e30f,
-                      banded ? float(s.padded[1] / 2.0 + 1e-4) : 1e30f, banded ? float(s.padded[2] / 2.0 + 1e-4) : 1e30f);
-    m_gl->glUniform1i(loc("uVoxelModel"), banded ? 0 : (p.voxelModel == core::VoxelModel::Trilinear ? 1 : 2));
-    m_gl->glUniform3i(loc("uAnti"), GLint(s.volumeDims[0] % 2 == 0), GLint(s.volumeDims[1] % 2 == 0),
-                      GLint(s.volumeDims[2] % 2 == 0));
-    m_gl->glUniform3f(loc("uInvP"), float(1.0 / double(s.padded[0])), float(1.0 / double(s.padded[1])),
-                      float(1.0 / double(s.padded[2])));
-    m_gl->glUniform3f(loc("uA"), A[0], A[1], A[2]);
-    m_gl->glUniform3f(loc("uB"), B[0], B[1], B[2]);
-    m_gl->glUniform1f(loc("uScale"), float(s.spacing[0] * s.spacing[1] * s.spacing[2] / ((M * d) * (M * d))));
+    auto vec3 = [&](const char* n, const double* v) {
+        m_gl->glUniform3f(loc(n), float(v[0]), float(v[1]), float(v[2]));
+    };
+    m_gl->glUniform3i(loc("uPadded"), GLint(sp.padded[0]), GLint(sp.padded[1]), GLint(sp.padded[2]));
+    // The band cut of the band-limited model with a tolerance for float rounding; the other
+    // models read every frequency.
+    float half[3];
+    for (int a = 0; a < 3; ++a) half[a] = sp.banded ? float(sp.half[a] + 1e-4) : 1e30f;
+    m_gl->glUniform3f(loc("uHalf"), half[0], half[1], half[2]);
+    m_gl->glUniform1i(loc("uVoxelModel"), sp.banded ? 0 : (p.voxelModel == core::VoxelModel::Trilinear ? 1 : 2));
+    m_gl->glUniform3i(loc("uAnti"), GLint(sp.anti[0]), GLint(sp.anti[1]), GLint(sp.anti[2]));
+    vec3("uInvP", sp.invP);
+    vec3("uA", sp.A);
+    vec3("uB", sp.B);
+    m_gl->glUniform1f(loc("uScale"), float(sp.scale));
     m_gl->glActiveTexture(GL_TEXTURE0);
     m_gl->glBindTexture(GL_TEXTURE_3D, m_texture);
     m_gl->glUniform1i(loc("uSpectrum"), 0);
-    const bool depth = p.depthCue > 0.0;
-    if (depth) {
-        const core::DepthCueWeights w = core::depthCueWeights(p.depthCue, s.volumeDims, s.spacing);
-        float E[3];
-        for (int a = 0; a < 3; ++a)
-            E[a] = float(w.b / (2.0 * 3.14159265358979323846) * p.view.d[a] * s.spacing[a] * double(s.padded[a]));
-        m_gl->glUniform1f(loc("uDepthA"), float(w.a));
-        m_gl->glUniform3f(loc("uDepthE"), E[0], E[1], E[2]);
+    if (sp.depth) {
+        m_gl->glUniform1f(loc("uDepthA"), float(sp.depthA));
+        vec3("uDepthE", sp.E);
     }
-    const core::SliceFilter& f = p.filter;
-    m_gl->glUniform1i(loc("uFilterOn"), f.active() || p.pixelAperture ? 1 : 0);
-    m_gl->glUniform1i(loc("uAperture"), p.pixelAperture ? 1 : 0);
-    const double Md = M * d;
-    m_gl->glUniform1f(loc("uSharpenAmount"), float(f.sharpenAmount));
-    m_gl->glUniform1f(loc("uSharpenC"), float(2.0 * 9.86960440108935861883 * f.sharpenSigmaMm * f.sharpenSigmaMm / (Md * Md)));
-    m_gl->glUniform1f(loc("uBandInv2"), f.bandLimitLpMm > 0.0 ? float(1.0 / std::pow(f.bandLimitLpMm * Md, 2)) : 0.0f);
-    bindKernel(prog, p.kernel, depth);
+    setFilterUniforms(prog, p);
+    bindKernel(prog, p.kernel, sp.depth);
+}
+
+void GpuFourierRenderer::setFilterUniforms(unsigned prog, const core::RenderParams& p) {
+    const core::SliceFilterTable filter(p.filter, p.pixelAperture, p.image.size, p.image.pixelSize);
+    auto loc = [&](const char* n) { return m_gl->glGetUniformLocation(prog, n); };
+    m_gl->glUniform1i(loc("uFilterOn"), filter.on ? 1 : 0);
+    m_gl->glUniform1f(loc("uSharpenAmount"), filter.amount);
+    m_gl->glUniform1f(loc("uBandInv2"), filter.invCut2);
+    m_gl->glUniform1i(loc("uAperture"), filter.aperture ? 1 : 0);
+    if (!filter.on) return;
+    // The per-axis table (blur, aperture) of core::SliceFilterTable: slice.glsl combines it.
+    if (!m_filterAxis) m_gl->glGenBuffers(1, &m_filterAxis);
+    m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_filterAxis);
+    m_gl->glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(filter.axis.size() * sizeof(float)),
+                       filter.axis.data(), GL_DYNAMIC_DRAW);
+    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, m_filterAxis);
 }
 
 void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel, const core::RenderParams* params) {
@@ -376,7 +405,7 @@ void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel,
                                                           {"WG_SIZE", std::to_string(workGroupSize(M))}};
     if (fused) {
         defs.emplace_back("FUSED_SLICE", "1");
-        defs.emplace_back("TAPS", std::to_string(tapsOf(kernel, params->depthCue > 0.0)));
+        defs.emplace_back("TAPS", std::to_string(core::sliceTaps(kernel, params->depthCue > 0.0)));
         if (m_spectrum->kind == core::TransformKind::Fht) defs.emplace_back("SPECTRUM_FHT", "1");
         if (params->depthCue > 0.0) defs.emplace_back("DEPTH_CUE", "1");
     }
@@ -457,17 +486,14 @@ void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* p
 void GpuFourierRenderer::renderToGpu(const core::RenderParams& p, const core::DisplayWindow* display) {
     core::validateRenderParams(p);
     if (!m_spectrum) throw GlError("GPU renderer: no spectrum uploaded");
-    if (m_spectrum->deapodizedFor && *m_spectrum->deapodizedFor != p.kernel)
-        throw core::SettingsError(std::string("kernel: the spectrum was deapodized for ") +
-                                  core::kernelName(*m_spectrum->deapodizedFor) + ", it cannot be rendered with " +
-                                  core::kernelName(p.kernel) + " (preprocess again for that kernel)");
+    core::checkKernelMatchesSpectrum(*m_spectrum, p.kernel);
     const int M = p.image.size;
     if (M > 4096) throw core::SettingsError("GPU slice size: at most 4096");
     ensureSize(M);
     const bool fht = m_spectrum->kind == core::TransformKind::Fht;
     m_gl->glQueryCounter(m_queries[0], GL_TIMESTAMP);
     if (!m_fuse) {
-        std::vector<std::pair<std::string, std::string>> defs{{"TAPS", std::to_string(tapsOf(p.kernel, p.depthCue > 0.0))}};
+        std::vector<std::pair<std::string, std::string>> defs{{"TAPS", std::to_string(core::sliceTaps(p.kernel, p.depthCue > 0.0))}};
         if (fht) defs.emplace_back("SPECTRUM_FHT", "1");
         if (p.depthCue > 0.0) defs.emplace_back("DEPTH_CUE", "1");
         const GLuint prog = program("slice/slice.comp", defs);

@@ -5,11 +5,11 @@
 #include <cmath>
 #include <complex>
 #include <cstring>
-#include <limits>
-#include <numbers>
 #include <type_traits>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/render/slice_filter.h>
+#include <fvr/core/render/slice_params.h>
 
 #include "fftw_support.h"
 
@@ -78,7 +78,6 @@ struct SliceContext {
     std::int64_t P0, P1, P2, rs;
     double half0, half1, half2; // band limits P/2 (+ tiny tolerance); infinite for compact models
     const KernelTable* table;
-    int taps;
     int first;
     // Depth cueing: value a G(k) + i E.grad G(k) (FFT) or a H(k) + E.grad H(-k) (FHT), with
     // E_a = b/(2 pi) D_a s_a P_a (xray.h; the derivative theorem with the centred spectrum).
@@ -95,48 +94,6 @@ struct SliceContext {
 struct FrameMapping {
     double A[3], B[3];
     float scale;
-};
-
-/** The slice filter H(m, n) at signed image frequencies, from 1D tables (the Gaussian is
- *  separable; the Butterworth term costs three multiplications), times the pixel aperture
- *  sinc(m / M) sinc(n / M) when it is on. */
-struct FilterLut {
-    bool on = false;
-    float amount = 0.0f;
-    std::vector<float> g; // exp(-2 pi^2 sigma^2 (j / (M d))^2), j = 0..M/2; empty: no sharpening
-    bool band = false;
-    float invCut2 = 0.0f; // 1 / (nu_c M d)^2
-    std::vector<float> aperture; // sinc(j / M), j = 0..M/2; empty: point pixels
-
-    FilterLut(const SliceFilter& f, bool pixelAperture, int M, double d) {
-        on = f.active() || pixelAperture;
-        if (f.sharpenAmount > 0.0) {
-            amount = float(f.sharpenAmount);
-            g.resize(std::size_t(M / 2 + 1));
-            const double c = 2.0 * std::numbers::pi * std::numbers::pi * f.sharpenSigmaMm * f.sharpenSigmaMm;
-            for (int j = 0; j <= M / 2; ++j) g[std::size_t(j)] = float(std::exp(-c * std::pow(j / (M * d), 2)));
-        }
-        if (f.bandLimitLpMm > 0.0) {
-            band = true;
-            invCut2 = float(1.0 / std::pow(f.bandLimitLpMm * M * d, 2));
-        }
-        if (pixelAperture) {
-            aperture.resize(std::size_t(M / 2 + 1));
-            for (int j = 0; j <= M / 2; ++j) aperture[std::size_t(j)] = float(pixelApertureResponse(double(j) / M));
-        }
-    }
-    float operator()(int m, int n) const {
-        float h = 1.0f;
-        if (!g.empty()) h *= 1.0f + amount * (1.0f - g[std::size_t(std::abs(m))] * g[std::size_t(std::abs(n))]);
-        if (band) {
-            float q = float(m * m + n * n) * invCut2;
-            q *= q;
-            q *= q;
-            h /= std::sqrt(1.0f + q * q);
-        }
-        if (!aperture.empty()) h *= aperture[std::size_t(std::abs(m))] * aperture[std::size_t(std::abs(n))];
-        return h;
-    }
 };
 
 inline std::int64_t wrapSmall(std::int64_t i, std::int64_t p) {
@@ -465,7 +422,7 @@ inline auto slicePoint(const SliceContext& c, const FrameMapping& f, const RowTr
 }
 
 template <int T, bool Depth>
-void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const FilterLut& filter, int M,
+void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter, int M,
                       cfloat* out, ThreadPool& pool) {
     const int H = M / 2 + 1;
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
@@ -501,7 +458,7 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const Filter
 }
 
 template <int T, bool Depth>
-void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const FilterLut& filter, int M,
+void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter, int M,
                       float* out, ThreadPool& pool) {
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         RowTransfer model(c, f, M);
@@ -538,8 +495,9 @@ void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const Filter
     });
 }
 
-/** Calls f(taps, depth) with compile-time constants for the kernel's tap count; linear with depth
- *  cueing runs on 3 taps (the central difference on integer frequencies, axisDerivWeights). */
+/** Calls f(taps, depth) with compile-time constants for the slice's tap count
+ *  (SliceParams::taps: linear with depth cueing runs on 3 taps, the central difference on
+ *  integer frequencies, axisDerivWeights). */
 template <class F>
 void dispatchTaps(int taps, bool depth, F&& f) {
     using std::integral_constant;
@@ -554,7 +512,7 @@ void dispatchTaps(int taps, bool depth, F&& f) {
         }
     }
     switch (taps) {
-    case 2: return f(integral_constant<int, 3>{}, Yes{});
+    case 3: return f(integral_constant<int, 3>{}, Yes{});
     case 6: return f(integral_constant<int, 6>{}, Yes{});
     default: return f(integral_constant<int, 4>{}, Yes{});
     }
@@ -596,119 +554,135 @@ void validateRenderParams(const RenderParams& params) {
     validateSliceFilter(params.filter);
 }
 
+namespace {
+
+/** The per-sample context of one frame from its slice parameters. */
+SliceContext makeSliceContext(const Spectrum& s, const SliceParams& sp, const KernelTable* table,
+                              const TransferTable* model) {
+    SliceContext c{};
+    c.data = s.data.get();
+    c.P0 = sp.padded[0];
+    c.P1 = sp.padded[1];
+    c.P2 = sp.padded[2];
+    c.rs = s.rowStride();
+    c.table = table;
+    c.first = table->firstTapOffset();
+    // The band edge with a tolerance for the slice's rounding (infinite half stays infinite).
+    c.half0 = sp.half[0] + 1e-9;
+    c.half1 = sp.half[1] + 1e-9;
+    c.half2 = sp.half[2] + 1e-9;
+    c.depthA = float(sp.depthA);
+    for (int a = 0; a < 3; ++a) {
+        c.anti[a] = sp.anti[a];
+        c.invP[a] = sp.invP[a];
+        c.E[a] = float(sp.E[a]);
+    }
+    c.model = model;
+    return c;
+}
+
+FrameMapping frameMapping(const SliceParams& sp) {
+    FrameMapping f{};
+    for (int a = 0; a < 3; ++a) {
+        f.A[a] = sp.A[a];
+        f.B[a] = sp.B[a];
+    }
+    f.scale = float(sp.scale);
+    return f;
+}
+
+ProjectionImage emptyImage(const RenderParams& params, const Spectrum& s) {
+    ProjectionImage img;
+    img.size = params.image.size;
+    img.pixelSize = params.image.pixelSize;
+    img.view = params.view;
+    img.mapping = s.mapping;
+    img.pixels.resize(std::size_t(img.size) * img.size);
+    return img;
+}
+
+/** Samples the slice into `out`: the half complex slice (FFT, M x (M/2+1)) or the full
+ *  Hartley slice (FHT, M x M), with the frame's tap count and depth cueing. */
+void sampleSlice(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter,
+                 const SliceParams& sp, TransformKind kind, int M, float* out, ThreadPool& pool) {
+    dispatchTaps(sp.taps, sp.depth, [&](auto taps, auto cued) {
+        if (kind == TransformKind::Fft)
+            sliceHalfComplex<taps(), cued()>(c, f, filter, M, reinterpret_cast<cfloat*>(out), pool);
+        else
+            sliceFullHartley<taps(), cued()>(c, f, filter, M, out, pool);
+    });
+}
+
+} // namespace
+
+const TransferTable* CpuFourierRenderer::transferTable(VoxelModel model, double maxCyclesPerVoxel) {
+    if (model == VoxelModel::BandLimited) return nullptr;
+    auto& table = m_transfer[model];
+    if (!table) table = std::make_unique<TransferTable>(model);
+    table->cover(maxCyclesPerVoxel);
+    return table.get();
+}
+
+void CpuFourierRenderer::invertSlice(SizeResources& res, ProjectionImage& img) {
+    if (m_spectrum->kind == TransformKind::Fft) {
+        fftwf_execute_dft_c2r(res.c2r.get(), reinterpret_cast<fftwf_complex*>(res.slice.get()),
+                              res.image.get());
+        std::memcpy(img.pixels.data(), res.image.get(), sizeof(float) * img.pixels.size());
+    } else {
+        float* slice = res.slice.get();
+        fftwf_execute_r2r(res.dht.get(), slice, slice);
+        hartleyCorrection2D(slice, img.size, m_pool);
+        std::memcpy(img.pixels.data(), slice, sizeof(float) * img.pixels.size());
+    }
+}
+
+void CpuFourierRenderer::clipAndClamp(const RenderParams& params, ProjectionImage& img) {
+    const Spectrum& s = *m_spectrum;
+    const bool clamp = params.nonNegative && s.nonNegative;
+    if (!params.clipToVolume && !clamp) return;
+    const int M = img.size;
+    const double d = img.pixelSize;
+    const Vec3 half = supportHalfExtents(s.volumeDims, s.spacing, voxelModelReach(params.voxelModel));
+    m_pool.parallelFor(M, 16, [&](std::int64_t r0, std::int64_t r1) {
+        for (std::int64_t row = r0; row < r1; ++row) {
+            float* p = img.pixels.data() + std::size_t(row) * M;
+            ColumnRange hit{0, M - 1};
+            if (params.clipToVolume) {
+                hit = volumeShadowColumns(params.view, half, M, d, int(row));
+                if (hit.first > hit.last) {
+                    std::fill(p, p + M, 0.0f);
+                    continue;
+                }
+                std::fill(p, p + hit.first, 0.0f);
+                std::fill(p + hit.last + 1, p + M, 0.0f);
+            }
+            if (clamp)
+                for (int col = hit.first; col <= hit.last; ++col) p[col] = std::max(p[col], 0.0f);
+        }
+    });
+}
+
 ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTimes* times) {
     validateRenderParams(params);
     const auto t0 = Clock::now();
     const Spectrum& s = *m_spectrum;
-    if (s.deapodizedFor && *s.deapodizedFor != params.kernel)
-        throw SettingsError(std::string("kernel: the spectrum was deapodized for ") +
-                            kernelName(*s.deapodizedFor) + ", it cannot be rendered with " +
-                            kernelName(params.kernel) + " (preprocess again for that kernel)");
+    checkKernelMatchesSpectrum(s, params.kernel);
     const int M = params.image.size;
-    const double d = params.image.pixelSize;
     SizeResources& res = resources(M);
 
-    SliceContext c{};
-    c.data = s.data.get();
-    c.P0 = s.padded[0];
-    c.P1 = s.padded[1];
-    c.P2 = s.padded[2];
-    c.rs = s.rowStride();
-    c.table = m_tables.at(params.kernel).get();
-    c.taps = c.table->taps();
-    c.first = c.table->firstTapOffset();
-    const bool banded = params.voxelModel == VoxelModel::BandLimited;
-    const double inf = std::numeric_limits<double>::infinity();
-    c.half0 = banded ? c.P0 / 2.0 + 1e-9 : inf;
-    c.half1 = banded ? c.P1 / 2.0 + 1e-9 : inf;
-    c.half2 = banded ? c.P2 / 2.0 + 1e-9 : inf;
-    for (int a = 0; a < 3; ++a) {
-        c.anti[a] = s.volumeDims[a] % 2 == 0;
-        c.invP[a] = 1.0 / double(s.padded[a]);
-    }
+    const SliceParams sp = sliceParams(s, params);
+    const SliceContext c = makeSliceContext(s, sp, m_tables.at(params.kernel).get(),
+                                            transferTable(params.voxelModel, sp.maxCyclesPerVoxel));
+    const SliceFilterTable filter(params.filter, params.pixelAperture, M, params.image.pixelSize);
+    ProjectionImage img = emptyImage(params, s);
 
-    FrameMapping f{};
-    const Vec3& R = params.view.r;
-    const Vec3 V{-params.view.u[0], -params.view.u[1], -params.view.u[2]};
-    for (int a = 0; a < 3; ++a) {
-        const double perIndex = s.spacing[a] * double(s.padded[a]) / (M * d);
-        f.A[a] = R[a] * perIndex;
-        f.B[a] = V[a] * perIndex;
-    }
-    f.scale = float(s.spacing[0] * s.spacing[1] * s.spacing[2] / ((M * d) * (M * d)));
-
-    const bool depth = params.depthCue > 0.0;
-    if (depth) {
-        const DepthCueWeights w = depthCueWeights(params.depthCue, s.volumeDims, s.spacing);
-        c.depthA = float(w.a);
-        for (int a = 0; a < 3; ++a)
-            c.E[a] = float(w.b / (2.0 * std::numbers::pi) * params.view.d[a] * s.spacing[a] * double(s.padded[a]));
-    }
-    const FilterLut filter(params.filter, params.pixelAperture, M, d);
-    if (!banded) {
-        auto& table = m_transfer[params.voxelModel];
-        if (!table) table = std::make_unique<TransferTable>(params.voxelModel);
-        // The slice's highest frequency per axis, in cycles per voxel: |k_a| <= (M/2)(|A_a| + |B_a|).
-        double maxNu = 0.0;
-        for (int a = 0; a < 3; ++a)
-            maxNu = std::max(maxNu, (M / 2.0 + 1.0) * (std::abs(f.A[a]) + std::abs(f.B[a])) * c.invP[a]);
-        table->cover(maxNu);
-        c.model = table.get();
-    }
-
-    ProjectionImage img;
-    img.size = M;
-    img.pixelSize = d;
-    img.view = params.view;
-    img.mapping = s.mapping;
-    img.pixels.resize(std::size_t(M) * M);
-
-    Clock::time_point t1, t2;
-    if (s.kind == TransformKind::Fft) {
-        auto* slice = reinterpret_cast<cfloat*>(res.slice.get());
-        dispatchTaps(c.taps, depth, [&](auto taps, auto cued) {
-            sliceHalfComplex<taps(), cued()>(c, f, filter, M, slice, m_pool);
-        });
-        t1 = Clock::now();
-        fftwf_execute_dft_c2r(res.c2r.get(), reinterpret_cast<fftwf_complex*>(res.slice.get()),
-                              res.image.get());
-        std::memcpy(img.pixels.data(), res.image.get(), sizeof(float) * img.pixels.size());
-        t2 = Clock::now();
-    } else {
-        float* slice = res.slice.get();
-        dispatchTaps(c.taps, depth, [&](auto taps, auto cued) {
-            sliceFullHartley<taps(), cued()>(c, f, filter, M, slice, m_pool);
-        });
-        t1 = Clock::now();
-        fftwf_execute_r2r(res.dht.get(), slice, slice);
-        hartleyCorrection2D(slice, M, m_pool);
-        std::memcpy(img.pixels.data(), slice, sizeof(float) * img.pixels.size());
-        t2 = Clock::now();
-    }
+    sampleSlice(c, frameMapping(sp), filter, sp, s.kind, M, res.slice.get(), m_pool);
+    const auto t1 = Clock::now();
+    invertSlice(res, img);
     // The last pass: zero outside the model's support, and no negative line integrals of a
     // non-negative volume.
-    const bool clamp = params.nonNegative && s.nonNegative;
-    if (params.clipToVolume || clamp) {
-        const Vec3 half = supportHalfExtents(s.volumeDims, s.spacing, voxelModelReach(params.voxelModel));
-        m_pool.parallelFor(M, 16, [&](std::int64_t r0, std::int64_t r1) {
-            for (std::int64_t row = r0; row < r1; ++row) {
-                float* p = img.pixels.data() + std::size_t(row) * M;
-                ColumnRange hit{0, M - 1};
-                if (params.clipToVolume) {
-                    hit = volumeShadowColumns(params.view, half, M, d, int(row));
-                    if (hit.first > hit.last) {
-                        std::fill(p, p + M, 0.0f);
-                        continue;
-                    }
-                    std::fill(p, p + hit.first, 0.0f);
-                    std::fill(p + hit.last + 1, p + M, 0.0f);
-                }
-                if (clamp)
-                    for (int col = hit.first; col <= hit.last; ++col) p[col] = std::max(p[col], 0.0f);
-            }
-        });
-        t2 = Clock::now();
-    }
+    clipAndClamp(params, img);
+    const auto t2 = Clock::now();
     if (times) {
         auto ms = [](auto a, auto b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
         times->sliceMs = ms(t0, t1);

@@ -89,44 +89,15 @@ SpatialProjector::SpatialProjector(const Volume& volume, SpatialProjectorOptions
         m_coefficients = bsplineCoefficients(m_mapped.empty() ? volume.voxels : m_mapped, volume.dims, kSplineMargin);
 }
 
-ProjectionImage SpatialProjector::project(const ViewFrame& view, const ImageGeometry& image) {
-    validateImageGeometry(image);
-    const Volume& v = m_volume;
-    const float* vox = m_mapped.empty() ? v.voxels.data() : m_mapped.data();
-    const int M = image.size;
-    const double d = image.pixelSize;
-    const auto& N = v.dims;
-    const auto& s = v.spacing;
-    const double h = m_options.stepFraction * std::min({s[0], s[1], s[2]});
-    const DepthCueWeights w = depthCueWeights(m_options.depthCue, N, s);
-    const bool spline = m_options.voxelModel == VoxelModel::BSpline;
+namespace {
 
-    ProjectionImage img;
-    img.size = M;
-    img.pixelSize = d;
-    img.view = view;
-    img.mapping = m_options.mapping;
-    img.pixels.assign(std::size_t(M) * M, 0.0f);
+/** Trilinear interpolation of the voxels, zero outside the voxel grid (support [-1, N]). */
+struct TrilinearSampler {
+    const float* vox;
+    Dims3 N;
 
-    // Work in index coordinates: x_idx = p / s + (N-1)/2 for p relative to the centre.
-    double dir[3], rgt[3], dwn[3], c[3];
-    for (int a = 0; a < 3; ++a) {
-        dir[a] = view.d[a] / s[a];
-        rgt[a] = view.r[a] * d / s[a];
-        dwn[a] = -view.u[a] * d / s[a];
-        c[a] = (N[a] - 1) / 2.0;
-    }
-    // The model's support in index coordinates: [-1, N] for trilinear; for the spline the
-    // coefficient volume less one voxel below and two above, so that all 4 taps of every sample,
-    // floor(x) - 1 .. floor(x) + 2, lie inside it even for a sample on the upper bound.
-    double lo[3], hi[3];
-    for (int a = 0; a < 3; ++a) {
-        lo[a] = spline ? -kSplineMargin + 1.0 : -1.0;
-        hi[a] = spline ? double(N[a] + kSplineMargin - 3) : double(N[a]);
-    }
-    const std::int64_t sx = 1, sy = N[0], sz = N[0] * N[1];
-    auto trilinear = [&](double x, double y, double z) -> double {
-        // Trilinear, zero outside the voxel grid (support [-1, N]).
+    double operator()(double x, double y, double z) const {
+        const std::int64_t sx = 1, sy = N[0], sz = N[0] * N[1];
         const double fx = std::floor(x), fy = std::floor(y), fz = std::floor(z);
         const std::int64_t ix = std::int64_t(fx), iy = std::int64_t(fy), iz = std::int64_t(fz);
         const double tx = x - fx, ty = y - fy, tz = z - fz;
@@ -145,17 +116,23 @@ ProjectionImage SpatialProjector::project(const ViewFrame& view, const ImageGeom
             }
         }
         return acc;
-    };
-    const std::int64_t L0 = N[0] + 2 * kSplineMargin, L1 = N[1] + 2 * kSplineMargin;
-    const float* coef = m_coefficients.data();
-    auto bspline = [&](double x, double y, double z) -> double {
-        auto weights = [](double t, double* wt) {
-            const double t2 = t * t, t3 = t2 * t, u = 1.0 - t;
-            wt[0] = u * u * u / 6.0;
-            wt[1] = (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0;
-            wt[2] = (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0;
-            wt[3] = t3 / 6.0;
-        };
+    }
+};
+
+/** The cubic B-spline through the voxels from its prefiltered coefficients (kSplineMargin
+ *  voxels of margin per side, rows of L0, planes of L0 x L1). */
+struct BSplineSampler {
+    const float* coef;
+    std::int64_t L0, L1;
+
+    static void weights(double t, double* wt) {
+        const double t2 = t * t, t3 = t2 * t, u = 1.0 - t;
+        wt[0] = u * u * u / 6.0;
+        wt[1] = (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0;
+        wt[2] = (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0;
+        wt[3] = t3 / 6.0;
+    }
+    double operator()(double x, double y, double z) const {
         const double fx = std::floor(x), fy = std::floor(y), fz = std::floor(z);
         double wx[4], wy[4], wz[4];
         weights(x - fx, wx);
@@ -170,50 +147,111 @@ ProjectionImage SpatialProjector::project(const ViewFrame& view, const ImageGeom
                 acc += wz[cz] * wy[cy] * (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3]);
             }
         return acc;
-    };
-    // The line integral along D through o (index coordinates), midpoint rule with steps <= h.
-    auto integrate = [&](const double* o) -> double {
-        double t0 = -std::numeric_limits<double>::infinity();
-        double t1 = std::numeric_limits<double>::infinity();
-        for (int a = 0; a < 3; ++a) {
-            if (std::abs(dir[a]) < 1e-15) {
-                if (o[a] <= lo[a] || o[a] >= hi[a]) return 0.0;
-                continue;
-            }
-            double ta = (lo[a] - o[a]) / dir[a], tb = (hi[a] - o[a]) / dir[a];
-            if (ta > tb) std::swap(ta, tb);
-            t0 = std::max(t0, ta);
-            t1 = std::min(t1, tb);
-        }
-        if (!(t1 > t0)) return 0.0;
-        const std::int64_t n = std::max<std::int64_t>(1, std::int64_t(std::ceil((t1 - t0) / h)));
-        const double step = (t1 - t0) / double(n);
-        double sum = 0.0;
-        for (std::int64_t i = 0; i < n; ++i) {
-            const double t = t0 + (i + 0.5) * step;
-            const double x = o[0] + t * dir[0], y = o[1] + t * dir[1], z = o[2] + t * dir[2];
-            sum += (w.a + w.b * t) * (spline ? bspline(x, y, z) : trilinear(x, y, z));
-        }
-        return sum * step;
-    };
+    }
+};
 
-    const int sub = m_options.pixelSubsamples;
-    m_pool.parallelFor(M, 2, [&](std::int64_t r0, std::int64_t r1) {
+/** The rays of one view in index coordinates (x_idx = p / s + (N-1)/2 for p relative to the
+ *  centre): direction, the image's right and down steps per pixel, the centre, and the model's
+ *  support [lo, hi] per axis. */
+struct RayGeometry {
+    double dir[3], rgt[3], dwn[3], c[3];
+    double lo[3], hi[3];
+
+    RayGeometry(const ViewFrame& view, double d, const Dims3& N, const Vec3& s, bool spline) {
+        for (int a = 0; a < 3; ++a) {
+            dir[a] = view.d[a] / s[a];
+            rgt[a] = view.r[a] * d / s[a];
+            dwn[a] = -view.u[a] * d / s[a];
+            c[a] = (N[a] - 1) / 2.0;
+        }
+        // The model's support in index coordinates: [-1, N] for trilinear; for the spline the
+        // coefficient volume less one voxel below and two above, so that all 4 taps of every
+        // sample, floor(x) - 1 .. floor(x) + 2, lie inside it even for a sample on the upper bound.
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = spline ? -kSplineMargin + 1.0 : -1.0;
+            hi[a] = spline ? double(N[a] + kSplineMargin - 3) : double(N[a]);
+        }
+    }
+};
+
+/** The depth-weighted line integral along D through o (index coordinates), midpoint rule with
+ *  steps <= h, inside the model's support. */
+template <class Sampler>
+double integrateRay(const RayGeometry& g, const double* o, double h, const DepthCueWeights& w,
+                    const Sampler& sample) {
+    double t0 = -std::numeric_limits<double>::infinity();
+    double t1 = std::numeric_limits<double>::infinity();
+    for (int a = 0; a < 3; ++a) {
+        if (std::abs(g.dir[a]) < 1e-15) {
+            if (o[a] <= g.lo[a] || o[a] >= g.hi[a]) return 0.0;
+            continue;
+        }
+        double ta = (g.lo[a] - o[a]) / g.dir[a], tb = (g.hi[a] - o[a]) / g.dir[a];
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
+    }
+    if (!(t1 > t0)) return 0.0;
+    const std::int64_t n = std::max<std::int64_t>(1, std::int64_t(std::ceil((t1 - t0) / h)));
+    const double step = (t1 - t0) / double(n);
+    double sum = 0.0;
+    for (std::int64_t i = 0; i < n; ++i) {
+        const double t = t0 + (i + 0.5) * step;
+        const double x = o[0] + t * g.dir[0], y = o[1] + t * g.dir[1], z = o[2] + t * g.dir[2];
+        sum += (w.a + w.b * t) * sample(x, y, z);
+    }
+    return sum * step;
+}
+
+/** Every pixel's mean over sub x sub sub-rays spread evenly over it, (i + 1/2) / sub - 1/2. */
+template <class Sampler>
+void castRays(const RayGeometry& g, double h, const DepthCueWeights& w, const Sampler& sample, int sub,
+              ProjectionImage& img, ThreadPool& pool) {
+    const int M = img.size;
+    pool.parallelFor(M, 2, [&](std::int64_t r0, std::int64_t r1) {
         for (std::int64_t row = r0; row < r1; ++row)
             for (int col = 0; col < M; ++col) {
                 double sum = 0.0;
                 for (int j = 0; j < sub; ++j)
                     for (int i = 0; i < sub; ++i) {
-                        // Sub-ray offsets spread evenly over the pixel, (i + 1/2) / n - 1/2.
                         const double du = (i + 0.5) / sub - 0.5, dv = (j + 0.5) / sub - 0.5;
                         double o[3];
                         for (int a = 0; a < 3; ++a)
-                            o[a] = c[a] + (col - M / 2 + du) * rgt[a] + (row - M / 2 + dv) * dwn[a];
-                        sum += integrate(o);
+                            o[a] = g.c[a] + (col - M / 2 + du) * g.rgt[a] + (row - M / 2 + dv) * g.dwn[a];
+                        sum += integrateRay(g, o, h, w, sample);
                     }
                 img.pixels[std::size_t(row) * M + col] = float(sum / double(sub * sub));
             }
     });
+}
+
+} // namespace
+
+ProjectionImage SpatialProjector::project(const ViewFrame& view, const ImageGeometry& image) {
+    validateImageGeometry(image);
+    const Volume& v = m_volume;
+    const auto& N = v.dims;
+    const auto& s = v.spacing;
+    const double h = m_options.stepFraction * std::min({s[0], s[1], s[2]});
+    const DepthCueWeights w = depthCueWeights(m_options.depthCue, N, s);
+    const bool spline = m_options.voxelModel == VoxelModel::BSpline;
+
+    ProjectionImage img;
+    img.size = image.size;
+    img.pixelSize = image.pixelSize;
+    img.view = view;
+    img.mapping = m_options.mapping;
+    img.pixels.assign(std::size_t(img.size) * img.size, 0.0f);
+
+    const RayGeometry g(view, image.pixelSize, N, s, spline);
+    const int sub = m_options.pixelSubsamples;
+    if (spline) {
+        const BSplineSampler b{m_coefficients.data(), N[0] + 2 * kSplineMargin, N[1] + 2 * kSplineMargin};
+        castRays(g, h, w, b, sub, img, m_pool);
+    } else {
+        const TrilinearSampler t{m_mapped.empty() ? v.voxels.data() : m_mapped.data(), N};
+        castRays(g, h, w, t, sub, img, m_pool);
+    }
     return img;
 }
 

@@ -65,18 +65,13 @@ DepthCueWeights depthCueWeights(double strength, const Dims3& dims, const Vec3& 
     return w;
 }
 
+double SliceFilter::blur(double nu) const {
+    return std::exp(-2.0 * std::numbers::pi * std::numbers::pi * sharpenSigmaMm * sharpenSigmaMm * nu * nu);
+}
+
 double SliceFilter::response(double nu) const {
-    double h = 1.0;
-    if (sharpenAmount > 0.0) {
-        const double g = std::exp(-2.0 * std::numbers::pi * std::numbers::pi * sharpenSigmaMm * sharpenSigmaMm * nu * nu);
-        h *= 1.0 + sharpenAmount * (1.0 - g);
-    }
-    if (bandLimitLpMm > 0.0) {
-        const double q = (nu * nu) / (bandLimitLpMm * bandLimitLpMm);
-        const double q2 = q * q, q4 = q2 * q2;
-        h /= std::sqrt(1.0 + q4 * q4);
-    }
-    return h;
+    const double q = bandLimitLpMm > 0.0 ? (nu * nu) / (bandLimitLpMm * bandLimitLpMm) : 0.0;
+    return sliceFilterGain(sharpenAmount, sharpenAmount > 0.0 ? blur(nu) : 1.0, q);
 }
 
 void validateSliceFilter(const SliceFilter& f) {

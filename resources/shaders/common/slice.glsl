@@ -7,7 +7,9 @@
 // kx range) instead of the complex half spectrum (RG, kx = 0..P0/2, Hermitian lookups).
 // DEPTH_CUE adds the depth cueing term (fvr/core/xray.h): a G(k) + i E.grad G(k) for the complex
 // spectrum, a H(k) + E.grad H(-k) for Hartley, E = b/(2 pi) (D_a s_a P_a). The slice filter
-// (unsharp mask, Butterworth band limit) multiplies every value when uFilterOn is set.
+// (unsharp mask, Butterworth band limit, pixel aperture) multiplies every value when uFilterOn is
+// set. The host computes every uniform from fvr::core::SliceParams (slice_params.h) and
+// fvr::core::SliceFilterTable (slice_filter.h).
 #include "common/kernel.glsl"
 
 uniform sampler3D uSpectrum;
@@ -21,9 +23,10 @@ uniform float uDepthA;
 uniform vec3 uDepthE;
 uniform int uFilterOn;
 uniform float uSharpenAmount;  // 0: no unsharp mask
-uniform float uSharpenC;       // 2 pi^2 sigma^2 / (M d)^2 (per squared image frequency index)
 uniform float uBandInv2;       // 1 / (nu_c M d)^2; 0: no band limit
 uniform int uAperture;         // 1: pixels integrate over their area (sinc(m/M) sinc(n/M))
+// fvr::core::SliceFilterTable::axis, |j| = 0..M/2: (the blur's factor, the pixel aperture).
+layout(std430, binding = 5) readonly buffer FilterAxisBuffer { vec2 filterAxis[]; };
 uniform int uVoxelModel;       // 0 band-limited, 1 trilinear, 2 cubic B-spline
 uniform ivec3 uAnti;           // 1 on axes of an even voxel count
 uniform vec3 uInvP;            // 1 / P_a: spectrum index to cycles per voxel
@@ -243,19 +246,20 @@ vec2 sampleSpectrum(vec3 k) {
 
 vec3 sliceK(int m, int n) { return float(m) * uA + float(n) * uB; }
 
-// The slice filter of fvr::core::SliceFilter at signed image frequency (m, n), times the pixel
-// aperture (fvr::core::pixelApertureResponse) when it is on.
+// The slice filter at signed image frequency (m, n) from the frame's fvr::core::SliceFilterTable:
+// its per-axis table (blur, aperture) at |m| and |n|, the amount and 1 / (nu_c M d)^2 as uniforms.
+// The combination repeats fvr::core::sliceFilterGain (xray.h), which cannot be called from GLSL:
+// keep the two alike (the GPU tests compare filtered renders with the CPU's).
 float filterResponse(int m, int n) {
-    float r2 = float(m * m + n * n);
+    vec2 fm = filterAxis[abs(m)], fn = filterAxis[abs(n)];
     float h = 1.0;
-    if (uAperture != 0) h *= sinc(float(m) / float(uM)) * sinc(float(n) / float(uM));
-    if (uSharpenAmount > 0.0) h *= 1.0 + uSharpenAmount * (1.0 - exp(-uSharpenC * r2));
-    if (uBandInv2 > 0.0) {
-        float q = r2 * uBandInv2;
-        q *= q;
-        q *= q;
-        h /= sqrt(1.0 + q * q);
+    if (uSharpenAmount > 0.0) h *= 1.0 + uSharpenAmount * (1.0 - fm.x * fn.x);
+    float q = float(m * m + n * n) * uBandInv2;
+    if (q > 0.0) {
+        float q2 = q * q, q4 = q2 * q2;
+        h /= sqrt(1.0 + q4 * q4);
     }
+    if (uAperture != 0) h *= fm.y * fn.y;
     return h;
 }
 

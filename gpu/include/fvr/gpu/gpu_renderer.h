@@ -93,6 +93,8 @@ private:
     void ensureSize(int size);
     void bindKernel(unsigned prog, core::Kernel kernel, bool derivative);
     void setSliceUniforms(unsigned prog, const core::RenderParams& params);
+    /** The slice filter's uniforms and its per-axis table (binding 5), from core::SliceFilterTable. */
+    void setFilterUniforms(unsigned prog, const core::RenderParams& params);
     void runRows(int M, bool fused, bool hartley, core::Kernel kernel, const core::RenderParams* params);
     void runCols(int M, const char* outputMode, const core::RenderParams* params,
                  const core::DisplayWindow* display = nullptr);
@@ -100,6 +102,8 @@ private:
     void setClipUniforms(unsigned prog, const core::RenderParams* params);
     void setDisplayUniforms(unsigned prog, const core::DisplayWindow& window);
     void releaseTexture();
+    /** Holds the texture `id` of `bytes` under the cache key (spectrum, precision, share group). */
+    void adoptTexture(unsigned id, std::size_t bytes, const void* const key[3]);
 
     QOpenGLFunctions_4_3_Core* m_gl = nullptr;
     std::shared_ptr<const core::Spectrum> m_spectrum;
@@ -113,6 +117,7 @@ private:
     std::map<core::Kernel, std::unique_ptr<core::KernelTable>> m_tables;
     int m_size = 0;
     unsigned m_twiddles = 0, m_bufA = 0, m_bufB = 0, m_image = 0, m_hartleyT = 0, m_display = 0;
+    unsigned m_filterAxis = 0; ///< the slice filter's per-axis table (SliceFilterTable::axis)
     unsigned m_queries[4] = {0, 0, 0, 0};
     bool m_timesPending = false, m_displayTimed = false;
     GpuStageTimes m_times;

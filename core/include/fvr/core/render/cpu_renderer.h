@@ -36,6 +36,13 @@ public:
 private:
     struct SizeResources;
     SizeResources& resources(int size);
+    /** The voxel model's transfer table covering the slice's frequencies (null: band-limited). */
+    const TransferTable* transferTable(VoxelModel model, double maxCyclesPerVoxel);
+    /** The inverse 2D transform of the sampled slice in `res` into the image. */
+    void invertSlice(SizeResources& res, ProjectionImage& img);
+    /** Zeroes pixels outside the volume's shadow (clipToVolume) and clamps negative line
+     *  integrals of a non-negative spectrum (nonNegative). */
+    void clipAndClamp(const RenderParams& params, ProjectionImage& img);
 
     std::shared_ptr<const Spectrum> m_spectrum;
     ThreadPool m_pool;

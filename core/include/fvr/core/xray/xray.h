@@ -3,6 +3,7 @@
  *  Beer-Lambert transmission with an exposure, depth cueing (Totsuka and Levoy 1993) and the
  *  spectral filters that act on the 2D slice before the inverse transform. The renderers, the
  *  spatial reference projector, the analytic phantom and the display all use these definitions. */
+#include <cmath>
 #include <vector>
 
 #include <fvr/core/render/spectrum.h>
@@ -93,9 +94,30 @@ struct SliceFilter {
     double bandLimitLpMm = 0.0;  ///< nu_c > 0; 0: no band limit
 
     bool active() const { return sharpenAmount > 0.0 || bandLimitLpMm > 0.0; }
+    /** H(nu): sliceFilterGain(a, blur(nu), (nu / nu_c)^2). */
     double response(double nuPerMm) const;
+    /** The Gaussian blur's transfer function exp(-2 pi^2 sigma^2 nu^2), separable:
+     *  blur(|(nu_x, nu_y)|) = blur(nu_x) blur(nu_y). */
+    double blur(double nuPerMm) const;
     bool operator==(const SliceFilter&) const = default;
 };
+
+/** The slice filter from its parts, the one formula every evaluation uses (the filter's
+ *  response in double, the renderers' per-sample float tables in SliceFilterTable):
+ *  (1 + a (1 - blur)) / sqrt(1 + q^8) for the unsharp mask's amount a (0: none), the blur's
+ *  transfer value and q = (nu / nu_c)^2 (0: no band limit). The GPU's slice.glsl
+ *  (filterResponse) repeats this expression in GLSL: keep the two alike (the GPU tests compare
+ *  the filtered renders with the CPU's). */
+template <class T>
+inline T sliceFilterGain(T amount, T blur, T q) {
+    T h = T(1);
+    if (amount > T(0)) h *= T(1) + amount * (T(1) - blur);
+    if (q > T(0)) {
+        const T q2 = q * q, q4 = q2 * q2;
+        h /= std::sqrt(T(1) + q4 * q4);
+    }
+    return h;
+}
 /** Throws SettingsError naming the bad parameter. */
 void validateSliceFilter(const SliceFilter& f);
 
