@@ -9,6 +9,7 @@
 
 #include <unistd.h>
 
+#include <fvr/core/xray/film.h>
 #include <fvr/core/errors.h>
 #include <fvr/core/io/image_io.h>
 #include <fvr/core/render/kernels.h>
@@ -102,18 +103,6 @@ std::string valuesText(const Session& s) {
                                  : projectionUnits(s.options.values, s.volume.units);
 }
 
-/** A Beer-Lambert PNG shows the film, as the workstation does: the window on the log exposure of
- *  the signal, bone white (the float outputs hold the intensity itself). */
-DisplayWindow filmWindow(const std::vector<float>& lineIntegrals,
-                         const Transmission& transmission) {
-    std::vector<float> logE = lineIntegrals;
-    applyLogExposure(logE, transmission);
-    DisplayWindow film = autoWindow(logE);
-    film.invert = true;
-    film.transmission = transmission;
-    return film;
-}
-
 /** Writes the views one by one, or gathers them into one .npy stack. */
 class ViewWriter {
 public:
@@ -130,7 +119,9 @@ public:
         std::vector<float> lineIntegrals;
         if (m_o.beerLambert && m_o.format == OutputFormat::Png) {
             lineIntegrals = img.pixels;
-            film = filmWindow(lineIntegrals, m_o.transmission);
+            // A Beer-Lambert PNG shows the film, as the workstation does: the window on the log
+            // exposure, bone white (the float outputs hold the intensity itself).
+            film = core::filmWindow(lineIntegrals, m_o.transmission, true);
         }
         if (m_o.beerLambert) applyTransmission(img.pixels, m_o.transmission);
         if (m_stacked) {

@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include <fvr/core/xray/film.h>
 #include <fvr/core/xray/xray.h>
 #include <fvr/ui/accuracy_readout.h>
 #include <fvr/ui/app_info.h>
@@ -264,8 +265,9 @@ void MainWindow::applyPreset(WindowPreset preset) {
     auto p = m_views[0]->projection();
     if (!p) return;
     const core::Transmission t = currentTransmission();
-    if (t.active()) core::applyLogExposure(p->pixels, t); // the window applies to the log exposure
-    syncWindowToPanel(presetWindow(preset, p->pixels, m_display->values().invert));
+    // The window applies to what the film shows (the log exposure with transmission).
+    const std::vector<float> values = core::windowedValues(std::move(p->pixels), t);
+    syncWindowToPanel(presetWindow(preset, values, m_display->values().invert));
     applyWindowFromPanel();
 }
 

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <numbers>
 
+#include <fvr/core/xray/film.h>
 #include <fvr/core/xray/patient_views.h>
 #include <fvr/gpu/errors.h>
 #include <fvr/gpu/gpu_renderer.h>
@@ -121,11 +122,7 @@ void ProjectionView::setWindow(const core::DisplayWindow& w) {
 
 void ProjectionView::autoWindow() {
     if (auto p = projection()) {
-        if (m_window.transmission.active()) core::applyLogExposure(p->pixels, m_window.transmission);
-        core::DisplayWindow w = core::autoWindow(p->pixels);
-        w.invert = m_window.invert;
-        w.transmission = m_window.transmission;
-        setWindow(w);
+        setWindow(core::filmWindow(p->pixels, m_window.transmission, m_window.invert));
         emit windowChanged(m_window);
     }
 }
@@ -270,11 +267,7 @@ void ProjectionView::subtractReference() {
 
 void ProjectionView::windowFromFrame() {
     auto img = m_cpuImage ? *m_cpuImage : m_gpu->readback();
-    const core::DisplayWindow old = m_window;
-    if (old.transmission.active()) core::applyLogExposure(img.pixels, old.transmission);
-    m_window = core::autoWindow(img.pixels);
-    m_window.invert = old.invert;
-    m_window.transmission = old.transmission;
+    m_window = core::filmWindow(img.pixels, m_window.transmission, m_window.invert);
     m_windowSet = true;
     emit windowChanged(m_window);
 }
