@@ -105,7 +105,7 @@ namespace {
  *  so sinc(nu) = s(r) r / nu with s(r) = sin(pi r) / (pi r) (Taylor to r^12: error < 4e-8),
  *  and r / nu = 1 for n = 0. Also sin^2(pi nu) = (pi r s)^2 for the B-spline's prefilter term. */
 inline float sinc2Float(float nu, float& sin2) {
-    constexpr float pi = 3.14159265358979f;
+    constexpr float pi = std::numbers::pi_v<float>;
     const float n = float(int(nu + 0.5f));
     const float r = nu - n;
     const float x2 = pi * pi * r * r;
