@@ -9,7 +9,7 @@
 
 #include <unistd.h>
 
-#include <fvr/core/xray/film.h>
+#include <fvr/core/xray/display_window.h>
 #include <fvr/core/errors.h>
 #include <fvr/core/io/image_io.h>
 #include <fvr/core/render/kernels.h>

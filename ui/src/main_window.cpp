@@ -15,7 +15,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include <fvr/core/xray/film.h>
+#include <fvr/core/xray/display_window.h>
 #include <fvr/core/xray/xray.h>
 #include <fvr/ui/accuracy_readout.h>
 #include <fvr/ui/app_info.h>

@@ -12,7 +12,7 @@
 #include <cmath>
 #include <numbers>
 
-#include <fvr/core/xray/film.h>
+#include <fvr/core/xray/display_window.h>
 #include <fvr/core/xray/patient_views.h>
 #include <fvr/gpu/errors.h>
 #include <fvr/gpu/gpu_renderer.h>

@@ -64,23 +64,6 @@ std::string lower(std::string s) {
 
 } // namespace
 
-DisplayWindow autoWindow(const std::vector<float>& pixels) {
-    DisplayWindow w;
-    if (pixels.empty()) return w;
-    std::vector<float> v;
-    v.reserve(pixels.size());
-    for (float p : pixels)
-        if (std::isfinite(p)) v.push_back(p);
-    if (v.empty()) return w;
-    const auto lo = v.begin() + std::ptrdiff_t(0.005 * (v.size() - 1));
-    const auto hi = v.begin() + std::ptrdiff_t(0.995 * (v.size() - 1));
-    std::nth_element(v.begin(), lo, v.end());
-    w.low = *lo;
-    std::nth_element(v.begin(), hi, v.end());
-    w.high = *hi;
-    if (!(w.high > w.low)) w.high = w.low + 1.0;
-    return w;
-}
 
 void writeNpy(const fs::path& path, const float* data, std::int64_t rows, std::int64_t cols,
               std::int64_t count) {
@@ -139,13 +122,6 @@ void writePfm(const fs::path& path, const float* data, int rows, int cols) {
     writeFileAtomic(path, out);
 }
 
-double DisplayWindow::map(double value) const {
-    const double v = transmission.active() ? transmission.logExposure(value) : value;
-    double t = (v - low) / (high > low ? high - low : 1.0);
-    if (!std::isfinite(t)) t = 0.0;
-    t = std::clamp(t, 0.0, 1.0);
-    return invert ? 1.0 - t : t;
-}
 
 void writePng(const fs::path& path, const float* data, int rows, int cols, const DisplayWindow& w,
               int bitDepth) {

@@ -1,31 +1,14 @@
 #pragma once
-/** Writers for projection images (no Qt): NumPy .npy, PFM, PNG (8/16-bit grayscale), and the
- *  display mapping used for PNG output. All writes go to a temporary file renamed into place. */
+/** Writers for projection images (no Qt): NumPy .npy, PFM, PNG (8/16-bit grayscale) through a
+ *  display window (xray/display_window.h). All writes go to a temporary file renamed into place. */
 #include <cstdint>
 #include <filesystem>
 #include <vector>
 
 #include <fvr/core/render/projection.h>
-#include <fvr/core/xray/xray.h>
+#include <fvr/core/xray/display_window.h>
 
 namespace fvr::core {
-
-/** Window for display mapping: value `low` maps to black, `high` to white (inverted swaps).
- *  With an active transmission, the window applies to the log exposure of the Beer-Lambert
- *  signal (Transmission::logExposure) instead of the line integral: not inverted, bone is dark
- *  (fluoroscopy); inverted, the film look: bone white, air black. */
-struct DisplayWindow {
-    double low = 0.0;
-    double high = 1.0;
-    bool invert = false;
-    Transmission transmission;
-
-    /** The displayed brightness in [0, 1] of a projection value. */
-    double map(double value) const;
-};
-
-/** Window from the 0.5 and 99.5 percentiles of the image (robust auto window). */
-DisplayWindow autoWindow(const std::vector<float>& pixels);
 
 /** float32 little-endian, C order, shape (rows, cols) or (count, rows, cols) when count > 0. */
 void writeNpy(const std::filesystem::path& path, const float* data, std::int64_t rows,

@@ -6,7 +6,7 @@
 
 #include <gtest/gtest.h>
 
-#include <fvr/core/xray/film.h>
+#include <fvr/core/xray/display_window.h>
 
 using namespace fvr::core;
 
