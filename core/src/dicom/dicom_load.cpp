@@ -87,12 +87,10 @@ struct DecodeCounts {
     bool j2kLossyUndeclared = false; ///< 9/7 wavelet without LossyImageCompression 01
 };
 
-/** Converts the listed frames of one file into their slots of `stack`. */
-DecodeCounts decodeFile(const DicomHeader& h, DcmFileFormat& ff,
-                        const std::vector<std::pair<int, std::int64_t>>& frames, float* stack,
-                        std::int64_t sliceVox, bool invert, bool hu) {
+/** The pixel words of a file that DCMTK decodes (native data, or compressed data decompressed to
+ *  native), checked against the size the header declares. */
+const void* nativePixelData(const DicomHeader& h, DcmDataset& ds) {
     const fs::path& path = h.path;
-    DcmDataset* ds = ff.getDataset();
     const std::uint64_t frameVox = std::uint64_t(h.rows) * std::uint64_t(h.cols);
     const std::uint64_t bytesPer = h.floatPixelData    ? 4
                                    : h.doublePixelData ? 8
@@ -102,7 +100,179 @@ DecodeCounts decodeFile(const DicomHeader& h, DcmFileFormat& ff,
     const std::string dims = std::to_string(h.cols) + " x " + std::to_string(h.rows) + " x " +
                              std::to_string(h.frames) + " frames x " + std::to_string(bytesPer) +
                              " bytes";
+    if (h.encapsulated) {
+        // Sizes against the compressed data were checked by readHeader.
+        const OFCondition c = ds.chooseRepresentation(EXS_LittleEndianExplicit, nullptr);
+        if (c.bad() || !ds.canWriteXfer(EXS_LittleEndianExplicit))
+            fail(path, "cannot decode the " + h.xferName + " pixel data: " +
+                           (c.bad() ? std::string(c.text()) : std::string("no decoder")));
+    }
 
+    const DcmTagKey tag = h.floatPixelData    ? DCM_FloatPixelData
+                          : h.doublePixelData ? DCM_DoubleFloatPixelData
+                                              : DCM_PixelData;
+    DcmElement* pe = nullptr;
+    if (ds.findAndGetElement(tag, pe).bad() || !pe) fail(path, "Pixel Data (7FE0,0010) missing");
+    const std::uint64_t have = pe->getLength();
+    if (have < need)
+        fail(path, "Pixel Data (7FE0,0010): expected " + dims + " = " + std::to_string(need) +
+                       " bytes, found " + std::to_string(have) + " (truncated file or wrong header)");
+
+    const void* raw = nullptr;
+    OFCondition c = EC_Normal;
+    if (h.floatPixelData) {
+        Float32* p = nullptr;
+        c = pe->getFloat32Array(p);
+        raw = p;
+    } else if (h.doublePixelData) {
+        Float64* p = nullptr;
+        c = pe->getFloat64Array(p);
+        raw = p;
+    } else if (h.bitsAllocated == 8) {
+        Uint8* p = nullptr;
+        c = pe->getUint8Array(p);
+        raw = p;
+    } else {
+        Uint16* p = nullptr; // 32-bit words: two 16-bit halves in little endian order
+        c = pe->getUint16Array(p);
+        raw = p;
+    }
+    if (c.bad() || !raw)
+        fail(path, "Pixel Data (7FE0,0010) could not be read: " +
+                       std::string(c.bad() ? c.text() : "no value") + " (truncated file?)");
+    return raw;
+}
+
+/** Converts the frames of one file from stored to real values, counting into `counts`: float
+ *  data rescaled (non-finite values become 0); 8 and 16-bit words through a table of every word's
+ *  value (the Modality LUT, or the rescale: rebuilt when a frame's rescale differs); 32-bit words
+ *  one by one. Padding becomes the fill. */
+class FrameConverter {
+public:
+    FrameConverter(const DicomHeader& h, const void* raw, bool invert, bool hu, DecodeCounts& counts)
+        : m_h(h), m_raw(raw), m_frameVox(std::uint64_t(h.rows) * std::uint64_t(h.cols)),
+          m_pf(pixelFormat(h, invert)), m_uninverted(m_pf), m_padding(h, hu), m_counts(counts) {
+        m_uninverted.invert = false;
+    }
+
+    /** Frame `frame` (0-based) of the file into `dst` (rows x cols values). */
+    void convert(int frame, float* dst) {
+        const FrameInfo& fi = m_h.frameInfo[static_cast<std::size_t>(frame)];
+        const double slope = fi.hasRescale ? fi.slope : 1.0;
+        const double intercept = fi.hasRescale ? fi.intercept : 0.0;
+        const std::uint64_t first = std::uint64_t(frame) * m_frameVox;
+        if (m_h.floatPixelData || m_h.doublePixelData) {
+            convertFloats(first, slope, intercept, dst);
+        } else if (m_h.bitsAllocated <= 16) {
+            updateTable(slope, intercept);
+            if (m_h.bitsAllocated == 8) convertThroughTable(static_cast<const Uint8*>(m_raw) + first, dst);
+            else convertThroughTable(static_cast<const Uint16*>(m_raw) + first, dst);
+        } else {
+            convertWords32(first, slope, intercept, dst);
+        }
+    }
+
+private:
+    void convertFloats(std::uint64_t first, double slope, double intercept, float* dst) {
+        std::int64_t& nonFinite = m_counts.nonFinite;
+        for (std::uint64_t i = 0; i < m_frameVox; ++i) {
+            const double v = m_h.floatPixelData ? double(static_cast<const Float32*>(m_raw)[first + i])
+                                                : static_cast<const Float64*>(m_raw)[first + i];
+            double out = v * slope + intercept;
+            if (!std::isfinite(out)) {
+                out = 0.0;
+                ++nonFinite;
+            }
+            dst[i] = static_cast<float>(out);
+        }
+    }
+
+    /** The value of word `w` (`value`), or the fill when it is padding; notes which it changed. */
+    float padWord(std::size_t w, float value) {
+        const bool pad = m_padding(storedValue(std::uint32_t(w), m_uninverted));
+        m_padChanged[w] = pad && value != m_padding.fill;
+        return pad ? m_padding.fill : value;
+    }
+
+    /** The table for 8 and 16-bit words: built once for a Modality LUT, for a rescale whenever it
+     *  changes. */
+    void updateTable(double slope, double intercept) {
+        if (m_h.hasModalityLut) {
+            if (m_lut.empty()) buildModalityLutTable();
+        } else if (m_lut.empty() || slope != m_lutSlope || intercept != m_lutIntercept) {
+            buildRescaleTable(slope, intercept);
+        }
+    }
+
+    void buildModalityLutTable() {
+        // Modality LUT instead of the rescale: LUT[stored - first], clamped to the table;
+        // MONOCHROME1 inverts the LUT's output range instead of the stored values.
+        const auto n = std::int64_t(m_h.modalityLut.size());
+        const std::int64_t top = (std::int64_t(1) << m_h.lutBits) - 1;
+        m_lut.resize(std::size_t(1) << m_h.bitsAllocated);
+        m_padChanged.assign(m_lut.size(), 0);
+        for (std::size_t w = 0; w < m_lut.size(); ++w) {
+            const std::int64_t i = std::clamp<std::int64_t>(
+                storedValue(std::uint32_t(w), m_uninverted) - m_h.lutFirst, 0, n - 1);
+            const std::int64_t out = std::min<std::int64_t>(m_h.modalityLut[std::size_t(i)], top);
+            m_lut[w] = padWord(w, static_cast<float>(m_pf.invert ? top - out : out));
+        }
+    }
+
+    void buildRescaleTable(double slope, double intercept) {
+        m_lut.resize(std::size_t(1) << m_h.bitsAllocated);
+        m_padChanged.assign(m_lut.size(), 0);
+        for (std::size_t w = 0; w < m_lut.size(); ++w)
+            m_lut[w] = padWord(w, static_cast<float>(double(storedValue(std::uint32_t(w), m_pf)) * slope + intercept));
+        m_lutSlope = slope;
+        m_lutIntercept = intercept;
+    }
+
+    template <class Word>
+    void convertThroughTable(const Word* src, float* dst) {
+        const std::vector<float>& lut = m_lut;
+        if (!m_padding.on) {
+            for (std::uint64_t i = 0; i < m_frameVox; ++i) dst[i] = lut[src[i]];
+            return;
+        }
+        std::int64_t changed = 0;
+        for (std::uint64_t i = 0; i < m_frameVox; ++i) {
+            dst[i] = lut[src[i]];
+            changed += m_padChanged[src[i]];
+        }
+        m_counts.padded += changed;
+    }
+
+    void convertWords32(std::uint64_t first, double slope, double intercept, float* dst) {
+        static_assert(std::endian::native == std::endian::little, "32-bit pixel words assume a little endian host");
+        const auto* src = static_cast<const Uint16*>(m_raw) + 2 * first;
+        for (std::uint64_t i = 0; i < m_frameVox; ++i) {
+            std::uint32_t w;
+            std::memcpy(&w, src + 2 * i, 4);
+            const float value = static_cast<float>(double(storedValue(w, m_pf)) * slope + intercept);
+            const bool pad = m_padding(storedValue(w, m_uninverted));
+            m_counts.padded += pad && value != m_padding.fill;
+            dst[i] = pad ? m_padding.fill : value;
+        }
+    }
+
+    const DicomHeader& m_h;
+    const void* m_raw;
+    const std::uint64_t m_frameVox;
+    const PixelFormat m_pf;
+    PixelFormat m_uninverted; ///< m_pf without the inversion: padding matches these values
+    const Padding m_padding;
+    DecodeCounts& m_counts;
+    std::vector<float> m_lut;                ///< 8 and 16-bit words: each word's value
+    std::vector<std::uint8_t> m_padChanged;  ///< per word: padding whose value the fill changes
+    double m_lutSlope = NAN, m_lutIntercept = NAN; ///< the rescale m_lut was built for
+};
+
+/** Converts the listed frames of one file into their slots of `stack`. */
+DecodeCounts decodeFile(const DicomHeader& h, DcmFileFormat& ff,
+                        const std::vector<std::pair<int, std::int64_t>>& frames, float* stack,
+                        std::int64_t sliceVox, bool invert, bool hu) {
+    DcmDataset* ds = ff.getDataset();
     DecodeCounts counts;
     Jpeg2000Frames j2k; // JPEG 2000: decoded here with OpenJPEG
     const void* raw = nullptr;
@@ -114,129 +284,10 @@ DecodeCounts decodeFile(const DicomHeader& h, DcmFileFormat& ff,
         counts.j2kSignReinterpreted = j2k.signReinterpreted;
         counts.j2kLossyUndeclared = j2k.irreversible && !h.lossyDeclared;
     } else {
-        if (h.encapsulated) {
-            // Sizes against the compressed data were checked by readHeader.
-            const OFCondition c = ds->chooseRepresentation(EXS_LittleEndianExplicit, nullptr);
-            if (c.bad() || !ds->canWriteXfer(EXS_LittleEndianExplicit))
-                fail(path, "cannot decode the " + h.xferName + " pixel data: " +
-                               (c.bad() ? std::string(c.text()) : std::string("no decoder")));
-        }
-
-        const DcmTagKey tag = h.floatPixelData    ? DCM_FloatPixelData
-                              : h.doublePixelData ? DCM_DoubleFloatPixelData
-                                                  : DCM_PixelData;
-        DcmElement* pe = nullptr;
-        if (ds->findAndGetElement(tag, pe).bad() || !pe) fail(path, "Pixel Data (7FE0,0010) missing");
-        const std::uint64_t have = pe->getLength();
-        if (have < need)
-            fail(path, "Pixel Data (7FE0,0010): expected " + dims + " = " + std::to_string(need) +
-                           " bytes, found " + std::to_string(have) + " (truncated file or wrong header)");
-
-        OFCondition c = EC_Normal;
-        if (h.floatPixelData) {
-            Float32* p = nullptr;
-            c = pe->getFloat32Array(p);
-            raw = p;
-        } else if (h.doublePixelData) {
-            Float64* p = nullptr;
-            c = pe->getFloat64Array(p);
-            raw = p;
-        } else if (h.bitsAllocated == 8) {
-            Uint8* p = nullptr;
-            c = pe->getUint8Array(p);
-            raw = p;
-        } else {
-            Uint16* p = nullptr; // 32-bit words: two 16-bit halves in little endian order
-            c = pe->getUint16Array(p);
-            raw = p;
-        }
-        if (c.bad() || !raw)
-            fail(path, "Pixel Data (7FE0,0010) could not be read: " +
-                           std::string(c.bad() ? c.text() : "no value") + " (truncated file?)");
+        raw = nativePixelData(h, *ds);
     }
-
-    const PixelFormat pf = pixelFormat(h, invert);
-    PixelFormat uninverted = pf;
-    uninverted.invert = false;
-    const Padding padding(h, hu);
-    std::vector<float> lut;
-    std::vector<std::uint8_t> padChanged; // per word: padding whose value the fill changes
-    auto padWord = [&](std::size_t w, float value) {
-        const bool pad = padding(storedValue(std::uint32_t(w), uninverted));
-        padChanged[w] = pad && value != padding.fill;
-        return pad ? padding.fill : value;
-    };
-    double lutSlope = NAN, lutIntercept = NAN;
-    std::int64_t& nonFinite = counts.nonFinite;
-    for (const auto& [frame, slot] : frames) {
-        const FrameInfo& fi = h.frameInfo[static_cast<std::size_t>(frame)];
-        const double slope = fi.hasRescale ? fi.slope : 1.0;
-        const double intercept = fi.hasRescale ? fi.intercept : 0.0;
-        float* dst = stack + slot * sliceVox;
-        const std::uint64_t first = std::uint64_t(frame) * frameVox;
-        if (h.floatPixelData || h.doublePixelData) {
-            for (std::uint64_t i = 0; i < frameVox; ++i) {
-                const double v = h.floatPixelData ? double(static_cast<const Float32*>(raw)[first + i])
-                                                  : static_cast<const Float64*>(raw)[first + i];
-                double out = v * slope + intercept;
-                if (!std::isfinite(out)) {
-                    out = 0.0;
-                    ++nonFinite;
-                }
-                dst[i] = static_cast<float>(out);
-            }
-        } else if (h.bitsAllocated <= 16) {
-            if (h.hasModalityLut && lut.empty()) {
-                // Modality LUT instead of the rescale: LUT[stored - first], clamped to the table;
-                // MONOCHROME1 inverts the LUT's output range instead of the stored values.
-                PixelFormat plain = pf;
-                plain.invert = false;
-                const auto n = std::int64_t(h.modalityLut.size());
-                const std::int64_t top = (std::int64_t(1) << h.lutBits) - 1;
-                lut.resize(std::size_t(1) << h.bitsAllocated);
-                padChanged.assign(lut.size(), 0);
-                for (std::size_t w = 0; w < lut.size(); ++w) {
-                    const std::int64_t i =
-                        std::clamp<std::int64_t>(storedValue(std::uint32_t(w), plain) - h.lutFirst, 0, n - 1);
-                    const std::int64_t out = std::min<std::int64_t>(h.modalityLut[std::size_t(i)], top);
-                    lut[w] = padWord(w, static_cast<float>(pf.invert ? top - out : out));
-                }
-            } else if (!h.hasModalityLut &&
-                       (lut.empty() || slope != lutSlope || intercept != lutIntercept)) {
-                lut.resize(std::size_t(1) << h.bitsAllocated);
-                padChanged.assign(lut.size(), 0);
-                for (std::size_t w = 0; w < lut.size(); ++w)
-                    lut[w] = padWord(w, static_cast<float>(double(storedValue(std::uint32_t(w), pf)) * slope + intercept));
-                lutSlope = slope;
-                lutIntercept = intercept;
-            }
-            auto convert = [&](const auto* src) {
-                if (!padding.on) {
-                    for (std::uint64_t i = 0; i < frameVox; ++i) dst[i] = lut[src[i]];
-                    return;
-                }
-                std::int64_t changed = 0;
-                for (std::uint64_t i = 0; i < frameVox; ++i) {
-                    dst[i] = lut[src[i]];
-                    changed += padChanged[src[i]];
-                }
-                counts.padded += changed;
-            };
-            if (h.bitsAllocated == 8) convert(static_cast<const Uint8*>(raw) + first);
-            else convert(static_cast<const Uint16*>(raw) + first);
-        } else {
-            static_assert(std::endian::native == std::endian::little, "32-bit pixel words assume a little endian host");
-            const auto* src = static_cast<const Uint16*>(raw) + 2 * first;
-            for (std::uint64_t i = 0; i < frameVox; ++i) {
-                std::uint32_t w;
-                std::memcpy(&w, src + 2 * i, 4);
-                const float value = static_cast<float>(double(storedValue(w, pf)) * slope + intercept);
-                const bool pad = padding(storedValue(w, uninverted));
-                counts.padded += pad && value != padding.fill;
-                dst[i] = pad ? padding.fill : value;
-            }
-        }
-    }
+    FrameConverter converter(h, raw, invert, hu, counts);
+    for (const auto& [frame, slot] : frames) converter.convert(frame, stack + slot * sliceVox);
     return counts;
 }
 
@@ -303,36 +354,41 @@ void validate(const Dims3& dims, const Vec3& spacing, const std::string& source)
     }
 }
 
-} // namespace
-
-DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& progress,
-                            const CancelToken* cancel) {
-    initDcmtk();
+/** "DICOM series <key> in <folder>" for messages, or the file's path for a single file. */
+std::string seriesSource(const DicomSeriesInfo& series) {
     const std::string name = series.key.empty() ? series.seriesUid : series.key;
-    const std::string source =
-        series.files.size() == 1
-            ? series.files[0].string()
-            : "DICOM series " + (name.empty() ? std::string("(unnamed)") : name) +
-                  (series.files.empty() ? std::string() : " in " + series.files[0].parent_path().string());
-    if (series.files.empty()) throw DicomError(source + ": no files");
-    if (!series.frames.empty() && series.frames.size() != series.files.size())
-        throw DicomError(source + ": the frame selection lists " + std::to_string(series.frames.size()) +
-                         " files, the series " + std::to_string(series.files.size()));
-    const std::size_t nFiles = series.files.size();
+    return series.files.size() == 1
+               ? series.files[0].string()
+               : "DICOM series " + (name.empty() ? std::string("(unnamed)") : name) +
+                     (series.files.empty() ? std::string() : " in " + series.files[0].parent_path().string());
+}
 
-    std::vector<DicomHeader> hs(nFiles);
-    std::vector<std::unique_ptr<DcmFileFormat>> ffs(nFiles);
-    ThreadPool pool;
-    {
-        Progress prog(progress, "reading DICOM headers", 0.0, 0.1, std::int64_t(nFiles));
-        runParallel(pool, std::int64_t(nFiles), 4, [&](std::int64_t i) {
-            checkCancel(cancel);
-            const auto k = static_cast<std::size_t>(i);
-            hs[k] = readHeader(series.files[k], &ffs[k]);
-            if (const std::string why = unsupportedReason(hs[k]); !why.empty()) fail(series.files[k], why);
-            prog.step();
-        });
-    }
+/** The series' files, parsed (their pixel data loads on demand), and their headers. */
+struct SeriesFiles {
+    std::vector<DicomHeader> headers;
+    std::vector<std::unique_ptr<DcmFileFormat>> parsed;
+};
+
+/** Reads the files in parallel; throws for a file whose pixel format cannot be loaded. */
+SeriesFiles readSeriesFiles(const DicomSeriesInfo& series, ThreadPool& pool,
+                            const ProgressFn& progress, const CancelToken* cancel) {
+    const std::size_t nFiles = series.files.size();
+    SeriesFiles files;
+    files.headers.resize(nFiles);
+    files.parsed.resize(nFiles);
+    Progress prog(progress, "reading DICOM headers", 0.0, 0.1, std::int64_t(nFiles));
+    runParallel(pool, std::int64_t(nFiles), 4, [&](std::int64_t i) {
+        checkCancel(cancel);
+        const auto k = static_cast<std::size_t>(i);
+        files.headers[k] = readHeader(series.files[k], &files.parsed[k]);
+        if (const std::string why = unsupportedReason(files.headers[k]); !why.empty())
+            fail(series.files[k], why);
+        prog.step();
+    });
+    return files;
+}
+
+void checkSameImageSize(const std::vector<DicomHeader>& hs, const std::string& source) {
     const std::int64_t cols = hs[0].cols, rows = hs[0].rows;
     for (const DicomHeader& h : hs)
         if (h.cols != cols || h.rows != rows)
@@ -340,11 +396,19 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
                              std::to_string(cols) + " x " + std::to_string(rows) + ", " +
                              h.path.string() + " is " + std::to_string(h.cols) + " x " +
                              std::to_string(h.rows) + " (a scan puts them in separate series)");
+}
 
-    // The frames that make up the series, and their geometry.
+/** The frames that make up the series (in file order), for the geometry plan and the decoder. */
+struct SeriesFrames {
     std::vector<PlanSlice> slices;
     std::vector<FrameRef> refs;
-    for (std::size_t i = 0; i < nFiles; ++i) {
+};
+
+/** Each file's frames in the series' selection (every frame when it selects none). */
+SeriesFrames selectFrames(const DicomSeriesInfo& series, const std::vector<DicomHeader>& hs,
+                          const std::string& source) {
+    SeriesFrames out;
+    for (std::size_t i = 0; i < hs.size(); ++i) {
         const DicomHeader& h = hs[i];
         std::vector<std::int32_t> sel;
         if (!series.frames.empty() && !series.frames[i].empty()) sel = series.frames[i];
@@ -354,88 +418,139 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
             if (f < 0 || f >= h.frames)
                 throw DicomError(source + ": " + h.path.string() + " has " + std::to_string(h.frames) +
                                  " frames, frame " + std::to_string(f + 1) + " was asked for");
-            slices.push_back({&h.frameInfo[static_cast<std::size_t>(f)], sliceLabel(h, f), h.frames > 1,
-                              h.gantryTilt, int(i)});
-            refs.push_back({int(i), f});
+            out.slices.push_back({&h.frameInfo[static_cast<std::size_t>(f)], sliceLabel(h, f),
+                                  h.frames > 1, h.gantryTilt, int(i)});
+            out.refs.push_back({int(i), f});
         }
     }
-    validate({cols, rows, std::int64_t(slices.size())}, {1, 1, 1}, source);
-    GeometryPlan plan = planGeometry(slices, cols, rows, source);
-    validate(plan.dims, plan.spacing, source);
+    return out;
+}
 
-    std::vector<std::string> warnings;
+/** The volume's warnings, in order, each added once. */
+struct Warnings {
+    std::vector<std::string> list;
+    void add(const std::string& w) {
+        if (std::find(list.begin(), list.end(), w) == list.end()) list.push_back(w);
+    }
+};
+
+/** The scan's warnings (less the one saying why it cannot be loaded), the files' malformed
+ *  attributes and the plan's warnings. */
+Warnings initialWarnings(const DicomSeriesInfo& series, const std::vector<DicomHeader>& hs,
+                         const GeometryPlan& plan) {
+    Warnings warnings;
     for (const std::string& w : series.warnings)
         if (series.loadable() || w.find(series.unloadableReason) == std::string::npos)
-            warnings.push_back(w);
-    auto warn = [&](const std::string& w) {
-        if (std::find(warnings.begin(), warnings.end(), w) == warnings.end()) warnings.push_back(w);
-    };
-    {
-        std::set<std::string> seen;
-        for (const DicomHeader& h : hs)
-            for (const auto& p : h.problems)
-                if (seen.insert(p).second) warn(h.path.filename().string() + ": " + p);
-    }
-    for (const auto& w : plan.warnings) warn(w);
+            warnings.list.push_back(w);
+    std::set<std::string> seen;
+    for (const DicomHeader& h : hs)
+        for (const auto& p : h.problems)
+            if (seen.insert(p).second) warnings.add(h.path.filename().string() + ": " + p);
+    for (const auto& w : plan.warnings) warnings.add(w);
+    return warnings;
+}
 
-    // Units: Hounsfield for CT with a rescale (or RescaleType HU), else intensity.
-    bool isCt = false, allRescale = true, anyRescale = false, rescaleTypeHu = true;
-    std::string otherRescaleType;
+/** The modality transform over the series' slices. */
+struct Rescale {
+    bool isCt = false;
+    bool all = true;       ///< every slice has a rescale (or the Modality LUT)
+    bool any = false;
+    bool typeHu = true;    ///< every file's RescaleType is HU
+    std::string otherType; ///< a RescaleType other than HU ("LUT": a non-HU Modality LUT)
+    bool lut = false;      ///< the Modality LUT replaces the rescale
+};
+
+/** The slices' rescale; throws when only some of them have one. */
+Rescale sliceRescale(const std::vector<DicomHeader>& hs, const SeriesFrames& frames,
+                     const std::string& source) {
+    Rescale r;
+    const auto& slices = frames.slices;
     for (std::size_t s = 0; s < slices.size(); ++s) {
-        const DicomHeader& h = hs[static_cast<std::size_t>(refs[s].file)];
-        isCt = isCt || h.modality == "CT";
-        allRescale = allRescale && slices[s].info->hasRescale;
-        anyRescale = anyRescale || slices[s].info->hasRescale;
-        rescaleTypeHu = rescaleTypeHu && h.rescaleType == "HU";
-        if (!h.rescaleType.empty() && h.rescaleType != "HU") otherRescaleType = h.rescaleType;
+        const DicomHeader& h = hs[static_cast<std::size_t>(frames.refs[s].file)];
+        r.isCt = r.isCt || h.modality == "CT";
+        r.all = r.all && slices[s].info->hasRescale;
+        r.any = r.any || slices[s].info->hasRescale;
+        r.typeHu = r.typeHu && h.rescaleType == "HU";
+        if (!h.rescaleType.empty() && h.rescaleType != "HU") r.otherType = h.rescaleType;
     }
-    if (anyRescale && !allRescale) {
+    if (r.any && !r.all) {
         for (std::size_t s = 0; s < slices.size(); ++s)
             if (!slices[s].info->hasRescale)
                 throw DicomError(source + ": RescaleSlope/RescaleIntercept (0028,1053/1052) missing in " +
                                  slices[s].label + " but present in other slices: their values "
                                  "would not be comparable");
     }
-    // A CT rescale gives Hounsfield units unless RescaleType says otherwise (it is only written
-    // when the values are not HU; 'US' means unspecified).
+    return r;
+}
+
+/** A Modality LUT (in every file or in none, else throws) replaces the rescale. */
+void applyModalityLut(const std::vector<DicomHeader>& hs, const std::string& source, Rescale& r,
+                      Warnings& warnings) {
     bool anyLut = false, allLutHu = true;
     for (const DicomHeader& h : hs) {
         anyLut = anyLut || h.hasModalityLut;
         allLutHu = allLutHu && h.hasModalityLut && h.lutType == "HU";
     }
-    if (anyLut) {
-        for (const DicomHeader& h : hs)
-            if (!h.hasModalityLut)
-                throw DicomError(source + ": Modality LUT Sequence (0028,3000) missing in " +
-                                 h.path.string() + " but present in other files of the series");
-        allRescale = true; // the LUT is the modality transform
-        anyRescale = true;
-        otherRescaleType = allLutHu ? std::string() : "LUT";
-        rescaleTypeHu = allLutHu;
-        warn("Modality LUT Sequence (0028,3000) applied (ModalityLUTType '" + hs[0].lutType + "')");
-    }
-    const bool hu = allRescale && ((isCt && otherRescaleType.empty()) || rescaleTypeHu);
-    if (isCt && allRescale && !otherRescaleType.empty() && !anyLut)
-        warn("RescaleType (0028,1054) '" + otherRescaleType + "' on a CT image: the rescaled "
-             "values are not declared Hounsfield units and are loaded as intensity");
-    if (isCt && !allRescale)
-        warn("CT without RescaleSlope/RescaleIntercept: values are stored pixel values, not "
-             "Hounsfield units");
+    if (!anyLut) return;
+    for (const DicomHeader& h : hs)
+        if (!h.hasModalityLut)
+            throw DicomError(source + ": Modality LUT Sequence (0028,3000) missing in " +
+                             h.path.string() + " but present in other files of the series");
+    r.lut = true;
+    r.all = true; // the LUT is the modality transform
+    r.any = true;
+    r.otherType = allLutHu ? std::string() : "LUT";
+    r.typeHu = allLutHu;
+    warnings.add("Modality LUT Sequence (0028,3000) applied (ModalityLUTType '" + hs[0].lutType + "')");
+}
+
+void warnMonochrome1(const std::vector<DicomHeader>& hs, bool hu, Warnings& warnings) {
     bool anyMono1 = false;
     for (const DicomHeader& h : hs) anyMono1 = anyMono1 || h.photometric == "MONOCHROME1";
-    if (anyMono1) {
-        if (hu)
-            warn("MONOCHROME1: Hounsfield units kept as they are (MONOCHROME1 only says how to "
-                 "display them: low values white)");
-        else
-            warn("MONOCHROME1: stored values inverted (v -> min + max of the BitsStored range - v, "
-                 "before rescale) so that larger values are brighter");
-    }
+    if (!anyMono1) return;
+    if (hu)
+        warnings.add("MONOCHROME1: Hounsfield units kept as they are (MONOCHROME1 only says how to "
+                     "display them: low values white)");
+    else
+        warnings.add("MONOCHROME1: stored values inverted (v -> min + max of the BitsStored range - v, "
+                     "before rescale) so that larger values are brighter");
+}
 
-    // Decode into the stack of sorted slices (the volume itself when no resampling is needed).
-    const std::int64_t sliceVox = cols * rows;
-    const std::size_t nSlices = slices.size();
-    std::vector<float> stack(static_cast<std::size_t>(sliceVox) * nSlices);
+/** Units: Hounsfield for CT with a rescale (or RescaleType HU), else intensity. True for HU. */
+bool decideUnits(const std::vector<DicomHeader>& hs, const SeriesFrames& frames,
+                 const std::string& source, Warnings& warnings) {
+    Rescale r = sliceRescale(hs, frames, source);
+    applyModalityLut(hs, source, r, warnings);
+    // A CT rescale gives Hounsfield units unless RescaleType says otherwise (it is only written
+    // when the values are not HU; 'US' means unspecified).
+    const bool hu = r.all && ((r.isCt && r.otherType.empty()) || r.typeHu);
+    if (r.isCt && r.all && !r.otherType.empty() && !r.lut)
+        warnings.add("RescaleType (0028,1054) '" + r.otherType + "' on a CT image: the rescaled "
+                     "values are not declared Hounsfield units and are loaded as intensity");
+    if (r.isCt && !r.all)
+        warnings.add("CT without RescaleSlope/RescaleIntercept: values are stored pixel values, not "
+                     "Hounsfield units");
+    warnMonochrome1(hs, hu, warnings);
+    return hu;
+}
+
+/** The sorted slices, decoded, and what decoding counted over all files. */
+struct DecodedStack {
+    std::vector<float> voxels;
+    DecodeCounts counts;
+};
+
+/** Decodes every file's frames into the stack of sorted slices (the volume itself when no
+ *  resampling is needed): one file per task, its parsed data freed as soon as it is decoded. */
+DecodedStack decodeSlices(SeriesFiles& files, const std::vector<FrameRef>& refs,
+                          const GeometryPlan& plan, std::int64_t sliceVox, bool hu,
+                          ThreadPool& pool, const ProgressFn& progress, const CancelToken* cancel) {
+    const std::vector<DicomHeader>& hs = files.headers;
+    const std::size_t nFiles = hs.size();
+    const std::size_t nSlices = refs.size();
+    DecodedStack out;
+    std::vector<float>& stack = out.voxels;
+    stack.resize(static_cast<std::size_t>(sliceVox) * nSlices);
     std::vector<std::vector<std::pair<int, std::int64_t>>> perFile(nFiles);
     for (std::size_t k = 0; k < nSlices; ++k) {
         const FrameRef& ref = refs[static_cast<std::size_t>(plan.order[k])];
@@ -450,45 +565,64 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
             checkCancel(cancel);
             const auto k = static_cast<std::size_t>(i);
             const bool invert = hs[k].photometric == "MONOCHROME1" && !hu;
-            const DecodeCounts c = decodeFile(hs[k], *ffs[k], perFile[k], stack.data(), sliceVox, invert, hu);
+            const DecodeCounts c = decodeFile(hs[k], *files.parsed[k], perFile[k], stack.data(), sliceVox, invert, hu);
             nonFinite += c.nonFinite;
             padded += c.padded;
             if (c.j2kSignReinterpreted) j2kSign = true;
             if (c.j2kLossyUndeclared) j2kLossy = true;
-            ffs[k].reset(); // frees the file's pixel data at once
+            files.parsed[k].reset(); // frees the file's pixel data at once
             prog.step();
         });
     }
-    if (nonFinite > 0)
-        warn(std::to_string(nonFinite.load()) + " non-finite float pixel values (NaN/Inf) set to 0");
-    if (j2kSign)
-        warn("JPEG 2000 codestream signedness differs from PixelRepresentation (0028,0103) " +
+    out.counts.nonFinite = nonFinite.load();
+    out.counts.padded = padded.load();
+    out.counts.j2kSignReinterpreted = j2kSign.load();
+    out.counts.j2kLossyUndeclared = j2kLossy.load();
+    return out;
+}
+
+/** What decoding changed or found: non-finite values, JPEG 2000 surprises, padding. */
+void warnDecoding(const DecodeCounts& counts, const std::vector<DicomHeader>& hs,
+                  std::size_t voxels, bool hu, Warnings& warnings) {
+    if (counts.nonFinite > 0)
+        warnings.add(std::to_string(counts.nonFinite) + " non-finite float pixel values (NaN/Inf) set to 0");
+    if (counts.j2kSignReinterpreted)
+        warnings.add("JPEG 2000 codestream signedness differs from PixelRepresentation (0028,0103) " +
              std::to_string(hs[0].pixelRepresentation) + ": the samples' BitsStored bits are read as the header declares (" +
              (hs[0].pixelRepresentation == 1 ? "two's complement" : "unsigned") + ")");
-    if (j2kLossy)
-        warn("lossy JPEG 2000 (irreversible 9/7 wavelet) although LossyImageCompression (0028,2110) does not "
+    if (counts.j2kLossyUndeclared)
+        warnings.add("lossy JPEG 2000 (irreversible 9/7 wavelet) although LossyImageCompression (0028,2110) does not "
              "say so: the values are approximations of the original");
-    if (padded > 0) {
+    if (counts.padded > 0) {
         const auto h = std::find_if(hs.begin(), hs.end(), [](const DicomHeader& x) { return x.paddingValue.has_value(); });
         std::string what = "PixelPaddingValue (0028,0120) " + std::to_string(*h->paddingValue);
         if (h->paddingLimit) what += " to PixelPaddingRangeLimit (0028,0121) " + std::to_string(*h->paddingLimit);
         char share[32];
-        std::snprintf(share, sizeof share, "%.1f", 100.0 * double(padded.load()) / double(stack.size()));
-        warn(what + ": " + std::to_string(padded.load()) + " padding pixels (" + share +
+        std::snprintf(share, sizeof share, "%.1f", 100.0 * double(counts.padded) / double(voxels));
+        warnings.add(what + ": " + std::to_string(counts.padded) + " padding pixels (" + share +
              " %, no measurement there) set to " + (hu ? "air (-1000 HU)" : "0 (no signal)"));
     }
+}
 
-    DicomVolume result;
-    Volume& vol = result.volume;
+/** The series description, else "<modality> series [number]", else "DICOM series". */
+std::string volumeName(const DicomHeader& h0) {
+    return !h0.description.empty() ? h0.description
+           : !h0.modality.empty()  ? h0.modality + " series" + (h0.seriesNumber.empty() ? "" : " " + h0.seriesNumber)
+                                   : std::string("DICOM series");
+}
+
+/** The volume on the plan's grid: the stack itself, or the stack resampled onto it (outside the
+ *  slices: the stack's minimum). */
+Volume assembleVolume(std::vector<float>&& stack, const GeometryPlan& plan, bool hu,
+                      const DicomHeader& h0, ThreadPool& pool, const ProgressFn& progress,
+                      const CancelToken* cancel) {
+    Volume vol;
     vol.dims = plan.dims;
     vol.spacing = plan.spacing;
     vol.origin = plan.origin;
     vol.direction = plan.direction;
     vol.units = hu ? ValueUnits::HounsfieldUnits : ValueUnits::Intensity;
-    const DicomHeader& h0 = hs[0];
-    vol.name = !h0.description.empty() ? h0.description
-               : !h0.modality.empty()  ? h0.modality + " series" + (h0.seriesNumber.empty() ? "" : " " + h0.seriesNumber)
-                                       : std::string("DICOM series");
+    vol.name = volumeName(h0);
     if (!plan.resample) {
         vol.voxels = std::move(stack);
     } else {
@@ -496,10 +630,43 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
         for (float v : stack) fill = std::min(fill, v);
         vol.voxels.resize(static_cast<std::size_t>(vol.voxelCount()));
         Progress prog(progress, "resampling DICOM slices", 0.8, 1.0, plan.dims[2]);
-        resampleStack(stack, cols, rows, plan, fill, vol.voxels, pool, prog, cancel);
+        resampleStack(stack, h0.cols, h0.rows, plan, fill, vol.voxels, pool, prog, cancel);
     }
+    return vol;
+}
+
+} // namespace
+
+DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& progress,
+                            const CancelToken* cancel) {
+    initDcmtk();
+    const std::string source = seriesSource(series);
+    if (series.files.empty()) throw DicomError(source + ": no files");
+    if (!series.frames.empty() && series.frames.size() != series.files.size())
+        throw DicomError(source + ": the frame selection lists " + std::to_string(series.frames.size()) +
+                         " files, the series " + std::to_string(series.files.size()));
+
+    ThreadPool pool;
+    SeriesFiles files = readSeriesFiles(series, pool, progress, cancel);
+    const std::vector<DicomHeader>& hs = files.headers;
+    checkSameImageSize(hs, source);
+    const std::int64_t cols = hs[0].cols, rows = hs[0].rows;
+
+    // The frames that make up the series, and their geometry.
+    const SeriesFrames frames = selectFrames(series, hs, source);
+    validate({cols, rows, std::int64_t(frames.slices.size())}, {1, 1, 1}, source);
+    const GeometryPlan plan = planGeometry(frames.slices, cols, rows, source);
+    validate(plan.dims, plan.spacing, source);
+
+    Warnings warnings = initialWarnings(series, hs, plan);
+    const bool hu = decideUnits(hs, frames, source, warnings);
+    DecodedStack stack = decodeSlices(files, frames.refs, plan, cols * rows, hu, pool, progress, cancel);
+    warnDecoding(stack.counts, hs, stack.voxels.size(), hu, warnings);
+
+    DicomVolume result;
+    result.volume = assembleVolume(std::move(stack.voxels), plan, hu, hs[0], pool, progress, cancel);
     if (progress) progress(1.0, "DICOM series loaded");
-    result.warnings = std::move(warnings);
+    result.warnings = std::move(warnings.list);
     return result;
 }
 

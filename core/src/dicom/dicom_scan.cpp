@@ -213,6 +213,267 @@ Split resolveDuplicates(const std::vector<DicomHeader>& hs, const std::vector<Un
     return result;
 }
 
+/** Header indices in order, repeated SOP instances (the same image copied twice) counted once:
+ *  the repeats go to `skipped`. */
+std::vector<int> uniqueInstances(const std::vector<DicomHeader>& hs,
+                                 std::vector<std::string>& skipped) {
+    std::vector<int> usable;
+    std::unordered_map<std::string, int> seen;
+    for (int i = 0; i < int(hs.size()); ++i) {
+        const auto& uid = hs[static_cast<std::size_t>(i)].sopInstanceUid;
+        if (!uid.empty()) {
+            auto [it, inserted] = seen.try_emplace(uid, i);
+            if (!inserted) {
+                skipped.push_back(hs[static_cast<std::size_t>(i)].path.string() +
+                                  ": duplicate of " +
+                                  hs[static_cast<std::size_t>(it->second)].path.string() +
+                                  " (same SOPInstanceUID)");
+                continue;
+            }
+        }
+        usable.push_back(i);
+    }
+    return usable;
+}
+
+/** Files of one SeriesInstanceUID (or folder/study/series number when it is missing). */
+struct PrimaryGroup {
+    std::string key;          ///< the UID, or "folder:<folder>[#number][@study]"
+    std::vector<int> members; ///< header indices
+};
+
+/** The groups in order of their first file. */
+std::vector<PrimaryGroup> groupBySeriesUid(const std::vector<DicomHeader>& hs,
+                                           const std::vector<int>& usable) {
+    std::vector<PrimaryGroup> groups;
+    std::unordered_map<std::string, std::size_t> index;
+    for (int i : usable) {
+        const DicomHeader& h = hs[static_cast<std::size_t>(i)];
+        std::string key = h.seriesUid;
+        if (key.empty())
+            key = "folder:" + h.path.parent_path().string() +
+                  (h.seriesNumber.empty() ? "" : "#" + h.seriesNumber) +
+                  (h.studyUid.empty() ? "" : "@" + h.studyUid);
+        auto [it, inserted] = index.try_emplace(key, groups.size());
+        if (inserted) groups.push_back({key, {}});
+        groups[it->second].members.push_back(i);
+    }
+    return groups;
+}
+
+/** Every frame of the files. */
+std::vector<Unit> unitsOf(const std::vector<DicomHeader>& hs, const std::vector<int>& members) {
+    std::vector<Unit> units;
+    for (int i : members)
+        for (int f = 0; f < int(hs[static_cast<std::size_t>(i)].frames); ++f) units.push_back({i, f});
+    return units;
+}
+
+/** The split that always applies: frames that differ in image size, pixel spacing, orientation or
+ *  echo never form one volume. */
+struct HardSplit {
+    std::vector<std::vector<Unit>> parts;
+    std::string reason; ///< what differs ("image size, orientation"...); empty when not split
+};
+
+/** What differs between the parts of a hard split, given the number of distinct orientations and
+ *  pixel spacings found. */
+std::string hardSplitReason(const std::vector<DicomHeader>& hs,
+                            const std::vector<std::vector<Unit>>& parts, std::size_t orientations,
+                            std::size_t spacings) {
+    std::set<std::string> sizes, echoes;
+    for (const auto& p : parts) {
+        const DicomHeader& h = hs[static_cast<std::size_t>(p[0].h)];
+        sizes.insert(std::to_string(h.cols) + "x" + std::to_string(h.rows));
+        echoes.insert(info(hs, p[0]).echo);
+    }
+    std::string what;
+    if (sizes.size() > 1) what += "image size";
+    if (orientations > 1) what += std::string(what.empty() ? "" : ", ") + "orientation";
+    if (spacings > 1) what += std::string(what.empty() ? "" : ", ") + "pixel spacing";
+    if (echoes.size() > 1) what += std::string(what.empty() ? "" : ", ") + "echo";
+    return what;
+}
+
+HardSplit splitByImageGeometry(const std::vector<DicomHeader>& hs, const std::vector<Unit>& units) {
+    // Orientations (cosines within 1e-3) and pixel spacings (within 1e-3 relative) that match
+    // share an id; -1 when absent.
+    std::vector<std::array<double, 6>> iops;
+    std::vector<std::pair<double, double>> spacings;
+    auto iopId = [&](const FrameInfo& f) -> int {
+        if (!f.hasOrientation) return -1;
+        for (std::size_t k = 0; k < iops.size(); ++k) {
+            double d = 0;
+            for (int j = 0; j < 6; ++j) d = std::max(d, std::abs(iops[k][static_cast<std::size_t>(j)] - f.orientation[static_cast<std::size_t>(j)]));
+            if (d <= 1e-3) return int(k);
+        }
+        iops.push_back(f.orientation);
+        return int(iops.size()) - 1;
+    };
+    auto spacingId = [&](const FrameInfo& f) -> int {
+        if (!f.hasPixelSpacing) return -1;
+        for (std::size_t k = 0; k < spacings.size(); ++k)
+            if (std::abs(spacings[k].first - f.rowSpacing) <= 1e-3 * f.rowSpacing &&
+                std::abs(spacings[k].second - f.colSpacing) <= 1e-3 * f.colSpacing)
+                return int(k);
+        spacings.emplace_back(f.rowSpacing, f.colSpacing);
+        return int(spacings.size()) - 1;
+    };
+    HardSplit result;
+    result.parts = partition(units, [&](const Unit& u) {
+        const DicomHeader& h = hs[static_cast<std::size_t>(u.h)];
+        const FrameInfo& f = info(hs, u);
+        return std::to_string(h.cols) + "x" + std::to_string(h.rows) + "|" +
+               std::to_string(spacingId(f)) + "|" + std::to_string(iopId(f)) + "|" + f.echo;
+    });
+    if (result.parts.size() > 1)
+        result.reason = hardSplitReason(hs, result.parts, iops.size(), spacings.size());
+    return result;
+}
+
+/** One series of the scan result: a part of a hard split, split further where that resolves
+ *  duplicate positions. */
+struct Part {
+    std::vector<Unit> units;
+    std::string note;        ///< what split it apart from the hard split (empty: nothing)
+    bool duplicates = false; ///< duplicate positions remain (loading refuses them)
+};
+
+std::vector<Part> splitDuplicates(const std::vector<DicomHeader>& hs,
+                                  const std::vector<std::vector<Unit>>& hardParts) {
+    std::vector<Part> parts;
+    for (const auto& part : hardParts) {
+        Split s = resolveDuplicates(hs, part);
+        for (auto& p : s.parts)
+            parts.push_back({std::move(p), s.by, s.duplicates});
+    }
+    return parts;
+}
+
+/** The series' identity from its first file, the missing-UID warning, and the split warning
+ *  when the group (key `groupKey`) became `count` series, this being part `g` (0-based). */
+DicomSeriesInfo seriesIdentity(const DicomHeader& h0, const std::string& groupKey, std::size_t g,
+                               std::size_t count, const std::string& splitWhy) {
+    const bool split = count > 1;
+    DicomSeriesInfo si;
+    si.seriesUid = h0.seriesUid;
+    si.key = (h0.seriesUid.empty() ? groupKey : h0.seriesUid) +
+             (split ? "#" + std::to_string(g + 1) : std::string());
+    si.studyUid = h0.studyUid;
+    si.patientName = h0.patientName;
+    si.patientId = h0.patientId;
+    si.studyDate = h0.studyDate;
+    si.modality = h0.modality;
+    si.description = h0.description;
+    si.transferSyntax = h0.xferName;
+    if (h0.seriesUid.empty())
+        si.warnings.push_back("SeriesInstanceUID (0020,000E) missing: files grouped by folder" +
+                              std::string(h0.seriesNumber.empty() ? "" : ", series number") +
+                              (h0.studyUid.empty() ? "" : " and study"));
+    if (split)
+        si.warnings.push_back("series " + (h0.seriesUid.empty() ? groupKey : h0.seriesUid) +
+                              " split by " + splitWhy + " into " + std::to_string(count) +
+                              " series; this is part " + std::to_string(g + 1));
+    return si;
+}
+
+/** "<file>: <reason>" for the first unit whose pixel format cannot be loaded; empty if none. */
+std::string firstUnsupported(const std::vector<DicomHeader>& hs, const std::vector<Unit>& units) {
+    for (const Unit& u : units) {
+        const std::string why = unsupportedReason(hs[static_cast<std::size_t>(u.h)]);
+        if (!why.empty()) return hs[static_cast<std::size_t>(u.h)].path.string() + ": " + why;
+    }
+    return {};
+}
+
+/** The files' malformed attributes as warnings, each problem once. */
+void addHeaderProblems(const std::vector<DicomHeader>& hs, const std::vector<Unit>& units,
+                       std::vector<std::string>& warnings) {
+    std::set<std::string> problems;
+    for (const Unit& u : units)
+        for (const auto& p : hs[static_cast<std::size_t>(u.h)].problems)
+            if (problems.insert(p).second)
+                warnings.push_back(hs[static_cast<std::size_t>(u.h)].path.filename().string() + ": " + p);
+}
+
+/** Plans the series as the loader will, to report dims, spacing and geometry problems now (and
+ *  why it cannot be loaded). Returns its units in slice order (as given when planning failed). */
+std::vector<Unit> planSeries(const std::vector<DicomHeader>& hs, const std::vector<Unit>& units,
+                             DicomSeriesInfo& si) {
+    const DicomHeader& h0 = hs[static_cast<std::size_t>(units[0].h)];
+    std::vector<PlanSlice> slices;
+    for (const Unit& u : units) {
+        const DicomHeader& h = hs[static_cast<std::size_t>(u.h)];
+        slices.push_back({&info(hs, u), sliceLabel(h, u.f), h.frames > 1, h.gantryTilt, u.h});
+    }
+    std::vector<Unit> ordered = units;
+    std::string cannot = firstUnsupported(hs, units);
+    addHeaderProblems(hs, units, si.warnings);
+    const FrameInfo& fi0 = info(hs, units[0]);
+    si.dims = {h0.cols, h0.rows, std::int64_t(units.size())};
+    si.spacing = {fi0.hasPixelSpacing ? fi0.colSpacing : 1.0,
+                  fi0.hasPixelSpacing ? fi0.rowSpacing : 1.0, 0.0};
+    try {
+        for (const Unit& u : units)
+            if (hs[static_cast<std::size_t>(u.h)].rows != h0.rows || hs[static_cast<std::size_t>(u.h)].cols != h0.cols)
+                throw DicomError("mixed image sizes");
+        GeometryPlan plan = planGeometry(slices, h0.cols, h0.rows, "series " + si.key);
+        si.dims = plan.dims;
+        si.spacing = plan.spacing;
+        for (auto& w : plan.warnings) si.warnings.push_back(std::move(w));
+        ordered.clear();
+        for (int k : plan.order) ordered.push_back(units[static_cast<std::size_t>(k)]);
+    } catch (const DicomError& e) {
+        if (cannot.empty()) cannot = e.what();
+    }
+    if (!cannot.empty()) {
+        si.unloadableReason = cannot;
+        si.warnings.push_back("cannot be loaded: " + cannot);
+    }
+    return ordered;
+}
+
+/** Files in slice order, with the frames each contributes when not all of them. */
+void listFilesInSliceOrder(const std::vector<DicomHeader>& hs, const std::vector<Unit>& ordered,
+                           DicomSeriesInfo& si) {
+    std::unordered_map<int, std::size_t> fileIndex;
+    std::vector<int> fileHeader;
+    for (const Unit& u : ordered) {
+        auto [it, inserted] = fileIndex.try_emplace(u.h, si.files.size());
+        if (inserted) {
+            si.files.push_back(hs[static_cast<std::size_t>(u.h)].path);
+            si.frames.emplace_back();
+            fileHeader.push_back(u.h);
+        }
+        si.frames[it->second].push_back(u.f);
+    }
+    bool anyPartial = false;
+    for (std::size_t k = 0; k < si.frames.size(); ++k) {
+        auto& fr = si.frames[k];
+        std::sort(fr.begin(), fr.end());
+        if (std::int64_t(fr.size()) == hs[static_cast<std::size_t>(fileHeader[k])].frames) fr.clear();
+        else anyPartial = true;
+    }
+    if (!anyPartial) si.frames.clear();
+    si.imageCount = int(si.files.size());
+}
+
+/** Series `g` of the group `groupKey` whose hard split (by `splitReason`) and duplicate
+ *  resolution gave `parts`. */
+DicomSeriesInfo describeSeries(const std::vector<DicomHeader>& hs, const std::string& groupKey,
+                               const std::vector<Part>& parts, std::size_t g,
+                               const std::string& splitReason) {
+    const Part& part = parts[g];
+    const DicomHeader& h0 = hs[static_cast<std::size_t>(part.units[0].h)];
+    std::string why = splitReason;
+    if (!part.note.empty()) why += (why.empty() ? "" : ", ") + part.note;
+    DicomSeriesInfo si = seriesIdentity(h0, groupKey, g, parts.size(), why);
+    si.frameCount = int(part.units.size());
+    const std::vector<Unit> ordered = planSeries(hs, part.units, si);
+    listFilesInSliceOrder(hs, ordered, si);
+    return si;
+}
+
 } // namespace
 
 std::string sliceLabel(const DicomHeader& h, std::int64_t frame) {
@@ -223,200 +484,12 @@ std::string sliceLabel(const DicomHeader& h, std::int64_t frame) {
 
 std::vector<DicomSeriesInfo> groupIntoSeries(const std::vector<DicomHeader>& hs,
                                              std::vector<std::string>& skipped) {
-    // Repeated SOP instances (the same image copied twice) count once.
-    std::vector<int> usable;
-    {
-        std::unordered_map<std::string, int> seen;
-        for (int i = 0; i < int(hs.size()); ++i) {
-            const auto& uid = hs[static_cast<std::size_t>(i)].sopInstanceUid;
-            if (!uid.empty()) {
-                auto [it, inserted] = seen.try_emplace(uid, i);
-                if (!inserted) {
-                    skipped.push_back(hs[static_cast<std::size_t>(i)].path.string() +
-                                      ": duplicate of " +
-                                      hs[static_cast<std::size_t>(it->second)].path.string() +
-                                      " (same SOPInstanceUID)");
-                    continue;
-                }
-            }
-            usable.push_back(i);
-        }
-    }
-
-    // By SeriesInstanceUID (or folder/study/series number when it is missing).
-    std::vector<std::string> primaryKeys;
-    std::unordered_map<std::string, std::vector<int>> primary;
-    for (int i : usable) {
-        const DicomHeader& h = hs[static_cast<std::size_t>(i)];
-        std::string key = h.seriesUid;
-        if (key.empty())
-            key = "folder:" + h.path.parent_path().string() +
-                  (h.seriesNumber.empty() ? "" : "#" + h.seriesNumber) +
-                  (h.studyUid.empty() ? "" : "@" + h.studyUid);
-        auto [it, inserted] = primary.try_emplace(key);
-        if (inserted) primaryKeys.push_back(key);
-        it->second.push_back(i);
-    }
-
     std::vector<DicomSeriesInfo> out;
-    for (const std::string& pkey : primaryKeys) {
-        const auto& members = primary[pkey];
-        std::vector<Unit> units;
-        for (int i : members)
-            for (int f = 0; f < int(hs[static_cast<std::size_t>(i)].frames); ++f) units.push_back({i, f});
-
-        // Always split: size, pixel spacing, orientation, echo.
-        std::vector<std::array<double, 6>> iops;
-        std::vector<std::pair<double, double>> spacings;
-        auto iopId = [&](const FrameInfo& f) -> int {
-            if (!f.hasOrientation) return -1;
-            for (std::size_t k = 0; k < iops.size(); ++k) {
-                double d = 0;
-                for (int j = 0; j < 6; ++j) d = std::max(d, std::abs(iops[k][static_cast<std::size_t>(j)] - f.orientation[static_cast<std::size_t>(j)]));
-                if (d <= 1e-3) return int(k);
-            }
-            iops.push_back(f.orientation);
-            return int(iops.size()) - 1;
-        };
-        auto spacingId = [&](const FrameInfo& f) -> int {
-            if (!f.hasPixelSpacing) return -1;
-            for (std::size_t k = 0; k < spacings.size(); ++k)
-                if (std::abs(spacings[k].first - f.rowSpacing) <= 1e-3 * f.rowSpacing &&
-                    std::abs(spacings[k].second - f.colSpacing) <= 1e-3 * f.colSpacing)
-                    return int(k);
-            spacings.emplace_back(f.rowSpacing, f.colSpacing);
-            return int(spacings.size()) - 1;
-        };
-        std::vector<std::string> splitReasons;
-        auto hard = partition(units, [&](const Unit& u) {
-            const DicomHeader& h = hs[static_cast<std::size_t>(u.h)];
-            const FrameInfo& f = info(hs, u);
-            return std::to_string(h.cols) + "x" + std::to_string(h.rows) + "|" +
-                   std::to_string(spacingId(f)) + "|" + std::to_string(iopId(f)) + "|" + f.echo;
-        });
-        if (hard.size() > 1) {
-            std::set<std::string> sizes, echoes;
-            for (const auto& p : hard) {
-                const DicomHeader& h = hs[static_cast<std::size_t>(p[0].h)];
-                sizes.insert(std::to_string(h.cols) + "x" + std::to_string(h.rows));
-                echoes.insert(info(hs, p[0]).echo);
-            }
-            std::string what;
-            if (sizes.size() > 1) what += "image size";
-            if (iops.size() > 1) what += std::string(what.empty() ? "" : ", ") + "orientation";
-            if (spacings.size() > 1) what += std::string(what.empty() ? "" : ", ") + "pixel spacing";
-            if (echoes.size() > 1) what += std::string(what.empty() ? "" : ", ") + "echo";
-            splitReasons.push_back(what);
-        }
-
-        struct Final {
-            std::vector<Unit> units;
-            std::string note;
-            bool duplicates = false;
-        };
-        std::vector<Final> finals;
-        for (auto& part : hard) {
-            Split s = resolveDuplicates(hs, part);
-            for (auto& p : s.parts)
-                finals.push_back({std::move(p), s.by, s.duplicates});
-        }
-
-        const bool split = finals.size() > 1;
-        for (std::size_t g = 0; g < finals.size(); ++g) {
-            Final& fin = finals[g];
-            const DicomHeader& h0 = hs[static_cast<std::size_t>(fin.units[0].h)];
-            DicomSeriesInfo si;
-            si.seriesUid = h0.seriesUid;
-            si.key = (h0.seriesUid.empty() ? pkey : h0.seriesUid) +
-                     (split ? "#" + std::to_string(g + 1) : std::string());
-            si.studyUid = h0.studyUid;
-            si.patientName = h0.patientName;
-            si.patientId = h0.patientId;
-            si.studyDate = h0.studyDate;
-            si.modality = h0.modality;
-            si.description = h0.description;
-            si.transferSyntax = h0.xferName;
-            si.frameCount = int(fin.units.size());
-            if (h0.seriesUid.empty())
-                si.warnings.push_back("SeriesInstanceUID (0020,000E) missing: files grouped by folder" +
-                                      std::string(h0.seriesNumber.empty() ? "" : ", series number") +
-                                      (h0.studyUid.empty() ? "" : " and study"));
-            if (split) {
-                std::string why;
-                for (const auto& r : splitReasons) why += (why.empty() ? "" : ", ") + r;
-                if (!fin.note.empty()) why += (why.empty() ? "" : ", ") + fin.note;
-                si.warnings.push_back("series " + (h0.seriesUid.empty() ? pkey : h0.seriesUid) +
-                                      " split by " + why + " into " + std::to_string(finals.size()) +
-                                      " series; this is part " + std::to_string(g + 1));
-            }
-
-            // Plan as the loader will, to report dims, spacing and geometry problems now.
-            std::vector<PlanSlice> slices;
-            for (const Unit& u : fin.units) {
-                const DicomHeader& h = hs[static_cast<std::size_t>(u.h)];
-                slices.push_back({&info(hs, u), sliceLabel(h, u.f), h.frames > 1, h.gantryTilt, u.h});
-            }
-            std::vector<Unit> ordered = fin.units;
-            std::string cannot;
-            for (const Unit& u : fin.units) {
-                const std::string why = unsupportedReason(hs[static_cast<std::size_t>(u.h)]);
-                if (!why.empty()) {
-                    cannot = hs[static_cast<std::size_t>(u.h)].path.string() + ": " + why;
-                    break;
-                }
-            }
-            {
-                std::set<std::string> problems;
-                for (const Unit& u : fin.units)
-                    for (const auto& p : hs[static_cast<std::size_t>(u.h)].problems)
-                        if (problems.insert(p).second)
-                            si.warnings.push_back(hs[static_cast<std::size_t>(u.h)].path.filename().string() + ": " + p);
-            }
-            const FrameInfo& fi0 = info(hs, fin.units[0]);
-            si.dims = {h0.cols, h0.rows, std::int64_t(fin.units.size())};
-            si.spacing = {fi0.hasPixelSpacing ? fi0.colSpacing : 1.0,
-                          fi0.hasPixelSpacing ? fi0.rowSpacing : 1.0, 0.0};
-            try {
-                for (const Unit& u : fin.units)
-                    if (hs[static_cast<std::size_t>(u.h)].rows != h0.rows || hs[static_cast<std::size_t>(u.h)].cols != h0.cols)
-                        throw DicomError("mixed image sizes");
-                GeometryPlan plan = planGeometry(slices, h0.cols, h0.rows, "series " + si.key);
-                si.dims = plan.dims;
-                si.spacing = plan.spacing;
-                for (auto& w : plan.warnings) si.warnings.push_back(std::move(w));
-                ordered.clear();
-                for (int k : plan.order) ordered.push_back(fin.units[static_cast<std::size_t>(k)]);
-            } catch (const DicomError& e) {
-                if (cannot.empty()) cannot = e.what();
-            }
-            if (!cannot.empty()) {
-                si.unloadableReason = cannot;
-                si.warnings.push_back("cannot be loaded: " + cannot);
-            }
-
-            // Files in slice order, with the frames each contributes when not all of them.
-            std::unordered_map<int, std::size_t> fileIndex;
-            std::vector<int> fileHeader;
-            for (const Unit& u : ordered) {
-                auto [it, inserted] = fileIndex.try_emplace(u.h, si.files.size());
-                if (inserted) {
-                    si.files.push_back(hs[static_cast<std::size_t>(u.h)].path);
-                    si.frames.emplace_back();
-                    fileHeader.push_back(u.h);
-                }
-                si.frames[it->second].push_back(u.f);
-            }
-            bool anyPartial = false;
-            for (std::size_t k = 0; k < si.frames.size(); ++k) {
-                auto& fr = si.frames[k];
-                std::sort(fr.begin(), fr.end());
-                if (std::int64_t(fr.size()) == hs[static_cast<std::size_t>(fileHeader[k])].frames) fr.clear();
-                else anyPartial = true;
-            }
-            if (!anyPartial) si.frames.clear();
-            si.imageCount = int(si.files.size());
-            out.push_back(std::move(si));
-        }
+    for (const PrimaryGroup& group : groupBySeriesUid(hs, uniqueInstances(hs, skipped))) {
+        const HardSplit hard = splitByImageGeometry(hs, unitsOf(hs, group.members));
+        const std::vector<Part> parts = splitDuplicates(hs, hard.parts);
+        for (std::size_t g = 0; g < parts.size(); ++g)
+            out.push_back(describeSeries(hs, group.key, parts, g, hard.reason));
     }
     std::stable_sort(out.begin(), out.end(), [](const DicomSeriesInfo& a, const DicomSeriesInfo& b) {
         if (a.studyUid != b.studyUid) return a.studyUid < b.studyUid;
@@ -427,49 +500,69 @@ std::vector<DicomSeriesInfo> groupIntoSeries(const std::vector<DicomHeader>& hs,
 
 } // namespace dicom_detail
 
-DicomScanResult scanDicomFolder(const std::filesystem::path& folder, const ProgressFn& progress,
-                                const CancelToken* cancel) {
-    initDcmtk();
-    DicomScanResult result;
-    std::error_code ec;
-    if (!fs::exists(folder, ec)) throw DicomError(folder.string() + ": folder not found");
+namespace {
 
+/** The files the folder's DICOMDIR lists; nullopt when it has none or it cannot be read (noted in
+ *  `skipped`: then every file in the folder is scanned). */
+std::optional<std::vector<fs::path>> filesListedInDicomdir(const fs::path& folder,
+                                                           std::vector<std::string>& skipped) {
+    std::error_code ec;
+    const auto dicomdir = findCaseInsensitive(folder, "DICOMDIR");
+    if (!dicomdir || !fs::is_regular_file(*dicomdir, ec)) return std::nullopt;
+    std::string why;
+    auto refs = filesFromDicomdir(*dicomdir, skipped, why);
+    if (!refs) {
+        skipped.push_back(dicomdir->string() + ": unreadable DICOMDIR (" + why +
+                          "); every file in the folder was scanned instead");
+        return std::nullopt;
+    }
+    if (refs->empty()) skipped.push_back(dicomdir->string() + ": lists no files");
+    return refs;
+}
+
+/** Every regular file below `folder`. */
+std::vector<fs::path> walkFolder(const fs::path& folder, std::vector<std::string>& skipped,
+                                 const CancelToken* cancel) {
+    std::vector<fs::path> files;
+    std::error_code ec;
+    std::int64_t count = 0;
+    fs::recursive_directory_iterator it(folder, fs::directory_options::skip_permission_denied, ec);
+    if (ec) throw DicomError(folder.string() + ": cannot list folder: " + ec.message());
+    for (const fs::recursive_directory_iterator end; it != end; it.increment(ec)) {
+        if (ec) {
+            skipped.push_back(folder.string() + ": listing stopped: " + ec.message());
+            break;
+        }
+        if ((++count & 255) == 0) checkCancel(cancel);
+        std::error_code fec;
+        if (it->is_regular_file(fec)) files.push_back(it->path());
+    }
+    return files;
+}
+
+/** The files to scan, sorted: `folder` itself when it is a file, else those its DICOMDIR lists,
+ *  else every file below it. */
+std::vector<fs::path> filesToScan(const fs::path& folder, std::vector<std::string>& skipped,
+                                  const CancelToken* cancel) {
+    std::error_code ec;
     std::vector<fs::path> files;
     if (fs::is_regular_file(folder, ec)) {
         files.push_back(folder);
     } else if (fs::is_directory(folder, ec)) {
-        bool listed = false;
-        if (auto dicomdir = findCaseInsensitive(folder, "DICOMDIR"); dicomdir && fs::is_regular_file(*dicomdir, ec)) {
-            std::string why;
-            if (auto refs = filesFromDicomdir(*dicomdir, result.skipped, why)) {
-                files = std::move(*refs);
-                listed = true;
-                if (files.empty())
-                    result.skipped.push_back(dicomdir->string() + ": lists no files");
-            } else {
-                result.skipped.push_back(dicomdir->string() + ": unreadable DICOMDIR (" + why +
-                                         "); every file in the folder was scanned instead");
-            }
-        }
-        if (!listed) {
-            std::int64_t count = 0;
-            fs::recursive_directory_iterator it(folder, fs::directory_options::skip_permission_denied, ec);
-            if (ec) throw DicomError(folder.string() + ": cannot list folder: " + ec.message());
-            for (const fs::recursive_directory_iterator end; it != end; it.increment(ec)) {
-                if (ec) {
-                    result.skipped.push_back(folder.string() + ": listing stopped: " + ec.message());
-                    break;
-                }
-                if ((++count & 255) == 0) checkCancel(cancel);
-                std::error_code fec;
-                if (it->is_regular_file(fec)) files.push_back(it->path());
-            }
-        }
+        if (auto listed = filesListedInDicomdir(folder, skipped)) files = std::move(*listed);
+        else files = walkFolder(folder, skipped, cancel);
     } else {
         throw DicomError(folder.string() + ": not a folder or file");
     }
     std::sort(files.begin(), files.end());
+    return files;
+}
 
+/** The headers of `files`, read in parallel; why the others are no DICOM images goes to
+ *  `skipped`, in file order. */
+std::vector<DicomHeader> readHeaders(const std::vector<fs::path>& files,
+                                     std::vector<std::string>& skipped, const ProgressFn& progress,
+                                     const CancelToken* cancel) {
     std::vector<std::optional<DicomHeader>> headers(files.size());
     std::vector<std::string> errors(files.size());
     {
@@ -492,21 +585,39 @@ DicomScanResult scanDicomFolder(const std::filesystem::path& folder, const Progr
     std::vector<DicomHeader> usable;
     for (std::size_t k = 0; k < files.size(); ++k) {
         if (headers[k]) usable.push_back(std::move(*headers[k]));
-        else result.skipped.push_back(errors[k]);
+        else skipped.push_back(errors[k]);
     }
+    return usable;
+}
+
+/** The error when no series was found: the file count and the first three reasons to skip. */
+std::string noSeriesMessage(const fs::path& folder, std::size_t fileCount,
+                            const std::vector<std::string>& skipped) {
+    std::string msg = folder.string() + ": no DICOM image series found (" +
+                      std::to_string(fileCount) + " files";
+    if (!skipped.empty()) {
+        msg += "; e.g. ";
+        for (std::size_t k = 0; k < std::min<std::size_t>(3, skipped.size()); ++k)
+            msg += (k ? "; " : "") + skipped[k];
+    }
+    return msg + ")";
+}
+
+} // namespace
+
+DicomScanResult scanDicomFolder(const std::filesystem::path& folder, const ProgressFn& progress,
+                                const CancelToken* cancel) {
+    initDcmtk();
+    DicomScanResult result;
+    std::error_code ec;
+    if (!fs::exists(folder, ec)) throw DicomError(folder.string() + ": folder not found");
+    const std::vector<fs::path> files = filesToScan(folder, result.skipped, cancel);
+    std::vector<DicomHeader> usable = readHeaders(files, result.skipped, progress, cancel);
     checkCancel(cancel);
     result.series = groupIntoSeries(usable, result.skipped);
     if (progress) progress(1.0, "reading DICOM headers");
-    if (result.series.empty()) {
-        std::string msg = folder.string() + ": no DICOM image series found (" +
-                          std::to_string(files.size()) + " files";
-        if (!result.skipped.empty()) {
-            msg += "; e.g. ";
-            for (std::size_t k = 0; k < std::min<std::size_t>(3, result.skipped.size()); ++k)
-                msg += (k ? "; " : "") + result.skipped[k];
-        }
-        throw DicomError(msg + ")");
-    }
+    if (result.series.empty())
+        throw DicomError(noSeriesMessage(folder, files.size(), result.skipped));
     return result;
 }
 
