@@ -27,13 +27,16 @@ int main(int argc, char** argv) {
     parser.setApplicationDescription("Fourier volume rendering workstation");
     parser.addHelpOption();
     parser.addVersionOption();
-    parser.addPositionalArgument("study", "DICOM folder or volume file (.mhd, .mha, .nii, .nii.gz); "
-                                          "without it the built-in phantom opens");
+    parser.addPositionalArgument("study",
+                                 "DICOM folder or volume file (.mhd, .mha, .nii, .nii.gz); "
+                                 "without it the built-in phantom opens");
     QCommandLineOption series("series", "DICOM series to open (SeriesInstanceUID)", "uid");
     parser.addOption(series);
-    QCommandLineOption compare("compare", "Start with N synchronised views side by side (1, 2 or 4)", "n", "1");
+    QCommandLineOption compare(
+        "compare", "Start with N synchronised views side by side (1, 2 or 4)", "n", "1");
     parser.addOption(compare);
-    QCommandLineOption view("view", "Start with a patient view: AP, PA, LEFT, RIGHT, HEAD or FEET", "view");
+    QCommandLineOption view("view", "Start with a patient view: AP, PA, LEFT, RIGHT, HEAD or FEET",
+                            "view");
     parser.addOption(view);
     parser.process(app);
 

@@ -24,10 +24,10 @@
 
 #include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/render/kernels.h>
-#include <fvr/core/xray/phantom.h>
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/render/spatial_projector.h>
 #include <fvr/core/render/view.h>
+#include <fvr/core/xray/phantom.h>
 
 #include <algorithm>
 #include <chrono>
@@ -76,7 +76,7 @@ PreprocessOptions preprocessOptions(TransformKind kind, HartleyMethod method) {
     o.transform = kind;
     o.hartleyMethod = method;
     o.oversampling = 1.0; // the paper's setting
-    o.threads = 0;        // all hardware threads
+    o.threads = 0; // all hardware threads
     o.effort = PlannerEffort::Measure;
     return o;
 }
@@ -210,10 +210,14 @@ void BM_Preprocess(benchmark::State& state, int n, PreprocessCase c) {
     std::string current;
     auto closeStage = [&](Clock::time_point now) {
         const double ms = std::chrono::duration<double, std::milli>(now - stageStart).count();
-        if (current == "planning") plan.back() += ms;
-        else if (current == "mapping and padding") pad.back() += ms;
-        else if (current.starts_with("3D transform")) transform.back() += ms;
-        else if (!current.empty()) post.back() += ms;
+        if (current == "planning")
+            plan.back() += ms;
+        else if (current == "mapping and padding")
+            pad.back() += ms;
+        else if (current.starts_with("3D transform"))
+            transform.back() += ms;
+        else if (!current.empty())
+            post.back() += ms;
     };
     const ProgressFn progress = [&](double, std::string_view stage) {
         if (stage == current) return;
@@ -329,7 +333,8 @@ void timeFrames(benchmark::State& state, CpuFourierRenderer& r, RenderParams p) 
     state.counters["other_cores"] = probe.otherCores();
 }
 
-void BM_Effects(benchmark::State& state, int n, TransformKind kind, int M, Kernel kernel, Effect e) {
+void BM_Effects(benchmark::State& state, int n, TransformKind kind, int M, Kernel kernel,
+                Effect e) {
     RenderParams p{views()[0], geometry(n, M), kernel};
     if (e == Effect::Depth || e == Effect::Both) p.depthCue = 0.7;
     if (e == Effect::Filters || e == Effect::Both) p.filter = {1.5, 2.0, 0.5};
@@ -339,8 +344,8 @@ void BM_Effects(benchmark::State& state, int n, TransformKind kind, int M, Kerne
 
 // --- 2c. Voxel models: the band cut against the transfer function over the whole slice ----------
 
-void BM_VoxelModel(benchmark::State& state, int n, TransformKind kind, int M, Kernel kernel, VoxelModel model,
-                   double pixelScale) {
+void BM_VoxelModel(benchmark::State& state, int n, TransformKind kind, int M, Kernel kernel,
+                   VoxelModel model, double pixelScale) {
     RenderParams p{views()[0], geometry(n, M), kernel};
     p.image.pixelSize *= pixelScale;
     p.voxelModel = model;
@@ -394,7 +399,9 @@ void registerAll(const std::vector<int>& sizes) {
         for (const PreprocessCase& c : kPreprocessCases) {
             const std::string name = "BM_Preprocess/N" + std::to_string(n) + "/" + c.name;
             benchmark::RegisterBenchmark(name.c_str(), BM_Preprocess, n, c)
-                ->Iterations(n <= 128 ? 5 : n <= 256 ? 3 : 2)
+                ->Iterations(n <= 128   ? 5
+                             : n <= 256 ? 3
+                                        : 2)
                 ->Unit(benchmark::kMillisecond)
                 ->UseRealTime();
         }
@@ -414,9 +421,10 @@ void registerAll(const std::vector<int>& sizes) {
     if (std::find(sizes.begin(), sizes.end(), 256) != sizes.end())
         for (TransformKind kind : {TransformKind::Fft, TransformKind::Fht})
             for (Kernel k : {Kernel::Linear, Kernel::KaiserBessel4})
-                for (Effect e : {Effect::Plain, Effect::Depth, Effect::Filters, Effect::Both, Effect::Clip}) {
-                    const std::string name = std::string("BM_Effects/N256/") + transformName(kind) + "/M512/" +
-                                             kernelName(k) + "/" + effectName(e);
+                for (Effect e :
+                     {Effect::Plain, Effect::Depth, Effect::Filters, Effect::Both, Effect::Clip}) {
+                    const std::string name = std::string("BM_Effects/N256/") + transformName(kind) +
+                                             "/M512/" + kernelName(k) + "/" + effectName(e);
                     benchmark::RegisterBenchmark(name.c_str(), BM_Effects, 256, kind, 512, k, e)
                         ->Iterations(framesFor(512))
                         ->Unit(benchmark::kMillisecond)
@@ -426,17 +434,20 @@ void registerAll(const std::vector<int>& sizes) {
         for (TransformKind kind : {TransformKind::Fft, TransformKind::Fht})
             for (Kernel k : {Kernel::Linear, Kernel::KaiserBessel4})
                 for (double scale : {1.0, 2.0})
-                for (VoxelModel m : allVoxelModels()) {
-                    // Pixel 1x: the default (0.87 voxel: a quarter of the slice lies beyond the
-                    // band); 2x: the whole slice lies inside it, so every model samples the same.
-                    const std::string name = std::string("BM_VoxelModel/N256/") + transformName(kind) + "/M512/" +
-                                             kernelName(k) + "/pixel" + (scale == 1.0 ? "1x/" : "2x/") +
-                                             voxelModelName(m);
-                    benchmark::RegisterBenchmark(name.c_str(), BM_VoxelModel, 256, kind, 512, k, m, scale)
-                        ->Iterations(framesFor(512))
-                        ->Unit(benchmark::kMillisecond)
-                        ->UseRealTime();
-                }
+                    for (VoxelModel m : allVoxelModels()) {
+                        // Pixel 1x: the default (0.87 voxel: a quarter of the slice lies beyond the
+                        // band); 2x: the whole slice lies inside it, so every model samples the
+                        // same.
+                        const std::string name = std::string("BM_VoxelModel/N256/") +
+                                                 transformName(kind) + "/M512/" + kernelName(k) +
+                                                 "/pixel" + (scale == 1.0 ? "1x/" : "2x/") +
+                                                 voxelModelName(m);
+                        benchmark::RegisterBenchmark(name.c_str(), BM_VoxelModel, 256, kind, 512, k,
+                                                     m, scale)
+                            ->Iterations(framesFor(512))
+                            ->Unit(benchmark::kMillisecond)
+                            ->UseRealTime();
+                    }
     for (int M : {256, 512})
         for (double step : {0.25, 1.0}) {
             const std::string name = "BM_RayCast/N128/M" + std::to_string(M) + "/step" +

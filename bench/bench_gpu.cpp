@@ -5,11 +5,12 @@
  * fused into the row FFT pass, display mapping into the last pass: line integrals to an 8-bit
  * texture), for the FFT and the FHT representation.
  *
- *   BM_GpuStages/N<n>/<fft|fht>/M<m>/<kernel>   unfused: slice_ms, inverse_ms, slice_fps, inverse_fps
- *   BM_GpuFrame/N<n>/<fft|fht>/M<m>/<kernel>    fused end-to-end to the display texture:
+ *   BM_GpuStages/N<n>/<fft|fht>/M<m>/<kernel>   unfused: slice_ms, inverse_ms, slice_fps,
+ * inverse_fps BM_GpuFrame/N<n>/<fft|fht>/M<m>/<kernel>    fused end-to-end to the display texture:
  *                                               gpu_ms (timer queries), fps,
  *                                               and wall_fps (frames issued back to back, one
- *                                               wait per batch of 16: what an interactive loop gets)
+ *                                               wait per batch of 16: what an interactive loop
+ * gets)
  *
  * Needs an OpenGL 4.3 context: run under a display (or xvfb-run with QT_QPA_PLATFORM=xcb; Mesa
  * llvmpipe numbers are a sanity check only). N is 256 unless FVR_BENCH_GPU_N says otherwise
@@ -33,8 +34,8 @@
 #include <string>
 #include <vector>
 
-#include <fvr/core/xray/phantom.h>
 #include <fvr/core/render/preprocess.h>
+#include <fvr/core/xray/phantom.h>
 #include <fvr/gpu/gpu_renderer.h>
 #include <fvr/gpu/offscreen_context.h>
 
@@ -117,9 +118,13 @@ void BM_GpuFrame(benchmark::State& state, int n, TransformKind kind, int M, Kern
         gpu.push_back(r.lastTimes().totalMs);
         // Back to back: kBatch frames, one wait at the end.
         const auto t0 = std::chrono::steady_clock::now();
-        for (int b = 0; b < kBatch; ++b) r.renderToGpu({views()[(i + b) % views().size()], g, kernel}, &window);
+        for (int b = 0; b < kBatch; ++b)
+            r.renderToGpu({views()[(i + b) % views().size()], g, kernel}, &window);
         gl->glFinish();
-        wall.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / kBatch);
+        wall.push_back(
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                .count() /
+            kBatch);
     }
     const double gm = mean(gpu), wm = mean(wall);
     state.counters["gpu_ms"] = gm;
@@ -161,14 +166,17 @@ int main(int argc, char** argv) {
         for (TransformKind kind : {TransformKind::Fft, TransformKind::Fht})
             for (int M : {256, 512, 1024})
                 for (Kernel k : allKernels()) {
-                    const std::string suffix = "/N" + std::to_string(n) + "/" + transformName(kind) + "/M" +
-                                               std::to_string(M) + "/" + kernelName(k);
+                    const std::string suffix = "/N" + std::to_string(n) + "/" +
+                                               transformName(kind) + "/M" + std::to_string(M) +
+                                               "/" + kernelName(k);
                     const int iters = M <= 512 ? 30 : 15;
-                    benchmark::RegisterBenchmark(("BM_GpuStages" + suffix).c_str(), BM_GpuStages, n, kind, M, k)
+                    benchmark::RegisterBenchmark(("BM_GpuStages" + suffix).c_str(), BM_GpuStages, n,
+                                                 kind, M, k)
                         ->Iterations(iters)
                         ->Unit(benchmark::kMillisecond)
                         ->UseRealTime();
-                    benchmark::RegisterBenchmark(("BM_GpuFrame" + suffix).c_str(), BM_GpuFrame, n, kind, M, k)
+                    benchmark::RegisterBenchmark(("BM_GpuFrame" + suffix).c_str(), BM_GpuFrame, n,
+                                                 kind, M, k)
                         ->Iterations(iters)
                         ->Unit(benchmark::kMillisecond)
                         ->UseRealTime();

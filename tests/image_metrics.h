@@ -1,6 +1,7 @@
 #pragma once
 // Image comparison metrics used by the accuracy tests and benchmarks: the library's own
-// definition (fvr/core/render/image_metrics.h), which the accuracy readout and fvr-render --bench use too.
+// definition (fvr/core/render/image_metrics.h), which the accuracy readout and fvr-render --bench
+// use too.
 #include <vector>
 
 #include <fvr/core/render/image_metrics.h>

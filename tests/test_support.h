@@ -23,9 +23,9 @@ inline std::filesystem::path tmpDir() {
 } // namespace fvr::test
 
 /** Skips the current test with a reason when a shared-data path is missing. */
-#define FVR_REQUIRE_DATA(relpath)                                                               \
-    do {                                                                                       \
-        if (!std::filesystem::exists(::fvr::test::sharedData() / (relpath)))                   \
-            GTEST_SKIP() << "shared data not found: " << (::fvr::test::sharedData() / (relpath)) \
-                         << " (tests that need ../shared/data are skipped without it)";        \
+#define FVR_REQUIRE_DATA(relpath)                                                                  \
+    do {                                                                                           \
+        if (!std::filesystem::exists(::fvr::test::sharedData() / (relpath)))                       \
+            GTEST_SKIP() << "shared data not found: " << (::fvr::test::sharedData() / (relpath))   \
+                         << " (tests that need ../shared/data are skipped without it)";            \
     } while (0)

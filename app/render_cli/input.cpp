@@ -26,7 +26,8 @@ LoadedInput loadInput(const Options& o) {
         options.scan = std::move(scan);
     }
     OpenedStudy study = openStudy(source, options);
-    for (const auto& w : study.warnings) std::fprintf(stderr, "fvr-render: warning: %s\n", w.c_str());
+    for (const auto& w : study.warnings)
+        std::fprintf(stderr, "fvr-render: warning: %s\n", w.c_str());
     if (study.series) {
         in.exportInfo.patientName = study.series->patientName;
         in.exportInfo.patientId = study.series->patientId;

@@ -9,11 +9,11 @@
 
 #include <unistd.h>
 
-#include <fvr/core/xray/display_window.h>
 #include <fvr/core/errors.h>
 #include <fvr/core/io/image_io.h>
 #include <fvr/core/render/kernels.h>
 #include <fvr/core/render/projection.h>
+#include <fvr/core/xray/display_window.h>
 
 #include "session.h"
 

@@ -26,16 +26,20 @@ FftPlan::FftPlan(int size, int sign) : m_size(size), m_log2(0), m_sign(sign) {
 
 namespace {
 using cf = std::complex<float>;
-// The shader's operations, in its order: complex products as (a.x b.x - a.y b.y, a.x b.y + a.y b.x).
+// The shader's operations, in its order: complex products as (a.x b.x - a.y b.y, a.x b.y + a.y
+// b.x).
 cf cmul(cf a, cf b) {
     return {a.real() * b.real() - a.imag() * b.imag(), a.real() * b.imag() + a.imag() * b.real()};
 }
 } // namespace
 
 void FftPlan::execute(std::vector<std::complex<float>>& data) const {
-    if (int(data.size()) != m_size) throw std::invalid_argument("FFT data size does not match the plan");
+    if (int(data.size()) != m_size)
+        throw std::invalid_argument("FFT data size does not match the plan");
     const int M = m_size;
-    auto tw = [&](int k) { return cf(m_twiddles[2 * std::size_t(k)], m_twiddles[2 * std::size_t(k) + 1]); };
+    auto tw = [&](int k) {
+        return cf(m_twiddles[2 * std::size_t(k)], m_twiddles[2 * std::size_t(k) + 1]);
+    };
     const float s = float(m_sign); // sign * i multiplies as s * (-y, x)
     std::vector<cf> out(data.size());
     int Ns = 1;
@@ -44,7 +48,9 @@ void FftPlan::execute(std::vector<std::complex<float>>& data) const {
         for (int j = 0; j < q; ++j) {
             const int k = j % Ns;
             cf v[4];
-            for (int r = 0; r < R; ++r) v[r] = r == 0 ? data[std::size_t(j)] : cmul(data[std::size_t(j + r * q)], tw(k * r * stride));
+            for (int r = 0; r < R; ++r)
+                v[r] = r == 0 ? data[std::size_t(j)]
+                              : cmul(data[std::size_t(j + r * q)], tw(k * r * stride));
             const int d = (j - k) * R + k;
             if (R == 4) {
                 const cf t0 = v[0] + v[2], t1 = v[0] - v[2], t2 = v[1] + v[3];

@@ -6,10 +6,10 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <cstring>
 #include <map>
 #include <mutex>
 #include <tuple>
-#include <cstring>
 
 #include <fvr/core/errors.h>
 #include <fvr/core/render/slice_filter.h>
@@ -23,8 +23,9 @@ namespace fvr::gpu {
 using core::Kernel;
 
 namespace {
-constexpr GLenum kGpuMemoryInfoAvailableNvx = 0x9049; // GL_GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX (KiB)
-constexpr GLenum kTextureFreeMemoryAti = 0x87FC;      // GL_TEXTURE_FREE_MEMORY_ATI (KiB)
+constexpr GLenum kGpuMemoryInfoAvailableNvx =
+    0x9049; // GL_GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX (KiB)
+constexpr GLenum kTextureFreeMemoryAti = 0x87FC; // GL_TEXTURE_FREE_MEMORY_ATI (KiB)
 
 /** Spectrum textures shared by the renderers of one share group (keyed by spectrum, precision
  *  and share group; the entry keeps the spectrum alive so its address cannot be reused). */
@@ -62,9 +63,11 @@ GpuFourierRenderer::GpuFourierRenderer() {
     QOpenGLContext* ctx = QOpenGLContext::currentContext();
     if (!ctx) throw GlError("GPU renderer: no current OpenGL context");
     const auto fmt = ctx->format();
-    if (fmt.majorVersion() < 4 || (fmt.majorVersion() == 4 && fmt.minorVersion() < 3) || ctx->isOpenGLES())
+    if (fmt.majorVersion() < 4 || (fmt.majorVersion() == 4 && fmt.minorVersion() < 3) ||
+        ctx->isOpenGLES())
         throw GlError("GPU renderer: OpenGL 4.3 (compute shaders) needed, the context offers " +
-                      std::to_string(fmt.majorVersion()) + "." + std::to_string(fmt.minorVersion()));
+                      std::to_string(fmt.majorVersion()) + "." +
+                      std::to_string(fmt.minorVersion()));
     m_gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(ctx);
     if (!m_gl || !m_gl->initializeOpenGLFunctions())
         throw GlError("GPU renderer: could not resolve the OpenGL 4.3 core functions");
@@ -112,8 +115,8 @@ std::string GpuFourierRenderer::rendererInfo() const {
     return str(GL_RENDERER) + " (" + str(GL_VERSION) + ")";
 }
 
-unsigned GpuFourierRenderer::program(const std::string& path,
-                                     const std::vector<std::pair<std::string, std::string>>& defines) {
+unsigned GpuFourierRenderer::program(
+    const std::string& path, const std::vector<std::pair<std::string, std::string>>& defines) {
     std::string key = path;
     for (const auto& [n, v] : defines) key += "|" + n + "=" + v;
     if (auto it = m_programs.find(key); it != m_programs.end()) return it->second;
@@ -204,29 +207,34 @@ GLuint findSharedTexture(const TextureKey& key, std::size_t& bytes) {
 
 /** Throws GpuMemoryError when the texture exceeds the 3D texture limit or, where the driver
  *  reports it (NVIDIA, AMD), the free memory plus what the current texture frees. */
-void checkTextureFits(QOpenGLFunctions_4_3_Core* gl, const TextureShape& t, std::size_t currentBytes) {
+void checkTextureFits(QOpenGLFunctions_4_3_Core* gl, const TextureShape& t,
+                      std::size_t currentBytes) {
     GLint max3d = 0;
     gl->glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
     if (t.width > max3d || t.height > max3d || t.depth > max3d)
-        throw GpuMemoryError("spectrum texture " + std::to_string(t.width) + "x" + std::to_string(t.height) + "x" +
-                             std::to_string(t.depth) + " exceeds the GPU's 3D texture limit of " +
-                             std::to_string(max3d) + " per axis");
+        throw GpuMemoryError("spectrum texture " + std::to_string(t.width) + "x" +
+                             std::to_string(t.height) + "x" + std::to_string(t.depth) +
+                             " exceeds the GPU's 3D texture limit of " + std::to_string(max3d) +
+                             " per axis");
     // Free memory where the driver tells (NVIDIA, AMD); otherwise the upload's GL_OUT_OF_MEMORY.
     GLint freeKiB[4] = {0, 0, 0, 0};
     const QOpenGLContext* ctx = QOpenGLContext::currentContext();
-    if (ctx->hasExtension("GL_NVX_gpu_memory_info")) gl->glGetIntegerv(kGpuMemoryInfoAvailableNvx, freeKiB);
-    else if (ctx->hasExtension("GL_ATI_meminfo")) gl->glGetIntegerv(kTextureFreeMemoryAti, freeKiB);
-    while (gl->glGetError() != GL_NO_ERROR) {
-    }
+    if (ctx->hasExtension("GL_NVX_gpu_memory_info"))
+        gl->glGetIntegerv(kGpuMemoryInfoAvailableNvx, freeKiB);
+    else if (ctx->hasExtension("GL_ATI_meminfo"))
+        gl->glGetIntegerv(kTextureFreeMemoryAti, freeKiB);
+    while (gl->glGetError() != GL_NO_ERROR) {}
     const std::size_t freeBytes = std::size_t(freeKiB[0]) * 1024;
     if (freeBytes > 0 && t.bytes > freeBytes + currentBytes)
-        throw GpuMemoryError("spectrum needs " + std::to_string(t.bytes >> 20) + " MiB of GPU memory, " +
+        throw GpuMemoryError("spectrum needs " + std::to_string(t.bytes >> 20) +
+                             " MiB of GPU memory, " +
                              std::to_string((freeBytes + currentBytes) >> 20) +
                              " MiB are free (try fp16 storage or a smaller oversampling)");
 }
 
 /** Allocates the bound 3D texture and uploads the spectrum in slabs; returns the first GL error. */
-GLenum uploadSpectrum(QOpenGLFunctions_4_3_Core* gl, const core::Spectrum& s, const TextureShape& t) {
+GLenum uploadSpectrum(QOpenGLFunctions_4_3_Core* gl, const core::Spectrum& s,
+                      const TextureShape& t) {
     gl->glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
     gl->glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
     gl->glTexStorage3D(GL_TEXTURE_3D, 1, t.internal, t.width, t.height, t.depth);
@@ -236,11 +244,13 @@ GLenum uploadSpectrum(QOpenGLFunctions_4_3_Core* gl, const core::Spectrum& s, co
     gl->glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
     gl->glPixelStorei(GL_UNPACK_ROW_LENGTH, GLint(fht ? s.rowStride() : 0));
     // Upload in slabs so the driver never copies the whole volume at once.
-    const GLint slab = std::max<GLint>(1, GLint((64 << 20) / (std::size_t(s.rowStride()) * t.height * 4)));
+    const GLint slab =
+        std::max<GLint>(1, GLint((64 << 20) / (std::size_t(s.rowStride()) * t.height * 4)));
     for (GLint z = 0; z < t.depth && err == GL_NO_ERROR; z += slab) {
         const GLint n = std::min(slab, t.depth - z);
         const float* src = s.data.get() + std::size_t(z) * s.rowStride() * t.height;
-        gl->glTexSubImage3D(GL_TEXTURE_3D, 0, 0, 0, z, t.width, t.height, n, t.format, GL_FLOAT, src);
+        gl->glTexSubImage3D(GL_TEXTURE_3D, 0, 0, 0, z, t.width, t.height, n, t.format, GL_FLOAT,
+                            src);
         err = gl->glGetError();
     }
     gl->glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
@@ -255,17 +265,20 @@ void GpuFourierRenderer::adoptTexture(unsigned id, std::size_t bytes, const void
     for (int i = 0; i < 3; ++i) m_textureKey[i] = key[i];
 }
 
-void GpuFourierRenderer::setSpectrum(std::shared_ptr<const core::Spectrum> s, SpectrumPrecision precision) {
+void GpuFourierRenderer::setSpectrum(std::shared_ptr<const core::Spectrum> s,
+                                     SpectrumPrecision precision) {
     if (!s || !s->data) throw GlError("GPU renderer: no spectrum");
     const void* group = QOpenGLContext::currentContext()->shareGroup();
-    const TextureKey key{s.get(), reinterpret_cast<const void*>(std::uintptr_t(precision) + 1), group};
+    const TextureKey key{s.get(), reinterpret_cast<const void*>(std::uintptr_t(precision) + 1),
+                         group};
     const void* const keyParts[3] = {std::get<0>(key), std::get<1>(key), std::get<2>(key)};
     if (m_texture && TextureKey{m_textureKey[0], m_textureKey[1], m_textureKey[2]} == key) {
         m_spectrum = std::move(s);
         return; // already this texture
     }
     std::size_t sharedBytes = 0;
-    if (const GLuint sharedId = findSharedTexture(key, sharedBytes)) { // another renderer uploaded it
+    if (const GLuint sharedId =
+            findSharedTexture(key, sharedBytes)) { // another renderer uploaded it
         releaseTexture();
         adoptTexture(sharedId, sharedBytes, keyParts);
         m_spectrum = std::move(s);
@@ -281,8 +294,9 @@ void GpuFourierRenderer::setSpectrum(std::shared_ptr<const core::Spectrum> s, Sp
         m_texture = 0;
         m_spectrum.reset();
         if (err == GL_OUT_OF_MEMORY)
-            throw GpuMemoryError("spectrum texture of " + std::to_string(shape.bytes >> 20) +
-                                 " MiB does not fit in GPU memory (try fp16 storage or a smaller oversampling)");
+            throw GpuMemoryError(
+                "spectrum texture of " + std::to_string(shape.bytes >> 20) +
+                " MiB does not fit in GPU memory (try fp16 storage or a smaller oversampling)");
         throw GlError("spectrum upload failed: " + glErrorName(err));
     }
     {
@@ -320,8 +334,9 @@ void GpuFourierRenderer::ensureSize(int M) {
 
 void GpuFourierRenderer::bindKernel(unsigned prog, Kernel kernel, bool derivative) {
     // Kaiser-Bessel tables depend on the spectrum's oversampling: rebuild on a change.
-    const double sigma = m_spectrum ? core::kernelOversampling(m_spectrum->volumeDims, m_spectrum->padded)
-                                    : core::kDefaultKernelOversampling;
+    const double sigma = m_spectrum
+                             ? core::kernelOversampling(m_spectrum->volumeDims, m_spectrum->padded)
+                             : core::kDefaultKernelOversampling;
     auto it = m_kernelBuffers.find(kernel);
     if (m_tables.at(kernel)->oversampling() != sigma) {
         m_tables[kernel] = std::make_unique<core::KernelTable>(kernel, sigma);
@@ -339,19 +354,25 @@ void GpuFourierRenderer::bindKernel(unsigned prog, Kernel kernel, bool derivativ
         GLuint b = 0;
         m_gl->glGenBuffers(1, &b);
         m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
-        m_gl->glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(t.size() * sizeof(float)), t.data(), GL_STATIC_DRAW);
+        m_gl->glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(t.size() * sizeof(float)), t.data(),
+                           GL_STATIC_DRAW);
         return b;
     };
-    if (it == m_kernelBuffers.end()) it = m_kernelBuffers.emplace(kernel, upload(m_tables.at(kernel)->table())).first;
+    if (it == m_kernelBuffers.end())
+        it = m_kernelBuffers.emplace(kernel, upload(m_tables.at(kernel)->table())).first;
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, it->second);
     if (derivative) {
         auto d = m_kernelDerivativeBuffers.find(kernel);
         if (d == m_kernelDerivativeBuffers.end())
-            d = m_kernelDerivativeBuffers.emplace(kernel, upload(m_tables.at(kernel)->derivativeTable())).first;
+            d = m_kernelDerivativeBuffers
+                    .emplace(kernel, upload(m_tables.at(kernel)->derivativeTable()))
+                    .first;
         m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, d->second);
     }
-    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uKernelRes"), core::KernelTable::kResolution);
-    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uKernelFirst"), m_tables.at(kernel)->firstTapOffset());
+    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uKernelRes"),
+                      core::KernelTable::kResolution);
+    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uKernelFirst"),
+                      m_tables.at(kernel)->firstTapOffset());
 }
 
 void GpuFourierRenderer::setSliceUniforms(unsigned prog, const core::RenderParams& p) {
@@ -361,13 +382,15 @@ void GpuFourierRenderer::setSliceUniforms(unsigned prog, const core::RenderParam
     auto vec3 = [&](const char* n, const double* v) {
         m_gl->glUniform3f(loc(n), float(v[0]), float(v[1]), float(v[2]));
     };
-    m_gl->glUniform3i(loc("uPadded"), GLint(sp.padded[0]), GLint(sp.padded[1]), GLint(sp.padded[2]));
+    m_gl->glUniform3i(loc("uPadded"), GLint(sp.padded[0]), GLint(sp.padded[1]),
+                      GLint(sp.padded[2]));
     // The band cut of the band-limited model with a tolerance for float rounding; the other
     // models read every frequency.
     float half[3];
     for (int a = 0; a < 3; ++a) half[a] = sp.banded ? float(sp.half[a] + 1e-4) : 1e30f;
     m_gl->glUniform3f(loc("uHalf"), half[0], half[1], half[2]);
-    m_gl->glUniform1i(loc("uVoxelModel"), sp.banded ? 0 : (p.voxelModel == core::VoxelModel::Trilinear ? 1 : 2));
+    m_gl->glUniform1i(loc("uVoxelModel"),
+                      sp.banded ? 0 : (p.voxelModel == core::VoxelModel::Trilinear ? 1 : 2));
     m_gl->glUniform3i(loc("uAnti"), GLint(sp.anti[0]), GLint(sp.anti[1]), GLint(sp.anti[2]));
     vec3("uInvP", sp.invP);
     vec3("uA", sp.A);
@@ -400,9 +423,10 @@ void GpuFourierRenderer::setFilterUniforms(unsigned prog, const core::RenderPara
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, m_filterAxis);
 }
 
-void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel, const core::RenderParams* params) {
-    std::vector<std::pair<std::string, std::string>> defs{{"MAX_M", std::to_string(M)},
-                                                          {"WG_SIZE", std::to_string(workGroupSize(M))}};
+void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel,
+                                 const core::RenderParams* params) {
+    std::vector<std::pair<std::string, std::string>> defs{
+        {"MAX_M", std::to_string(M)}, {"WG_SIZE", std::to_string(workGroupSize(M))}};
     if (fused) {
         defs.emplace_back("FUSED_SLICE", "1");
         defs.emplace_back("TAPS", std::to_string(core::sliceTaps(kernel, params->depthCue > 0.0)));
@@ -423,11 +447,13 @@ void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel,
 
 void GpuFourierRenderer::runCols(int M, const char* outputMode, const core::RenderParams* params,
                                  const core::DisplayWindow* display) {
-    std::vector<std::pair<std::string, std::string>> defs{{"MAX_M", std::to_string(M)},
-                                                          {"WG_SIZE", std::to_string(workGroupSize(M))},
-                                                          {outputMode, "1"}};
+    std::vector<std::pair<std::string, std::string>> defs{
+        {"MAX_M", std::to_string(M)},
+        {"WG_SIZE", std::to_string(workGroupSize(M))},
+        {outputMode, "1"}};
     const bool real = std::strcmp(outputMode, "OUTPUT_REAL") == 0;
-    if (display && !real) throw std::logic_error("runCols: the display mapping fuses into OUTPUT_REAL only");
+    if (display && !real)
+        throw std::logic_error("runCols: the display mapping fuses into OUTPUT_REAL only");
     if (display) defs.emplace_back("FUSED_DISPLAY", "1");
     const GLuint prog = program("fft/cols.comp", defs);
     m_gl->glUseProgram(prog);
@@ -437,7 +463,8 @@ void GpuFourierRenderer::runCols(int M, const char* outputMode, const core::Rend
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_bufB);
     const bool complexOut = std::strcmp(outputMode, "OUTPUT_COMPLEX") == 0;
     const bool hartleyOut = std::strcmp(outputMode, "OUTPUT_HARTLEY") == 0;
-    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, complexOut ? m_bufA : (hartleyOut ? m_hartleyT : m_image));
+    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0,
+                           complexOut ? m_bufA : (hartleyOut ? m_hartleyT : m_image));
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, m_twiddles);
     m_gl->glDispatchCompute(GLuint(M), 1, 1);
     m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
@@ -447,10 +474,12 @@ void GpuFourierRenderer::setClipUniforms(unsigned prog, const core::RenderParams
     auto loc = [&](const char* n) { return m_gl->glGetUniformLocation(prog, n); };
     const bool clip = p && p->clipToVolume && m_spectrum;
     m_gl->glUniform1i(loc("uClip"), clip ? 1 : 0);
-    m_gl->glUniform1i(loc("uNonNegative"), p && p->nonNegative && m_spectrum && m_spectrum->nonNegative ? 1 : 0);
+    m_gl->glUniform1i(loc("uNonNegative"),
+                      p && p->nonNegative && m_spectrum && m_spectrum->nonNegative ? 1 : 0);
     if (!clip) return;
     const core::Spectrum& s = *m_spectrum;
-    const core::Vec3 half = core::supportHalfExtents(s.volumeDims, s.spacing, core::voxelModelReach(p->voxelModel));
+    const core::Vec3 half =
+        core::supportHalfExtents(s.volumeDims, s.spacing, core::voxelModelReach(p->voxelModel));
     m_gl->glUniform3f(loc("uBoxHalf"), float(half[0]), float(half[1]), float(half[2]));
     m_gl->glUniform3f(loc("uViewD"), float(p->view.d[0]), float(p->view.d[1]), float(p->view.d[2]));
     m_gl->glUniform3f(loc("uViewR"), float(p->view.r[0]), float(p->view.r[1]), float(p->view.r[2]));
@@ -463,15 +492,18 @@ void GpuFourierRenderer::setDisplayUniforms(unsigned prog, const core::DisplayWi
     m_gl->glUniform1f(loc("uLow"), float(w.low));
     m_gl->glUniform1f(loc("uHigh"), float(w.high > w.low ? w.high : w.low + 1.0));
     m_gl->glUniform1i(loc("uInvert"), w.invert ? 1 : 0);
-    m_gl->glUniform1f(loc("uMuWater"), float(w.transmission.active() ? w.transmission.muWaterPerMm : 0.0));
+    m_gl->glUniform1f(loc("uMuWater"),
+                      float(w.transmission.active() ? w.transmission.muWaterPerMm : 0.0));
     m_gl->glUniform1f(loc("uExposure"), float(w.transmission.exposure));
     m_gl->glBindImageTexture(0, m_display, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA8);
 }
 
-void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* params, const core::DisplayWindow* display) {
-    const GLuint prog = program("fft/hartley_correct.comp",
-                                display ? std::vector<std::pair<std::string, std::string>>{{"FUSED_DISPLAY", "1"}}
-                                        : std::vector<std::pair<std::string, std::string>>{});
+void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* params,
+                                              const core::DisplayWindow* display) {
+    const GLuint prog =
+        program("fft/hartley_correct.comp",
+                display ? std::vector<std::pair<std::string, std::string>>{{"FUSED_DISPLAY", "1"}}
+                        : std::vector<std::pair<std::string, std::string>>{});
     m_gl->glUseProgram(prog);
     m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
     setClipUniforms(prog, params);
@@ -479,11 +511,13 @@ void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* p
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_hartleyT);
     m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_image);
     m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
-    m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT |
-                          (display ? GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT : 0));
+    m_gl->glMemoryBarrier(
+        GL_SHADER_STORAGE_BARRIER_BIT |
+        (display ? GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT : 0));
 }
 
-void GpuFourierRenderer::renderToGpu(const core::RenderParams& p, const core::DisplayWindow* display) {
+void GpuFourierRenderer::renderToGpu(const core::RenderParams& p,
+                                     const core::DisplayWindow* display) {
     core::validateRenderParams(p);
     if (!m_spectrum) throw GlError("GPU renderer: no spectrum uploaded");
     core::checkKernelMatchesSpectrum(*m_spectrum, p.kernel);
@@ -493,7 +527,8 @@ void GpuFourierRenderer::renderToGpu(const core::RenderParams& p, const core::Di
     const bool fht = m_spectrum->kind == core::TransformKind::Fht;
     m_gl->glQueryCounter(m_queries[0], GL_TIMESTAMP);
     if (!m_fuse) {
-        std::vector<std::pair<std::string, std::string>> defs{{"TAPS", std::to_string(core::sliceTaps(p.kernel, p.depthCue > 0.0))}};
+        std::vector<std::pair<std::string, std::string>> defs{
+            {"TAPS", std::to_string(core::sliceTaps(p.kernel, p.depthCue > 0.0))}};
         if (fht) defs.emplace_back("SPECTRUM_FHT", "1");
         if (p.depthCue > 0.0) defs.emplace_back("DEPTH_CUE", "1");
         const GLuint prog = program("slice/slice.comp", defs);
@@ -531,18 +566,21 @@ core::ProjectionImage GpuFourierRenderer::readback() const {
     img.pixels.resize(std::size_t(img.size) * img.size);
     m_gl->glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_image);
-    m_gl->glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(img.pixels.size() * 4), img.pixels.data());
+    m_gl->glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(img.pixels.size() * 4),
+                             img.pixels.data());
     return img;
 }
 
-core::ProjectionImage GpuFourierRenderer::render(const core::RenderParams& p, core::StageTimes* times) {
+core::ProjectionImage GpuFourierRenderer::render(const core::RenderParams& p,
+                                                 core::StageTimes* times) {
     GpuStageTimes t;
     auto img = renderImage(p, times ? &t : nullptr);
     if (times) *times = {t.sliceMs, t.inverseMs + t.displayMs, t.totalMs};
     return img;
 }
 
-core::ProjectionImage GpuFourierRenderer::renderImage(const core::RenderParams& p, GpuStageTimes* times) {
+core::ProjectionImage GpuFourierRenderer::renderImage(const core::RenderParams& p,
+                                                      GpuStageTimes* times) {
     renderToGpu(p);
     auto img = readback();
     if (times) *times = lastTimes();
@@ -591,9 +629,10 @@ GpuStageTimes GpuFourierRenderer::lastTimes() {
     return m_times;
 }
 
-std::vector<std::complex<float>> GpuFourierRenderer::inverseFft2D(const std::vector<std::complex<float>>& data,
-                                                                 int M) {
-    if (data.size() != std::size_t(M) * M) throw core::SettingsError("inverseFft2D: data size is not M*M");
+std::vector<std::complex<float>> GpuFourierRenderer::inverseFft2D(
+    const std::vector<std::complex<float>>& data, int M) {
+    if (data.size() != std::size_t(M) * M)
+        throw core::SettingsError("inverseFft2D: data size is not M*M");
     ensureSize(M);
     m_displayed.reset();
     m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
@@ -608,7 +647,8 @@ std::vector<std::complex<float>> GpuFourierRenderer::inverseFft2D(const std::vec
 }
 
 std::vector<float> GpuFourierRenderer::inverseFht2D(const std::vector<float>& data, int M) {
-    if (data.size() != std::size_t(M) * M) throw core::SettingsError("inverseFht2D: data size is not M*M");
+    if (data.size() != std::size_t(M) * M)
+        throw core::SettingsError("inverseFht2D: data size is not M*M");
     ensureSize(M);
     m_displayed.reset();
     std::vector<std::complex<float>> in(data.begin(), data.end());
@@ -630,17 +670,18 @@ int GpuFourierRenderer::compileAll(int M) {
     for (int taps : {1, 2, 3, 4, 6})
         for (bool fht : {false, true})
             for (bool depth : {false, true}) {
-            if (depth != (taps == 3) && taps <= 3) continue; // nearest: no derivative; linear + depth: 3 taps
-            std::vector<std::pair<std::string, std::string>> d{{"TAPS", std::to_string(taps)}};
-            if (fht) d.emplace_back("SPECTRUM_FHT", "1");
-            if (depth) d.emplace_back("DEPTH_CUE", "1");
-            program("slice/slice.comp", d), ++count;
-            auto r = d;
-            r.insert(r.begin(), {{"MAX_M", mm}, {"WG_SIZE", wg}});
-            r.emplace_back("FUSED_SLICE", "1");
-            if (fht) r.emplace_back("HARTLEY_ROWS", "1");
-            program("fft/rows.comp", r), ++count;
-        }
+                if (depth != (taps == 3) && taps <= 3)
+                    continue; // nearest: no derivative; linear + depth: 3 taps
+                std::vector<std::pair<std::string, std::string>> d{{"TAPS", std::to_string(taps)}};
+                if (fht) d.emplace_back("SPECTRUM_FHT", "1");
+                if (depth) d.emplace_back("DEPTH_CUE", "1");
+                program("slice/slice.comp", d), ++count;
+                auto r = d;
+                r.insert(r.begin(), {{"MAX_M", mm}, {"WG_SIZE", wg}});
+                r.emplace_back("FUSED_SLICE", "1");
+                if (fht) r.emplace_back("HARTLEY_ROWS", "1");
+                program("fft/rows.comp", r), ++count;
+            }
     for (bool hartley : {false, true}) {
         std::vector<std::pair<std::string, std::string>> r{{"MAX_M", mm}, {"WG_SIZE", wg}};
         if (hartley) r.emplace_back("HARTLEY_ROWS", "1");
@@ -648,7 +689,9 @@ int GpuFourierRenderer::compileAll(int M) {
     }
     for (const char* mode : {"OUTPUT_REAL", "OUTPUT_HARTLEY", "OUTPUT_COMPLEX"})
         program("fft/cols.comp", {{"MAX_M", mm}, {"WG_SIZE", wg}, {mode, "1"}}), ++count;
-    program("fft/cols.comp", {{"MAX_M", mm}, {"WG_SIZE", wg}, {"OUTPUT_REAL", "1"}, {"FUSED_DISPLAY", "1"}}), ++count;
+    program("fft/cols.comp",
+            {{"MAX_M", mm}, {"WG_SIZE", wg}, {"OUTPUT_REAL", "1"}, {"FUSED_DISPLAY", "1"}}),
+        ++count;
     program("fft/hartley_correct.comp", {}), ++count;
     program("fft/hartley_correct.comp", {{"FUSED_DISPLAY", "1"}}), ++count;
     program("display/display.comp", {}), ++count;

@@ -37,7 +37,8 @@ OffscreenContext::~OffscreenContext() {
 }
 
 void OffscreenContext::makeCurrent() {
-    if (!m_context->makeCurrent(m_surface.get())) throw GlError("OpenGL: could not make the context current");
+    if (!m_context->makeCurrent(m_surface.get()))
+        throw GlError("OpenGL: could not make the context current");
 }
 
 } // namespace fvr::gpu

@@ -12,15 +12,17 @@
 namespace fvr::gpu {
 
 namespace {
-void expand(const std::string& path, const ShaderSource::Reader& reader, std::set<std::string>& done,
-            std::vector<std::string>& stack, std::string& out,
+void expand(const std::string& path, const ShaderSource::Reader& reader,
+            std::set<std::string>& done, std::vector<std::string>& stack, std::string& out,
             std::vector<std::pair<std::string, int>>& lines) {
     for (const auto& s : stack)
         if (s == path) throw ShaderError(path + ": include cycle");
     if (done.count(path)) return; // each file once
     const auto text = reader(path);
-    if (!text) throw ShaderError(stack.empty() ? path + ": shader not found"
-                                               : stack.back() + ": included file '" + path + "' not found");
+    if (!text)
+        throw ShaderError(stack.empty()
+                              ? path + ": shader not found"
+                              : stack.back() + ": included file '" + path + "' not found");
     done.insert(path);
     stack.push_back(path);
     std::istringstream in(*text);
@@ -42,7 +44,8 @@ void expand(const std::string& path, const ShaderSource::Reader& reader, std::se
 }
 } // namespace
 
-ShaderSource ShaderSource::assemble(const std::string& path, const Defines& defines, const Reader& reader) {
+ShaderSource ShaderSource::assemble(const std::string& path, const Defines& defines,
+                                    const Reader& reader) {
     ShaderSource s;
     s.m_path = path;
     std::string body;

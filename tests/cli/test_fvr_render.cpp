@@ -1,14 +1,14 @@
 // fvr-render end to end: outputs, JSON, exit codes and messages for bad input.
 #include <sys/wait.h>
 
+#include <cmath>
+#include <complex>
 #include <cstdio>
 #include <fstream>
 #include <iterator>
 #include <limits>
 #include <map>
 #include <sstream>
-#include <cmath>
-#include <complex>
 #include <string>
 
 #include <unistd.h>
@@ -21,9 +21,9 @@
 #include <fvr/core/io/image_io.h>
 #include <fvr/core/io/volume_io.h>
 #include <fvr/core/render/cpu_renderer.h>
-#include <fvr/core/xray/phantom.h>
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/render/voxel_model.h>
+#include <fvr/core/xray/phantom.h>
 #include <fvr/core/xray/xray.h>
 
 #include "image_metrics.h"
@@ -37,7 +37,7 @@ using Json = nlohmann::json;
 
 struct Result {
     int status = -1;
-    std::string out;    // stdout
+    std::string out; // stdout
     std::string output; // stdout, then stderr
 };
 
@@ -51,8 +51,10 @@ std::string readText(const std::string& path) {
 /** Runs fvr-render with `args`; `envPrefix` (e.g. "env -u DISPLAY") goes before the binary. */
 Result run(const std::string& args, const std::string& envPrefix = {}) {
     static int calls = 0;
-    const std::string err = tmp("stderr_" + std::to_string(getpid()) + "_" + std::to_string(++calls) + ".txt");
-    const std::string cmd = envPrefix + " " + std::string(FVR_RENDER_EXE) + " " + args + " 2>" + err;
+    const std::string err =
+        tmp("stderr_" + std::to_string(getpid()) + "_" + std::to_string(++calls) + ".txt");
+    const std::string cmd =
+        envPrefix + " " + std::string(FVR_RENDER_EXE) + " " + args + " 2>" + err;
     Result r;
     FILE* p = popen(cmd.c_str(), "r");
     if (!p) return r;
@@ -88,7 +90,8 @@ Json jsonFile(const std::string& path) {
 
 /** The slice filter applied in double to an M x M image of pixel size d (mm): 2D DFT (FFTW),
  *  times H(|(m, n)| / (M d)) with (m, n) the signed frequency indices, inverse DFT. */
-std::vector<float> filterInDouble(const std::vector<float>& image, int M, double d, const SliceFilter& filter) {
+std::vector<float> filterInDouble(const std::vector<float>& image, int M, double d,
+                                  const SliceFilter& filter) {
     auto* buf = static_cast<fftw_complex*>(fftw_malloc(sizeof(fftw_complex) * std::size_t(M) * M));
     const fftw_plan fwd = fftw_plan_dft_2d(M, M, buf, buf, FFTW_FORWARD, FFTW_ESTIMATE);
     const fftw_plan inv = fftw_plan_dft_2d(M, M, buf, buf, FFTW_BACKWARD, FFTW_ESTIMATE);
@@ -118,7 +121,8 @@ std::vector<float> filterInDouble(const std::vector<float>& image, int M, double
 TEST(FvrRender, PhantomNpyMatchesAnalyticProjection) {
     const std::string out = tmp("cli_phantom.npy");
     const Result r = run("phantom:shepp-logan:64 --dir 0.35,0.2,0.92 --up 0,-1,0 --size 128 "
-                         "--kernel catmull-rom --oversampling 2 --values mu --out " + out);
+                         "--kernel catmull-rom --oversampling 2 --values mu --out " +
+                         out);
     ASSERT_EQ(r.status, 0) << r.output;
     std::vector<std::int64_t> shape;
     const auto pixels = readNpy(out, shape);
@@ -126,8 +130,8 @@ TEST(FvrRender, PhantomNpyMatchesAnalyticProjection) {
     // Independent oracle: exact line integrals of the same ellipsoids at the same pixels.
     const Volume v = makeSheppLoganVolume(64);
     const auto truth = EllipsoidPhantom::sheppLogan3D(256.0).project(
-        ViewFrame::fromDirUp({0.35, 0.2, 0.92}, {0, -1, 0}), {128, defaultPixelSize(v.dims, v.spacing, 128)},
-        ValueMapping::Mu, v.dims, v.spacing);
+        ViewFrame::fromDirUp({0.35, 0.2, 0.92}, {0, -1, 0}),
+        {128, defaultPixelSize(v.dims, v.spacing, 128)}, ValueMapping::Mu, v.dims, v.spacing);
     EXPECT_GT(fvr::test::compare(pixels, truth.pixels).psnr, 38.0);
 }
 
@@ -140,8 +144,10 @@ TEST(FvrRender, WritesPfmAndPng) {
         std::ifstream in(out, std::ios::binary);
         std::string head(8, '\0');
         in.read(head.data(), 8);
-        if (std::string(ext) == ".pfm") EXPECT_EQ(head.substr(0, 3), "Pf\n");
-        else EXPECT_EQ(head, std::string("\x89PNG\r\n\x1a\n", 8));
+        if (std::string(ext) == ".pfm")
+            EXPECT_EQ(head.substr(0, 3), "Pf\n");
+        else
+            EXPECT_EQ(head, std::string("\x89PNG\r\n\x1a\n", 8));
     }
 }
 
@@ -157,7 +163,8 @@ TEST(FvrRender, InfoJsonForPhantomAndSharedVolume) {
     ASSERT_EQ(r.status, 0) << r.output;
     j = stdoutJson(r);
     EXPECT_EQ(j["dims"], Json::parse("[64, 64, 93]")) << r.output;
-    EXPECT_EQ(j["spacing_mm"].get<std::vector<double>>(), (std::vector<double>{3.2, 3.2, 1.5})) << r.output;
+    EXPECT_EQ(j["spacing_mm"].get<std::vector<double>>(), (std::vector<double>{3.2, 3.2, 1.5}))
+        << r.output;
 }
 
 TEST(FvrRender, BenchPrintsStageJson) {
@@ -208,13 +215,15 @@ TEST(FvrRender, UnwritableOutputExitsOne) {
 }
 
 TEST(FvrRender, GpuBackendMatchesCpuOrFallsBackWithANotice) {
-    const std::string args = "phantom:shepp-logan:48 --dir 0.3,0.5,0.8 --size 128 --kernel sinc4 --oversampling 1.5 ";
+    const std::string args =
+        "phantom:shepp-logan:48 --dir 0.3,0.5,0.8 --size 128 --kernel sinc4 --oversampling 1.5 ";
     // Without any display the GPU cannot be used here: the CPU renders and says so.
     const Result noDisplay = run("--backend gpu " + args + "--out " + tmp("nogpu.npy"),
                                  "env -u DISPLAY -u QT_QPA_PLATFORM -u WAYLAND_DISPLAY");
     EXPECT_EQ(noDisplay.status, 0) << noDisplay.output;
     EXPECT_NE(noDisplay.output.find("rendering on the CPU"), std::string::npos) << noDisplay.output;
-    if (!std::getenv("DISPLAY")) GTEST_SKIP() << "no X display (make test runs the suite under xvfb-run)";
+    if (!std::getenv("DISPLAY"))
+        GTEST_SKIP() << "no X display (make test runs the suite under xvfb-run)";
     Result r = run("--backend gpu " + args + "--out " + tmp("gpu.npy"));
     ASSERT_EQ(r.status, 0) << r.output;
     ASSERT_NE(r.output.find("gpu: "), std::string::npos) << "GPU backend not used: " << r.output;
@@ -225,12 +234,15 @@ TEST(FvrRender, GpuBackendMatchesCpuOrFallsBackWithANotice) {
     const auto c = readNpy(tmp("cpu.npy"), shape);
     EXPECT_GT(fvr::test::compare(g, c).psnr, 90.0);
     // Depth cue and slice filter reach both renderers the same way.
-    const std::string xray = "--values mu --depth-cue 0.6 --sharpen 1 --sharpen-radius 2 --band-limit 0.1 ";
+    const std::string xray =
+        "--values mu --depth-cue 0.6 --sharpen 1 --sharpen-radius 2 --band-limit 0.1 ";
     r = run("--backend gpu " + args + xray + "--out " + tmp("gpux.npy"));
     ASSERT_EQ(r.status, 0) << r.output;
     ASSERT_NE(r.output.find("gpu: "), std::string::npos) << "GPU backend not used: " << r.output;
     ASSERT_EQ(run("--backend cpu " + args + xray + "--out " + tmp("cpux.npy")).status, 0);
-    EXPECT_GT(fvr::test::compare(readNpy(tmp("gpux.npy"), shape), readNpy(tmp("cpux.npy"), shape)).psnr, 90.0);
+    EXPECT_GT(
+        fvr::test::compare(readNpy(tmp("gpux.npy"), shape), readNpy(tmp("cpux.npy"), shape)).psnr,
+        90.0);
 }
 
 TEST(FvrRender, DicomFolderInfoListsSeriesWithWarnings) {
@@ -275,7 +287,8 @@ TEST(FvrRender, DicomPatientViewsFollowTheDirectionCosines) {
 }
 
 TEST(FvrRender, SweepStackEqualsSingleViewsAndSidecarRecordsThem) {
-    const std::string common = "phantom:shepp-logan:40 --size 128 --kernel catmull-rom --values mu ";
+    const std::string common =
+        "phantom:shepp-logan:40 --size 128 --kernel catmull-rom --values mu ";
     Result r = run(common + "--sweep 4 --axis 0,1,0 --out " + tmp("sweep.npy"));
     ASSERT_EQ(r.status, 0) << r.output;
     std::vector<std::int64_t> shape;
@@ -303,7 +316,8 @@ TEST(FvrRender, ViewsFileNumberedOutputsAndErrors) {
         f << "# dir, up\n0 0 1  0 -1 0\n1,0,0, 0,0,1\n\n0 1 0 0 0 1  # lateral\n";
     }
     const std::string out = tmp("v.pfm");
-    Result r = run("phantom:shepp-logan:32 --size 128 --views " + tmp("views.txt") + " --out " + out);
+    Result r =
+        run("phantom:shepp-logan:32 --size 128 --views " + tmp("views.txt") + " --out " + out);
     ASSERT_EQ(r.status, 0) << r.output;
     for (int i = 0; i < 3; ++i)
         EXPECT_TRUE(std::filesystem::exists(tmp("v_000" + std::to_string(i) + ".pfm"))) << i;
@@ -314,7 +328,8 @@ TEST(FvrRender, ViewsFileNumberedOutputsAndErrors) {
     r = run("phantom:shepp-logan:32 --size 128 --views " + tmp("badviews.txt") + " --out " + out);
     EXPECT_EQ(r.status, 2) << r.output;
     EXPECT_NE(r.output.find("badviews.txt:2"), std::string::npos) << r.output;
-    r = run("phantom:shepp-logan:32 --size 128 --sweep 3 --views " + tmp("views.txt") + " --out " + out);
+    r = run("phantom:shepp-logan:32 --size 128 --sweep 3 --views " + tmp("views.txt") + " --out " +
+            out);
     EXPECT_EQ(r.status, 2) << r.output;
     r = run("phantom:shepp-logan:32 --size 128 --beer-lambert --out " + out);
     EXPECT_EQ(r.status, 2) << r.output;
@@ -329,7 +344,8 @@ TEST(FvrRender, BeerLambertIsExpOfTheLineIntegrals) {
     const auto mu = readNpy(tmp("mu.npy"), shape);
     const auto bl = readNpy(tmp("bl.npy"), shape);
     double maxErr = 0;
-    for (std::size_t i = 0; i < mu.size(); ++i) maxErr = std::max(maxErr, std::abs(bl[i] - std::exp(-0.02 * mu[i])));
+    for (std::size_t i = 0; i < mu.size(); ++i)
+        maxErr = std::max(maxErr, std::abs(bl[i] - std::exp(-0.02 * mu[i])));
     EXPECT_LT(maxErr, 1e-6);
 }
 
@@ -342,17 +358,22 @@ TEST(FvrRender, BenchComparesWithRayCasting) {
 }
 
 TEST(FvrRender, KaiserBesselDeapodizedBeatsThePapersSetting) {
-    const std::string common = "phantom:shepp-logan:64 --dir 0.35,0.2,0.92 --up 0,-1,0 --size 128 --values mu ";
-    ASSERT_EQ(run(common + "--kernel kaiser-bessel --oversampling 1.25 --out " + tmp("kb.npy")).status, 0);
+    const std::string common =
+        "phantom:shepp-logan:64 --dir 0.35,0.2,0.92 --up 0,-1,0 --size 128 --values mu ";
+    ASSERT_EQ(
+        run(common + "--kernel kaiser-bessel --oversampling 1.25 --out " + tmp("kb.npy")).status,
+        0);
     ASSERT_EQ(run(common + "--kernel linear --out " + tmp("tl.npy")).status, 0);
     std::vector<std::int64_t> shape;
     const Volume v = makeSheppLoganVolume(64);
     const auto truth = EllipsoidPhantom::sheppLogan3D(256.0).project(
-        ViewFrame::fromDirUp({0.35, 0.2, 0.92}, {0, -1, 0}), {128, defaultPixelSize(v.dims, v.spacing, 128)},
-        ValueMapping::Mu, v.dims, v.spacing);
+        ViewFrame::fromDirUp({0.35, 0.2, 0.92}, {0, -1, 0}),
+        {128, defaultPixelSize(v.dims, v.spacing, 128)}, ValueMapping::Mu, v.dims, v.spacing);
     const double kb = fvr::test::compare(readNpy(tmp("kb.npy"), shape), truth.pixels).psnr;
     const double tl = fvr::test::compare(readNpy(tmp("tl.npy"), shape), truth.pixels).psnr;
-    std::printf("[cli] kaiser-bessel4 oversampling 1.25 deapodized %.2f dB, trilinear oversampling 1 %.2f dB\n", kb, tl);
+    std::printf("[cli] kaiser-bessel4 oversampling 1.25 deapodized %.2f dB, trilinear oversampling "
+                "1 %.2f dB\n",
+                kb, tl);
     EXPECT_GT(kb, tl + 12.0);
     EXPECT_EQ(jsonFile(tmp("kb.npy") + ".json")["settings"]["deapodized"], true);
     const Result bad = run(common + "--kernel linear --kernel-width 6 --out " + tmp("x.npy"));
@@ -374,7 +395,8 @@ TEST(FvrRender, WritesDicomThatLoadsBackAsTheProjection) {
 TEST(FvrRender, BeerLambertEnergyAndExposureScaleTheTransmission) {
     const std::string common = "phantom:shepp-logan:32 --size 128 --values mu --dir 0.2,0.3,0.9 ";
     ASSERT_EQ(run(common + "--out " + tmp("xl.npy")).status, 0);
-    const Result r = run(common + "--beer-lambert --energy 60 --exposure 1.5 --out " + tmp("xbl.npy"));
+    const Result r =
+        run(common + "--beer-lambert --energy 60 --exposure 1.5 --out " + tmp("xbl.npy"));
     ASSERT_EQ(r.status, 0) << r.output;
     std::vector<std::int64_t> shape;
     const auto L = readNpy(tmp("xl.npy"), shape);
@@ -387,16 +409,20 @@ TEST(FvrRender, BeerLambertEnergyAndExposureScaleTheTransmission) {
         maxRel = std::max(maxRel, std::abs(bl[i] - expect) / expect);
         minI = std::min(minI, double(bl[i]));
     }
-    std::printf("[cli] beer-lambert 60 keV (mu_water %.5f/mm) exposure 1.5: max relative error %.2e, min %.4f\n", mu,
-                maxRel, minI);
+    std::printf("[cli] beer-lambert 60 keV (mu_water %.5f/mm) exposure 1.5: max relative error "
+                "%.2e, min %.4f\n",
+                mu, maxRel, minI);
     EXPECT_LT(maxRel, 1e-5);
-    EXPECT_LT(minI, 1.0); // the phantom attenuates: the test sees the exponential, not just the exposure
+    EXPECT_LT(minI,
+              1.0); // the phantom attenuates: the test sees the exponential, not just the exposure
     const Json out = jsonFile(tmp("xbl.npy") + ".json")["output"];
     EXPECT_EQ(out["mu_water_per_mm"].get<double>(), mu) << out; // full precision
     EXPECT_EQ(out["energy_kev"], 60.0) << out;
     EXPECT_EQ(out["exposure"], 1.5) << out;
     // mu-bone is an attenuation mapping too.
-    const Result bone = run("phantom:shepp-logan:32 --size 128 --values mu-bone --beer-lambert --out " + tmp("xbb.npy"));
+    const Result bone =
+        run("phantom:shepp-logan:32 --size 128 --values mu-bone --beer-lambert --out " +
+            tmp("xbb.npy"));
     EXPECT_EQ(bone.status, 0) << bone.output;
 }
 
@@ -420,8 +446,10 @@ TEST(FvrRender, DepthCueMatchesTheAnalyticDepthWeightedProjection) {
     const double psnr = fvr::test::compare(cued, truth.pixels).psnr;
     const double vsPlainTruth = fvr::test::compare(cued, plainTruth.pixels).psnr;
     const double vsPlainRun = fvr::test::compare(cued, plain).psnr;
-    std::printf("[cli] depth cue 0.6: %.2f dB vs the depth-weighted oracle, %.2f dB vs the plain oracle, "
-                "%.2f dB vs the run without depth cue\n", psnr, vsPlainTruth, vsPlainRun);
+    std::printf(
+        "[cli] depth cue 0.6: %.2f dB vs the depth-weighted oracle, %.2f dB vs the plain oracle, "
+        "%.2f dB vs the run without depth cue\n",
+        psnr, vsPlainTruth, vsPlainRun);
     EXPECT_GT(psnr, 37.0); // measured 40.3 dB
     EXPECT_LT(vsPlainRun, 40.0); // the depth cue changes the image
     EXPECT_GT(psnr, vsPlainTruth + 10.0);
@@ -431,8 +459,9 @@ TEST(FvrRender, DepthCueMatchesTheAnalyticDepthWeightedProjection) {
 TEST(FvrRender, SliceFilterEqualsTheFilterAppliedInDouble) {
     // Pixel 1 mm: the slice reaches 0.5 lp/mm; the volume (2 mm voxels) holds up to 0.25 lp/mm per
     // axis, about 0.35 along an oblique slice, so the band limit at 0.3 lp/mm acts as well.
-    const std::string common = "phantom:shepp-logan:128 --dir 0.35,0.2,0.92 --up 0,-1,0 --size 256 --pixel-size 1 "
-                               "--values mu ";
+    const std::string common =
+        "phantom:shepp-logan:128 --dir 0.35,0.2,0.92 --up 0,-1,0 --size 256 --pixel-size 1 "
+        "--values mu ";
     Result r = run(common + "--out " + tmp("unf.npy"));
     ASSERT_EQ(r.status, 0) << r.output;
     r = run(common + "--sharpen 1 --sharpen-radius 2 --band-limit 0.3 --out " + tmp("filt.npy"));
@@ -449,11 +478,15 @@ TEST(FvrRender, SliceFilterEqualsTheFilterAppliedInDouble) {
     const auto c = fvr::test::compare(filtered, oracle);
     const auto change = fvr::test::compare(unfiltered, oracle);
     std::printf("[cli] slice filter vs FFTW double: max abs error %.3g (peak %.4g), %.2f dB; "
-                "filter's own change %.3g max, %.2f dB\n", c.maxAbsError, c.peak, c.psnr, change.maxAbsError, change.psnr);
+                "filter's own change %.3g max, %.2f dB\n",
+                c.maxAbsError, c.peak, c.psnr, change.maxAbsError, change.psnr);
     EXPECT_LT(c.maxAbsError, 1e-5 * c.peak); // measured 4.6e-7 x peak (float rendering)
-    EXPECT_GT(change.maxAbsError, 0.02 * c.peak); // the filter does something measurable (6.6% of the peak)
+    EXPECT_GT(change.maxAbsError,
+              0.02 * c.peak); // the filter does something measurable (6.6% of the peak)
     const Json filter = jsonFile(tmp("filt.npy") + ".json")["settings"]["filter"];
-    EXPECT_EQ(filter, Json::parse(R"({"sharpen": 1.0, "sharpen_radius_mm": 2.0, "band_limit_lp_per_mm": 0.3})"))
+    EXPECT_EQ(
+        filter,
+        Json::parse(R"({"sharpen": 1.0, "sharpen_radius_mm": 2.0, "band_limit_lp_per_mm": 0.3})"))
         << filter;
 }
 
@@ -495,7 +528,8 @@ TEST(FvrRender, MuBoneIntegratesMoreThanMu) {
     double mu = 0, bone = 0;
     for (float v : readNpy(tmp("vmu.npy"), shape)) mu += v;
     for (float v : readNpy(tmp("vbone.npy"), shape)) bone += v;
-    std::printf("[cli] total of the projection: mu %.1f, mu-bone %.1f (ratio %.3f)\n", mu, bone, bone / mu);
+    std::printf("[cli] total of the projection: mu %.1f, mu-bone %.1f (ratio %.3f)\n", mu, bone,
+                bone / mu);
     // The skull (+1000 HU) counts (1.1 + 2 x 0.9) / 2 = 1.45 times as much, the soft tissue (below
     // the +100 HU knee) the same: measured 1.043 times in total.
     EXPECT_GT(bone, 1.02 * mu);
@@ -514,15 +548,18 @@ TEST(FvrRender, BenchPassesTheDepthCueToRayCastingAndNotesTheFilter) {
     r = run("phantom:shepp-logan:32 --size 128 --bench 3 --sharpen 1");
     ASSERT_EQ(r.status, 0) << r.output;
     j = stdoutJson(r);
-    EXPECT_EQ(j.value("note", "").rfind("the spatial projector cannot apply the slice filter", 0), 0u) << r.output;
+    EXPECT_EQ(j.value("note", "").rfind("the spatial projector cannot apply the slice filter", 0),
+              0u)
+        << r.output;
 }
 
 TEST(FvrRender, ClipsOutsideTheVolumeUnlessNoClip) {
     // A wide field (3 mm pixels, 384 mm) around a 256 mm phantom: the kernel's ghost copies land
     // in the image outside the volume's shadow. By default those pixels are 0 (as in the exact
     // projection); --no-clip keeps them.
-    const std::string common = "phantom:shepp-logan:64 --dir 0.35,0.2,0.92 --up 0,-1,0 --size 128 --pixel-size 3 "
-                               "--kernel linear --values mu --out ";
+    const std::string common =
+        "phantom:shepp-logan:64 --dir 0.35,0.2,0.92 --up 0,-1,0 --size 128 --pixel-size 3 "
+        "--kernel linear --values mu --out ";
     ASSERT_EQ(run(common + tmp("clip.npy")).status, 0);
     const Result r = run(common + tmp("noclip.npy") + " --no-clip");
     ASSERT_EQ(r.status, 0) << r.output;
@@ -531,8 +568,10 @@ TEST(FvrRender, ClipsOutsideTheVolumeUnlessNoClip) {
     const auto noclip = readNpy(tmp("noclip.npy"), shape);
     const Volume v = makeSheppLoganVolume(64);
     const ViewFrame view = ViewFrame::fromDirUp({0.35, 0.2, 0.92}, {0, -1, 0});
-    const auto truth = EllipsoidPhantom::sheppLogan3D(256.0).project(view, {128, 3.0}, ValueMapping::Mu, v.dims, v.spacing);
-    const Vec3 half = supportHalfExtents(v.dims, v.spacing, voxelModelReach(VoxelModel::BandLimited));
+    const auto truth = EllipsoidPhantom::sheppLogan3D(256.0).project(
+        view, {128, 3.0}, ValueMapping::Mu, v.dims, v.spacing);
+    const Vec3 half =
+        supportHalfExtents(v.dims, v.spacing, voxelModelReach(VoxelModel::BandLimited));
     int outside = 0;
     double ghost = 0;
     for (int row = 0; row < 128; ++row)
@@ -545,14 +584,15 @@ TEST(FvrRender, ClipsOutsideTheVolumeUnlessNoClip) {
         }
     EXPECT_GT(outside, 1000);
     EXPECT_GT(ghost, 1.0);
-    EXPECT_GT(fvr::test::compare(clip, truth.pixels).psnr, fvr::test::compare(noclip, truth.pixels).psnr);
+    EXPECT_GT(fvr::test::compare(clip, truth.pixels).psnr,
+              fvr::test::compare(noclip, truth.pixels).psnr);
     EXPECT_EQ(jsonFile(tmp("noclip.npy") + ".json")["settings"]["clip_to_volume"], false);
     EXPECT_EQ(jsonFile(tmp("clip.npy") + ".json")["settings"]["clip_to_volume"], true);
 }
 
-
 TEST(FvrRender, VoxelModelsRenderRecordAndCompareLikeWithLike) {
-    const Result bad = run("phantom:shepp-logan:32 --size 128 --voxel-model cubic-catmull --out " + tmp("vm.npy"));
+    const Result bad =
+        run("phantom:shepp-logan:32 --size 128 --voxel-model cubic-catmull --out " + tmp("vm.npy"));
     EXPECT_EQ(bad.status, 2);
     EXPECT_NE(bad.output.find("--voxel-model"), std::string::npos) << bad.output;
     EXPECT_NE(bad.output.find("bandlimited|trilinear|bspline"), std::string::npos) << bad.output;
@@ -565,22 +605,29 @@ TEST(FvrRender, VoxelModelsRenderRecordAndCompareLikeWithLike) {
     CpuFourierRenderer cpu(preprocess(v, o), 1);
     for (const char* model : {"", "bandlimited", "trilinear", "bspline"}) {
         const std::string out = tmp(std::string("vm_") + (*model ? model : "default") + ".npy");
-        const Result r = run(std::string("phantom:shepp-logan:40 --values mu --size 128 --dir 0.3,0.5,0.8 --up 0,-1,0 ") +
-                             (*model ? std::string("--voxel-model ") + model + " " : std::string()) + "--out " + out);
+        const Result r = run(
+            std::string(
+                "phantom:shepp-logan:40 --values mu --size 128 --dir 0.3,0.5,0.8 --up 0,-1,0 ") +
+            (*model ? std::string("--voxel-model ") + model + " " : std::string()) + "--out " +
+            out);
         ASSERT_EQ(r.status, 0) << r.output;
         RenderParams p{view, {128, defaultPixelSize(v.dims, v.spacing, 128)}, Kernel::Linear};
         p.voxelModel = *model ? parseVoxelModel(model) : VoxelModel::Trilinear; // the default
         p.clipToVolume = p.nonNegative = true;
         std::vector<std::int64_t> shape;
-        EXPECT_GT(fvr::test::compare(readNpy(out, shape), cpu.render(p).pixels).psnr, 120.0) << model;
-        EXPECT_EQ(jsonFile(out + ".json")["settings"]["voxel_model"], voxelModelName(p.voxelModel)) << model;
+        EXPECT_GT(fvr::test::compare(readNpy(out, shape), cpu.render(p).pixels).psnr, 120.0)
+            << model;
+        EXPECT_EQ(jsonFile(out + ".json")["settings"]["voxel_model"], voxelModelName(p.voxelModel))
+            << model;
     }
 }
 
 TEST(FvrRender, BenchMeasuresTheModelAgainstItsRayCasterAndNegativesAreKeptOnRequest) {
     FVR_REQUIRE_DATA("volumes/body_ct_hu_3mm/example_ct.mhd");
-    const std::string ct = (fvr::test::sharedData() / "volumes/body_ct_hu_3mm/example_ct.mhd").string();
-    const std::string common = ct + " --values mu --kernel kaiser-bessel --oversampling 1.25 --view AP --size 256 ";
+    const std::string ct =
+        (fvr::test::sharedData() / "volumes/body_ct_hu_3mm/example_ct.mhd").string();
+    const std::string common =
+        ct + " --values mu --kernel kaiser-bessel --oversampling 1.25 --view AP --size 256 ";
     std::map<std::string, double> psnr;
     for (const char* model : {"bandlimited", "trilinear"}) {
         const Result r = run(common + "--bench 1 --keep-negative --voxel-model " + model);
@@ -591,15 +638,18 @@ TEST(FvrRender, BenchMeasuresTheModelAgainstItsRayCasterAndNegativesAreKeptOnReq
         ASSERT_EQ(p.size(), 1u) << r.output;
         ASSERT_EQ(lowest.size(), 1u) << r.output;
         psnr[model] = p[0];
-        std::printf("[cli] body CT AP, %s model against trilinear ray casting: %.2f dB, most negative %.3f %%\n", model,
-                    p[0], lowest[0]);
+        std::printf("[cli] body CT AP, %s model against trilinear ray casting: %.2f dB, most "
+                    "negative %.3f %%\n",
+                    model, p[0], lowest[0]);
         EXPECT_EQ(j["spatial_projector"]["reference"].get<std::string>().rfind(
                       "trilinear ray casting (step s/4, one ray per pixel", 0),
                   0u);
         // The band-limited model rings below zero at the scan ends (measured -12.4 %); the
         // trilinear model does not (measured 0).
-        if (std::string(model) == "bandlimited") EXPECT_LT(lowest[0], -5.0);
-        else EXPECT_GT(lowest[0], -0.01);
+        if (std::string(model) == "bandlimited")
+            EXPECT_LT(lowest[0], -5.0);
+        else
+            EXPECT_GT(lowest[0], -0.01);
     }
     EXPECT_GT(psnr["trilinear"], psnr["bandlimited"] + 8.0); // measured 49.6 and 39.5 dB
     // With the pixel aperture the reference integrates each pixel's area.
@@ -609,7 +659,9 @@ TEST(FvrRender, BenchMeasuresTheModelAgainstItsRayCasterAndNegativesAreKeptOnReq
     EXPECT_EQ(stdoutJson(ap)["settings"]["pixel_aperture"], true) << ap.output;
     // By default no line integral of this attenuation volume is negative, even band-limited.
     ASSERT_EQ(run(common + "--voxel-model bandlimited --out " + tmp("bl.npy")).status, 0);
-    ASSERT_EQ(run(common + "--voxel-model bandlimited --keep-negative --out " + tmp("blneg.npy")).status, 0);
+    ASSERT_EQ(
+        run(common + "--voxel-model bandlimited --keep-negative --out " + tmp("blneg.npy")).status,
+        0);
     std::vector<std::int64_t> shape;
     EXPECT_EQ(mostNegativeFraction(readNpy(tmp("bl.npy"), shape)), 0.0);
     EXPECT_LT(mostNegativeFraction(readNpy(tmp("blneg.npy"), shape)), -0.05);
@@ -625,7 +677,8 @@ TEST(FvrRender, BadSizeAndOutputFormatAreRejectedBeforeLoading) {
         std::string args, expect;
     };
     const Case cases[] = {
-        {missing + " --size 100 --out " + tmp("early.npy"), "--size: expected a power of two in 128..2048, found 100"},
+        {missing + " --size 100 --out " + tmp("early.npy"),
+         "--size: expected a power of two in 128..2048, found 100"},
         {missing + " --size 4096 --out " + tmp("early.npy"), "--size"},
         {missing + " --out " + tmp("early.tiff"), "--out: unknown output format '.tiff'"},
     };
@@ -648,7 +701,8 @@ TEST(FvrRender, ExclusiveOptionsAreRejectedNamingBoth) {
     }
     const std::string missing = "/no/such/volume.mhd ";
     for (const std::string& args :
-         {"--sweep 3 --views " + tmp("one_view.txt"), std::string("--values mu --beer-lambert --energy 60 --mu-water 0.02")}) {
+         {"--sweep 3 --views " + tmp("one_view.txt"),
+          std::string("--values mu --beer-lambert --energy 60 --mu-water 0.02")}) {
         const Result r = run(missing + args + " --out " + tmp("excl.npy"));
         EXPECT_EQ(r.status, 2) << args << "\n" << r.output;
         const std::string first = args.substr(0, args.find(' '));
@@ -656,7 +710,8 @@ TEST(FvrRender, ExclusiveOptionsAreRejectedNamingBoth) {
         const std::string b = first == "--sweep" ? "--views" : "--mu-water";
         EXPECT_NE(r.output.find(a), std::string::npos) << r.output;
         EXPECT_NE(r.output.find(b), std::string::npos) << r.output;
-        EXPECT_EQ(r.output.find("/no/such"), std::string::npos) << "checked before loading: " << r.output;
+        EXPECT_EQ(r.output.find("/no/such"), std::string::npos)
+            << "checked before loading: " << r.output;
     }
 }
 
@@ -666,7 +721,8 @@ TEST(FvrRender, SidecarOriginAndSpacingRoundTripExactly) {
     const std::string mhd = tmp("odd_geometry.mhd");
     {
         std::ofstream f(mhd);
-        f << "NDims = 3\nDimSize = 8 8 8\nElementType = MET_SHORT\nElementSpacing = 0.48828125 0.7031250123456789 "
+        f << "NDims = 3\nDimSize = 8 8 8\nElementType = MET_SHORT\nElementSpacing = 0.48828125 "
+             "0.7031250123456789 "
              "1.2500000000000002\nOffset = -123.45678901234567 0.1 98765.4321012345\n"
              "ElementDataFile = odd_geometry.raw\n";
         std::ofstream raw(tmp("odd_geometry.raw"), std::ios::binary);
@@ -695,7 +751,8 @@ TEST(FvrRender, InfoIsValidJsonForAVolumeHoldingInfinity) {
     const std::string mhd = tmp("inf_volume.mhd");
     {
         std::ofstream f(mhd);
-        f << "NDims = 3\nDimSize = 2 2 2\nElementType = MET_FLOAT\nElementDataFile = inf_volume.raw\n";
+        f << "NDims = 3\nDimSize = 2 2 2\nElementType = MET_FLOAT\nElementDataFile = "
+             "inf_volume.raw\n";
         std::ofstream raw(tmp("inf_volume.raw"), std::ios::binary);
         const float voxels[8] = {0, 1, 2, 3, 4, 5, 6, std::numeric_limits<float>::infinity()};
         raw.write(reinterpret_cast<const char*>(voxels), sizeof voxels);
@@ -712,7 +769,8 @@ TEST(FvrRender, InfoIsValidJsonForAVolumeHoldingInfinity) {
 TEST(FvrRender, HelpListsEveryOptionGroupAndExitsZero) {
     const Result r = run("--help");
     EXPECT_EQ(r.status, 0) << r.output;
-    for (const char* text : {"usage: fvr-render INPUT", "Input:", "Output:", "Rendering:", "X-ray:", "Benchmark:",
-                             "--size M", "--energy keV", "--voxel-model V", "Exit status"})
+    for (const char* text : {"usage: fvr-render INPUT",
+                             "Input:", "Output:", "Rendering:", "X-ray:", "Benchmark:", "--size M",
+                             "--energy keV", "--voxel-model V", "Exit status"})
         EXPECT_NE(r.out.find(text), std::string::npos) << text << " in " << r.out;
 }

@@ -31,7 +31,8 @@ public:
         glState().app.reset();
     }
 };
-inline ::testing::Environment* const kGlEnvironment = ::testing::AddGlobalTestEnvironment(new GlEnvironment);
+inline ::testing::Environment* const kGlEnvironment =
+    ::testing::AddGlobalTestEnvironment(new GlEnvironment);
 
 inline fvr::gpu::OffscreenContext& glContext() {
     static int argc = 1;
@@ -43,7 +44,8 @@ inline fvr::gpu::OffscreenContext& glContext() {
         app = std::make_unique<QGuiApplication>(argc, argv);
         ctx = std::make_unique<fvr::gpu::OffscreenContext>();
         const auto info = fvr::gpu::currentGlInfo();
-        std::printf("[gl] GL_RENDERER %s, GL_VERSION %s\n", info.renderer.c_str(), info.version.c_str());
+        std::printf("[gl] GL_RENDERER %s, GL_VERSION %s\n", info.renderer.c_str(),
+                    info.version.c_str());
     }
     ctx->makeCurrent();
     return *ctx;

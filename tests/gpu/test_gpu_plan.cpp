@@ -21,13 +21,14 @@ TEST(FftPlan, CpuExecutionMatchesFftwDouble) {
             FftPlan plan(M, sign);
             std::vector<std::complex<float>> x(static_cast<std::size_t>(M));
             for (auto& v : x) v = {g(rng), g(rng)};
-            std::vector<fftw_complex> in(static_cast<std::size_t>(M)), out(static_cast<std::size_t>(M));
+            std::vector<fftw_complex> in(static_cast<std::size_t>(M)),
+                out(static_cast<std::size_t>(M));
             for (int i = 0; i < M; ++i) {
                 in[i][0] = x[i].real();
                 in[i][1] = x[i].imag();
             }
-            fftw_plan p = fftw_plan_dft_1d(M, in.data(), out.data(), sign > 0 ? FFTW_BACKWARD : FFTW_FORWARD,
-                                           FFTW_ESTIMATE);
+            fftw_plan p = fftw_plan_dft_1d(M, in.data(), out.data(),
+                                           sign > 0 ? FFTW_BACKWARD : FFTW_FORWARD, FFTW_ESTIMATE);
             fftw_execute(p);
             fftw_destroy_plan(p);
             plan.execute(x);
@@ -54,9 +55,13 @@ TEST(FftPlan, ValidatesAtCreation) {
 
 TEST(FftPlan, RadixFourStockhamStages) {
     // Radix 4 while it divides, one radix-2 stage for odd log2 M; the product is M.
-    const std::map<int, std::vector<int>> expected{{2, {2}},          {4, {4}},          {8, {4, 2}},
-                                                   {64, {4, 4, 4}},   {512, {4, 4, 4, 4, 2}},
-                                                   {1024, {4, 4, 4, 4, 4}}, {4096, {4, 4, 4, 4, 4, 4}}};
+    const std::map<int, std::vector<int>> expected{{2, {2}},
+                                                   {4, {4}},
+                                                   {8, {4, 2}},
+                                                   {64, {4, 4, 4}},
+                                                   {512, {4, 4, 4, 4, 2}},
+                                                   {1024, {4, 4, 4, 4, 4}},
+                                                   {4096, {4, 4, 4, 4, 4, 4}}};
     for (const auto& [M, radices] : expected) {
         const FftPlan plan(M, 1);
         EXPECT_EQ(plan.radices(), radices) << "M " << M;
@@ -68,7 +73,8 @@ TEST(FftPlan, RadixFourStockhamStages) {
 
 TEST(ShaderSource, ResolvesIncludesOnceAndMapsLines) {
     std::map<std::string, std::string> files{
-        {"a.comp", "#version 430\n#include \"common/b.glsl\"\n#include \"common/c.glsl\"\nvoid main() {}\n"},
+        {"a.comp",
+         "#version 430\n#include \"common/b.glsl\"\n#include \"common/c.glsl\"\nvoid main() {}\n"},
         {"common/b.glsl", "#include \"common/c.glsl\"\nfloat b;\n"},
         {"common/c.glsl", "float c;\n"},
     };
@@ -84,7 +90,8 @@ TEST(ShaderSource, ResolvesIncludesOnceAndMapsLines) {
     EXPECT_EQ(s.locate(4), "common/b.glsl:2");
     EXPECT_EQ(s.locate(5), "a.comp:4");
     // Driver logs in the Mesa, NVIDIA and AMD formats point at the original file and line.
-    EXPECT_NE(s.mapLog("0:4(7): error: bad").find("common/b.glsl:2: 0:4(7): error"), std::string::npos);
+    EXPECT_NE(s.mapLog("0:4(7): error: bad").find("common/b.glsl:2: 0:4(7): error"),
+              std::string::npos);
     EXPECT_NE(s.mapLog("0(5) : error C1008: x").find("a.comp:4:"), std::string::npos);
     EXPECT_NE(s.mapLog("ERROR: 0:3: 'x'").find("common/c.glsl:1:"), std::string::npos);
 }
@@ -111,7 +118,8 @@ TEST(ShaderSource, ReportsMissingFilesAndCycles) {
 
 TEST(ShaderSource, EmbeddedShadersAreThere) {
     const auto reader = ShaderSource::defaultReader();
-    for (const char* p : {"fft/rows.comp", "fft/cols.comp", "fft/hartley_correct.comp", "slice/slice.comp",
-                          "display/display.comp", "common/slice.glsl", "common/kernel.glsl", "common/fft.glsl"})
+    for (const char* p :
+         {"fft/rows.comp", "fft/cols.comp", "fft/hartley_correct.comp", "slice/slice.comp",
+          "display/display.comp", "common/slice.glsl", "common/kernel.glsl", "common/fft.glsl"})
         EXPECT_TRUE(reader(p).has_value()) << p;
 }

@@ -11,11 +11,11 @@
 #include <fftw3.h>
 #include <gtest/gtest.h>
 
-#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/errors.h>
-#include <fvr/core/xray/phantom.h>
-#include <fvr/core/render/preprocess.h>
 #include <fvr/core/io/volume_io.h>
+#include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/render/preprocess.h>
+#include <fvr/core/xray/phantom.h>
 #include <fvr/gpu/gpu_renderer.h>
 #include <fvr/gpu/shader_source.h>
 
@@ -33,7 +33,8 @@ struct ErrorStats {
     double maxRel = 0, rmsRel = 0;
 };
 
-ErrorStats relErrors(const std::vector<std::complex<double>>& ref, const std::vector<std::complex<double>>& got) {
+ErrorStats relErrors(const std::vector<std::complex<double>>& ref,
+                     const std::vector<std::complex<double>>& got) {
     double maxAbs = 0, maxErr = 0, e2 = 0, r2 = 0;
     for (std::size_t i = 0; i < ref.size(); ++i) {
         maxAbs = std::max(maxAbs, std::abs(ref[i]));
@@ -62,14 +63,16 @@ TEST_F(GlTest, EveryShaderCompiles) {
 
 TEST_F(GlTest, CompileErrorsNameTheShaderFileAndLine) {
     std::map<std::string, std::string> files{
-        {"bad.comp", "#version 430\nlayout(local_size_x = 1) in;\n#include \"inc.glsl\"\nvoid main() { f(); }\n"},
+        {"bad.comp", "#version 430\nlayout(local_size_x = 1) in;\n#include \"inc.glsl\"\nvoid "
+                     "main() { f(); }\n"},
         {"inc.glsl", "float f() {\n  return undefinedThing;\n}\n"}};
     auto reader = [&](const std::string& p) -> std::optional<std::string> {
         auto it = files.find(p);
         return it == files.end() ? std::nullopt : std::optional<std::string>(it->second);
     };
     const auto src = ShaderSource::assemble("bad.comp", {}, reader);
-    auto* gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(QOpenGLContext::currentContext());
+    auto* gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(
+        QOpenGLContext::currentContext());
     const GLuint sh = gl->glCreateShader(GL_COMPUTE_SHADER);
     const char* text = src.text().c_str();
     gl->glShaderSource(sh, 1, &text, nullptr);
@@ -159,8 +162,8 @@ TEST_F(GlTest, ProjectionsMatchCpuRendererOnPhantom) {
                         const auto a = cpu.render(p);
                         const auto b = gpu.render(p);
                         const auto c = fvr::test::compare(b.pixels, a.pixels);
-                        EXPECT_GT(c.psnr, 90.0) << transformName(t) << " " << kernelName(k) << " M " << M
-                                                << " fused " << fuse;
+                        EXPECT_GT(c.psnr, 90.0) << transformName(t) << " " << kernelName(k) << " M "
+                                                << M << " fused " << fuse;
                     }
         }
     }
@@ -186,17 +189,22 @@ TEST_F(GlTest, DeapodizedKaiserBesselMatchesCpu) {
                 for (bool fuse : {true, false}) {
                     gpu.setFuseSlice(fuse);
                     for (const auto& view : views) {
-                        const RenderParams p{view, {128, defaultPixelSize(v.dims, v.spacing, 128)}, k};
-                        const auto c = fvr::test::compare(gpu.render(p).pixels, cpu.render(p).pixels);
-                        std::printf("[gpu vs cpu] deapodized %s %s oversampling %.2f fused %d PSNR %.1f dB\n",
+                        const RenderParams p{
+                            view, {128, defaultPixelSize(v.dims, v.spacing, 128)}, k};
+                        const auto c =
+                            fvr::test::compare(gpu.render(p).pixels, cpu.render(p).pixels);
+                        std::printf("[gpu vs cpu] deapodized %s %s oversampling %.2f fused %d PSNR "
+                                    "%.1f dB\n",
                                     transformName(t), kernelName(k), over, int(fuse), c.psnr);
-                        EXPECT_GT(c.psnr, 90.0) << transformName(t) << " " << kernelName(k) << " " << over;
+                        EXPECT_GT(c.psnr, 90.0)
+                            << transformName(t) << " " << kernelName(k) << " " << over;
                     }
                 }
                 // The spectrum was made for k: the GPU renderer refuses another kernel too.
-                EXPECT_THROW(gpu.render({views[0], {64, defaultPixelSize(v.dims, v.spacing, 64)},
-                                              Kernel::Linear}),
-                             SettingsError);
+                EXPECT_THROW(
+                    gpu.render(
+                        {views[0], {64, defaultPixelSize(v.dims, v.spacing, 64)}, Kernel::Linear}),
+                    SettingsError);
             }
 }
 
@@ -212,7 +220,8 @@ TEST_F(GlTest, ProjectionMatchesCpuOnRealVolume) {
         for (Kernel k : {Kernel::Linear, Kernel::CatmullRom, Kernel::Sinc4}) {
             const RenderParams p{view, {256, defaultPixelSize(v.dims, v.spacing, 256)}, k};
             const auto c = fvr::test::compare(gpu.render(p).pixels, cpu.render(p).pixels);
-            std::printf("[gpu vs cpu] headsq %s %s PSNR %.1f dB\n", transformName(t), kernelName(k), c.psnr);
+            std::printf("[gpu vs cpu] headsq %s %s PSNR %.1f dB\n", transformName(t), kernelName(k),
+                        c.psnr);
             EXPECT_GT(c.psnr, 90.0);
         }
     }
@@ -235,7 +244,8 @@ TEST_F(GlTest, HalfPrecisionSpectrumCostIsMeasured) {
     const double vsFull = fvr::test::compare(half.pixels, full.pixels).psnr;
     const double psnr32 = fvr::test::compare(full.pixels, truth.pixels).psnr;
     const double psnr16 = fvr::test::compare(half.pixels, truth.pixels).psnr;
-    std::printf("[fp16] vs fp32 %.1f dB; vs analytic fp32 %.2f dB, fp16 %.2f dB\n", vsFull, psnr32, psnr16);
+    std::printf("[fp16] vs fp32 %.1f dB; vs analytic fp32 %.2f dB, fp16 %.2f dB\n", vsFull, psnr32,
+                psnr16);
     EXPECT_GT(vsFull, 55.0);
     EXPECT_GT(psnr16, psnr32 - 0.5);
 }
@@ -278,13 +288,14 @@ TEST_F(GlTest, RenderersShareOneSpectrumTexture) {
     auto s = spectrumOf(v, TransformKind::Fft, 1.25);
     CpuFourierRenderer cpu(s, 2);
     const RenderParams p{ViewFrame::fromDirUp({0.3, 0.4, 0.85}, {0, -1, 0}),
-                         {128, defaultPixelSize(v.dims, v.spacing, 128)}, Kernel::CatmullRom};
+                         {128, defaultPixelSize(v.dims, v.spacing, 128)},
+                         Kernel::CatmullRom};
     auto a = std::make_unique<GpuFourierRenderer>();
     GpuFourierRenderer b;
     a->setSpectrum(s);
     b.setSpectrum(s);
     EXPECT_EQ(a->spectrumTexture(), b.spectrumTexture()); // one upload for both views
-    a.reset();                                            // the other keeps it
+    a.reset(); // the other keeps it
     EXPECT_GT(fvr::test::compare(b.render(p).pixels, cpu.render(p).pixels).psnr, 90.0);
     GpuFourierRenderer c;
     c.setSpectrum(s, SpectrumPrecision::Float16); // another precision: its own texture
@@ -310,13 +321,16 @@ TEST_F(GlTest, DepthCueAndSliceFiltersMatchCpu) {
                     RenderParams p{view, {64, defaultPixelSize(v.dims, v.spacing, 64)}, k};
                     p.depthCue = 0.7;
                     const auto c1 = fvr::test::compare(gpu.render(p).pixels, cpu.render(p).pixels);
-                    EXPECT_GT(c1.psnr, 90.0) << "depth " << transformName(t) << " " << kernelName(k) << " fused " << fuse;
+                    EXPECT_GT(c1.psnr, 90.0) << "depth " << transformName(t) << " " << kernelName(k)
+                                             << " fused " << fuse;
                     p.filter = {1.2, 3.0, 0.2};
                     const auto c2 = fvr::test::compare(gpu.render(p).pixels, cpu.render(p).pixels);
-                    EXPECT_GT(c2.psnr, 90.0) << "depth+filter " << transformName(t) << " " << kernelName(k);
+                    EXPECT_GT(c2.psnr, 90.0)
+                        << "depth+filter " << transformName(t) << " " << kernelName(k);
                     p.depthCue = 0.0;
                     const auto c3 = fvr::test::compare(gpu.render(p).pixels, cpu.render(p).pixels);
-                    EXPECT_GT(c3.psnr, 90.0) << "filter " << transformName(t) << " " << kernelName(k);
+                    EXPECT_GT(c3.psnr, 90.0)
+                        << "filter " << transformName(t) << " " << kernelName(k);
                 }
         }
     }
@@ -335,13 +349,15 @@ TEST_F(GlTest, TransmissionDisplayIsExpOfTheLineIntegrals) {
     GpuFourierRenderer gpu;
     gpu.setSpectrum(spectrumOf(v, TransformKind::Fft, 1.25));
     const int M = 128;
-    gpu.renderToGpu({ViewFrame::fromDirUp({0.2, 0.3, 0.93}, {0, -1, 0}), {M, defaultPixelSize(v.dims, v.spacing, M)},
-                Kernel::CatmullRom});
+    gpu.renderToGpu({ViewFrame::fromDirUp({0.2, 0.3, 0.93}, {0, -1, 0}),
+                     {M, defaultPixelSize(v.dims, v.spacing, M)},
+                     Kernel::CatmullRom});
     const auto L = gpu.readback();
     for (bool film : {true, false}) {
         const DisplayWindow w{-2.5, -0.05, film, {waterAttenuationPerMm(60), 1.3}};
         const unsigned tex = gpu.displayTexture(w);
-        auto* gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(QOpenGLContext::currentContext());
+        auto* gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(
+            QOpenGLContext::currentContext());
         std::vector<unsigned char> rgba(std::size_t(M) * M * 4);
         gl->glBindTexture(GL_TEXTURE_2D, tex);
         gl->glPixelStorei(GL_PACK_ALIGNMENT, 1);
@@ -360,7 +376,8 @@ TEST_F(GlTest, TransmissionDisplayIsExpOfTheLineIntegrals) {
 
 namespace {
 std::vector<unsigned char> readTexture(unsigned tex, int M) {
-    auto* gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(QOpenGLContext::currentContext());
+    auto* gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(
+        QOpenGLContext::currentContext());
     std::vector<unsigned char> rgba(std::size_t(M) * M * 4);
     gl->glBindTexture(GL_TEXTURE_2D, tex);
     gl->glPixelStorei(GL_PACK_ALIGNMENT, 1);
@@ -376,8 +393,10 @@ TEST_F(GlTest, DisplayFusedIntoTheLastPassEqualsTheDisplayPass) {
     const Volume v = makeSheppLoganVolume(32);
     const int M = 128;
     const RenderParams base{ViewFrame::fromDirUp({0.3, -0.2, 0.93}, {0, 1, 0}),
-                            {M, 1.3 * defaultPixelSize(v.dims, v.spacing, M)}, Kernel::CatmullRom};
-    const DisplayWindow windows[] = {{-1.0, 40.0, false, {}}, {-2.5, -0.05, true, {waterAttenuationPerMm(70), 1.5}}};
+                            {M, 1.3 * defaultPixelSize(v.dims, v.spacing, M)},
+                            Kernel::CatmullRom};
+    const DisplayWindow windows[] = {{-1.0, 40.0, false, {}},
+                                     {-2.5, -0.05, true, {waterAttenuationPerMm(70), 1.5}}};
     for (auto t : {TransformKind::Fft, TransformKind::Fht}) {
         GpuFourierRenderer gpu;
         gpu.setSpectrum(spectrumOf(v, t, 1.25));
@@ -425,7 +444,8 @@ TEST_F(GlTest, ClipToVolumeMatchesCpu) {
         GpuFourierRenderer gpu;
         gpu.setSpectrum(s);
         for (const auto& view : views) {
-            RenderParams p{view, {128, 1.5 * defaultPixelSize(v.dims, v.spacing, 128)}, Kernel::Linear};
+            RenderParams p{
+                view, {128, 1.5 * defaultPixelSize(v.dims, v.spacing, 128)}, Kernel::Linear};
             p.clipToVolume = true;
             const auto a = cpu.render(p);
             const auto b = gpu.render(p);
@@ -465,15 +485,18 @@ TEST_F(GlTest, VoxelModelsApertureAndClampMatchCpu) {
                         for (const auto& view : views)
                             for (int variant = 0; variant < 3; ++variant) {
                                 gpu.setFuseSlice(fuse);
-                                RenderParams p{view, {64, 0.4 * defaultPixelSize(v->dims, v->spacing, 64)}, k};
+                                RenderParams p{
+                                    view, {64, 0.4 * defaultPixelSize(v->dims, v->spacing, 64)}, k};
                                 p.voxelModel = model;
                                 p.depthCue = variant == 1 ? 0.7 : 0.0;
                                 p.pixelAperture = variant == 2;
                                 p.clipToVolume = p.nonNegative = variant == 2;
-                                const auto c = fvr::test::compare(gpu.render(p).pixels, cpu.render(p).pixels);
+                                const auto c =
+                                    fvr::test::compare(gpu.render(p).pixels, cpu.render(p).pixels);
                                 EXPECT_GT(c.psnr, 90.0)
-                                    << "N " << v->dims[0] << " " << transformName(t) << " " << kernelName(k) << " "
-                                    << voxelModelName(model) << " fused " << fuse << " variant " << variant;
+                                    << "N " << v->dims[0] << " " << transformName(t) << " "
+                                    << kernelName(k) << " " << voxelModelName(model) << " fused "
+                                    << fuse << " variant " << variant;
                             }
             }
 }

@@ -124,7 +124,8 @@ TEST(OpenRule, HounsfieldGuessIsTheSameInCliAndWorkstation) {
     for (const char* name : {"example_ct.mhd", "example_ct.nii.gz"}) {
         const fs::path file = sharedData() / "volumes/body_ct_hu_3mm" / name;
         StudyController study;
-        ASSERT_TRUE(openInWorkstation(study, StudySource::fromPath(QString::fromStdString(file.string()))));
+        ASSERT_TRUE(
+            openInWorkstation(study, StudySource::fromPath(QString::fromStdString(file.string()))));
         EXPECT_EQ(study.volume()->units, fvr::core::ValueUnits::HounsfieldUnits) << name;
         EXPECT_TRUE(study.warnings().join('\n').contains("look like Hounsfield units")) << name;
         // Attenuation from HU, as the CLI's default values for HU.
@@ -137,7 +138,8 @@ TEST(OpenRule, HounsfieldGuessIsTheSameInCliAndWorkstation) {
     FVR_REQUIRE_DATA("volumes/bonsai_256");
     for (const auto& e : fs::directory_iterator(sharedData() / "volumes/bonsai_256")) {
         StudyController study;
-        ASSERT_TRUE(openInWorkstation(study, StudySource::fromPath(QString::fromStdString(e.path().string()))));
+        ASSERT_TRUE(openInWorkstation(
+            study, StudySource::fromPath(QString::fromStdString(e.path().string()))));
         EXPECT_EQ(study.volume()->units, fvr::core::ValueUnits::Unknown);
         EXPECT_EQ(cliInfo(e.path()).at("units").get<std::string>(),
                   fvr::core::unitsName(fvr::core::ValueUnits::Unknown));

@@ -7,21 +7,21 @@
 #include <QDoubleSpinBox>
 #include <QImage>
 #include <QPlainTextEdit>
-#include <QSpinBox>
 #include <QSettings>
 #include <QSignalSpy>
+#include <QSpinBox>
 #include <QStandardPaths>
 #include <QSurfaceFormat>
 #include <QTest>
 
 #include <filesystem>
-#include <set>
 #include <fstream>
+#include <set>
 
 #include <gtest/gtest.h>
 
-#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/io/image_io.h>
+#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/xray/xray.h>
 #include <fvr/ui/main_window.h>
 #include <fvr/ui/panels/display_panel.h>
@@ -67,7 +67,8 @@ bool openAndWait(MainWindow& w, const StudySource& s, int timeoutMs = 60000) {
         return false;
     }
     if (!QTest::qWaitFor([&] { return w.views()[0]->framesRendered() > before; }, timeoutMs)) {
-        ADD_FAILURE() << "view 0 did not render; messages:\n" << w.messages()->toPlainText().toStdString();
+        ADD_FAILURE() << "view 0 did not render; messages:\n"
+                      << w.messages()->toPlainText().toStdString();
         return false;
     }
     return true;
@@ -107,7 +108,8 @@ TEST_F(Workstation, OpensPhantomAndShowsTheRendererProjection) {
     auto* v = window->views()[0];
     const auto p = v->projection();
     ASSERT_TRUE(p);
-    std::printf("[ui] backend %s %s\n", v->usingGpu() ? "GPU" : "CPU", v->backendNotice().toStdString().c_str());
+    std::printf("[ui] backend %s %s\n", v->usingGpu() ? "GPU" : "CPU",
+                v->backendNotice().toStdString().c_str());
     EXPECT_GT(test::compare(p->pixels, cpuReference(*window, *v).pixels).psnr, 90.0);
     EXPECT_TRUE(window->windowTitle().contains("phantom"));
     // The window is set from the image, and the view is not blank.
@@ -126,12 +128,15 @@ TEST_F(Workstation, PanelControlsChangeSettingsAndImage) {
 
     auto* kernel = window->renderingPanel()->kernelCombo();
     // With the gridding correction on, a new kernel needs a spectrum made for it.
-    ASSERT_TRUE(waitSpectrum(*window, [&] { kernel->setCurrentIndex(kernel->findData(int(core::Kernel::KaiserBessel6))); }));
+    ASSERT_TRUE(waitSpectrum(*window, [&] {
+        kernel->setCurrentIndex(kernel->findData(int(core::Kernel::KaiserBessel6)));
+    }));
     EXPECT_EQ(window->study().spectrum()->deapodizedFor, core::Kernel::KaiserBessel6);
     QApplication::processEvents();
     EXPECT_EQ(v->settings().kernel, core::Kernel::KaiserBessel6);
     EXPECT_GT(test::compare(v->projection()->pixels, cpuReference(*window, *v).pixels).psnr, 90.0);
-    ASSERT_TRUE(waitSpectrum(*window, [&] { window->renderingPanel()->deapodizeCheck()->setChecked(false); }));
+    ASSERT_TRUE(waitSpectrum(
+        *window, [&] { window->renderingPanel()->deapodizeCheck()->setChecked(false); }));
     EXPECT_FALSE(window->study().spectrum()->deapodizedFor.has_value());
     kernel->setCurrentIndex(kernel->findData(int(core::Kernel::Nearest)));
     EXPECT_EQ(v->settings().kernel, core::Kernel::Nearest);
@@ -145,17 +150,20 @@ TEST_F(Workstation, PanelControlsChangeSettingsAndImage) {
     EXPECT_EQ(v->projection()->size, 256);
 
     ASSERT_TRUE(waitSpectrum(*window, [&] {
-        window->renderingPanel()->oversamplingCombo()->setCurrentIndex(window->renderingPanel()->oversamplingCombo()->findData(1.5));
+        window->renderingPanel()->oversamplingCombo()->setCurrentIndex(
+            window->renderingPanel()->oversamplingCombo()->findData(1.5));
     }));
     EXPECT_EQ(window->study().spectrum()->padded[0], 60);
     ASSERT_TRUE(waitSpectrum(*window, [&] {
-        window->renderingPanel()->transformCombo()->setCurrentIndex(window->renderingPanel()->transformCombo()->findData(int(core::TransformKind::Fht)));
+        window->renderingPanel()->transformCombo()->setCurrentIndex(
+            window->renderingPanel()->transformCombo()->findData(int(core::TransformKind::Fht)));
     }));
     EXPECT_EQ(window->study().spectrum()->kind, core::TransformKind::Fht);
     QTest::qWait(50);
     EXPECT_GT(test::compare(v->projection()->pixels, cpuReference(*window, *v).pixels).psnr, 90.0);
     ASSERT_TRUE(waitSpectrum(*window, [&] {
-        window->renderingPanel()->valuesCombo()->setCurrentIndex(window->renderingPanel()->valuesCombo()->findData(int(core::ValueMapping::Raw)));
+        window->renderingPanel()->valuesCombo()->setCurrentIndex(
+            window->renderingPanel()->valuesCombo()->findData(int(core::ValueMapping::Raw)));
     }));
     EXPECT_EQ(window->study().spectrum()->mapping, core::ValueMapping::Raw);
 
@@ -169,7 +177,9 @@ TEST_F(Workstation, PanelControlsChangeSettingsAndImage) {
 
 TEST_F(Workstation, CompareViewRendersEachKernel) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
-    ASSERT_TRUE(window->renderingPanel()->deapodizeCheck()->isChecked()); // the default: Kaiser-Bessel, deapodized
+    ASSERT_TRUE(window->renderingPanel()
+                    ->deapodizeCheck()
+                    ->isChecked()); // the default: Kaiser-Bessel, deapodized
     ASSERT_TRUE(window->study().spectrum()->deapodizedFor.has_value());
     // Compare mode needs a spectrum every kernel can use: deapodization goes off.
     ASSERT_TRUE(waitSpectrum(*window, [&] { window->setCompareCount(4); }));
@@ -209,7 +219,8 @@ TEST_F(Workstation, ExportsMatchTheRendererProjection) {
     EXPECT_EQ(png.format(), QImage::Format_Grayscale16);
     ASSERT_TRUE(window->exportScreenshot(QString::fromStdString((dir / "shot.png").string())));
     EXPECT_FALSE(QImage(QString::fromStdString((dir / "shot.png").string())).isNull());
-    ASSERT_TRUE(window->exportSweep(QString::fromStdString((dir / "sweep").string()), 4, {0, 1, 0}));
+    ASSERT_TRUE(
+        window->exportSweep(QString::fromStdString((dir / "sweep").string()), 4, {0, 1, 0}));
     const auto stack = core::readNpy(dir / "sweep" / "sweep.npy", shape);
     EXPECT_EQ(shape, (std::vector<std::int64_t>{4, p.size, p.size}));
     EXPECT_TRUE(std::equal(p.pixels.begin(), p.pixels.end(), stack.begin())); // frame 0 = the view
@@ -235,7 +246,8 @@ TEST_F(Workstation, CancelDuringPreprocessingKeepsTheStudy) {
 TEST_F(Workstation, MalformedStudyShowsTheErrorAndStaysUsable) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(32)));
     const auto bad = test::tmpDir() / "broken.mhd";
-    std::ofstream(bad) << "NDims = 3\nDimSize = 4 4\nElementType = MET_SHORT\nElementDataFile = x.raw\n";
+    std::ofstream(bad)
+        << "NDims = 3\nDimSize = 4 4\nElementType = MET_SHORT\nElementDataFile = x.raw\n";
     QSignalSpy failed(&window->study(), &ui::StudyController::failed);
     window->openStudy(StudySource::fromPath(QString::fromStdString(bad.string())));
     ASSERT_TRUE(failed.wait(30000));
@@ -252,7 +264,9 @@ TEST_F(Workstation, OpensRealVolumeFile) {
     ASSERT_TRUE(openAndWait(*window, StudySource::fromPath(QString::fromStdString(path.string()))));
     EXPECT_EQ(window->study().volume()->dims, (core::Dims3{64, 64, 93}));
     EXPECT_GT(test::compare(window->views()[0]->projection()->pixels,
-                            cpuReference(*window, *window->views()[0]).pixels).psnr, 90.0);
+                            cpuReference(*window, *window->views()[0]).pixels)
+                  .psnr,
+              90.0);
 }
 
 TEST_F(Workstation, OpensDicomFolder) {
@@ -294,7 +308,8 @@ TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
     const auto I = core::readNpy(npy, shape);
     ASSERT_EQ(I.size(), L.pixels.size());
     double worst = 0;
-    for (std::size_t i = 0; i < I.size(); ++i) worst = std::max(worst, std::abs(I[i] - 1.5 * std::exp(-mu * L.pixels[i])));
+    for (std::size_t i = 0; i < I.size(); ++i)
+        worst = std::max(worst, std::abs(I[i] - 1.5 * std::exp(-mu * L.pixels[i])));
     EXPECT_LT(worst, 1.5e-5);
     // The screen shows a radiograph: dark air (film exposed), bright skull.
     const QImage shot = v->screenshot();
@@ -315,28 +330,36 @@ TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
     v = window->views()[0];
     // Raw values have no transmission: the output falls back to line integrals.
     ASSERT_TRUE(waitSpectrum(*window, [&] {
-        window->renderingPanel()->valuesCombo()->setCurrentIndex(window->renderingPanel()->valuesCombo()->findData(int(core::ValueMapping::Raw)));
+        window->renderingPanel()->valuesCombo()->setCurrentIndex(
+            window->renderingPanel()->valuesCombo()->findData(int(core::ValueMapping::Raw)));
     }));
     // (the compare round trip above started a preprocessing of its own: wait for the raw one)
-    ASSERT_TRUE(QTest::qWaitFor([&] {
-        return !window->study().busy() && window->study().spectrum()->mapping == core::ValueMapping::Raw;
-    }, 60000));
+    ASSERT_TRUE(QTest::qWaitFor(
+        [&] {
+            return !window->study().busy() &&
+                   window->study().spectrum()->mapping == core::ValueMapping::Raw;
+        },
+        60000));
     QApplication::processEvents();
     EXPECT_EQ(window->xrayPanel()->outputCombo()->currentIndex(), 0);
     EXPECT_FALSE(v->window().transmission.active())
-        << v->window().low << " " << v->window().high << " views " << window->views().size() << " same "
-        << (v == window->views()[0]) << "\n" << window->messages()->toPlainText().toStdString();
+        << v->window().low << " " << v->window().high << " views " << window->views().size()
+        << " same " << (v == window->views()[0]) << "\n"
+        << window->messages()->toPlainText().toStdString();
     // Transmission from raw values switches to mu; the window follows the new image (log exposure
     // of a few decades, not the raw spectrum's range).
-    ASSERT_TRUE(waitSpectrum(*window, [&] { window->xrayPanel()->outputCombo()->setCurrentIndex(1); }));
+    ASSERT_TRUE(
+        waitSpectrum(*window, [&] { window->xrayPanel()->outputCombo()->setCurrentIndex(1); }));
     QApplication::processEvents();
-    EXPECT_EQ(window->study().spectrum()->mapping, core::ValueMapping::Mu) << window->messages()->toPlainText().toStdString();
+    EXPECT_EQ(window->study().spectrum()->mapping, core::ValueMapping::Mu)
+        << window->messages()->toPlainText().toStdString();
     EXPECT_GT(v->window().low, -10.0);
     EXPECT_LE(v->window().high, 0.01);
     EXPECT_GT(v->window().high - v->window().low, 0.2);
     window->xrayPanel()->outputCombo()->setCurrentIndex(0);
     ASSERT_TRUE(waitSpectrum(*window, [&] {
-        window->renderingPanel()->valuesCombo()->setCurrentIndex(window->renderingPanel()->valuesCombo()->findData(int(core::ValueMapping::MuBone)));
+        window->renderingPanel()->valuesCombo()->setCurrentIndex(
+            window->renderingPanel()->valuesCombo()->findData(int(core::ValueMapping::MuBone)));
     }));
     EXPECT_EQ(window->study().spectrum()->mapping, core::ValueMapping::MuBone);
 
@@ -345,7 +368,8 @@ TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
     ASSERT_NE(dock, nullptr);
     dock->raise();
     QApplication::processEvents();
-    for (QWidget* c : {static_cast<QWidget*>(window->xrayPanel()->outputCombo()), static_cast<QWidget*>(window->xrayPanel()->bandLimitSpin())}) {
+    for (QWidget* c : {static_cast<QWidget*>(window->xrayPanel()->outputCombo()),
+                       static_cast<QWidget*>(window->xrayPanel()->bandLimitSpin())}) {
         EXPECT_TRUE(c->isVisible());
         const QRect r(c->mapTo(dock, QPoint(0, 0)), c->size());
         EXPECT_TRUE(dock->rect().contains(r)) << "clipped control";
@@ -362,7 +386,9 @@ TEST_F(Workstation, XRayPanelTransmissionDepthCueAndFilters) {
     core::CpuFourierRenderer r(window->study().spectrum(), 2);
     const auto& vol = *window->study().volume();
     const int M = v->settings().size;
-    core::RenderParams p{v->viewFrame(), {M, core::defaultPixelSize(vol.dims, vol.spacing, M)}, v->settings().kernel};
+    core::RenderParams p{v->viewFrame(),
+                         {M, core::defaultPixelSize(vol.dims, vol.spacing, M)},
+                         v->settings().kernel};
     EXPECT_TRUE(v->effects().clip); // on by default
     p.clipToVolume = v->effects().clip;
     EXPECT_EQ(v->settings().voxelModel, core::VoxelModel::Trilinear); // the default voxel model
@@ -426,11 +452,13 @@ TEST_F(Workstation, ProgressiveRefinementHoldsTheTargetWhileDragging) {
     QTest::qWait(20);
     EXPECT_GT(v->displayedLevel(), 0);
     EXPECT_LT(v->displayedSize(), 512);
-    std::printf("[ui] while dragging: level %d, %d x %d\n", v->displayedLevel(), v->displayedSize(), v->displayedSize());
+    std::printf("[ui] while dragging: level %d, %d x %d\n", v->displayedLevel(), v->displayedSize(),
+                v->displayedSize());
     // Letting go brings the full-quality frame back.
     const int before = v->framesRendered();
     QTest::mouseRelease(v, Qt::LeftButton, Qt::NoModifier, c + QPoint(36, 12));
-    ASSERT_TRUE(QTest::qWaitFor([&] { return v->framesRendered() > before && v->displayedLevel() == 0; }, 20000));
+    ASSERT_TRUE(QTest::qWaitFor(
+        [&] { return v->framesRendered() > before && v->displayedLevel() == 0; }, 20000));
     EXPECT_EQ(v->displayedSize(), 512);
     EXPECT_FALSE(v->progressive().interacting());
     EXPECT_EQ(v->projection()->size, 512);
@@ -453,7 +481,8 @@ TEST_F(Workstation, VoxelModelControlChangesTheImageNotTheSpectrum) {
     const auto path = test::sharedData() / "volumes/body_ct_hu_3mm/example_ct.mhd";
     ASSERT_TRUE(openAndWait(*window, StudySource::fromPath(QString::fromStdString(path.string()))));
     ui::ProjectionView* v = window->views()[0];
-    EXPECT_EQ(core::VoxelModel(window->renderingPanel()->voxelModelCombo()->currentData().toInt()), core::VoxelModel::Trilinear);
+    EXPECT_EQ(core::VoxelModel(window->renderingPanel()->voxelModelCombo()->currentData().toInt()),
+              core::VoxelModel::Trilinear);
     const auto spectrum = window->study().spectrum();
     const auto trilinear = *v->projection();
     EXPECT_EQ(core::mostNegativeFraction(trilinear.pixels), 0.0);
@@ -467,7 +496,7 @@ TEST_F(Workstation, VoxelModelControlChangesTheImageNotTheSpectrum) {
     const auto band = *v->projection();
     EXPECT_GT(test::compare(band.pixels, cpuReference(*window, *v).pixels).psnr, 90.0);
     EXPECT_LT(test::compare(band.pixels, trilinear.pixels).psnr, 50.0); // a different image
-    EXPECT_LT(core::mostNegativeFraction(band.pixels), -0.02);          // the ringing
+    EXPECT_LT(core::mostNegativeFraction(band.pixels), -0.02); // the ringing
     EXPECT_EQ(QSettings().value("render/voxelModel").toString(), QString("bandlimited"));
 
     // The accuracy readout says which ray caster it compares with.
@@ -480,16 +509,20 @@ TEST_F(Workstation, VoxelModelControlChangesTheImageNotTheSpectrum) {
     window->measureAccuracy();
     ASSERT_TRUE(measured.wait(60000));
     const double triPsnr = measured.takeFirst().at(0).toDouble();
-    std::printf("[ui] body CT, view 1 against trilinear ray casting: band-limited %.2f dB, trilinear %.2f dB\n", bandPsnr,
-                triPsnr);
+    std::printf("[ui] body CT, view 1 against trilinear ray casting: band-limited %.2f dB, "
+                "trilinear %.2f dB\n",
+                bandPsnr, triPsnr);
     EXPECT_GT(triPsnr, bandPsnr + 5.0);
-    EXPECT_TRUE(window->messages()->toPlainText().contains("trilinear ray casting (step s/4, one ray per pixel)"));
+    EXPECT_TRUE(window->messages()->toPlainText().contains(
+        "trilinear ray casting (step s/4, one ray per pixel)"));
 
     // The pixel aperture reaches the frame (parameters built here, independently of the view).
     window->renderingPanel()->pixelApertureCheck()->setChecked(true);
     const auto& vol = *window->study().volume();
-    core::RenderParams p{v->viewFrame(), {v->settings().size, core::defaultPixelSize(vol.dims, vol.spacing, v->settings().size)},
-                         v->settings().kernel};
+    core::RenderParams p{
+        v->viewFrame(),
+        {v->settings().size, core::defaultPixelSize(vol.dims, vol.spacing, v->settings().size)},
+        v->settings().kernel};
     p.voxelModel = core::VoxelModel::Trilinear;
     p.pixelAperture = true;
     p.clipToVolume = true;
@@ -501,19 +534,23 @@ TEST_F(Workstation, VoxelModelControlChangesTheImageNotTheSpectrum) {
 
     // Compare mode: each view has its own voxel model ("Applies to"), side by side; changing it
     // for all views keeps each view's kernel.
-    ASSERT_TRUE(waitSpectrum(*window, [&] { window->setCompareCount(2); })); // gridding off: a new spectrum
-    const core::Kernel k0 = window->views()[0]->settings().kernel, k1 = window->views()[1]->settings().kernel;
+    ASSERT_TRUE(
+        waitSpectrum(*window, [&] { window->setCompareCount(2); })); // gridding off: a new spectrum
+    const core::Kernel k0 = window->views()[0]->settings().kernel,
+                       k1 = window->views()[1]->settings().kernel;
     ASSERT_NE(k0, k1);
     window->renderingPanel()->appliesToCombo()->setCurrentIndex(2); // view 2
     model->setCurrentIndex(model->findData(int(core::VoxelModel::BandLimited)));
     EXPECT_EQ(window->views()[0]->settings().voxelModel, core::VoxelModel::Trilinear);
     EXPECT_EQ(window->views()[1]->settings().voxelModel, core::VoxelModel::BandLimited);
     EXPECT_EQ(QSettings().value("render/voxelModel").toString(), QString("trilinear")); // view 1's
-    window->renderingPanel()->appliesToCombo()->setCurrentIndex(1); // the panel shows view 1's model again
+    window->renderingPanel()->appliesToCombo()->setCurrentIndex(
+        1); // the panel shows view 1's model again
     EXPECT_EQ(core::VoxelModel(model->currentData().toInt()), core::VoxelModel::Trilinear);
     window->renderingPanel()->appliesToCombo()->setCurrentIndex(0); // all views
     model->setCurrentIndex(model->findData(int(core::VoxelModel::BSpline)));
-    for (auto* view : window->views()) EXPECT_EQ(view->settings().voxelModel, core::VoxelModel::BSpline);
+    for (auto* view : window->views())
+        EXPECT_EQ(view->settings().voxelModel, core::VoxelModel::BSpline);
     EXPECT_EQ(window->views()[0]->settings().kernel, k0);
     EXPECT_EQ(window->views()[1]->settings().kernel, k1);
 }
@@ -546,8 +583,10 @@ TEST_F(Workstation, PanelsRoundTripTheirValuesWithoutSignals) {
     EXPECT_EQ(displayChanged.count(), 0);
     // Presets are chosen by their id, not their (translated) label.
     std::vector<ui::WindowPreset> asked;
-    QObject::connect(&display, &ui::DisplayPanel::presetRequested, [&](ui::WindowPreset p) { asked.push_back(p); });
-    emit display.presetCombo()->activated(display.presetCombo()->findData(int(ui::WindowPreset::Bone)));
+    QObject::connect(&display, &ui::DisplayPanel::presetRequested,
+                     [&](ui::WindowPreset p) { asked.push_back(p); });
+    emit display.presetCombo()->activated(
+        display.presetCombo()->findData(int(ui::WindowPreset::Bone)));
     EXPECT_EQ(asked, std::vector<ui::WindowPreset>{ui::WindowPreset::Bone});
 
     ui::XrayPanel xray;
@@ -591,14 +630,17 @@ TEST_F(Workstation, PanelSettingsPersistForTheNextWindow) {
     xp->sharpenSpin()->setValue(1.25);
     xp->sharpenRadiusSpin()->setValue(2.0);
     xp->bandLimitSpin()->setValue(0.5);
-    xp->outputCombo()->setCurrentIndex(xp->outputCombo()->findData(int(ui::XrayOutput::Transmission)));
+    xp->outputCombo()->setCurrentIndex(
+        xp->outputCombo()->findData(int(ui::XrayOutput::Transmission)));
     window->displayPanel()->invertCheck()->setChecked(true);
     const auto rendering = rp->values();
     const auto xray = xp->values();
-    ASSERT_EQ(rendering, (ui::RenderingPanel::Values{core::Kernel::Linear, 256, core::VoxelModel::BSpline,
-                                                     core::TransformKind::Fht, 1.5, core::ValueMapping::MuBone, false,
-                                                     12, true, false, false}));
-    ASSERT_EQ(xray, (ui::XrayPanel::Values{ui::XrayOutput::Transmission, 90.0, 2.5, 40, 1.25, 2.0, 0.5}));
+    ASSERT_EQ(rendering,
+              (ui::RenderingPanel::Values{core::Kernel::Linear, 256, core::VoxelModel::BSpline,
+                                          core::TransformKind::Fht, 1.5, core::ValueMapping::MuBone,
+                                          false, 12, true, false, false}));
+    ASSERT_EQ(xray,
+              (ui::XrayPanel::Values{ui::XrayOutput::Transmission, 90.0, 2.5, 40, 1.25, 2.0, 0.5}));
     window.reset();
 
     // The keys users' saved settings already hold.
@@ -619,6 +661,7 @@ TEST_F(Workstation, PanelSettingsPersistForTheNextWindow) {
     EXPECT_EQ(fresh.xrayPanel()->values(), xray);
     EXPECT_TRUE(fresh.displayPanel()->values().invert);
     EXPECT_TRUE(fresh.currentTransmission().active());
-    EXPECT_EQ(fresh.views()[0]->settings(), (ui::ViewSettings{core::Kernel::Linear, 256, core::VoxelModel::BSpline}));
+    EXPECT_EQ(fresh.views()[0]->settings(),
+              (ui::ViewSettings{core::Kernel::Linear, 256, core::VoxelModel::BSpline}));
     EXPECT_EQ(fresh.views()[0]->effects().filter, (core::SliceFilter{1.25, 2.0, 0.5}));
 }

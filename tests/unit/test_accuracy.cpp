@@ -7,11 +7,11 @@
 
 #include <gtest/gtest.h>
 
+#include <fvr/core/io/volume_io.h>
 #include <fvr/core/render/cpu_renderer.h>
-#include <fvr/core/xray/phantom.h>
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/render/spatial_projector.h>
-#include <fvr/core/io/volume_io.h>
+#include <fvr/core/xray/phantom.h>
 
 #include "test_support.h"
 
@@ -31,7 +31,8 @@ struct Fixture : fvr::test::PhantomFixture {
     std::vector<ProjectionImage> truth;
     Fixture() {
         for (const auto& v : views)
-            truth.push_back(phantom.project(v, {kM, d}, ValueMapping::Mu, volume.dims, volume.spacing));
+            truth.push_back(
+                phantom.project(v, {kM, d}, ValueMapping::Mu, volume.dims, volume.spacing));
     }
 };
 
@@ -62,8 +63,8 @@ std::map<std::pair<Kernel, double>, double> measureAll(TransformKind t) {
             psnr[{k, over}] = meanPsnr([&](const ViewFrame& v) {
                 return r.render({v, {kM, fixture().d}, k});
             });
-            std::printf("[accuracy] %s oversampling %.1f %-12s PSNR %.2f dB\n", transformName(t), over,
-                        kernelName(k), psnr[{k, over}]);
+            std::printf("[accuracy] %s oversampling %.1f %-12s PSNR %.2f dB\n", transformName(t),
+                        over, kernelName(k), psnr[{k, over}]);
         }
     }
     return psnr;
@@ -90,7 +91,8 @@ TEST(Accuracy, FourierKernelsAgainstAnalytic) {
             {{Kernel::CatmullRom, 2.0}, 40.0}, {{Kernel::Sinc4, 2.0}, 34.2},
         };
         for (const auto& [key, floor] : floors)
-            EXPECT_GT(psnr.at(key), floor) << kernelName(key.first) << " oversampling " << key.second;
+            EXPECT_GT(psnr.at(key), floor)
+                << kernelName(key.first) << " oversampling " << key.second;
         // Theory: trilinear beats nearest; the cubic interpolators and the windowed sinc beat
         // trilinear; zero-padding helps every kernel.
         for (double over : {1.0, 2.0}) {
@@ -98,7 +100,8 @@ TEST(Accuracy, FourierKernelsAgainstAnalytic) {
             EXPECT_GT(psnr.at({Kernel::CatmullRom, over}), psnr.at({Kernel::Linear, over}));
             EXPECT_GT(psnr.at({Kernel::Sinc4, over}), psnr.at({Kernel::Linear, over}));
         }
-        for (Kernel k : allKernels()) EXPECT_GT(psnr.at({k, 2.0}), psnr.at({k, 1.0})) << kernelName(k);
+        for (Kernel k : allKernels())
+            EXPECT_GT(psnr.at({k, 2.0}), psnr.at({k, 1.0})) << kernelName(k);
     }
 }
 
@@ -115,9 +118,10 @@ TEST(Accuracy, RealCtAgainstSpatialProjector) {
                                        ViewFrame::fromDirUp({0.7, 0.6, 0.3}, {0, 0, 1})};
     std::vector<ProjectionImage> refs;
     for (const auto& view : views) refs.push_back(sp.project(view, {M, d}));
-    const std::map<std::pair<Kernel, double>, double> floors = {
-        {{Kernel::Linear, 1.0}, 16.5}, {{Kernel::CatmullRom, 1.0}, 19.4},
-        {{Kernel::Linear, 2.0}, 28.0}, {{Kernel::CatmullRom, 2.0}, 38.0}};
+    const std::map<std::pair<Kernel, double>, double> floors = {{{Kernel::Linear, 1.0}, 16.5},
+                                                                {{Kernel::CatmullRom, 1.0}, 19.4},
+                                                                {{Kernel::Linear, 2.0}, 28.0},
+                                                                {{Kernel::CatmullRom, 2.0}, 38.0}};
     // Measured 17.2 / 20.1 / 28.7 / 38.7 dB: the body fills its box, so the kernel's apodization
     // and ghost copies (not yet deapodized) weigh more than on the phantom.
     for (double over : {1.0, 2.0}) {
@@ -129,10 +133,11 @@ TEST(Accuracy, RealCtAgainstSpatialProjector) {
         for (Kernel k : {Kernel::Linear, Kernel::CatmullRom}) {
             double sum = 0;
             for (std::size_t i = 0; i < views.size(); ++i)
-                sum += fvr::test::compare(r.render({views[i], {M, d}, k}).pixels, refs[i].pixels).psnr;
+                sum +=
+                    fvr::test::compare(r.render({views[i], {M, d}, k}).pixels, refs[i].pixels).psnr;
             const double psnr = sum / double(views.size());
-            std::printf("[accuracy] body CT vs spatial: oversampling %.1f %-12s PSNR %.2f dB\n", over,
-                        kernelName(k), psnr);
+            std::printf("[accuracy] body CT vs spatial: oversampling %.1f %-12s PSNR %.2f dB\n",
+                        over, kernelName(k), psnr);
             EXPECT_GT(psnr, floors.at({k, over})) << kernelName(k) << " oversampling " << over;
         }
     }
@@ -160,8 +165,10 @@ std::map<DeapKey, Score> measureDeapodization() {
                 o.oversampling = over;
                 if (deap) o.deapodizeFor = k;
                 std::shared_ptr<const Spectrum> s;
-                if (deap) s = preprocess(fx.volume, o);
-                else s = plain ? plain : (plain = preprocess(fx.volume, o));
+                if (deap)
+                    s = preprocess(fx.volume, o);
+                else
+                    s = plain ? plain : (plain = preprocess(fx.volume, o));
                 CpuFourierRenderer r(s);
                 Score sc;
                 for (std::size_t i = 0; i < fx.views.size(); ++i) {
@@ -171,9 +178,11 @@ std::map<DeapKey, Score> measureDeapodization() {
                     sc.relRmse += c.relRmse / double(fx.views.size());
                 }
                 sc.bytesPerVoxel = double(s->bytes()) / double(fx.volume.voxelCount());
-                std::printf("[accuracy] fft %-14s oversampling %.2f deapodization %-3s PSNR %6.2f dB  "
-                            "rel. RMSE %.2e  %5.1f B/voxel\n",
-                            kernelName(k), over, deap ? "on" : "off", sc.psnr, sc.relRmse, sc.bytesPerVoxel);
+                std::printf(
+                    "[accuracy] fft %-14s oversampling %.2f deapodization %-3s PSNR %6.2f dB  "
+                    "rel. RMSE %.2e  %5.1f B/voxel\n",
+                    kernelName(k), over, deap ? "on" : "off", sc.psnr, sc.relRmse,
+                    sc.bytesPerVoxel);
                 out[{k, over, deap}] = sc;
             }
         }
@@ -204,7 +213,8 @@ TEST(Accuracy, DeapodizedKernelsAgainstAnalytic) {
         {{Kernel::KaiserBessel4, 2.0}, 41.4},  {{Kernel::KaiserBessel6, 2.0}, 41.4},
     };
     for (const auto& [key, floor] : floors)
-        EXPECT_GT(psnr(key.first, key.second, true), floor) << kernelName(key.first) << " oversampling " << key.second;
+        EXPECT_GT(psnr(key.first, key.second, true), floor)
+            << kernelName(key.first) << " oversampling " << key.second;
     // Deapodization helps every kernel whose transfer function it inverts. Not nearest (its error
     // is the ghost copies, which the division amplifies with the signal) and not the windowed
     // sinc at oversampling 2 (its table is row-normalised, so the continuous transform is not its
@@ -212,7 +222,8 @@ TEST(Accuracy, DeapodizedKernelsAgainstAnalytic) {
     for (double over : {1.0, 1.25, 1.5, 2.0}) {
         for (Kernel k : {Kernel::Linear, Kernel::BSpline, Kernel::CatmullRom, Kernel::KaiserBessel4,
                          Kernel::KaiserBessel6})
-            EXPECT_GT(psnr(k, over, true), psnr(k, over, false)) << kernelName(k) << " oversampling " << over;
+            EXPECT_GT(psnr(k, over, true), psnr(k, over, false))
+                << kernelName(k) << " oversampling " << over;
         if (over <= 1.5) {
             EXPECT_GT(psnr(Kernel::Sinc4, over, true), psnr(Kernel::Sinc4, over, false));
         }
@@ -220,7 +231,9 @@ TEST(Accuracy, DeapodizedKernelsAgainstAnalytic) {
     // Gridding: Kaiser-Bessel at oversampling 2 with deapodization beats the paper's trilinear at
     // oversampling 1 by a wide margin, and the spatial ray-casting reference.
     SpatialProjector sp(fixture().volume, {0.25, ValueMapping::Mu, 0});
-    const double spatial = meanPsnr([&](const ViewFrame& v) { return sp.project(v, {kM, fixture().d}); });
+    const double spatial = meanPsnr([&](const ViewFrame& v) {
+        return sp.project(v, {kM, fixture().d});
+    });
     for (Kernel k : {Kernel::KaiserBessel4, Kernel::KaiserBessel6}) {
         EXPECT_GT(psnr(k, 2.0, true), psnr(Kernel::Linear, 1.0, false) + 15.0) << kernelName(k);
         EXPECT_GT(psnr(k, 2.0, true), spatial + 1.0) << kernelName(k);

@@ -4,8 +4,8 @@
 
 #include <gtest/gtest.h>
 
-#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/errors.h>
+#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/render/preprocess.h>
 
 #include "image_metrics.h"
@@ -37,8 +37,9 @@ Volume blobVolume(Dims3 dims, Vec3 spacing, Vec3 centreVox) {
                 const double dx = (x - centreVox[0]) / 3.0, dy = (y - centreVox[1]) / 2.5,
                              dz = (z - centreVox[2]) / 3.5;
                 const double dx2 = (x - centreVox[0] - 4) / 2.0, dy2 = (y - centreVox[1] + 3) / 2.0;
-                v.voxels[v.index(x, y, z)] = float(100.0 * std::exp(-0.5 * (dx * dx + dy * dy + dz * dz)) +
-                                                   60.0 * std::exp(-0.5 * (dx2 * dx2 + dy2 * dy2 + dz * dz)));
+                v.voxels[v.index(x, y, z)] =
+                    float(100.0 * std::exp(-0.5 * (dx * dx + dy * dy + dz * dz)) +
+                          60.0 * std::exp(-0.5 * (dx2 * dx2 + dy2 * dy2 + dz * dz)));
             }
     return v;
 }
@@ -65,7 +66,8 @@ std::vector<double> voxelSumOracle(const Volume& v, const ViewFrame& f, int M, d
             if (!inside) continue;
             double sum = 0;
             for (std::int64_t i = 0; i < v.dims[axis]; ++i) {
-                std::int64_t p[3] = {std::int64_t(idx[0]), std::int64_t(idx[1]), std::int64_t(idx[2])};
+                std::int64_t p[3] = {std::int64_t(idx[0]), std::int64_t(idx[1]),
+                                     std::int64_t(idx[2])};
                 p[axis] = i;
                 sum += v.at(p[0], p[1], p[2]);
             }
@@ -74,7 +76,8 @@ std::vector<double> voxelSumOracle(const Volume& v, const ViewFrame& f, int M, d
     return out;
 }
 
-std::shared_ptr<const Spectrum> spectrumOf(const Volume& v, TransformKind t, double oversampling = 1.0,
+std::shared_ptr<const Spectrum> spectrumOf(const Volume& v, TransformKind t,
+                                           double oversampling = 1.0,
                                            std::optional<Dims3> padded = {}) {
     PreprocessOptions o;
     o.effort = PlannerEffort::Estimate;
@@ -97,9 +100,9 @@ TEST(CpuRenderer, AxisAlignedViewsReproduceVoxelSums) {
         Dims3 padded;
     };
     const Case cases[] = {
-        {{31, 45, 29}, {0.8, 0.8, 1.7}, {0, 0, 1}, {0, -1, 0}, {M, M, 29}},   // plain slice sum
-        {{33, 27, 41}, {1.2, 1.1, 1.1}, {1, 0, 0}, {0, -1, 0}, {33, M, M}},   // lateral
-        {{25, 21, 35}, {0.9, 1.3, 0.9}, {0, -1, 0}, {0, 0, 1}, {M, 21, M}},   // along -y
+        {{31, 45, 29}, {0.8, 0.8, 1.7}, {0, 0, 1}, {0, -1, 0}, {M, M, 29}}, // plain slice sum
+        {{33, 27, 41}, {1.2, 1.1, 1.1}, {1, 0, 0}, {0, -1, 0}, {33, M, M}}, // lateral
+        {{25, 21, 35}, {0.9, 1.3, 0.9}, {0, -1, 0}, {0, 0, 1}, {M, 21, M}}, // along -y
     };
     for (const Case& c : cases) {
         const Volume v = randomVolume(c.dims, 17, c.spacing);
@@ -118,8 +121,9 @@ TEST(CpuRenderer, AxisAlignedViewsReproduceVoxelSums) {
                 double maxErr = 0;
                 for (std::size_t i = 0; i < oracle.size(); ++i)
                     maxErr = std::max(maxErr, std::abs(img.pixels[i] - oracle[i]));
-                EXPECT_LT(maxErr / peak, 2e-5) << kernelName(k) << " " << transformName(t) << " dir "
-                                               << c.dir[0] << "," << c.dir[1] << "," << c.dir[2];
+                EXPECT_LT(maxErr / peak, 2e-5)
+                    << kernelName(k) << " " << transformName(t) << " dir " << c.dir[0] << ","
+                    << c.dir[1] << "," << c.dir[2];
             }
         }
     }
@@ -147,7 +151,8 @@ TEST(CpuRenderer, FftAndFhtGiveTheSameProjection) {
 TEST(CpuRenderer, TranslatedVolumeGivesTranslatedProjection) {
     const Vec3 s{1.0, 1.0, 1.0};
     const Volume a = blobVolume({48, 48, 48}, s, {22, 24, 23});
-    const Volume b = blobVolume({48, 48, 48}, s, {22 + 3, 24 - 2, 23 + 5}); // shifted (3,-2,5) voxels
+    const Volume b =
+        blobVolume({48, 48, 48}, s, {22 + 3, 24 - 2, 23 + 5}); // shifted (3,-2,5) voxels
     const int M = 128;
     const double d = 1.0;
     // D in the x-z plane: a y shift moves the image by whole rows, the other axes mix into D.
@@ -158,9 +163,11 @@ TEST(CpuRenderer, TranslatedVolumeGivesTranslatedProjection) {
             const auto pa = ra.render({f, {M, d}, k});
             const auto pb = rb.render({f, {M, d}, k});
             // Shift in the image: along R by (3,-2,5).R voxels, along rows by -2 (y down = rows).
-            const double shiftCols = (3 * f.r[0] - 2 * f.r[1] + 5 * f.r[2]) / d; // (0.8*3 - 0.6*5) = -0.6
+            const double shiftCols =
+                (3 * f.r[0] - 2 * f.r[1] + 5 * f.r[2]) / d; // (0.8*3 - 0.6*5) = -0.6
             ASSERT_NEAR(shiftCols, 3 * 0.8 - 5 * 0.6, 1e-9);
-            // Compare rows only: b(col, row) = a(col - shiftCols, row + 2), interpolated along cols.
+            // Compare rows only: b(col, row) = a(col - shiftCols, row + 2), interpolated along
+            // cols.
             double err2 = 0, ref2 = 0;
             for (int row = 10; row < M - 10; ++row)
                 for (int col = 10; col < M - 10; ++col) {
@@ -214,7 +221,8 @@ TEST(CpuRenderer, OutputScaleIsPhysicalLineIntegral) {
         for (std::int64_t y = 0; y < 33; ++y)
             for (std::int64_t x = 0; x < 33; ++x) {
                 const double px = (x - 16) * 1.5, py = (y - 16) * 1.5, pz = (z - 12) * 2.5;
-                const float val = float(A * std::exp(-(px * px + py * py + pz * pz) / (2 * sigma * sigma)));
+                const float val =
+                    float(A * std::exp(-(px * px + py * py + pz * pz) / (2 * sigma * sigma)));
                 v.voxels[v.index(x, y, z)] = val;
                 volumeIntegral += val * 1.5 * 1.5 * 2.5;
             }

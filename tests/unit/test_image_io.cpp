@@ -69,12 +69,15 @@ TEST(ImageIo, PngDecodesToWindowedValues) {
         EXPECT_EQ(std::uint8_t(b[24]), depth);
         const auto idat = b.find("IDAT");
         ASSERT_NE(idat, std::string::npos);
-        const std::uint32_t len = (std::uint8_t(b[idat - 4]) << 24) | (std::uint8_t(b[idat - 3]) << 16) |
+        const std::uint32_t len = (std::uint8_t(b[idat - 4]) << 24) |
+                                  (std::uint8_t(b[idat - 3]) << 16) |
                                   (std::uint8_t(b[idat - 2]) << 8) | std::uint8_t(b[idat - 1]);
         const int bpp = depth / 8;
         std::vector<unsigned char> raw(2 * (1 + 3 * bpp));
         uLongf rawLen = uLongf(raw.size());
-        ASSERT_EQ(uncompress(raw.data(), &rawLen, reinterpret_cast<const Bytef*>(b.data() + idat + 4), len), Z_OK);
+        ASSERT_EQ(uncompress(raw.data(), &rawLen,
+                             reinterpret_cast<const Bytef*>(b.data() + idat + 4), len),
+                  Z_OK);
         ASSERT_EQ(rawLen, raw.size());
         auto px = [&](int r, int c) {
             const unsigned char* q = &raw[r * (1 + 3 * bpp) + 1 + c * bpp];

@@ -94,7 +94,8 @@ TEST(Kernels, KaiserBesselTablesDependOnOversampling) {
                 }
                 // Unit integral, so the weights sum to 1 up to the kernel's aliases (which shrink
                 // as the oversampling grows): within 3% at sigma 1, 1% at 1.25, 1e-3 at sigma 2.
-                EXPECT_NEAR(sum, 1.0, sigma >= 2.0 ? 1e-3 : (sigma >= 1.25 ? 1e-2 : 3e-2)) << kernelName(k) << " sigma " << sigma;
+                EXPECT_NEAR(sum, 1.0, sigma >= 2.0 ? 1e-3 : (sigma >= 1.25 ? 1e-2 : 3e-2))
+                    << kernelName(k) << " sigma " << sigma;
             }
         }
     KernelTable a(Kernel::KaiserBessel4, 1.0), b(Kernel::KaiserBessel4, 2.0);

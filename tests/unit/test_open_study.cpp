@@ -52,7 +52,8 @@ TEST(OpenStudy, ClassifiesPathsByTheRule) {
         classifyInput((dir / "missing.nii").string());
         ADD_FAILURE() << "a missing path must throw";
     } catch (const LoadError& e) {
-        EXPECT_NE(std::string(e.what()).find("missing.nii: no such file or folder"), std::string::npos);
+        EXPECT_NE(std::string(e.what()).find("missing.nii: no such file or folder"),
+                  std::string::npos);
     }
 }
 
@@ -67,7 +68,8 @@ TEST(OpenStudy, ParsesThePhantomSpec) {
 
 TEST(OpenStudy, DefaultSeriesPrefersLoadableThenMostSlices) {
     DicomScanResult scan;
-    scan.series = {series("a", 30), series("b", 200, "colour images"), series("c", 40), series("d", 40)};
+    scan.series = {series("a", 30), series("b", 200, "colour images"), series("c", 40),
+                   series("d", 40)};
     EXPECT_EQ(defaultSeriesIndex(scan), 2u); // b has most slices but cannot load; c before d
     scan.series = {series("a", 3, "mixed image sizes"), series("b", 5, "colour images")};
     EXPECT_EQ(defaultSeriesIndex(scan), 1u); // nothing loadable: most slices

@@ -8,9 +8,9 @@ using namespace fvr::core;
 TEST(PatientViews, ApOnAnAxialStack) {
     Volume v; // identity direction: x = L, y = P, z = S (an axial stack as stored by DICOM)
     const ViewFrame f = patientViewFrame(v, PatientView::AP);
-    EXPECT_EQ(patientDirectionLabel(v, f.d), "P");  // looking towards posterior
-    EXPECT_EQ(patientDirectionLabel(v, f.u), "S");  // head up
-    EXPECT_EQ(patientDirectionLabel(v, f.r), "L");  // patient's left on the image's right
+    EXPECT_EQ(patientDirectionLabel(v, f.d), "P"); // looking towards posterior
+    EXPECT_EQ(patientDirectionLabel(v, f.u), "S"); // head up
+    EXPECT_EQ(patientDirectionLabel(v, f.r), "L"); // patient's left on the image's right
     const ViewFrame feet = patientViewFrame(v, PatientView::Feet);
     EXPECT_EQ(patientDirectionLabel(v, feet.r), "L");
     EXPECT_EQ(patientDirectionLabel(v, feet.u), "A");

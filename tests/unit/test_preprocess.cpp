@@ -28,8 +28,8 @@ Volume randomVolume(Dims3 dims, unsigned seed, Vec3 spacing = {1, 1, 1}) {
 }
 
 /** Independent oracle: direct DFT in double of the centred volume at signed frequency k. */
-std::complex<double> naiveCentredDft(const Volume& v, const Dims3& P, std::int64_t kx, std::int64_t ky,
-                                     std::int64_t kz) {
+std::complex<double> naiveCentredDft(const Volume& v, const Dims3& P, std::int64_t kx,
+                                     std::int64_t ky, std::int64_t kz) {
     std::complex<double> sum = 0;
     for (std::int64_t z = 0; z < v.dims[2]; ++z)
         for (std::int64_t y = 0; y < v.dims[1]; ++y)
@@ -93,11 +93,11 @@ TEST(Preprocess, PaddedDims) {
 TEST(Preprocess, FftMatchesDirectDftInDouble) {
     PreprocessOptions o;
     o.effort = PlannerEffort::Estimate;
-    checkAgainstNaive(randomVolume({7, 5, 6}, 1), o);  // odd and even, P = N
+    checkAgainstNaive(randomVolume({7, 5, 6}, 1), o); // odd and even, P = N
     o.oversampling = 1.5;
-    checkAgainstNaive(randomVolume({6, 8, 5}, 2), o);  // padded, even N with half-voxel phase
+    checkAgainstNaive(randomVolume({6, 8, 5}, 2), o); // padded, even N with half-voxel phase
     o.paddedDims = Dims3{9, 10, 12};
-    checkAgainstNaive(randomVolume({8, 7, 9}, 3), o);  // even N inside odd P
+    checkAgainstNaive(randomVolume({8, 7, 9}, 3), o); // even N inside odd P
 }
 
 TEST(Preprocess, HartleyBothMethodsMatchDirectDft) {
@@ -138,7 +138,7 @@ TEST(Preprocess, MuMapping) {
     Volume v = randomVolume({5, 5, 5}, 7);
     v.voxels[0] = -1000.0f;
     v.voxels[1] = -2000.0f; // below air: clipped to 0
-    v.voxels[2] = 1000.0f;  // 2x water
+    v.voxels[2] = 1000.0f; // 2x water
     PreprocessOptions o;
     o.effort = PlannerEffort::Estimate;
     o.mapping = ValueMapping::Mu;
@@ -176,12 +176,13 @@ TEST(Preprocess, CancelStopsAndFreesMemory) {
     const auto before = mallinfo2().uordblks;
     CancelToken token;
     double lastSeen = 0;
-    EXPECT_THROW(preprocess(v, o,
-                            [&](double f, std::string_view stage) {
-                                lastSeen = f;
-                                if (stage.find("columns") != std::string_view::npos) token.cancel();
-                            },
-                            &token),
+    EXPECT_THROW(preprocess(
+                     v, o,
+                     [&](double f, std::string_view stage) {
+                         lastSeen = f;
+                         if (stage.find("columns") != std::string_view::npos) token.cancel();
+                     },
+                     &token),
                  Cancelled);
     EXPECT_LT(lastSeen, 0.95);
     const auto after = mallinfo2().uordblks;

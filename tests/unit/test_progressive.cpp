@@ -66,7 +66,7 @@ TEST(Progressive, AKernelLevelIsTriedNotGuessedFromTheCostlierKernel) {
     // Catmull-Rom 512: 60 ms, linear 512: 15 ms, linear 256: 4 ms, target 30 fps (33 ms).
     ProgressiveController c(30.0);
     c.setLevels(progressiveLevels(512, Kernel::CatmullRom, false)); // CR 512, lin 512, lin 256, ...
-    c.frameRendered(60.0);                                          // the still frame
+    c.frameRendered(60.0); // the still frame
     c.beginInteraction();
     EXPECT_EQ(c.level(), 1); // 512 linear: unmeasured, so tried (not assumed to cost 60 ms)
     std::string trace;

@@ -98,9 +98,12 @@ TEST(SliceFilterTable, MatchesTheFilterDefinitionInDouble) {
             for (int n = -M / 2; n < M / 2; ++n)
                 for (int m = -M / 2; m < M / 2; ++m) {
                     double want = f.response(std::hypot(double(m), double(n)) / (M * d));
-                    if (aperture) want *= pixelApertureResponse(double(m) / M) * pixelApertureResponse(double(n) / M);
+                    if (aperture)
+                        want *= pixelApertureResponse(double(m) / M) *
+                                pixelApertureResponse(double(n) / M);
                     ASSERT_NEAR(t(m, n), want, 2e-6 * std::max(1.0, std::abs(want)))
-                        << m << "," << n << " aperture " << aperture << " sharpen " << f.sharpenAmount;
+                        << m << "," << n << " aperture " << aperture << " sharpen "
+                        << f.sharpenAmount;
                 }
         }
 }

@@ -53,9 +53,9 @@ TEST(Vec3, Normalized) {
     ASSERT_TRUE(b);
     expectVec(*b, {-1, 0, 0});
     EXPECT_FALSE(normalized({0, 0, 0}));
-    EXPECT_FALSE(normalized({1e-13, 0, 0}));                  // below the default 1e-12
-    EXPECT_TRUE(normalized({1e-13, 0, 0}, 1e-14));            // but above a smaller bound
-    EXPECT_FALSE(normalized({1, 0, 0}, 1.0));                 // the bound is exclusive
+    EXPECT_FALSE(normalized({1e-13, 0, 0})); // below the default 1e-12
+    EXPECT_TRUE(normalized({1e-13, 0, 0}, 1e-14)); // but above a smaller bound
+    EXPECT_FALSE(normalized({1, 0, 0}, 1.0)); // the bound is exclusive
     const double inf = std::numeric_limits<double>::infinity();
     EXPECT_FALSE(normalized({inf, 0, 0}));
     EXPECT_FALSE(normalized({std::nan(""), 1, 0}));

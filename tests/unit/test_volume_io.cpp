@@ -2,8 +2,8 @@
 // computed independently (Python, standard library only), synthetic files of every element type
 // and layout, and malformed files whose messages must name the file and the field.
 #include <fvr/core/errors.h>
-#include <fvr/core/volume.h>
 #include <fvr/core/io/volume_io.h>
+#include <fvr/core/volume.h>
 
 #include <algorithm>
 #include <array>

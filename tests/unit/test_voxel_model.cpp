@@ -3,23 +3,23 @@
 // exact 2D computation in double for axis views, and the spatial projector with the same model
 // on the shared real CTs and MR.
 #include <cmath>
-#include <filesystem>
-#include <limits>
 #include <complex>
 #include <cstdio>
+#include <filesystem>
+#include <limits>
 #include <numbers>
 #include <random>
 
 #include <gtest/gtest.h>
 
-#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/dicom/dicom.h>
 #include <fvr/core/errors.h>
-#include <fvr/core/xray/patient_views.h>
+#include <fvr/core/io/volume_io.h>
+#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/render/spatial_projector.h>
-#include <fvr/core/io/volume_io.h>
 #include <fvr/core/render/voxel_model.h>
+#include <fvr/core/xray/patient_views.h>
 
 #include "image_metrics.h"
 #include "test_support.h"
@@ -90,7 +90,8 @@ struct AxisView {
  * transfer function, the Nyquist row and column averaged over their two aliases. No 3D spectrum,
  * no gridding.
  */
-std::vector<float> axisViewOracle(const Volume& v, VoxelModel model, int M, double d, const AxisView& av = {2, 0, 1, 1, 1}) {
+std::vector<float> axisViewOracle(const Volume& v, VoxelModel model, int M, double d,
+                                  const AxisView& av = {2, 0, 1, 1, 1}) {
     const auto& Nv = v.dims;
     const auto& sv = v.spacing;
     // In the view's axes: N[0], s[0] along the image's columns (b), N[1], s[1] along its rows (c).
@@ -111,7 +112,8 @@ std::vector<float> axisViewOracle(const Volume& v, VoxelModel model, int M, doub
         for (std::int64_t y = 0; y < N[1]; ++y) {
             cd acc = 0.0;
             for (std::int64_t x = 0; x < N[0]; ++x)
-                acc += S[std::size_t(y * N[0] + x)] * std::polar(1.0, -2.0 * kPi * f * av.sr * (x - c0));
+                acc += S[std::size_t(y * N[0] + x)] *
+                       std::polar(1.0, -2.0 * kPi * f * av.sr * (x - c0));
             A[std::size_t(mi * N[1] + y)] = acc;
         }
     }
@@ -121,7 +123,8 @@ std::vector<float> axisViewOracle(const Volume& v, VoxelModel model, int M, doub
             const double f = double(ni - M / 2) * s[1] / (M * d);
             cd acc = 0.0;
             for (std::int64_t y = 0; y < N[1]; ++y)
-                acc += A[std::size_t(mi * N[1] + y)] * std::polar(1.0, -2.0 * kPi * f * av.sd * (y - c1));
+                acc += A[std::size_t(mi * N[1] + y)] *
+                       std::polar(1.0, -2.0 * kPi * f * av.sd * (y - c1));
             const double tm = voxelModelTransfer(model, double(mi - M / 2) * s[0] / (M * d));
             const double tn = voxelModelTransfer(model, double(ni - M / 2) * s[1] / (M * d));
             X[std::size_t(mi * F + ni)] = acc * tm * tn;
@@ -145,19 +148,22 @@ std::vector<float> axisViewOracle(const Volume& v, VoxelModel model, int M, doub
     for (int col = 0; col < M; ++col)
         for (int n = 0; n < M; ++n) {
             cd acc = 0.0;
-            for (int m = 0; m < M; ++m) acc += Y[std::size_t(m * M + n)] * std::polar(1.0, 2.0 * kPi * (m - M / 2) * (col - M / 2) / M);
+            for (int m = 0; m < M; ++m)
+                acc += Y[std::size_t(m * M + n)] *
+                       std::polar(1.0, 2.0 * kPi * (m - M / 2) * (col - M / 2) / M);
             B[std::size_t(col * M + n)] = acc;
         }
     std::vector<float> img(std::size_t(M * M));
     for (int row = 0; row < M; ++row)
         for (int col = 0; col < M; ++col) {
             cd acc = 0.0;
-            for (int n = 0; n < M; ++n) acc += B[std::size_t(col * M + n)] * std::polar(1.0, 2.0 * kPi * (n - M / 2) * (row - M / 2) / M);
+            for (int n = 0; n < M; ++n)
+                acc += B[std::size_t(col * M + n)] *
+                       std::polar(1.0, 2.0 * kPi * (n - M / 2) * (row - M / 2) / M);
             img[std::size_t(row * M + col)] = float(scale * acc.real());
         }
     return img;
 }
-
 
 } // namespace
 
@@ -168,7 +174,8 @@ TEST(VoxelModel, NamesAndErrors) {
         parseVoxelModel("cubic-catmull");
         FAIL() << "expected SettingsError";
     } catch (const SettingsError& e) {
-        EXPECT_NE(std::string(e.what()).find("bandlimited|trilinear|bspline"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("bandlimited|trilinear|bspline"), std::string::npos)
+            << e.what();
         EXPECT_NE(std::string(e.what()).find("cubic-catmull"), std::string::npos) << e.what();
     }
     SpatialProjectorOptions o;
@@ -181,14 +188,19 @@ TEST(VoxelModel, TransferFunctionsAreTheInterpolantsFourierTransforms) {
     for (double nu : {0.0, 0.13, 0.5, 0.77, 1.0, 1.3, 2.6, -0.4}) {
         // Trilinear: the tent's transform. B-spline: the cubic B-spline's transform over the
         // transform of its samples (the prefilter, sum_n beta3(n) e^{-2 pi i nu n}).
-        EXPECT_NEAR(voxelModelTransfer(VoxelModel::Trilinear, nu), fourierOf(tent, 1.0, nu), 1e-9) << nu;
+        EXPECT_NEAR(voxelModelTransfer(VoxelModel::Trilinear, nu), fourierOf(tent, 1.0, nu), 1e-9)
+            << nu;
         const double samples = cubicBSpline(0) + 2.0 * cubicBSpline(1) * std::cos(2.0 * kPi * nu);
-        EXPECT_NEAR(voxelModelTransfer(VoxelModel::BSpline, nu), fourierOf(cubicBSpline, 2.0, nu) / samples, 1e-9) << nu;
+        EXPECT_NEAR(voxelModelTransfer(VoxelModel::BSpline, nu),
+                    fourierOf(cubicBSpline, 2.0, nu) / samples, 1e-9)
+            << nu;
         EXPECT_EQ(voxelModelTransfer(VoxelModel::BandLimited, nu), std::abs(nu) <= 0.5 ? 1.0 : 0.0);
         for (VoxelModel m : {VoxelModel::Trilinear, VoxelModel::BSpline}) {
             const double h = 1e-5;
-            const double fd = (voxelModelTransfer(m, nu + h) - voxelModelTransfer(m, nu - h)) / (2 * h);
-            EXPECT_NEAR(voxelModelTransferDerivative(m, nu), fd, 1e-7) << voxelModelName(m) << " " << nu;
+            const double fd =
+                (voxelModelTransfer(m, nu + h) - voxelModelTransfer(m, nu - h)) / (2 * h);
+            EXPECT_NEAR(voxelModelTransferDerivative(m, nu), fd, 1e-7)
+                << voxelModelName(m) << " " << nu;
         }
     }
     // The tables the CPU renderer reads, inside their range and beyond it.
@@ -197,7 +209,8 @@ TEST(VoxelModel, TransferFunctionsAreTheInterpolantsFourierTransforms) {
         double worst = 0.0, worstD = 0.0;
         for (double nu = -4.0; nu <= 4.0; nu += 0.000731) {
             worst = std::max(worst, std::abs(t.value(nu) - voxelModelTransfer(m, nu)));
-            worstD = std::max(worstD, std::abs(t.derivative(nu) - voxelModelTransferDerivative(m, nu)));
+            worstD =
+                std::max(worstD, std::abs(t.derivative(nu) - voxelModelTransferDerivative(m, nu)));
         }
         // Linear interpolation at h = 1/1024: h^2/8 max|t2| (a few 1e-6 for the B-spline's second
         // derivative, then float rounding), and h/2 max|t3| for the derivative.
@@ -226,9 +239,12 @@ TEST(VoxelModel, BSplineCoefficientsInterpolateTheVoxelsAndTheZerosAround) {
                 for (int k = -1; k <= 1; ++k)
                     for (int j = -1; j <= 1; ++j)
                         for (int i = -1; i <= 1; ++i)
-                            val += cubicBSpline(i) * cubicBSpline(j) * cubicBSpline(k) * coef(x + i, y + j, z + k);
-                const bool inside = x >= 0 && y >= 0 && z >= 0 && x < dims[0] && y < dims[1] && z < dims[2];
-                const double want = inside ? voxels[std::size_t((z * dims[1] + y) * dims[0] + x)] : 0.0;
+                            val += cubicBSpline(i) * cubicBSpline(j) * cubicBSpline(k) *
+                                   coef(x + i, y + j, z + k);
+                const bool inside =
+                    x >= 0 && y >= 0 && z >= 0 && x < dims[0] && y < dims[1] && z < dims[2];
+                const double want =
+                    inside ? voxels[std::size_t((z * dims[1] + y) * dims[0] + x)] : 0.0;
                 worst = std::max(worst, std::abs(val - want));
             }
     EXPECT_LT(worst, 1e-5);
@@ -247,28 +263,31 @@ TEST(VoxelModel, AxisViewEqualsTheExactProjectionOfEachModel) {
     // axis's period signs and transfer function in the image plane once.
     const AxisView axisViews[] = {{2, 0, 1, 1, 1}, {0, 1, 2, -1, -1}, {1, 0, 2, 1, -1}};
     for (const AxisView& av : axisViews)
-    for (auto t : {TransformKind::Fft, TransformKind::Fht}) {
-        const ViewFrame view = av.frame();
-        PreprocessOptions o;
-        o.effort = PlannerEffort::Estimate;
-        o.transform = t;
-        o.oversampling = 2.0;
-        o.deapodizeFor = Kernel::KaiserBessel6;
-        CpuFourierRenderer r(preprocess(v, o));
-        for (VoxelModel model : allVoxelModels())
-            for (int K : {1, 2, 3}) {
-                if (model == VoxelModel::BandLimited && K > 1) continue; // its band edge falls on samples
-                const double d = 2.0 / K;
-                RenderParams p{view, {M, d}, Kernel::KaiserBessel6};
-                p.voxelModel = model;
-                const auto got = r.render(p);
-                const auto want = axisViewOracle(v, model, M, d, av);
-                const double psnr = fvr::test::compare(got.pixels, want).psnr;
-                std::printf("[voxel model] view along axis %d vs exact 2D oracle: %s %-11s d = 2 mm/%d  %.1f dB\n", av.a,
-                            transformName(t), voxelModelName(model), K, psnr);
-                EXPECT_GT(psnr, 75.0) << "axis " << av.a << " " << transformName(t) << " " << voxelModelName(model) << " K " << K;
-            }
-    }
+        for (auto t : {TransformKind::Fft, TransformKind::Fht}) {
+            const ViewFrame view = av.frame();
+            PreprocessOptions o;
+            o.effort = PlannerEffort::Estimate;
+            o.transform = t;
+            o.oversampling = 2.0;
+            o.deapodizeFor = Kernel::KaiserBessel6;
+            CpuFourierRenderer r(preprocess(v, o));
+            for (VoxelModel model : allVoxelModels())
+                for (int K : {1, 2, 3}) {
+                    if (model == VoxelModel::BandLimited && K > 1)
+                        continue; // its band edge falls on samples
+                    const double d = 2.0 / K;
+                    RenderParams p{view, {M, d}, Kernel::KaiserBessel6};
+                    p.voxelModel = model;
+                    const auto got = r.render(p);
+                    const auto want = axisViewOracle(v, model, M, d, av);
+                    const double psnr = fvr::test::compare(got.pixels, want).psnr;
+                    std::printf("[voxel model] view along axis %d vs exact 2D oracle: %s %-11s d = "
+                                "2 mm/%d  %.1f dB\n",
+                                av.a, transformName(t), voxelModelName(model), K, psnr);
+                    EXPECT_GT(psnr, 75.0) << "axis " << av.a << " " << transformName(t) << " "
+                                          << voxelModelName(model) << " K " << K;
+                }
+        }
 }
 
 // The oracle's conventions (centre, orientation, scale) on a case worked out by hand: pixels on
@@ -284,7 +303,8 @@ TEST(VoxelModel, AxisViewOracleGivesThePlainVoxelSumsOnVoxelCentres) {
             const std::int64_t x = col - M / 2 + 15, y = row - M / 2 + 12;
             double want = 0.0;
             if (x >= 0 && x < 31 && y >= 0 && y < 25)
-                for (std::int64_t z = 0; z < 12; ++z) want += 3.0 * v.voxels[std::size_t(v.index(x, y, z))];
+                for (std::int64_t z = 0; z < 12; ++z)
+                    want += 3.0 * v.voxels[std::size_t(v.index(x, y, z))];
             worst = std::max(worst, std::abs(img[std::size_t(row * M + col)] - want));
             peak = std::max(peak, want);
         }
@@ -298,10 +318,10 @@ TEST(VoxelModel, AxisViewOracleGivesThePlainVoxelSumsOnVoxelCentres) {
 namespace {
 
 struct RealCase {
-    const char* path;        // under ../shared/data
+    const char* path; // under ../shared/data
     ValueMapping mapping;
-    double floors[2][4];     // [trilinear, bspline][AP, LEFT, oblique 1, oblique 2], dB
-    double minTrilinear;     // most negative trilinear pixel (fraction of the maximum), clamp off
+    double floors[2][4]; // [trilinear, bspline][AP, LEFT, oblique 1, oblique 2], dB
+    double minTrilinear; // most negative trilinear pixel (fraction of the maximum), clamp off
     double bandLimitedBelow; // the band-limited model's most negative pixel on AP is below this
     // How much closer than the band-limited model the trilinear one comes to trilinear ray
     // casting per view (dB; NaN: not asserted, where pixels coarser than the voxels let the
@@ -346,9 +366,12 @@ void checkRealData(const RealCase& rc) {
             const auto img = r.render(p);
             const double psnr = fvr::test::compare(img.pixels, ref.pixels).psnr;
             const double lowest = mostNegativeFraction(img.pixels);
-            std::printf("[voxel model] %s %-18s %-9s vs %-9s ray casting %6.2f dB, most negative %.3f %%\n", rc.path,
-                        views[i].first, voxelModelName(models[mi]), voxelModelName(models[mi]), psnr, 100 * lowest);
-            EXPECT_GT(psnr, rc.floors[mi][i]) << rc.path << " " << views[i].first << " " << voxelModelName(models[mi]);
+            std::printf(
+                "[voxel model] %s %-18s %-9s vs %-9s ray casting %6.2f dB, most negative %.3f %%\n",
+                rc.path, views[i].first, voxelModelName(models[mi]), voxelModelName(models[mi]),
+                psnr, 100 * lowest);
+            EXPECT_GT(psnr, rc.floors[mi][i])
+                << rc.path << " " << views[i].first << " " << voxelModelName(models[mi]);
             if (mi != 0) continue;
             EXPECT_GT(lowest, rc.minTrilinear) << rc.path << " " << views[i].first;
             // The clamp for a non-negative volume: nothing below 0, and never further from the
@@ -361,13 +384,16 @@ void checkRealData(const RealCase& rc) {
             p.voxelModel = VoxelModel::BandLimited;
             const auto band = r.render(p);
             const double bandPsnr = fvr::test::compare(band.pixels, ref.pixels).psnr;
-            std::printf("[voxel model] %s %-18s %-9s vs trilinear ray casting %6.2f dB, most negative %.3f %%\n",
-                        rc.path, views[i].first, "bandlimited", bandPsnr, 100 * mostNegativeFraction(band.pixels));
+            std::printf("[voxel model] %s %-18s %-9s vs trilinear ray casting %6.2f dB, most "
+                        "negative %.3f %%\n",
+                        rc.path, views[i].first, "bandlimited", bandPsnr,
+                        100 * mostNegativeFraction(band.pixels));
             if (i == 0) {
                 EXPECT_LT(mostNegativeFraction(band.pixels), rc.bandLimitedBelow) << rc.path;
             }
             if (!std::isnan(rc.gainOverBandLimited[i])) {
-                EXPECT_GT(psnr, bandPsnr + rc.gainOverBandLimited[i]) << rc.path << " " << views[i].first;
+                EXPECT_GT(psnr, bandPsnr + rc.gainOverBandLimited[i])
+                    << rc.path << " " << views[i].first;
             }
         }
     }
@@ -377,20 +403,32 @@ void checkRealData(const RealCase& rc) {
 
 TEST(VoxelModel, BodyCtMatchesRayCastingWithTheSameModel) {
     FVR_REQUIRE_DATA("volumes/body_ct_hu_3mm/example_ct.mhd");
-    checkRealData({"volumes/body_ct_hu_3mm/example_ct.mhd", ValueMapping::Mu, {{48, 50, 55, 59}, {49.5, 52, 55, 59}}, -0.003,
-                   -0.10, {8, 8, 2, 4}}); // measured gains 10.1, 10.3, 3.1, 5.3 dB
+    checkRealData({"volumes/body_ct_hu_3mm/example_ct.mhd",
+                   ValueMapping::Mu,
+                   {{48, 50, 55, 59}, {49.5, 52, 55, 59}},
+                   -0.003,
+                   -0.10,
+                   {8, 8, 2, 4}}); // measured gains 10.1, 10.3, 3.1, 5.3 dB
 }
 
 TEST(VoxelModel, PhilipsCtMatchesRayCastingWithTheSameModel) {
     FVR_REQUIRE_DATA("dicom/ct_phantom_philips_512x512x140");
-    checkRealData({"dicom/ct_phantom_philips_512x512x140", ValueMapping::Mu, {{53.5, 47, 60.5, 60}, {52, 46, 59, 59}},
-                   -0.005, -0.005, {kNotAsserted, kNotAsserted, 1.5, 0.5}}); // gains -1.3, -0.3, 2.5, 1.1 dB
+    checkRealData({"dicom/ct_phantom_philips_512x512x140",
+                   ValueMapping::Mu,
+                   {{53.5, 47, 60.5, 60}, {52, 46, 59, 59}},
+                   -0.005,
+                   -0.005,
+                   {kNotAsserted, kNotAsserted, 1.5, 0.5}}); // gains -1.3, -0.3, 2.5, 1.1 dB
 }
 
 TEST(VoxelModel, MrHeadMatchesRayCastingWithTheSameModel) {
     FVR_REQUIRE_DATA("dicom/mr_head_coronal_256x256x100");
-    checkRealData({"dicom/mr_head_coronal_256x256x100", ValueMapping::Raw, {{50, 52.5, 54, 55}, {48.5, 52.5, 51.5, 52}},
-                   -0.006, -0.005, {0.5, 5, 5, 4}}); // gains 1.0, 6.2, 6.0, 5.2 dB
+    checkRealData({"dicom/mr_head_coronal_256x256x100",
+                   ValueMapping::Raw,
+                   {{50, 52.5, 54, 55}, {48.5, 52.5, 51.5, 52}},
+                   -0.006,
+                   -0.005,
+                   {0.5, 5, 5, 4}}); // gains 1.0, 6.2, 6.0, 5.2 dB
 }
 
 // Depth cueing with a compact model differentiates the model's spectrum T G, so its slice value
@@ -415,7 +453,9 @@ TEST(VoxelModel, DepthCueDifferentiatesTheModelsTransferFunction) {
     p.depthCue = 0.8;
     p.clipToVolume = true;
     const double psnr = fvr::test::compare(r.render(p).pixels, sp.project(view, g).pixels).psnr;
-    std::printf("[voxel model] depth cue 0.8, anisotropic noise, trilinear vs depth-weighted ray casting: %.2f dB\n", psnr);
+    std::printf("[voxel model] depth cue 0.8, anisotropic noise, trilinear vs depth-weighted ray "
+                "casting: %.2f dB\n",
+                psnr);
     EXPECT_GT(psnr, 71.0);
 }
 
@@ -442,9 +482,10 @@ TEST(VoxelModel, FftEqualsFhtForEveryModelWithDepthCue) {
                     RenderParams p{view, {64, 0.5}, k};
                     p.voxelModel = model;
                     p.depthCue = depth;
-                    const double psnr = fvr::test::compare(fht.render(p).pixels, fft.render(p).pixels).psnr;
-                    EXPECT_GT(psnr, 110.0) << dims[0] << " " << voxelModelName(model) << " " << kernelName(k) << " depth "
-                                           << depth;
+                    const double psnr =
+                        fvr::test::compare(fht.render(p).pixels, fft.render(p).pixels).psnr;
+                    EXPECT_GT(psnr, 110.0) << dims[0] << " " << voxelModelName(model) << " "
+                                           << kernelName(k) << " depth " << depth;
                 }
     }
 }

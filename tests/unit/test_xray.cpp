@@ -11,13 +11,13 @@
 #include <fftw3.h>
 #include <gtest/gtest.h>
 
-#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/errors.h>
 #include <fvr/core/io/image_io.h>
-#include <fvr/core/xray/phantom.h>
+#include <fvr/core/io/volume_io.h>
+#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/render/spatial_projector.h>
-#include <fvr/core/io/volume_io.h>
+#include <fvr/core/xray/phantom.h>
 #include <fvr/core/xray/xray.h>
 
 #include "image_metrics.h"
@@ -41,7 +41,8 @@ const Fixture& fixture() {
     return f;
 }
 
-std::shared_ptr<const Spectrum> spectrumFor(TransformKind t, double over, std::optional<Kernel> deapodize,
+std::shared_ptr<const Spectrum> spectrumFor(TransformKind t, double over,
+                                            std::optional<Kernel> deapodize,
                                             ValueMapping mapping = ValueMapping::Mu) {
     PreprocessOptions o;
     o.effort = PlannerEffort::Estimate;
@@ -52,29 +53,36 @@ std::shared_ptr<const Spectrum> spectrumFor(TransformKind t, double over, std::o
     return preprocess(fixture().volume, o);
 }
 
-/** Periodic 2D convolution of an M x M image with the sampled Gaussian of sigma pixels, in double. */
+/** Periodic 2D convolution of an M x M image with the sampled Gaussian of sigma pixels, in double.
+ */
 std::vector<double> gaussianBlurPeriodic(const std::vector<float>& img, int M, double sigmaPx) {
     const int R = int(std::ceil(8 * sigmaPx));
     std::vector<double> k(std::size_t(2 * R + 1));
-    for (int i = -R; i <= R; ++i) k[std::size_t(i + R)] = std::exp(-0.5 * i * i / (sigmaPx * sigmaPx)) / (std::sqrt(2 * std::numbers::pi) * sigmaPx);
+    for (int i = -R; i <= R; ++i)
+        k[std::size_t(i + R)] = std::exp(-0.5 * i * i / (sigmaPx * sigmaPx)) /
+                                (std::sqrt(2 * std::numbers::pi) * sigmaPx);
     std::vector<double> tmp(img.size()), out(img.size());
     for (int r = 0; r < M; ++r)
         for (int c = 0; c < M; ++c) {
             double s = 0;
-            for (int i = -R; i <= R; ++i) s += k[std::size_t(i + R)] * img[std::size_t(r) * M + std::size_t(((c - i) % M + M) % M)];
+            for (int i = -R; i <= R; ++i)
+                s += k[std::size_t(i + R)] *
+                     img[std::size_t(r) * M + std::size_t(((c - i) % M + M) % M)];
             tmp[std::size_t(r) * M + c] = s;
         }
     for (int r = 0; r < M; ++r)
         for (int c = 0; c < M; ++c) {
             double s = 0;
-            for (int i = -R; i <= R; ++i) s += k[std::size_t(i + R)] * tmp[std::size_t(((r - i) % M + M) % M) * M + c];
+            for (int i = -R; i <= R; ++i)
+                s += k[std::size_t(i + R)] * tmp[std::size_t(((r - i) % M + M) % M) * M + c];
             out[std::size_t(r) * M + c] = s;
         }
     return out;
 }
 
 /** The filter's definition applied with FFTW in double: IDFT(H(nu) DFT(img)). */
-std::vector<double> filterInDouble(const std::vector<float>& img, int M, double d, const SliceFilter& f) {
+std::vector<double> filterInDouble(const std::vector<float>& img, int M, double d,
+                                   const SliceFilter& f) {
     std::vector<std::complex<double>> a(img.begin(), img.end());
     auto* p = reinterpret_cast<fftw_complex*>(a.data());
     fftw_plan fwd = fftw_plan_dft_2d(M, M, p, p, FFTW_FORWARD, FFTW_ESTIMATE);
@@ -83,7 +91,8 @@ std::vector<double> filterInDouble(const std::vector<float>& img, int M, double 
     for (int r = 0; r < M; ++r)
         for (int c = 0; c < M; ++c) {
             const int n = r <= M / 2 ? r : r - M, m = c <= M / 2 ? c : c - M;
-            a[std::size_t(r) * M + c] *= f.response(std::hypot(double(m), double(n)) / (M * d)) / (double(M) * M);
+            a[std::size_t(r) * M + c] *=
+                f.response(std::hypot(double(m), double(n)) / (M * d)) / (double(M) * M);
         }
     fftw_execute(inv);
     fftw_destroy_plan(fwd);
@@ -114,9 +123,11 @@ TEST(XRay, AttenuationMappings) {
     EXPECT_FLOAT_EQ(mapValue(ValueMapping::Mu, 1000.0f), 2.0f);
     // Bone-enhanced: the water line up to the threshold, kBoneGain times steeper above, continuous.
     EXPECT_FLOAT_EQ(mapValue(ValueMapping::MuBone, -500.0f), 0.5f);
-    EXPECT_FLOAT_EQ(mapValue(ValueMapping::MuBone, float(kBoneThresholdHu)), float(1 + kBoneThresholdHu / 1000));
-    EXPECT_FLOAT_EQ(mapValue(ValueMapping::MuBone, 1000.0f),
-                    float(1 + kBoneThresholdHu / 1000 + kBoneGain * (1000 - kBoneThresholdHu) / 1000));
+    EXPECT_FLOAT_EQ(mapValue(ValueMapping::MuBone, float(kBoneThresholdHu)),
+                    float(1 + kBoneThresholdHu / 1000));
+    EXPECT_FLOAT_EQ(
+        mapValue(ValueMapping::MuBone, 1000.0f),
+        float(1 + kBoneThresholdHu / 1000 + kBoneGain * (1000 - kBoneThresholdHu) / 1000));
     EXPECT_NEAR(mapValue(ValueMapping::MuBone, float(kBoneThresholdHu) + 0.01f),
                 mapValue(ValueMapping::MuBone, float(kBoneThresholdHu)), 1e-4);
     EXPECT_FLOAT_EQ(mapValue(ValueMapping::MuBone, -2000.0f), 0.0f);
@@ -144,8 +155,10 @@ TEST(XRay, BoneEnhancedSpectrumIsTheTransformOfTheMappedVolume) {
     EXPECT_LT(maxDiff / peak, 1e-6);
     // Bone is enhanced, by exactly the mapped volumes' ratio in the total (the image's DC).
     double vb = 0, vm = 0;
-    for (float v : fixture().volume.voxels) vb += mapValue(ValueMapping::MuBone, v), vm += mapValue(ValueMapping::Mu, v);
-    CpuFourierRenderer rb(spectrumFor(TransformKind::Fft, 1.25, Kernel::KaiserBessel4, ValueMapping::MuBone));
+    for (float v : fixture().volume.voxels)
+        vb += mapValue(ValueMapping::MuBone, v), vm += mapValue(ValueMapping::Mu, v);
+    CpuFourierRenderer rb(
+        spectrumFor(TransformKind::Fft, 1.25, Kernel::KaiserBessel4, ValueMapping::MuBone));
     CpuFourierRenderer rm(spectrumFor(TransformKind::Fft, 1.25, Kernel::KaiserBessel4));
     const RenderParams p{fixture().views[0], {kM, fixture().d}, Kernel::KaiserBessel4};
     const auto bone = rb.render(p), mu = rm.render(p);
@@ -155,10 +168,12 @@ TEST(XRay, BoneEnhancedSpectrumIsTheTransformOfTheMappedVolume) {
     EXPECT_NEAR(sb / sm, vb / vm, 1e-3); // deapodization moves the DC by ~4e-4
     SpatialProjector sp(fixture().volume, {0.25, ValueMapping::MuBone, 0});
     const double psnr = fvr::test::compare(bone.pixels, sp.project(p.view, p.image).pixels).psnr;
-    std::printf("[xray] bone-enhanced FVR (kaiser-bessel4, deapodized, 1.25x) vs spatial projector: %.2f dB\n", psnr);
+    std::printf("[xray] bone-enhanced FVR (kaiser-bessel4, deapodized, 1.25x) vs spatial "
+                "projector: %.2f dB\n",
+                psnr);
     EXPECT_GT(psnr, 36.0);
-    EXPECT_THROW(fixture().phantom.project(p.view, p.image, ValueMapping::MuBone, fixture().volume.dims,
-                                           fixture().volume.spacing),
+    EXPECT_THROW(fixture().phantom.project(p.view, p.image, ValueMapping::MuBone,
+                                           fixture().volume.dims, fixture().volume.spacing),
                  SettingsError);
 }
 
@@ -226,7 +241,7 @@ TEST(XRay, DepthCueWeights) {
     const auto w = depthCueWeights(0.6, {100, 100, 50}, {1, 1, 2});
     EXPECT_NEAR(w.radiusMm, 0.5 * std::sqrt(3 * 100.0 * 100.0), 1e-9);
     EXPECT_NEAR(w.a + w.b * -w.radiusMm, 1.0, 1e-12); // front of the bounding sphere
-    EXPECT_NEAR(w.a + w.b * w.radiusMm, 0.4, 1e-12);  // back
+    EXPECT_NEAR(w.a + w.b * w.radiusMm, 0.4, 1e-12); // back
     EXPECT_THROW(depthCueWeights(1.5, {8, 8, 8}, {1, 1, 1}), SettingsError);
     const auto none = depthCueWeights(0.0, {8, 8, 8}, {1, 1, 1});
     EXPECT_EQ(none.a, 1.0);
@@ -241,8 +256,10 @@ TEST(XRay, DepthWeightedOraclesAgree) {
     so.depthCue = 0.8;
     SpatialProjector sp(f.volume, so);
     for (const auto& v : f.views) {
-        const auto truth = f.phantom.project(v, {kM, f.d}, ValueMapping::Mu, f.volume.dims, f.volume.spacing, 0.8);
-        const auto plain = f.phantom.project(v, {kM, f.d}, ValueMapping::Mu, f.volume.dims, f.volume.spacing);
+        const auto truth =
+            f.phantom.project(v, {kM, f.d}, ValueMapping::Mu, f.volume.dims, f.volume.spacing, 0.8);
+        const auto plain =
+            f.phantom.project(v, {kM, f.d}, ValueMapping::Mu, f.volume.dims, f.volume.spacing);
         const double psnr = fvr::test::compare(sp.project(v, {kM, f.d}).pixels, truth.pixels).psnr;
         std::printf("[xray] depth-weighted spatial projector vs analytic: %.2f dB\n", psnr);
         EXPECT_GT(psnr, 33.0);
@@ -266,17 +283,21 @@ TEST(XRay, DepthCuedFvrMatchesDepthWeightedIntegrals) {
                           {TransformKind::Fft, 2.0, Kernel::CatmullRom, false, 30.0},
                           {TransformKind::Fft, 2.0, Kernel::Linear, false, 24.0}};
     for (const Case& c : cases) {
-        CpuFourierRenderer r(spectrumFor(c.t, c.over, c.deapodize ? std::optional<Kernel>(c.k) : std::nullopt));
+        CpuFourierRenderer r(
+            spectrumFor(c.t, c.over, c.deapodize ? std::optional<Kernel>(c.k) : std::nullopt));
         double cued = 0, uncued = 0;
         for (const auto& v : f.views) {
-            const auto truth = f.phantom.project(v, {kM, f.d}, ValueMapping::Mu, f.volume.dims, f.volume.spacing, 0.8);
+            const auto truth = f.phantom.project(v, {kM, f.d}, ValueMapping::Mu, f.volume.dims,
+                                                 f.volume.spacing, 0.8);
             RenderParams p{v, {kM, f.d}, c.k};
             uncued += fvr::test::compare(r.render(p).pixels, truth.pixels).psnr / 3;
             p.depthCue = 0.8;
             cued += fvr::test::compare(r.render(p).pixels, truth.pixels).psnr / 3;
         }
-        std::printf("[xray] depth cue 0.8 %s %s oversampling %.2f%s: %.2f dB (without the depth term %.2f dB)\n",
-                    transformName(c.t), kernelName(c.k), c.over, c.deapodize ? " deapodized" : "", cued, uncued);
+        std::printf("[xray] depth cue 0.8 %s %s oversampling %.2f%s: %.2f dB (without the depth "
+                    "term %.2f dB)\n",
+                    transformName(c.t), kernelName(c.k), c.over, c.deapodize ? " deapodized" : "",
+                    cued, uncued);
         EXPECT_GT(cued, c.floor) << kernelName(c.k);
         EXPECT_GT(cued, uncued + 8.0) << kernelName(c.k);
     }
@@ -286,7 +307,8 @@ TEST(XRay, DepthCueIsLinearInStrengthAndFftEqualsFht) {
     const Fixture& f = fixture();
     CpuFourierRenderer fft(spectrumFor(TransformKind::Fft, 1.25, std::nullopt));
     CpuFourierRenderer fht(spectrumFor(TransformKind::Fht, 1.25, std::nullopt));
-    for (Kernel k : {Kernel::Linear, Kernel::BSpline, Kernel::CatmullRom, Kernel::Sinc4, Kernel::KaiserBessel6}) {
+    for (Kernel k : {Kernel::Linear, Kernel::BSpline, Kernel::CatmullRom, Kernel::Sinc4,
+                     Kernel::KaiserBessel6}) {
         RenderParams p{f.views[1], {kM, f.d}, k};
         const auto i0 = fft.render(p);
         p.depthCue = 1.0;
@@ -295,7 +317,8 @@ TEST(XRay, DepthCueIsLinearInStrengthAndFftEqualsFht) {
         p.depthCue = 0.3;
         const auto i3 = fft.render(p);
         std::vector<float> lin(i0.pixels.size());
-        for (std::size_t i = 0; i < lin.size(); ++i) lin[i] = i0.pixels[i] + 0.3f * (i1.pixels[i] - i0.pixels[i]);
+        for (std::size_t i = 0; i < lin.size(); ++i)
+            lin[i] = i0.pixels[i] + 0.3f * (i1.pixels[i] - i0.pixels[i]);
         EXPECT_GT(fvr::test::compare(i3.pixels, lin).psnr, 100.0) << kernelName(k);
         EXPECT_GT(fvr::test::compare(h1.pixels, i1.pixels).psnr, 100.0) << kernelName(k);
     }
@@ -336,9 +359,11 @@ TEST(XRay, UnsharpMaskMatchesSpatialDefinition) {
         const auto sharp = r.render(p);
         const auto blur = gaussianBlurPeriodic(plain.pixels, kM, 2.5);
         std::vector<double> want(blur.size());
-        for (std::size_t i = 0; i < want.size(); ++i) want[i] = plain.pixels[i] + 1.5 * (plain.pixels[i] - blur[i]);
+        for (std::size_t i = 0; i < want.size(); ++i)
+            want[i] = plain.pixels[i] + 1.5 * (plain.pixels[i] - blur[i]);
         const double err = maxRelError(sharp.pixels, want);
-        std::printf("[xray] unsharp mask (%s) vs spatial definition: max rel error %.2e\n", transformName(t), err);
+        std::printf("[xray] unsharp mask (%s) vs spatial definition: max rel error %.2e\n",
+                    transformName(t), err);
         EXPECT_LT(err, 1e-4);
         EXPECT_GT(maxRelError(plain.pixels, want), 1e-2); // the filter does something
     }
@@ -348,15 +373,18 @@ TEST(XRay, BandLimitAndCombinedFilterMatchDefinitionInDouble) {
     const Fixture& f = fixture();
     for (TransformKind t : {TransformKind::Fft, TransformKind::Fht}) {
         CpuFourierRenderer r(spectrumFor(t, 1.0, std::nullopt));
-        for (const SliceFilter& filter : {SliceFilter{0.0, 1.0, 0.1}, SliceFilter{0.8, 3.0, 0.15}}) {
+        for (const SliceFilter& filter :
+             {SliceFilter{0.0, 1.0, 0.1}, SliceFilter{0.8, 3.0, 0.15}}) {
             RenderParams p{f.views[2], {kM, f.d}, Kernel::CatmullRom};
             const auto plain = r.render(p);
             p.filter = filter;
             const auto got = r.render(p);
             const auto want = filterInDouble(plain.pixels, kM, f.d, filter);
             const double err = maxRelError(got.pixels, want);
-            std::printf("[xray] filter a=%.1f sigma=%.1f mm cutoff=%.2f lp/mm (%s): max rel error %.2e\n",
-                        filter.sharpenAmount, filter.sharpenSigmaMm, filter.bandLimitLpMm, transformName(t), err);
+            std::printf(
+                "[xray] filter a=%.1f sigma=%.1f mm cutoff=%.2f lp/mm (%s): max rel error %.2e\n",
+                filter.sharpenAmount, filter.sharpenSigmaMm, filter.bandLimitLpMm, transformName(t),
+                err);
             EXPECT_LT(err, 1e-4);
             EXPECT_GT(maxRelError(plain.pixels, want), 1e-2);
         }
@@ -380,14 +408,17 @@ TEST(XRay, DepthCuedFvrMatchesDepthWeightedRayCastingOnRealCt) {
     o.oversampling = 1.25;
     o.deapodizeFor = Kernel::KaiserBessel4;
     CpuFourierRenderer r(preprocess(v, o));
-    for (const ViewFrame& view : {ViewFrame::fromDirUp({0, 1, 0}, {0, 0, 1}), ViewFrame::fromDirUp({0.7, 0.6, 0.3}, {0, 0, 1})}) {
+    for (const ViewFrame& view : {ViewFrame::fromDirUp({0, 1, 0}, {0, 0, 1}),
+                                  ViewFrame::fromDirUp({0.7, 0.6, 0.3}, {0, 0, 1})}) {
         const auto ref = sp.project(view, {M, d});
         RenderParams p{view, {M, d}, Kernel::KaiserBessel4};
         const double uncued = fvr::test::compare(r.render(p).pixels, ref.pixels).psnr;
         p.depthCue = 0.7;
         const double cued = fvr::test::compare(r.render(p).pixels, ref.pixels).psnr;
-        std::printf("[xray] body CT, depth cue 0.7, KB4 deapodized 1.25x vs depth-weighted ray casting: %.2f dB "
-                    "(without the depth term %.2f dB)\n", cued, uncued);
+        std::printf("[xray] body CT, depth cue 0.7, KB4 deapodized 1.25x vs depth-weighted ray "
+                    "casting: %.2f dB "
+                    "(without the depth term %.2f dB)\n",
+                    cued, uncued);
         EXPECT_GT(cued, 36.0); // measured 38.2 (axis view) and 53.8 dB (oblique)
         EXPECT_GT(cued, uncued + 10.0);
         // The trilinear voxel model (the depth term then also differentiates its transfer
@@ -397,8 +428,10 @@ TEST(XRay, DepthCuedFvrMatchesDepthWeightedRayCastingOnRealCt) {
         const double model = fvr::test::compare(r.render(p).pixels, ref.pixels).psnr;
         p.depthCue = 0.0;
         const double modelUncued = fvr::test::compare(r.render(p).pixels, ref.pixels).psnr;
-        std::printf("[xray] body CT, depth cue 0.7, trilinear voxel model vs depth-weighted ray casting: %.2f dB "
-                    "(without the depth term %.2f dB)\n", model, modelUncued);
+        std::printf("[xray] body CT, depth cue 0.7, trilinear voxel model vs depth-weighted ray "
+                    "casting: %.2f dB "
+                    "(without the depth term %.2f dB)\n",
+                    model, modelUncued);
         EXPECT_GT(model, cued + 3.0); // measured +10.5 dB (axis view), +3.5 dB (oblique)
         EXPECT_GT(model, modelUncued + 10.0);
     }
@@ -412,12 +445,14 @@ TEST(XRay, ClipToVolumeRemovesGhostsOutsideTheShadow) {
     const double d = 1.5 * f.d;
     CpuFourierRenderer r(spectrumFor(TransformKind::Fft, 1.0, std::nullopt));
     for (const auto& v : f.views) {
-        const auto truth = f.phantom.project(v, {kM, d}, ValueMapping::Mu, f.volume.dims, f.volume.spacing);
+        const auto truth =
+            f.phantom.project(v, {kM, d}, ValueMapping::Mu, f.volume.dims, f.volume.spacing);
         RenderParams p{v, {kM, d}, Kernel::Linear};
         const auto plain = r.render(p);
         p.clipToVolume = true;
         const auto clipped = r.render(p);
-        const Vec3 half = supportHalfExtents(f.volume.dims, f.volume.spacing, voxelModelReach(p.voxelModel));
+        const Vec3 half =
+            supportHalfExtents(f.volume.dims, f.volume.spacing, voxelModelReach(p.voxelModel));
         int outside = 0;
         double ghost = 0;
         for (int row = 0; row < kM; ++row)
@@ -434,11 +469,13 @@ TEST(XRay, ClipToVolumeRemovesGhostsOutsideTheShadow) {
             }
         const double before = fvr::test::compare(plain.pixels, truth.pixels).psnr;
         const double after = fvr::test::compare(clipped.pixels, truth.pixels).psnr;
-        std::printf("[xray] clip to volume (linear, 1x, wide field): %d pixels outside, largest ghost %.1f mm; "
-                    "PSNR %.2f -> %.2f dB\n", outside, ghost, before, after);
+        std::printf("[xray] clip to volume (linear, 1x, wide field): %d pixels outside, largest "
+                    "ghost %.1f mm; "
+                    "PSNR %.2f -> %.2f dB\n",
+                    outside, ghost, before, after);
         EXPECT_GT(outside, kM * kM / 10);
         EXPECT_GT(after, before + 0.1); // measured +0.5, +0.2, +1.2 dB
-        EXPECT_GT(ghost, 5.0);           // ghosts of 12-30 mm (peak ~500 mm) were there
+        EXPECT_GT(ghost, 5.0); // ghosts of 12-30 mm (peak ~500 mm) were there
     }
 }
 
@@ -447,10 +484,13 @@ TEST(XRay, ShadowColumnsAreExactlyThePixelsWhoseRaysHit) {
     // views, thin and flat volumes, fields narrower and wider than the volume.
     std::mt19937 rng(11);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
-    std::vector<ViewFrame> views{ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0}), ViewFrame::fromDirUp({1, 0, 0}, {0, 0, 1}),
+    std::vector<ViewFrame> views{ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0}),
+                                 ViewFrame::fromDirUp({1, 0, 0}, {0, 0, 1}),
                                  ViewFrame::fromDirUp({1, 1, 0}, {0, 0, 1})};
-    for (int i = 0; i < 20; ++i) views.push_back(ViewFrame::fromDirUp({u(rng), u(rng), u(rng) + 0.01}, {0, 0, 1}));
-    const std::pair<Dims3, Vec3> volumes[] = {{{64, 64, 64}, {4, 4, 4}}, {{512, 512, 40}, {0.5, 0.5, 3}}, {{10, 200, 30}, {1, 1, 2}}};
+    for (int i = 0; i < 20; ++i)
+        views.push_back(ViewFrame::fromDirUp({u(rng), u(rng), u(rng) + 0.01}, {0, 0, 1}));
+    const std::pair<Dims3, Vec3> volumes[] = {
+        {{64, 64, 64}, {4, 4, 4}}, {{512, 512, 40}, {0.5, 0.5, 3}}, {{10, 200, 30}, {1, 1, 2}}};
     for (const auto& [dims, spacing] : volumes)
         for (const ViewFrame& view : views)
             for (double scale : {0.5, 1.0, 1.7}) {
@@ -460,8 +500,10 @@ TEST(XRay, ShadowColumnsAreExactlyThePixelsWhoseRaysHit) {
                 for (int row = 0; row < M; ++row) {
                     const ColumnRange r = volumeShadowColumns(view, half, M, d, row);
                     for (int col = 0; col < M; ++col)
-                        ASSERT_EQ(rayMissesVolume(view, half, M, d, col, row), !(col >= r.first && col <= r.last))
-                            << "row " << row << " col " << col << " range " << r.first << ".." << r.last;
+                        ASSERT_EQ(rayMissesVolume(view, half, M, d, col, row),
+                                  !(col >= r.first && col <= r.last))
+                            << "row " << row << " col " << col << " range " << r.first << ".."
+                            << r.last;
                 }
             }
 }

@@ -35,8 +35,8 @@ MainWindow::MainWindow(QWidget* parent)
     setAcceptDrops(true);
     setDockNestingEnabled(true);
     m_viewSettings.assign(4, ViewSettings{});
-    const core::Kernel compareKernels[4] = {core::Kernel::Linear, core::Kernel::CatmullRom, core::Kernel::Nearest,
-                                            core::Kernel::Sinc4};
+    const core::Kernel compareKernels[4] = {core::Kernel::Linear, core::Kernel::CatmullRom,
+                                            core::Kernel::Nearest, core::Kernel::Sinc4};
     for (int i = 0; i < 4; ++i) m_viewSettings[i].kernel = compareKernels[i];
     buildViews();
     buildDocks();
@@ -55,22 +55,25 @@ MainWindow::MainWindow(QWidget* parent)
 MainWindow::~MainWindow() = default;
 
 void MainWindow::connectStudy() {
-    connect(m_study.get(), &StudyController::progress, this, [this](double f, const QString& stage) {
-        showProgress(true);
-        m_progress->setValue(int(std::lround(f * 1000)));
-        m_progress->setFormat(QStringLiteral("%1 %p%").arg(stage));
-    });
+    connect(m_study.get(), &StudyController::progress, this,
+            [this](double f, const QString& stage) {
+                showProgress(true);
+                m_progress->setValue(int(std::lround(f * 1000)));
+                m_progress->setFormat(QStringLiteral("%1 %p%").arg(stage));
+            });
     connect(m_study.get(), &StudyController::studyLoaded, this, &MainWindow::onStudyLoaded);
     connect(m_study.get(), &StudyController::spectrumReady, this, &MainWindow::onSpectrumReady);
-    connect(m_study.get(), &StudyController::failed, this, [this](const QString& title, const QString& details) {
-        showProgress(false);
-        message(title + ": " + details, true);
-        auto* box = new QMessageBox(QMessageBox::Warning, title, details, QMessageBox::Ok, this);
-        box->setAttribute(Qt::WA_DeleteOnClose);
-        box->setTextInteractionFlags(Qt::TextSelectableByMouse);
-        box->setModal(false);
-        box->show();
-    });
+    connect(m_study.get(), &StudyController::failed, this,
+            [this](const QString& title, const QString& details) {
+                showProgress(false);
+                message(title + ": " + details, true);
+                auto* box =
+                    new QMessageBox(QMessageBox::Warning, title, details, QMessageBox::Ok, this);
+                box->setAttribute(Qt::WA_DeleteOnClose);
+                box->setTextInteractionFlags(Qt::TextSelectableByMouse);
+                box->setModal(false);
+                box->show();
+            });
     connect(m_study.get(), &StudyController::cancelled, this, [this] {
         showProgress(false);
         message(tr("Cancelled; the previous study stays open."));
@@ -83,9 +86,9 @@ void MainWindow::connectStudy() {
             [this](const StudySource& src, const QStringList& keys, const QStringList& labels) {
                 showProgress(false);
                 bool ok = false;
-                const QString pick = QInputDialog::getItem(this, tr("Choose a series"),
-                                                           tr("%1 holds several series:").arg(src.path), labels, 0,
-                                                           false, &ok);
+                const QString pick = QInputDialog::getItem(
+                    this, tr("Choose a series"), tr("%1 holds several series:").arg(src.path),
+                    labels, 0, false, &ok);
                 if (!ok) return;
                 StudySource chosen = src;
                 chosen.seriesKey = keys.at(labels.indexOf(pick));
@@ -99,7 +102,8 @@ void MainWindow::measureAccuracy() {
 }
 
 void MainWindow::buildDocks() {
-    auto dock = [this](const QString& title, const char* name, QWidget* panel, Qt::DockWidgetArea area) {
+    auto dock = [this](const QString& title, const char* name, QWidget* panel,
+                       Qt::DockWidgetArea area) {
         auto* d = new QDockWidget(title, this);
         d->setObjectName(name);
         d->setWidget(panel);
@@ -112,12 +116,15 @@ void MainWindow::buildDocks() {
     m_xray = new XrayPanel(this);
     m_messages = new MessagesPanel(this);
     QDockWidget* studyDock = dock(tr("Study"), "dock.study", m_studyPanel, Qt::RightDockWidgetArea);
-    QDockWidget* renderDock = dock(tr("Rendering"), "dock.rendering", m_rendering, Qt::RightDockWidgetArea);
-    QDockWidget* displayDock = dock(tr("Display"), "dock.display", m_display, Qt::RightDockWidgetArea);
+    QDockWidget* renderDock =
+        dock(tr("Rendering"), "dock.rendering", m_rendering, Qt::RightDockWidgetArea);
+    QDockWidget* displayDock =
+        dock(tr("Display"), "dock.display", m_display, Qt::RightDockWidgetArea);
     QDockWidget* xrayDock = dock(tr("X-ray"), "dock.xray", m_xray, Qt::RightDockWidgetArea);
     tabifyDockWidget(displayDock, xrayDock);
     displayDock->raise();
-    QDockWidget* msgDock = dock(tr("Messages"), "dock.messages", m_messages, Qt::BottomDockWidgetArea);
+    QDockWidget* msgDock =
+        dock(tr("Messages"), "dock.messages", m_messages, Qt::BottomDockWidgetArea);
     resizeDocks({msgDock}, {110}, Qt::Vertical);
     resizeDocks({studyDock, renderDock, displayDock}, {220, 260, 300}, Qt::Vertical);
     buildStatusBar();
@@ -142,7 +149,8 @@ void MainWindow::buildStatusBar() {
 void MainWindow::restorePanels() {
     const QSettings s;
     m_rendering->setValues(RenderingPanel::load(s));
-    m_display->setValues(DisplayPanel::load(s, m_display->values())); // the window follows the image
+    m_display->setValues(
+        DisplayPanel::load(s, m_display->values())); // the window follows the image
     m_xray->setValues(XrayPanel::load(s));
     for (auto* v : m_views) {
         v->setEffects(currentEffects());
@@ -154,14 +162,17 @@ void MainWindow::restorePanels() {
 }
 
 void MainWindow::connectPanels() {
-    connect(m_rendering, &RenderingPanel::viewSettingsChanged, this, &MainWindow::applyRenderSettings);
+    connect(m_rendering, &RenderingPanel::viewSettingsChanged, this,
+            &MainWindow::applyRenderSettings);
     connect(m_rendering, &RenderingPanel::voxelModelChanged, this, &MainWindow::applyVoxelModel);
     connect(m_rendering, &RenderingPanel::appliesToChanged, this, [this](int slot) {
         if (slot <= 0 || slot > int(m_views.size())) return;
         m_rendering->showViewSettings(m_views[slot - 1]->settings());
     });
-    connect(m_rendering, &RenderingPanel::spectrumSettingsChanged, this, &MainWindow::applySpectrumSettings);
-    connect(m_rendering, &RenderingPanel::valueMappingChanged, this, &MainWindow::applyValueMapping);
+    connect(m_rendering, &RenderingPanel::spectrumSettingsChanged, this,
+            &MainWindow::applySpectrumSettings);
+    connect(m_rendering, &RenderingPanel::valueMappingChanged, this,
+            &MainWindow::applyValueMapping);
     connect(m_rendering, &RenderingPanel::targetFpsChanged, this, [this](int fps) {
         for (auto* v : m_views) v->setTargetFps(m_difference ? 0 : fps);
         saveRenderingSettings();
@@ -205,7 +216,8 @@ void MainWindow::applyRenderSettings() {
     const ViewSettings s = m_rendering->viewSettings();
     const int slot = m_rendering->appliesTo();
     const bool deapodize = m_rendering->values().deapodize;
-    const bool respectrum = deapodize && m_study->spectrum() && m_study->spectrum()->deapodizedFor &&
+    const bool respectrum = deapodize && m_study->spectrum() &&
+                            m_study->spectrum()->deapodizedFor &&
                             *m_study->spectrum()->deapodizedFor != s.kernel;
     for (int i = 0; i < int(m_views.size()); ++i) {
         if (m_compareCount > 1 && slot > 0 && slot - 1 != i) continue;
@@ -231,14 +243,16 @@ void MainWindow::applySpectrumSettings() {
         message(tr("Preprocessing again (%1, oversampling %2, %3)…")
                     .arg(QString::fromUtf8(core::transformName(s.transform)))
                     .arg(s.oversampling)
-                    .arg(QString::fromUtf8(core::valueMappingName(s.mapping)))
-                + (s.deapodizeFor ? tr(", deapodized for %1").arg(QString::fromUtf8(core::kernelName(*s.deapodizeFor)))
-                                  : QString()));
+                    .arg(QString::fromUtf8(core::valueMappingName(s.mapping))) +
+                (s.deapodizeFor ? tr(", deapodized for %1")
+                                      .arg(QString::fromUtf8(core::kernelName(*s.deapodizeFor)))
+                                : QString()));
     m_study->setSpectrumSettings(s);
 }
 
 void MainWindow::applyValueMapping() {
-    if (isTransmission(m_xray->output()) && m_rendering->values().mapping == core::ValueMapping::Raw) {
+    if (isTransmission(m_xray->output()) &&
+        m_rendering->values().mapping == core::ValueMapping::Raw) {
         message(tr("Raw values have no transmission: the output is line integrals again."));
         m_xray->setOutput(XrayOutput::LineIntegrals);
         applyOutput(true);
@@ -271,7 +285,9 @@ void MainWindow::applyPreset(WindowPreset preset) {
     applyWindowFromPanel();
 }
 
-core::Transmission MainWindow::currentTransmission() const { return m_xray ? m_xray->transmission() : core::Transmission{}; }
+core::Transmission MainWindow::currentTransmission() const {
+    return m_xray ? m_xray->transmission() : core::Transmission{};
+}
 
 FrameEffects MainWindow::currentEffects() const {
     FrameEffects e;
@@ -296,7 +312,8 @@ void MainWindow::applyEffects() {
     if (e.depthCue > 0 && std::any_of(m_views.begin(), m_views.end(), [](ProjectionView* v) {
             return v->settings().kernel == core::Kernel::Nearest;
         }))
-        message(tr("Depth cueing needs the derivative of the interpolation kernel: views with nearest neighbour "
+        message(tr("Depth cueing needs the derivative of the interpolation kernel: views with "
+                   "nearest neighbour "
                    "are not rendered until you choose linear or better."),
                 true);
 }
@@ -311,7 +328,8 @@ void MainWindow::applyOutput(bool resetWindow) {
         // Beer-Lambert needs attenuation: switch the values to mu (preprocesses again).
         const auto vol = m_study->volume();
         if (vol && vol->units != core::ValueUnits::HounsfieldUnits) {
-            message(tr("Transmitted intensity needs attenuation values; this study's values are not Hounsfield "
+            message(tr("Transmitted intensity needs attenuation values; this study's values are "
+                       "not Hounsfield "
                        "units (%1), so the output stays line integrals.")
                         .arg(QString::fromUtf8(core::unitsName(vol->units))),
                     true);
@@ -360,8 +378,10 @@ void MainWindow::onSpectrumReady() {
         r.oversampling = s.oversampling;
         m_rendering->setValues(r);
     }
-    if (!newer && isTransmission(m_xray->output()) && m_study->spectrumSettings().mapping == core::ValueMapping::Raw) {
-        message(tr("This study integrates raw values (not Hounsfield units): no transmitted intensity, the output "
+    if (!newer && isTransmission(m_xray->output()) &&
+        m_study->spectrumSettings().mapping == core::ValueMapping::Raw) {
+        message(tr("This study integrates raw values (not Hounsfield units): no transmitted "
+                   "intensity, the output "
                    "is line integrals."),
                 true);
         m_xray->setOutput(XrayOutput::LineIntegrals);
@@ -378,7 +398,8 @@ void MainWindow::onSpectrumReady() {
 
 void MainWindow::updateStudyInfo() {
     m_studyPanel->showStudy(*m_study);
-    if (const auto spec = m_study->spectrum()) m_rendering->setSpectrumMiB(double(spec->bytes()) / (1 << 20));
+    if (const auto spec = m_study->spectrum())
+        m_rendering->setSpectrumMiB(double(spec->bytes()) / (1 << 20));
 }
 
 void MainWindow::showProgress(bool on) {

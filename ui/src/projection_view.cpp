@@ -168,7 +168,8 @@ void ProjectionView::initializeGL() {
         m_notice.clear();
     } catch (const std::exception& e) {
         m_gpu.reset();
-        m_notice = tr("GPU renderer unavailable (%1): rendering on the CPU").arg(QString::fromUtf8(e.what()));
+        m_notice = tr("GPU renderer unavailable (%1): rendering on the CPU")
+                       .arg(QString::fromUtf8(e.what()));
     }
     m_quad = std::make_unique<QOpenGLShaderProgram>();
     m_quad->addShaderFromSourceCode(QOpenGLShader::Vertex, kQuadVertex);
@@ -196,7 +197,8 @@ void ProjectionView::uploadSpectrumIfNeeded() {
             m_gpu->setSpectrum(m_spectrum);
         } catch (const std::exception& e) {
             m_gpu.reset();
-            m_notice = tr("GPU renderer unavailable (%1): rendering on the CPU").arg(QString::fromUtf8(e.what()));
+            m_notice = tr("GPU renderer unavailable (%1): rendering on the CPU")
+                           .arg(QString::fromUtf8(e.what()));
             emit backendChanged(false, m_notice);
         }
     }
@@ -214,7 +216,8 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
     if (level != m_renderedLevel) m_renderDirty = true;
     if (!m_renderDirty) return;
     const core::QualityLevel q = m_progressive.levels()[std::size_t(level)];
-    renderFrame(renderParams(q.size, q.kernel), level); // same field of view at every level: d = diagonal / M
+    renderFrame(renderParams(q.size, q.kernel),
+                level); // same field of view at every level: d = diagonal / M
     m_renderedLevel = level;
     m_renderedQuality = q;
     if (m_reference && m_reference != this) subtractReference();
@@ -274,7 +277,8 @@ void ProjectionView::windowFromFrame() {
 
 QRectF ProjectionView::imageRect() const {
     const double side = std::min(width(), height()) * m_zoom;
-    return {width() / 2.0 - side / 2.0 + m_pan.x(), height() / 2.0 - side / 2.0 + m_pan.y(), side, side};
+    return {width() / 2.0 - side / 2.0 + m_pan.x(), height() / 2.0 - side / 2.0 + m_pan.y(), side,
+            side};
 }
 
 GLuint ProjectionView::frameTexture() {
@@ -305,7 +309,8 @@ void ProjectionView::uploadCpuTexture(const core::ProjectionImage& image) {
     const int M = image.size;
     std::vector<unsigned char> rgba(std::size_t(M) * M * 4);
     for (std::size_t i = 0; i < std::size_t(M) * M; ++i) {
-        const auto v = static_cast<unsigned char>(std::lround(m_window.map(image.pixels[i]) * 255.0));
+        const auto v =
+            static_cast<unsigned char>(std::lround(m_window.map(image.pixels[i]) * 255.0));
         rgba[4 * i] = rgba[4 * i + 1] = rgba[4 * i + 2] = v;
         rgba[4 * i + 3] = 255;
     }
@@ -313,7 +318,8 @@ void ProjectionView::uploadCpuTexture(const core::ProjectionImage& image) {
     f->glBindTexture(GL_TEXTURE_2D, m_cpuTexture);
     f->glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
     if (m_cpuTextureSize != M) {
-        f->glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, M, M, 0, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+        f->glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, M, M, 0, GL_RGBA, GL_UNSIGNED_BYTE,
+                        rgba.data());
         f->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
         f->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
         m_cpuTextureSize = M;
@@ -356,7 +362,8 @@ void ProjectionView::paintGL() {
         auto ndcX = [&](double x) { return float(2.0 * x / width() - 1.0); };
         auto ndcY = [&](double y) { return float(1.0 - 2.0 * y / height()); };
         m_quad->bind();
-        m_quad->setUniformValue("uRect", QVector4D(ndcX(r.left()), ndcY(r.bottom()), ndcX(r.right()), ndcY(r.top())));
+        m_quad->setUniformValue(
+            "uRect", QVector4D(ndcX(r.left()), ndcY(r.bottom()), ndcX(r.right()), ndcY(r.top())));
         m_quad->setUniformValue("uImage", 0);
         f->glActiveTexture(GL_TEXTURE0);
         f->glBindTexture(GL_TEXTURE_2D, tex);
@@ -370,9 +377,11 @@ void ProjectionView::paintGL() {
 
 namespace {
 /** Text with a dark halo stays readable on bright (bone) and dark (air) parts of the image. */
-void drawHaloText(QPainter& p, const QRectF& r, int flags, const QString& text, const QColor& color) {
+void drawHaloText(QPainter& p, const QRectF& r, int flags, const QString& text,
+                  const QColor& color) {
     p.setPen(QColor(0, 0, 0, 200));
-    for (const QPointF& o : {QPointF(-1, 0), QPointF(1, 0), QPointF(0, -1), QPointF(0, 1)}) p.drawText(r.translated(o), flags, text);
+    for (const QPointF& o : {QPointF(-1, 0), QPointF(1, 0), QPointF(0, -1), QPointF(0, 1)})
+        p.drawText(r.translated(o), flags, text);
     p.setPen(color);
     p.drawText(r, flags, text);
 }
@@ -386,7 +395,8 @@ void ProjectionView::drawOverlay() {
     p.setFont(font);
     if (!m_spectrum) {
         p.setPen(QColor(180, 180, 180));
-        p.drawText(rect(), Qt::AlignCenter, tr("No study loaded\nFile ▸ Open, or drop a DICOM folder or volume file here"));
+        p.drawText(rect(), Qt::AlignCenter,
+                   tr("No study loaded\nFile ▸ Open, or drop a DICOM folder or volume file here"));
         return;
     }
     if (m_volume) drawOrientationLabels(p);
@@ -396,7 +406,8 @@ void ProjectionView::drawOverlay() {
     if (m_reference) lines << tr("difference to %1").arg(m_reference->m_title);
     if (!lines.isEmpty()) {
         const QString text = lines.join('\n');
-        const QRect box = p.fontMetrics().boundingRect(QRect(8, 6, width() - 16, height() - 12), Qt::AlignLeft | Qt::AlignTop, text);
+        const QRect box = p.fontMetrics().boundingRect(QRect(8, 6, width() - 16, height() - 12),
+                                                       Qt::AlignLeft | Qt::AlignTop, text);
         p.fillRect(box.adjusted(-4, -2, 4, 2), QColor(0, 0, 0, 150));
         p.setPen(QColor(140, 240, 140));
         p.drawText(box, Qt::AlignLeft | Qt::AlignTop, text);
@@ -404,7 +415,8 @@ void ProjectionView::drawOverlay() {
     const QString notice = m_renderError.isEmpty() ? m_notice : m_renderError + '\n' + m_notice;
     if (!notice.trimmed().isEmpty()) {
         const QRect area(8, 6, width() - 16, height() - 12);
-        const QRect box = p.fontMetrics().boundingRect(area, Qt::AlignLeft | Qt::AlignBottom | Qt::TextWordWrap, notice.trimmed());
+        const QRect box = p.fontMetrics().boundingRect(
+            area, Qt::AlignLeft | Qt::AlignBottom | Qt::TextWordWrap, notice.trimmed());
         p.fillRect(box.adjusted(-4, -2, 4, 2), QColor(0, 0, 0, 170));
         p.setPen(QColor(255, 130, 110));
         p.drawText(box, Qt::AlignLeft | Qt::AlignBottom | Qt::TextWordWrap, notice.trimmed());
@@ -415,7 +427,9 @@ void ProjectionView::drawOrientationLabels(QPainter& p) {
     const QColor label(255, 210, 80);
     const QFont font = p.font();
     const QRectF r = imageRect().intersected(QRectF(rect()));
-    auto lbl = [&](const core::Vec3& v) { return QString::fromStdString(core::patientDirectionLabel(*m_volume, v)); };
+    auto lbl = [&](const core::Vec3& v) {
+        return QString::fromStdString(core::patientDirectionLabel(*m_volume, v));
+    };
     const core::Vec3 neg_r{-m_view.r[0], -m_view.r[1], -m_view.r[2]};
     const core::Vec3 neg_u{-m_view.u[0], -m_view.u[1], -m_view.u[2]};
     const int pad = 6;
@@ -441,24 +455,29 @@ QStringList ProjectionView::overlayLines() const {
                  .arg(QString::fromUtf8(core::voxelModelLabel(m_settings.voxelModel)))
                  .arg(m_effects.pixelAperture ? tr(", area pixels") : QString());
     if (m_progressive.enabled())
-        lines << (m_renderedLevel == 0
-                      ? tr("full quality (interactive target %1 fps)").arg(m_progressive.targetFps(), 0, 'f', 0)
-                      : tr("interactive level %1/%2 (target %3 fps)")
-                            .arg(m_renderedLevel)
-                            .arg(m_progressive.levels().size() - 1)
-                            .arg(m_progressive.targetFps(), 0, 'f', 0));
+        lines << (m_renderedLevel == 0 ? tr("full quality (interactive target %1 fps)")
+                                             .arg(m_progressive.targetFps(), 0, 'f', 0)
+                                       : tr("interactive level %1/%2 (target %3 fps)")
+                                             .arg(m_renderedLevel)
+                                             .arg(m_progressive.levels().size() - 1)
+                                             .arg(m_progressive.targetFps(), 0, 'f', 0));
     const QStringList fx = effectsSummary();
     if (!fx.isEmpty()) lines << fx.join(QStringLiteral("  "));
     if (m_stats.fused && m_stats.displayFused)
-        lines << QStringLiteral("slice+inverse+display %1 ms (fused)").arg(m_stats.inverseMs, 0, 'f', 2);
+        lines << QStringLiteral("slice+inverse+display %1 ms (fused)")
+                     .arg(m_stats.inverseMs, 0, 'f', 2);
     else if (m_stats.fused)
-        lines << QStringLiteral("slice+inverse %1 ms  display %2 ms").arg(m_stats.inverseMs, 0, 'f', 2).arg(m_stats.displayMs, 0, 'f', 2);
+        lines << QStringLiteral("slice+inverse %1 ms  display %2 ms")
+                     .arg(m_stats.inverseMs, 0, 'f', 2)
+                     .arg(m_stats.displayMs, 0, 'f', 2);
     else
         lines << QStringLiteral("slice %1  inverse %2  display %3 ms")
                      .arg(m_stats.sliceMs, 0, 'f', 2)
                      .arg(m_stats.inverseMs, 0, 'f', 2)
                      .arg(m_stats.displayMs, 0, 'f', 2);
-    lines << QStringLiteral("W %1  L %2").arg(m_window.high - m_window.low, 0, 'g', 4).arg((m_window.high + m_window.low) / 2, 0, 'g', 4);
+    lines << QStringLiteral("W %1  L %2")
+                 .arg(m_window.high - m_window.low, 0, 'g', 4)
+                 .arg((m_window.high + m_window.low) / 2, 0, 'g', 4);
     return lines;
 }
 
@@ -466,10 +485,15 @@ QStringList ProjectionView::effectsSummary() const {
     QStringList fx;
     if (m_effects.depthCue > 0) fx << tr("depth cue %1 %").arg(m_effects.depthCue * 100, 0, 'f', 0);
     if (m_effects.filter.sharpenAmount > 0)
-        fx << tr("edges ×%1 (σ %2 mm)").arg(m_effects.filter.sharpenAmount, 0, 'g', 3).arg(m_effects.filter.sharpenSigmaMm, 0, 'g', 3);
-    if (m_effects.filter.bandLimitLpMm > 0) fx << tr("band limit %1 lp/mm").arg(m_effects.filter.bandLimitLpMm, 0, 'g', 3);
+        fx << tr("edges ×%1 (σ %2 mm)")
+                  .arg(m_effects.filter.sharpenAmount, 0, 'g', 3)
+                  .arg(m_effects.filter.sharpenSigmaMm, 0, 'g', 3);
+    if (m_effects.filter.bandLimitLpMm > 0)
+        fx << tr("band limit %1 lp/mm").arg(m_effects.filter.bandLimitLpMm, 0, 'g', 3);
     if (m_window.transmission.active())
-        fx << tr("Beer-Lambert μw %1/mm ×%2").arg(m_window.transmission.muWaterPerMm, 0, 'f', 4).arg(m_window.transmission.exposure, 0, 'g', 3);
+        fx << tr("Beer-Lambert μw %1/mm ×%2")
+                  .arg(m_window.transmission.muWaterPerMm, 0, 'f', 4)
+                  .arg(m_window.transmission.exposure, 0, 'g', 3);
     return fx;
 }
 
@@ -485,9 +509,12 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
         }
         std::optional<core::ProjectionImage> img;
         try {
-            if (m_gpu) img = m_gpu->readback(); // the view's own projection, also in difference mode
-            else if (m_reference && m_cpuImage) img = floatRenderer().render(renderParams(m_settings.size, m_settings.kernel));
-            else img = m_cpuImage;
+            if (m_gpu)
+                img = m_gpu->readback(); // the view's own projection, also in difference mode
+            else if (m_reference && m_cpuImage)
+                img = floatRenderer().render(renderParams(m_settings.size, m_settings.kernel));
+            else
+                img = m_cpuImage;
         } catch (const std::exception&) {
             img.reset();
         }
@@ -498,7 +525,8 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
 }
 
 core::RenderParams ProjectionView::renderParams(int M, core::Kernel kernel) const {
-    core::RenderParams p{m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)}, kernel};
+    core::RenderParams p{
+        m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)}, kernel};
     p.voxelModel = m_settings.voxelModel;
     p.pixelAperture = m_effects.pixelAperture;
     p.depthCue = m_effects.depthCue;

@@ -6,18 +6,22 @@
 #include <QFileInfo>
 
 #include <fvr/core/errors.h>
-#include <fvr/core/xray/phantom.h>
 #include <fvr/core/io/volume_io.h>
+#include <fvr/core/xray/phantom.h>
 #include <fvr/ui/panels/rendering_panel.h>
 
 namespace fvr::ui {
 
 QString StudySource::displayName() const {
     switch (kind) {
-    case Kind::Phantom: return QStringLiteral("Shepp-Logan phantom %1 (built-in)").arg(QString::number(phantomSize) + QStringLiteral("³"));
+    case Kind::Phantom:
+        return QStringLiteral("Shepp-Logan phantom %1 (built-in)")
+            .arg(QString::number(phantomSize) + QStringLiteral("³"));
     case Kind::VolumeFile:
     case Kind::DicomFile: return QFileInfo(path).fileName();
-    case Kind::DicomFolder: return QDir(path).dirName() + (seriesKey.isEmpty() ? QString() : QStringLiteral(" (series)"));
+    case Kind::DicomFolder:
+        return QDir(path).dirName() +
+               (seriesKey.isEmpty() ? QString() : QStringLiteral(" (series)"));
     }
     return {};
 }
@@ -111,16 +115,22 @@ void StudyController::startJob(std::function<void(core::CancelToken&)> job) {
         try {
             job(*token);
         } catch (const core::Cancelled&) {
-            QMetaObject::invokeMethod(this, [this] { emit cancelled(); }, Qt::QueuedConnection);
+            QMetaObject::invokeMethod(
+                this, [this] { emit cancelled(); }, Qt::QueuedConnection);
         } catch (const std::bad_alloc&) {
             QMetaObject::invokeMethod(
-                this, [this] { emit failed(tr("Out of memory"), tr("The study or its spectrum does not fit in memory. "
-                                                                   "Try a smaller oversampling.")); },
+                this,
+                [this] {
+                    emit failed(tr("Out of memory"),
+                                tr("The study or its spectrum does not fit in memory. "
+                                   "Try a smaller oversampling."));
+                },
                 Qt::QueuedConnection);
         } catch (const std::exception& e) {
             const QString what = QString::fromStdString(e.what());
-            QMetaObject::invokeMethod(this, [this, what] { emit failed(tr("Could not open the study"), what); },
-                                      Qt::QueuedConnection);
+            QMetaObject::invokeMethod(
+                this, [this, what] { emit failed(tr("Could not open the study"), what); },
+                Qt::QueuedConnection);
         }
         m_done.store(true);
     });
@@ -129,7 +139,9 @@ void StudyController::startJob(std::function<void(core::CancelToken&)> job) {
 
 void StudyController::open(const StudySource& source) {
     const SpectrumSettings settings = m_settings;
-    auto cached = (source.kind == StudySource::Kind::DicomFolder && source.path == m_scanFolder) ? m_scan : nullptr;
+    auto cached = (source.kind == StudySource::Kind::DicomFolder && source.path == m_scanFolder)
+                      ? m_scan
+                      : nullptr;
     startJob([this, source, settings, cached](core::CancelToken& token) {
         core::OpenOptions options;
         options.seriesKey = source.seriesKey.toStdString();
@@ -139,23 +151,30 @@ void StudyController::open(const StudySource& source) {
             if (needsSeriesChoice(source, *options.scan)) return;
             progress = [this](double f, std::string_view st) { report(0.2 + 0.3 * f, st); };
         }
-        finishOpen(source, settings, core::openStudy(source.toCore(), options, progress, &token), token);
+        finishOpen(source, settings, core::openStudy(source.toCore(), options, progress, &token),
+                   token);
     });
 }
 
 std::shared_ptr<const core::DicomScanResult> StudyController::scanFolder(
-    const StudySource& source, std::shared_ptr<const core::DicomScanResult> cached, core::CancelToken& token) {
+    const StudySource& source, std::shared_ptr<const core::DicomScanResult> cached,
+    core::CancelToken& token) {
     if (cached) return cached;
     auto scan = std::make_shared<const core::DicomScanResult>(core::scanDicomFolder(
-        source.path.toStdString(), [this](double f, std::string_view st) { report(f * 0.2, st); }, &token));
-    QMetaObject::invokeMethod(this, [this, scan, folder = source.path] {
-        m_scan = scan;
-        m_scanFolder = folder;
-    }, Qt::QueuedConnection);
+        source.path.toStdString(), [this](double f, std::string_view st) { report(f * 0.2, st); },
+        &token));
+    QMetaObject::invokeMethod(
+        this,
+        [this, scan, folder = source.path] {
+            m_scan = scan;
+            m_scanFolder = folder;
+        },
+        Qt::QueuedConnection);
     return scan;
 }
 
-bool StudyController::needsSeriesChoice(const StudySource& source, const core::DicomScanResult& scan) {
+bool StudyController::needsSeriesChoice(const StudySource& source,
+                                        const core::DicomScanResult& scan) {
     if (!source.seriesKey.isEmpty() || scan.series.size() <= 1) return false;
     const std::size_t first = core::defaultSeriesIndex(scan);
     QStringList keys, labels;
@@ -164,18 +183,20 @@ bool StudyController::needsSeriesChoice(const StudySource& source, const core::D
         keys << QString::fromStdString(s.key);
         labels << QStringLiteral("%1 %2 — %3 (%4 images, %5×%6×%7)%8")
                       .arg(QString::fromStdString(s.modality), QString::fromStdString(s.studyDate),
-                           QString::fromStdString(s.description.empty() ? s.seriesUid : s.description))
+                           QString::fromStdString(s.description.empty() ? s.seriesUid
+                                                                        : s.description))
                       .arg(s.imageCount)
                       .arg(s.dims[0])
                       .arg(s.dims[1])
                       .arg(s.dims[2])
-                      .arg(n == 0 ? tr(" — default")
-                                  : s.loadable() ? QString()
-                                                 : tr(" — cannot be loaded: %1").arg(QString::fromStdString(s.unloadableReason)));
+                      .arg(n == 0         ? tr(" — default")
+                           : s.loadable() ? QString()
+                                          : tr(" — cannot be loaded: %1")
+                                                .arg(QString::fromStdString(s.unloadableReason)));
     }
-    QMetaObject::invokeMethod(this, [this, source, keys, labels] {
-        emit seriesChoiceNeeded(source, keys, labels);
-    }, Qt::QueuedConnection);
+    QMetaObject::invokeMethod(
+        this, [this, source, keys, labels] { emit seriesChoiceNeeded(source, keys, labels); },
+        Qt::QueuedConnection);
     return true;
 }
 
@@ -189,22 +210,27 @@ void StudyController::finishOpen(const StudySource& source, const SpectrumSettin
     if (core::isAttenuation(used.mapping) && vol->units != core::ValueUnits::HounsfieldUnits) {
         // mu = 1 + HU/1000 only means something for Hounsfield units.
         used.mapping = core::ValueMapping::Raw;
-        warnings << tr("The values are not Hounsfield units (%1): integrating the raw values instead of "
-                       "attenuation.").arg(QString::fromUtf8(core::unitsName(vol->units)));
+        warnings
+            << tr("The values are not Hounsfield units (%1): integrating the raw values instead of "
+                  "attenuation.")
+                   .arg(QString::fromUtf8(core::unitsName(vol->units)));
     }
-    auto spectrum = core::preprocess(*vol, used, [this](double f, std::string_view st) { report(0.5 + 0.5 * f, st); },
-                                     &token);
+    auto spectrum = core::preprocess(
+        *vol, used, [this](double f, std::string_view st) { report(0.5 + 0.5 * f, st); }, &token);
     std::shared_ptr<const core::Volume> cvol = vol;
-    QMetaObject::invokeMethod(this, [this, source, cvol, spectrum, warnings, used] {
-        m_source = source;
-        m_volume = cvol;
-        m_spectrum = spectrum;
-        m_settings = used;
-        m_warnings = warnings;
-        emit warningsChanged(m_warnings);
-        emit studyLoaded(source.displayName());
-        emit spectrumReady();
-    }, Qt::QueuedConnection);
+    QMetaObject::invokeMethod(
+        this,
+        [this, source, cvol, spectrum, warnings, used] {
+            m_source = source;
+            m_volume = cvol;
+            m_spectrum = spectrum;
+            m_settings = used;
+            m_warnings = warnings;
+            emit warningsChanged(m_warnings);
+            emit studyLoaded(source.displayName());
+            emit spectrumReady();
+        },
+        Qt::QueuedConnection);
 }
 
 void StudyController::setSpectrumSettings(const SpectrumSettings& settings) {
@@ -215,13 +241,17 @@ void StudyController::setSpectrumSettings(const SpectrumSettings& settings) {
     }
     auto vol = m_volume;
     startJob([this, vol, settings](core::CancelToken& token) {
-        auto spectrum = core::preprocess(*vol, settings, [this](double f, std::string_view st) { report(f, st); }, &token);
-        QMetaObject::invokeMethod(this, [this, spectrum, settings, vol] {
-            if (vol != m_volume) return; // a newer study replaced it meanwhile
-            m_spectrum = spectrum;
-            m_settings = settings;
-            emit spectrumReady();
-        }, Qt::QueuedConnection);
+        auto spectrum = core::preprocess(
+            *vol, settings, [this](double f, std::string_view st) { report(f, st); }, &token);
+        QMetaObject::invokeMethod(
+            this,
+            [this, spectrum, settings, vol] {
+                if (vol != m_volume) return; // a newer study replaced it meanwhile
+                m_spectrum = spectrum;
+                m_settings = settings;
+                emit spectrumReady();
+            },
+            Qt::QueuedConnection);
     });
 }
 

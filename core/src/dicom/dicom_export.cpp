@@ -40,8 +40,7 @@ void saveAtomically(DcmFileFormat& file, const std::filesystem::path& path) {
 void writeDicomProjection(const std::filesystem::path& path, const ProjectionImage& image,
                           const DicomExportInfo& info) {
     const int M = image.size;
-    if (M <= 0 || image.pixels.size() != std::size_t(M) * M)
-        failWrite(path, "no image to export");
+    if (M <= 0 || image.pixels.size() != std::size_t(M) * M) failWrite(path, "no image to export");
     float lo = image.pixels[0], hi = image.pixels[0];
     for (float v : image.pixels)
         if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
@@ -62,8 +61,9 @@ void writeDicomProjection(const std::filesystem::path& path, const ProjectionIma
     };
     put(DCM_SOPClassUID, UID_SecondaryCaptureImageStorage);
     put(DCM_SOPInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_INSTANCE_UID_ROOT));
-    put(DCM_StudyInstanceUID, info.studyInstanceUid.empty() ? dcmGenerateUniqueIdentifier(uid, SITE_STUDY_UID_ROOT)
-                                                            : info.studyInstanceUid);
+    put(DCM_StudyInstanceUID, info.studyInstanceUid.empty()
+                                  ? dcmGenerateUniqueIdentifier(uid, SITE_STUDY_UID_ROOT)
+                                  : info.studyInstanceUid);
     put(DCM_SeriesInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_SERIES_UID_ROOT));
     put(DCM_PatientName, info.patientName);
     put(DCM_PatientID, info.patientId);
@@ -95,10 +95,12 @@ void writeDicomProjection(const std::filesystem::path& path, const ProjectionIma
     std::snprintf(buf, sizeof buf, "%.8g", width);
     put(DCM_WindowWidth, buf);
     std::ostringstream c;
-    c << "FVR parallel projection; values: " << info.valueDescription << "; dir " << image.view.d[0] << " "
-      << image.view.d[1] << " " << image.view.d[2] << "; up " << image.view.u[0] << " " << image.view.u[1] << " "
-      << image.view.u[2] << "; right " << image.view.r[0] << " " << image.view.r[1] << " " << image.view.r[2]
-      << " (volume index frame); pixel (col,row) at centre + (col - M/2) d right - (row - M/2) d up";
+    c << "FVR parallel projection; values: " << info.valueDescription << "; dir " << image.view.d[0]
+      << " " << image.view.d[1] << " " << image.view.d[2] << "; up " << image.view.u[0] << " "
+      << image.view.u[1] << " " << image.view.u[2] << "; right " << image.view.r[0] << " "
+      << image.view.r[1] << " " << image.view.r[2]
+      << " (volume index frame); pixel (col,row) at centre + (col - M/2) d right - (row - M/2) d "
+         "up";
     put(DCM_ImageComments, c.str());
     if (ds->putAndInsertUint16Array(DCM_PixelData, stored.data(), stored.size()).bad())
         failWrite(path, "cannot store the pixel data");

@@ -78,9 +78,9 @@ std::pair<double, double> inPlaneSpacing(const std::vector<PlanSlice>& slices,
         const double dsy = std::abs((f.hasPixelSpacing ? f.rowSpacing : 1.0) - sy);
         if (f.hasPixelSpacing != f0.hasPixelSpacing || dsx > 1e-3 * sx || dsy > 1e-3 * sy)
             fail(source, "PixelSpacing (0028,0030) differs within the series: " + slices[0].label +
-                                 " has " + fmt(sy, 4) + "\\" + fmt(sx, 4) + ", " + s.label + " has " +
-                                 (f.hasPixelSpacing ? fmt(f.rowSpacing, 4) + "\\" + fmt(f.colSpacing, 4)
-                                                    : std::string("none")));
+                             " has " + fmt(sy, 4) + "\\" + fmt(sx, 4) + ", " + s.label + " has " +
+                             (f.hasPixelSpacing ? fmt(f.rowSpacing, 4) + "\\" + fmt(f.colSpacing, 4)
+                                                : std::string("none")));
     }
     return {sx, sy};
 }
@@ -95,8 +95,8 @@ std::pair<Vec3, Vec3> meanCosines(const std::vector<PlanSlice>& slices, const st
         if (std::abs(nr - 1.0) > 0.01 || std::abs(nc - 1.0) > 0.01 ||
             std::abs(dot(ri, ci)) > 0.01 * nr * nc)
             fail(source, "ImageOrientationPatient (0020,0037) in " + s.label +
-                                 ": expected two orthogonal unit vectors, found row " +
-                                 vecText(ri) + ", column " + vecText(ci));
+                             ": expected two orthogonal unit vectors, found row " + vecText(ri) +
+                             ", column " + vecText(ci));
         rs = add(rs, scale(ri, 1.0 / nr));
         cs = add(cs, scale(ci, 1.0 / nc));
     }
@@ -108,12 +108,12 @@ double orientationSpread(const std::vector<PlanSlice>& slices, const Vec3& r, co
     double spread = 0.0;
     for (const PlanSlice& s : slices) {
         const auto& o = s.info->orientation;
-        spread = std::max(spread, std::acos(std::clamp(dot(r, Vec3{o[0], o[1], o[2]}) /
-                                                           norm(Vec3{o[0], o[1], o[2]}),
-                                                       -1.0, 1.0)));
-        spread = std::max(spread, std::acos(std::clamp(dot(c, Vec3{o[3], o[4], o[5]}) /
-                                                           norm(Vec3{o[3], o[4], o[5]}),
-                                                       -1.0, 1.0)));
+        spread = std::max(
+            spread, std::acos(std::clamp(
+                        dot(r, Vec3{o[0], o[1], o[2]}) / norm(Vec3{o[0], o[1], o[2]}), -1.0, 1.0)));
+        spread = std::max(
+            spread, std::acos(std::clamp(
+                        dot(c, Vec3{o[3], o[4], o[5]}) / norm(Vec3{o[3], o[4], o[5]}), -1.0, 1.0)));
     }
     return spread;
 }
@@ -128,7 +128,7 @@ std::pair<Vec3, Vec3> meanOrientation(const std::vector<PlanSlice>& slices, bool
     if (withOrientation == 0) {
         if (n > 1 && !allFromOneFile)
             fail(source, "ImageOrientationPatient (0020,0037) missing in all " + std::to_string(n) +
-                                 " files: the slices cannot be oriented or ordered");
+                             " files: the slices cannot be oriented or ordered");
         plan.warnings.push_back(
             "ImageOrientationPatient (0020,0037) missing: rows along +x (L), columns along +y (P) "
             "assumed");
@@ -138,7 +138,7 @@ std::pair<Vec3, Vec3> meanOrientation(const std::vector<PlanSlice>& slices, bool
         for (const PlanSlice& s : slices)
             if (!s.info->hasOrientation)
                 fail(source, "ImageOrientationPatient (0020,0037) missing in " + s.label +
-                                     " but present in other slices of the series");
+                                 " but present in other slices of the series");
     }
     const auto [rs, cs] = meanCosines(slices, source);
     const Vec3 r = scale(rs, 1.0 / norm(rs));
@@ -171,8 +171,11 @@ void planSingleSlice(const FrameInfo& f0, std::int64_t cols, std::int64_t rows, 
                      double sy, GeometryPlan& plan) {
     std::string from;
     const double dz = fallbackThickness(f0, from);
-    if (f0.hasPosition) plan.origin = f0.position;
-    else plan.warnings.push_back("ImagePositionPatient (0020,0032) missing: origin (0, 0, 0) assumed");
+    if (f0.hasPosition)
+        plan.origin = f0.position;
+    else
+        plan.warnings.push_back(
+            "ImagePositionPatient (0020,0032) missing: origin (0, 0, 0) assumed");
     if (from.rfind("assumed", 0) == 0)
         plan.warnings.push_back("single slice without SliceThickness: 1 mm slab assumed");
     plan.dims = {cols, rows, 1};
@@ -191,16 +194,16 @@ void planFileOrderStack(const FrameInfo& f0, std::size_t n, std::int64_t cols, s
     plan.order.resize(n);
     std::iota(plan.order.begin(), plan.order.end(), 0);
     plan.warnings.push_back("no per-frame ImagePositionPatient: the " + std::to_string(n) +
-                            " frames are stacked in file order at " + fmt(dz, 3) + " mm (" +
-                            from + "); the slice geometry is not verified");
+                            " frames are stacked in file order at " + fmt(dz, 3) + " mm (" + from +
+                            "); the slice geometry is not verified");
 }
 
 /** The slices sorted along the normal, with what decides between a plain stack and resampling. */
 struct SortedStack {
-    std::vector<double> t;    ///< distance along the normal (mm), sorted
-    std::vector<Vec3> p;      ///< positions, sorted
+    std::vector<double> t; ///< distance along the normal (mm), sorted
+    std::vector<Vec3> p; ///< positions, sorted
     std::vector<double> gaps; ///< t[k+1] - t[k]
-    double gm = 0.0;          ///< median gap
+    double gm = 0.0; ///< median gap
     double gapTol = 0.0;
     bool uneven = false;
     std::vector<double> u, v; ///< in-plane offsets of each slice from the first (mm)
@@ -216,8 +219,9 @@ SortedStack sortAlongNormal(const std::vector<PlanSlice>& slices, const Vec3& nr
     for (std::size_t i = 0; i < n; ++i) tAll[i] = dot(slices[i].info->position, nrm);
     plan.order.resize(n);
     std::iota(plan.order.begin(), plan.order.end(), 0);
-    std::stable_sort(plan.order.begin(), plan.order.end(),
-                     [&](int a, int b) { return tAll[static_cast<std::size_t>(a)] < tAll[static_cast<std::size_t>(b)]; });
+    std::stable_sort(plan.order.begin(), plan.order.end(), [&](int a, int b) {
+        return tAll[static_cast<std::size_t>(a)] < tAll[static_cast<std::size_t>(b)];
+    });
     SortedStack s;
     s.t.resize(n);
     s.p.resize(n);
@@ -246,10 +250,10 @@ void rejectDuplicatePositions(const std::vector<PlanSlice>& slices, const Sorted
         const auto& a = slices[static_cast<std::size_t>(plan.order[firstDup])];
         const auto& b = slices[static_cast<std::size_t>(plan.order[firstDup + 1])];
         fail(source, "duplicate slice positions: " + std::to_string(dups) + " of " +
-                             std::to_string(n) + " slices repeat a position (e.g. " + a.label +
-                             " and " + b.label + " both at " + fmt(s.t[firstDup], 3) +
-                             " mm along the normal); the series mixes acquisitions that could "
-                             "not be told apart, refusing to guess which slice belongs where");
+                         std::to_string(n) + " slices repeat a position (e.g. " + a.label +
+                         " and " + b.label + " both at " + fmt(s.t[firstDup], 3) +
+                         " mm along the normal); the series mixes acquisitions that could "
+                         "not be told apart, refusing to guess which slice belongs where");
     }
 }
 
@@ -282,11 +286,11 @@ void rejectHugeGap(const std::vector<PlanSlice>& slices, const SortedStack& s,
     if (maxGap > 10.0 * s.gm) {
         const auto k = std::size_t(std::max_element(s.gaps.begin(), s.gaps.end()) - s.gaps.begin());
         fail(source, "slice gap of " + fmt(maxGap, 3) + " mm between " +
-                             slices[static_cast<std::size_t>(plan.order[k])].label + " and " +
-                             slices[static_cast<std::size_t>(plan.order[k + 1])].label + " is " +
-                             fmt(maxGap / s.gm, 1) + " times the median gap (" + fmt(s.gm, 3) +
-                             " mm): too large to interpolate across (separate stacks in one "
-                             "series?); refusing to load");
+                         slices[static_cast<std::size_t>(plan.order[k])].label + " and " +
+                         slices[static_cast<std::size_t>(plan.order[k + 1])].label + " is " +
+                         fmt(maxGap / s.gm, 1) + " times the median gap (" + fmt(s.gm, 3) +
+                         " mm): too large to interpolate across (separate stacks in one "
+                         "series?); refusing to load");
     }
 }
 
@@ -302,8 +306,8 @@ void planResampling(const SortedStack& s, std::int64_t cols, std::int64_t rows, 
     if (m < 2) m = 2;
     if (m > kMaxDimPerAxis)
         fail(source, "resampling the uneven slices at the median gap of " + fmt(s.gm, 4) +
-                             " mm would need " + std::to_string(m) + " slices (at most " +
-                             std::to_string(kMaxDimPerAxis) + ")");
+                         " mm would need " + std::to_string(m) + " slices (at most " +
+                         std::to_string(kMaxDimPerAxis) + ")");
     const double dz = range / double(m - 1);
     const double umin = *std::min_element(s.u.begin(), s.u.end());
     const double umax = *std::max_element(s.u.begin(), s.u.end());
@@ -313,14 +317,16 @@ void planResampling(const SortedStack& s, std::int64_t cols, std::int64_t rows, 
     const std::int64_t ny = rows + static_cast<std::int64_t>(std::ceil((vmax - vmin) / sy - 1e-6));
     if (nx > kMaxDimPerAxis || ny > kMaxDimPerAxis)
         fail(source, "the sheared stack would need " + std::to_string(nx) + " x " +
-                             std::to_string(ny) + " pixels per slice (at most " +
-                             std::to_string(kMaxDimPerAxis) + ")");
+                         std::to_string(ny) + " pixels per slice (at most " +
+                         std::to_string(kMaxDimPerAxis) + ")");
     const double inVoxels = double(cols) * double(rows) * double(n);
     const double outVoxels = double(nx) * double(ny) * double(m);
     if (outVoxels > std::max(16.0 * inVoxels, 64.0 * 1024 * 1024))
-        fail(source, "resampling the " + std::to_string(n) + " slices onto a regular grid would "
-                             "need " + std::to_string(nx) + " x " + std::to_string(ny) + " x " +
-                             std::to_string(m) + " voxels (more than 16 times the input); refusing");
+        fail(source, "resampling the " + std::to_string(n) +
+                         " slices onto a regular grid would "
+                         "need " +
+                         std::to_string(nx) + " x " + std::to_string(ny) + " x " +
+                         std::to_string(m) + " voxels (more than 16 times the input); refusing");
     plan.dims = {nx, ny, m};
     plan.spacing = {sx, sy, dz};
     plan.origin = add(s.p[0], add(scale(r, umin), scale(c, vmin)));
@@ -339,8 +345,8 @@ void planResampling(const SortedStack& s, std::int64_t cols, std::int64_t rows, 
 std::string unevenWarning(const std::vector<PlanSlice>& slices, const SortedStack& s,
                           const GeometryPlan& plan) {
     const std::size_t n = s.t.size();
-    std::string msg = "uneven slice spacing along the normal: gaps " + gapSummary(s.gaps, s.gapTol) +
-                      " (median " + fmt(s.gm, 3) + " mm)";
+    std::string msg = "uneven slice spacing along the normal: gaps " +
+                      gapSummary(s.gaps, s.gapTol) + " (median " + fmt(s.gm, 3) + " mm)";
     // Gaps close to a multiple of the median: slices are missing there.
     int missingTotal = 0;
     std::string where;
@@ -388,9 +394,11 @@ std::string shearWarning(const std::vector<PlanSlice>& slices, const SortedStack
                       " deg to the slice normal";
     if (!slices[0].gantryTilt.empty())
         msg += " (GantryDetectorTilt (0018,1120): " + slices[0].gantryTilt + " deg)";
-    msg += " (in-plane shift up to " + fmt(s.maxShift, 2) + " mm); resampled (de-sheared) onto an "
-           "orthogonal grid of " + std::to_string(plan.dims[0]) + " x " +
-           std::to_string(plan.dims[1]) + " x " + std::to_string(plan.dims[2]) +
+    msg += " (in-plane shift up to " + fmt(s.maxShift, 2) +
+           " mm); resampled (de-sheared) onto an "
+           "orthogonal grid of " +
+           std::to_string(plan.dims[0]) + " x " + std::to_string(plan.dims[1]) + " x " +
+           std::to_string(plan.dims[2]) +
            " voxels along the image rows, columns and normal, bilinear in "
            "plane; voxels outside every slice are set to the series minimum";
     return msg;
@@ -398,8 +406,8 @@ std::string shearWarning(const std::vector<PlanSlice>& slices, const SortedStack
 
 } // namespace
 
-GeometryPlan planGeometry(const std::vector<PlanSlice>& slices, std::int64_t cols, std::int64_t rows,
-                          const std::string& source) {
+GeometryPlan planGeometry(const std::vector<PlanSlice>& slices, std::int64_t cols,
+                          std::int64_t rows, const std::string& source) {
     GeometryPlan plan;
     const std::size_t n = slices.size();
     if (n == 0) fail(source, "no slices");
@@ -426,10 +434,10 @@ GeometryPlan planGeometry(const std::vector<PlanSlice>& slices, std::int64_t col
     if (withPosition != n) {
         for (const PlanSlice& s : slices)
             if (!s.info->hasPosition || s.info->fileLevelPosition)
-                fail(source, "ImagePositionPatient (0020,0032) missing in " + s.label +
-                                     ": the " + std::to_string(n) +
-                                     " slices cannot be ordered by position (file names and "
-                                     "InstanceNumber are not used for geometry)");
+                fail(source, "ImagePositionPatient (0020,0032) missing in " + s.label + ": the " +
+                                 std::to_string(n) +
+                                 " slices cannot be ordered by position (file names and "
+                                 "InstanceNumber are not used for geometry)");
     }
 
     SortedStack stack = sortAlongNormal(slices, nrm, plan);

@@ -33,7 +33,7 @@ void initDcmtk() {
         // reported through DicomError or a warning instead. FVR_DCMTK_LOG=1 keeps DCMTK's log.
         if (!std::getenv("FVR_DCMTK_LOG"))
             OFLog::getLogger("dcmtk").setLogLevel(OFLogger::OFF_LOG_LEVEL);
-        DJDecoderRegistration::registerCodecs();   // JPEG baseline, extended, lossless
+        DJDecoderRegistration::registerCodecs(); // JPEG baseline, extended, lossless
         DJLSDecoderRegistration::registerCodecs(); // JPEG-LS lossless and near-lossless
         DcmRLEDecoderRegistration::registerCodecs();
         // Deflated Explicit VR Little Endian is inflated by dcmdata's input stream (zlib).
@@ -78,7 +78,8 @@ bool getDoubles(DcmItem* item, const DcmTagKey& tag, double* out, int n) {
     if (!item) return false;
     for (int i = 0; i < n; ++i) {
         Float64 v = 0;
-        if (item->findAndGetFloat64(tag, v, static_cast<unsigned long>(i)).bad() || !std::isfinite(v))
+        if (item->findAndGetFloat64(tag, v, static_cast<unsigned long>(i)).bad() ||
+            !std::isfinite(v))
             return false;
         out[i] = v;
     }
@@ -86,9 +87,7 @@ bool getDoubles(DcmItem* item, const DcmTagKey& tag, double* out, int n) {
 }
 
 /** True when the element is present (with any value, possibly malformed). */
-bool present(DcmItem* item, const DcmTagKey& tag) {
-    return item && item->tagExistsWithValue(tag);
-}
+bool present(DcmItem* item, const DcmTagKey& tag) { return item && item->tagExistsWithValue(tag); }
 
 DcmItem* firstItem(DcmItem* item, const DcmTagKey& seqTag) {
     if (!item) return nullptr;
@@ -130,18 +129,23 @@ void readGeometry(DcmItem* item, FrameInfo& fi, std::vector<std::string>& proble
         }
     }
     if (getDoubles(item, DCM_SliceThickness, v, 1) && v[0] > 0) fi.sliceThickness = v[0];
-    if (getDoubles(item, DCM_SpacingBetweenSlices, v, 1) && v[0] > 0) fi.spacingBetweenSlices = v[0];
+    if (getDoubles(item, DCM_SpacingBetweenSlices, v, 1) && v[0] > 0)
+        fi.spacingBetweenSlices = v[0];
     const bool hasSlope = present(item, DCM_RescaleSlope);
     const bool hasIntercept = present(item, DCM_RescaleIntercept);
     if (hasSlope || hasIntercept) {
         fi.hasRescale = true;
         if (hasSlope) {
-            if (getDoubles(item, DCM_RescaleSlope, v, 1)) fi.slope = v[0];
-            else fi.slope = NAN; // reported by unsupportedReason
+            if (getDoubles(item, DCM_RescaleSlope, v, 1))
+                fi.slope = v[0];
+            else
+                fi.slope = NAN; // reported by unsupportedReason
         }
         if (hasIntercept) {
-            if (getDoubles(item, DCM_RescaleIntercept, v, 1)) fi.intercept = v[0];
-            else fi.intercept = NAN;
+            if (getDoubles(item, DCM_RescaleIntercept, v, 1))
+                fi.intercept = v[0];
+            else
+                fi.intercept = NAN;
         }
     }
 }
@@ -160,12 +164,14 @@ void readFunctionalGroups(DcmItem* fg, FrameInfo& fi, std::string& rescaleType,
     if (DcmItem* it = firstItem(fg, DCM_FrameContentSequence)) {
         if (auto s = getString(it, DCM_StackID); !s.empty()) fi.stack = s;
         if (auto s = getString(it, DCM_TemporalPositionIndex); !s.empty()) fi.temporal = s;
-        if (DcmElement* e = nullptr; it->findAndGetElement(DCM_DimensionIndexValues, e).good() && e) {
+        if (DcmElement* e = nullptr;
+            it->findAndGetElement(DCM_DimensionIndexValues, e).good() && e) {
             fi.dimensionIndex.clear();
             const unsigned long vm = std::min<unsigned long>(e->getVM(), 16);
             for (unsigned long i = 0; i < vm; ++i) {
                 Uint32 x = 0;
-                if (e->getUint32(x, i).good()) fi.dimensionIndex.push_back(static_cast<std::int32_t>(x));
+                if (e->getUint32(x, i).good())
+                    fi.dimensionIndex.push_back(static_cast<std::int32_t>(x));
             }
         }
     }
@@ -175,7 +181,8 @@ void readFunctionalGroups(DcmItem* fg, FrameInfo& fi, std::string& rescaleType,
         if (DcmItem* it = firstItem(fg, seq))
             if (auto s = getString(it, DCM_FrameType); !s.empty()) fi.imageType = s;
     if (DcmItem* it = firstItem(fg, DCM_CardiacSynchronizationSequence))
-        if (auto s = getString(it, DCM_NominalCardiacTriggerDelayTime); !s.empty()) fi.triggerTime = s;
+        if (auto s = getString(it, DCM_NominalCardiacTriggerDelayTime); !s.empty())
+            fi.triggerTime = s;
     if (DcmItem* it = firstItem(fg, DCM_MRDiffusionSequence))
         if (auto s = getString(it, DCM_DiffusionBValue); !s.empty()) fi.diffusion = s;
 }
@@ -190,10 +197,14 @@ std::optional<std::int64_t> readPaddingValue(DcmItem* ds, const DcmTagKey& tag, 
     Sint16 s16 = 0;
     Uint32 u32 = 0;
     Sint32 s32 = 0;
-    if (e->getUint16(u16).good()) return signedPixels ? std::int64_t(static_cast<Sint16>(u16)) : std::int64_t(u16);
-    if (e->getSint16(s16).good()) return signedPixels ? std::int64_t(s16) : std::int64_t(static_cast<Uint16>(s16));
-    if (e->getUint32(u32).good()) return signedPixels ? std::int64_t(static_cast<Sint32>(u32)) : std::int64_t(u32);
-    if (e->getSint32(s32).good()) return signedPixels ? std::int64_t(s32) : std::int64_t(static_cast<Uint32>(s32));
+    if (e->getUint16(u16).good())
+        return signedPixels ? std::int64_t(static_cast<Sint16>(u16)) : std::int64_t(u16);
+    if (e->getSint16(s16).good())
+        return signedPixels ? std::int64_t(s16) : std::int64_t(static_cast<Uint16>(s16));
+    if (e->getUint32(u32).good())
+        return signedPixels ? std::int64_t(static_cast<Sint32>(u32)) : std::int64_t(u32);
+    if (e->getSint32(s32).good())
+        return signedPixels ? std::int64_t(s32) : std::int64_t(static_cast<Uint32>(s32));
     problems.push_back(std::string(DcmTag(tag).getTagName()) + " " + tag.toString().c_str() +
                        ": not a US/SS/UL/SL number: ignored");
     return std::nullopt;
@@ -203,7 +214,8 @@ std::optional<std::int64_t> readPaddingValue(DcmItem* ds, const DcmTagKey& tag, 
 void readModalityLut(DcmItem* lut, DicomHeader& h) {
     DcmElement* desc = nullptr;
     if (lut->findAndGetElement(DCM_LUTDescriptor, desc).bad() || !desc || desc->getVM() != 3) {
-        h.modalityLutProblem = "Modality LUT Sequence (0028,3000): LUTDescriptor (0028,3002) is not 3 numbers";
+        h.modalityLutProblem =
+            "Modality LUT Sequence (0028,3000): LUTDescriptor (0028,3002) is not 3 numbers";
         return;
     }
     const bool signedDesc = desc->getTag().getEVR() == EVR_SS;
@@ -233,10 +245,12 @@ void readModalityLut(DcmItem* lut, DicomHeader& h) {
     }
     DcmElement* data = nullptr;
     Uint16* words = nullptr;
-    if (lut->findAndGetElement(DCM_LUTData, data).bad() || !data || data->getUint16Array(words).bad() ||
-        !words || std::int64_t(data->getLength() / 2) < entries) {
-        h.modalityLutProblem = "Modality LUT Sequence (0028,3000): LUTData (0028,3006) holds fewer than the " +
-                               std::to_string(entries) + " entries of its LUTDescriptor";
+    if (lut->findAndGetElement(DCM_LUTData, data).bad() || !data ||
+        data->getUint16Array(words).bad() || !words ||
+        std::int64_t(data->getLength() / 2) < entries) {
+        h.modalityLutProblem =
+            "Modality LUT Sequence (0028,3000): LUTData (0028,3006) holds fewer than the " +
+            std::to_string(entries) + " entries of its LUTDescriptor";
         return;
     }
     h.modalityLut.assign(words, words + entries);
@@ -255,8 +269,9 @@ std::unique_ptr<DcmFileFormat> parseFile(const fs::path& path, std::uintmax_t& f
     const OFCondition c =
         ff->loadFile(OFFilename(path.c_str()), EXS_Unknown, EGL_noChange, 4096, ERM_autoDetect);
     if (c.bad()) {
-        const bool premature = c == EC_StreamNotifyClient || c == EC_PrematureSequDelimitationItem ||
-                               c == EC_SequDelimitationItemMissing || c == EC_ItemDelimitationItemMissing;
+        const bool premature =
+            c == EC_StreamNotifyClient || c == EC_PrematureSequDelimitationItem ||
+            c == EC_SequDelimitationItemMissing || c == EC_ItemDelimitationItemMissing;
         fail(path, std::string("not a readable DICOM file: ") + c.text() +
                        (premature ? " (truncated file?)" : " (corrupt or not DICOM)"));
     }
@@ -277,7 +292,8 @@ void readSopAndPixelKind(DcmMetaInfo* meta, DcmDataset* ds, DicomHeader& h) {
 
     h.hasPixelData = present(ds, DCM_PixelData);
     h.floatPixelData = !h.hasPixelData && present(ds, DCM_FloatPixelData);
-    h.doublePixelData = !h.hasPixelData && !h.floatPixelData && present(ds, DCM_DoubleFloatPixelData);
+    h.doublePixelData =
+        !h.hasPixelData && !h.floatPixelData && present(ds, DCM_DoubleFloatPixelData);
     if (!h.hasPixelData && !h.floatPixelData && !h.doublePixelData) {
         // A parse of a non-DICOM file without preamble can "succeed" with garbage elements: tell
         // those apart from real DICOM objects without images.
@@ -298,13 +314,15 @@ void readTransferSyntax(DcmMetaInfo* meta, DcmDataset* ds, DicomHeader& h) {
     h.xferUid = xf.getXferID();
     h.xferName = xf.getXferName();
     if (!metaXfer.empty() && DcmXfer(metaXfer.c_str()).getXfer() == EXS_Unknown)
-        fail(h.path, "transfer syntax " + metaXfer + " (TransferSyntaxUID (0002,0010)) is not "
-                     "supported (unknown to this DCMTK build)");
+        fail(h.path, "transfer syntax " + metaXfer +
+                         " (TransferSyntaxUID (0002,0010)) is not "
+                         "supported (unknown to this DCMTK build)");
     h.encapsulated = xf.isEncapsulated();
     h.bigEndian = xf.isBigEndian();
     if (h.encapsulated)
-        h.decodable = h.decodable &&
-                      (isJpeg2000(xfer) || DcmCodecList::canChangeCoding(xfer, EXS_LittleEndianExplicit));
+        h.decodable =
+            h.decodable &&
+            (isJpeg2000(xfer) || DcmCodecList::canChangeCoding(xfer, EXS_LittleEndianExplicit));
     h.lossyDeclared = getString(ds, DCM_LossyImageCompression) == "01";
     if (h.lossyDeclared) {
         const std::string ratio = getString(ds, DCM_LossyImageCompressionRatio);
@@ -342,25 +360,32 @@ void readSeriesAttributes(DcmDataset* ds, DicomHeader& h) {
 void readImagePixelModule(DcmDataset* ds, DicomHeader& h) {
     const fs::path& path = h.path;
     Uint16 u = 0;
-    if (ds->findAndGetUint16(DCM_Rows, u).bad()) fail(path, "not an image: Rows (0028,0010) missing");
+    if (ds->findAndGetUint16(DCM_Rows, u).bad())
+        fail(path, "not an image: Rows (0028,0010) missing");
     h.rows = u;
     if (ds->findAndGetUint16(DCM_Columns, u).bad())
         fail(path, "not an image: Columns (0028,0011) missing");
     h.cols = u;
     h.samplesPerPixel = ds->findAndGetUint16(DCM_SamplesPerPixel, u).good() ? u : 1;
-    if (ds->findAndGetUint16(DCM_BitsAllocated, u).good()) h.bitsAllocated = u;
-    else if (h.floatPixelData) h.bitsAllocated = 32;
-    else if (h.doublePixelData) h.bitsAllocated = 64;
-    else fail(path, "BitsAllocated (0028,0100) missing");
+    if (ds->findAndGetUint16(DCM_BitsAllocated, u).good())
+        h.bitsAllocated = u;
+    else if (h.floatPixelData)
+        h.bitsAllocated = 32;
+    else if (h.doublePixelData)
+        h.bitsAllocated = 64;
+    else
+        fail(path, "BitsAllocated (0028,0100) missing");
     h.bitsStored = ds->findAndGetUint16(DCM_BitsStored, u).good() ? u : h.bitsAllocated;
     h.highBit = ds->findAndGetUint16(DCM_HighBit, u).good() ? u : h.bitsStored - 1;
     h.pixelRepresentation = ds->findAndGetUint16(DCM_PixelRepresentation, u).good() ? u : 0;
     h.photometric = getString(ds, DCM_PhotometricInterpretation);
     if (h.photometric.empty()) h.photometric = "MONOCHROME2";
     if (!h.floatPixelData && !h.doublePixelData) {
-        h.paddingValue = readPaddingValue(ds, DCM_PixelPaddingValue, h.pixelRepresentation == 1, h.problems);
+        h.paddingValue =
+            readPaddingValue(ds, DCM_PixelPaddingValue, h.pixelRepresentation == 1, h.problems);
         if (h.paddingValue)
-            h.paddingLimit = readPaddingValue(ds, DCM_PixelPaddingRangeLimit, h.pixelRepresentation == 1, h.problems);
+            h.paddingLimit = readPaddingValue(ds, DCM_PixelPaddingRangeLimit,
+                                              h.pixelRepresentation == 1, h.problems);
     }
 
     if (present(ds, DCM_NumberOfFrames)) {
@@ -371,8 +396,8 @@ void readImagePixelModule(DcmDataset* ds, DicomHeader& h) {
         h.frames = n;
     }
     if (h.frames > kMaxDimPerAxis)
-        fail(path, "NumberOfFrames (0028,0008): expected at most " + std::to_string(kMaxDimPerAxis) +
-                       ", found " + std::to_string(h.frames));
+        fail(path, "NumberOfFrames (0028,0008): expected at most " +
+                       std::to_string(kMaxDimPerAxis) + ", found " + std::to_string(h.frames));
 }
 
 /** Pixel data size as stored (nothing is loaded here): fragments and their bytes when
@@ -384,7 +409,8 @@ void readPixelDataLength(DcmDataset* ds, std::uintmax_t fileSize, DicomHeader& h
                                : h.floatPixelData ? DCM_FloatPixelData
                                                   : DCM_DoubleFloatPixelData;
     DcmElement* pe = nullptr;
-    if (ds->findAndGetElement(pixelTag, pe).bad() || !pe) fail(path, "Pixel Data could not be read");
+    if (ds->findAndGetElement(pixelTag, pe).bad() || !pe)
+        fail(path, "Pixel Data could not be read");
     if (h.encapsulated && h.hasPixelData) {
         auto* pd = dynamic_cast<DcmPixelData*>(pe);
         DcmPixelSequence* seq = nullptr;
@@ -404,7 +430,8 @@ void readPixelDataLength(DcmDataset* ds, std::uintmax_t fileSize, DicomHeader& h
     }
     if (DcmXfer(xfer).getStreamCompression() == ESC_none && h.pixelDataLength > fileSize)
         fail(path, "Pixel Data (7FE0,0010): length " + std::to_string(h.pixelDataLength) +
-                       " bytes exceeds the file size " + std::to_string(fileSize) + " (truncated file?)");
+                       " bytes exceeds the file size " + std::to_string(fileSize) +
+                       " (truncated file?)");
 }
 
 /** The pixel data must be able to hold what the header describes: checked here, before any
@@ -412,12 +439,13 @@ void readPixelDataLength(DcmDataset* ds, std::uintmax_t fileSize, DicomHeader& h
 void checkPixelDataHoldsImage(const DicomHeader& h) {
     if (h.rows <= 0 || h.cols <= 0 || h.bitsAllocated <= 0) return;
     const fs::path& path = h.path;
-    const std::uint64_t bytesPer = h.floatPixelData    ? 4
-                                   : h.doublePixelData ? 8
-                                                       : std::uint64_t(std::max(h.bitsAllocated, 8) / 8);
+    const std::uint64_t bytesPer = h.floatPixelData ? 4
+                                   : h.doublePixelData
+                                       ? 8
+                                       : std::uint64_t(std::max(h.bitsAllocated, 8) / 8);
     // rows, cols <= 65535, frames <= 16384: no overflow.
-    const std::uint64_t need = std::uint64_t(h.rows) * std::uint64_t(h.cols) *
-                               std::uint64_t(h.frames) * bytesPer;
+    const std::uint64_t need =
+        std::uint64_t(h.rows) * std::uint64_t(h.cols) * std::uint64_t(h.frames) * bytesPer;
     const std::string what = std::to_string(h.cols) + " x " + std::to_string(h.rows) + " x " +
                              std::to_string(h.frames) + " frames x " + std::to_string(bytesPer) +
                              " bytes = " + std::to_string(need) + " bytes";
@@ -455,7 +483,8 @@ void readFrames(DcmDataset* ds, DicomHeader& h) {
 
     DcmSequenceOfItems* perFrame = nullptr;
     DcmItem* shared = firstItem(ds, DCM_SharedFunctionalGroupsSequence);
-    if (ds->findAndGetSequence(DCM_PerFrameFunctionalGroupsSequence, perFrame).bad()) perFrame = nullptr;
+    if (ds->findAndGetSequence(DCM_PerFrameFunctionalGroupsSequence, perFrame).bad())
+        perFrame = nullptr;
     h.enhanced = shared || perFrame;
     if (h.enhanced) {
         readFunctionalGroups(shared, base, h.rescaleType, problems);
@@ -513,7 +542,8 @@ std::string unsupportedReason(const DicomHeader& h) {
                std::to_string(h.rows) + " x " + std::to_string(h.cols);
     if (h.samplesPerPixel != 1)
         return "colour images are not supported (SamplesPerPixel (0028,0002) " +
-               std::to_string(h.samplesPerPixel) + ", PhotometricInterpretation " + h.photometric + ")";
+               std::to_string(h.samplesPerPixel) + ", PhotometricInterpretation " + h.photometric +
+               ")";
     if (h.photometric != "MONOCHROME1" && h.photometric != "MONOCHROME2")
         return "PhotometricInterpretation (0028,0004) " + h.photometric +
                " is not supported (expected MONOCHROME1 or MONOCHROME2)";
@@ -540,12 +570,14 @@ std::string unsupportedReason(const DicomHeader& h) {
                std::to_string(h.pixelRepresentation);
     if (h.hasModalityLut && !h.modalityLutProblem.empty()) return h.modalityLutProblem;
     if (h.hasModalityLut && h.bitsAllocated > 16)
-        return "Modality LUT Sequence (0028,3000) with BitsAllocated " + std::to_string(h.bitsAllocated) +
-               " is not supported";
+        return "Modality LUT Sequence (0028,3000) with BitsAllocated " +
+               std::to_string(h.bitsAllocated) + " is not supported";
     for (const FrameInfo& f : h.frameInfo) {
         if (!std::isfinite(f.slope) || f.slope == 0.0 || !std::isfinite(f.intercept))
-            return "RescaleSlope/RescaleIntercept (0028,1053/1052): expected numbers with a non-zero "
-                   "slope, found slope " + fmt(f.slope, 6) + ", intercept " + fmt(f.intercept, 6);
+            return "RescaleSlope/RescaleIntercept (0028,1053/1052): expected numbers with a "
+                   "non-zero "
+                   "slope, found slope " +
+                   fmt(f.slope, 6) + ", intercept " + fmt(f.intercept, 6);
     }
     return {};
 }

@@ -5,8 +5,8 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
-#include <filesystem>
 #include <exception>
+#include <filesystem>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -40,26 +40,27 @@ inline void checkCancel(const CancelToken* cancel) {
 /** Geometry and value transform of one frame (a single-frame file has one). */
 struct FrameInfo {
     bool hasPosition = false;
-    Vec3 position{0, 0, 0};              ///< ImagePositionPatient (LPS, mm)
-    bool fileLevelPosition = false;      ///< classic multi-frame: `position` is the file's, not the frame's
+    Vec3 position{0, 0, 0}; ///< ImagePositionPatient (LPS, mm)
+    bool fileLevelPosition =
+        false; ///< classic multi-frame: `position` is the file's, not the frame's
     bool hasOrientation = false;
     std::array<double, 6> orientation{}; ///< ImageOrientationPatient: row cosines, column cosines
     bool hasPixelSpacing = false;
-    double rowSpacing = 1.0;             ///< PixelSpacing[0]: between rows (along the column direction)
-    double colSpacing = 1.0;             ///< PixelSpacing[1]: between columns (along the row direction)
-    double sliceThickness = 0.0;         ///< 0: absent
-    double spacingBetweenSlices = 0.0;   ///< 0: absent
+    double rowSpacing = 1.0; ///< PixelSpacing[0]: between rows (along the column direction)
+    double colSpacing = 1.0; ///< PixelSpacing[1]: between columns (along the row direction)
+    double sliceThickness = 0.0; ///< 0: absent
+    double spacingBetweenSlices = 0.0; ///< 0: absent
     bool hasRescale = false;
     double slope = 1.0;
     double intercept = 0.0;
     /** Attributes that tell acquisitions apart; compared as text. */
-    std::string echo;                    ///< EchoNumbers or the MR echo's EffectiveEchoTime
-    std::string acquisition;             ///< AcquisitionNumber
-    std::string temporal;                ///< TemporalPositionIdentifier / TemporalPositionIndex
-    std::string stack;                   ///< StackID
-    std::string imageType;               ///< ImageType / FrameType
-    std::string triggerTime;             ///< TriggerTime / NominalCardiacTriggerDelayTime
-    std::string diffusion;               ///< DiffusionBValue
+    std::string echo; ///< EchoNumbers or the MR echo's EffectiveEchoTime
+    std::string acquisition; ///< AcquisitionNumber
+    std::string temporal; ///< TemporalPositionIdentifier / TemporalPositionIndex
+    std::string stack; ///< StackID
+    std::string imageType; ///< ImageType / FrameType
+    std::string triggerTime; ///< TriggerTime / NominalCardiacTriggerDelayTime
+    std::string diffusion; ///< DiffusionBValue
     std::vector<std::int32_t> dimensionIndex; ///< DimensionIndexValues
 };
 
@@ -69,33 +70,34 @@ struct DicomHeader {
     std::string sopInstanceUid, sopClassUid, studyUid, seriesUid, seriesNumber;
     std::string patientName, patientId, studyDate, modality, description;
     std::string rescaleType;
-    int xfer = 0;                        ///< E_TransferSyntax of the file
+    int xfer = 0; ///< E_TransferSyntax of the file
     std::string xferUid, xferName;
     bool encapsulated = false;
     bool bigEndian = false;
-    bool decodable = true;               ///< a decoder for the transfer syntax is registered
+    bool decodable = true; ///< a decoder for the transfer syntax is registered
     std::int64_t rows = 0, cols = 0, frames = 1;
-    int samplesPerPixel = 1, bitsAllocated = 0, bitsStored = 0, highBit = 0, pixelRepresentation = 0;
+    int samplesPerPixel = 1, bitsAllocated = 0, bitsStored = 0, highBit = 0,
+        pixelRepresentation = 0;
     std::string photometric;
-    bool hasPixelData = false;           ///< (7FE0,0010)
-    bool floatPixelData = false;         ///< (7FE0,0008) Float Pixel Data instead
-    bool doublePixelData = false;        ///< (7FE0,0009) Double Float Pixel Data instead
-    std::uint64_t pixelDataLength = 0;   ///< native: the value length; encapsulated: sum of fragments
-    std::int64_t fragments = 0;          ///< encapsulated: number of fragments (offset table excluded)
-    bool hasModalityLut = false;         ///< a Modality LUT replaces the rescale
-    std::string modalityLutProblem;      ///< why the LUT cannot be used (empty: usable)
+    bool hasPixelData = false; ///< (7FE0,0010)
+    bool floatPixelData = false; ///< (7FE0,0008) Float Pixel Data instead
+    bool doublePixelData = false; ///< (7FE0,0009) Double Float Pixel Data instead
+    std::uint64_t pixelDataLength = 0; ///< native: the value length; encapsulated: sum of fragments
+    std::int64_t fragments = 0; ///< encapsulated: number of fragments (offset table excluded)
+    bool hasModalityLut = false; ///< a Modality LUT replaces the rescale
+    std::string modalityLutProblem; ///< why the LUT cannot be used (empty: usable)
     std::vector<std::uint16_t> modalityLut; ///< LUTData
-    std::int64_t lutFirst = 0;           ///< first stored value mapped
-    int lutBits = 16;                    ///< bits per LUT entry
-    std::string lutType;                 ///< ModalityLUTType (HU, OD, US...)
-    bool enhanced = false;               ///< per-frame functional groups present
-    std::string gantryTilt;              ///< GantryDetectorTilt as written
+    std::int64_t lutFirst = 0; ///< first stored value mapped
+    int lutBits = 16; ///< bits per LUT entry
+    std::string lutType; ///< ModalityLUTType (HU, OD, US...)
+    bool enhanced = false; ///< per-frame functional groups present
+    std::string gantryTilt; ///< GantryDetectorTilt as written
     /// PixelPaddingValue (0028,0120) and PixelPaddingRangeLimit (0028,0121), in stored-value
     /// units (before inversion and rescale; signed when PixelRepresentation is 1).
     std::optional<std::int64_t> paddingValue, paddingLimit;
-    bool lossyDeclared = false;          ///< LossyImageCompression (0028,2110) is 01
-    std::vector<FrameInfo> frameInfo;    ///< one per frame
-    std::vector<std::string> problems;   ///< malformed geometry attributes (become warnings)
+    bool lossyDeclared = false; ///< LossyImageCompression (0028,2110) is 01
+    std::vector<FrameInfo> frameInfo; ///< one per frame
+    std::vector<std::string> problems; ///< malformed geometry attributes (become warnings)
 };
 
 /** Reads the header of `path` (pixel values are not loaded: elements above a few KiB stay on
@@ -106,9 +108,11 @@ DicomHeader readHeader(const fs::path& path, std::unique_ptr<DcmFileFormat>* kee
 /** JPEG 2000 (1.2.840.10008.1.2.4.90/.91): decoded with OpenJPEG, DCMTK has no codec for it. */
 bool isJpeg2000(int xfer);
 struct Jpeg2000Frames {
-    std::vector<std::uint8_t> words;  ///< little-endian words of BitsAllocated, samples in the low bits
-    bool signReinterpreted = false;   ///< the codestream's signedness differs from PixelRepresentation
-    bool irreversible = false;        ///< a codestream uses the 9/7 wavelet (lossy)
+    std::vector<std::uint8_t>
+        words; ///< little-endian words of BitsAllocated, samples in the low bits
+    bool signReinterpreted =
+        false; ///< the codestream's signedness differs from PixelRepresentation
+    bool irreversible = false; ///< a codestream uses the 9/7 wavelet (lossy)
 };
 /** Decodes the listed frames (0-based) of a JPEG 2000 file, frame f at f * rows * cols words (the
  *  other frames stay 0). Throws DicomError naming the file (fragments that do not split into the
@@ -121,8 +125,8 @@ std::string unsupportedReason(const DicomHeader& h);
 
 /** The frames taken from one file for a series. */
 struct FrameRef {
-    int file = 0;   ///< index into the series' files
-    int frame = 0;  ///< 0-based frame within the file
+    int file = 0; ///< index into the series' files
+    int frame = 0; ///< 0-based frame within the file
 };
 
 /** Where the sorted input slices go and how. */
@@ -131,27 +135,27 @@ struct GeometryPlan {
     Vec3 spacing{1, 1, 1};
     Vec3 origin{0, 0, 0};
     std::array<Vec3, 3> direction{Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
-    std::vector<int> order;          ///< indices into the planner's input, sorted along the normal
-    bool resample = false;           ///< uneven spacing or sheared stack: interpolate
-    std::vector<double> t;           ///< sorted slices' distances along the normal (mm), resample only
-    std::vector<double> du, dv;      ///< sorted slices' in-plane offsets (output pixels), resample only
-    double z0 = 0.0;                 ///< distance along the normal of output slice 0
+    std::vector<int> order; ///< indices into the planner's input, sorted along the normal
+    bool resample = false; ///< uneven spacing or sheared stack: interpolate
+    std::vector<double> t; ///< sorted slices' distances along the normal (mm), resample only
+    std::vector<double> du, dv; ///< sorted slices' in-plane offsets (output pixels), resample only
+    double z0 = 0.0; ///< distance along the normal of output slice 0
     std::vector<std::string> warnings;
 };
 
 struct PlanSlice {
     const FrameInfo* info = nullptr;
-    std::string label;               ///< file (and frame) for messages
+    std::string label; ///< file (and frame) for messages
     bool fromMultiFrame = false;
-    std::string gantryTilt;          ///< GantryDetectorTilt as written (for the message)
-    int file = 0;                    ///< which file the slice comes from
+    std::string gantryTilt; ///< GantryDetectorTilt as written (for the message)
+    int file = 0; ///< which file the slice comes from
 };
 
 /** Plans the volume for slices of cols x rows pixels. Throws DicomError (naming `source`)
  *  for what cannot be loaded without distortion: duplicate positions, missing positions in a
  *  multi-file series, invalid orientation. */
-GeometryPlan planGeometry(const std::vector<PlanSlice>& slices, std::int64_t cols, std::int64_t rows,
-                          const std::string& source);
+GeometryPlan planGeometry(const std::vector<PlanSlice>& slices, std::int64_t cols,
+                          std::int64_t rows, const std::string& source);
 
 /** Groups headers into series: by SeriesInstanceUID, split by image size, pixel spacing,
  *  orientation and echo, then by an acquisition attribute where that resolves duplicate

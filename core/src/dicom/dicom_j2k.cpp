@@ -42,16 +42,20 @@ struct Fragments {
 
 Fragments readFragments(const DicomHeader& h, DcmDataset& ds) {
     DcmElement* pe = nullptr;
-    if (ds.findAndGetElement(DCM_PixelData, pe).bad() || !pe) fail(h.path, "Pixel Data (7FE0,0010) missing");
+    if (ds.findAndGetElement(DCM_PixelData, pe).bad() || !pe)
+        fail(h.path, "Pixel Data (7FE0,0010) missing");
     auto* pd = dynamic_cast<DcmPixelData*>(pe);
     DcmPixelSequence* seq = nullptr;
-    if (!pd || pd->getEncapsulatedRepresentation(E_TransferSyntax(h.xfer), nullptr, seq).bad() || !seq)
-        fail(h.path, "Pixel Data (7FE0,0010): expected encapsulated JPEG 2000 fragments, found none");
+    if (!pd || pd->getEncapsulatedRepresentation(E_TransferSyntax(h.xfer), nullptr, seq).bad() ||
+        !seq)
+        fail(h.path,
+             "Pixel Data (7FE0,0010): expected encapsulated JPEG 2000 fragments, found none");
     Fragments f;
     for (unsigned long i = 0; i < seq->card(); ++i) {
         DcmPixelItem* item = nullptr;
         if (seq->getItem(item, i).bad() || !item)
-            fail(h.path, "Pixel Data (7FE0,0010): fragment " + std::to_string(i) + " cannot be read");
+            fail(h.path,
+                 "Pixel Data (7FE0,0010): fragment " + std::to_string(i) + " cannot be read");
         Uint8* p = nullptr;
         const Uint32 n = item->getLength();
         if (n > 0 && (item->getUint8Array(p).bad() || !p))
@@ -78,7 +82,8 @@ std::vector<Bytes> splitFrames(const DicomHeader& h, Fragments f) {
     std::vector<Bytes> out;
     auto join = [&](std::size_t begin, std::size_t end) {
         Bytes b;
-        for (std::size_t i = begin; i < end; ++i) b.insert(b.end(), f.items[i].begin(), f.items[i].end());
+        for (std::size_t i = begin; i < end; ++i)
+            b.insert(b.end(), f.items[i].begin(), f.items[i].end());
         return b;
     };
     if (frames == 1) {
@@ -130,7 +135,8 @@ OPJ_OFF_T streamSkip(OPJ_OFF_T n, void* user) {
         s->pos -= back;
         return -OPJ_OFF_T(back);
     }
-    const std::size_t k = std::min<std::size_t>(std::size_t(n), s->size - std::min(s->pos, s->size));
+    const std::size_t k =
+        std::min<std::size_t>(std::size_t(n), s->size - std::min(s->pos, s->size));
     s->pos += k;
     return OPJ_OFF_T(k);
 }
@@ -199,11 +205,12 @@ void checkComponent(const DicomHeader& h, const opj_image_t& image, const std::s
     const opj_image_comp_t& c0 = image.comps[0];
     if (c0.dx != 1 || c0.dy != 1 || std::int64_t(c0.w) != h.cols || std::int64_t(c0.h) != h.rows)
         fail(h.path, "JPEG 2000 pixel data" + where + " is " + std::to_string(c0.w) + " x " +
-                         std::to_string(c0.h) + ", the header says " + std::to_string(h.cols) + " x " +
-                         std::to_string(h.rows));
+                         std::to_string(c0.h) + ", the header says " + std::to_string(h.cols) +
+                         " x " + std::to_string(h.rows));
     if (c0.prec < 1 || c0.prec > std::uint32_t(h.bitsAllocated))
         fail(h.path, "JPEG 2000 pixel data" + where + " holds " + std::to_string(c0.prec) +
-                         "-bit samples, more than BitsAllocated " + std::to_string(h.bitsAllocated));
+                         "-bit samples, more than BitsAllocated " +
+                         std::to_string(h.bitsAllocated));
 }
 
 /** Stores the decoded samples `s` of component c0 in `dst` as BitsAllocated-bit words.
@@ -217,12 +224,13 @@ void storeSamples(const DicomHeader& h, const OPJ_INT32* s, const opj_image_comp
     const int bits = h.bitsStored;
     const bool codestreamSigned = c0.sgnd != 0;
     const std::int64_t lo = codestreamSigned ? -(std::int64_t(1) << (bits - 1)) : 0;
-    const std::int64_t hi = codestreamSigned ? (std::int64_t(1) << (bits - 1)) - 1 : (std::int64_t(1) << bits) - 1;
+    const std::int64_t hi =
+        codestreamSigned ? (std::int64_t(1) << (bits - 1)) - 1 : (std::int64_t(1) << bits) - 1;
     const auto [mn, mx] = std::minmax_element(s, s + n);
     if (*mn < lo || *mx > hi)
-        fail(h.path, "JPEG 2000 pixel data" + where + " holds values " + std::to_string(*mn) + " .. " +
-                         std::to_string(*mx) + ", more than the BitsStored " + std::to_string(bits) +
-                         " bits that the header declares");
+        fail(h.path, "JPEG 2000 pixel data" + where + " holds values " + std::to_string(*mn) +
+                         " .. " + std::to_string(*mx) + ", more than the BitsStored " +
+                         std::to_string(bits) + " bits that the header declares");
     if (codestreamSigned != (h.pixelRepresentation == 1)) info.signReinterpreted = true;
     switch (h.bitsAllocated) {
     case 8:
@@ -243,7 +251,8 @@ void storeSamples(const DicomHeader& h, const OPJ_INT32* s, const opj_image_comp
 }
 
 /** Decodes one codestream into `dst` (cols * rows words of BitsAllocated / 8 bytes). */
-void decodeFrame(const DicomHeader& h, const Bytes& code, int frame, std::uint8_t* dst, Jpeg2000Frames& info) {
+void decodeFrame(const DicomHeader& h, const Bytes& code, int frame, std::uint8_t* dst,
+                 Jpeg2000Frames& info) {
     const std::string where = h.frames > 1 ? " (frame " + std::to_string(frame + 1) + ")" : "";
     if (code.empty()) fail(h.path, "JPEG 2000 pixel data" + where + " is empty");
     MemoryStream mem{code.data(), code.size(), 0};
@@ -256,7 +265,8 @@ void decodeFrame(const DicomHeader& h, const Bytes& code, int frame, std::uint8_
     std::unique_ptr<opj_image_t, ImageDeleter> image(raw);
     auto broken = [&](const char* stage) {
         fail(h.path, std::string("JPEG 2000 pixel data") + where + ": " + stage + " failed" +
-                         (error.empty() ? std::string() : ": " + error) + " (truncated or corrupt codestream?)");
+                         (error.empty() ? std::string() : ": " + error) +
+                         " (truncated or corrupt codestream?)");
     };
     if (!header || !image) broken("reading the codestream header");
     checkComponent(h, *image, where);
@@ -275,16 +285,18 @@ void decodeFrame(const DicomHeader& h, const Bytes& code, int frame, std::uint8_
 
 } // namespace
 
-bool isJpeg2000(int xfer) {
-    return xfer == EXS_JPEG2000LosslessOnly || xfer == EXS_JPEG2000;
-}
+bool isJpeg2000(int xfer) { return xfer == EXS_JPEG2000LosslessOnly || xfer == EXS_JPEG2000; }
 
-Jpeg2000Frames decodeJpeg2000(const DicomHeader& h, DcmDataset& ds, const std::vector<int>& frames) {
+Jpeg2000Frames decodeJpeg2000(const DicomHeader& h, DcmDataset& ds,
+                              const std::vector<int>& frames) {
     const std::vector<Bytes> code = splitFrames(h, readFragments(h, ds));
-    const std::size_t frameBytes = std::size_t(h.cols) * std::size_t(h.rows) * std::size_t(h.bitsAllocated / 8);
+    const std::size_t frameBytes =
+        std::size_t(h.cols) * std::size_t(h.rows) * std::size_t(h.bitsAllocated / 8);
     Jpeg2000Frames out;
     out.words.resize(frameBytes * code.size());
-    for (int f : frames) decodeFrame(h, code[std::size_t(f)], f, out.words.data() + frameBytes * std::size_t(f), out);
+    for (int f : frames)
+        decodeFrame(h, code[std::size_t(f)], f, out.words.data() + frameBytes * std::size_t(f),
+                    out);
     return out;
 }
 

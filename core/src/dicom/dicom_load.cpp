@@ -82,7 +82,7 @@ struct Padding {
 
 struct DecodeCounts {
     std::int64_t nonFinite = 0; ///< non-finite float pixels replaced by 0
-    std::int64_t padded = 0;    ///< padding pixels whose value changed to the fill
+    std::int64_t padded = 0; ///< padding pixels whose value changed to the fill
     bool j2kSignReinterpreted = false;
     bool j2kLossyUndeclared = false; ///< 9/7 wavelet without LossyImageCompression 01
 };
@@ -116,7 +116,8 @@ const void* nativePixelData(const DicomHeader& h, DcmDataset& ds) {
     const std::uint64_t have = pe->getLength();
     if (have < need)
         fail(path, "Pixel Data (7FE0,0010): expected " + dims + " = " + std::to_string(need) +
-                       " bytes, found " + std::to_string(have) + " (truncated file or wrong header)");
+                       " bytes, found " + std::to_string(have) +
+                       " (truncated file or wrong header)");
 
     const void* raw = nullptr;
     OFCondition c = EC_Normal;
@@ -149,7 +150,8 @@ const void* nativePixelData(const DicomHeader& h, DcmDataset& ds) {
  *  one by one. Padding becomes the fill. */
 class FrameConverter {
 public:
-    FrameConverter(const DicomHeader& h, const void* raw, bool invert, bool hu, DecodeCounts& counts)
+    FrameConverter(const DicomHeader& h, const void* raw, bool invert, bool hu,
+                   DecodeCounts& counts)
         : m_h(h), m_raw(raw), m_frameVox(std::uint64_t(h.rows) * std::uint64_t(h.cols)),
           m_pf(pixelFormat(h, invert)), m_uninverted(m_pf), m_padding(h, hu), m_counts(counts) {
         m_uninverted.invert = false;
@@ -165,8 +167,10 @@ public:
             convertFloats(first, slope, intercept, dst);
         } else if (m_h.bitsAllocated <= 16) {
             updateTable(slope, intercept);
-            if (m_h.bitsAllocated == 8) convertThroughTable(static_cast<const Uint8*>(m_raw) + first, dst);
-            else convertThroughTable(static_cast<const Uint16*>(m_raw) + first, dst);
+            if (m_h.bitsAllocated == 8)
+                convertThroughTable(static_cast<const Uint8*>(m_raw) + first, dst);
+            else
+                convertThroughTable(static_cast<const Uint16*>(m_raw) + first, dst);
         } else {
             convertWords32(first, slope, intercept, dst);
         }
@@ -176,8 +180,9 @@ private:
     void convertFloats(std::uint64_t first, double slope, double intercept, float* dst) {
         std::int64_t& nonFinite = m_counts.nonFinite;
         for (std::uint64_t i = 0; i < m_frameVox; ++i) {
-            const double v = m_h.floatPixelData ? double(static_cast<const Float32*>(m_raw)[first + i])
-                                                : static_cast<const Float64*>(m_raw)[first + i];
+            const double v = m_h.floatPixelData
+                                 ? double(static_cast<const Float32*>(m_raw)[first + i])
+                                 : static_cast<const Float64*>(m_raw)[first + i];
             double out = v * slope + intercept;
             if (!std::isfinite(out)) {
                 out = 0.0;
@@ -223,7 +228,9 @@ private:
         m_lut.resize(std::size_t(1) << m_h.bitsAllocated);
         m_padChanged.assign(m_lut.size(), 0);
         for (std::size_t w = 0; w < m_lut.size(); ++w)
-            m_lut[w] = padWord(w, static_cast<float>(double(storedValue(std::uint32_t(w), m_pf)) * slope + intercept));
+            m_lut[w] =
+                padWord(w, static_cast<float>(double(storedValue(std::uint32_t(w), m_pf)) * slope +
+                                              intercept));
         m_lutSlope = slope;
         m_lutIntercept = intercept;
     }
@@ -244,12 +251,14 @@ private:
     }
 
     void convertWords32(std::uint64_t first, double slope, double intercept, float* dst) {
-        static_assert(std::endian::native == std::endian::little, "32-bit pixel words assume a little endian host");
+        static_assert(std::endian::native == std::endian::little,
+                      "32-bit pixel words assume a little endian host");
         const auto* src = static_cast<const Uint16*>(m_raw) + 2 * first;
         for (std::uint64_t i = 0; i < m_frameVox; ++i) {
             std::uint32_t w;
             std::memcpy(&w, src + 2 * i, 4);
-            const float value = static_cast<float>(double(storedValue(w, m_pf)) * slope + intercept);
+            const float value =
+                static_cast<float>(double(storedValue(w, m_pf)) * slope + intercept);
             const bool pad = m_padding(storedValue(w, m_uninverted));
             m_counts.padded += pad && value != m_padding.fill;
             dst[i] = pad ? m_padding.fill : value;
@@ -263,8 +272,8 @@ private:
     PixelFormat m_uninverted; ///< m_pf without the inversion: padding matches these values
     const Padding m_padding;
     DecodeCounts& m_counts;
-    std::vector<float> m_lut;                ///< 8 and 16-bit words: each word's value
-    std::vector<std::uint8_t> m_padChanged;  ///< per word: padding whose value the fill changes
+    std::vector<float> m_lut; ///< 8 and 16-bit words: each word's value
+    std::vector<std::uint8_t> m_padChanged; ///< per word: padding whose value the fill changes
     double m_lutSlope = NAN, m_lutIntercept = NAN; ///< the rescale m_lut was built for
 };
 
@@ -295,11 +304,14 @@ DecodeCounts decodeFile(const DicomHeader& h, DcmFileFormat& ff,
 inline float sample(const float* s, std::int64_t cols, std::int64_t rows, double fx, double fy,
                     float fill) {
     constexpr double eps = 1e-6;
-    if (fx < -eps || fy < -eps || fx > double(cols - 1) + eps || fy > double(rows - 1) + eps) return fill;
+    if (fx < -eps || fy < -eps || fx > double(cols - 1) + eps || fy > double(rows - 1) + eps)
+        return fill;
     fx = std::clamp(fx, 0.0, double(cols - 1));
     fy = std::clamp(fy, 0.0, double(rows - 1));
-    const std::int64_t x0 = std::min<std::int64_t>(std::int64_t(fx), std::max<std::int64_t>(cols - 2, 0));
-    const std::int64_t y0 = std::min<std::int64_t>(std::int64_t(fy), std::max<std::int64_t>(rows - 2, 0));
+    const std::int64_t x0 =
+        std::min<std::int64_t>(std::int64_t(fx), std::max<std::int64_t>(cols - 2, 0));
+    const std::int64_t y0 =
+        std::min<std::int64_t>(std::int64_t(fy), std::max<std::int64_t>(rows - 2, 0));
     const std::int64_t x1 = std::min(x0 + 1, cols - 1);
     const std::int64_t y1 = std::min(y0 + 1, rows - 1);
     const double ax = fx - double(x0), ay = fy - double(y0);
@@ -319,7 +331,8 @@ void resampleStack(const std::vector<float>& stack, std::int64_t cols, std::int6
     runParallel(pool, nz, 1, [&](std::int64_t j) {
         checkCancel(cancel);
         const double z = plan.z0 + double(j) * plan.spacing[2];
-        std::size_t k = std::size_t(std::upper_bound(plan.t.begin(), plan.t.end(), z) - plan.t.begin());
+        std::size_t k =
+            std::size_t(std::upper_bound(plan.t.begin(), plan.t.end(), z) - plan.t.begin());
         k = k == 0 ? 0 : k - 1;
         k = std::min(k, n - 2);
         const double w = std::clamp((z - plan.t[k]) / (plan.t[k + 1] - plan.t[k]), 0.0, 1.0);
@@ -340,7 +353,8 @@ void resampleStack(const std::vector<float>& stack, std::int64_t cols, std::int6
             sampleInto(k, dst);
             sampleInto(k + 1, upper.data());
             const float wf = static_cast<float>(w);
-            for (std::int64_t i = 0; i < nx * ny; ++i) dst[i] += wf * (upper[std::size_t(i)] - dst[i]);
+            for (std::int64_t i = 0; i < nx * ny; ++i)
+                dst[i] += wf * (upper[std::size_t(i)] - dst[i]);
         }
         prog.step();
     });
@@ -360,7 +374,8 @@ std::string seriesSource(const DicomSeriesInfo& series) {
     return series.files.size() == 1
                ? series.files[0].string()
                : "DICOM series " + (name.empty() ? std::string("(unnamed)") : name) +
-                     (series.files.empty() ? std::string() : " in " + series.files[0].parent_path().string());
+                     (series.files.empty() ? std::string()
+                                           : " in " + series.files[0].parent_path().string());
 }
 
 /** The series' files, parsed (their pixel data loads on demand), and their headers. */
@@ -411,13 +426,15 @@ SeriesFrames selectFrames(const DicomSeriesInfo& series, const std::vector<Dicom
     for (std::size_t i = 0; i < hs.size(); ++i) {
         const DicomHeader& h = hs[i];
         std::vector<std::int32_t> sel;
-        if (!series.frames.empty() && !series.frames[i].empty()) sel = series.frames[i];
+        if (!series.frames.empty() && !series.frames[i].empty())
+            sel = series.frames[i];
         else
             for (std::int32_t f = 0; f < std::int32_t(h.frames); ++f) sel.push_back(f);
         for (std::int32_t f : sel) {
             if (f < 0 || f >= h.frames)
-                throw DicomError(source + ": " + h.path.string() + " has " + std::to_string(h.frames) +
-                                 " frames, frame " + std::to_string(f + 1) + " was asked for");
+                throw DicomError(source + ": " + h.path.string() + " has " +
+                                 std::to_string(h.frames) + " frames, frame " +
+                                 std::to_string(f + 1) + " was asked for");
             out.slices.push_back({&h.frameInfo[static_cast<std::size_t>(f)], sliceLabel(h, f),
                                   h.frames > 1, h.gantryTilt, int(i)});
             out.refs.push_back({int(i), f});
@@ -453,11 +470,11 @@ Warnings initialWarnings(const DicomSeriesInfo& series, const std::vector<DicomH
 /** The modality transform over the series' slices. */
 struct Rescale {
     bool isCt = false;
-    bool all = true;       ///< every slice has a rescale (or the Modality LUT)
+    bool all = true; ///< every slice has a rescale (or the Modality LUT)
     bool any = false;
-    bool typeHu = true;    ///< every file's RescaleType is HU
+    bool typeHu = true; ///< every file's RescaleType is HU
     std::string otherType; ///< a RescaleType other than HU ("LUT": a non-HU Modality LUT)
-    bool lut = false;      ///< the Modality LUT replaces the rescale
+    bool lut = false; ///< the Modality LUT replaces the rescale
 };
 
 /** The slices' rescale; throws when only some of them have one. */
@@ -476,8 +493,10 @@ Rescale sliceRescale(const std::vector<DicomHeader>& hs, const SeriesFrames& fra
     if (r.any && !r.all) {
         for (std::size_t s = 0; s < slices.size(); ++s)
             if (!slices[s].info->hasRescale)
-                throw DicomError(source + ": RescaleSlope/RescaleIntercept (0028,1053/1052) missing in " +
-                                 slices[s].label + " but present in other slices: their values "
+                throw DicomError(source +
+                                 ": RescaleSlope/RescaleIntercept (0028,1053/1052) missing in " +
+                                 slices[s].label +
+                                 " but present in other slices: their values "
                                  "would not be comparable");
     }
     return r;
@@ -501,7 +520,8 @@ void applyModalityLut(const std::vector<DicomHeader>& hs, const std::string& sou
     r.any = true;
     r.otherType = allLutHu ? std::string() : "LUT";
     r.typeHu = allLutHu;
-    warnings.add("Modality LUT Sequence (0028,3000) applied (ModalityLUTType '" + hs[0].lutType + "')");
+    warnings.add("Modality LUT Sequence (0028,3000) applied (ModalityLUTType '" + hs[0].lutType +
+                 "')");
 }
 
 void warnMonochrome1(const std::vector<DicomHeader>& hs, bool hu, Warnings& warnings) {
@@ -512,8 +532,9 @@ void warnMonochrome1(const std::vector<DicomHeader>& hs, bool hu, Warnings& warn
         warnings.add("MONOCHROME1: Hounsfield units kept as they are (MONOCHROME1 only says how to "
                      "display them: low values white)");
     else
-        warnings.add("MONOCHROME1: stored values inverted (v -> min + max of the BitsStored range - v, "
-                     "before rescale) so that larger values are brighter");
+        warnings.add(
+            "MONOCHROME1: stored values inverted (v -> min + max of the BitsStored range - v, "
+            "before rescale) so that larger values are brighter");
 }
 
 /** Units: Hounsfield for CT with a rescale (or RescaleType HU), else intensity. True for HU. */
@@ -525,11 +546,13 @@ bool decideUnits(const std::vector<DicomHeader>& hs, const SeriesFrames& frames,
     // when the values are not HU; 'US' means unspecified).
     const bool hu = r.all && ((r.isCt && r.otherType.empty()) || r.typeHu);
     if (r.isCt && r.all && !r.otherType.empty() && !r.lut)
-        warnings.add("RescaleType (0028,1054) '" + r.otherType + "' on a CT image: the rescaled "
+        warnings.add("RescaleType (0028,1054) '" + r.otherType +
+                     "' on a CT image: the rescaled "
                      "values are not declared Hounsfield units and are loaded as intensity");
     if (r.isCt && !r.all)
-        warnings.add("CT without RescaleSlope/RescaleIntercept: values are stored pixel values, not "
-                     "Hounsfield units");
+        warnings.add(
+            "CT without RescaleSlope/RescaleIntercept: values are stored pixel values, not "
+            "Hounsfield units");
     warnMonochrome1(hs, hu, warnings);
     return hu;
 }
@@ -565,7 +588,8 @@ DecodedStack decodeSlices(SeriesFiles& files, const std::vector<FrameRef>& refs,
             checkCancel(cancel);
             const auto k = static_cast<std::size_t>(i);
             const bool invert = hs[k].photometric == "MONOCHROME1" && !hu;
-            const DecodeCounts c = decodeFile(hs[k], *files.parsed[k], perFile[k], stack.data(), sliceVox, invert, hu);
+            const DecodeCounts c =
+                decodeFile(hs[k], *files.parsed[k], perFile[k], stack.data(), sliceVox, invert, hu);
             nonFinite += c.nonFinite;
             padded += c.padded;
             if (c.j2kSignReinterpreted) j2kSign = true;
@@ -585,30 +609,38 @@ DecodedStack decodeSlices(SeriesFiles& files, const std::vector<FrameRef>& refs,
 void warnDecoding(const DecodeCounts& counts, const std::vector<DicomHeader>& hs,
                   std::size_t voxels, bool hu, Warnings& warnings) {
     if (counts.nonFinite > 0)
-        warnings.add(std::to_string(counts.nonFinite) + " non-finite float pixel values (NaN/Inf) set to 0");
+        warnings.add(std::to_string(counts.nonFinite) +
+                     " non-finite float pixel values (NaN/Inf) set to 0");
     if (counts.j2kSignReinterpreted)
-        warnings.add("JPEG 2000 codestream signedness differs from PixelRepresentation (0028,0103) " +
-             std::to_string(hs[0].pixelRepresentation) + ": the samples' BitsStored bits are read as the header declares (" +
-             (hs[0].pixelRepresentation == 1 ? "two's complement" : "unsigned") + ")");
+        warnings.add(
+            "JPEG 2000 codestream signedness differs from PixelRepresentation (0028,0103) " +
+            std::to_string(hs[0].pixelRepresentation) +
+            ": the samples' BitsStored bits are read as the header declares (" +
+            (hs[0].pixelRepresentation == 1 ? "two's complement" : "unsigned") + ")");
     if (counts.j2kLossyUndeclared)
-        warnings.add("lossy JPEG 2000 (irreversible 9/7 wavelet) although LossyImageCompression (0028,2110) does not "
-             "say so: the values are approximations of the original");
+        warnings.add("lossy JPEG 2000 (irreversible 9/7 wavelet) although LossyImageCompression "
+                     "(0028,2110) does not "
+                     "say so: the values are approximations of the original");
     if (counts.padded > 0) {
-        const auto h = std::find_if(hs.begin(), hs.end(), [](const DicomHeader& x) { return x.paddingValue.has_value(); });
+        const auto h = std::find_if(
+            hs.begin(), hs.end(), [](const DicomHeader& x) { return x.paddingValue.has_value(); });
         std::string what = "PixelPaddingValue (0028,0120) " + std::to_string(*h->paddingValue);
-        if (h->paddingLimit) what += " to PixelPaddingRangeLimit (0028,0121) " + std::to_string(*h->paddingLimit);
+        if (h->paddingLimit)
+            what += " to PixelPaddingRangeLimit (0028,0121) " + std::to_string(*h->paddingLimit);
         char share[32];
         std::snprintf(share, sizeof share, "%.1f", 100.0 * double(counts.padded) / double(voxels));
         warnings.add(what + ": " + std::to_string(counts.padded) + " padding pixels (" + share +
-             " %, no measurement there) set to " + (hu ? "air (-1000 HU)" : "0 (no signal)"));
+                     " %, no measurement there) set to " +
+                     (hu ? "air (-1000 HU)" : "0 (no signal)"));
     }
 }
 
 /** The series description, else "<modality> series [number]", else "DICOM series". */
 std::string volumeName(const DicomHeader& h0) {
     return !h0.description.empty() ? h0.description
-           : !h0.modality.empty()  ? h0.modality + " series" + (h0.seriesNumber.empty() ? "" : " " + h0.seriesNumber)
-                                   : std::string("DICOM series");
+           : !h0.modality.empty()
+               ? h0.modality + " series" + (h0.seriesNumber.empty() ? "" : " " + h0.seriesNumber)
+               : std::string("DICOM series");
 }
 
 /** The volume on the plan's grid: the stack itself, or the stack resampled onto it (outside the
@@ -643,8 +675,9 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
     const std::string source = seriesSource(series);
     if (series.files.empty()) throw DicomError(source + ": no files");
     if (!series.frames.empty() && series.frames.size() != series.files.size())
-        throw DicomError(source + ": the frame selection lists " + std::to_string(series.frames.size()) +
-                         " files, the series " + std::to_string(series.files.size()));
+        throw DicomError(source + ": the frame selection lists " +
+                         std::to_string(series.frames.size()) + " files, the series " +
+                         std::to_string(series.files.size()));
 
     ThreadPool pool;
     SeriesFiles files = readSeriesFiles(series, pool, progress, cancel);
@@ -660,11 +693,13 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
 
     Warnings warnings = initialWarnings(series, hs, plan);
     const bool hu = decideUnits(hs, frames, source, warnings);
-    DecodedStack stack = decodeSlices(files, frames.refs, plan, cols * rows, hu, pool, progress, cancel);
+    DecodedStack stack =
+        decodeSlices(files, frames.refs, plan, cols * rows, hu, pool, progress, cancel);
     warnDecoding(stack.counts, hs, stack.voxels.size(), hu, warnings);
 
     DicomVolume result;
-    result.volume = assembleVolume(std::move(stack.voxels), plan, hu, hs[0], pool, progress, cancel);
+    result.volume =
+        assembleVolume(std::move(stack.voxels), plan, hu, hs[0], pool, progress, cancel);
     if (progress) progress(1.0, "DICOM series loaded");
     result.warnings = std::move(warnings.list);
     return result;
@@ -690,10 +725,11 @@ DicomVolume loadDicomFile(const std::filesystem::path& file) {
     if (series.empty()) fail(file, "no image in the file");
     DicomVolume v = loadDicomSeries(series[0]);
     if (series.size() > 1)
-        v.warnings.insert(v.warnings.begin(),
-                          file.string() + " holds " + std::to_string(series.size()) +
-                              " volumes; loaded the first (" + std::to_string(series[0].frameCount) +
-                              " frames); scan the file to choose another");
+        v.warnings.insert(v.warnings.begin(), file.string() + " holds " +
+                                                  std::to_string(series.size()) +
+                                                  " volumes; loaded the first (" +
+                                                  std::to_string(series[0].frameCount) +
+                                                  " frames); scan the file to choose another");
     return v;
 }
 

@@ -35,8 +35,8 @@ namespace dicom_detail {
 namespace {
 
 struct Unit {
-    int h = 0;     // header index
-    int f = 0;     // frame
+    int h = 0; // header index
+    int f = 0; // frame
 };
 
 std::string lower(std::string s) {
@@ -68,7 +68,8 @@ std::optional<std::vector<fs::path>> filesFromDicomdir(const fs::path& dicomdir,
         return std::nullopt;
     }
     DcmSequenceOfItems* records = nullptr;
-    if (ff.getDataset()->findAndGetSequence(DCM_DirectoryRecordSequence, records).bad() || !records) {
+    if (ff.getDataset()->findAndGetSequence(DCM_DirectoryRecordSequence, records).bad() ||
+        !records) {
         why = "no DirectoryRecordSequence (0004,1220)";
         return std::nullopt;
     }
@@ -78,7 +79,8 @@ std::optional<std::vector<fs::path>> filesFromDicomdir(const fs::path& dicomdir,
     for (unsigned long i = 0; i < records->card(); ++i) {
         DcmItem* rec = records->getItem(i);
         OFString id;
-        if (!rec || rec->findAndGetOFStringArray(DCM_ReferencedFileID, id).bad() || id.empty()) continue;
+        if (!rec || rec->findAndGetOFStringArray(DCM_ReferencedFileID, id).bad() || id.empty())
+            continue;
         // Components are separated by backslashes; never leave the DICOMDIR's folder.
         std::vector<std::string> parts;
         std::string cur;
@@ -94,7 +96,8 @@ std::optional<std::vector<fs::path>> filesFromDicomdir(const fs::path& dicomdir,
         bool bad = false;
         fs::path p = root;
         for (const std::string& part : parts) {
-            if (part.empty() || part == "." || part == ".." || part.find('/') != std::string::npos) {
+            if (part.empty() || part == "." || part == ".." ||
+                part.find('/') != std::string::npos) {
                 bad = true;
                 break;
             }
@@ -178,7 +181,8 @@ Split resolveDuplicates(const std::vector<DicomHeader>& hs, const std::vector<Un
         {"ImageType/FrameType", [&](const Unit& u) { return info(hs, u).imageType; }},
         {"trigger time", [&](const Unit& u) { return info(hs, u).triggerTime; }},
         {"DiffusionBValue", [&](const Unit& u) { return info(hs, u).diffusion; }},
-        {"RescaleSlope/Intercept", [&](const Unit& u) {
+        {"RescaleSlope/Intercept",
+         [&](const Unit& u) {
              return fmt(info(hs, u).slope, 9) + "/" + fmt(info(hs, u).intercept, 9);
          }},
     };
@@ -238,7 +242,7 @@ std::vector<int> uniqueInstances(const std::vector<DicomHeader>& hs,
 
 /** Files of one SeriesInstanceUID (or folder/study/series number when it is missing). */
 struct PrimaryGroup {
-    std::string key;          ///< the UID, or "folder:<folder>[#number][@study]"
+    std::string key; ///< the UID, or "folder:<folder>[#number][@study]"
     std::vector<int> members; ///< header indices
 };
 
@@ -265,7 +269,8 @@ std::vector<PrimaryGroup> groupBySeriesUid(const std::vector<DicomHeader>& hs,
 std::vector<Unit> unitsOf(const std::vector<DicomHeader>& hs, const std::vector<int>& members) {
     std::vector<Unit> units;
     for (int i : members)
-        for (int f = 0; f < int(hs[static_cast<std::size_t>(i)].frames); ++f) units.push_back({i, f});
+        for (int f = 0; f < int(hs[static_cast<std::size_t>(i)].frames); ++f)
+            units.push_back({i, f});
     return units;
 }
 
@@ -304,7 +309,9 @@ HardSplit splitByImageGeometry(const std::vector<DicomHeader>& hs, const std::ve
         if (!f.hasOrientation) return -1;
         for (std::size_t k = 0; k < iops.size(); ++k) {
             double d = 0;
-            for (int j = 0; j < 6; ++j) d = std::max(d, std::abs(iops[k][static_cast<std::size_t>(j)] - f.orientation[static_cast<std::size_t>(j)]));
+            for (int j = 0; j < 6; ++j)
+                d = std::max(d, std::abs(iops[k][static_cast<std::size_t>(j)] -
+                                         f.orientation[static_cast<std::size_t>(j)]));
             if (d <= 1e-3) return int(k);
         }
         iops.push_back(f.orientation);
@@ -335,7 +342,7 @@ HardSplit splitByImageGeometry(const std::vector<DicomHeader>& hs, const std::ve
  *  duplicate positions. */
 struct Part {
     std::vector<Unit> units;
-    std::string note;        ///< what split it apart from the hard split (empty: nothing)
+    std::string note; ///< what split it apart from the hard split (empty: nothing)
     bool duplicates = false; ///< duplicate positions remain (loading refuses them)
 };
 
@@ -344,8 +351,7 @@ std::vector<Part> splitDuplicates(const std::vector<DicomHeader>& hs,
     std::vector<Part> parts;
     for (const auto& part : hardParts) {
         Split s = resolveDuplicates(hs, part);
-        for (auto& p : s.parts)
-            parts.push_back({std::move(p), s.by, s.duplicates});
+        for (auto& p : s.parts) parts.push_back({std::move(p), s.by, s.duplicates});
     }
     return parts;
 }
@@ -393,7 +399,8 @@ void addHeaderProblems(const std::vector<DicomHeader>& hs, const std::vector<Uni
     for (const Unit& u : units)
         for (const auto& p : hs[static_cast<std::size_t>(u.h)].problems)
             if (problems.insert(p).second)
-                warnings.push_back(hs[static_cast<std::size_t>(u.h)].path.filename().string() + ": " + p);
+                warnings.push_back(hs[static_cast<std::size_t>(u.h)].path.filename().string() +
+                                   ": " + p);
 }
 
 /** Plans the series as the loader will, to report dims, spacing and geometry problems now (and
@@ -415,7 +422,8 @@ std::vector<Unit> planSeries(const std::vector<DicomHeader>& hs, const std::vect
                   fi0.hasPixelSpacing ? fi0.rowSpacing : 1.0, 0.0};
     try {
         for (const Unit& u : units)
-            if (hs[static_cast<std::size_t>(u.h)].rows != h0.rows || hs[static_cast<std::size_t>(u.h)].cols != h0.cols)
+            if (hs[static_cast<std::size_t>(u.h)].rows != h0.rows ||
+                hs[static_cast<std::size_t>(u.h)].cols != h0.cols)
                 throw DicomError("mixed image sizes");
         GeometryPlan plan = planGeometry(slices, h0.cols, h0.rows, "series " + si.key);
         si.dims = plan.dims;
@@ -451,8 +459,10 @@ void listFilesInSliceOrder(const std::vector<DicomHeader>& hs, const std::vector
     for (std::size_t k = 0; k < si.frames.size(); ++k) {
         auto& fr = si.frames[k];
         std::sort(fr.begin(), fr.end());
-        if (std::int64_t(fr.size()) == hs[static_cast<std::size_t>(fileHeader[k])].frames) fr.clear();
-        else anyPartial = true;
+        if (std::int64_t(fr.size()) == hs[static_cast<std::size_t>(fileHeader[k])].frames)
+            fr.clear();
+        else
+            anyPartial = true;
     }
     if (!anyPartial) si.frames.clear();
     si.imageCount = int(si.files.size());
@@ -491,10 +501,11 @@ std::vector<DicomSeriesInfo> groupIntoSeries(const std::vector<DicomHeader>& hs,
         for (std::size_t g = 0; g < parts.size(); ++g)
             out.push_back(describeSeries(hs, group.key, parts, g, hard.reason));
     }
-    std::stable_sort(out.begin(), out.end(), [](const DicomSeriesInfo& a, const DicomSeriesInfo& b) {
-        if (a.studyUid != b.studyUid) return a.studyUid < b.studyUid;
-        return a.key < b.key;
-    });
+    std::stable_sort(out.begin(), out.end(),
+                     [](const DicomSeriesInfo& a, const DicomSeriesInfo& b) {
+                         if (a.studyUid != b.studyUid) return a.studyUid < b.studyUid;
+                         return a.key < b.key;
+                     });
     return out;
 }
 
@@ -549,8 +560,10 @@ std::vector<fs::path> filesToScan(const fs::path& folder, std::vector<std::strin
     if (fs::is_regular_file(folder, ec)) {
         files.push_back(folder);
     } else if (fs::is_directory(folder, ec)) {
-        if (auto listed = filesListedInDicomdir(folder, skipped)) files = std::move(*listed);
-        else files = walkFolder(folder, skipped, cancel);
+        if (auto listed = filesListedInDicomdir(folder, skipped))
+            files = std::move(*listed);
+        else
+            files = walkFolder(folder, skipped, cancel);
     } else {
         throw DicomError(folder.string() + ": not a folder or file");
     }
@@ -584,8 +597,10 @@ std::vector<DicomHeader> readHeaders(const std::vector<fs::path>& files,
     }
     std::vector<DicomHeader> usable;
     for (std::size_t k = 0; k < files.size(); ++k) {
-        if (headers[k]) usable.push_back(std::move(*headers[k]));
-        else skipped.push_back(errors[k]);
+        if (headers[k])
+            usable.push_back(std::move(*headers[k]));
+        else
+            skipped.push_back(errors[k]);
     }
     return usable;
 }
@@ -593,8 +608,8 @@ std::vector<DicomHeader> readHeaders(const std::vector<fs::path>& files,
 /** The error when no series was found: the file count and the first three reasons to skip. */
 std::string noSeriesMessage(const fs::path& folder, std::size_t fileCount,
                             const std::vector<std::string>& skipped) {
-    std::string msg = folder.string() + ": no DICOM image series found (" +
-                      std::to_string(fileCount) + " files";
+    std::string msg =
+        folder.string() + ": no DICOM image series found (" + std::to_string(fileCount) + " files";
     if (!skipped.empty()) {
         msg += "; e.g. ";
         for (std::size_t k = 0; k < std::min<std::size_t>(3, skipped.size()); ++k)

@@ -54,16 +54,17 @@ void appendChunk(std::string& png, const char* type, const std::string& payload)
     std::string body(type, 4);
     body += payload;
     png += body;
-    appendU32BE(png, std::uint32_t(crc32(0, reinterpret_cast<const Bytef*>(body.data()), uInt(body.size()))));
+    appendU32BE(png, std::uint32_t(
+                         crc32(0, reinterpret_cast<const Bytef*>(body.data()), uInt(body.size()))));
 }
 
 std::string lower(std::string s) {
-    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    std::transform(s.begin(), s.end(), s.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
     return s;
 }
 
 } // namespace
-
 
 void writeNpy(const fs::path& path, const float* data, std::int64_t rows, std::int64_t cols,
               std::int64_t count) {
@@ -107,8 +108,8 @@ std::vector<float> readNpy(const fs::path& path, std::vector<std::int64_t>& shap
     const auto dataStart = std::uint64_t(in.tellg());
     const auto fileSize = std::uint64_t(fs::file_size(path));
     if (total < 0 || std::uint64_t(total) * sizeof(float) != fileSize - dataStart)
-        fail<LoadError>(path, "shape: expected " + std::to_string(total) +
-                        " floats, found " + std::to_string((fileSize - dataStart) / sizeof(float)));
+        fail<LoadError>(path, "shape: expected " + std::to_string(total) + " floats, found " +
+                                  std::to_string((fileSize - dataStart) / sizeof(float)));
     std::vector<float> v(static_cast<std::size_t>(total));
     in.read(reinterpret_cast<char*>(v.data()), std::streamsize(v.size() * sizeof(float)));
     if (!in) fail<LoadError>(path, "data: truncated");
@@ -118,10 +119,10 @@ std::vector<float> readNpy(const fs::path& path, std::vector<std::int64_t>& shap
 void writePfm(const fs::path& path, const float* data, int rows, int cols) {
     std::string out = "Pf\n" + std::to_string(cols) + " " + std::to_string(rows) + "\n-1.0\n";
     for (int r = rows - 1; r >= 0; --r)
-        out.append(reinterpret_cast<const char*>(data + std::size_t(r) * cols), std::size_t(cols) * sizeof(float));
+        out.append(reinterpret_cast<const char*>(data + std::size_t(r) * cols),
+                   std::size_t(cols) * sizeof(float));
     writeFileAtomic(path, out);
 }
-
 
 void writePng(const fs::path& path, const float* data, int rows, int cols, const DisplayWindow& w,
               int bitDepth) {
@@ -141,8 +142,8 @@ void writePng(const fs::path& path, const float* data, int rows, int cols, const
     }
     uLongf zlen = compressBound(uLong(raw.size()));
     std::string z(zlen, '\0');
-    if (compress2(reinterpret_cast<Bytef*>(z.data()), &zlen, reinterpret_cast<const Bytef*>(raw.data()),
-                  uLong(raw.size()), 6) != Z_OK)
+    if (compress2(reinterpret_cast<Bytef*>(z.data()), &zlen,
+                  reinterpret_cast<const Bytef*>(raw.data()), uLong(raw.size()), 6) != Z_OK)
         fail<WriteError>(path, "PNG compression failed");
     z.resize(zlen);
     std::string png("\x89PNG\r\n\x1a\n", 8);
@@ -163,10 +164,14 @@ void writePng(const fs::path& path, const float* data, int rows, int cols, const
 void writeProjection(const fs::path& path, const ProjectionImage& image) {
     const std::string ext = lower(path.extension().string());
     const int M = image.size;
-    if (ext == ".npy") writeNpy(path, image.pixels.data(), M, M);
-    else if (ext == ".pfm") writePfm(path, image.pixels.data(), M, M);
-    else if (ext == ".png") writePng(path, image.pixels.data(), M, M, autoWindow(image.pixels), 8);
-    else fail<WriteError>(path, "unknown output format '" + ext + "' (expected .npy, .pfm or .png)");
+    if (ext == ".npy")
+        writeNpy(path, image.pixels.data(), M, M);
+    else if (ext == ".pfm")
+        writePfm(path, image.pixels.data(), M, M);
+    else if (ext == ".png")
+        writePng(path, image.pixels.data(), M, M, autoWindow(image.pixels), 8);
+    else
+        fail<WriteError>(path, "unknown output format '" + ext + "' (expected .npy, .pfm or .png)");
 }
 
 } // namespace fvr::core

@@ -16,7 +16,8 @@ namespace fs = std::filesystem;
 namespace {
 
 std::string lower(std::string s) {
-    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    std::transform(s.begin(), s.end(), s.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
     return s;
 }
 
@@ -40,7 +41,8 @@ InputSource parsePhantom(const std::string& spec) {
             throw SettingsError("phantom size: expected an integer, found '" + n + "'");
     }
     if (s.phantomSize < 8 || s.phantomSize > 1024)
-        throw SettingsError("phantom size: expected 8..1024, found " + std::to_string(s.phantomSize));
+        throw SettingsError("phantom size: expected 8..1024, found " +
+                            std::to_string(s.phantomSize));
     return s;
 }
 
@@ -193,9 +195,7 @@ OpenedStudy openStudy(const InputSource& source, const OpenOptions& options,
         study.warnings = std::move(loaded.warnings);
         break;
     }
-    case InputKind::DicomFolder:
-        study = openDicomFolder(source, options, progress, cancel);
-        break;
+    case InputKind::DicomFolder: study = openDicomFolder(source, options, progress, cancel); break;
     }
     if (cancel) cancel->check();
     if (auto w = guessHounsfieldUnits(study.volume)) study.warnings.push_back(*w);

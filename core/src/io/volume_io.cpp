@@ -491,7 +491,7 @@ constexpr std::uint64_t kMaxHeaderBytes = 1 << 20;
 struct DataPart {
     fs::path file;
     std::uint64_t offset = 0; ///< where the (compressed) data starts
-    std::uint64_t bytes = 0;  ///< uncompressed data bytes
+    std::uint64_t bytes = 0; ///< uncompressed data bytes
     bool compressed = false;
     std::uint64_t compressedBytes = 0; ///< bytes of compressed data available from offset
 };
@@ -600,8 +600,9 @@ ElementType parseElementType(const std::string& name) {
 }
 
 /** A volume with its geometry and room for its voxels (allocated after every check passed). */
-static Volume emptyVolume(const Dims3& dims, const Vec3& spacing, const Vec3& origin, const std::array<Vec3, 3>& direction,
-                   std::string name, std::int64_t voxelCount, const fs::path& file) {
+static Volume emptyVolume(const Dims3& dims, const Vec3& spacing, const Vec3& origin,
+                          const std::array<Vec3, 3>& direction, std::string name,
+                          std::int64_t voxelCount, const fs::path& file) {
     Volume vol;
     vol.dims = dims;
     vol.spacing = spacing;
@@ -626,7 +627,7 @@ namespace {
 /** The MetaImage header: "Key = Value" lines up to and including ElementDataFile. */
 struct MetaHeader {
     std::map<std::string, std::string, std::less<>> fields;
-    std::uint64_t fileSize = 0;    ///< size of the header file
+    std::uint64_t fileSize = 0; ///< size of the header file
     std::uint64_t localOffset = 0; ///< the first byte after the ElementDataFile line
 
     const std::string* get(std::string_view key) const {
@@ -634,8 +635,8 @@ struct MetaHeader {
         return it == fields.end() ? nullptr : &it->second;
     }
     /** The first of `keys` present, with its value; {nullptr, nullptr} when none is. */
-    std::pair<const char*, const std::string*>
-    firstOf(std::initializer_list<const char*> keys) const {
+    std::pair<const char*, const std::string*> firstOf(
+        std::initializer_list<const char*> keys) const {
         for (const char* k : keys)
             if (const std::string* v = get(k)) return {k, v};
         return {nullptr, nullptr};
@@ -773,7 +774,7 @@ struct MetaEncoding {
     bool bigEndian = false;
     bool compressed = false;
     std::uint64_t compressedDataSize = 0; ///< 0: not given
-    std::int64_t headerSize = 0;          ///< -1: the data ends the file
+    std::int64_t headerSize = 0; ///< -1: the data ends the file
 
     /** "int16 (MET_SHORT, 2 bytes)" */
     std::string typeDesc() const {
@@ -1063,8 +1064,8 @@ std::vector<DataPart> locateMetaData(const fs::path& path, const MetaHeader& hea
 }
 
 /** Reads every part in turn into `dst` (room for all of them). */
-void readMetaData(const fs::path& path, const std::vector<DataPart>& parts,
-                  const MetaEncoding& enc, float* dst) {
+void readMetaData(const fs::path& path, const std::vector<DataPart>& parts, const MetaEncoding& enc,
+                  float* dst) {
     for (const DataPart& p : parts) {
         std::unique_ptr<ByteSource> src;
         if (p.compressed)
@@ -1072,7 +1073,8 @@ void readMetaData(const fs::path& path, const std::vector<DataPart>& parts,
         else
             src = std::make_unique<FileSource>(p.file, p.offset);
         const std::size_t count = std::size_t(p.bytes / enc.es);
-        const std::uint64_t got = readElements(*src, enc.type, enc.bigEndian, Scaling{}, count, dst);
+        const std::uint64_t got =
+            readElements(*src, enc.type, enc.bigEndian, Scaling{}, count, dst);
         if (got != p.bytes) {
             const std::string err = src->error();
             fail(path, "ElementDataFile",
@@ -1289,8 +1291,8 @@ struct NiftiData {
     std::uint64_t voxOffset = 0;
     Scaling scaling;
     std::uint64_t dataBytes = 0; ///< voxel bytes
-    std::uint64_t required = 0;  ///< voxOffset + dataBytes
-    std::string layout;          ///< "vox_offset 352 + 4 x 4 x 4 voxels x 2 bytes int16"
+    std::uint64_t required = 0; ///< voxOffset + dataBytes
+    std::string layout; ///< "vox_offset 352 + 4 x 4 x 4 voxels x 2 bytes int16"
 };
 
 /** Reads vox_offset and the scaling and checks that the file can hold the data. */
@@ -1324,8 +1326,8 @@ NiftiData niftiData(const fs::path& path, const NiftiHeaderReader& r, const Nift
                  std::to_string(in.fileSize) + " bytes");
     if (in.gz && d.required > maxInflatedBytes(in.fileSize))
         fail(path, "data",
-             "expected " + std::to_string(d.required) + " bytes after decompression (" +
-                 d.layout + "), found a gzip file of only " + std::to_string(in.fileSize) +
+             "expected " + std::to_string(d.required) + " bytes after decompression (" + d.layout +
+                 "), found a gzip file of only " + std::to_string(in.fileSize) +
                  " bytes, which cannot hold that much");
     return d;
 }
@@ -1500,8 +1502,8 @@ Volume loadRaw(const fs::path& path, const RawSpec& spec) {
     }
     FileSource src(path, spec.headerBytes);
     if (!src.ok()) fail(path, "file", "cannot open file");
-    Volume vol = emptyVolume(spec.dims, spec.spacing, Vec3{0, 0, 0}, Volume{}.direction, path.stem().string(),
-                             voxelCount, path);
+    Volume vol = emptyVolume(spec.dims, spec.spacing, Vec3{0, 0, 0}, Volume{}.direction,
+                             path.stem().string(), voxelCount, path);
     const std::uint64_t read = readElements(src, spec.type, spec.bigEndian, Scaling{},
                                             std::size_t(voxelCount), vol.voxels.data());
     if (read != dataBytes)

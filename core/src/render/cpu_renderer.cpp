@@ -27,10 +27,10 @@ std::string projectionUnits(ValueMapping mapping, ValueUnits source) {
 
 struct CpuFourierRenderer::SizeResources {
     int size = 0;
-    FftwBuffer slice;  // Fft: M rows x (M/2+1) complex; Fht: M x M real (in place)
-    FftwBuffer image;  // Fft: M x M real output
-    detail::Plan c2r;  // complex-to-real, out of place
-    detail::Plan dht;  // separable 2D DHT, in place on slice
+    FftwBuffer slice; // Fft: M rows x (M/2+1) complex; Fht: M x M real (in place)
+    FftwBuffer image; // Fft: M x M real output
+    detail::Plan c2r; // complex-to-real, out of place
+    detail::Plan dht; // separable 2D DHT, in place on slice
 };
 
 CpuFourierRenderer::CpuFourierRenderer(std::shared_ptr<const Spectrum> spectrum, int threads)
@@ -55,9 +55,9 @@ CpuFourierRenderer::SizeResources& CpuFourierRenderer::resources(int M) {
         r->image = allocateFftw(std::size_t(M) * M);
         std::lock_guard lock(detail::planMutex());
         fftwf_plan_with_nthreads(M >= 512 ? m_threads : 1);
-        r->c2r = detail::Plan(fftwf_plan_dft_c2r_2d(
-            M, M, reinterpret_cast<fftwf_complex*>(r->slice.get()), r->image.get(),
-            detail::plannerFlags(true)));
+        r->c2r = detail::Plan(
+            fftwf_plan_dft_c2r_2d(M, M, reinterpret_cast<fftwf_complex*>(r->slice.get()),
+                                  r->image.get(), detail::plannerFlags(true)));
     } else {
         r->slice = allocateFftw(std::size_t(M) * M);
         std::lock_guard lock(detail::planMutex());
@@ -65,7 +65,8 @@ CpuFourierRenderer::SizeResources& CpuFourierRenderer::resources(int M) {
         r->dht = detail::Plan(fftwf_plan_r2r_2d(M, M, r->slice.get(), r->slice.get(), FFTW_DHT,
                                                 FFTW_DHT, detail::plannerFlags(true)));
     }
-    if (!r->c2r && !r->dht) throw std::runtime_error("FFTW could not plan the inverse 2D transform");
+    if (!r->c2r && !r->dht)
+        throw std::runtime_error("FFTW could not plan the inverse 2D transform");
     detail::saveWisdom();
     return *m_resources.emplace(M, std::move(r)).first->second;
 }
@@ -107,7 +108,8 @@ inline std::int64_t wrapSmall(std::int64_t i, std::int64_t p) {
  *  antiperiodic, the taps of odd periods negate their weights (and derivative weights): the
  *  interpolation then runs over the spectrum's true continuation (Spectrum, voxel_model.h). */
 template <int T>
-inline void wrapAxis(std::int64_t base, std::int64_t P, bool anti, std::int64_t* idx, float* w, float* dw) {
+inline void wrapAxis(std::int64_t base, std::int64_t P, bool anti, std::int64_t* idx, float* w,
+                     float* dw) {
     const std::int64_t hi = P / 2;
     std::int64_t r = base, q = 0;
     while (r > hi) r -= P, ++q;
@@ -149,7 +151,8 @@ inline void axisWeights(const SliceContext& c, double k, std::int64_t& base, flo
 
 /** Weights and their derivatives (depth cueing; T >= 2). */
 template <int T>
-inline void axisDerivWeights(const SliceContext& c, double k, std::int64_t& base, float* w, float* dw) {
+inline void axisDerivWeights(const SliceContext& c, double k, std::int64_t& base, float* w,
+                             float* dw) {
     const double f = std::floor(k);
     if constexpr (T == 3) {
         // The linear kernel: its derivative is -1, +1 between integers and undefined on them,
@@ -178,8 +181,9 @@ inline void axisDerivWeights(const SliceContext& c, double k, std::int64_t& base
 /** The taps' signed indices and weights along x, y and z (with the period signs folded in),
  *  with their derivatives when Derivative (dx..dz are then written; otherwise left alone). */
 template <int T, bool Derivative>
-inline void tapWeights(const SliceContext& c, double kx, double ky, double kz, std::int64_t* ix, std::int64_t* iy,
-                       std::int64_t* iz, float* wx, float* wy, float* wz, float* dx, float* dy, float* dz) {
+inline void tapWeights(const SliceContext& c, double kx, double ky, double kz, std::int64_t* ix,
+                       std::int64_t* iy, std::int64_t* iz, float* wx, float* wy, float* wz,
+                       float* dx, float* dy, float* dz) {
     std::int64_t bx, by, bz;
     if constexpr (Derivative) {
         axisDerivWeights<T>(c, kx, bx, wx, dx);
@@ -219,7 +223,8 @@ inline void prefetchComplex(const SliceContext& c, double kx, double ky, double 
     const float* base = c.data + 2 * jx;
     for (int zc = 0; zc < T; ++zc)
         for (int yc = 0; yc < T; ++yc)
-            __builtin_prefetch(base + (wrapSmall(by + yc, c.P1) + c.P1 * wrapSmall(bz + zc, c.P2)) * c.rs);
+            __builtin_prefetch(base +
+                               (wrapSmall(by + yc, c.P1) + c.P1 * wrapSmall(bz + zc, c.P2)) * c.rs);
 }
 
 /** The interpolated spectrum and, with Depth, E.grad of it, at one continuous frequency. */
@@ -265,7 +270,8 @@ inline Sampled<cfloat> interpolateComplex(const SliceContext& c, double kx, doub
         if constexpr (Depth) {
             cfloat dsx{};
             for (int xc = 0; xc < T; ++xc) dsx += dx[xc] * vals[xc];
-            dacc += (wz[zc] * wy[yc] * c.E[0]) * dsx + (c.E[1] * dy[yc] * wz[zc] + c.E[2] * wy[yc] * dz[zc]) * sx;
+            dacc += (wz[zc] * wy[yc] * c.E[0]) * dsx +
+                    (c.E[1] * dy[yc] * wz[zc] + c.E[2] * wy[yc] * dz[zc]) * sx;
         }
     };
     cfloat vals[T];
@@ -279,7 +285,8 @@ inline Sampled<cfloat> interpolateComplex(const SliceContext& c, double kx, doub
                 const std::int64_t jz = iz[zc] == 0 ? 0 : c.P2 - iz[zc];
                 const cfloat* mrow = base + (jy + c.P1 * jz) * H;
                 const float ms = my[yc] * mz[zc];
-                for (int xc = 0; xc < T; ++xc) vals[xc] = flip[xc] ? ms * std::conj(mrow[ix[xc]]) : row[ix[xc]];
+                for (int xc = 0; xc < T; ++xc)
+                    vals[xc] = flip[xc] ? ms * std::conj(mrow[ix[xc]]) : row[ix[xc]];
             }
             accumulate(zc, yc, vals);
         }
@@ -290,7 +297,8 @@ inline Sampled<cfloat> interpolateComplex(const SliceContext& c, double kx, doub
 
 /** The voxel model's transfer function T(k) = prod_a t(k_a / P_a) and, with Depth, E.grad T. */
 template <bool Depth>
-inline void modelTransfer(const SliceContext& c, double kx, double ky, double kz, float& t, float& gt) {
+inline void modelTransfer(const SliceContext& c, double kx, double ky, double kz, float& t,
+                          float& gt) {
     const double nu[3] = {kx * c.invP[0], ky * c.invP[1], kz * c.invP[2]};
     const float tx = c.model->valueCovered(float(nu[0])), ty = c.model->valueCovered(float(nu[1])),
                 tz = c.model->valueCovered(float(nu[2]));
@@ -305,14 +313,16 @@ inline void modelTransfer(const SliceContext& c, double kx, double ky, double kz
 /** The slice value at continuous signed frequency k: the model's spectrum (band cut or transfer
  *  function), with Depth the depth-cued a G + i E.grad G of it. */
 template <int T, bool Depth>
-inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double kz, float t, float gt) {
+inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double kz, float t,
+                            float gt) {
     if (outOfBand(c, kx, ky, kz)) return {};
     Sampled<cfloat> s = interpolateComplex<T, Depth>(c, kx, ky, kz);
     if (c.model) {
         if constexpr (Depth) s.dv = t * s.dv + gt * s.v; // E.grad (T G)
         s.v *= t;
     }
-    if constexpr (Depth) return {c.depthA * s.v.real() - s.dv.imag(), c.depthA * s.v.imag() + s.dv.real()};
+    if constexpr (Depth)
+        return {c.depthA * s.v.real() - s.dv.imag(), c.depthA * s.v.imag() + s.dv.real()};
     return s.v;
 }
 
@@ -326,7 +336,8 @@ inline void prefetchHartley(const SliceContext& c, double kx, double ky, double 
     const float* base = c.data + wrapSmall(bx, c.P0);
     for (int zc = 0; zc < T; ++zc)
         for (int yc = 0; yc < T; ++yc)
-            __builtin_prefetch(base + (wrapSmall(by + yc, c.P1) + c.P1 * wrapSmall(bz + zc, c.P2)) * c.rs);
+            __builtin_prefetch(base +
+                               (wrapSmall(by + yc, c.P1) + c.P1 * wrapSmall(bz + zc, c.P2)) * c.rs);
 }
 
 /** Interpolated Hartley value at continuous signed frequency k; with Derivative also E.grad H
@@ -352,7 +363,8 @@ inline Sampled<float> interpolateHartley(const SliceContext& c, double kx, doubl
             if constexpr (Derivative) {
                 float dsx = 0.0f;
                 for (int xc = 0; xc < T; ++xc) dsx += dx[xc] * row[ix[xc]];
-                dacc += (wz[zc] * wy[yc] * c.E[0]) * dsx + (c.E[1] * dy[yc] * wz[zc] + c.E[2] * wy[yc] * dz[zc]) * sx;
+                dacc += (wz[zc] * wy[yc] * c.E[0]) * dsx +
+                        (c.E[1] * dy[yc] * wz[zc] + c.E[2] * wy[yc] * dz[zc]) * sx;
             }
         }
     return {acc, dacc};
@@ -361,13 +373,15 @@ inline Sampled<float> interpolateHartley(const SliceContext& c, double kx, doubl
 /** The Hartley slice value at continuous signed frequency k: the model's Hartley spectrum H_m
  *  (band cut or transfer function), with Depth a H_m(k) + E.grad H_m(-k). */
 template <int T, bool Depth>
-inline float sampleHartley(const SliceContext& c, double kx, double ky, double kz, float t, float gt) {
+inline float sampleHartley(const SliceContext& c, double kx, double ky, double kz, float t,
+                           float gt) {
     if (outOfBand(c, kx, ky, kz)) return 0.0f;
     const float h = interpolateHartley<T>(c, kx, ky, kz).v;
     if constexpr (!Depth) {
         return c.model ? t * h : h;
     } else {
-        const Sampled<float> m = interpolateHartley<T, true>(c, -kx, -ky, -kz); // H(-k), E.grad H(-k)
+        const Sampled<float> m =
+            interpolateHartley<T, true>(c, -kx, -ky, -kz); // H(-k), E.grad H(-k)
         if (!c.model) return c.depthA * h + m.dv;
         // T is even, grad T odd: E.grad (T H)(-k) = T(k) E.grad H(-k) - H(-k) E.grad T(k).
         return c.depthA * t * h + t * m.dv - gt * m.v;
@@ -401,7 +415,8 @@ struct RowTransfer {
         if (!c.model) {
             t = 1.0f;
         } else if (Depth || index < 0) {
-            modelTransfer<Depth>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1], m * f.A[2] + n * f.B[2], t, gt);
+            modelTransfer<Depth>(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1],
+                                 m * f.A[2] + n * f.B[2], t, gt);
         } else {
             t = row[std::size_t(index)];
         }
@@ -412,22 +427,27 @@ struct RowTransfer {
  *  model's transfer value from the row's (index) or computed on its own (index < 0: the
  *  Nyquist aliases, depth cueing). */
 template <int T, bool Depth, bool Hartley>
-inline auto slicePoint(const SliceContext& c, const FrameMapping& f, const RowTransfer& model, double m, double n,
-                       int index) {
+inline auto slicePoint(const SliceContext& c, const FrameMapping& f, const RowTransfer& model,
+                       double m, double n, int index) {
     float t, gt;
     model.at<Depth>(m, n, index, t, gt);
-    const double kx = m * f.A[0] + n * f.B[0], ky = m * f.A[1] + n * f.B[1], kz = m * f.A[2] + n * f.B[2];
-    if constexpr (Hartley) return sampleHartley<T, Depth>(c, kx, ky, kz, t, gt);
-    else return sampleComplex<T, Depth>(c, kx, ky, kz, t, gt);
+    const double kx = m * f.A[0] + n * f.B[0], ky = m * f.A[1] + n * f.B[1],
+                 kz = m * f.A[2] + n * f.B[2];
+    if constexpr (Hartley)
+        return sampleHartley<T, Depth>(c, kx, ky, kz, t, gt);
+    else
+        return sampleComplex<T, Depth>(c, kx, ky, kz, t, gt);
 }
 
 template <int T, bool Depth>
-void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter, int M,
-                      cfloat* out, ThreadPool& pool) {
+void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter,
+                      int M, cfloat* out, ThreadPool& pool) {
     const int H = M / 2 + 1;
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         RowTransfer model(c, f, M);
-        auto sample = [&](double m, double n, int index) { return slicePoint<T, Depth, false>(c, f, model, m, n, index); };
+        auto sample = [&](double m, double n, int index) {
+            return slicePoint<T, Depth, false>(c, f, model, m, n, index);
+        };
         for (std::int64_t r = r0; r < r1; ++r) {
             const int n = int(r < M / 2 ? r : r - M);
             const bool nyqRow = (n == -M / 2);
@@ -458,16 +478,18 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
 }
 
 template <int T, bool Depth>
-void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter, int M,
-                      float* out, ThreadPool& pool) {
+void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter,
+                      int M, float* out, ThreadPool& pool) {
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         RowTransfer model(c, f, M);
-        auto sample = [&](double m, double n, int index) { return slicePoint<T, Depth, true>(c, f, model, m, n, index); };
+        auto sample = [&](double m, double n, int index) {
+            return slicePoint<T, Depth, true>(c, f, model, m, n, index);
+        };
         for (std::int64_t r = r0; r < r1; ++r) {
             const int n = int(r < M / 2 ? r : r - M);
             const bool nyqRow = (n == -M / 2);
             if (!Depth && !nyqRow) {
-                model.fill(0, 0, M / 2, n);          // columns 0 .. M/2-1: m = col
+                model.fill(0, 0, M / 2, n); // columns 0 .. M/2-1: m = col
                 model.fill(M / 2, -M / 2, M / 2, n); // columns M/2 .. M-1: m = col - M
             }
             float* row = out + r * M;
@@ -518,7 +540,8 @@ void dispatchTaps(int taps, bool depth, F&& f) {
     }
 }
 
-/** Eq. 4: H(u,v) = 1/2 (T(u,v) + T(-u,v) + T(u,-v) - T(-u,-v)), in place, 4 mirror points at once. */
+/** Eq. 4: H(u,v) = 1/2 (T(u,v) + T(-u,v) + T(u,-v) - T(-u,-v)), in place, 4 mirror points at once.
+ */
 void hartleyCorrection2D(float* d, int M, ThreadPool& pool) {
     pool.parallelFor(M / 2 + 1, 8, [&](std::int64_t v0, std::int64_t v1) {
         for (std::int64_t v = v0; v < v1; ++v) {
@@ -547,10 +570,12 @@ std::string CpuFourierRenderer::describe() const {
 void validateRenderParams(const RenderParams& params) {
     validateImageGeometry(params.image);
     if (!(params.depthCue >= 0.0 && params.depthCue <= 1.0))
-        throw SettingsError("depth cueing: strength must be in [0, 1], found " + std::to_string(params.depthCue));
+        throw SettingsError("depth cueing: strength must be in [0, 1], found " +
+                            std::to_string(params.depthCue));
     if (params.depthCue > 0.0 && params.kernel == Kernel::Nearest)
-        throw SettingsError("depth cueing: needs the derivative of the interpolation kernel; nearest has none "
-                            "(choose linear or better)");
+        throw SettingsError(
+            "depth cueing: needs the derivative of the interpolation kernel; nearest has none "
+            "(choose linear or better)");
     validateSliceFilter(params.filter);
 }
 
@@ -642,7 +667,8 @@ void CpuFourierRenderer::clipAndClamp(const RenderParams& params, ProjectionImag
     if (!params.clipToVolume && !clamp) return;
     const int M = img.size;
     const double d = img.pixelSize;
-    const Vec3 half = supportHalfExtents(s.volumeDims, s.spacing, voxelModelReach(params.voxelModel));
+    const Vec3 half =
+        supportHalfExtents(s.volumeDims, s.spacing, voxelModelReach(params.voxelModel));
     m_pool.parallelFor(M, 16, [&](std::int64_t r0, std::int64_t r1) {
         for (std::int64_t row = r0; row < r1; ++row) {
             float* p = img.pixels.data() + std::size_t(row) * M;
@@ -684,7 +710,9 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
     clipAndClamp(params, img);
     const auto t2 = Clock::now();
     if (times) {
-        auto ms = [](auto a, auto b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
+        auto ms = [](auto a, auto b) {
+            return std::chrono::duration<double, std::milli>(b - a).count();
+        };
         times->sliceMs = ms(t0, t1);
         times->inverseMs = ms(t1, t2);
         times->totalMs = ms(t0, t2);

@@ -12,9 +12,12 @@ namespace {
 std::filesystem::path wisdomPath() {
     if (const char* p = std::getenv("FVR_FFTW_WISDOM")) return p;
     std::filesystem::path base;
-    if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) base = x;
-    else if (const char* h = std::getenv("HOME"); h && *h) base = std::filesystem::path(h) / ".cache";
-    else return {};
+    if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x)
+        base = x;
+    else if (const char* h = std::getenv("HOME"); h && *h)
+        base = std::filesystem::path(h) / ".cache";
+    else
+        return {};
     return base / "fvr-workstation" / "fftwf-wisdom";
 }
 bool g_dirty = false;
@@ -54,8 +57,10 @@ void saveWisdom() {
     std::error_code ec;
     std::filesystem::create_directories(p.parent_path(), ec);
     const auto tmp = p.string() + ".tmp" + std::to_string(::getpid());
-    if (fftwf_export_wisdom_to_filename(tmp.c_str())) std::filesystem::rename(tmp, p, ec);
-    else std::filesystem::remove(tmp, ec);
+    if (fftwf_export_wisdom_to_filename(tmp.c_str()))
+        std::filesystem::rename(tmp, p, ec);
+    else
+        std::filesystem::remove(tmp, ec);
 }
 
 } // namespace fvr::core::detail

@@ -5,7 +5,8 @@
 
 namespace fvr::core {
 
-ImageComparison compareImages(const std::vector<float>& image, const std::vector<float>& reference) {
+ImageComparison compareImages(const std::vector<float>& image,
+                              const std::vector<float>& reference) {
     ImageComparison c;
     double e2 = 0, r2 = 0;
     for (std::size_t i = 0; i < reference.size(); ++i) {

@@ -31,20 +31,22 @@ Kernel parseKernel(const std::string& name) {
         return Kernel::KaiserBessel4;
     if (name == "kaiser-bessel6" || name == "kb6") return Kernel::KaiserBessel6;
     throw SettingsError(
-        "kernel: expected nearest|linear|bspline|catmull-rom|sinc4|kaiser-bessel4|kaiser-bessel6, found '" +
+        "kernel: expected nearest|linear|bspline|catmull-rom|sinc4|kaiser-bessel4|kaiser-bessel6, "
+        "found '" +
         name + "'");
 }
 
 Kernel kaiserBesselKernel(int width) {
     if (width == 4) return Kernel::KaiserBessel4;
     if (width == 6) return Kernel::KaiserBessel6;
-    throw SettingsError("kernel width: expected 4|6 for kaiser-bessel, found " + std::to_string(width));
+    throw SettingsError("kernel width: expected 4|6 for kaiser-bessel, found " +
+                        std::to_string(width));
 }
 
 const std::array<Kernel, 7>& allKernels() {
-    static const std::array<Kernel, 7> all{Kernel::Nearest,      Kernel::Linear,        Kernel::BSpline,
-                                           Kernel::CatmullRom,   Kernel::Sinc4,         Kernel::KaiserBessel4,
-                                           Kernel::KaiserBessel6};
+    static const std::array<Kernel, 7> all{
+        Kernel::Nearest, Kernel::Linear,        Kernel::BSpline,      Kernel::CatmullRom,
+        Kernel::Sinc4,   Kernel::KaiserBessel4, Kernel::KaiserBessel6};
     return all;
 }
 
@@ -142,7 +144,8 @@ double kernelValue(Kernel k, double x, double oversampling) {
         const double beta = kaiserBesselBeta(int(W), oversampling);
         const double q = 2.0 * a / W;
         // Unit integral: the integral of I0(beta sqrt(1 - (2x/W)^2)) is W sinh(beta) / beta.
-        return std::cyl_bessel_i(0.0, beta * std::sqrt(1.0 - q * q)) / (W * sinhcOfSquare(beta * beta));
+        return std::cyl_bessel_i(0.0, beta * std::sqrt(1.0 - q * q)) /
+               (W * sinhcOfSquare(beta * beta));
     }
     }
     return 0.0;
@@ -161,7 +164,8 @@ double kernelFourier(Kernel k, double u, double oversampling) {
         return sinhcOfSquare(beta * beta - piwu * piwu) / sinhcOfSquare(beta * beta);
     }
     case Kernel::CatmullRom:
-    case Kernel::Sinc4: return numericFourier(k, u, oversampling) / numericFourier(k, 0.0, oversampling);
+    case Kernel::Sinc4:
+        return numericFourier(k, u, oversampling) / numericFourier(k, 0.0, oversampling);
     }
     return 1.0;
 }
@@ -207,7 +211,8 @@ KernelTable::KernelTable(Kernel k, double oversampling)
             row(f0, a);
             row(f0 + s * h, b);
             row(f0 + s * 2 * h, c);
-            for (int j = 0; j < m_taps; ++j) d[j] = float(s * (-3 * a[j] + 4 * b[j] - c[j]) / (2 * h));
+            for (int j = 0; j < m_taps; ++j)
+                d[j] = float(s * (-3 * a[j] + 4 * b[j] - c[j]) / (2 * h));
         }
     }
 }

@@ -92,7 +92,9 @@ std::complex<double> Spectrum::valueAt(std::int64_t kx, std::int64_t ky, std::in
             }
         }
     }
-    const float* p = data.get() + (wrap(r[1], padded[1]) + padded[1] * wrap(r[2], padded[2])) * rowStride() + 2 * r[0];
+    const float* p = data.get() +
+                     (wrap(r[1], padded[1]) + padded[1] * wrap(r[2], padded[2])) * rowStride() +
+                     2 * r[0];
     return sign * std::complex<double>(p[0], conj ? -p[1] : p[1]);
 }
 
@@ -132,18 +134,21 @@ Dims3 paddedDimsFor(const Dims3& dims, const PreprocessOptions& options) {
         for (int a = 0; a < 3; ++a)
             if (p[a] < dims[a] || p[a] > kMaxDimPerAxis)
                 throw SettingsError("padded size axis " + std::to_string(a) + ": expected " +
-                                    std::to_string(dims[a]) + ".." + std::to_string(kMaxDimPerAxis) +
-                                    ", found " + std::to_string(p[a]));
+                                    std::to_string(dims[a]) + ".." +
+                                    std::to_string(kMaxDimPerAxis) + ", found " +
+                                    std::to_string(p[a]));
         return p;
     }
     const double f = options.oversampling;
     if (!(f >= 1.0 && f <= 2.0))
-        throw SettingsError("oversampling: expected a factor in [1, 2], found " + std::to_string(f));
+        throw SettingsError("oversampling: expected a factor in [1, 2], found " +
+                            std::to_string(f));
     for (int a = 0; a < 3; ++a) p[a] = nextFftSize(std::int64_t(std::ceil(f * dims[a] - 1e-9)));
     return p;
 }
 
-std::vector<float> deapodizationFactors(Kernel k, std::int64_t n, std::int64_t p, double oversampling) {
+std::vector<float> deapodizationFactors(Kernel k, std::int64_t n, std::int64_t p,
+                                        double oversampling) {
     std::vector<float> f(std::size_t(std::max<std::int64_t>(p, 0)), 1.0f);
     const std::int64_t m = n / 2;
     for (std::int64_t x = 0; x < n && x < p; ++x) {
@@ -170,7 +175,8 @@ namespace {
 /** Reports monotone progress over weighted stages. */
 class ProgressReporter {
 public:
-    ProgressReporter(const ProgressFn& fn, const CancelToken* cancel) : m_fn(fn), m_cancel(cancel) {}
+    ProgressReporter(const ProgressFn& fn, const CancelToken* cancel)
+        : m_fn(fn), m_cancel(cancel) {}
     void stage(std::string_view name, double start, double end) {
         m_name = name;
         m_start = start;
@@ -221,7 +227,8 @@ public:
     /** Plans everything first: MEASURE scribbles on the buffer, so this precedes the fill. */
     void plan() {
         detail::ensureFftwInitialised();
-        const bool dht = m_s.kind == TransformKind::Fht && m_opt.hartleyMethod == HartleyMethod::Dht;
+        const bool dht =
+            m_s.kind == TransformKind::Fht && m_opt.hartleyMethod == HartleyMethod::Dht;
         m_dht = dht;
         const std::int64_t P1 = m_P[1], P2 = m_P[2];
         m_planesPerChunk = std::max<std::int64_t>(1, (P2 + 15) / 16);
@@ -241,8 +248,10 @@ public:
             const int n = int(std::min(m_planesPerChunk, P2 - z0));
             float* p = planeChunkPtr(z0);
             const fftwf_plan plan = m_planes.plans.at({n, fftwf_alignment_of(p)}).get();
-            if (m_dht) fftwf_execute_r2r(plan, p, p);
-            else fftwf_execute_dft_r2c(plan, p, reinterpret_cast<fftwf_complex*>(p));
+            if (m_dht)
+                fftwf_execute_r2r(plan, p, p);
+            else
+                fftwf_execute_dft_r2c(plan, p, reinterpret_cast<fftwf_complex*>(p));
             pr.report(double(z0 + n) / P2);
         }
     }
@@ -253,7 +262,8 @@ public:
             const int n = int(std::min(m_rowsPerChunk, P1 - y0));
             float* p = columnChunkPtr(y0);
             const fftwf_plan plan = m_columns.plans.at({n, fftwf_alignment_of(p)}).get();
-            if (m_dht) fftwf_execute_r2r(plan, p, p);
+            if (m_dht)
+                fftwf_execute_r2r(plan, p, p);
             else {
                 auto* c = reinterpret_cast<fftwf_complex*>(p);
                 fftwf_execute_dft(plan, c, c);
@@ -396,7 +406,8 @@ void applyPhaseComplex(Spectrum& s, const Dims3& N, ThreadPool& pool) {
         for (std::int64_t z = z0; z < z1; ++z)
             for (std::int64_t y = 0; y < P[1]; ++y) {
                 const std::complex<double> fyz = py[y] * pz[z];
-                auto* row = reinterpret_cast<std::complex<float>*>(s.data.get() + (y + P[1] * z) * rs);
+                auto* row =
+                    reinterpret_cast<std::complex<float>*>(s.data.get() + (y + P[1] * z) * rs);
                 for (std::int64_t x = 0; x < H; ++x)
                     row[x] = std::complex<float>(std::complex<double>(row[x]) * (px[x] * fyz));
             }
@@ -411,7 +422,8 @@ void complexToHartley(Spectrum& s, const Dims3& N, ThreadPool& pool) {
                pz = centringPhase(N[2], P[2]);
     const std::int64_t rs = s.rowStride(), H = P[0] / 2 + 1, rows = P[1] * P[2];
     pool.parallelFor(rows, 64, [&](std::int64_t r0, std::int64_t r1) {
-        std::vector<std::complex<double>> a(static_cast<std::size_t>(H)), b(static_cast<std::size_t>(H));
+        std::vector<std::complex<double>> a(static_cast<std::size_t>(H)),
+            b(static_cast<std::size_t>(H));
         for (std::int64_t r = r0; r < r1; ++r) {
             const std::int64_t y = r % P[1], z = r / P[1];
             const std::int64_t my = wrap(-y, P[1]), mz = wrap(-z, P[2]);
@@ -419,14 +431,16 @@ void complexToHartley(Spectrum& s, const Dims3& N, ThreadPool& pool) {
             if (rm < r) continue; // handled with its partner
             float* ra = s.data.get() + r * rs;
             float* rb = s.data.get() + rm * rs;
-            // The unphased F is periodic and Hermitian: F(kx > P0/2, y, z) = conj F(P0 - kx, -y, -z),
-            // read from the partner row; the phase then follows each stored index (centringPhase).
+            // The unphased F is periodic and Hermitian: F(kx > P0/2, y, z) = conj F(P0 - kx, -y,
+            // -z), read from the partner row; the phase then follows each stored index
+            // (centringPhase).
             for (std::int64_t x = 0; x < H; ++x) {
                 a[x] = std::complex<double>(ra[2 * x], ra[2 * x + 1]);
                 b[x] = std::complex<double>(rb[2 * x], rb[2 * x + 1]);
             }
-            auto hartley = [&](const std::vector<std::complex<double>>& own, const std::vector<std::complex<double>>& other,
-                               std::int64_t yy, std::int64_t zz, float* out) {
+            auto hartley = [&](const std::vector<std::complex<double>>& own,
+                               const std::vector<std::complex<double>>& other, std::int64_t yy,
+                               std::int64_t zz, float* out) {
                 const std::complex<double> fyz = py[yy] * pz[zz];
                 for (std::int64_t x = 0; x < P[0]; ++x) {
                     const std::complex<double> f = x < H ? own[x] : std::conj(other[P[0] - x]);
@@ -475,7 +489,8 @@ void hartleyCorrection(Spectrum& s, const Dims3& N, ThreadPool& pool) {
                                 const std::complex<double> f = px[ix[a]] * py[iy[b]] * pz[iz[c]];
                                 const double hk = h[c][b][a], hm = h[1 - c][1 - b][1 - a];
                                 const double e = 0.5 * (hk + hm), o = 0.5 * (hk - hm);
-                                out[c][b][a] = e * (f.real() - f.imag()) + o * (f.real() + f.imag());
+                                out[c][b][a] =
+                                    e * (f.real() - f.imag()) + o * (f.real() + f.imag());
                             }
                     for (int c = 0; c < 2; ++c)
                         for (int b = 0; b < 2; ++b)
@@ -491,8 +506,9 @@ std::shared_ptr<const Spectrum> preprocess(const Volume& volume, const Preproces
                                            const ProgressFn& progress, const CancelToken* cancel) {
     validateGeometry(volume.dims, volume.spacing, volume.name.empty() ? "volume" : volume.name);
     if (std::int64_t(volume.voxels.size()) != volume.voxelCount())
-        throw SettingsError(volume.name + ": voxel buffer holds " + std::to_string(volume.voxels.size()) +
-                            " values, dims need " + std::to_string(volume.voxelCount()));
+        throw SettingsError(volume.name + ": voxel buffer holds " +
+                            std::to_string(volume.voxels.size()) + " values, dims need " +
+                            std::to_string(volume.voxelCount()));
     ProgressReporter pr(progress, cancel);
     pr.stage("planning", 0.0, 0.02);
 
@@ -521,11 +537,14 @@ std::shared_ptr<const Spectrum> preprocess(const Volume& volume, const Preproces
     pr.stage("3D transform: columns", 0.57, 0.92);
     tr.columnsPass(pr);
 
-    pr.stage(options.transform == TransformKind::Fht ? "Hartley conversion" : "centring phase", 0.92,
-             1.0);
-    if (options.transform == TransformKind::Fft) applyPhaseComplex(*s, volume.dims, pool);
-    else if (tr.dht()) hartleyCorrection(*s, volume.dims, pool);
-    else complexToHartley(*s, volume.dims, pool);
+    pr.stage(options.transform == TransformKind::Fht ? "Hartley conversion" : "centring phase",
+             0.92, 1.0);
+    if (options.transform == TransformKind::Fft)
+        applyPhaseComplex(*s, volume.dims, pool);
+    else if (tr.dht())
+        hartleyCorrection(*s, volume.dims, pool);
+    else
+        complexToHartley(*s, volume.dims, pool);
     pr.report(1.0);
     detail::saveWisdom();
     return s;
@@ -537,13 +556,14 @@ PreprocessJob::PreprocessJob(std::shared_ptr<const Volume> volume, PreprocessOpt
     : m_volume(std::move(volume)), m_options(std::move(options)) {
     m_thread = std::thread([this] {
         try {
-            auto result = preprocess(*m_volume, m_options,
-                                     [this](double f, std::string_view stage) {
-                                         m_fraction.store(f);
-                                         std::lock_guard lock(m_mutex);
-                                         m_stage = stage;
-                                     },
-                                     &m_cancel);
+            auto result = preprocess(
+                *m_volume, m_options,
+                [this](double f, std::string_view stage) {
+                    m_fraction.store(f);
+                    std::lock_guard lock(m_mutex);
+                    m_stage = stage;
+                },
+                &m_cancel);
             std::lock_guard lock(m_mutex);
             m_result = std::move(result);
         } catch (...) {

@@ -5,7 +5,8 @@
 
 namespace fvr::core {
 
-std::vector<QualityLevel> progressiveLevels(int size, Kernel kernel, bool kernelLocked, int minSize) {
+std::vector<QualityLevel> progressiveLevels(int size, Kernel kernel, bool kernelLocked,
+                                            int minSize) {
     std::vector<QualityLevel> levels{{size, kernel}};
     const bool cheaper = !kernelLocked && kernelTaps(kernel) > kernelTaps(Kernel::Linear);
     const Kernel fast = cheaper ? Kernel::Linear : kernel;
@@ -41,10 +42,11 @@ double ProgressiveController::expectedMs(int level) const {
     const Kernel k = m_levels[std::size_t(level)].kernel;
     for (int dist = 1; dist < int(m_levels.size()); ++dist)
         for (int other : {level - dist, level + dist}) {
-            if (other < 0 || other >= int(m_levels.size()) || m_measured[std::size_t(other)] <= 0.0 ||
-                m_levels[std::size_t(other)].kernel != k)
+            if (other < 0 || other >= int(m_levels.size()) ||
+                m_measured[std::size_t(other)] <= 0.0 || m_levels[std::size_t(other)].kernel != k)
                 continue;
-            const double r = double(m_levels[std::size_t(level)].size) / m_levels[std::size_t(other)].size;
+            const double r =
+                double(m_levels[std::size_t(level)].size) / m_levels[std::size_t(other)].size;
             return m_measured[std::size_t(other)] * r * r;
         }
     return 0.0;
@@ -77,8 +79,10 @@ void ProgressiveController::frameRendered(double ms) {
         // A fast frame lets the remembered time of the level above decay towards what this frame
         // predicts for it, so that one slow frame (a hiccup) does not lock the drag at low quality.
         auto& above = m_measured[std::size_t(m_level - 1)];
-        const double r = double(m_levels[std::size_t(m_level - 1)].size) / m_levels[std::size_t(m_level)].size;
-        const bool sameKernel = m_levels[std::size_t(m_level - 1)].kernel == m_levels[std::size_t(m_level)].kernel;
+        const double r =
+            double(m_levels[std::size_t(m_level - 1)].size) / m_levels[std::size_t(m_level)].size;
+        const bool sameKernel =
+            m_levels[std::size_t(m_level - 1)].kernel == m_levels[std::size_t(m_level)].kernel;
         if (above > 0.0 && sameKernel) above = 0.8 * above + 0.2 * ms * r * r;
         const double up = expectedMs(m_level - 1);
         if (up > 0.0 && up < 0.7 * budget) --m_level;
@@ -88,8 +92,8 @@ void ProgressiveController::frameRendered(double ms) {
 std::string ProgressiveController::describe() const {
     const QualityLevel q = current();
     if (m_level == 0) return "full quality";
-    return "interactive " + std::to_string(m_level) + "/" + std::to_string(m_levels.size() - 1) + ": " +
-           std::to_string(q.size) + "\u00b2 " + kernelName(q.kernel);
+    return "interactive " + std::to_string(m_level) + "/" + std::to_string(m_levels.size() - 1) +
+           ": " + std::to_string(q.size) + "\u00b2 " + kernelName(q.kernel);
 }
 
 } // namespace fvr::core

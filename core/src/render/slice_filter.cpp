@@ -13,7 +13,8 @@ SliceFilterTable::SliceFilterTable(const SliceFilter& f, bool pixelAperture, int
     axis.assign(2 * std::size_t(M / 2 + 1), 1.0f);
     for (int j = 0; j <= M / 2; ++j) {
         if (amount > 0.0f) axis[2 * std::size_t(j)] = float(f.blur(j / (M * d)));
-        if (pixelAperture) axis[2 * std::size_t(j) + 1] = float(pixelApertureResponse(double(j) / M));
+        if (pixelAperture)
+            axis[2 * std::size_t(j) + 1] = float(pixelApertureResponse(double(j) / M));
     }
 }
 

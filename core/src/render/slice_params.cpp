@@ -37,7 +37,8 @@ SliceParams sliceParams(const Spectrum& s, const RenderParams& params) {
         p.half[a] = p.banded ? s.padded[a] / 2.0 : std::numeric_limits<double>::infinity();
         p.anti[a] = s.volumeDims[a] % 2 == 0;
         p.maxCyclesPerVoxel =
-            std::max(p.maxCyclesPerVoxel, (M / 2.0 + 1.0) * (std::abs(p.A[a]) + std::abs(p.B[a])) * p.invP[a]);
+            std::max(p.maxCyclesPerVoxel,
+                     (M / 2.0 + 1.0) * (std::abs(p.A[a]) + std::abs(p.B[a])) * p.invP[a]);
     }
     p.scale = s.spacing[0] * s.spacing[1] * s.spacing[2] / ((M * d) * (M * d));
     p.depth = params.depthCue > 0.0;
@@ -46,7 +47,8 @@ SliceParams sliceParams(const Spectrum& s, const RenderParams& params) {
         const DepthCueWeights w = depthCueWeights(params.depthCue, s.volumeDims, s.spacing);
         p.depthA = w.a;
         for (int a = 0; a < 3; ++a)
-            p.E[a] = w.b / (2.0 * std::numbers::pi) * params.view.d[a] * s.spacing[a] * double(s.padded[a]);
+            p.E[a] = w.b / (2.0 * std::numbers::pi) * params.view.d[a] * s.spacing[a] *
+                     double(s.padded[a]);
     }
     return p;
 }

@@ -32,7 +32,8 @@ void prefilterLine(float* v, std::int64_t n, std::int64_t stride, std::vector<do
 
 } // namespace
 
-std::vector<float> bsplineCoefficients(const std::vector<float>& voxels, const Dims3& dims, int margin) {
+std::vector<float> bsplineCoefficients(const std::vector<float>& voxels, const Dims3& dims,
+                                       int margin) {
     const std::int64_t L[3] = {dims[0] + 2 * margin, dims[1] + 2 * margin, dims[2] + 2 * margin};
     std::vector<float> c(std::size_t(L[0] * L[1] * L[2]), 0.0f);
     for (std::int64_t z = 0; z < dims[2]; ++z)
@@ -41,52 +42,62 @@ std::vector<float> bsplineCoefficients(const std::vector<float>& voxels, const D
                         c.data() + ((z + margin) * L[1] + (y + margin)) * L[0] + margin);
     std::vector<double> cp;
     for (std::int64_t z = 0; z < L[2]; ++z)
-        for (std::int64_t y = 0; y < L[1]; ++y) prefilterLine(c.data() + (z * L[1] + y) * L[0], L[0], 1, cp);
+        for (std::int64_t y = 0; y < L[1]; ++y)
+            prefilterLine(c.data() + (z * L[1] + y) * L[0], L[0], 1, cp);
     for (std::int64_t z = 0; z < L[2]; ++z)
-        for (std::int64_t x = 0; x < L[0]; ++x) prefilterLine(c.data() + z * L[1] * L[0] + x, L[1], L[0], cp);
+        for (std::int64_t x = 0; x < L[0]; ++x)
+            prefilterLine(c.data() + z * L[1] * L[0] + x, L[1], L[0], cp);
     for (std::int64_t y = 0; y < L[1]; ++y)
-        for (std::int64_t x = 0; x < L[0]; ++x) prefilterLine(c.data() + y * L[0] + x, L[2], L[0] * L[1], cp);
+        for (std::int64_t x = 0; x < L[0]; ++x)
+            prefilterLine(c.data() + y * L[0] + x, L[2], L[0] * L[1], cp);
     return c;
 }
 
-SpatialProjectorOptions matchingProjectorOptions(const RenderParams& params, ValueMapping mapping, int threads) {
+SpatialProjectorOptions matchingProjectorOptions(const RenderParams& params, ValueMapping mapping,
+                                                 int threads) {
     SpatialProjectorOptions o;
     o.stepFraction = 0.25;
     o.mapping = mapping;
     o.threads = threads;
     o.depthCue = params.depthCue;
-    o.voxelModel = params.voxelModel == VoxelModel::BandLimited ? VoxelModel::Trilinear : params.voxelModel;
+    o.voxelModel =
+        params.voxelModel == VoxelModel::BandLimited ? VoxelModel::Trilinear : params.voxelModel;
     o.pixelSubsamples = params.pixelAperture ? 3 : 1;
     return o;
 }
 
 std::string describeProjector(const SpatialProjectorOptions& o, VoxelModel rendered) {
-    std::string s = std::string(voxelModelLabel(o.voxelModel)) + " ray casting (step s/" +
-                    std::to_string(int(std::lround(1.0 / o.stepFraction))) + ", " +
-                    (o.pixelSubsamples > 1 ? std::to_string(o.pixelSubsamples) + " x " + std::to_string(o.pixelSubsamples) +
-                                                 " rays per pixel"
-                                           : std::string("one ray per pixel")) +
-                    (o.depthCue > 0 ? ", depth-weighted" : "") + ")";
+    std::string s =
+        std::string(voxelModelLabel(o.voxelModel)) + " ray casting (step s/" +
+        std::to_string(int(std::lround(1.0 / o.stepFraction))) + ", " +
+        (o.pixelSubsamples > 1 ? std::to_string(o.pixelSubsamples) + " x " +
+                                     std::to_string(o.pixelSubsamples) + " rays per pixel"
+                               : std::string("one ray per pixel")) +
+        (o.depthCue > 0 ? ", depth-weighted" : "") + ")";
     if (rendered != o.voxelModel)
         s += "; the frame uses the " + std::string(voxelModelLabel(rendered)) +
-             " voxel model, which has no ray caster: the difference includes that between the two models";
+             " voxel model, which has no ray caster: the difference includes that between the two "
+             "models";
     return s;
 }
 
 SpatialProjector::SpatialProjector(const Volume& volume, SpatialProjectorOptions options)
     : m_volume(volume), m_options(options), m_pool(options.threads) {
     if (options.voxelModel == VoxelModel::BandLimited)
-        throw SettingsError("spatial projector: no ray caster for the band-limited voxel model (its sinc "
-                            "interpolant has infinite support); use trilinear or bspline");
+        throw SettingsError(
+            "spatial projector: no ray caster for the band-limited voxel model (its sinc "
+            "interpolant has infinite support); use trilinear or bspline");
     if (options.pixelSubsamples < 1 || options.pixelSubsamples > 16)
         throw SettingsError("spatial projector: pixel subsamples must be 1..16, found " +
                             std::to_string(options.pixelSubsamples));
     if (options.mapping != ValueMapping::Raw) {
         m_mapped.resize(volume.voxels.size());
-        for (std::size_t i = 0; i < m_mapped.size(); ++i) m_mapped[i] = mapValue(options.mapping, volume.voxels[i]);
+        for (std::size_t i = 0; i < m_mapped.size(); ++i)
+            m_mapped[i] = mapValue(options.mapping, volume.voxels[i]);
     }
     if (options.voxelModel == VoxelModel::BSpline)
-        m_coefficients = bsplineCoefficients(m_mapped.empty() ? volume.voxels : m_mapped, volume.dims, kSplineMargin);
+        m_coefficients = bsplineCoefficients(m_mapped.empty() ? volume.voxels : m_mapped,
+                                             volume.dims, kSplineMargin);
 }
 
 namespace {
@@ -138,13 +149,15 @@ struct BSplineSampler {
         weights(x - fx, wx);
         weights(y - fy, wy);
         weights(z - fz, wz);
-        const std::int64_t ix = std::int64_t(fx) - 1 + kSplineMargin, iy = std::int64_t(fy) - 1 + kSplineMargin,
+        const std::int64_t ix = std::int64_t(fx) - 1 + kSplineMargin,
+                           iy = std::int64_t(fy) - 1 + kSplineMargin,
                            iz = std::int64_t(fz) - 1 + kSplineMargin;
         double acc = 0.0;
         for (int cz = 0; cz < 4; ++cz)
             for (int cy = 0; cy < 4; ++cy) {
                 const float* row = coef + ((iz + cz) * L1 + (iy + cy)) * L0 + ix;
-                acc += wz[cz] * wy[cy] * (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3]);
+                acc += wz[cz] * wy[cy] *
+                       (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3]);
             }
         return acc;
     }
@@ -205,8 +218,8 @@ double integrateRay(const RayGeometry& g, const double* o, double h, const Depth
 
 /** Every pixel's mean over sub x sub sub-rays spread evenly over it, (i + 1/2) / sub - 1/2. */
 template <class Sampler>
-void castRays(const RayGeometry& g, double h, const DepthCueWeights& w, const Sampler& sample, int sub,
-              ProjectionImage& img, ThreadPool& pool) {
+void castRays(const RayGeometry& g, double h, const DepthCueWeights& w, const Sampler& sample,
+              int sub, ProjectionImage& img, ThreadPool& pool) {
     const int M = img.size;
     pool.parallelFor(M, 2, [&](std::int64_t r0, std::int64_t r1) {
         for (std::int64_t row = r0; row < r1; ++row)
@@ -217,7 +230,8 @@ void castRays(const RayGeometry& g, double h, const DepthCueWeights& w, const Sa
                         const double du = (i + 0.5) / sub - 0.5, dv = (j + 0.5) / sub - 0.5;
                         double o[3];
                         for (int a = 0; a < 3; ++a)
-                            o[a] = g.c[a] + (col - M / 2 + du) * g.rgt[a] + (row - M / 2 + dv) * g.dwn[a];
+                            o[a] = g.c[a] + (col - M / 2 + du) * g.rgt[a] +
+                                   (row - M / 2 + dv) * g.dwn[a];
                         sum += integrateRay(g, o, h, w, sample);
                     }
                 img.pixels[std::size_t(row) * M + col] = float(sum / double(sub * sub));
@@ -246,7 +260,8 @@ ProjectionImage SpatialProjector::project(const ViewFrame& view, const ImageGeom
     const RayGeometry g(view, image.pixelSize, N, s, spline);
     const int sub = m_options.pixelSubsamples;
     if (spline) {
-        const BSplineSampler b{m_coefficients.data(), N[0] + 2 * kSplineMargin, N[1] + 2 * kSplineMargin};
+        const BSplineSampler b{m_coefficients.data(), N[0] + 2 * kSplineMargin,
+                               N[1] + 2 * kSplineMargin};
         castRays(g, h, w, b, sub, img, m_pool);
     } else {
         const TrilinearSampler t{m_mapped.empty() ? v.voxels.data() : m_mapped.data(), N};

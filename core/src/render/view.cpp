@@ -13,7 +13,8 @@ Vec3 rotate(const Vec3& v, const Vec3& k, double angle) {
     const double c = std::cos(angle), s = std::sin(angle);
     const Vec3 kxv = cross(k, v);
     const double kv = dot(k, v);
-    return {v[0] * c + kxv[0] * s + k[0] * kv * (1 - c), v[1] * c + kxv[1] * s + k[1] * kv * (1 - c),
+    return {v[0] * c + kxv[0] * s + k[0] * kv * (1 - c),
+            v[1] * c + kxv[1] * s + k[1] * kv * (1 - c),
             v[2] * c + kxv[2] * s + k[2] * kv * (1 - c)};
 }
 } // namespace
@@ -44,7 +45,8 @@ ViewFrame ViewFrame::rotated(const Vec3& axis, double angleRad) const {
 
 double defaultPixelSize(const Dims3& dims, const Vec3& spacing, int size) {
     double diag2 = 0.0;
-    for (int a = 0; a < 3; ++a) diag2 += double(dims[a]) * spacing[a] * double(dims[a]) * spacing[a];
+    for (int a = 0; a < 3; ++a)
+        diag2 += double(dims[a]) * spacing[a] * double(dims[a]) * spacing[a];
     return std::sqrt(diag2) / size;
 }
 
@@ -100,9 +102,11 @@ ColumnRange volumeShadowColumns(const ViewFrame& view, const Vec3& half, int M, 
         for (int j = i + 1; j < 6; ++j) {
             const double det = A[i] * B[j] - A[j] * B[i];
             if (std::abs(det) < 1e-12) continue;
-            const double x = (C[i] * B[j] - C[j] * B[i]) / det, t = (A[i] * C[j] - A[j] * C[i]) / det;
+            const double x = (C[i] * B[j] - C[j] * B[i]) / det,
+                         t = (A[i] * C[j] - A[j] * C[i]) / det;
             bool inside = true;
-            for (int k = 0; k < 6 && inside; ++k) inside = A[k] * x + B[k] * t <= C[k] + 1e-9 * (1.0 + std::abs(C[k]));
+            for (int k = 0; k < 6 && inside; ++k)
+                inside = A[k] * x + B[k] * t <= C[k] + 1e-9 * (1.0 + std::abs(C[k]));
             if (inside) {
                 xmin = std::min(xmin, x);
                 xmax = std::max(xmax, x);
@@ -116,7 +120,8 @@ ColumnRange volumeShadowColumns(const ViewFrame& view, const Vec3& half, int M, 
     }
     r.first = std::clamp(int(std::ceil(xmin / d)) + M / 2, 0, M - 1);
     r.last = std::clamp(int(std::floor(xmax / d)) + M / 2, 0, M - 1);
-    if (r.first > r.last) r.first = r.last = std::clamp(int(std::lround((xmin + xmax) / 2 / d)) + M / 2, 0, M - 1);
+    if (r.first > r.last)
+        r.first = r.last = std::clamp(int(std::lround((xmin + xmax) / 2 / d)) + M / 2, 0, M - 1);
     // Settle the ends with the exact test (the estimate is within rounding of them).
     while (r.first > 0 && !misses(r.first - 1)) --r.first;
     while (r.first <= r.last && misses(r.first)) ++r.first;

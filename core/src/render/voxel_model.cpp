@@ -26,14 +26,17 @@ const char* voxelModelLabel(VoxelModel m) {
 }
 
 VoxelModel parseVoxelModel(const std::string& name) {
-    if (name == "bandlimited" || name == "band-limited" || name == "sinc") return VoxelModel::BandLimited;
+    if (name == "bandlimited" || name == "band-limited" || name == "sinc")
+        return VoxelModel::BandLimited;
     if (name == "trilinear" || name == "linear") return VoxelModel::Trilinear;
     if (name == "bspline" || name == "b-spline" || name == "cubic") return VoxelModel::BSpline;
-    throw SettingsError("voxel model: expected bandlimited|trilinear|bspline, found '" + name + "'");
+    throw SettingsError("voxel model: expected bandlimited|trilinear|bspline, found '" + name +
+                        "'");
 }
 
 const std::array<VoxelModel, 3>& allVoxelModels() {
-    static const std::array<VoxelModel, 3> all{VoxelModel::BandLimited, VoxelModel::Trilinear, VoxelModel::BSpline};
+    static const std::array<VoxelModel, 3> all{VoxelModel::BandLimited, VoxelModel::Trilinear,
+                                               VoxelModel::BSpline};
     return all;
 }
 
@@ -112,8 +115,9 @@ inline float sinc2Float(float nu, float& sin2) {
     const float s =
         1.0f + x2 * (-1.0f / 6.0f +
                      x2 * (1.0f / 120.0f +
-                           x2 * (-1.0f / 5040.0f + x2 * (1.0f / 362880.0f + x2 * (-1.0f / 39916800.0f +
-                                                                                  x2 * (1.0f / 6227020800.0f))))));
+                           x2 * (-1.0f / 5040.0f +
+                                 x2 * (1.0f / 362880.0f +
+                                       x2 * (-1.0f / 39916800.0f + x2 * (1.0f / 6227020800.0f))))));
     // r / nu without a branch (so the row loops vectorise): exactly 1 for n = 0 (r = nu, also at
     // nu = 0), r / nu to float precision otherwise (nu >= 1/2).
     constexpr float tiny = 1e-30f;
@@ -125,13 +129,15 @@ inline float sinc2Float(float nu, float& sin2) {
 
 } // namespace
 
-void voxelModelTransferRow(VoxelModel m, const float nu0[3], const float dnu[3], int count, float* out) {
+void voxelModelTransferRow(VoxelModel m, const float nu0[3], const float dnu[3], int count,
+                           float* out) {
     const float a0 = nu0[0], a1 = nu0[1], a2 = nu0[2], d0 = dnu[0], d1 = dnu[1], d2 = dnu[2];
     if (m == VoxelModel::Trilinear) {
         for (int j = 0; j < count; ++j) {
             float s0, s1, s2;
             const float fj = float(j);
-            out[j] = sinc2Float(std::abs(a0 + fj * d0), s0) * sinc2Float(std::abs(a1 + fj * d1), s1) *
+            out[j] = sinc2Float(std::abs(a0 + fj * d0), s0) *
+                     sinc2Float(std::abs(a1 + fj * d1), s1) *
                      sinc2Float(std::abs(a2 + fj * d2), s2);
         }
     } else if (m == VoxelModel::BSpline) {
@@ -151,7 +157,8 @@ void voxelModelTransferRow(VoxelModel m, const float nu0[3], const float dnu[3],
 }
 
 TransferTable::TransferTable(VoxelModel m, double maxNu) : m_model(m) {
-    if (m == VoxelModel::BandLimited) throw SettingsError("transfer table: the band-limited model has none");
+    if (m == VoxelModel::BandLimited)
+        throw SettingsError("transfer table: the band-limited model has none");
     cover(maxNu);
 }
 

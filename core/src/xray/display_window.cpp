@@ -31,7 +31,8 @@ DisplayWindow autoWindow(const std::vector<float>& pixels) {
     return w;
 }
 
-std::vector<float> windowedValues(std::vector<float> lineIntegrals, const Transmission& transmission) {
+std::vector<float> windowedValues(std::vector<float> lineIntegrals,
+                                  const Transmission& transmission) {
     if (transmission.active()) applyLogExposure(lineIntegrals, transmission);
     return lineIntegrals;
 }

@@ -22,7 +22,8 @@ const char* patientViewName(PatientView v) {
 
 PatientView parsePatientView(const std::string& s) {
     std::string u = s;
-    std::transform(u.begin(), u.end(), u.begin(), [](unsigned char c) { return char(std::toupper(c)); });
+    std::transform(u.begin(), u.end(), u.begin(),
+                   [](unsigned char c) { return char(std::toupper(c)); });
     for (PatientView v : {PatientView::AP, PatientView::PA, PatientView::Left, PatientView::Right,
                           PatientView::Head, PatientView::Feet})
         if (u == patientViewName(v)) return v;

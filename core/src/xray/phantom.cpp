@@ -132,8 +132,10 @@ Volume EllipsoidPhantom::voxelize(const Dims3& dims, const Vec3& spacing, int su
                         const double r = std::sqrt(dot(q, q));
                         const double margin = halfDiag / minAxis;
                         float frac;
-                        if (r + margin < 1.0) frac = 1.0f;
-                        else if (r - margin > 1.0) continue;
+                        if (r + margin < 1.0)
+                            frac = 1.0f;
+                        else if (r - margin > 1.0)
+                            continue;
                         else {
                             int inside = 0;
                             for (int k = 0; k < S; ++k)
@@ -160,7 +162,8 @@ ProjectionImage EllipsoidPhantom::project(const ViewFrame& view, const ImageGeom
                                           const Vec3& spacing, double depthCue) const {
     validateImageGeometry(image);
     if (mapping == ValueMapping::MuBone)
-        throw SettingsError("phantom projection: the bone-enhanced mapping has no analytic projection");
+        throw SettingsError(
+            "phantom projection: the bone-enhanced mapping has no analytic projection");
     const DepthCueWeights w = depthCueWeights(depthCue, dims, spacing);
     const int M = image.size;
     const double d = image.pixelSize;
@@ -178,9 +181,11 @@ ProjectionImage EllipsoidPhantom::project(const ViewFrame& view, const ImageGeom
                 o[a] = (col - M / 2) * d * view.r[a] - (row - M / 2) * d * view.u[a];
             double mu = 0.0, t0, t1;
             for (const Ellipsoid& e : ellipsoids)
-                if (e.interval(o, view.d, t0, t1)) mu += e.density * weightedLength(t0, t1, w.a, w.b);
+                if (e.interval(o, view.d, t0, t1))
+                    mu += e.density * weightedLength(t0, t1, w.a, w.b);
             double box = 0.0;
-            if (mapping != ValueMapping::Mu && boxInterval(o, view.d, half, t0, t1)) box = weightedLength(t0, t1, w.a, w.b);
+            if (mapping != ValueMapping::Mu && boxInterval(o, view.d, half, t0, t1))
+                box = weightedLength(t0, t1, w.a, w.b);
             const double v = mapping == ValueMapping::Mu ? mu : 1000.0 * mu - 1000.0 * box;
             img.pixels[std::size_t(row) * M + col] = float(v);
         }
@@ -188,9 +193,11 @@ ProjectionImage EllipsoidPhantom::project(const ViewFrame& view, const ImageGeom
 }
 
 Volume makeSheppLoganVolume(int n) {
-    if (n < 8 || n > 1024) throw SettingsError("phantom size: expected 8..1024, found " + std::to_string(n));
+    if (n < 8 || n > 1024)
+        throw SettingsError("phantom size: expected 8..1024, found " + std::to_string(n));
     const double field = 256.0;
-    Volume v = EllipsoidPhantom::sheppLogan3D(field).voxelize({n, n, n}, {field / n, field / n, field / n});
+    Volume v = EllipsoidPhantom::sheppLogan3D(field).voxelize({n, n, n},
+                                                              {field / n, field / n, field / n});
     v.name = "shepp-logan-" + std::to_string(n);
     return v;
 }

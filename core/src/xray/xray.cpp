@@ -39,21 +39,25 @@ double Transmission::logExposure(double lineIntegral) const {
 }
 
 void applyLogExposure(std::vector<float>& pixels, const Transmission& t) {
-    if (!t.active() || !(t.exposure > 0.0)) throw SettingsError("log exposure: needs an active transmission");
+    if (!t.active() || !(t.exposure > 0.0))
+        throw SettingsError("log exposure: needs an active transmission");
     for (float& v : pixels) v = float(t.logExposure(double(v)));
 }
 
 void applyTransmission(std::vector<float>& pixels, const Transmission& t) {
     if (!(t.muWaterPerMm > 0.0 && t.muWaterPerMm < 10.0))
-        throw SettingsError("transmission: mu_water must be in (0, 10) per mm, found " + std::to_string(t.muWaterPerMm));
+        throw SettingsError("transmission: mu_water must be in (0, 10) per mm, found " +
+                            std::to_string(t.muWaterPerMm));
     if (!(t.exposure > 0.0 && std::isfinite(t.exposure)))
-        throw SettingsError("transmission: exposure must be positive, found " + std::to_string(t.exposure));
+        throw SettingsError("transmission: exposure must be positive, found " +
+                            std::to_string(t.exposure));
     for (float& v : pixels) v = float(t.intensity(double(v)));
 }
 
 DepthCueWeights depthCueWeights(double strength, const Dims3& dims, const Vec3& spacing) {
     if (!(strength >= 0.0 && strength <= 1.0))
-        throw SettingsError("depth cueing: strength must be in [0, 1], found " + std::to_string(strength));
+        throw SettingsError("depth cueing: strength must be in [0, 1], found " +
+                            std::to_string(strength));
     double d2 = 0.0;
     for (int a = 0; a < 3; ++a) d2 += std::pow(double(dims[a]) * spacing[a], 2);
     DepthCueWeights w;
@@ -66,7 +70,8 @@ DepthCueWeights depthCueWeights(double strength, const Dims3& dims, const Vec3& 
 }
 
 double SliceFilter::blur(double nu) const {
-    return std::exp(-2.0 * std::numbers::pi * std::numbers::pi * sharpenSigmaMm * sharpenSigmaMm * nu * nu);
+    return std::exp(-2.0 * std::numbers::pi * std::numbers::pi * sharpenSigmaMm * sharpenSigmaMm *
+                    nu * nu);
 }
 
 double SliceFilter::response(double nu) const {
@@ -76,11 +81,14 @@ double SliceFilter::response(double nu) const {
 
 void validateSliceFilter(const SliceFilter& f) {
     if (!(f.sharpenAmount >= 0.0 && f.sharpenAmount <= 20.0))
-        throw SettingsError("edge enhancement: amount must be in [0, 20], found " + std::to_string(f.sharpenAmount));
+        throw SettingsError("edge enhancement: amount must be in [0, 20], found " +
+                            std::to_string(f.sharpenAmount));
     if (!(f.sharpenSigmaMm > 0.0 && f.sharpenSigmaMm <= 100.0))
-        throw SettingsError("edge enhancement: radius must be in (0, 100] mm, found " + std::to_string(f.sharpenSigmaMm));
+        throw SettingsError("edge enhancement: radius must be in (0, 100] mm, found " +
+                            std::to_string(f.sharpenSigmaMm));
     if (!(f.bandLimitLpMm >= 0.0 && std::isfinite(f.bandLimitLpMm)))
-        throw SettingsError("band limit: cutoff must be >= 0 lp/mm, found " + std::to_string(f.bandLimitLpMm));
+        throw SettingsError("band limit: cutoff must be >= 0 lp/mm, found " +
+                            std::to_string(f.bandLimitLpMm));
 }
 
 } // namespace fvr::core

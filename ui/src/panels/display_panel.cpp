@@ -102,19 +102,13 @@ core::DisplayWindow presetWindow(WindowPreset preset, const std::vector<float>& 
     auto q = [&](double f) { return double(v[std::size_t(f * (v.size() - 1))]); };
     core::DisplayWindow w;
     switch (preset) {
-    case WindowPreset::FullRange:
-        w = {v.front(), v.back(), false};
-        break;
-    case WindowPreset::Bone:
-        w = {q(0.005) + 0.55 * (q(0.995) - q(0.005)), q(0.995), false};
-        break;
+    case WindowPreset::FullRange: w = {v.front(), v.back(), false}; break;
+    case WindowPreset::Bone: w = {q(0.005) + 0.55 * (q(0.995) - q(0.005)), q(0.995), false}; break;
     case WindowPreset::SoftTissue:
         w = {q(0.005) + 0.10 * (q(0.995) - q(0.005)), q(0.005) + 0.70 * (q(0.995) - q(0.005)),
              false};
         break;
-    case WindowPreset::Auto:
-        w = core::autoWindow(pixels);
-        break;
+    case WindowPreset::Auto: w = core::autoWindow(pixels); break;
     }
     if (!(w.high > w.low)) w.high = w.low + 1.0;
     w.invert = invert;

@@ -40,7 +40,9 @@ struct Volume {
     std::size_t index(std::int64_t x, std::int64_t y, std::int64_t z) const {
         return std::size_t(x + dims[0] * (y + dims[1] * z));
     }
-    float at(std::int64_t x, std::int64_t y, std::int64_t z) const { return voxels[index(x, y, z)]; }
+    float at(std::int64_t x, std::int64_t y, std::int64_t z) const {
+        return voxels[index(x, y, z)];
+    }
     /** Physical extent N*s per axis (mm). */
     Vec3 extent() const {
         return {dims[0] * spacing[0], dims[1] * spacing[1], dims[2] * spacing[2]};

@@ -15,7 +15,8 @@ struct GpuMemoryError : GlError {
     using GlError::GlError;
 };
 
-/** A shader failed to compile or link; what() names the shader file and line ("fft/rows.comp:42"). */
+/** A shader failed to compile or link; what() names the shader file and line ("fft/rows.comp:42").
+ */
 struct ShaderError : GlError {
     using GlError::GlError;
 };

@@ -20,7 +20,8 @@ namespace fvr::gpu {
  */
 class FftPlan {
 public:
-    /** sign = +1: inverse (unnormalised, FFTW_BACKWARD); -1: forward. Throws std::invalid_argument. */
+    /** sign = +1: inverse (unnormalised, FFTW_BACKWARD); -1: forward. Throws std::invalid_argument.
+     */
     FftPlan(int size, int sign);
 
     int size() const { return m_size; }

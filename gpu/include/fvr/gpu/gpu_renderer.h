@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include <fvr/core/render/renderer.h>
 #include <fvr/core/io/image_io.h>
+#include <fvr/core/render/renderer.h>
 #include <fvr/core/render/spectrum.h>
 
 class QOpenGLFunctions_4_3_Core;
@@ -58,14 +58,18 @@ public:
 
     /** Renders into GPU buffers (no readback). With a window, the last pass of the inverse
      *  transform also maps the projection through it into the display texture (no display pass:
-     *  displayTexture() with the same window then returns at once). Throws SettingsError, GlError. */
-    void renderToGpu(const core::RenderParams& params, const core::DisplayWindow* display = nullptr);
+     *  displayTexture() with the same window then returns at once). Throws SettingsError, GlError.
+     */
+    void renderToGpu(const core::RenderParams& params,
+                     const core::DisplayWindow* display = nullptr);
     /** The last render's float line integrals (row 0 at the top). */
     core::ProjectionImage readback() const;
     /** renderToGpu() + readback() with the GPU's per-stage times. */
-    core::ProjectionImage renderImage(const core::RenderParams& params, GpuStageTimes* times = nullptr);
+    core::ProjectionImage renderImage(const core::RenderParams& params,
+                                      GpuStageTimes* times = nullptr);
     /** core::Renderer: renderImage() with the times as core::StageTimes (display in inverse). */
-    core::ProjectionImage render(const core::RenderParams& params, core::StageTimes* times = nullptr) override;
+    core::ProjectionImage render(const core::RenderParams& params,
+                                 core::StageTimes* times = nullptr) override;
     std::string describe() const override;
     bool isGpu() const override { return true; }
     /** The last render mapped through the window (Beer-Lambert transmission first when the window
@@ -77,7 +81,8 @@ public:
 
     /** Inverse 2D FFT (unnormalised, FFTW_BACKWARD) of a row-major complex M x M array with the
      *  renderer's row and column passes: for tests against FFTW. */
-    std::vector<std::complex<float>> inverseFft2D(const std::vector<std::complex<float>>& data, int size);
+    std::vector<std::complex<float>> inverseFft2D(const std::vector<std::complex<float>>& data,
+                                                  int size);
     /** Inverse 2D FHT (separable passes + eq. 4) of a real M x M array (tests). */
     std::vector<float> inverseFht2D(const std::vector<float>& data, int size);
 
@@ -89,16 +94,20 @@ public:
 
 private:
     struct Program;
-    unsigned program(const std::string& path, const std::vector<std::pair<std::string, std::string>>& defines);
+    unsigned program(const std::string& path,
+                     const std::vector<std::pair<std::string, std::string>>& defines);
     void ensureSize(int size);
     void bindKernel(unsigned prog, core::Kernel kernel, bool derivative);
     void setSliceUniforms(unsigned prog, const core::RenderParams& params);
-    /** The slice filter's uniforms and its per-axis table (binding 5), from core::SliceFilterTable. */
+    /** The slice filter's uniforms and its per-axis table (binding 5), from core::SliceFilterTable.
+     */
     void setFilterUniforms(unsigned prog, const core::RenderParams& params);
-    void runRows(int M, bool fused, bool hartley, core::Kernel kernel, const core::RenderParams* params);
+    void runRows(int M, bool fused, bool hartley, core::Kernel kernel,
+                 const core::RenderParams* params);
     void runCols(int M, const char* outputMode, const core::RenderParams* params,
                  const core::DisplayWindow* display = nullptr);
-    void runHartleyCorrection(int M, const core::RenderParams* params, const core::DisplayWindow* display = nullptr);
+    void runHartleyCorrection(int M, const core::RenderParams* params,
+                              const core::DisplayWindow* display = nullptr);
     void setClipUniforms(unsigned prog, const core::RenderParams* params);
     void setDisplayUniforms(unsigned prog, const core::DisplayWindow& window);
     void releaseTexture();
@@ -122,7 +131,8 @@ private:
     bool m_timesPending = false, m_displayTimed = false;
     GpuStageTimes m_times;
     core::RenderParams m_last;
-    std::optional<core::DisplayWindow> m_displayed; ///< the window the display texture holds the last render in
+    std::optional<core::DisplayWindow>
+        m_displayed; ///< the window the display texture holds the last render in
 };
 
 } // namespace fvr::gpu

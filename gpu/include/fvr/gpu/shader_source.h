@@ -18,7 +18,8 @@ public:
 
     /** Assembles `path` (e.g. "fft/rows.comp"); throws ShaderError for a missing file, an
      *  include cycle or a missing #version. */
-    static ShaderSource assemble(const std::string& path, const Defines& defines, const Reader& reader);
+    static ShaderSource assemble(const std::string& path, const Defines& defines,
+                                 const Reader& reader);
     /** Reader for the shaders embedded in fvr::gpu (":/shaders/..."), or FVR_SHADER_DIR when set
      *  (edit shaders without rebuilding). */
     static Reader defaultReader();

@@ -1,7 +1,7 @@
 #pragma once
 /** Application identity used for QSettings, window titles and the about box. */
 namespace fvr::ui {
-const char* applicationName();    ///< "FVR Workstation"
-const char* organizationName();   ///< QSettings organisation
+const char* applicationName(); ///< "FVR Workstation"
+const char* organizationName(); ///< QSettings organisation
 const char* applicationVersion(); ///< project version
 } // namespace fvr::ui

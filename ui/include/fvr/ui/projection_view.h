@@ -8,8 +8,8 @@
 #include <memory>
 #include <optional>
 
-#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/io/image_io.h>
+#include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/render/progressive.h>
 #include <fvr/core/render/spectrum.h>
 #include <fvr/core/render/view.h>
@@ -40,8 +40,9 @@ struct FrameEffects {
     bool pixelAperture = false; ///< RenderParams::pixelAperture
     double depthCue = 0.0;
     core::SliceFilter filter;
-    bool clip = true;        ///< zero outside the volume's shadow (RenderParams::clipToVolume)
-    bool nonNegative = true; ///< never below 0 for a non-negative volume (RenderParams::nonNegative)
+    bool clip = true; ///< zero outside the volume's shadow (RenderParams::clipToVolume)
+    bool nonNegative =
+        true; ///< never below 0 for a non-negative volume (RenderParams::nonNegative)
     bool operator==(const FrameEffects&) const = default;
 };
 
@@ -51,7 +52,8 @@ public:
     explicit ProjectionView(QWidget* parent = nullptr);
     ~ProjectionView() override;
 
-    void setStudy(std::shared_ptr<const core::Volume> volume, std::shared_ptr<const core::Spectrum> spectrum);
+    void setStudy(std::shared_ptr<const core::Volume> volume,
+                  std::shared_ptr<const core::Spectrum> spectrum);
     void setSettings(const ViewSettings& s);
     const ViewSettings& settings() const { return m_settings; }
     void setEffects(const FrameEffects& e);
@@ -123,7 +125,8 @@ protected:
 private:
     void releaseGl();
     void renderIfNeeded(bool fullQuality = false);
-    /** The renderer of float images: the GPU's when there is one, else the CPU's (made on demand). */
+    /** The renderer of float images: the GPU's when there is one, else the CPU's (made on demand).
+     */
     core::Renderer& floatRenderer();
     /** A new spectrum goes to the GPU (the CPU renderer when that fails or there is no GPU). */
     void uploadSpectrumIfNeeded();
@@ -169,7 +172,7 @@ private:
     std::unique_ptr<gpu::GpuFourierRenderer> m_gpu;
     std::unique_ptr<core::CpuFourierRenderer> m_cpu;
     std::optional<core::ProjectionImage> m_cpuImage; // CPU path / difference mode
-    QString m_notice;      ///< backend notice (CPU fallback)
+    QString m_notice; ///< backend notice (CPU fallback)
     QString m_renderError; ///< last render failure, cleared by the next good frame
     std::unique_ptr<QOpenGLShaderProgram> m_quad;
     std::unique_ptr<QOpenGLVertexArrayObject> m_vao;

@@ -8,10 +8,10 @@
 
 #include <atomic>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string_view>
-#include <memory>
 #include <thread>
 
 #include <fvr/core/dicom/dicom.h>
@@ -28,7 +28,7 @@ namespace fvr::ui {
 struct StudySource {
     enum class Kind { Phantom, VolumeFile, DicomFolder, DicomFile };
     Kind kind = Kind::Phantom;
-    QString path;      ///< file or folder (a DICOMDIR: its folder)
+    QString path; ///< file or folder (a DICOMDIR: its folder)
     QString seriesKey; ///< DICOM series (empty: the only one, or the user is asked)
     int phantomSize = 128;
 
@@ -44,7 +44,8 @@ struct StudySource {
  *  workstation's defaults from workstationSpectrumDefaults(). */
 using SpectrumSettings = core::PreprocessOptions;
 /** The Rendering panel's default values' spectrum (attenuation, FFT, oversampling 1.25,
- *  gridding correction for Kaiser-Bessel 4): the controller's settings until the window sets its own. */
+ *  gridding correction for Kaiser-Bessel 4): the controller's settings until the window sets its
+ * own. */
 SpectrumSettings workstationSpectrumDefaults();
 
 class StudyController : public QObject {
@@ -82,7 +83,8 @@ signals:
     /** A DICOM folder holds several series: the GUI asks the user and calls open() again with
      *  the chosen key. `labels` describe the series (same order as `keys`); the first is the
      *  default series (core::defaultSeriesIndex, what fvr-render opens), marked so. */
-    void seriesChoiceNeeded(const StudySource& source, const QStringList& keys, const QStringList& labels);
+    void seriesChoiceNeeded(const StudySource& source, const QStringList& keys,
+                            const QStringList& labels);
 
 private:
     void startJob(std::function<void(core::CancelToken&)> job);
@@ -90,14 +92,14 @@ private:
     void preprocessAsync();
     void report(double fraction, std::string_view stage);
     /** Worker: the scan of a DICOM folder (cached for the series choice). */
-    std::shared_ptr<const core::DicomScanResult> scanFolder(const StudySource& source,
-                                                            std::shared_ptr<const core::DicomScanResult> cached,
-                                                            core::CancelToken& token);
+    std::shared_ptr<const core::DicomScanResult> scanFolder(
+        const StudySource& source, std::shared_ptr<const core::DicomScanResult> cached,
+        core::CancelToken& token);
     /** Worker: asks the GUI to choose a series (the default first); false when none is needed. */
     bool needsSeriesChoice(const StudySource& source, const core::DicomScanResult& scan);
     /** Worker: preprocesses the opened volume and hands volume and spectrum to the GUI thread. */
-    void finishOpen(const StudySource& source, const SpectrumSettings& settings, core::OpenedStudy opened,
-                    core::CancelToken& token);
+    void finishOpen(const StudySource& source, const SpectrumSettings& settings,
+                    core::OpenedStudy opened, core::CancelToken& token);
 
     StudySource m_source;
     SpectrumSettings m_settings = workstationSpectrumDefaults();

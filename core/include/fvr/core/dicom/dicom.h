@@ -74,16 +74,17 @@ struct DicomError : LoadError {
 /** One series as found by a scan (a SeriesInstanceUID, split further where the image size,
  *  orientation or acquisition differs). */
 struct DicomSeriesInfo {
-    std::string key;            ///< unique within the scan: the SeriesInstanceUID, or UID#n when split
+    std::string key; ///< unique within the scan: the SeriesInstanceUID, or UID#n when split
     std::string seriesUid;
     std::string studyUid;
     std::string patientName, patientId, studyDate, modality, description;
     std::string transferSyntax; ///< name of the (first file's) transfer syntax
-    int imageCount = 0;         ///< files (a multi-frame file counts once)
-    int frameCount = 0;         ///< slices in total
-    Dims3 dims{0, 0, 0};        ///< columns, rows, slices (as it would load)
-    Vec3 spacing{0, 0, 0};      ///< mm, as it would load (slice spacing from positions)
-    std::vector<std::filesystem::path> files; ///< sorted along the slice normal where positions allow
+    int imageCount = 0; ///< files (a multi-frame file counts once)
+    int frameCount = 0; ///< slices in total
+    Dims3 dims{0, 0, 0}; ///< columns, rows, slices (as it would load)
+    Vec3 spacing{0, 0, 0}; ///< mm, as it would load (slice spacing from positions)
+    std::vector<std::filesystem::path>
+        files; ///< sorted along the slice normal where positions allow
     /** Per file (parallel to `files`): the 0-based frames of that file that belong to this series,
      *  when a multi-frame file holds several volumes (e.g. two image types of an enhanced MR
      *  split apart); empty (or an empty entry): all frames of the file. */
@@ -106,11 +107,12 @@ struct DicomScanResult {
  *  broken files are listed in `skipped`; series that cannot be loaded (e.g. colour) are
  *  listed with a "cannot be loaded" warning. `folder` may also be a single file. Throws
  *  DicomError when the folder does not exist or holds no image series. */
-DicomScanResult scanDicomFolder(const std::filesystem::path& folder, const ProgressFn& progress = {},
+DicomScanResult scanDicomFolder(const std::filesystem::path& folder,
+                                const ProgressFn& progress = {},
                                 const CancelToken* cancel = nullptr);
 
 struct DicomVolume {
-    Volume volume;                     ///< units HU for CT with rescale, origin/direction in LPS
+    Volume volume; ///< units HU for CT with rescale, origin/direction in LPS
     std::vector<std::string> warnings; ///< uneven spacing, gantry tilt, resampling, ...
 };
 

@@ -17,17 +17,17 @@
 namespace fvr::core {
 
 enum class InputKind {
-    Phantom,     ///< "phantom:shepp-logan[:N]": the built-in Shepp-Logan phantom, N^3 voxels
+    Phantom, ///< "phantom:shepp-logan[:N]": the built-in Shepp-Logan phantom, N^3 voxels
     DicomFolder, ///< a folder (scanned recursively; its DICOMDIR is read when present)
-    DicomFile,   ///< one DICOM file (single image or multi-frame)
-    VolumeFile,  ///< .mhd, .mha, .nii, .nii.gz (or a headerless raw file with a RawSpec)
+    DicomFile, ///< one DICOM file (single image or multi-frame)
+    VolumeFile, ///< .mhd, .mha, .nii, .nii.gz (or a headerless raw file with a RawSpec)
 };
 
 /** What an input names. */
 struct InputSource {
     InputKind kind = InputKind::Phantom;
     std::filesystem::path path; ///< the folder or file (a DICOMDIR names its folder)
-    int phantomSize = 128;      ///< Phantom: voxels per axis
+    int phantomSize = 128; ///< Phantom: voxels per axis
 };
 
 /**
@@ -63,8 +63,8 @@ const DicomSeriesInfo& findSeries(const DicomScanResult& scan, const std::string
 std::optional<std::string> guessHounsfieldUnits(Volume& volume);
 
 struct OpenOptions {
-    std::string seriesKey;           ///< DICOM folder: the series to open (empty: the default)
-    std::optional<RawSpec> raw;      ///< VolumeFile: read as headerless raw with this geometry
+    std::string seriesKey; ///< DICOM folder: the series to open (empty: the default)
+    std::optional<RawSpec> raw; ///< VolumeFile: read as headerless raw with this geometry
     /** DICOM folder: a scan of the same folder made before (the workstation scans first to let
      *  the user choose); null: scan now. */
     std::shared_ptr<const DicomScanResult> scan;

@@ -9,11 +9,23 @@
 
 namespace fvr::core {
 
-enum class ElementType { Int8, UInt8, Int16, UInt16, Int32, UInt32, Int64, UInt64, Float32, Float64 };
+enum class ElementType {
+    Int8,
+    UInt8,
+    Int16,
+    UInt16,
+    Int32,
+    UInt32,
+    Int64,
+    UInt64,
+    Float32,
+    Float64
+};
 
 /** Bytes per element of `t`. */
 std::size_t elementSize(ElementType t);
-/** Parses "int16", "uint8", "float32", ... (also MetaImage's MET_SHORT etc.); throws SettingsError. */
+/** Parses "int16", "uint8", "float32", ... (also MetaImage's MET_SHORT etc.); throws SettingsError.
+ */
 ElementType parseElementType(const std::string& name);
 
 /** Description of a headerless raw file. */

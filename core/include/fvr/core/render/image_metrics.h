@@ -6,11 +6,11 @@
 namespace fvr::core {
 
 struct ImageComparison {
-    double peak = 0;        ///< max |reference|
+    double peak = 0; ///< max |reference|
     double maxAbsError = 0;
     double rmse = 0;
-    double relRmse = 0;     ///< rmse / rms(reference)
-    double psnr = 0;        ///< 20 log10(peak / rmse), dB (300 for identical images)
+    double relRmse = 0; ///< rmse / rms(reference)
+    double psnr = 0; ///< 20 log10(peak / rmse), dB (300 for identical images)
 };
 
 /** Pixel by pixel; the images must have the same size. */

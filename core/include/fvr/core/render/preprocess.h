@@ -20,7 +20,7 @@ namespace fvr::core {
 /** How the 3D Hartley transform is computed (both give the same spectrum; tested). */
 enum class HartleyMethod {
     FromFft, ///< real-to-complex FFT, then H = Re G - Im G
-    Dht      ///< separable FFTW_DHT passes, then the correction of the paper's eq. 5
+    Dht ///< separable FFTW_DHT passes, then the correction of the paper's eq. 5
 };
 
 enum class PlannerEffort { Estimate, Measure };
@@ -71,7 +71,8 @@ Dims3 paddedDimsFor(const Dims3& dims, const PreprocessOptions& options);
 /** The per-axis deapodization factors 1 / kernelFourier(k, x / P, sigma) for the padded
  *  positions j = 0..P-1 of an axis of n voxels (only the n voxel positions matter; x is the
  *  voxel's offset from the volume centre (n-1)/2, in padded-grid units). */
-std::vector<float> deapodizationFactors(Kernel k, std::int64_t n, std::int64_t p, double oversampling);
+std::vector<float> deapodizationFactors(Kernel k, std::int64_t n, std::int64_t p,
+                                        double oversampling);
 /** Bytes the spectrum will take (what to show before preprocessing). */
 std::size_t spectrumBytes(const Dims3& padded);
 

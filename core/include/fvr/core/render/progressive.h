@@ -23,7 +23,8 @@ struct QualityLevel {
  * then halving the size (with linear when allowed, else K) down to minSize. A deapodized
  * spectrum renders with its kernel only, so only the size drops.
  */
-std::vector<QualityLevel> progressiveLevels(int size, Kernel kernel, bool kernelLocked, int minSize = 64);
+std::vector<QualityLevel> progressiveLevels(int size, Kernel kernel, bool kernelLocked,
+                                            int minSize = 64);
 
 class ProgressiveController {
 public:

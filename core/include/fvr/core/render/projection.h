@@ -9,8 +9,8 @@
 namespace fvr::core {
 
 struct ProjectionImage {
-    int size = 0;            ///< M
-    double pixelSize = 0.0;  ///< d, mm
+    int size = 0; ///< M
+    double pixelSize = 0.0; ///< d, mm
     ViewFrame view;
     ValueMapping mapping = ValueMapping::Raw;
     std::vector<float> pixels; ///< M*M, pixel (col, row) at row * M + col

@@ -8,9 +8,9 @@
 #include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/render/projection.h>
 #include <fvr/core/render/spectrum.h>
+#include <fvr/core/render/voxel_model.h>
 #include <fvr/core/thread_pool.h>
 #include <fvr/core/volume.h>
-#include <fvr/core/render/voxel_model.h>
 
 namespace fvr::core {
 
@@ -34,13 +34,15 @@ struct SpatialProjectorOptions {
  *  sum_n c[n] beta3(x - n) = v[x] at every integer x, v = 0 outside the volume (recursive
  *  prefilter, pole sqrt(3) - 2, with the exact infinite-domain boundary values). Layout: x fastest,
  *  dims + 2 margin per axis, voxel (0,0,0) at (margin, margin, margin). */
-std::vector<float> bsplineCoefficients(const std::vector<float>& voxels, const Dims3& dims, int margin);
+std::vector<float> bsplineCoefficients(const std::vector<float>& voxels, const Dims3& dims,
+                                       int margin);
 
 /** The ray caster for what a frame rendered with `params` approximates (the accuracy readout,
  *  fvr-render --bench): the same voxel model (trilinear for the band-limited model, which has no
  *  ray caster here), the same depth cueing, and with the pixel aperture the pixel's area (3 x 3
  *  rays per pixel). Step s/4. */
-SpatialProjectorOptions matchingProjectorOptions(const RenderParams& params, ValueMapping mapping, int threads = 0);
+SpatialProjectorOptions matchingProjectorOptions(const RenderParams& params, ValueMapping mapping,
+                                                 int threads = 0);
 /** The reference in words, e.g. "trilinear ray casting (step s/4, 3 x 3 rays per pixel)"; for a
  *  band-limited frame it adds that the difference includes the voxel model. */
 std::string describeProjector(const SpatialProjectorOptions& options, VoxelModel rendered);

@@ -14,17 +14,18 @@ namespace fvr::core {
 /** How voxel values are mapped before the transform. */
 enum class ValueMapping {
     Raw, ///< stored values (HU for CT): line integrals in value x mm
-    Mu,  ///< linear attenuation relative to water, max(0, 1 + HU/1000): line integrals in mm
+    Mu, ///< linear attenuation relative to water, max(0, 1 + HU/1000): line integrals in mm
     MuBone ///< bone-enhanced attenuation (xray.h, mapValue): line integrals in mm
 };
 /** Spectrum representation and matching inverse 2D transform. */
 enum class TransformKind {
     Fft, ///< complex half spectrum (Hermitian), inverse 2D complex-to-real FFT
-    Fht  ///< real 3D Hartley transform, inverse 2D FHT with the paper's eq. 4 correction
+    Fht ///< real 3D Hartley transform, inverse 2D FHT with the paper's eq. 4 correction
 };
 
 const char* valueMappingName(ValueMapping m);
-ValueMapping parseValueMapping(const std::string& s); ///< "raw" | "mu" | "mu-bone"; throws SettingsError
+ValueMapping parseValueMapping(
+    const std::string& s); ///< "raw" | "mu" | "mu-bone"; throws SettingsError
 const char* transformName(TransformKind t);
 TransformKind parseTransform(const std::string& s); ///< "fft" | "fht"; throws SettingsError
 

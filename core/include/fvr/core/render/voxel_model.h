@@ -45,7 +45,8 @@ double voxelModelTransferDerivative(VoxelModel m, double nu);
  *  j = 0..count-1, into out (not BandLimited). Float arithmetic without tables (sin(pi r)/(pi r)
  *  as a polynomial on the reduced argument r in [-1/2, 1/2], error below 1e-7), written so the
  *  compiler vectorises it: the CPU renderer's per-row product. */
-void voxelModelTransferRow(VoxelModel m, const float nu0[3], const float dnu[3], int count, float* out);
+void voxelModelTransferRow(VoxelModel m, const float nu0[3], const float dnu[3], int count,
+                           float* out);
 
 /** The transfer function of a square pixel's area along one image axis, sinc(f) at f cycles per
  *  pixel (the box of one pixel width): RenderParams::pixelAperture. */
@@ -83,7 +84,8 @@ private:
         const double pos = a * kPerUnit;
         const std::size_t i = std::size_t(pos);
         if (i + 1 >= t.size()) {
-            const double v = odd ? voxelModelTransferDerivative(m_model, a) : voxelModelTransfer(m_model, a);
+            const double v =
+                odd ? voxelModelTransferDerivative(m_model, a) : voxelModelTransfer(m_model, a);
             return float(odd && nu < 0 ? -v : v);
         }
         const float f = float(pos - double(i));

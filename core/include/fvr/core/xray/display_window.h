@@ -27,7 +27,8 @@ DisplayWindow autoWindow(const std::vector<float>& pixels);
 
 /** What a DisplayWindow with this transmission windows: the log exposure of each line integral
  *  when the transmission is active (the film), the line integrals unchanged otherwise. */
-std::vector<float> windowedValues(std::vector<float> lineIntegrals, const Transmission& transmission);
+std::vector<float> windowedValues(std::vector<float> lineIntegrals,
+                                  const Transmission& transmission);
 
 /**
  * The automatic window of a projection of line integrals: autoWindow (0.5 and 99.5 percentiles)

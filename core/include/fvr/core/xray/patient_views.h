@@ -15,7 +15,7 @@ namespace fvr::core {
 
 enum class PatientView { AP, PA, Left, Right, Head, Feet };
 
-const char* patientViewName(PatientView v);     ///< "AP", "PA", "LEFT", "RIGHT", "HEAD", "FEET"
+const char* patientViewName(PatientView v); ///< "AP", "PA", "LEFT", "RIGHT", "HEAD", "FEET"
 PatientView parsePatientView(const std::string& s); ///< case-insensitive; throws SettingsError
 
 /** The view frame (in the volume's index frame) for a patient view. Throws SettingsError when

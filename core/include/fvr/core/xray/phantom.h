@@ -47,9 +47,8 @@ public:
      *  extent N*s plus 1000 x sum of density x chord. With depthCue > 0 every chord is weighted
      *  by the depth cueing weight of xray.h (exactly: the weight is linear along the ray).
      *  The bone-enhanced mapping has no closed form here (SettingsError). */
-    ProjectionImage project(const ViewFrame& view, const ImageGeometry& image,
-                            ValueMapping mapping, const Dims3& dims, const Vec3& spacing,
-                            double depthCue = 0.0) const;
+    ProjectionImage project(const ViewFrame& view, const ImageGeometry& image, ValueMapping mapping,
+                            const Dims3& dims, const Vec3& spacing, double depthCue = 0.0) const;
 };
 
 /** The built-in demo study: Shepp-Logan with N^3 voxels over a 256 mm field, in HU. */

@@ -89,9 +89,9 @@ DepthCueWeights depthCueWeights(double strength, const Dims3& dims, const Vec3& 
  * nu_c line pairs per mm (-3 dB there).
  */
 struct SliceFilter {
-    double sharpenAmount = 0.0;  ///< a >= 0; 0: no unsharp mask
+    double sharpenAmount = 0.0; ///< a >= 0; 0: no unsharp mask
     double sharpenSigmaMm = 1.0; ///< sigma > 0
-    double bandLimitLpMm = 0.0;  ///< nu_c > 0; 0: no band limit
+    double bandLimitLpMm = 0.0; ///< nu_c > 0; 0: no band limit
 
     bool active() const { return sharpenAmount > 0.0 || bandLimitLpMm > 0.0; }
     /** H(nu): sliceFilterGain(a, blur(nu), (nu / nu_c)^2). */
