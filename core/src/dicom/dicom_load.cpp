@@ -8,8 +8,6 @@
 // (except Hounsfield units, see dicom.h), then rescaled (RescaleSlope/Intercept per frame).
 #include "dicom_internal.h"
 
-#include <fvr/core/io/open_study.h>
-
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -703,16 +701,6 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
     if (progress) progress(1.0, "DICOM series loaded");
     result.warnings = std::move(warnings.list);
     return result;
-}
-
-DicomVolume loadDicomFolder(const std::filesystem::path& folder, const std::string& key) {
-    InputSource source;
-    source.kind = InputKind::DicomFolder;
-    source.path = folder;
-    OpenOptions options;
-    options.seriesKey = key;
-    OpenedStudy study = openStudy(source, options);
-    return {std::move(study.volume), std::move(study.warnings)};
 }
 
 DicomVolume loadDicomFile(const std::filesystem::path& file) {

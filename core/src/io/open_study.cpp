@@ -61,47 +61,27 @@ bool isVolumeFileName(const fs::path& path) {
     return endsWith(".mhd") || endsWith(".mha") || endsWith(".nii") || endsWith(".nii.gz");
 }
 
-bool loadable(const DicomSeriesInfo& s) { return s.loadable(); }
-
-void addOnce(std::vector<std::string>& list, const std::string& w) {
-    if (std::find(list.begin(), list.end(), w) == list.end()) list.push_back(w);
-}
-
-/** The scan's choice for a folder, with the note saying which series was opened and why. */
-const DicomSeriesInfo& chooseSeries(const DicomScanResult& scan, const OpenOptions& options,
-                                    const fs::path& folder, std::vector<std::string>& notes) {
-    std::string note;
-    if (!options.seriesKey.empty()) {
-        const DicomSeriesInfo& s = findSeries(scan, options.seriesKey, folder, &note);
-        if (!note.empty()) notes.push_back(note);
-        return s;
-    }
-    const DicomSeriesInfo& s = scan.series[defaultSeriesIndex(scan)];
-    if (scan.series.size() > 1)
-        notes.push_back(folder.string() + " holds " + std::to_string(scan.series.size()) +
-                        " series; loaded " + s.key + " (the loadable one with most slices, " +
-                        std::to_string(s.frameCount) + ")");
-    return s;
-}
-
 OpenedStudy openDicomFolder(const InputSource& source, const OpenOptions& options,
                             const ProgressFn& progress, const CancelToken* cancel) {
     auto scan = options.scan;
-    const bool scanning = !scan;
-    auto scaled = [&](double from, double to) -> ProgressFn {
-        if (!progress) return {};
-        return [=](double f, std::string_view stage) { progress(from + (to - from) * f, stage); };
-    };
-    if (scanning)
+    ProgressFn loading = progress;
+    if (!scan) {
+        auto part = [&](double from, double to) -> ProgressFn {
+            if (!progress) return {};
+            return
+                [=](double f, std::string_view stage) { progress(from + (to - from) * f, stage); };
+        };
         scan = std::make_shared<const DicomScanResult>(
-            scanDicomFolder(source.path, scaled(0.0, 0.4), cancel));
+            scanDicomFolder(source.path, part(0.0, 0.4), cancel));
+        loading = part(0.4, 1.0);
+    }
     OpenedStudy study;
-    const DicomSeriesInfo& chosen = chooseSeries(*scan, options, source.path, study.warnings);
-    DicomVolume loaded = loadDicomSeries(chosen, scaled(scanning ? 0.4 : 0.0, 1.0), cancel);
+    const DicomSeriesInfo* chosen = nullptr;
+    DicomVolume loaded =
+        loadChosenSeries(*scan, options.seriesKey, source.path, loading, cancel, &chosen);
     study.volume = std::move(loaded.volume);
-    for (const auto& w : loaded.warnings) addOnce(study.warnings, w);
-    for (const auto& w : chosen.warnings) addOnce(study.warnings, w);
-    study.series = chosen;
+    study.warnings = std::move(loaded.warnings);
+    study.series = *chosen;
     return study;
 }
 
@@ -124,40 +104,6 @@ InputSource classifyInput(const std::string& input) {
         s.kind = InputKind::DicomFile;
     }
     return s;
-}
-
-std::size_t defaultSeriesIndex(const DicomScanResult& scan) {
-    if (scan.series.empty()) throw DicomError("no image series in the scan");
-    std::size_t best = 0;
-    for (std::size_t i = 1; i < scan.series.size(); ++i) {
-        const auto& s = scan.series[i];
-        const auto& b = scan.series[best];
-        if ((loadable(s) && !loadable(b)) ||
-            (loadable(s) == loadable(b) && s.frameCount > b.frameCount))
-            best = i;
-    }
-    return best;
-}
-
-const DicomSeriesInfo& findSeries(const DicomScanResult& scan, const std::string& key,
-                                  const fs::path& folder, std::string* note) {
-    for (const auto& s : scan.series)
-        if (s.key == key) return s;
-    const DicomSeriesInfo* first = nullptr;
-    int parts = 0;
-    for (const auto& s : scan.series)
-        if (s.seriesUid == key) {
-            if (!first) first = &s;
-            ++parts;
-        }
-    if (!first) {
-        std::string keys;
-        for (const auto& s : scan.series) keys += (keys.empty() ? "" : ", ") + s.key;
-        throw DicomError(folder.string() + ": no series '" + key + "' (found: " + keys + ")");
-    }
-    if (parts > 1 && note)
-        *note = "series " + key + " was split; loaded its first part " + first->key;
-    return *first;
 }
 
 std::optional<std::string> guessHounsfieldUnits(Volume& volume) {

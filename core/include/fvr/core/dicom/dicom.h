@@ -124,8 +124,31 @@ struct DicomVolume {
 DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& progress = {},
                             const CancelToken* cancel = nullptr);
 
-/** Convenience: scan `folder` and load the series whose key or SeriesInstanceUID is `key`
- *  (empty: the default series, io/open_study.h's defaultSeriesIndex; a warning says which). */
+/**
+ * The series a folder opens with when none is named (fvr-render, the workstation and
+ * loadDicomFolder alike): the loadable one with most slices; an unloadable one only when nothing
+ * is loadable; ties keep scan order. Returns an index into scan.series; throws DicomError when
+ * there is none.
+ */
+std::size_t defaultSeriesIndex(const DicomScanResult& scan);
+
+/**
+ * The series `key` names: the series with that key, else the first with that SeriesInstanceUID
+ * (a series split at scan time answers to its UID with its first part; `note` then says so).
+ * Throws DicomError naming `folder` and listing the keys found.
+ */
+const DicomSeriesInfo& findSeries(const DicomScanResult& scan, const std::string& key,
+                                  const std::filesystem::path& folder, std::string* note = nullptr);
+
+/** Loads the series `key` names from a scan of `folder` (empty: the default series). The
+ *  warnings start with which series was loaded and why when there was a choice, then the
+ *  loader's and the scan's warnings for it, each once. `chosen` (optional) receives the series. */
+DicomVolume loadChosenSeries(const DicomScanResult& scan, const std::string& key,
+                             const std::filesystem::path& folder, const ProgressFn& progress = {},
+                             const CancelToken* cancel = nullptr,
+                             const DicomSeriesInfo** chosen = nullptr);
+
+/** Convenience: scan `folder` and loadChosenSeries(scan, key). */
 DicomVolume loadDicomFolder(const std::filesystem::path& folder, const std::string& key = {});
 
 /** Loads one file (single image or multi-frame) as a volume; throws DicomError. A file that

@@ -1,7 +1,7 @@
 #pragma once
-/** How a path becomes a volume: the one rule fvr-render, the workstation and the Python module
- *  follow (which kind of input a path names, which DICOM series is opened by default, when values
- *  without units are taken for Hounsfield units). */
+/** How a path becomes a volume: the one rule fvr-render and the workstation follow (which kind
+ *  of input a path names, when values without units are taken for Hounsfield units; which DICOM
+ *  series opens by default is dicom.h's defaultSeriesIndex). */
 #include <cstddef>
 #include <filesystem>
 #include <memory>
@@ -38,21 +38,6 @@ struct InputSource {
  * LoadError naming the path when it does not exist.
  */
 InputSource classifyInput(const std::string& input);
-
-/**
- * The series a folder opens with when none is named: the loadable one with most slices; an
- * unloadable one only when nothing is loadable; ties keep scan order. Returns an index into
- * scan.series; throws DicomError when there is none.
- */
-std::size_t defaultSeriesIndex(const DicomScanResult& scan);
-
-/**
- * The series `key` names: the series with that key, else the first with that SeriesInstanceUID
- * (a series split at scan time answers to its UID with its first part; `note` then says so).
- * Throws DicomError listing the keys found.
- */
-const DicomSeriesInfo& findSeries(const DicomScanResult& scan, const std::string& key,
-                                  const std::filesystem::path& folder, std::string* note = nullptr);
 
 /**
  * Values without stated units (NIfTI, MetaImage, raw) are taken for Hounsfield units when their
