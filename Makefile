@@ -53,7 +53,7 @@ sanitize: deps
 
 # Formats the C++ sources in place with .clang-format (STYLE.md: 100 columns, 4 spaces);
 # format-check lists the files it would change and fails if there are any.
-FORMAT_FILES = $(shell git ls-files '*.cpp' '*.h')
+FORMAT_FILES = $(shell git ls-files --cached --others --exclude-standard '*.cpp' '*.h')
 format: deps
 	@clang-format -i $(FORMAT_FILES)
 

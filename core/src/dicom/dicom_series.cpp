@@ -62,7 +62,8 @@ const DicomSeriesInfo& findSeries(const DicomScanResult& scan, const std::string
         for (const auto& s : scan.series) keys += (keys.empty() ? "" : ", ") + s.key;
         throw DicomError(folder.string() + ": no series '" + key + "' (found: " + keys + ")");
     }
-    if (parts > 1 && note) *note = "series " + key + " was split; loaded its first part " + first->key;
+    if (parts > 1 && note)
+        *note = "series " + key + " was split; loaded its first part " + first->key;
     return *first;
 }
 
