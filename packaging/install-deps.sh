@@ -5,7 +5,7 @@
 set -euo pipefail
 
 packages=(
-  build-essential dpkg-dev cmake pkg-config ninja-build
+  build-essential dpkg-dev cmake pkg-config ninja-build python3
   libfftw3-dev zlib1g-dev libcli11-dev nlohmann-json3-dev
   libdcmtk-dev libopenjp2-7-dev
   qt6-base-dev libqt6opengl6-dev libgl-dev
