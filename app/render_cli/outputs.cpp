@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/io/atomic_file.h>
 #include <fvr/core/io/image_io.h>
 #include <fvr/core/render/kernels.h>
 #include <fvr/core/render/projection.h>
@@ -66,19 +67,6 @@ std::string numberedPath(const std::string& out, std::size_t i) {
     char num[16];
     std::snprintf(num, sizeof num, "_%04zu", i);
     return (p.parent_path() / (p.stem().string() + num + p.extension().string())).string();
-}
-
-void writeTextAtomic(const std::string& path, const std::string& text) {
-    const std::string tmp = path + ".part";
-    {
-        std::ofstream o(tmp, std::ios::trunc);
-        o << text;
-        if (!o) throw WriteError(path + ": write failed");
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        std::remove(tmp.c_str());
-        throw WriteError(path + ": cannot move the written file into place");
-    }
 }
 
 /** --sweep about --axis (default: the volume's head-feet axis), the views file, else the one view.
@@ -209,7 +197,7 @@ void writeOutputs(const Session& s, const std::vector<ViewFrame>& fileViews,
     // JSON sidecar: every parameter, so the output can be reproduced and registered.
     const WrittenOutput output{valuesText(s), writer.stacked(), writer.written(), s.preprocessMs,
                                msPerView};
-    writeTextAtomic(s.options.out + ".json",
+    writeFileAtomic(s.options.out + ".json",
                     jsonText(sidecarJson(s.facts(), s.volume, output, views)));
     printSummary(s, views.size(), writer.stacked(), msPerView);
 }

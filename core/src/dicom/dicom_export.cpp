@@ -1,5 +1,7 @@
 #include <fvr/core/dicom/dicom_export.h>
 
+#include <fvr/core/io/atomic_file.h>
+
 #include <dcmtk/dcmdata/dctk.h>
 
 #include <algorithm>
@@ -17,24 +19,6 @@ namespace {
     throw WriteError(path.string() + ": " + detail);
 }
 
-/** Saves `file` next to `path` (".part") and renames it into place, so that a failed write never
- *  leaves a partial file under the final name. */
-void saveAtomically(DcmFileFormat& file, const std::filesystem::path& path) {
-    std::filesystem::path tmp = path;
-    tmp += ".part";
-    const OFCondition st = file.saveFile(tmp.c_str(), EXS_LittleEndianExplicit);
-    if (st.bad()) {
-        std::error_code ec;
-        std::filesystem::remove(tmp, ec);
-        failWrite(path, st.text());
-    }
-    std::error_code ec;
-    std::filesystem::rename(tmp, path, ec);
-    if (ec) {
-        std::filesystem::remove(tmp, ec);
-        failWrite(path, "cannot move the written file into place");
-    }
-}
 } // namespace
 
 void writeDicomProjection(const std::filesystem::path& path, const ProjectionImage& image,
@@ -104,7 +88,10 @@ void writeDicomProjection(const std::filesystem::path& path, const ProjectionIma
     put(DCM_ImageComments, c.str());
     if (ds->putAndInsertUint16Array(DCM_PixelData, stored.data(), stored.size()).bad())
         failWrite(path, "cannot store the pixel data");
-    saveAtomically(file, path);
+    writeAtomically(path, [&](const std::filesystem::path& tmp) {
+        const OFCondition st = file.saveFile(tmp.c_str(), EXS_LittleEndianExplicit);
+        if (st.bad()) failWrite(path, st.text());
+    });
 }
 
 } // namespace fvr::core

@@ -1,5 +1,7 @@
 #include <fvr/core/io/image_io.h>
 
+#include <fvr/core/io/atomic_file.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -20,29 +22,6 @@ namespace {
 template <class Error>
 [[noreturn]] void fail(const fs::path& path, const std::string& detail) {
     throw Error(path.string() + ": " + detail);
-}
-
-/** Writes bytes to path atomically (temporary file in the same folder, then rename). */
-void writeFileAtomic(const fs::path& path, const std::string& bytes) {
-    fs::path tmp = path;
-    tmp += ".part";
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        if (!out) fail<WriteError>(path, "cannot open for writing");
-        out.write(bytes.data(), std::streamsize(bytes.size()));
-        out.flush();
-        if (!out) {
-            std::error_code ec;
-            fs::remove(tmp, ec);
-            fail<WriteError>(path, "write failed (disk full?)");
-        }
-    }
-    std::error_code ec;
-    fs::rename(tmp, path, ec);
-    if (ec) {
-        fs::remove(tmp, ec);
-        fail<WriteError>(path, "cannot move the written file into place");
-    }
 }
 
 void appendU32BE(std::string& s, std::uint32_t v) {
