@@ -28,9 +28,10 @@ int main(int argc, char** argv) {
     parser.addHelpOption();
     parser.addVersionOption();
     parser.addPositionalArgument("study",
-                                 "DICOM folder or volume file (.mhd, .mha, .nii, .nii.gz); "
-                                 "without it the built-in phantom opens");
-    QCommandLineOption series("series", "DICOM series to open (SeriesInstanceUID)", "uid");
+                                 "DICOM folder, DICOMDIR or DICOM file, volume file (.mhd, .mha, "
+                                 ".nii, .nii.gz) or phantom:shepp-logan[:N], as fvr-render opens "
+                                 "them; without it the built-in phantom opens");
+    QCommandLineOption series("series", "DICOM series to open (key or SeriesInstanceUID)", "uid");
     parser.addOption(series);
     QCommandLineOption compare(
         "compare", "Start with N synchronised views side by side (1, 2 or 4)", "n", "1");

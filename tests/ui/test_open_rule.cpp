@@ -7,6 +7,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -33,11 +34,13 @@ QCoreApplication& app() {
 
 struct Cli {
     int status = -1;
-    std::string out; ///< stdout only (JSON)
+    std::string out; ///< stdout (JSON), or stderr (runCli with stderrOnly)
 };
 
-Cli runCli(const std::string& args) {
-    const std::string cmd = std::string(FVR_RENDER_EXE) + " " + args + " 2>/dev/null";
+/** Runs fvr-render; `out` gets its stdout, or its stderr with `stderrOnly`. */
+Cli runCli(const std::string& args, bool stderrOnly = false) {
+    const std::string cmd = std::string(FVR_RENDER_EXE) + " " + args +
+                            (stderrOnly ? " 2>&1 >/dev/null" : " 2>/dev/null");
     Cli r;
     FILE* p = popen(cmd.c_str(), "r");
     if (!p) return r;
@@ -98,8 +101,23 @@ TEST(OpenRule, DefaultSeriesIsTheSameInCliAndWorkstation) {
     EXPECT_EQ(cliDefault, keys.first().toStdString());
     const auto scan = fvr::core::scanDicomFolder(dir);
     EXPECT_EQ(scan.series[fvr::core::defaultSeriesIndex(scan)].key, cliDefault);
-    // And fvr-render renders that series when none is named (32 Philips slices, not 6 Siemens).
     EXPECT_EQ(cliInfo(dir, "--series " + cliDefault).at("dims")[2].get<int>(), 32);
+    // And fvr-render renders that series when none is named: 32 Philips slices, not 6 Siemens
+    // (the sidecar records the volume), saying which it chose.
+    const std::string out = (fvr::test::tmpDir() / "open_rule_default.npy").string();
+    std::string args = "'"; // appended piece by piece: GCC 12 warns (-Wrestrict) on a chain
+    args += dir.string();
+    args += "' --size 128 --out '";
+    args += out;
+    args += "'";
+    const Cli r = runCli(args, true);
+    ASSERT_EQ(r.status, 0) << r.out;
+    EXPECT_NE(r.out.find("loaded " + cliDefault + " (the loadable one with most slices"),
+              std::string::npos)
+        << r.out;
+    std::ifstream sidecar(out + ".json");
+    const auto side = nlohmann::json::parse(sidecar);
+    EXPECT_EQ(side.at("volume").at("dims")[2].get<int>(), 32) << side.at("volume").dump();
 }
 
 TEST(OpenRule, SingleDicomFileOpensInBoth) {

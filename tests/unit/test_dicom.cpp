@@ -384,8 +384,7 @@ TEST(Dicom, Jpeg2000CtSeriesDecodedLikeGdcm) {
     EXPECT_EQ(r.series[0].dims, (fvr::core::Dims3{512, 512, 20}));
     EXPECT_NEAR(r.series[0].spacing[2], 2.0, 1e-6);
     EXPECT_TRUE(anyWarningContains(r.series[0].warnings, "SeriesInstanceUID (0020,000E) missing"));
-    EXPECT_FALSE(anyWarningContains(r.series[0].warnings, "cannot be loaded"))
-        << joined(r.series[0].warnings);
+    EXPECT_TRUE(r.series[0].loadable()) << r.series[0].unloadableReason;
     const DicomVolume v = fvr::core::loadDicomSeries(r.series[0]);
     EXPECT_EQ(v.volume.dims, (fvr::core::Dims3{512, 512, 20}));
     EXPECT_EQ(v.volume.units, ValueUnits::HounsfieldUnits);
@@ -844,9 +843,11 @@ TEST(Dicom, HugeGapRefused) {
     writeStack(dir, {0, 1, 2, 3, 63, 64, 65}, "1.2.826.0.1.3680043.9.7777.17");
     const DicomScanResult r = fvr::core::scanDicomFolder(dir);
     ASSERT_EQ(r.series.size(), 1u);
-    EXPECT_TRUE(anyWarningContains(r.series[0].warnings, "cannot be loaded"))
-        << joined(r.series[0].warnings);
+    EXPECT_FALSE(r.series[0].loadable());
     const std::string msg = dicomErrorOf([&] { fvr::core::loadDicomSeries(r.series[0]); });
+    // The scan names the same reason the loader refuses with.
+    EXPECT_TRUE(contains(r.series[0].unloadableReason, "too large to interpolate across"))
+        << r.series[0].unloadableReason;
     EXPECT_TRUE(contains(
         msg, "slice gap of 60.000 mm between s3.dcm and s4.dcm is 60.0 times the median gap"))
         << msg;
@@ -949,8 +950,9 @@ TEST(Dicom, DuplicatePositionsSplitByAcquisitionOrRefused) {
         }
     const DicomScanResult r2 = fvr::core::scanDicomFolder(same);
     ASSERT_EQ(r2.series.size(), 1u);
-    EXPECT_TRUE(anyWarningContains(r2.series[0].warnings, "cannot be loaded"))
-        << joined(r2.series[0].warnings);
+    EXPECT_FALSE(r2.series[0].loadable());
+    EXPECT_TRUE(contains(r2.series[0].unloadableReason, "duplicate slice positions"))
+        << r2.series[0].unloadableReason;
     const std::string msg = dicomErrorOf([&] { fvr::core::loadDicomSeries(r2.series[0]); });
     EXPECT_TRUE(contains(msg, "duplicate slice positions: 4 of 8 slices repeat a position")) << msg;
     EXPECT_TRUE(contains(msg, "b1_0.dcm")) << msg;

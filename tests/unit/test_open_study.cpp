@@ -45,6 +45,18 @@ TEST(OpenStudy, ClassifiesPathsByTheRule) {
     EXPECT_EQ(classifyInput(touch(dir / "v.nii").string()).kind, InputKind::VolumeFile);
     EXPECT_EQ(classifyInput((dir / "series" / "a.dcm").string()).kind, InputKind::DicomFile);
     EXPECT_EQ(classifyInput(touch(dir / "IM0001").string()).kind, InputKind::DicomFile);
+    EXPECT_EQ(classifyInput(touch(dir / "scan.IMA", std::string(128, '\0') + "DICM").string()).kind,
+              InputKind::DicomFile);
+    // Other names are volume files: loadVolume names the formats it reads.
+    const InputSource nrrd = classifyInput(touch(dir / "v.nrrd").string());
+    EXPECT_EQ(nrrd.kind, InputKind::VolumeFile);
+    try {
+        openStudy(nrrd);
+        ADD_FAILURE() << "a .nrrd file must not open";
+    } catch (const LoadError& e) {
+        EXPECT_NE(std::string(e.what()).find("unknown volume format"), std::string::npos)
+            << e.what();
+    }
     // A DICOM file named like a volume file is still DICOM (its preamble decides).
     EXPECT_EQ(classifyInput(touch(dir / "odd.nii", std::string(128, '\0') + "DICM").string()).kind,
               InputKind::DicomFile);
@@ -62,8 +74,8 @@ TEST(OpenStudy, ParsesThePhantomSpec) {
     EXPECT_EQ(classifyInput("phantom:shepp-logan").phantomSize, 128);
     EXPECT_EQ(classifyInput("phantom:shepp-logan:64").phantomSize, 64);
     EXPECT_THROW(classifyInput("phantom:cube"), SettingsError);
-    EXPECT_THROW(classifyInput("phantom:shepp-logan:4"), SettingsError);
     EXPECT_THROW(classifyInput("phantom:shepp-logan:64x"), SettingsError);
+    EXPECT_THROW(openStudy(classifyInput("phantom:shepp-logan:4")), SettingsError); // 8..1024
 }
 
 TEST(OpenStudy, DefaultSeriesPrefersLoadableThenMostSlices) {

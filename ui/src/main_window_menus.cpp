@@ -141,7 +141,8 @@ void MainWindow::rebuildRecentMenu() {
 void MainWindow::openFileDialog() {
     const QString path = QFileDialog::getOpenFileName(
         this, tr("Open volume file"), QSettings().value(keys::kLastFolder).toString(),
-        tr("Volumes (*.mhd *.mha *.nii *.nii.gz);;All files (*)"));
+        tr("Volumes and DICOM files (*.mhd *.mha *.nii *.nii.gz *.dcm *.dicom DICOMDIR);;"
+           "All files (*)"));
     if (!path.isEmpty()) openStudy(StudySource::fromPath(path));
 }
 

@@ -173,6 +173,17 @@ std::shared_ptr<const core::DicomScanResult> StudyController::scanFolder(
     return scan;
 }
 
+namespace {
+/** " — default" for the default series, and why a series cannot be loaded. */
+QString seriesNote(bool isDefault, const core::DicomSeriesInfo& s) {
+    QString note = isDefault ? StudyController::tr(" — default") : QString();
+    if (!s.loadable())
+        note += StudyController::tr(" — cannot be loaded: %1")
+                    .arg(QString::fromStdString(s.unloadableReason));
+    return note;
+}
+} // namespace
+
 bool StudyController::needsSeriesChoice(const StudySource& source,
                                         const core::DicomScanResult& scan) {
     if (!source.seriesKey.isEmpty() || scan.series.size() <= 1) return false;
@@ -189,10 +200,7 @@ bool StudyController::needsSeriesChoice(const StudySource& source,
                       .arg(s.dims[0])
                       .arg(s.dims[1])
                       .arg(s.dims[2])
-                      .arg(n == 0         ? tr(" — default")
-                           : s.loadable() ? QString()
-                                          : tr(" — cannot be loaded: %1")
-                                                .arg(QString::fromStdString(s.unloadableReason)));
+                      .arg(seriesNote(n == 0, s));
     }
     QMetaObject::invokeMethod(
         this, [this, source, keys, labels] { emit seriesChoiceNeeded(source, keys, labels); },

@@ -449,14 +449,11 @@ struct Warnings {
     }
 };
 
-/** The scan's warnings (less the one saying why it cannot be loaded), the files' malformed
- *  attributes and the plan's warnings. */
+/** The scan's warnings, the files' malformed attributes and the plan's warnings. */
 Warnings initialWarnings(const DicomSeriesInfo& series, const std::vector<DicomHeader>& hs,
                          const GeometryPlan& plan) {
     Warnings warnings;
-    for (const std::string& w : series.warnings)
-        if (series.loadable() || w.find(series.unloadableReason) == std::string::npos)
-            warnings.list.push_back(w);
+    warnings.list = series.warnings;
     std::set<std::string> seen;
     for (const DicomHeader& h : hs)
         for (const auto& p : h.problems)

@@ -436,7 +436,6 @@ std::vector<Unit> planSeries(const std::vector<DicomHeader>& hs, const std::vect
     }
     if (!cannot.empty()) {
         si.unloadableReason = cannot;
-        si.warnings.push_back("cannot be loaded: " + cannot);
     }
     return ordered;
 }

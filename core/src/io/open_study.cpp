@@ -40,9 +40,6 @@ InputSource parsePhantom(const std::string& spec) {
         if (used == 0 || used != n.size())
             throw SettingsError("phantom size: expected an integer, found '" + n + "'");
     }
-    if (s.phantomSize < 8 || s.phantomSize > 1024)
-        throw SettingsError("phantom size: expected 8..1024, found " +
-                            std::to_string(s.phantomSize));
     return s;
 }
 
@@ -51,14 +48,6 @@ bool hasDicomPreamble(const fs::path& file) {
     char magic[4] = {};
     in.seekg(128);
     return in.read(magic, 4) && std::string(magic, 4) == "DICM";
-}
-
-bool isVolumeFileName(const fs::path& path) {
-    const std::string name = lower(path.filename().string());
-    auto endsWith = [&](const std::string& e) {
-        return name.size() >= e.size() && name.compare(name.size() - e.size(), e.size(), e) == 0;
-    };
-    return endsWith(".mhd") || endsWith(".mha") || endsWith(".nii") || endsWith(".nii.gz");
 }
 
 OpenedStudy openDicomFolder(const InputSource& source, const OpenOptions& options,
@@ -98,10 +87,16 @@ InputSource classifyInput(const std::string& input) {
     } else if (lower(s.path.filename().string()) == "dicomdir") {
         s.kind = InputKind::DicomFolder;
         s.path = s.path.has_parent_path() ? s.path.parent_path() : fs::path(".");
-    } else if (isVolumeFileName(s.path) && !hasDicomPreamble(s.path)) {
+    } else if (hasDicomPreamble(s.path)) {
+        s.kind = InputKind::DicomFile;
+    } else if (isVolumeFileName(s.path)) {
         s.kind = InputKind::VolumeFile;
     } else {
-        s.kind = InputKind::DicomFile;
+        // DICOM by name (.dcm, .dicom, no extension: old files lack the preamble); anything
+        // else is a volume file, and loadVolume says which formats it reads.
+        const std::string ext = lower(s.path.extension().string());
+        s.kind = ext == ".dcm" || ext == ".dicom" || ext.empty() ? InputKind::DicomFile
+                                                                 : InputKind::VolumeFile;
     }
     return s;
 }

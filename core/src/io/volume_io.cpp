@@ -613,6 +613,12 @@ static Volume emptyVolume(const Dims3& dims, const Vec3& spacing, const Vec3& or
     return vol;
 }
 
+bool isVolumeFileName(const fs::path& path) {
+    const std::string l = lower(path.filename().string());
+    return endsWith(l, ".mhd") || endsWith(l, ".mha") || endsWith(l, ".nii") ||
+           endsWith(l, ".nii.gz");
+}
+
 Volume loadVolume(const fs::path& path) {
     const std::string l = lower(path.filename().string());
     if (endsWith(l, ".mhd") || endsWith(l, ".mha")) return loadMetaImage(path);

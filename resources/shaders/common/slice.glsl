@@ -2,10 +2,10 @@
 // k(m, n) = m A + n B in spectrum index units; the band-limited voxel model (uVoxelModel 0) is
 // zero outside the band |k_a| <= P_a / 2 (uHalf); the trilinear (1) and B-spline (2) models read
 // the spectrum's continuation (period signs on the antiperiodic axes uAnti) times their transfer
-// function (fvr/core/voxel_model.h). The Nyquist row and column average their two aliases; the
+// function (fvr/core/render/voxel_model.h). The Nyquist row and column average their two aliases; the
 // output centring (-1)^(m+n) and the physical scale are folded in. SPECTRUM_FHT selects the real Hartley spectrum (R channel, full
 // kx range) instead of the complex half spectrum (RG, kx = 0..P0/2, Hermitian lookups).
-// DEPTH_CUE adds the depth cueing term (fvr/core/xray.h): a G(k) + i E.grad G(k) for the complex
+// DEPTH_CUE adds the depth cueing term (fvr/core/xray/xray.h): a G(k) + i E.grad G(k) for the complex
 // spectrum, a H(k) + E.grad H(-k) for Hartley, E = b/(2 pi) (D_a s_a P_a). The slice filter
 // (unsharp mask, Butterworth band limit, pixel aperture) multiplies every value when uFilterOn is
 // set. The host computes every uniform from fvr::core::SliceParams (slice_params.h) and

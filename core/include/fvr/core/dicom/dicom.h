@@ -89,10 +89,9 @@ struct DicomSeriesInfo {
      *  when a multi-frame file holds several volumes (e.g. two image types of an enhanced MR
      *  split apart); empty (or an empty entry): all frames of the file. */
     std::vector<std::vector<std::int32_t>> frames;
-    std::vector<std::string> warnings; ///< problems visible at scan time; "cannot be loaded: ..."
-                                       ///< when loading would refuse (and why)
+    std::vector<std::string> warnings; ///< problems visible at scan time
     /** Why loadDicomSeries would refuse this series (colour, mixed sizes, duplicate positions,
-     *  ...); empty when it loads. The warnings carry it too, for display. */
+     *  ...); empty when it loads. */
     std::string unloadableReason;
     bool loadable() const { return unloadableReason.empty(); }
 };
@@ -105,7 +104,7 @@ struct DicomScanResult {
 /** Recursive scan (reads DICOMDIR when present, else every file), in parallel, headers only
  *  (pixel data stays on disk); progress and cancellation as for preprocessing. Non-DICOM and
  *  broken files are listed in `skipped`; series that cannot be loaded (e.g. colour) are
- *  listed with a "cannot be loaded" warning. `folder` may also be a single file. Throws
+ *  listed with the reason in `unloadableReason`. `folder` may also be a single file. Throws
  *  DicomError when the folder does not exist or holds no image series. */
 DicomScanResult scanDicomFolder(const std::filesystem::path& folder,
                                 const ProgressFn& progress = {},

@@ -31,11 +31,13 @@ struct InputSource {
 };
 
 /**
- * The rule, in this order: "phantom:shepp-logan[:N]" (N in [8, 1024], default 128) is the
- * phantom; a folder is a DICOM folder; a file named DICOMDIR stands for its folder; .mhd, .mha,
- * .nii and .nii.gz are volume files; any other file is read as DICOM (.dcm, .dicom, no extension,
- * and whatever starts with the DICM preamble). Throws SettingsError for a bad phantom spec and
- * LoadError naming the path when it does not exist.
+ * The rule, in this order: "phantom:shepp-logan[:N]" is the phantom (N voxels per axis, default
+ * 128; the size is checked when it is built); a folder is a DICOM folder; a file named DICOMDIR
+ * stands for its folder; a file with the DICM preamble is DICOM whatever its name; .mhd, .mha,
+ * .nii and .nii.gz are volume files; .dcm, .dicom and names without extension are DICOM (old
+ * files lack the preamble); anything else is a volume file (loadVolume then says which formats
+ * it reads). Throws SettingsError for a bad phantom spec and LoadError naming the path when it
+ * does not exist.
  */
 InputSource classifyInput(const std::string& input);
 

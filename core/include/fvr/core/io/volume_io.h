@@ -37,6 +37,9 @@ struct RawSpec {
     std::uint64_t headerBytes = 0; ///< bytes skipped at the start of the file
 };
 
+/** True for the names loadVolume reads: .mhd, .mha, .nii, .nii.gz (any case). */
+bool isVolumeFileName(const std::filesystem::path& path);
+
 /** Loads a volume, choosing the reader by extension (.mhd, .mha, .nii, .nii.gz).
  *  Throws LoadError for unknown extensions and for every malformed file. */
 Volume loadVolume(const std::filesystem::path& path);
