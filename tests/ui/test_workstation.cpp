@@ -14,6 +14,7 @@
 #include <QSurfaceFormat>
 #include <QTest>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -267,6 +268,50 @@ TEST_F(Workstation, OpensRealVolumeFile) {
                             cpuReference(*window, *window->views()[0]).pixels)
                   .psnr,
               90.0);
+}
+
+// #15 item 1: the values follow the user, not the previous study. An MR study integrates raw
+// values (not HU); the CT opened next gets attenuation again, also after another panel change.
+TEST_F(Workstation, ValuesDoNotCarryOverFromOneStudyToTheNext) {
+    FVR_REQUIRE_DATA("volumes/mr_head_mhd/HeadMRVolume.mhd");
+    FVR_REQUIRE_DATA("volumes/body_ct_hu_3mm/example_ct.nii.gz");
+    const auto mr = test::sharedData() / "volumes/mr_head_mhd/HeadMRVolume.mhd";
+    const auto ct = test::sharedData() / "volumes/body_ct_hu_3mm/example_ct.nii.gz";
+    auto open = [&](const std::filesystem::path& p) {
+        return openAndWait(*window, StudySource::fromPath(QString::fromStdString(p.string())));
+    };
+    auto* values = window->renderingPanel()->valuesCombo();
+    ASSERT_TRUE(open(mr));
+    EXPECT_EQ(window->study().spectrumSettings().mapping, core::ValueMapping::Raw);
+    EXPECT_EQ(core::ValueMapping(values->currentData().toInt()), core::ValueMapping::Raw);
+    ASSERT_TRUE(open(ct));
+    EXPECT_EQ(window->study().spectrumSettings().mapping, core::ValueMapping::Mu);
+    EXPECT_EQ(core::ValueMapping(values->currentData().toInt()), core::ValueMapping::Mu);
+    // Attenuation line integrals: positive, with a window inside their range.
+    const auto p = window->views()[0]->projection();
+    ASSERT_TRUE(p.has_value());
+    const auto [lo, hi] = std::minmax_element(p->pixels.begin(), p->pixels.end());
+    EXPECT_GE(*lo, 0.0f);
+    const auto w = window->views()[0]->window();
+    EXPECT_GE(w.low, 0.0);
+    EXPECT_LE(w.high, double(*hi) * 1.001);
+    EXPECT_GT(w.high, w.low);
+
+    // MR again, a panel change while its raw values are shown, then the CT: attenuation.
+    ASSERT_TRUE(open(mr));
+    ASSERT_TRUE(waitSpectrum(*window, [&] {
+        auto* os = window->renderingPanel()->oversamplingCombo();
+        os->setCurrentIndex(os->findData(1.5));
+    }));
+    EXPECT_EQ(window->study().spectrumSettings().mapping, core::ValueMapping::Raw);
+    ASSERT_TRUE(open(ct));
+    EXPECT_EQ(window->study().spectrumSettings().mapping, core::ValueMapping::Mu);
+    // Asking for attenuation on the MR changes nothing in effect, and the panel says so.
+    ASSERT_TRUE(open(mr));
+    values->setCurrentIndex(values->findData(int(core::ValueMapping::Mu)));
+    EXPECT_FALSE(window->study().busy());
+    EXPECT_EQ(window->study().spectrumSettings().mapping, core::ValueMapping::Raw);
+    EXPECT_EQ(core::ValueMapping(values->currentData().toInt()), core::ValueMapping::Raw);
 }
 
 TEST_F(Workstation, OpensDicomFolder) {

@@ -248,6 +248,18 @@ void MainWindow::applySpectrumSettings() {
                                       .arg(QString::fromUtf8(core::kernelName(*s.deapodizeFor)))
                                 : QString()));
     m_study->setSpectrumSettings(s);
+    if (m_study->volume() && !m_study->busy() && m_study->spectrumSettings().mapping != s.mapping) {
+        // The study cannot have these values (attenuation of data that are not HU): the panel
+        // shows what is in effect; the request stays for the next study.
+        RenderingPanel::Values r = m_rendering->values();
+        r.mapping = m_study->spectrumSettings().mapping;
+        m_rendering->setValues(r);
+        message(tr("This study's values are not Hounsfield units: they stay %1; studies in HU "
+                   "open with %2.")
+                    .arg(QString::fromUtf8(core::valueMappingName(r.mapping)),
+                         QString::fromUtf8(core::valueMappingName(s.mapping))),
+                true);
+    }
 }
 
 void MainWindow::applyValueMapping() {

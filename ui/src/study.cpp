@@ -138,7 +138,7 @@ void StudyController::startJob(std::function<void(core::CancelToken&)> job) {
 }
 
 void StudyController::open(const StudySource& source) {
-    const SpectrumSettings settings = m_settings;
+    const SpectrumSettings settings = m_requested;
     auto cached = (source.kind == StudySource::Kind::DicomFolder && source.path == m_scanFolder)
                       ? m_scan
                       : nullptr;
@@ -214,15 +214,7 @@ void StudyController::finishOpen(const StudySource& source, const SpectrumSettin
     auto vol = std::make_shared<core::Volume>(std::move(opened.volume));
     QStringList warnings;
     for (const auto& w : opened.warnings) warnings << QString::fromStdString(w);
-    SpectrumSettings used = settings;
-    if (core::isAttenuation(used.mapping) && vol->units != core::ValueUnits::HounsfieldUnits) {
-        // mu = 1 + HU/1000 only means something for Hounsfield units.
-        used.mapping = core::ValueMapping::Raw;
-        warnings
-            << tr("The values are not Hounsfield units (%1): integrating the raw values instead of "
-                  "attenuation.")
-                   .arg(QString::fromUtf8(core::unitsName(vol->units)));
-    }
+    const SpectrumSettings used = settingsForStudy(settings, *vol, &warnings);
     auto spectrum = core::preprocess(
         *vol, used, [this](double f, std::string_view st) { report(0.5 + 0.5 * f, st); }, &token);
     std::shared_ptr<const core::Volume> cvol = vol;
@@ -241,12 +233,32 @@ void StudyController::finishOpen(const StudySource& source, const SpectrumSettin
         Qt::QueuedConnection);
 }
 
-void StudyController::setSpectrumSettings(const SpectrumSettings& settings) {
-    if (settings == m_settings && m_spectrum) return;
+SpectrumSettings StudyController::settingsForStudy(const SpectrumSettings& requested,
+                                                   const core::Volume& volume,
+                                                   QStringList* warnings) {
+    SpectrumSettings used = requested;
+    if (core::isAttenuation(used.mapping) && volume.units != core::ValueUnits::HounsfieldUnits) {
+        // mu = 1 + HU/1000 only means something for Hounsfield units.
+        used.mapping = core::ValueMapping::Raw;
+        if (warnings)
+            *warnings << tr("The values are not Hounsfield units (%1): integrating the raw values "
+                            "instead of attenuation.")
+                             .arg(QString::fromUtf8(core::unitsName(volume.units)));
+    }
+    return used;
+}
+
+void StudyController::setSpectrumSettings(const SpectrumSettings& asked) {
+    const core::ValueMapping requestedMapping =
+        (m_volume && asked.mapping == m_settings.mapping) ? m_requested.mapping : asked.mapping;
+    m_requested = asked;
+    m_requested.mapping = requestedMapping;
     if (!m_volume) {
-        m_settings = settings;
+        m_settings = asked;
         return;
     }
+    const SpectrumSettings settings = settingsForStudy(m_requested, *m_volume, nullptr);
+    if (settings == m_settings && m_spectrum) return;
     auto vol = m_volume;
     startJob([this, vol, settings](core::CancelToken& token) {
         auto spectrum = core::preprocess(

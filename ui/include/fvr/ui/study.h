@@ -56,7 +56,10 @@ public:
 
     /** Loads a study (worker thread), then preprocesses it with the current settings. */
     void open(const StudySource& source);
-    /** Re-runs preprocessing when the settings differ from the current spectrum's. */
+    /** Records the user's settings and re-runs preprocessing when the settings that follow
+     *  from them for this study differ from the current spectrum's. A mapping equal to the one
+     *  in effect (say raw, forced by an MR study) keeps the request (say attenuation) for the
+     *  next study. */
     void setSpectrumSettings(const SpectrumSettings& settings);
     /** Cancels the running load or preprocessing; the previous study stays usable. */
     void cancel();
@@ -64,7 +67,12 @@ public:
 
     std::shared_ptr<const core::Volume> volume() const { return m_volume; }
     std::shared_ptr<const core::Spectrum> spectrum() const { return m_spectrum; }
+    /** The settings of the spectrum in use (the values adjusted to the study: raw for data
+     *  that are not Hounsfield units). */
     const SpectrumSettings& spectrumSettings() const { return m_settings; }
+    /** What the user asked for: the next study opens with these (values follow the user, not
+     *  the previous study's adjustment). */
+    const SpectrumSettings& requestedSettings() const { return m_requested; }
     const StudySource& source() const { return m_source; }
     const QStringList& warnings() const { return m_warnings; }
     /** Spectrum memory (MiB) the settings would need for the current volume. */
@@ -87,6 +95,10 @@ signals:
                             const QStringList& labels);
 
 private:
+    /** The settings `requested` give for `volume` (raw values for data that are not HU, with
+     *  the warning appended to `warnings`). */
+    static SpectrumSettings settingsForStudy(const SpectrumSettings& requested,
+                                             const core::Volume& volume, QStringList* warnings);
     void startJob(std::function<void(core::CancelToken&)> job);
     void poll();
     void preprocessAsync();
@@ -102,7 +114,8 @@ private:
                     core::OpenedStudy opened, core::CancelToken& token);
 
     StudySource m_source;
-    SpectrumSettings m_settings = workstationSpectrumDefaults();
+    SpectrumSettings m_settings = workstationSpectrumDefaults(); ///< in effect
+    SpectrumSettings m_requested = workstationSpectrumDefaults(); ///< asked for
     std::shared_ptr<const core::Volume> m_volume;
     std::shared_ptr<const core::Spectrum> m_spectrum;
     QStringList m_warnings;
