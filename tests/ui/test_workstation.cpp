@@ -3,6 +3,7 @@
 #include <QApplication>
 #include <QCheckBox>
 #include <QComboBox>
+#include <QDir>
 #include <QDockWidget>
 #include <QDoubleSpinBox>
 #include <QImage>
@@ -29,6 +30,7 @@
 #include <fvr/ui/panels/messages_panel.h>
 #include <fvr/ui/panels/rendering_panel.h>
 #include <fvr/ui/panels/xray_panel.h>
+#include <fvr/ui/settings_keys.h>
 
 #include "image_metrics.h"
 #include "test_support.h"
@@ -257,6 +259,43 @@ TEST_F(Workstation, MalformedStudyShowsTheErrorAndStaysUsable) {
     EXPECT_TRUE(log.contains("DimSize")) << log.toStdString();
     EXPECT_EQ(window->study().volume()->dims[0], 32);
     EXPECT_TRUE(window->views()[0]->projection().has_value());
+}
+
+// #15 item 10: a path that does not exist says so, and only studies that opened are recent.
+TEST_F(Workstation, MissingPathSaysSoAndIsNotRecent) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(32)));
+    const auto missing = test::tmpDir() / "no_such_study.nii.gz";
+    std::filesystem::remove(missing);
+    QSignalSpy failed(&window->study(), &ui::StudyController::failed);
+    window->openStudy(StudySource::fromPath(QString::fromStdString(missing.string())));
+    ASSERT_TRUE(failed.wait(30000));
+    const QString details = failed.first().at(1).toString();
+    EXPECT_TRUE(details.contains("no_such_study.nii.gz: no such file or folder"))
+        << details.toStdString();
+    const QStringList recent = QSettings().value(ui::keys::kRecentStudies).toStringList();
+    EXPECT_FALSE(recent.join('\n').contains("no_such_study")) << recent.join(", ").toStdString();
+    FVR_REQUIRE_DATA("volumes/headsq/headsq.mhd");
+    const auto real = test::sharedData() / "volumes/headsq/headsq.mhd";
+    ASSERT_TRUE(openAndWait(*window, StudySource::fromPath(QString::fromStdString(real.string()))));
+    EXPECT_EQ(QSettings().value(ui::keys::kRecentStudies).toStringList().value(0),
+              QString::fromStdString(real.string()));
+}
+
+// #15 item 9: export dialogs never start in the study's own folder.
+TEST_F(Workstation, ExportDialogsStartOutsideTheStudyFolder) {
+    FVR_REQUIRE_DATA("dicom/ct_head_slicer_64x64x93");
+    const auto dir = test::sharedData() / "dicom/ct_head_slicer_64x64x93";
+    ASSERT_TRUE(openAndWait(*window, StudySource::fromPath(QString::fromStdString(dir.string()))));
+    const QString start = MainWindow::exportFolder();
+    EXPECT_NE(QDir(start).canonicalPath(),
+              QDir(QString::fromStdString(dir.string())).canonicalPath());
+    const QString pictures = QStandardPaths::writableLocation(QStandardPaths::PicturesLocation);
+    EXPECT_TRUE(start == pictures || start == QDir::homePath()) << start.toStdString();
+    // After an export, dialogs start where it went.
+    const auto out = test::tmpDir() / "exports";
+    std::filesystem::create_directories(out);
+    QSettings().setValue(ui::keys::kLastExportFolder, QString::fromStdString(out.string()));
+    EXPECT_EQ(MainWindow::exportFolder(), QString::fromStdString(out.string()));
 }
 
 TEST_F(Workstation, OpensRealVolumeFile) {

@@ -10,6 +10,7 @@
 #include <QProgressDialog>
 #include <QSaveFile>
 #include <QSettings>
+#include <QStandardPaths>
 
 #include <numbers>
 
@@ -132,19 +133,33 @@ bool MainWindow::exportSweep(const QString& folder, int frames, const core::Vec3
     return ok;
 }
 
+QString MainWindow::exportFolder() {
+    const QString last = QSettings().value(keys::kLastExportFolder).toString();
+    if (!last.isEmpty() && QFileInfo(last).isDir()) return last;
+    const QString pictures = QStandardPaths::writableLocation(QStandardPaths::PicturesLocation);
+    if (!pictures.isEmpty() && QFileInfo(pictures).isDir()) return pictures;
+    return QDir::homePath();
+}
+
+namespace {
+void rememberExportFolder(const QString& folder) {
+    QSettings().setValue(keys::kLastExportFolder, folder);
+}
+} // namespace
+
 void MainWindow::exportScreenshotDialog() {
     const QString path = QFileDialog::getSaveFileName(
-        this, tr("Export screenshot"),
-        QSettings().value(keys::kLastFolder).toString() + "/view.png", tr("PNG image (*.png)"));
-    if (!path.isEmpty()) exportScreenshot(path);
+        this, tr("Export screenshot"), exportFolder() + "/view.png", tr("PNG image (*.png)"));
+    if (!path.isEmpty() && exportScreenshot(path))
+        rememberExportFolder(QFileInfo(path).absolutePath());
 }
 
 void MainWindow::exportProjectionDialog() {
     const QString path = QFileDialog::getSaveFileName(
-        this, tr("Export projection"),
-        QSettings().value(keys::kLastFolder).toString() + "/projection.npy",
+        this, tr("Export projection"), exportFolder() + "/projection.npy",
         tr("Float line integrals (*.npy);;16-bit PNG, current window (*.png);;PFM float (*.pfm)"));
-    if (!path.isEmpty()) exportProjection(path);
+    if (!path.isEmpty() && exportProjection(path))
+        rememberExportFolder(QFileInfo(path).absolutePath());
 }
 
 void MainWindow::exportSweepDialog() {
@@ -153,9 +168,10 @@ void MainWindow::exportSweepDialog() {
                                        tr("Frames around the patient's head-feet axis:"), 36, 1,
                                        3600, 1, &ok);
     if (!ok) return;
-    const QString folder = QFileDialog::getExistingDirectory(
-        this, tr("Folder for the sweep"), QSettings().value(keys::kLastFolder).toString());
+    const QString folder =
+        QFileDialog::getExistingDirectory(this, tr("Folder for the sweep"), exportFolder());
     if (folder.isEmpty() || !m_study->volume()) return;
+    rememberExportFolder(folder);
     // Head-feet axis of the patient in the volume's index frame.
     const auto& d = m_study->volume()->direction;
     exportSweep(folder, n, {d[0][2], d[1][2], d[2][2]});

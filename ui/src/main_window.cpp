@@ -369,6 +369,7 @@ void MainWindow::applyOutput(bool resetWindow) {
 void MainWindow::onStudyLoaded(const QString& name) {
     setWindowTitle(QStringLiteral("%1 — %2").arg(QString::fromUtf8(applicationName()), name));
     message(tr("Opened %1").arg(name));
+    if (m_study->source().kind != StudySource::Kind::Phantom) addRecent(m_study->source().path);
     for (auto* v : m_views) {
         v->setStudy(m_study->volume(), m_study->spectrum());
         v->setViewFrame(core::patientViewFrame(*m_study->volume(), core::PatientView::AP));

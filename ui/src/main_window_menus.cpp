@@ -114,8 +114,7 @@ void MainWindow::openStudy(const StudySource& source) {
     message(
         tr("Opening %1…")
             .arg(source.kind == StudySource::Kind::Phantom ? source.displayName() : source.path));
-    if (source.kind != StudySource::Kind::Phantom) addRecent(source.path);
-    m_study->open(source);
+    m_study->open(source); // Recent studies get it once it opened (onStudyLoaded)
 }
 
 void MainWindow::addRecent(const QString& path) {

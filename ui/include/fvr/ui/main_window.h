@@ -45,6 +45,9 @@ public:
     bool exportScreenshot(const QString& path);
     bool exportProjection(const QString& path); ///< .npy (float), .png (16-bit), .pfm
     bool exportSweep(const QString& folder, int frames, const core::Vec3& axis);
+    /** Where export dialogs start: the last export folder, else Pictures, else home; never the
+     *  study's own folder (Enter would write into the source data). */
+    static QString exportFolder();
     /** Accuracy readout (AccuracyReadout): view 1's projection against the spatial (ray-casting)
      *  projector of the same voxels and view, on a worker thread; the result (PSNR, relative
      *  RMSE) goes to the Messages panel and accuracyMeasured(). */

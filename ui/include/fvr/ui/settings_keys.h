@@ -33,6 +33,7 @@ inline constexpr char kWindowGeometry[] = "window/geometry";
 inline constexpr char kWindowState[] = "window/state";
 inline constexpr char kViewOverlay[] = "view/overlay";
 inline constexpr char kRecentStudies[] = "recent";
-inline constexpr char kLastFolder[] = "lastFolder";
+inline constexpr char kLastFolder[] = "lastFolder"; ///< the last study's folder (open dialogs)
+inline constexpr char kLastExportFolder[] = "export/lastFolder"; ///< where exports went last
 
 } // namespace fvr::ui::keys
