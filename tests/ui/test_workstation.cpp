@@ -22,6 +22,7 @@
 
 #include <gtest/gtest.h>
 
+#include <fvr/core/dicom/dicom.h>
 #include <fvr/core/io/image_io.h>
 #include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/xray/xray.h>
@@ -29,6 +30,7 @@
 #include <fvr/ui/panels/display_panel.h>
 #include <fvr/ui/panels/messages_panel.h>
 #include <fvr/ui/panels/rendering_panel.h>
+#include <fvr/ui/panels/study_panel.h>
 #include <fvr/ui/panels/xray_panel.h>
 #include <fvr/ui/settings_keys.h>
 
@@ -296,6 +298,31 @@ TEST_F(Workstation, ExportDialogsStartOutsideTheStudyFolder) {
     std::filesystem::create_directories(out);
     QSettings().setValue(ui::keys::kLastExportFolder, QString::fromStdString(out.string()));
     EXPECT_EQ(MainWindow::exportFolder(), QString::fromStdString(out.string()));
+}
+
+// #15 item 8: the Study panel and the title show the patient, study and series of DICOM data.
+TEST_F(Workstation, StudyPanelShowsPatientStudyAndSeries) {
+    FVR_REQUIRE_DATA("dicom/ct_phantom_philips_512x512x140");
+    const auto dir = test::sharedData() / "dicom/ct_phantom_philips_512x512x140";
+    ASSERT_TRUE(openAndWait(*window, StudySource::fromPath(QString::fromStdString(dir.string()))));
+    const auto scan = core::scanDicomFolder(dir);
+    ASSERT_EQ(scan.series.size(), 1u);
+    const auto& s = scan.series[0];
+    ASSERT_FALSE(s.patientName.empty());
+    const QString panel = window->studyPanel()->text();
+    EXPECT_TRUE(panel.contains("Patient: ")) << panel.toStdString();
+    EXPECT_TRUE(panel.contains("2015-02-06")) << panel.toStdString();
+    EXPECT_TRUE(panel.contains(QString::fromStdString(s.description).toHtmlEscaped()))
+        << panel.toStdString();
+    EXPECT_TRUE(panel.contains("CT")) << panel.toStdString();
+    EXPECT_TRUE(window->windowTitle().contains(QString::fromStdString(s.description)))
+        << window->windowTitle().toStdString();
+    // A volume file has no such lines.
+    FVR_REQUIRE_DATA("volumes/headsq/headsq.mhd");
+    const auto mhd = test::sharedData() / "volumes/headsq/headsq.mhd";
+    ASSERT_TRUE(openAndWait(*window, StudySource::fromPath(QString::fromStdString(mhd.string()))));
+    EXPECT_FALSE(window->studyPanel()->text().contains("Patient: "));
+    EXPECT_TRUE(window->windowTitle().contains("headsq.mhd"));
 }
 
 TEST_F(Workstation, OpensRealVolumeFile) {

@@ -57,6 +57,15 @@ core::InputSource StudySource::toCore() const {
     return core::classifyInput(path.toStdString()); // throws for a path that vanished
 }
 
+QString StudyController::title() const {
+    if (!m_series) return m_source.displayName();
+    QStringList parts;
+    if (!m_series->description.empty()) parts << QString::fromStdString(m_series->description);
+    if (!m_series->patientName.empty())
+        parts << QString::fromStdString(m_series->patientName).replace('^', ' ').trimmed();
+    return parts.isEmpty() ? m_source.displayName() : parts.join(QStringLiteral(" — "));
+}
+
 SpectrumSettings workstationSpectrumDefaults() {
     const RenderingPanel::Values defaults;
     return RenderingPanel::spectrumSettings(defaults, defaults.kernel);
@@ -220,14 +229,15 @@ void StudyController::finishOpen(const StudySource& source, const SpectrumSettin
     std::shared_ptr<const core::Volume> cvol = vol;
     QMetaObject::invokeMethod(
         this,
-        [this, source, cvol, spectrum, warnings, used] {
+        [this, source, cvol, spectrum, warnings, used, series = std::move(opened.series)] {
             m_source = source;
+            m_series = series;
             m_volume = cvol;
             m_spectrum = spectrum;
             m_settings = used;
             m_warnings = warnings;
             emit warningsChanged(m_warnings);
-            emit studyLoaded(source.displayName());
+            emit studyLoaded(title());
             emit spectrumReady();
         },
         Qt::QueuedConnection);

@@ -20,6 +20,37 @@ StudyPanel::StudyPanel(QWidget* parent) : QScrollArea(parent) {
 
 QString StudyPanel::text() const { return m_info->text(); }
 
+namespace {
+
+/** YYYYMMDD as YYYY-MM-DD (other forms as they are). */
+QString dicomDate(const std::string& d) {
+    const QString q = QString::fromStdString(d);
+    if (q.size() == 8 && q.toLongLong() > 0)
+        return q.left(4) + '-' + q.mid(4, 2) + '-' + q.mid(6, 2);
+    return q;
+}
+
+/** Patient, study and series of a DICOM study, one line each. */
+QString seriesLines(const core::DicomSeriesInfo& s) {
+    auto esc = [](const std::string& v) { return QString::fromStdString(v).toHtmlEscaped(); };
+    QString html;
+    if (!s.patientName.empty() || !s.patientId.empty())
+        html += StudyPanel::tr("Patient: %1%2<br>")
+                    .arg(QString::fromStdString(s.patientName)
+                             .replace('^', ' ')
+                             .trimmed()
+                             .toHtmlEscaped(),
+                         s.patientId.empty() ? QString()
+                                             : QStringLiteral(" (%1)").arg(esc(s.patientId)));
+    if (!s.studyDate.empty() || !s.modality.empty())
+        html += StudyPanel::tr("Study: %1 %2<br>")
+                    .arg(dicomDate(s.studyDate).toHtmlEscaped(), esc(s.modality));
+    if (!s.description.empty()) html += StudyPanel::tr("Series: %1<br>").arg(esc(s.description));
+    return html;
+}
+
+} // namespace
+
 void StudyPanel::showStudy(const StudyController& study) {
     const auto vol = study.volume();
     if (!vol) {
@@ -30,6 +61,7 @@ void StudyPanel::showStudy(const StudyController& study) {
     const auto [lo, hi] = vol->valueRange();
     QString html =
         QStringLiteral("<b>%1</b><br>").arg(study.source().displayName().toHtmlEscaped());
+    if (const auto& s = study.series()) html += seriesLines(*s);
     html +=
         tr("Dimensions: %1 × %2 × %3<br>").arg(vol->dims[0]).arg(vol->dims[1]).arg(vol->dims[2]);
     html += tr("Spacing: %1 × %2 × %3 mm<br>")

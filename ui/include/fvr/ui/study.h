@@ -74,6 +74,12 @@ public:
      *  the previous study's adjustment). */
     const SpectrumSettings& requestedSettings() const { return m_requested; }
     const StudySource& source() const { return m_source; }
+    /** The DICOM series of the open study (patient, study date, modality, description); empty
+     *  for volume files and the phantom. */
+    const std::optional<core::DicomSeriesInfo>& series() const { return m_series; }
+    /** The open study's name for the title bar: the series description and patient for DICOM,
+     *  the file or phantom name otherwise. */
+    QString title() const;
     const QStringList& warnings() const { return m_warnings; }
     /** Spectrum memory (MiB) the settings would need for the current volume. */
     double estimatedSpectrumMiB(const SpectrumSettings& s) const;
@@ -119,6 +125,7 @@ private:
     std::shared_ptr<const core::Volume> m_volume;
     std::shared_ptr<const core::Spectrum> m_spectrum;
     QStringList m_warnings;
+    std::optional<core::DicomSeriesInfo> m_series;
     std::thread m_worker;
     std::atomic<bool> m_done{true};
     std::shared_ptr<core::CancelToken> m_cancel;
