@@ -7,7 +7,10 @@
 #include <QDockWidget>
 #include <QDoubleSpinBox>
 #include <QImage>
+#include <QLabel>
+#include <QMouseEvent>
 #include <QPlainTextEdit>
+#include <QProgressBar>
 #include <QSettings>
 #include <QSignalSpy>
 #include <QSpinBox>
@@ -246,6 +249,52 @@ TEST_F(Workstation, CancelDuringPreprocessingKeepsTheStudy) {
     EXPECT_TRUE(window->views()[0]->projection().has_value());
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(36))); // still usable
     EXPECT_EQ(window->study().volume()->dims[0], 36);
+}
+
+// #15 item 6: after a cancelled change the panel shows the settings in effect, and the
+// next study opens with them.
+TEST_F(Workstation, CancelledChangeLeavesThePanelShowingWhatIsInEffect) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(256)));
+    const double inEffect = window->study().spectrumSettings().oversampling;
+    const double mib = double(window->study().spectrum()->bytes()) / (1 << 20);
+    auto* os = window->renderingPanel()->oversamplingCombo();
+    QSignalSpy cancelled(&window->study(), &ui::StudyController::cancelled);
+    os->setCurrentIndex(os->findData(2.0)); // 512^3: long enough to cancel
+    ASSERT_TRUE(window->study().busy());
+    window->study().cancel();
+    ASSERT_TRUE(cancelled.wait(60000));
+    EXPECT_DOUBLE_EQ(os->currentData().toDouble(), inEffect);
+    EXPECT_DOUBLE_EQ(window->study().requestedSettings().oversampling, inEffect);
+    EXPECT_TRUE(
+        window->renderingPanel()->memoryLabel()->text().contains(QString::number(mib, 'f', 1)))
+        << window->renderingPanel()->memoryLabel()->text().toStdString();
+    EXPECT_FALSE(window->progressBar()->isVisible());
+}
+
+// #15 item 6: the preset combo says where the window came from.
+TEST_F(Workstation, PresetComboSaysWhereTheWindowCameFrom) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
+    auto* preset = window->displayPanel()->presetCombo();
+    auto shown = [&] { return ui::WindowPreset(preset->currentData().toInt()); };
+    EXPECT_EQ(shown(), ui::WindowPreset::Auto); // the auto window applied on loading
+    preset->setCurrentIndex(preset->findData(int(ui::WindowPreset::Bone)));
+    emit preset->activated(preset->currentIndex());
+    EXPECT_EQ(shown(), ui::WindowPreset::Bone);
+    window->displayPanel()->windowWidthSpin()->setValue(
+        window->displayPanel()->windowWidthSpin()->value() * 0.5);
+    EXPECT_EQ(shown(), ui::WindowPreset::Custom);
+    // A window drag in the view is a manual change too.
+    auto* view = window->views()[0];
+    const QPoint c = view->rect().center();
+    QTest::mousePress(view, Qt::RightButton, {}, c);
+    QMouseEvent move(QEvent::MouseMove, QPointF(c + QPoint(40, 10)),
+                     view->mapToGlobal(QPointF(c + QPoint(40, 10))), Qt::NoButton, Qt::RightButton,
+                     Qt::NoModifier);
+    emit preset->activated(preset->findData(int(ui::WindowPreset::Auto)));
+    EXPECT_EQ(shown(), ui::WindowPreset::Auto);
+    QApplication::sendEvent(view, &move);
+    QTest::mouseRelease(view, Qt::RightButton, {}, c + QPoint(40, 10));
+    EXPECT_EQ(shown(), ui::WindowPreset::Custom);
 }
 
 TEST_F(Workstation, MalformedStudyShowsTheErrorAndStaysUsable) {

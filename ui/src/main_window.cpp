@@ -76,7 +76,8 @@ void MainWindow::connectStudy() {
             });
     connect(m_study.get(), &StudyController::cancelled, this, [this] {
         showProgress(false);
-        message(tr("Cancelled; the previous study stays open."));
+        showSpectrumSettingsInEffect(true);
+        message(tr("Cancelled; the previous study and its settings stay."));
     });
     connect(m_study.get(), &StudyController::warningsChanged, this, [this](const QStringList& w) {
         for (const auto& s : w) message(tr("Warning: %1").arg(s), true);
@@ -284,7 +285,9 @@ void MainWindow::applyWindowFromPanel() {
     DisplayPanel::save(st, m_display->values());
 }
 
-void MainWindow::syncWindowToPanel(const core::DisplayWindow& w) { m_display->showWindow(w); }
+void MainWindow::syncWindowToPanel(const core::DisplayWindow& w, WindowPreset from) {
+    m_display->showWindow(w, from);
+}
 
 void MainWindow::applyPreset(WindowPreset preset) {
     if (m_views.empty()) return;
@@ -293,7 +296,7 @@ void MainWindow::applyPreset(WindowPreset preset) {
     const core::Transmission t = currentTransmission();
     // The window applies to what the film shows (the log exposure with transmission).
     const std::vector<float> values = core::windowedValues(std::move(p->pixels), t);
-    syncWindowToPanel(presetWindow(preset, values, m_display->values().invert));
+    syncWindowToPanel(presetWindow(preset, values, m_display->values().invert), preset);
     applyWindowFromPanel();
 }
 
@@ -358,7 +361,7 @@ void MainWindow::applyOutput(bool resetWindow) {
     if (resetWindow) {
         // Film look (bone white) for transmission. The window from the image (log exposure for
         // transmission); before any image, the first three decades of exposure.
-        syncWindowToPanel({-3.0, 0.0, transmission, currentTransmission()});
+        syncWindowToPanel({-3.0, 0.0, transmission, currentTransmission()}, WindowPreset::Custom);
         applyWindowFromPanel();
         applyPreset(WindowPreset::Auto);
     } else {
@@ -384,12 +387,7 @@ void MainWindow::onSpectrumReady() {
     if (!newer) {
         showProgress(false);
         // The controller may have adjusted the settings (e.g. raw values for non-HU data).
-        const SpectrumSettings& s = m_study->spectrumSettings();
-        RenderingPanel::Values r = m_rendering->values();
-        r.mapping = s.mapping;
-        r.transform = s.transform;
-        r.oversampling = s.oversampling;
-        m_rendering->setValues(r);
+        showSpectrumSettingsInEffect(false);
     }
     if (!newer && isTransmission(m_xray->output()) &&
         m_study->spectrumSettings().mapping == core::ValueMapping::Raw) {
@@ -407,6 +405,18 @@ void MainWindow::onSpectrumReady() {
         applyPreset(WindowPreset::Auto);
     }
     updateStudyInfo();
+}
+
+void MainWindow::showSpectrumSettingsInEffect(bool withGridding) {
+    const SpectrumSettings& s = m_study->spectrumSettings();
+    RenderingPanel::Values r = m_rendering->values();
+    r.mapping = s.mapping;
+    r.transform = s.transform;
+    r.oversampling = s.oversampling;
+    if (withGridding) r.deapodize = s.deapodizeFor.has_value();
+    m_rendering->setValues(r);
+    if (const auto spec = m_study->spectrum())
+        m_rendering->setSpectrumMiB(double(spec->bytes()) / (1 << 20));
 }
 
 void MainWindow::updateStudyInfo() {

@@ -1,6 +1,7 @@
 // The main window's views: one, or 2/4 side by side to compare kernels, synchronised (view frame,
 // window, interaction), with differences to view 1.
 #include <fvr/ui/main_window.h>
+#include <fvr/ui/panels/display_panel.h>
 
 #include <QGridLayout>
 #include <QLabel>
@@ -86,16 +87,17 @@ void MainWindow::connectView(ProjectionView* v) {
             if (o != v) o->setViewFrame(f);
         m_syncing = false;
     });
-    connect(v, &ProjectionView::windowChanged, this, [this, v](const core::DisplayWindow& w) {
-        if (m_syncing) return;
-        m_syncing = true;
-        if (v == m_views.front() || !m_difference) {
-            for (auto* o : m_views)
-                if (o != v && !(m_difference && o != m_views.front())) o->setWindow(w);
-            syncWindowToPanel(w);
-        }
-        m_syncing = false;
-    });
+    connect(v, &ProjectionView::windowChanged, this,
+            [this, v](const core::DisplayWindow& w, bool byHand) {
+                if (m_syncing) return;
+                m_syncing = true;
+                if (v == m_views.front() || !m_difference) {
+                    for (auto* o : m_views)
+                        if (o != v && !(m_difference && o != m_views.front())) o->setWindow(w);
+                    syncWindowToPanel(w, byHand ? WindowPreset::Custom : WindowPreset::Auto);
+                }
+                m_syncing = false;
+            });
     connect(v, &ProjectionView::backendChanged, this, [this](bool gpu, const QString& notice) {
         if (m_backend) m_backend->setText(gpu ? tr("Renderer: GPU") : tr("Renderer: CPU"));
         if (!notice.isEmpty()) message(notice, true);

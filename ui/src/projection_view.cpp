@@ -123,7 +123,7 @@ void ProjectionView::setWindow(const core::DisplayWindow& w) {
 void ProjectionView::autoWindow() {
     if (auto p = projection()) {
         setWindow(core::filmWindow(p->pixels, m_window.transmission, m_window.invert));
-        emit windowChanged(m_window);
+        emit windowChanged(m_window, false);
     }
 }
 
@@ -272,7 +272,7 @@ void ProjectionView::windowFromFrame() {
     auto img = m_cpuImage ? *m_cpuImage : m_gpu->readback();
     m_window = core::filmWindow(img.pixels, m_window.transmission, m_window.invert);
     m_windowSet = true;
-    emit windowChanged(m_window);
+    emit windowChanged(m_window, false);
 }
 
 QRectF ProjectionView::imageRect() const {
@@ -566,7 +566,7 @@ void ProjectionView::mouseMoveEvent(QMouseEvent* e) {
         m_window.low = c - w / 2;
         m_window.high = c + w / 2;
         m_windowSet = true;
-        emit windowChanged(m_window);
+        emit windowChanged(m_window, true);
         update();
     } else if (m_dragButton == Qt::LeftButton) {
         // Trackball: horizontal drags turn about the screen's vertical axis, vertical drags about

@@ -125,7 +125,14 @@ void StudyController::startJob(std::function<void(core::CancelToken&)> job) {
             job(*token);
         } catch (const core::Cancelled&) {
             QMetaObject::invokeMethod(
-                this, [this] { emit cancelled(); }, Qt::QueuedConnection);
+                this,
+                [this, token] {
+                    // A job cancelled because a newer one replaced it is not the user's cancel.
+                    if (token != m_cancel) return;
+                    revertRequestToSettingsInEffect();
+                    emit cancelled();
+                },
+                Qt::QueuedConnection);
         } catch (const std::bad_alloc&) {
             QMetaObject::invokeMethod(
                 this,
@@ -256,6 +263,16 @@ SpectrumSettings StudyController::settingsForStudy(const SpectrumSettings& reque
                              .arg(QString::fromUtf8(core::unitsName(volume.units)));
     }
     return used;
+}
+
+void StudyController::revertRequestToSettingsInEffect() {
+    // A cancelled change is not asked for any more; a mapping the study could not have (raw in
+    // effect for attenuation asked of non-HU data) stays asked for the next study.
+    const bool keepMapping =
+        m_volume && settingsForStudy(m_requested, *m_volume, nullptr).mapping == m_settings.mapping;
+    const core::ValueMapping mapping = keepMapping ? m_requested.mapping : m_settings.mapping;
+    m_requested = m_settings;
+    m_requested.mapping = mapping;
 }
 
 void StudyController::setSpectrumSettings(const SpectrumSettings& asked) {

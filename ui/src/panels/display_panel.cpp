@@ -7,6 +7,7 @@
 #include <QLabel>
 #include <QPushButton>
 #include <QSettings>
+#include <QStandardItemModel>
 
 #include <algorithm>
 
@@ -21,6 +22,10 @@ DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
     m_preset->addItem(tr("Full range"), int(WindowPreset::FullRange));
     m_preset->addItem(tr("Bone (upper 45 %)"), int(WindowPreset::Bone));
     m_preset->addItem(tr("Soft tissue (10–70 %)"), int(WindowPreset::SoftTissue));
+    m_preset->addItem(tr("Custom (set by hand)"), int(WindowPreset::Custom));
+    // Custom is a state, not a choice: shown after a manual change, never offered.
+    if (auto* model = qobject_cast<QStandardItemModel*>(m_preset->model()))
+        model->item(m_preset->count() - 1)->setEnabled(false);
     df->addRow(tr("Preset"), m_preset);
     m_width = new QDoubleSpinBox(this);
     m_width->setDecimals(3);
@@ -50,8 +55,12 @@ DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
         emit windowChanged();
         emit changed();
     };
-    connect(m_width, &QDoubleSpinBox::valueChanged, this, windowEdited);
-    connect(m_level, &QDoubleSpinBox::valueChanged, this, windowEdited);
+    auto windowSetByHand = [this, windowEdited] {
+        showPreset(WindowPreset::Custom);
+        windowEdited();
+    };
+    connect(m_width, &QDoubleSpinBox::valueChanged, this, windowSetByHand);
+    connect(m_level, &QDoubleSpinBox::valueChanged, this, windowSetByHand);
     connect(m_invert, &QCheckBox::toggled, this, windowEdited);
     connect(autoBtn, &QPushButton::clicked, this,
             [this] { emit presetRequested(WindowPreset::Auto); });
@@ -91,8 +100,14 @@ core::DisplayWindow DisplayPanel::window(const core::Transmission& transmission)
     return w;
 }
 
-void DisplayPanel::showWindow(const core::DisplayWindow& w) {
+void DisplayPanel::showWindow(const core::DisplayWindow& w, WindowPreset from) {
     setValues({w.high - w.low, (w.high + w.low) / 2, w.invert});
+    showPreset(from);
+}
+
+void DisplayPanel::showPreset(WindowPreset preset) {
+    const QSignalBlocker block(m_preset);
+    m_preset->setCurrentIndex(m_preset->findData(int(preset)));
 }
 
 core::DisplayWindow presetWindow(WindowPreset preset, const std::vector<float>& pixels,
@@ -108,7 +123,10 @@ core::DisplayWindow presetWindow(WindowPreset preset, const std::vector<float>& 
         w = {q(0.005) + 0.10 * (q(0.995) - q(0.005)), q(0.005) + 0.70 * (q(0.995) - q(0.005)),
              false};
         break;
-    case WindowPreset::Auto: w = core::autoWindow(pixels); break;
+    case WindowPreset::Auto:
+    case WindowPreset::Custom: // not a preset (a window set by hand): the auto window
+        w = core::autoWindow(pixels);
+        break;
     }
     if (!(w.high > w.low)) w.high = w.low + 1.0;
     w.invert = invert;

@@ -96,7 +96,10 @@ private:
     void applySpectrumSettings();
     void applyValueMapping();
     void applyWindowFromPanel();
-    void syncWindowToPanel(const core::DisplayWindow& w);
+    void syncWindowToPanel(const core::DisplayWindow& w, WindowPreset from);
+    /** The Rendering panel shows the spectrum in use (values, transform, oversampling, and with
+     *  `withGridding` the gridding correction) and its memory. */
+    void showSpectrumSettingsInEffect(bool withGridding);
     void onStudyLoaded(const QString& name);
     void onSpectrumReady();
     void updateStudyInfo();

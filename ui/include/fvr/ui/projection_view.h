@@ -106,7 +106,8 @@ public:
 
 signals:
     void viewFrameChanged(const core::ViewFrame& f);
-    void windowChanged(const core::DisplayWindow& w);
+    /** The view's window changed: `byHand` for a drag, false for an automatic window. */
+    void windowChanged(const core::DisplayWindow& w, bool byHand);
     void rendered();
     void backendChanged(bool gpu, const QString& notice);
     /** A drag on this view started or ended (the main window mirrors it on the other views). */

@@ -105,6 +105,8 @@ private:
      *  the warning appended to `warnings`). */
     static SpectrumSettings settingsForStudy(const SpectrumSettings& requested,
                                              const core::Volume& volume, QStringList* warnings);
+    /** After a cancel: the request goes back to what is in effect (GUI thread). */
+    void revertRequestToSettingsInEffect();
     void startJob(std::function<void(core::CancelToken&)> job);
     void poll();
     void preprocessAsync();

@@ -15,7 +15,8 @@ class QSettings;
 namespace fvr::ui {
 
 /** The window presets, stored as the preset combo's item data (never chosen by their label). */
-enum class WindowPreset { Auto, FullRange, Bone, SoftTissue };
+/** Where the window came from: a preset, or Custom (set by hand: the spin boxes or a drag). */
+enum class WindowPreset { Auto, FullRange, Bone, SoftTissue, Custom };
 
 class DisplayPanel : public QWidget {
     Q_OBJECT
@@ -40,8 +41,8 @@ public:
 
     /** The window the controls describe, with the transmission it applies to. */
     core::DisplayWindow window(const core::Transmission& transmission) const;
-    /** Shows a view's window (width, level, invert); emits nothing. */
-    void showWindow(const core::DisplayWindow& w);
+    /** Shows a view's window (width, level, invert) and where it came from; emits nothing. */
+    void showWindow(const core::DisplayWindow& w, WindowPreset from);
 
     /** The controls (tests drive them like a user). */
     QComboBox* presetCombo() const { return m_preset; }
@@ -58,6 +59,8 @@ signals:
     void presetRequested(fvr::ui::WindowPreset preset);
 
 private:
+    void showPreset(WindowPreset preset);
+
     QComboBox* m_preset = nullptr;
     QDoubleSpinBox* m_width = nullptr;
     QDoubleSpinBox* m_level = nullptr;

@@ -72,6 +72,7 @@ public:
     QCheckBox* clipCheck() const { return m_clip; }
     QComboBox* voxelModelCombo() const { return m_voxelModel; }
     QComboBox* appliesToCombo() const { return m_appliesTo; }
+    QLabel* memoryLabel() const { return m_memory; }
     QCheckBox* pixelApertureCheck() const { return m_pixelAperture; }
     QCheckBox* nonNegativeCheck() const { return m_nonNegative; }
 
