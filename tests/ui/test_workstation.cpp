@@ -212,6 +212,31 @@ TEST_F(Workstation, CompareViewRendersEachKernel) {
     EXPECT_EQ(window->views().size(), 1u);
 }
 
+// #15 item 3: the difference views show the difference (not an empty view), in 2 and 4 views.
+TEST_F(Workstation, DifferenceViewsShowTheDifference) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
+    for (int n : {2, 4}) {
+        window->setCompareCount(n); // may preprocess again (compare mode needs no gridding)
+        ASSERT_TRUE(QTest::qWaitFor([&] { return !window->study().busy(); }, 60000));
+        window->setDifferenceMode(true);
+        for (int i = 0; i < 20; ++i) QTest::qWait(50);
+        for (std::size_t v = 1; v < window->views().size(); ++v) {
+            auto* view = window->views()[v];
+            const QImage shot = view->screenshot().convertToFormat(QImage::Format_Grayscale8);
+            // The image area (the middle half) is not uniform: the difference shows structure.
+            int lo = 255, hi = 0;
+            for (int y = shot.height() / 4; y < 3 * shot.height() / 4; ++y)
+                for (int x = shot.width() / 4; x < 3 * shot.width() / 4; ++x) {
+                    const int g = qGray(shot.pixel(x, y));
+                    lo = std::min(lo, g);
+                    hi = std::max(hi, g);
+                }
+            EXPECT_GT(hi - lo, 40) << n << " views, view " << v + 1;
+        }
+        window->setDifferenceMode(false);
+    }
+}
+
 TEST_F(Workstation, ExportsMatchTheRendererProjection) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
     const auto dir = test::tmpDir() / "ui_export";

@@ -255,6 +255,9 @@ void ProjectionView::renderFrame(const core::RenderParams& params, int level) {
 void ProjectionView::subtractReference() {
     auto own = m_gpu ? std::optional<core::ProjectionImage>(m_gpu->readback()) : m_cpuImage;
     auto ref = m_reference->projection();
+    // The reference made its own context current (and released it): this view's again, or the
+    // frame's texture goes to no context and the view stays empty.
+    makeCurrent();
     if (!own || !ref || ref->size != own->size) return;
     double maxAbs = 0;
     for (std::size_t i = 0; i < own->pixels.size(); ++i) {
