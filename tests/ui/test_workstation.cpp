@@ -237,6 +237,24 @@ TEST_F(Workstation, DifferenceViewsShowTheDifference) {
     }
 }
 
+// #15 item 4: no progress bar is left behind once the jobs of quick setting changes end
+// (the GUI asked busy(), which races with the worker's last instructions).
+TEST_F(Workstation, NoProgressBarLeftAfterQuickChanges) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(64)));
+    auto* gridding = window->renderingPanel()->deapodizeCheck();
+    for (int round = 0; round < 3; ++round) {
+        window->setCompareCount(4);
+        window->setCompareCount(1);
+        gridding->setChecked(!gridding->isChecked());
+        gridding->setChecked(true);
+        ASSERT_TRUE(QTest::qWaitFor([&] { return !window->study().busy(); }, 60000));
+        QTest::qWait(200); // queued results and progress polls arrive
+        EXPECT_FALSE(window->progressBar()->isVisible())
+            << "round " << round << ": " << window->progressBar()->format().toStdString();
+        EXPECT_TRUE(window->study().spectrum()->deapodizedFor.has_value());
+    }
+}
+
 TEST_F(Workstation, ExportsMatchTheRendererProjection) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
     const auto dir = test::tmpDir() / "ui_export";

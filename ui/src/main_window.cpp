@@ -249,11 +249,11 @@ void MainWindow::applySpectrumSettings() {
                                       .arg(QString::fromUtf8(core::kernelName(*s.deapodizeFor)))
                                 : QString()));
     m_study->setSpectrumSettings(s);
-    if (m_study->volume() && !m_study->busy() && m_study->spectrumSettings().mapping != s.mapping) {
+    if (m_study->volume() && m_study->targetSettings().mapping != s.mapping) {
         // The study cannot have these values (attenuation of data that are not HU): the panel
         // shows what is in effect; the request stays for the next study.
         RenderingPanel::Values r = m_rendering->values();
-        r.mapping = m_study->spectrumSettings().mapping;
+        r.mapping = m_study->targetSettings().mapping;
         m_rendering->setValues(r);
         message(tr("This study's values are not Hounsfield units: they stay %1; studies in HU "
                    "open with %2.")
@@ -383,7 +383,7 @@ void MainWindow::onStudyLoaded(const QString& name) {
 void MainWindow::onSpectrumReady() {
     // A newer preprocessing started after this one (the user changed settings meanwhile): the
     // views show this spectrum, but the panel keeps the newer settings and the progress bar.
-    const bool newer = m_study->busy();
+    const bool newer = m_study->newerJobStarted();
     if (!newer) {
         showProgress(false);
         // The controller may have adjusted the settings (e.g. raw values for non-HU data).

@@ -113,16 +113,17 @@ void StudyController::waitIdle() {
     if (m_worker.joinable()) m_worker.join();
 }
 
-void StudyController::startJob(std::function<void(core::CancelToken&)> job) {
+void StudyController::startJob(std::function<void(core::CancelToken&, std::uint64_t)> job) {
     if (m_cancel) m_cancel->cancel();
     if (m_worker.joinable()) m_worker.join();
     m_cancel = std::make_shared<core::CancelToken>();
     m_done.store(false);
     m_fraction.store(0.0);
     report(0.0, "starting");
-    m_worker = std::thread([this, job = std::move(job), token = m_cancel] {
+    const std::uint64_t id = ++m_jobsStarted;
+    m_worker = std::thread([this, job = std::move(job), token = m_cancel, id] {
         try {
-            job(*token);
+            job(*token, id);
         } catch (const core::Cancelled&) {
             QMetaObject::invokeMethod(
                 this,
@@ -137,6 +138,7 @@ void StudyController::startJob(std::function<void(core::CancelToken&)> job) {
             QMetaObject::invokeMethod(
                 this,
                 [this] {
+                    m_target = m_settings;
                     emit failed(tr("Out of memory"),
                                 tr("The study or its spectrum does not fit in memory. "
                                    "Try a smaller oversampling."));
@@ -145,7 +147,11 @@ void StudyController::startJob(std::function<void(core::CancelToken&)> job) {
         } catch (const std::exception& e) {
             const QString what = QString::fromStdString(e.what());
             QMetaObject::invokeMethod(
-                this, [this, what] { emit failed(tr("Could not open the study"), what); },
+                this,
+                [this, what] {
+                    m_target = m_settings;
+                    emit failed(tr("Could not open the study"), what);
+                },
                 Qt::QueuedConnection);
         }
         m_done.store(true);
@@ -158,7 +164,7 @@ void StudyController::open(const StudySource& source) {
     auto cached = (source.kind == StudySource::Kind::DicomFolder && source.path == m_scanFolder)
                       ? m_scan
                       : nullptr;
-    startJob([this, source, settings, cached](core::CancelToken& token) {
+    startJob([this, source, settings, cached](core::CancelToken& token, std::uint64_t id) {
         core::OpenOptions options;
         options.seriesKey = source.seriesKey.toStdString();
         core::ProgressFn progress = [this](double f, std::string_view st) { report(0.5 * f, st); };
@@ -168,7 +174,7 @@ void StudyController::open(const StudySource& source) {
             progress = [this](double f, std::string_view st) { report(0.2 + 0.3 * f, st); };
         }
         finishOpen(source, settings, core::openStudy(source.toCore(), options, progress, &token),
-                   token);
+                   token, id);
     });
 }
 
@@ -225,7 +231,8 @@ bool StudyController::needsSeriesChoice(const StudySource& source,
 }
 
 void StudyController::finishOpen(const StudySource& source, const SpectrumSettings& settings,
-                                 core::OpenedStudy opened, core::CancelToken& token) {
+                                 core::OpenedStudy opened, core::CancelToken& token,
+                                 std::uint64_t id) {
     token.check();
     auto vol = std::make_shared<core::Volume>(std::move(opened.volume));
     QStringList warnings;
@@ -236,7 +243,9 @@ void StudyController::finishOpen(const StudySource& source, const SpectrumSettin
     std::shared_ptr<const core::Volume> cvol = vol;
     QMetaObject::invokeMethod(
         this,
-        [this, source, cvol, spectrum, warnings, used, series = std::move(opened.series)] {
+        [this, source, cvol, spectrum, warnings, used, series = std::move(opened.series), id] {
+            m_resultJob = id;
+            if (id == m_jobsStarted) m_target = used;
             m_source = source;
             m_series = series;
             m_volume = cvol;
@@ -273,6 +282,7 @@ void StudyController::revertRequestToSettingsInEffect() {
     const core::ValueMapping mapping = keepMapping ? m_requested.mapping : m_settings.mapping;
     m_requested = m_settings;
     m_requested.mapping = mapping;
+    m_target = m_settings;
 }
 
 void StudyController::setSpectrumSettings(const SpectrumSettings& asked) {
@@ -281,19 +291,23 @@ void StudyController::setSpectrumSettings(const SpectrumSettings& asked) {
     m_requested = asked;
     m_requested.mapping = requestedMapping;
     if (!m_volume) {
-        m_settings = asked;
+        m_settings = m_target = asked;
         return;
     }
     const SpectrumSettings settings = settingsForStudy(m_requested, *m_volume, nullptr);
-    if (settings == m_settings && m_spectrum) return;
+    // Compared with what the running job will give (else a change back to the settings in use
+    // while another change runs would be dropped, and that job's spectrum would stay).
+    if (settings == m_target && m_spectrum) return;
+    m_target = settings;
     auto vol = m_volume;
-    startJob([this, vol, settings](core::CancelToken& token) {
+    startJob([this, vol, settings](core::CancelToken& token, std::uint64_t id) {
         auto spectrum = core::preprocess(
             *vol, settings, [this](double f, std::string_view st) { report(f, st); }, &token);
         QMetaObject::invokeMethod(
             this,
-            [this, spectrum, settings, vol] {
+            [this, spectrum, settings, vol, id] {
                 if (vol != m_volume) return; // a newer study replaced it meanwhile
+                m_resultJob = id;
                 m_spectrum = spectrum;
                 m_settings = settings;
                 emit spectrumReady();

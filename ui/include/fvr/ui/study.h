@@ -7,6 +7,7 @@
 #include <QTimer>
 
 #include <atomic>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -64,6 +65,10 @@ public:
     /** Cancels the running load or preprocessing; the previous study stays usable. */
     void cancel();
     bool busy() const { return m_worker.joinable() && !m_done.load(); }
+    /** In a spectrumReady handler: a job started after the one whose result this is (its own
+     *  progress and result follow). Exact on the GUI thread, unlike busy(), which races with
+     *  the worker's last instructions. */
+    bool newerJobStarted() const { return m_jobsStarted != m_resultJob; }
 
     std::shared_ptr<const core::Volume> volume() const { return m_volume; }
     std::shared_ptr<const core::Spectrum> spectrum() const { return m_spectrum; }
@@ -73,6 +78,9 @@ public:
     /** What the user asked for: the next study opens with these (values follow the user, not
      *  the previous study's adjustment). */
     const SpectrumSettings& requestedSettings() const { return m_requested; }
+    /** The settings the spectrum will have once the running job ends (those in use when none
+     *  runs). */
+    const SpectrumSettings& targetSettings() const { return m_target; }
     const StudySource& source() const { return m_source; }
     /** The DICOM series of the open study (patient, study date, modality, description); empty
      *  for volume files and the phantom. */
@@ -107,7 +115,9 @@ private:
                                              const core::Volume& volume, QStringList* warnings);
     /** After a cancel: the request goes back to what is in effect (GUI thread). */
     void revertRequestToSettingsInEffect();
-    void startJob(std::function<void(core::CancelToken&)> job);
+    /** Runs `job` (given its cancel token and its id) on the worker thread, cancelling the
+     *  running one. */
+    void startJob(std::function<void(core::CancelToken&, std::uint64_t)> job);
     void poll();
     void preprocessAsync();
     void report(double fraction, std::string_view stage);
@@ -119,17 +129,20 @@ private:
     bool needsSeriesChoice(const StudySource& source, const core::DicomScanResult& scan);
     /** Worker: preprocesses the opened volume and hands volume and spectrum to the GUI thread. */
     void finishOpen(const StudySource& source, const SpectrumSettings& settings,
-                    core::OpenedStudy opened, core::CancelToken& token);
+                    core::OpenedStudy opened, core::CancelToken& token, std::uint64_t id);
 
     StudySource m_source;
     SpectrumSettings m_settings = workstationSpectrumDefaults(); ///< in effect
     SpectrumSettings m_requested = workstationSpectrumDefaults(); ///< asked for
+    SpectrumSettings m_target = workstationSpectrumDefaults(); ///< what the latest job gives
     std::shared_ptr<const core::Volume> m_volume;
     std::shared_ptr<const core::Spectrum> m_spectrum;
     QStringList m_warnings;
     std::optional<core::DicomSeriesInfo> m_series;
     std::thread m_worker;
     std::atomic<bool> m_done{true};
+    std::uint64_t m_jobsStarted = 0; ///< GUI thread
+    std::uint64_t m_resultJob = 0; ///< the job whose result is in use (GUI thread)
     std::shared_ptr<core::CancelToken> m_cancel;
     std::atomic<double> m_fraction{0};
     QString m_stage;
