@@ -417,6 +417,24 @@ TEST_F(Workstation, StudyPanelShowsPatientStudyAndSeries) {
     EXPECT_TRUE(window->windowTitle().contains("headsq.mhd"));
 }
 
+// #15 item 7: a file without orientation says which one is assumed: Study panel, Messages and
+// the orientation labels; a file with one does not.
+TEST_F(Workstation, AssumedOrientationIsSaid) {
+    FVR_REQUIRE_DATA("volumes/body_ct_hu_3mm/example_ct.mhd");
+    const auto dir = test::sharedData() / "volumes/body_ct_hu_3mm";
+    ASSERT_TRUE(openAndWait(
+        *window, StudySource::fromPath(QString::fromStdString((dir / "example_ct.mhd").string()))));
+    EXPECT_TRUE(window->studyPanel()->text().contains("states no orientation"));
+    EXPECT_TRUE(window->messages()->toPlainText().contains("states no orientation"));
+    for (const QString& l : window->views()[0]->orientationLabels())
+        EXPECT_TRUE(l.endsWith("(assumed)")) << l.toStdString();
+    ASSERT_TRUE(openAndWait(*window, StudySource::fromPath(QString::fromStdString(
+                                         (dir / "example_ct.nii.gz").string()))));
+    EXPECT_FALSE(window->studyPanel()->text().contains("states no orientation"));
+    const QStringList labels = window->views()[0]->orientationLabels();
+    EXPECT_EQ(labels, (QStringList{"R", "L", "S", "I"})); // AP view of a stated orientation
+}
+
 TEST_F(Workstation, OpensRealVolumeFile) {
     FVR_REQUIRE_DATA("volumes/headsq/headsq.mhd");
     const auto path = test::sharedData() / "volumes/headsq/headsq.mhd";

@@ -139,6 +139,13 @@ TEST(OpenStudy, VolumeFileWithoutUnitsOpensAsHounsfield) {
         EXPECT_EQ(s.volume.dims, (Dims3{122, 101, 112})) << name;
         EXPECT_EQ(s.volume.units, ValueUnits::HounsfieldUnits) << name;
         EXPECT_FALSE(s.series.has_value());
+        // The NIfTI file has an sform; the MetaImage header no TransformMatrix: assumed, said so.
+        const bool stated = std::string(name) == "example_ct.nii.gz";
+        EXPECT_EQ(s.volume.orientationStated, stated) << name;
+        int said = 0;
+        for (const auto& w : s.warnings)
+            said += w.find("states no orientation") != std::string::npos;
+        EXPECT_EQ(said, stated ? 0 : 1) << name;
     }
     FVR_REQUIRE_DATA("volumes/bonsai_256");
     for (const auto& e : fs::directory_iterator(sharedData() / "volumes/bonsai_256")) {

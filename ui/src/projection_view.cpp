@@ -426,24 +426,32 @@ void ProjectionView::drawOverlay() {
     }
 }
 
+QStringList ProjectionView::orientationLabels() const {
+    if (!m_volume) return {};
+    // A file without orientation: the labels follow the assumed one and say so.
+    const QString assumed = m_volume->orientationStated ? QString() : tr(" (assumed)");
+    auto lbl = [&](const core::Vec3& v) {
+        return QString::fromStdString(core::patientDirectionLabel(*m_volume, v)) + assumed;
+    };
+    const core::Vec3 neg_r{-m_view.r[0], -m_view.r[1], -m_view.r[2]};
+    const core::Vec3 neg_u{-m_view.u[0], -m_view.u[1], -m_view.u[2]};
+    return {lbl(neg_r), lbl(m_view.r), lbl(m_view.u), lbl(neg_u)};
+}
+
 void ProjectionView::drawOrientationLabels(QPainter& p) {
     const QColor label(255, 210, 80);
     const QFont font = p.font();
     const QRectF r = imageRect().intersected(QRectF(rect()));
-    auto lbl = [&](const core::Vec3& v) {
-        return QString::fromStdString(core::patientDirectionLabel(*m_volume, v));
-    };
-    const core::Vec3 neg_r{-m_view.r[0], -m_view.r[1], -m_view.r[2]};
-    const core::Vec3 neg_u{-m_view.u[0], -m_view.u[1], -m_view.u[2]};
+    const QStringList labels = orientationLabels(); // left, right, top, bottom
     const int pad = 6;
     QFont bold = font;
     bold.setBold(true);
     p.setFont(bold);
     const QRectF inner(r.left() + pad, r.top() + pad, r.width() - 2 * pad, r.height() - 2 * pad);
-    drawHaloText(p, inner, Qt::AlignLeft | Qt::AlignVCenter, lbl(neg_r), label);
-    drawHaloText(p, inner, Qt::AlignRight | Qt::AlignVCenter, lbl(m_view.r), label);
-    drawHaloText(p, inner, Qt::AlignHCenter | Qt::AlignTop, lbl(m_view.u), label);
-    drawHaloText(p, inner, Qt::AlignHCenter | Qt::AlignBottom, lbl(neg_u), label);
+    drawHaloText(p, inner, Qt::AlignLeft | Qt::AlignVCenter, labels[0], label);
+    drawHaloText(p, inner, Qt::AlignRight | Qt::AlignVCenter, labels[1], label);
+    drawHaloText(p, inner, Qt::AlignHCenter | Qt::AlignTop, labels[2], label);
+    drawHaloText(p, inner, Qt::AlignHCenter | Qt::AlignBottom, labels[3], label);
     p.setFont(font);
 }
 

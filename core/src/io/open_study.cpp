@@ -140,6 +140,10 @@ OpenedStudy openStudy(const InputSource& source, const OpenOptions& options,
     }
     if (cancel) cancel->check();
     if (auto w = guessHounsfieldUnits(study.volume)) study.warnings.push_back(*w);
+    if (!study.volume.orientationStated)
+        study.warnings.push_back(
+            "The file states no orientation: its axes are assumed to point to the patient's "
+            "left (x), posterior (y) and superior (z) (LPS); the orientation labels say so.");
     if (progress) progress(1.0, "study opened");
     return study;
 }

@@ -691,6 +691,7 @@ struct MetaGeometry {
     Vec3 spacing{1.0, 1.0, 1.0};
     Vec3 origin{0.0, 0.0, 0.0};
     std::array<Vec3, 3> direction = Volume{}.direction;
+    bool directionStated = false; ///< TransformMatrix, Rotation or Orientation present
 };
 
 /** NDims and DimSize, checked against the per-axis and total voxel limits. */
@@ -756,6 +757,7 @@ void readMetaDirection(const fs::path& path, const MetaHeader& header, MetaGeome
     const std::size_t ndims = g.ndims;
     const auto [key, text] = header.firstOf({"TransformMatrix", "Rotation", "Orientation"});
     if (!text) return;
+    g.directionStated = true;
     const auto m = parseDoubles(*text, ndims * ndims);
     if (!m)
         fail(path, key,
@@ -1116,6 +1118,7 @@ Volume loadMetaImage(const fs::path& path) {
     const std::vector<DataPart> parts = locateMetaData(path, header, geo, enc, *in.rdbuf());
     Volume vol = emptyVolume(geo.dims, geo.spacing, geo.origin, geo.direction, volumeName(path),
                              geo.voxelCount, path);
+    vol.orientationStated = geo.directionStated;
     readMetaData(path, parts, enc, vol.voxels.data());
     return vol;
 }
@@ -1342,6 +1345,7 @@ NiftiData niftiData(const fs::path& path, const NiftiHeaderReader& r, const Nift
 struct NiftiOrientation {
     std::array<Vec3, 3> direction;
     Vec3 origin;
+    bool stated = true; ///< from the sform or qform (false: identity assumed)
 };
 
 /** The sform (sform_code > 0); nullopt when absent or its axes are degenerate. */
@@ -1408,7 +1412,11 @@ NiftiOrientation niftiOrientation(const fs::path& path, const NiftiHeaderReader&
                                   double unitToMm) {
     auto o = niftiSform(path, r);
     if (!o) o = niftiQform(path, r);
-    if (!o) return NiftiOrientation{Volume{}.direction, Vec3{0.0, 0.0, 0.0}};
+    if (!o) {
+        NiftiOrientation assumed{Volume{}.direction, Vec3{0.0, 0.0, 0.0}};
+        assumed.stated = false;
+        return assumed;
+    }
     // NIfTI world coordinates are RAS; the Volume uses LPS like DICOM.
     for (Vec3& axis : o->direction) {
         axis[0] = -axis[0];
@@ -1479,6 +1487,7 @@ Volume loadNifti(const fs::path& path) {
 
     Volume vol = emptyVolume(dims, spacing, orientation.origin, orientation.direction,
                              volumeName(path), dims[0] * dims[1] * dims[2], path);
+    vol.orientationStated = orientation.stated;
     readNiftiVoxels(path, in, data, type, r.swap, vol);
     return vol;
 }
@@ -1510,6 +1519,7 @@ Volume loadRaw(const fs::path& path, const RawSpec& spec) {
     if (!src.ok()) fail(path, "file", "cannot open file");
     Volume vol = emptyVolume(spec.dims, spec.spacing, Vec3{0, 0, 0}, Volume{}.direction,
                              path.stem().string(), voxelCount, path);
+    vol.orientationStated = false; // raw data carry none
     const std::uint64_t read = readElements(src, spec.type, spec.bigEndian, Scaling{},
                                             std::size_t(voxelCount), vol.voxels.data());
     if (read != dataBytes)

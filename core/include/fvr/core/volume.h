@@ -33,6 +33,10 @@ struct Volume {
     Vec3 origin{0.0, 0.0, 0.0};
     std::array<Vec3, 3> direction{Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
     ValueUnits units = ValueUnits::Unknown;
+    /** False when the file carries no orientation (a MetaImage without TransformMatrix, a NIfTI
+     *  with neither sform nor qform, raw data): `direction` is then the identity by assumption
+     *  (index axes x, y, z = patient left, posterior, superior) and front ends must say so. */
+    bool orientationStated = true;
     std::string name;
     std::vector<float> voxels;
 

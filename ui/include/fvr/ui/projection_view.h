@@ -92,6 +92,9 @@ public:
     std::optional<core::ProjectionImage> projection();
     /** What the view shows, as an image of the widget's framebuffer. */
     QImage screenshot();
+    /** The patient-direction labels at the image's left, right, top and bottom edges ("L",
+     *  "S", ...; with " (assumed)" when the file states no orientation). */
+    QStringList orientationLabels() const;
     bool usingGpu() const { return m_gpu != nullptr; }
     QString backendNotice() const { return m_notice; }
     /** Stage times of the last frame (ms): slice, inverse, display, total, and fps. */

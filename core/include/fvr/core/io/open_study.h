@@ -60,7 +60,7 @@ struct OpenOptions {
 struct OpenedStudy {
     Volume volume;
     /** Which series was opened and why, the loader's warnings, the scan's warnings for the
-     *  series and the Hounsfield guess; each once. */
+     *  series, the Hounsfield guess and an orientation assumed; each once. */
     std::vector<std::string> warnings;
     /** DICOM inputs: the series opened (patient and study for exports). */
     std::optional<DicomSeriesInfo> series;
