@@ -30,12 +30,15 @@ double waterAttenuationPerMm(double keV) {
     return std::exp(y) / 10.0; // cm^-1 at 1 g/cm^3 -> mm^-1
 }
 
+// A negative line integral (what is left of ringing where nothing attenuates) would transmit
+// more than the beam: the physics clamps the path at 0 (the signal is at most the exposure).
 double Transmission::intensity(double lineIntegral) const {
-    return exposure * std::exp(-muWaterPerMm * lineIntegral);
+    return exposure * std::exp(-muWaterPerMm * std::max(0.0, lineIntegral));
 }
 
 double Transmission::logExposure(double lineIntegral) const {
-    return std::min(0.0, std::log10(exposure) - muWaterPerMm * lineIntegral / std::numbers::ln10);
+    return std::min(0.0, std::log10(exposure) -
+                             muWaterPerMm * std::max(0.0, lineIntegral) / std::numbers::ln10);
 }
 
 void applyLogExposure(std::vector<float>& pixels, const Transmission& t) {

@@ -1,5 +1,5 @@
 // Display mapping (fvr::core::DisplayWindow::map): line integrals, or with uMuWater > 0 the log
-// exposure min(0, log10(uExposure exp(-uMuWater L))) of the Beer-Lambert signal (film), -> 8-bit
+// exposure min(0, log10(uExposure exp(-uMuWater max(L, 0)))) of the Beer-Lambert signal (film), -> 8-bit
 // gray through a window (low -> black, high -> white), optionally inverted. Used by the display
 // pass (a window change) and fused into the last pass of the inverse transform (a new frame).
 uniform float uLow;
@@ -13,7 +13,7 @@ layout(rgba8, binding = 0) writeonly uniform image2D displayOut;
 void storeDisplay(int col, int row, float lineIntegral) {
     float v = lineIntegral;
     const float ln10 = 2.302585092994046;
-    if (uMuWater > 0.0) v = min(0.0, (log(uExposure) - uMuWater * v) / ln10);
+    if (uMuWater > 0.0) v = min(0.0, (log(uExposure) - uMuWater * max(v, 0.0)) / ln10);
     float t = clamp((v - uLow) / (uHigh - uLow), 0.0, 1.0);
     if (uInvert != 0) t = 1.0 - t;
     imageStore(displayOut, ivec2(col, row), vec4(t, t, t, 1.0));

@@ -45,8 +45,9 @@ inline bool isAttenuation(ValueMapping m) { return m != ValueMapping::Raw; }
  *  Throws SettingsError outside 20..150 keV. */
 double waterAttenuationPerMm(double keV);
 
-/** Beer-Lambert: the detector signal exposure * exp(-muWater * L) for a line integral L in mm of
- *  water (mu/mu_water x mm); exposure 1 is the unattenuated beam at full scale.
+/** Beer-Lambert: the detector signal exposure * exp(-muWater * max(0, L)) for a line integral L
+ *  in mm of water (mu/mu_water x mm); exposure 1 is the unattenuated beam at full scale, which no
+ *  pixel exceeds (a negative L, left by ringing, is no path at all).
  *  The display shows it as film does: blackening follows the log exposure (the straight part of
  *  the film's characteristic curve) and saturates at full scale, so the window applies to
  *  logExposure() = min(0, log10(signal)); more exposure darkens, a higher energy flattens. */
