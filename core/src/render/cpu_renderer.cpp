@@ -439,6 +439,19 @@ inline auto slicePoint(const SliceContext& c, const FrameMapping& f, const RowTr
         return sampleComplex<T, Depth>(c, kx, ky, kz, t, gt);
 }
 
+/** The mean of a slice sample over the aliases of the Nyquist frequencies: (+-m) when column m
+ *  is the Nyquist column, (+-n) when row n is the Nyquist row, so the FFT and FHT paths compute
+ *  the same image. Only the Nyquist row and column come here. */
+template <class V, class Sample>
+V nyquistMean(const Sample& sample, int m, int n, bool nyquistColumn, bool nyquistRow) {
+    const int ms = nyquistColumn ? 2 : 1;
+    const int ns = nyquistRow ? 2 : 1;
+    V sum{};
+    for (int a = 0; a < ms; ++a)
+        for (int b = 0; b < ns; ++b) sum += sample(a ? -m : m, b ? -n : n, -1);
+    return sum / float(ms * ns);
+}
+
 template <int T, bool Depth>
 void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter,
                       int M, cfloat* out, ThreadPool& pool) {
@@ -457,13 +470,7 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
             for (int m = 0; m < H; ++m, sign = -sign) {
                 cfloat v;
                 if (m == M / 2 || nyqRow) {
-                    // Average over the aliases of the Nyquist frequencies.
-                    const int ms = (m == M / 2) ? 2 : 1;
-                    const int ns = nyqRow ? 2 : 1;
-                    cfloat sum{};
-                    for (int a = 0; a < ms; ++a)
-                        for (int b = 0; b < ns; ++b) sum += sample(a ? -m : m, b ? -n : n, -1);
-                    v = sum / float(ms * ns);
+                    v = nyquistMean<cfloat>(sample, m, n, m == M / 2, nyqRow);
                 } else {
                     constexpr int kAhead = 6;
                     const double ma = m + kAhead;
@@ -498,12 +505,7 @@ void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const SliceF
                 const float sign = (((m + n) & 1) ? -1.0f : 1.0f) * f.scale;
                 float v;
                 if (m == -M / 2 || nyqRow) {
-                    const int ms = (m == -M / 2) ? 2 : 1;
-                    const int ns = nyqRow ? 2 : 1;
-                    float sum = 0.0f;
-                    for (int a = 0; a < ms; ++a)
-                        for (int b = 0; b < ns; ++b) sum += sample(a ? -m : m, b ? -n : n, -1);
-                    v = sum / float(ms * ns);
+                    v = nyquistMean<float>(sample, m, n, m == -M / 2, nyqRow);
                 } else {
                     constexpr int kAhead = 6;
                     const double ma = m + kAhead;
