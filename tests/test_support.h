@@ -1,5 +1,8 @@
 #pragma once
 // Helpers shared by the test executables.
+#include <sys/wait.h>
+
+#include <cstdio>
 #include <filesystem>
 #include <string>
 
@@ -11,6 +14,25 @@ namespace fvr::test {
 inline std::filesystem::path sharedData() {
     if (const char* env = std::getenv("FVR_SHARED_DATA_DIR")) return env;
     return FVR_SHARED_DATA_DIR;
+}
+
+/** What a shell command printed on stdout and its exit status (-1: did not exit normally). */
+struct CommandOutput {
+    int status = -1;
+    std::string out;
+};
+
+/** Runs `cmd` through the shell (popen) and collects its stdout. */
+inline CommandOutput runCommand(const std::string& cmd) {
+    CommandOutput r;
+    FILE* p = popen(cmd.c_str(), "r");
+    if (!p) return r;
+    char buf[4096];
+    std::size_t n;
+    while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+    const int st = pclose(p);
+    r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+    return r;
 }
 
 /** A scratch folder for files written by tests. */

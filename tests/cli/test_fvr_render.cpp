@@ -55,14 +55,10 @@ Result run(const std::string& args, const std::string& envPrefix = {}) {
         tmp("stderr_" + std::to_string(getpid()) + "_" + std::to_string(++calls) + ".txt");
     const std::string cmd =
         envPrefix + " " + std::string(FVR_RENDER_EXE) + " " + args + " 2>" + err;
+    const fvr::test::CommandOutput c = fvr::test::runCommand(cmd);
     Result r;
-    FILE* p = popen(cmd.c_str(), "r");
-    if (!p) return r;
-    char buf[4096];
-    std::size_t n;
-    while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-    const int st = pclose(p);
-    r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+    r.status = c.status;
+    r.out = c.out;
     r.output = r.out + readText(err);
     std::remove(err.c_str());
     return r;

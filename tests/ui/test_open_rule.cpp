@@ -32,24 +32,12 @@ QCoreApplication& app() {
     return *a;
 }
 
-struct Cli {
-    int status = -1;
-    std::string out; ///< stdout (JSON), or stderr (runCli with stderrOnly)
-};
+using Cli = fvr::test::CommandOutput; ///< out: stdout (JSON), or stderr with stderrOnly
 
 /** Runs fvr-render; `out` gets its stdout, or its stderr with `stderrOnly`. */
 Cli runCli(const std::string& args, bool stderrOnly = false) {
-    const std::string cmd = std::string(FVR_RENDER_EXE) + " " + args +
-                            (stderrOnly ? " 2>&1 >/dev/null" : " 2>/dev/null");
-    Cli r;
-    FILE* p = popen(cmd.c_str(), "r");
-    if (!p) return r;
-    char buf[4096];
-    std::size_t n;
-    while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-    const int st = pclose(p);
-    r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-    return r;
+    return fvr::test::runCommand(std::string(FVR_RENDER_EXE) + " " + args +
+                                 (stderrOnly ? " 2>&1 >/dev/null" : " 2>/dev/null"));
 }
 
 nlohmann::json cliInfo(const fs::path& input, const std::string& more = {}) {
