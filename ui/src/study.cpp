@@ -93,7 +93,9 @@ void StudyController::report(double fraction, std::string_view stage) {
 }
 
 void StudyController::poll() {
-    if (m_done.load()) { // the result (or error) is already on its way: no stale progress after it
+    // The result (or error) is on its way, or already handled (the worker sets m_done after
+    // posting it): no stale progress after it.
+    if (m_done.load() || m_finishedJob >= m_jobsStarted) {
         m_timer.stop();
         return;
     }
@@ -127,9 +129,10 @@ void StudyController::startJob(std::function<void(core::CancelToken&, std::uint6
         } catch (const core::Cancelled&) {
             QMetaObject::invokeMethod(
                 this,
-                [this, token] {
+                [this, token, id] {
                     // A job cancelled because a newer one replaced it is not the user's cancel.
                     if (token != m_cancel) return;
+                    markFinished(id);
                     revertRequestToSettingsInEffect();
                     emit cancelled();
                 },
@@ -137,7 +140,8 @@ void StudyController::startJob(std::function<void(core::CancelToken&, std::uint6
         } catch (const std::bad_alloc&) {
             QMetaObject::invokeMethod(
                 this,
-                [this] {
+                [this, id] {
+                    markFinished(id);
                     m_target = m_settings;
                     emit failed(tr("Out of memory"),
                                 tr("The study or its spectrum does not fit in memory. "
@@ -148,7 +152,8 @@ void StudyController::startJob(std::function<void(core::CancelToken&, std::uint6
             const QString what = QString::fromStdString(e.what());
             QMetaObject::invokeMethod(
                 this,
-                [this, what] {
+                [this, what, id] {
+                    markFinished(id);
                     m_target = m_settings;
                     emit failed(tr("Could not open the study"), what);
                 },
@@ -170,7 +175,7 @@ void StudyController::open(const StudySource& source) {
         core::ProgressFn progress = [this](double f, std::string_view st) { report(0.5 * f, st); };
         if (source.kind == StudySource::Kind::DicomFolder) {
             options.scan = scanFolder(source, cached, token);
-            if (needsSeriesChoice(source, *options.scan)) return;
+            if (needsSeriesChoice(source, *options.scan, id)) return;
             progress = [this](double f, std::string_view st) { report(0.2 + 0.3 * f, st); };
         }
         finishOpen(source, settings, core::openStudy(source.toCore(), options, progress, &token),
@@ -207,7 +212,7 @@ QString seriesNote(bool isDefault, const core::DicomSeriesInfo& s) {
 } // namespace
 
 bool StudyController::needsSeriesChoice(const StudySource& source,
-                                        const core::DicomScanResult& scan) {
+                                        const core::DicomScanResult& scan, std::uint64_t id) {
     if (!source.seriesKey.isEmpty() || scan.series.size() <= 1) return false;
     const std::size_t first = core::defaultSeriesIndex(scan);
     QStringList keys, labels;
@@ -225,7 +230,11 @@ bool StudyController::needsSeriesChoice(const StudySource& source,
                       .arg(seriesNote(n == 0, s));
     }
     QMetaObject::invokeMethod(
-        this, [this, source, keys, labels] { emit seriesChoiceNeeded(source, keys, labels); },
+        this,
+        [this, source, keys, labels, id] {
+            markFinished(id);
+            emit seriesChoiceNeeded(source, keys, labels);
+        },
         Qt::QueuedConnection);
     return true;
 }
@@ -245,6 +254,7 @@ void StudyController::finishOpen(const StudySource& source, const SpectrumSettin
         this,
         [this, source, cvol, spectrum, warnings, used, series = std::move(opened.series), id] {
             m_resultJob = id;
+            markFinished(id);
             if (id == m_jobsStarted) m_target = used;
             m_source = source;
             m_series = series;
@@ -306,6 +316,7 @@ void StudyController::setSpectrumSettings(const SpectrumSettings& asked) {
         QMetaObject::invokeMethod(
             this,
             [this, spectrum, settings, vol, id] {
+                markFinished(id);
                 if (vol != m_volume) return; // a newer study replaced it meanwhile
                 m_resultJob = id;
                 m_spectrum = spectrum;

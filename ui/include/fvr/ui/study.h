@@ -6,6 +6,7 @@
 #include <QStringList>
 #include <QTimer>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <functional>
@@ -126,7 +127,8 @@ private:
         const StudySource& source, std::shared_ptr<const core::DicomScanResult> cached,
         core::CancelToken& token);
     /** Worker: asks the GUI to choose a series (the default first); false when none is needed. */
-    bool needsSeriesChoice(const StudySource& source, const core::DicomScanResult& scan);
+    bool needsSeriesChoice(const StudySource& source, const core::DicomScanResult& scan,
+                           std::uint64_t id);
     /** Worker: preprocesses the opened volume and hands volume and spectrum to the GUI thread. */
     void finishOpen(const StudySource& source, const SpectrumSettings& settings,
                     core::OpenedStudy opened, core::CancelToken& token, std::uint64_t id);
@@ -143,6 +145,8 @@ private:
     std::atomic<bool> m_done{true};
     std::uint64_t m_jobsStarted = 0; ///< GUI thread
     std::uint64_t m_resultJob = 0; ///< the job whose result is in use (GUI thread)
+    std::uint64_t m_finishedJob = 0; ///< the latest job whose end was handled (GUI thread)
+    void markFinished(std::uint64_t id) { m_finishedJob = std::max(m_finishedJob, id); }
     std::shared_ptr<core::CancelToken> m_cancel;
     std::atomic<double> m_fraction{0};
     QString m_stage;
