@@ -216,20 +216,19 @@ void MainWindow::saveRenderingSettings() {
 void MainWindow::applyRenderSettings() {
     const ViewSettings s = m_rendering->viewSettings();
     const int slot = m_rendering->appliesTo();
-    const bool deapodize = m_rendering->values().deapodize;
-    const bool respectrum = deapodize && m_study->spectrum() &&
-                            m_study->spectrum()->deapodizedFor &&
-                            *m_study->spectrum()->deapodizedFor != s.kernel;
     for (int i = 0; i < int(m_views.size()); ++i) {
         if (m_compareCount > 1 && slot > 0 && slot - 1 != i) continue;
         m_viewSettings[i] = s;
-        // A spectrum deapodized for another kernel cannot render this one: the views switch when
-        // the new spectrum is ready (onSpectrumReady).
-        if (!respectrum) m_views[i]->setSettings(s);
         if (m_compareCount > 1) m_views[i]->setTitle(viewTitle(i, s));
     }
     saveRenderingSettings();
-    if (deapodize) applySpectrumSettings();
+    // A spectrum deapodized for another kernel cannot render this one: view 1's kernel is the
+    // main spectrum's, the others get their own (assignSpectra switches each view when its
+    // spectrum is ready).
+    if (m_rendering->values().deapodize)
+        applySpectrumSettings(); // also updateCompareKernels()
+    else
+        updateCompareKernels();
 }
 
 SpectrumSettings MainWindow::spectrumSettingsFromPanel() const {
@@ -239,7 +238,17 @@ SpectrumSettings MainWindow::spectrumSettingsFromPanel() const {
 void MainWindow::applySpectrumSettings() {
     const SpectrumSettings s = spectrumSettingsFromPanel();
     saveRenderingSettings();
-    if (m_study->volume()) m_rendering->setSpectrumMiB(m_study->estimatedSpectrumMiB(s));
+    if (m_study->volume()) {
+        // One spectrum per gridding-corrected kernel in compare mode.
+        std::vector<SpectrumSettings> spectra;
+        for (std::size_t i = 0; i < m_views.size(); ++i) {
+            const auto v =
+                RenderingPanel::spectrumSettings(m_rendering->values(), m_viewSettings[i].kernel);
+            if (std::find(spectra.begin(), spectra.end(), v) == spectra.end()) spectra.push_back(v);
+        }
+        const int count = std::max<int>(1, int(spectra.size()));
+        m_rendering->setSpectrumMiB(count * m_study->estimatedSpectrumMiB(s), count);
+    }
     if (m_study->volume() && !(s == m_study->spectrumSettings()))
         message(tr("Preprocessing again (%1, oversampling %2, %3)…")
                     .arg(QString::fromUtf8(core::transformName(s.transform)))
@@ -249,6 +258,7 @@ void MainWindow::applySpectrumSettings() {
                                       .arg(QString::fromUtf8(core::kernelName(*s.deapodizeFor)))
                                 : QString()));
     m_study->setSpectrumSettings(s);
+    updateCompareKernels(); // the gridding correction may have changed
     if (m_study->volume() && m_study->targetSettings().mapping != s.mapping) {
         // The study cannot have these values (attenuation of data that are not HU): the panel
         // shows what is in effect; the request stays for the next study.
@@ -373,10 +383,9 @@ void MainWindow::onStudyLoaded(const QString& name) {
     setWindowTitle(QStringLiteral("%1 — %2").arg(QString::fromUtf8(applicationName()), name));
     message(tr("Opened %1").arg(name));
     if (m_study->source().kind != StudySource::Kind::Phantom) addRecent(m_study->source().path);
-    for (auto* v : m_views) {
-        v->setStudy(m_study->volume(), m_study->spectrum());
+    assignSpectra();
+    for (auto* v : m_views)
         v->setViewFrame(core::patientViewFrame(*m_study->volume(), core::PatientView::AP));
-    }
     updateStudyInfo();
 }
 
@@ -398,8 +407,7 @@ void MainWindow::onSpectrumReady() {
         m_xray->setOutput(XrayOutput::LineIntegrals);
         applyOutput(true);
     }
-    for (std::size_t i = 0; i < m_views.size(); ++i) m_views[i]->setSettings(m_viewSettings[i]);
-    for (auto* v : m_views) v->setStudy(m_study->volume(), m_study->spectrum());
+    assignSpectra();
     if (m_rewindow && !newer) {
         m_rewindow = false;
         applyPreset(WindowPreset::Auto);
@@ -413,16 +421,21 @@ void MainWindow::showSpectrumSettingsInEffect(bool withGridding) {
     r.mapping = s.mapping;
     r.transform = s.transform;
     r.oversampling = s.oversampling;
-    if (withGridding) r.deapodize = s.deapodizeFor.has_value();
+    // The gridding correction shows in the spectrum only for a kernel it helps.
+    if (withGridding && core::griddingCorrectionHelps(m_viewSettings[0].kernel))
+        r.deapodize = s.deapodizeFor.has_value();
     m_rendering->setValues(r);
-    if (const auto spec = m_study->spectrum())
-        m_rendering->setSpectrumMiB(double(spec->bytes()) / (1 << 20));
+    updateSpectrumMemory();
 }
 
 void MainWindow::updateStudyInfo() {
     m_studyPanel->showStudy(*m_study);
-    if (const auto spec = m_study->spectrum())
-        m_rendering->setSpectrumMiB(double(spec->bytes()) / (1 << 20));
+    updateSpectrumMemory();
+}
+
+void MainWindow::updateSpectrumMemory() {
+    if (m_rendering && m_study->spectrum())
+        m_rendering->setSpectrumMiB(m_study->spectraMiB(), m_study->spectrumCount());
 }
 
 void MainWindow::showProgress(bool on) {

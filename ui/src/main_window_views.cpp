@@ -21,15 +21,6 @@ void MainWindow::buildViews() {
 
 void MainWindow::setCompareCount(int n) {
     n = (n >= 4) ? 4 : (n >= 2 ? 2 : 1);
-    if (n > 1 && m_rendering && m_rendering->values().deapodize) {
-        // A deapodized spectrum serves one kernel; the comparison needs them all.
-        message(tr("Compare mode: gridding correction turned off so that each view can use its own "
-                   "kernel."));
-        RenderingPanel::Values r = m_rendering->values();
-        r.deapodize = false;
-        m_rendering->setValues(r);
-        applySpectrumSettings();
-    }
     const core::ViewFrame frame = m_views.empty()
                                       ? core::ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0})
                                       : m_views[0]->viewFrame();
@@ -59,11 +50,49 @@ void MainWindow::setCompareCount(int n) {
     }
     setDifferenceMode(m_difference);
     if (m_rendering) m_rendering->setViewCount(n);
+    updateCompareKernels();
+}
+
+void MainWindow::updateCompareKernels() {
+    // A fair comparison: with gridding correction every kernel renders from its own corrected
+    // spectrum (the controller prepares them in the background; views wait for theirs).
+    std::vector<core::Kernel> kernels;
+    for (std::size_t i = 1; i < m_views.size(); ++i) kernels.push_back(m_viewSettings[i].kernel);
+    m_study->setCompareKernels(kernels, !m_rendering || m_rendering->values().deapodize);
+    assignSpectra();
+    updateSpectrumMemory();
+}
+
+void MainWindow::assignSpectra() {
+    const auto volume = m_study->volume();
+    if (!volume) return;
+    for (std::size_t i = 0; i < m_views.size(); ++i) {
+        ProjectionView* v = m_views[i];
+        const ViewSettings& s = m_viewSettings[i];
+        // View 1 shows the main spectrum whenever it can render the kernel (while a new one is
+        // prepared, the one in effect); the others show their kernel's.
+        auto spectrum = m_study->spectrumFor(s.kernel);
+        const auto main = m_study->spectrum();
+        if (i == 0 && (!main->deapodizedFor || *main->deapodizedFor == s.kernel)) spectrum = main;
+        if (spectrum) {
+            v->setSettings(s);
+            v->setStudy(volume, spectrum);
+            v->setPendingText({});
+            continue;
+        }
+        // Until its spectrum is ready a view keeps showing what it showed, if that is still
+        // what the settings in effect give for its kernel (a kernel change in single view).
+        const bool current = v->volume() == volume && v->spectrum() &&
+                             v->spectrum() == m_study->spectrumFor(v->settings().kernel);
+        if (current) continue;
+        v->setStudy(volume, nullptr);
+        v->setPendingText(m_study->spectrumPendingReason(s.kernel));
+    }
 }
 
 ProjectionView* MainWindow::addView(int index, int count, const core::ViewFrame& frame) {
     auto* v = new ProjectionView(m_viewHost);
-    const ViewSettings s = m_viewSettings[count == 1 ? 0 : index];
+    const ViewSettings s = m_viewSettings[index];
     v->setSettings(s);
     v->setViewFrame(frame);
     v->setOverlayVisible(m_overlayAction ? m_overlayAction->isChecked() : true);
@@ -75,7 +104,6 @@ ProjectionView* MainWindow::addView(int index, int count, const core::ViewFrame&
     });
     if (count > 1) v->setTitle(viewTitle(index, s));
     m_viewGrid->addWidget(v, index / 2, index % 2);
-    if (m_study->spectrum()) v->setStudy(m_study->volume(), m_study->spectrum());
     return v;
 }
 

@@ -75,6 +75,12 @@ void ProjectionView::setStudy(std::shared_ptr<const core::Volume> volume,
     update();
 }
 
+void ProjectionView::setPendingText(const QString& text) {
+    if (text == m_pending) return;
+    m_pending = text;
+    update();
+}
+
 void ProjectionView::setSettings(const ViewSettings& s) {
     if (s == m_settings) return;
     m_settings = s;
@@ -398,8 +404,14 @@ void ProjectionView::drawOverlay() {
     p.setFont(font);
     if (!m_spectrum) {
         p.setPen(QColor(180, 180, 180));
-        p.drawText(rect(), Qt::AlignCenter,
-                   tr("No study loaded\nFile ▸ Open, or drop a DICOM folder or volume file here"));
+        p.drawText(
+            rect().adjusted(12, 12, -12, -12), Qt::AlignCenter | Qt::TextWordWrap,
+            m_pending.isEmpty()
+                ? tr("No study loaded\nFile ▸ Open, or drop a DICOM folder or volume file here")
+                : m_pending);
+        if (!m_title.isEmpty())
+            drawHaloText(p, rect().adjusted(8, 6, -8, -6), Qt::AlignLeft | Qt::AlignTop, m_title,
+                         QColor(140, 240, 140));
         return;
     }
     if (m_volume) drawOrientationLabels(p);

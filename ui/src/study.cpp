@@ -262,9 +262,12 @@ void StudyController::finishOpen(const StudySource& source, const SpectrumSettin
             m_spectrum = spectrum;
             m_settings = used;
             m_warnings = warnings;
+            m_compareDeclined.clear();
+            pruneCompareSpectra();
             emit warningsChanged(m_warnings);
             emit studyLoaded(title());
             emit spectrumReady();
+            prepareCompareSpectra();
         },
         Qt::QueuedConnection);
 }
@@ -321,10 +324,109 @@ void StudyController::setSpectrumSettings(const SpectrumSettings& asked) {
                 m_resultJob = id;
                 m_spectrum = spectrum;
                 m_settings = settings;
+                m_compareDeclined.clear();
+                pruneCompareSpectra();
                 emit spectrumReady();
+                prepareCompareSpectra();
             },
             Qt::QueuedConnection);
     });
+}
+
+SpectrumSettings StudyController::settingsFor(core::Kernel kernel) const {
+    SpectrumSettings s = m_settings;
+    s.deapodizeFor = m_compareGridding && core::griddingCorrectionHelps(kernel)
+                         ? std::optional<core::Kernel>(kernel)
+                         : std::nullopt;
+    return s;
+}
+
+std::shared_ptr<const core::Spectrum> StudyController::spectrumFor(core::Kernel kernel) const {
+    if (!m_spectrum) return nullptr;
+    if (settingsFor(kernel) == m_settings) return m_spectrum;
+    const auto it = m_compare.find(kernel);
+    return it == m_compare.end() ? nullptr : it->second.spectrum;
+}
+
+QString StudyController::spectrumPendingReason(core::Kernel kernel) const {
+    const QString name = QString::fromUtf8(core::kernelName(kernel));
+    if (const auto it = m_compareDeclined.find(kernel); it != m_compareDeclined.end())
+        return tr("No gridding-corrected spectrum for %1 (%2): choose the kernel again to retry, "
+                  "or turn gridding correction off")
+            .arg(name, it->second);
+    return tr("Preparing the gridding-corrected spectrum for %1…").arg(name);
+}
+
+void StudyController::setCompareKernels(const std::vector<core::Kernel>& kernels, bool gridding) {
+    if (kernels != m_compareKernels || gridding != m_compareGridding) m_compareDeclined.clear();
+    m_compareKernels = kernels;
+    m_compareGridding = gridding;
+    pruneCompareSpectra();
+    prepareCompareSpectra();
+}
+
+void StudyController::pruneCompareSpectra() {
+    std::erase_if(m_compare, [this](const auto& entry) {
+        const auto& [kernel, c] = entry;
+        return c.volume != m_volume || !(c.settings == settingsFor(kernel)) ||
+               std::find(m_compareKernels.begin(), m_compareKernels.end(), kernel) ==
+                   m_compareKernels.end();
+    });
+}
+
+double StudyController::spectraMiB() const {
+    double bytes = m_spectrum ? double(m_spectrum->bytes()) : 0.0;
+    for (const auto& [kernel, c] : m_compare) bytes += double(c.spectrum->bytes());
+    return bytes / (1 << 20);
+}
+
+int StudyController::spectrumCount() const { return (m_spectrum ? 1 : 0) + int(m_compare.size()); }
+
+void StudyController::prepareCompareSpectra() {
+    if (!m_volume || !m_spectrum || m_finishedJob < m_jobsStarted) return; // a job runs
+    for (const core::Kernel k : m_compareKernels) {
+        if (spectrumFor(k) || m_compareDeclined.count(k)) continue;
+        const SpectrumSettings settings = settingsFor(k);
+        auto vol = m_volume;
+        const QString stage = tr("spectrum for %1: ").arg(QString::fromUtf8(core::kernelName(k)));
+        startJob([this, vol, settings, k, stage](core::CancelToken& token, std::uint64_t id) {
+            const core::CancelToken* mine = &token;
+            auto done = [this, id, k, vol, settings,
+                         mine](std::shared_ptr<const core::Spectrum> spectrum, QString failure) {
+                markFinished(id);
+                if (spectrum && vol == m_volume && settings == settingsFor(k)) {
+                    m_resultJob = id;
+                    m_compare[k] = {settings, vol, spectrum};
+                    emit spectrumReady();
+                } else if (!failure.isEmpty() && mine == m_cancel.get()) {
+                    m_compareDeclined[k] = failure; // the user's cancel, or out of memory
+                    emit spectrumReady(); // the views say why
+                }
+                prepareCompareSpectra();
+            };
+            std::shared_ptr<const core::Spectrum> spectrum;
+            QString failure;
+            try {
+                spectrum = core::preprocess(
+                    *vol, settings,
+                    [this, stage](double f, std::string_view st) {
+                        report(
+                            f,
+                            (stage + QString::fromUtf8(st.data(), int(st.size()))).toStdString());
+                    },
+                    &token);
+            } catch (const core::Cancelled&) {
+                failure = tr("cancelled");
+            } catch (const std::bad_alloc&) {
+                failure = tr("out of memory");
+            } catch (const std::exception& e) {
+                failure = QString::fromUtf8(e.what());
+            }
+            QMetaObject::invokeMethod(
+                this, [done, spectrum, failure] { done(spectrum, failure); }, Qt::QueuedConnection);
+        });
+        return;
+    }
 }
 
 } // namespace fvr::ui

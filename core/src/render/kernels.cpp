@@ -54,6 +54,8 @@ bool kernelInterpolates(Kernel k) {
     return k != Kernel::BSpline && k != Kernel::KaiserBessel4 && k != Kernel::KaiserBessel6;
 }
 
+bool griddingCorrectionHelps(Kernel k) { return k != Kernel::Linear; }
+
 int kernelTaps(Kernel k) {
     switch (k) {
     case Kernel::Nearest: return 1;

@@ -81,8 +81,9 @@ void RenderingPanel::addSpectrumRows(QFormLayout* rf) {
     m_deapodize->setToolTip(
         tr("Divide the volume by the kernel's Fourier transform before the 3D FFT, as "
            "gridding codes do: Kaiser-Bessel with 1.25× oversampling is then more accurate than "
-           "ray casting. The spectrum is made for one kernel; changing the kernel preprocesses "
-           "again."));
+           "ray casting. Every kernel but linear (which does not gain) gets it. The spectrum is "
+           "made for one kernel: changing the kernel preprocesses again, and each compare view "
+           "gets its kernel's own spectrum."));
     rf->addRow(QString(), m_deapodize);
     m_memory = new QLabel(this);
     rf->addRow(tr("Spectrum memory"), m_memory);
@@ -236,8 +237,12 @@ void RenderingPanel::setViewCount(int n) {
 
 int RenderingPanel::appliesTo() const { return m_appliesTo->currentIndex(); }
 
-void RenderingPanel::setSpectrumMiB(double mib) {
-    m_memory->setText(tr("%1 MiB").arg(mib, 0, 'f', 1));
+void RenderingPanel::setSpectrumMiB(double mib, int count) {
+    m_memory->setText(count > 1 ? tr("%1 MiB (%2 spectra, one per gridding-corrected kernel)")
+                                      .arg(mib, 0, 'f', 1)
+                                      .arg(count)
+                                : tr("%1 MiB").arg(mib, 0, 'f', 1));
+    m_memory->setWordWrap(true);
 }
 
 core::PreprocessOptions RenderingPanel::spectrumSettings(const Values& v, core::Kernel kernel) {
@@ -245,7 +250,9 @@ core::PreprocessOptions RenderingPanel::spectrumSettings(const Values& v, core::
     s.mapping = v.mapping;
     s.transform = v.transform;
     s.oversampling = v.oversampling;
-    s.deapodizeFor = v.deapodize ? std::optional<core::Kernel>(kernel) : std::nullopt;
+    s.deapodizeFor = v.deapodize && core::griddingCorrectionHelps(kernel)
+                         ? std::optional<core::Kernel>(kernel)
+                         : std::nullopt;
     return s;
 }
 

@@ -84,6 +84,13 @@ private:
     void buildViewMenu(QMenu* view, QToolBar* toolbar);
     ProjectionView* addView(int index, int count, const core::ViewFrame& frame);
     void connectView(ProjectionView* v);
+    /** Tells the study controller the compare views' kernels, then assignSpectra(). */
+    void updateCompareKernels();
+    /** Each view gets the spectrum that renders its kernel at the settings in effect, or says
+     *  why it waits. */
+    void assignSpectra();
+    /** The Rendering panel's memory readout: all spectra in use. */
+    void updateSpectrumMemory();
     void applyRenderSettings();
     /** The voxel model combo: changes only the voxel model of the views it applies to. */
     void applyVoxelModel();

@@ -54,6 +54,11 @@ public:
 
     void setStudy(std::shared_ptr<const core::Volume> volume,
                   std::shared_ptr<const core::Spectrum> spectrum);
+    /** Instead of an image while the view has no spectrum: why (e.g. its kernel's spectrum is
+     *  being prepared); empty: "No study loaded". */
+    void setPendingText(const QString& text);
+    const std::shared_ptr<const core::Volume>& volume() const { return m_volume; }
+    const std::shared_ptr<const core::Spectrum>& spectrum() const { return m_spectrum; }
     void setSettings(const ViewSettings& s);
     const ViewSettings& settings() const { return m_settings; }
     void setEffects(const FrameEffects& e);
@@ -171,6 +176,7 @@ private:
     QPointF m_pan{0, 0};
     bool m_overlay = true;
     QString m_title;
+    QString m_pending;
     ProjectionView* m_reference = nullptr;
 
     std::unique_ptr<gpu::GpuFourierRenderer> m_gpu;

@@ -10,11 +10,13 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <string_view>
 #include <thread>
+#include <vector>
 
 #include <fvr/core/dicom/dicom.h>
 #include <fvr/core/io/open_study.h>
@@ -92,6 +94,25 @@ public:
     const QStringList& warnings() const { return m_warnings; }
     /** Spectrum memory (MiB) the settings would need for the current volume. */
     double estimatedSpectrumMiB(const SpectrumSettings& s) const;
+
+    /** Compare mode: the kernels of the other views, and whether gridding correction is on.
+     *  A spectrum deapodized for one kernel cannot render another: each kernel gets the
+     *  spectrum settingsFor() gives (its own gridding-corrected one where the kernel needs
+     *  one), prepared in the background one after the other once no other job runs, each
+     *  announced by spectrumReady(). Spectra of kernels no longer listed are freed. */
+    void setCompareKernels(const std::vector<core::Kernel>& kernels, bool gridding);
+    /** The spectrum that renders `kernel` at the settings in effect: the main spectrum, or a
+     *  compare kernel's own; null while it is being prepared (or was cancelled). */
+    std::shared_ptr<const core::Spectrum> spectrumFor(core::Kernel kernel) const;
+    /** Why spectrumFor(kernel) is null: being prepared, or cancelled / out of memory. */
+    QString spectrumPendingReason(core::Kernel kernel) const;
+    /** The settings of the spectrum that renders `kernel`: the values, transform and
+     *  oversampling in effect, deapodized for `kernel` when gridding correction is on and
+     *  helps the kernel (core::griddingCorrectionHelps: all but linear). */
+    SpectrumSettings settingsFor(core::Kernel kernel) const;
+    /** Memory of the spectra in use (the main one and the compare kernels'), and their count. */
+    double spectraMiB() const;
+    int spectrumCount() const;
     /** Blocks until the running job ends (tests). */
     void waitIdle();
 
@@ -129,6 +150,10 @@ private:
     /** Worker: asks the GUI to choose a series (the default first); false when none is needed. */
     bool needsSeriesChoice(const StudySource& source, const core::DicomScanResult& scan,
                            std::uint64_t id);
+    /** Starts the next missing compare spectrum when no job runs. */
+    void prepareCompareSpectra();
+    /** Drops compare spectra that no longer match the volume and the settings in effect. */
+    void pruneCompareSpectra();
     /** Worker: preprocesses the opened volume and hands volume and spectrum to the GUI thread. */
     void finishOpen(const StudySource& source, const SpectrumSettings& settings,
                     core::OpenedStudy opened, core::CancelToken& token, std::uint64_t id);
@@ -152,6 +177,15 @@ private:
     QString m_stage;
     std::mutex m_stageMutex;
     QTimer m_timer;
+    struct CompareSpectrum {
+        SpectrumSettings settings;
+        std::shared_ptr<const core::Volume> volume;
+        std::shared_ptr<const core::Spectrum> spectrum;
+    };
+    std::vector<core::Kernel> m_compareKernels;
+    bool m_compareGridding = true;
+    std::map<core::Kernel, CompareSpectrum> m_compare;
+    std::map<core::Kernel, QString> m_compareDeclined; ///< cancelled or failed: not retried
     std::shared_ptr<const core::DicomScanResult> m_scan; ///< last DICOM scan (series picking)
     QString m_scanFolder;
 };

@@ -58,8 +58,9 @@ public:
     void setViewCount(int n);
     /** 0: all views, i: view i. */
     int appliesTo() const;
-    /** The "Spectrum memory" readout. */
-    void setSpectrumMiB(double mib);
+    /** The "Spectrum memory" readout: `mib` in all, over `count` spectra (compare mode with
+     *  gridding correction keeps one per kernel). */
+    void setSpectrumMiB(double mib, int count = 1);
 
     /** The controls (tests drive them like a user). */
     QComboBox* kernelCombo() const { return m_kernel; }
