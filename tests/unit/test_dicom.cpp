@@ -1372,6 +1372,15 @@ TEST(Dicom, TextFilesInAFolderAreSkippedWithOneWarning) {
     EXPECT_TRUE(
         anyWarningContains(v.warnings, "skipped 2 files that are not DICOM: README.txt, notes.txt"))
         << joined(v.warnings);
+    EXPECT_EQ(r.warnings.size(), 1u) << joined(r.warnings);
+    // Many: the first three are named (relative to the folder), then how many more.
+    fs::create_directories(dir / "docs");
+    for (const char* name : {"a.txt", "b.txt", "c.txt"})
+        std::ofstream(dir / "docs" / name) << "x\n";
+    const DicomScanResult many = fvr::core::scanDicomFolder(dir);
+    EXPECT_EQ(many.warnings,
+              std::vector<std::string>{"skipped 5 files that are not DICOM: README.txt, "
+                                       "docs/a.txt, docs/b.txt and 2 more"});
 }
 
 TEST(Dicom, TextFileOpenedAsDicomSaysItIsNotDicom) {
@@ -1405,11 +1414,13 @@ TEST(Dicom, NonImageObjectsAreNamedByTheirSopClass) {
         fs::copy_file(data(numbered("dicom/ct_head_slicer_64x64x93/CTHead", i)),
                       dir / numbered("CTHead", i));
     writeNonImage(dir / "sr.dcm", UID_BasicTextSRStorage, "SR");
+    writeNonImage(dir / "gsps.dcm", UID_GrayscaleSoftcopyPresentationStateStorage, "PR");
     const DicomVolume v = fvr::core::loadDicomFolder(dir);
     EXPECT_EQ(v.volume.dims, (fvr::core::Dims3{64, 64, 2}));
     EXPECT_TRUE(anyWarningContains(
-        v.warnings, "skipped 2 DICOM files without an image: rs.dcm (RT Structure Set Storage), "
-                    "sr.dcm (Basic Text SR Storage)"))
+        v.warnings, "skipped 3 DICOM files without an image: gsps.dcm (Grayscale Softcopy "
+                    "Presentation State Storage), rs.dcm (RT Structure Set Storage), sr.dcm "
+                    "(Basic Text SR Storage)"))
         << joined(v.warnings);
 }
 
