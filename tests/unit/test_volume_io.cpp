@@ -849,8 +849,8 @@ TEST(VolumeIo, NiftiMalformedNameFileAndField) {
     };
     NiftiSpec s;
     s.sizeofHdr = 123;
-    expectError("sizeof.nii", niftiFile(s, values), {"sizeof_hdr", "expected 348", "found 123"});
-    expectError("sizeof.nii.gz", gzipStored(niftiFile(s, values)), {"sizeof_hdr", "found 123"});
+    expectError("sizeof.nii", niftiFile(s, values), {"sizeof_hdr", "is 123", "expected 348"});
+    expectError("sizeof.nii.gz", gzipStored(niftiFile(s, values)), {"sizeof_hdr", "is 123"});
     s.sizeofHdr = 540;
     expectError("nifti2.nii", niftiFile(s, values), {"sizeof_hdr", "NIfTI-2"});
     s = NiftiSpec{};
@@ -909,6 +909,46 @@ TEST(VolumeIo, NiftiMalformedNameFileAndField) {
     expectError("crc.nii.gz", badCrc, {"gzip"});
     expectError("empty.nii", "", {"sizeof_hdr", "found a file of 0 bytes"});
     expectError("tiny.nii.gz", gzipStored("abc"), {"sizeof_hdr"});
+}
+
+TEST(VolumeIo, TextFilesNamedAsVolumesSayWhatIsWrong) {
+    const fs::path dir = caseDir("text_as_volume");
+    const std::string text = "hello world, this is not a volume\nsecond line\n";
+    const auto errorOf = [&](const std::string& name, const std::string& bytes) {
+        writeFile(dir / name, bytes);
+        return loadErrorOf([&] { fvr::core::loadVolume(dir / name); });
+    };
+    // .nii.gz that is not gzip at all.
+    std::string m = errorOf("text.nii.gz", text);
+    EXPECT_MESSAGE_HAS(m, (dir / "text.nii.gz").string() +
+                              ": not gzip-compressed data (a .nii.gz file must be gzip)");
+    // .nii (and gzip data inside .nii.gz) whose header size field is no NIfTI's: "hell" read as
+    // a little-endian int32 is 0x6c6c6568 = 1819043176.
+    for (const std::string name : {"text.nii", "gz_text.nii.gz"}) {
+        SCOPED_TRACE(name);
+        m = errorOf(name, name == "text.nii" ? text : gzipStored(text));
+        EXPECT_MESSAGE_HAS(m, (dir / name).string() + ": not a NIfTI file");
+        EXPECT_MESSAGE_HAS(m, "header size field (sizeof_hdr) is 1819043176, expected 348 for "
+                              "NIfTI-1 or 540 for NIfTI-2");
+        EXPECT_MESSAGE_HAS(m, "it starts with text: 'hello world");
+    }
+    // NIfTI-2: said explicitly to be unsupported.
+    NiftiSpec s;
+    s.sizeofHdr = 540;
+    m = errorOf("two.nii", niftiFile(s, rampInt16(24)));
+    EXPECT_MESSAGE_HAS(m, (dir / "two.nii").string() + ": a NIfTI-2 file (header size 540)");
+    EXPECT_MESSAGE_HAS(m, "NIfTI-2 is not supported");
+    // A valid NIfTI-1 file that is not compressed but named .nii.gz still loads.
+    writeFile(dir / "plain.nii.gz", niftiFile(NiftiSpec{}, rampInt16(24)));
+    EXPECT_EQ(fvr::core::loadVolume(dir / "plain.nii.gz").dims, (Dims3{4, 3, 2}));
+    // MetaImage: text that is no header at all.
+    for (const std::string name : {"text.mhd", "text.mha"}) {
+        SCOPED_TRACE(name);
+        m = errorOf(name, text);
+        EXPECT_MESSAGE_HAS(m, (dir / name).string() + ": not a MetaImage file");
+        EXPECT_MESSAGE_HAS(m, "'Key = Value' lines");
+        EXPECT_MESSAGE_HAS(m, "'hello world, this is not a volume'");
+    }
 }
 
 TEST(VolumeIo, NiftiTruncatedRealGzip) {

@@ -4,8 +4,10 @@
 #include "dicom_internal.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <mutex>
 #include <sstream>
 
@@ -42,6 +44,31 @@ void initDcmtk() {
 
 void fail(const fs::path& file, const std::string& detail) {
     throw DicomError(file.string() + ": " + detail);
+}
+
+std::string sopClassName(const std::string& uid) {
+    const char* name = uid.empty() ? nullptr : dcmFindNameOfUID(uid.c_str(), nullptr);
+    if (!name) return {};
+    // DCMTK spells the names in CamelCase ("RTStructureSetStorage"): words start at a capital
+    // after a small letter or digit, and at the last capital of an acronym ("RT|Structure").
+    const std::string s(name);
+    const auto u8 = [](char c) { return static_cast<unsigned char>(c); };
+    std::string out;
+    for (std::size_t i = 0; i < s.size(); ++i) {
+        const auto up = [&](std::size_t k) { return k < s.size() && std::isupper(u8(s[k])); };
+        const auto low = [&](std::size_t k) { return k < s.size() && std::islower(u8(s[k])); };
+        if (i > 0 && up(i) &&
+            (low(i - 1) || std::isdigit(u8(s[i - 1])) || (up(i - 1) && low(i + 1))))
+            out += ' ';
+        out += s[i];
+    }
+    return out;
+}
+
+std::string describeSopClass(const std::string& uid) {
+    if (uid.empty()) return "a DICOM object of unknown SOP class";
+    const std::string name = sopClassName(uid);
+    return name.empty() ? "SOP class " + uid : name + " (" + uid + ")";
 }
 
 std::string fmt(double v, int precision) {
@@ -256,25 +283,62 @@ void readModalityLut(DcmItem* lut, DicomHeader& h) {
     h.modalityLut.assign(words, words + entries);
 }
 
+/** What the first bytes of a file say about it. */
+struct FileStart {
+    bool preamble = false; ///< "DICM" at byte 128
+    bool gzip = false; ///< the gzip magic bytes 1f 8b
+    bool bareDataset = false; ///< no preamble, but it starts like a data set (group 0, 2, 4 or 8)
+};
+
+FileStart readFileStart(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    unsigned char b[132] = {};
+    in.read(reinterpret_cast<char*>(b), sizeof b);
+    const auto got = in.gcount();
+    FileStart s;
+    s.preamble = got == 132 && b[128] == 'D' && b[129] == 'I' && b[130] == 'C' && b[131] == 'M';
+    s.gzip = got >= 2 && b[0] == 0x1f && b[1] == 0x8b;
+    const int le = b[0] | (b[1] << 8), be = (b[0] << 8) | b[1];
+    const auto groupStart = [](int g) { return g == 0 || g == 2 || g == 4 || g == 8; };
+    s.bareDataset = got >= 4 && (groupStart(le) || groupStart(be));
+    return s;
+}
+
+/** Why DCMTK could not parse the file, in words, DCMTK's status in parentheses. */
+[[noreturn]] void failUnparsed(const fs::path& path, const FileStart& start, const OFCondition& c) {
+    const std::string dcmtk = std::string("DCMTK: ") + c.text();
+    if (start.gzip && !start.preamble)
+        throw NotDicomError(path.string() +
+                            ": not a DICOM file (gzip-compressed data: decompress it first)");
+    if (!start.preamble && !start.bareDataset)
+        throw NotDicomError(path.string() +
+                            ": not a DICOM file (no DICM preamble, and it does not parse as "
+                            "DICOM without one; " +
+                            dcmtk + ")");
+    const bool premature = c == EC_StreamNotifyClient || c == EC_PrematureSequDelimitationItem ||
+                           c == EC_SequDelimitationItemMissing ||
+                           c == EC_ItemDelimitationItemMissing;
+    fail(path, std::string("not a readable DICOM file: ") +
+                   (premature ? "it ends in the middle of an element (truncated file?; "
+                              : "its data set is corrupt (") +
+                   dcmtk + ")");
+}
+
 /** Checks the file and parses it with DCMTK (values above 4 KiB stay on disk). */
 std::unique_ptr<DcmFileFormat> parseFile(const fs::path& path, std::uintmax_t& fileSize) {
     std::error_code ec;
     if (!fs::is_regular_file(path, ec)) fail(path, "not a regular file");
     fileSize = fs::file_size(path, ec);
     if (ec) fail(path, "cannot read: " + ec.message());
-    if (fileSize < 16) fail(path, "not a DICOM file (" + std::to_string(fileSize) + " bytes)");
+    if (fileSize < 16)
+        throw NotDicomError(path.string() + ": not a DICOM file (" + std::to_string(fileSize) +
+                            " bytes)");
 
     auto ff = std::make_unique<DcmFileFormat>();
     // Values above 4 KiB (pixel data, large private blocks) stay on disk until asked for.
     const OFCondition c =
         ff->loadFile(OFFilename(path.c_str()), EXS_Unknown, EGL_noChange, 4096, ERM_autoDetect);
-    if (c.bad()) {
-        const bool premature =
-            c == EC_StreamNotifyClient || c == EC_PrematureSequDelimitationItem ||
-            c == EC_SequDelimitationItemMissing || c == EC_ItemDelimitationItemMissing;
-        fail(path, std::string("not a readable DICOM file: ") + c.text() +
-                       (premature ? " (truncated file?)" : " (corrupt or not DICOM)"));
-    }
+    if (c.bad()) failUnparsed(path, readFileStart(path), c);
     if (!ff->getDataset()) fail(path, "not a readable DICOM file: no data set");
     return ff;
 }
@@ -298,9 +362,15 @@ void readSopAndPixelKind(DcmMetaInfo* meta, DcmDataset* ds, DicomHeader& h) {
         // A parse of a non-DICOM file without preamble can "succeed" with garbage elements: tell
         // those apart from real DICOM objects without images.
         if (h.sopClassUid.empty() && getString(meta, DCM_TransferSyntaxUID).empty())
-            fail(path, "not a DICOM file (no meta header, no SOP class, no pixel data)");
-        fail(path, "not an image: no Pixel Data (7FE0,0010) (SOP class " +
-                       (h.sopClassUid.empty() ? std::string("unknown") : h.sopClassUid) + ")");
+            throw NotDicomError(path.string() +
+                                ": not a DICOM file (no meta header, no SOP class, no pixel "
+                                "data)");
+        const std::string name = sopClassName(h.sopClassUid);
+        throw NoImageError(path.string() + ": " + describeSopClass(h.sopClassUid) +
+                               " has no image to render (no Pixel Data (7FE0,0010))",
+                           !name.empty()           ? name
+                           : h.sopClassUid.empty() ? std::string("unknown SOP class")
+                                                   : h.sopClassUid);
     }
 }
 

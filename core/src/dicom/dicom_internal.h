@@ -32,6 +32,26 @@ void initDcmtk();
 /** "<file>: <detail>" as a DicomError. */
 [[noreturn]] void fail(const fs::path& file, const std::string& detail);
 
+/** The file is no DICOM at all (text, another format): a scan counts such files together. */
+struct NotDicomError : DicomError {
+    using DicomError::DicomError;
+};
+
+/** A DICOM object without an image (structure set, report, presentation state...). */
+struct NoImageError : DicomError {
+    NoImageError(const std::string& message, std::string className)
+        : DicomError(message), sopClass(std::move(className)) {}
+    std::string sopClass; ///< its SOP class in words ("RT Structure Set Storage"), or the UID
+};
+
+/** A SOP class UID in words from DCMTK's dictionary ("RT Structure Set Storage" for
+ *  1.2.840.10008.5.1.4.1.1.481.3); empty when the dictionary does not know it. */
+std::string sopClassName(const std::string& uid);
+
+/** "RT Structure Set Storage (1.2.840.10008.5.1.4.1.1.481.3)", "SOP class <uid>" when unknown,
+ *  "a DICOM object of unknown SOP class" when empty. */
+std::string describeSopClass(const std::string& uid);
+
 /** Throws Cancelled when the token was cancelled (no dependency on preprocess.cpp). */
 inline void checkCancel(const CancelToken* cancel) {
     if (cancel && cancel->cancelled()) throw Cancelled();

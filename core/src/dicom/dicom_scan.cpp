@@ -570,13 +570,59 @@ std::vector<fs::path> filesToScan(const fs::path& folder, std::vector<std::strin
     return files;
 }
 
-/** The headers of `files`, read in parallel; why the others are no DICOM images goes to
- *  `skipped`, in file order. */
-std::vector<DicomHeader> readHeaders(const std::vector<fs::path>& files,
-                                     std::vector<std::string>& skipped, const ProgressFn& progress,
+/** Why a file gave no header, and what kind of file it is. */
+struct HeaderFailure {
+    enum Kind { Broken, NotDicom, NoImage };
+    std::string message;
+    Kind kind = Broken;
+    std::string sopClass; ///< NoImage: its SOP class in words
+};
+
+/** `file` as the user knows it: relative to the scanned folder (its name when that fails). */
+std::string shortName(const fs::path& file, const fs::path& folder) {
+    const fs::path rel = file.lexically_relative(folder);
+    if (rel.empty() || rel == "." || *rel.begin() == "..") return file.filename().string();
+    return rel.generic_string();
+}
+
+/** "skipped 2 files that are not DICOM: a, b": the count and the first three names. */
+std::string skipSummary(const std::vector<std::string>& names, const char* one, const char* many) {
+    std::string s =
+        "skipped " + std::to_string(names.size()) + " " + (names.size() == 1 ? one : many) + ": ";
+    for (std::size_t k = 0; k < std::min<std::size_t>(3, names.size()); ++k)
+        s += (k ? ", " : "") + names[k];
+    if (names.size() > 3) s += " and " + std::to_string(names.size() - 3) + " more";
+    return s;
+}
+
+/** Each failure in `skipped` (file order); files that are not DICOM, and DICOM objects without
+ *  an image, summed up once each in `warnings`. */
+void reportFailures(const fs::path& folder, const std::vector<fs::path>& files,
+                    const std::vector<HeaderFailure>& failures, DicomScanResult& result) {
+    std::vector<std::string> notDicom, noImage;
+    for (std::size_t k = 0; k < files.size(); ++k) {
+        const HeaderFailure& f = failures[k];
+        if (f.message.empty()) continue;
+        result.skipped.push_back(f.message);
+        if (f.kind == HeaderFailure::NotDicom) notDicom.push_back(shortName(files[k], folder));
+        if (f.kind == HeaderFailure::NoImage)
+            noImage.push_back(shortName(files[k], folder) + " (" + f.sopClass + ")");
+    }
+    if (!notDicom.empty())
+        result.warnings.push_back(
+            skipSummary(notDicom, "file that is not DICOM", "files that are not DICOM"));
+    if (!noImage.empty())
+        result.warnings.push_back(
+            skipSummary(noImage, "DICOM file without an image", "DICOM files without an image"));
+}
+
+/** The headers of `files`, read in parallel; why the others are no DICOM images goes to the
+ *  result's `skipped` and `warnings` (see reportFailures). */
+std::vector<DicomHeader> readHeaders(const fs::path& folder, const std::vector<fs::path>& files,
+                                     DicomScanResult& result, const ProgressFn& progress,
                                      const CancelToken* cancel) {
     std::vector<std::optional<DicomHeader>> headers(files.size());
-    std::vector<std::string> errors(files.size());
+    std::vector<HeaderFailure> failures(files.size());
     {
         Progress prog(progress, "reading DICOM headers", 0.0, 0.95, std::int64_t(files.size()));
         ThreadPool pool;
@@ -585,22 +631,23 @@ std::vector<DicomHeader> readHeaders(const std::vector<fs::path>& files,
             const auto k = static_cast<std::size_t>(i);
             try {
                 headers[k] = readHeader(files[k]);
+            } catch (const NotDicomError& err) {
+                failures[k] = {err.what(), HeaderFailure::NotDicom, {}};
+            } catch (const NoImageError& err) {
+                failures[k] = {err.what(), HeaderFailure::NoImage, err.sopClass};
             } catch (const DicomError& err) {
-                errors[k] = err.what();
+                failures[k] = {err.what(), HeaderFailure::Broken, {}};
             } catch (const std::exception& err) {
-                errors[k] = files[k].string() + ": " + err.what();
+                failures[k] = {files[k].string() + ": " + err.what(), HeaderFailure::Broken, {}};
             }
             prog.step();
         });
         prog.finish();
     }
+    reportFailures(folder, files, failures, result);
     std::vector<DicomHeader> usable;
-    for (std::size_t k = 0; k < files.size(); ++k) {
-        if (headers[k])
-            usable.push_back(std::move(*headers[k]));
-        else
-            skipped.push_back(errors[k]);
-    }
+    for (std::size_t k = 0; k < files.size(); ++k)
+        if (headers[k]) usable.push_back(std::move(*headers[k]));
     return usable;
 }
 
@@ -626,7 +673,7 @@ DicomScanResult scanDicomFolder(const std::filesystem::path& folder, const Progr
     std::error_code ec;
     if (!fs::exists(folder, ec)) throw DicomError(folder.string() + ": folder not found");
     const std::vector<fs::path> files = filesToScan(folder, result.skipped, cancel);
-    std::vector<DicomHeader> usable = readHeaders(files, result.skipped, progress, cancel);
+    std::vector<DicomHeader> usable = readHeaders(folder, files, result, progress, cancel);
     checkCancel(cancel);
     result.series = groupIntoSeries(usable, result.skipped);
     if (progress) progress(1.0, "reading DICOM headers");

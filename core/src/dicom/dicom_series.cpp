@@ -75,6 +75,7 @@ DicomVolume loadChosenSeries(const DicomScanResult& scan, const std::string& key
     DicomVolume loaded = loadDicomSeries(s, progress, cancel);
     for (const auto& w : loaded.warnings) addOnce(notes, w);
     for (const auto& w : s.warnings) addOnce(notes, w);
+    for (const auto& w : scan.warnings) addOnce(notes, w);
     loaded.warnings = std::move(notes);
     if (chosen) *chosen = &s;
     return loaded;

@@ -666,6 +666,12 @@ MetaHeader readMetaHeader(const fs::path& path, std::streambuf& sb, std::uint64_
         const std::string_view t = trim(line);
         if (t.empty()) continue;
         const std::size_t eq = t.find('=');
+        if ((eq == std::string_view::npos || trim(t.substr(0, eq)).empty()) &&
+            header.fields.empty())
+            throw LoadError(path.string() +
+                            ": not a MetaImage file (its header is 'Key = Value' lines such as "
+                            "'NDims = 3'; the first line is " +
+                            quoteValue(t) + ")");
         if (eq == std::string_view::npos || trim(t.substr(0, eq)).empty())
             fail(path, "header", "expected 'Key = Value' lines, found " + quoteValue(t));
         const std::string key(trim(t.substr(0, eq)));
@@ -1193,6 +1199,39 @@ struct NiftiStream {
 
 constexpr std::size_t kNiftiHeaderBytes = 348;
 
+/** "; it starts with text: 'hello world...'" when the file's first line is printable text. */
+std::string textStartNote(const unsigned char* bytes, std::size_t got) {
+    std::size_t n = 0;
+    while (n < got && n < 60 && bytes[n] != '\n' && bytes[n] != '\r') {
+        if ((bytes[n] < 0x20 && bytes[n] != '\t') || bytes[n] >= 0x7f) return {};
+        ++n;
+    }
+    if (n < 4) return {};
+    return "; it starts with text: " +
+           quoteValue(std::string_view(reinterpret_cast<const char*>(bytes), n));
+}
+
+/** Refuses a file whose header size field `sizeofHdr` (as read) is no NIfTI-1's: a NIfTI-2
+ *  file, plain data named .nii.gz, or no NIfTI at all. */
+[[noreturn]] void failNotNifti1(const fs::path& path, const NiftiStream& in, std::int32_t sizeofHdr,
+                                const unsigned char* h, std::size_t got) {
+    if (!in.gz && endsWith(lower(path.filename().string()), ".nii.gz"))
+        throw LoadError(path.string() + ": not gzip-compressed data (a .nii.gz file must be gzip)" +
+                        textStartNote(h, got));
+    if (got < 4)
+        fail(path, "sizeof_hdr",
+             "expected a 348-byte NIfTI-1 header, found a file of " + std::to_string(got) +
+                 " bytes" + in.readNote());
+    if (sizeofHdr == 540 || byteSwapped(sizeofHdr) == 540)
+        throw LoadError(path.string() +
+                        ": a NIfTI-2 file (header size 540): NIfTI-2 is not supported, only "
+                        "NIfTI-1 (sizeof_hdr 348); save it as NIfTI-1 to open it");
+    throw LoadError(path.string() + ": not a NIfTI file (its header size field (sizeof_hdr) is " +
+                    std::to_string(sizeofHdr) +
+                    ", expected 348 for NIfTI-1 or 540 for NIfTI-2, in either byte order" +
+                    textStartNote(h, got) + ")");
+}
+
 /** Reads the 348-byte header into h and checks sizeof_hdr (which gives the byte order) and the
  *  single-file magic. */
 NiftiHeaderReader readNiftiHeader(const fs::path& path, const NiftiStream& in,
@@ -1200,22 +1239,15 @@ NiftiHeaderReader readNiftiHeader(const fs::path& path, const NiftiStream& in,
     const std::size_t got = in.src.read(h, sizeof h);
     if (got < sizeof h && !in.src.error().empty())
         fail(path, "header", "expected 348 bytes, found " + std::to_string(got) + in.readNote());
-    if (got < 4)
-        fail(path, "sizeof_hdr",
-             "expected a 348-byte NIfTI-1 header, found a file of " + std::to_string(got) +
-                 " bytes" + in.readNote());
     std::int32_t sizeofHdr = 0;
-    std::memcpy(&sizeofHdr, h, 4);
+    if (got >= 4) std::memcpy(&sizeofHdr, h, 4);
     bool swap = false;
-    if (sizeofHdr == 348) {
+    if (got >= 4 && sizeofHdr == 348) {
         swap = false;
-    } else if (byteSwapped(sizeofHdr) == 348) {
+    } else if (got >= 4 && byteSwapped(sizeofHdr) == 348) {
         swap = true; // written on a machine of the other byte order
-    } else if (sizeofHdr == 540 || byteSwapped(sizeofHdr) == 540) {
-        fail(path, "sizeof_hdr", "expected 348 (NIfTI-1), found 540 (NIfTI-2 is not supported)");
     } else {
-        fail(path, "sizeof_hdr",
-             "expected 348 (NIfTI-1, either byte order), found " + std::to_string(sizeofHdr));
+        failNotNifti1(path, in, sizeofHdr, h, got);
     }
     if (got < sizeof h)
         fail(path, "header", "expected 348 bytes, found " + std::to_string(got) + in.readNote());

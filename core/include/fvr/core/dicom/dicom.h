@@ -99,6 +99,11 @@ struct DicomSeriesInfo {
 struct DicomScanResult {
     std::vector<DicomSeriesInfo> series;
     std::vector<std::string> skipped; ///< "file: reason" for files that are not usable images
+    /** About the folder as a whole, each said once: how many files were skipped because they
+     *  are not DICOM ("skipped 2 files that are not DICOM: README.txt, notes.txt") or are DICOM
+     *  objects without an image (with their SOP class in words), the first three named.
+     *  loadChosenSeries, and so openStudy, adds them to the loaded series' warnings. */
+    std::vector<std::string> warnings;
 };
 
 /** Recursive scan (reads DICOMDIR when present, else every file), in parallel, headers only
