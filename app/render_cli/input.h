@@ -18,10 +18,11 @@ struct LoadedInput {
     core::DicomExportInfo exportInfo;
 };
 
-/** Opens INPUT by core's rule (core::classifyInput, core::openStudy): phantom:shepp-logan[:N],
- *  a raw file (--raw-dims), a DICOM folder or DICOMDIR (the series of --series, else the default
- *  series: loadable, then most slices), one DICOM file, or a volume file; values without units
- *  that look like CT are taken for HU. Prints the warnings on stderr. Throws InputError. */
+/** Opens INPUT by core's rule (core::classifyInput, core::openStudy): phantom:chest[:N],
+ * phantom:shepp-logan[:N], a raw file (--raw-dims), a DICOM folder or DICOMDIR (the series of
+ * --series, else the default series: loadable, then most slices), one DICOM file, or a volume file;
+ * values without units that look like CT are taken for HU. Prints the warnings on stderr. Throws
+ * InputError. */
 LoadedInput loadInput(const Options& o);
 
 } // namespace fvr::cli

@@ -28,8 +28,9 @@ const char* kUsage = R"(usage: fvr-render INPUT [options] --out FILE
 
 INPUT is a DICOM folder, its DICOMDIR or one DICOM file, a volume file (.mhd, .mha, .nii,
 .nii.gz; values without units that look like CT are taken for HU), a headerless raw file with
---raw-dims, or phantom:shepp-logan[:N] (built-in 3D Shepp-Logan in HU, N^3 voxels, default
-128). The workstation opens paths by the same rule.
+--raw-dims, or a built-in phantom in HU with N^3 voxels: phantom:chest[:N] (an adult chest,
+420 mm field, default N 160; try --view AP) or phantom:shepp-logan[:N] (3D Shepp-Logan, 256 mm
+field, default N 128). The workstation opens paths by the same rule.
 )";
 
 const char* kFooter =

@@ -25,10 +25,18 @@ InputSource parsePhantom(const std::string& spec) {
     const std::string rest = spec.substr(std::string("phantom:").size());
     const auto colon = rest.find(':');
     const std::string kind = rest.substr(0, colon);
-    if (kind != "shepp-logan")
-        throw SettingsError("INPUT: unknown phantom '" + kind + "' (expected shepp-logan)");
     InputSource s;
     s.kind = InputKind::Phantom;
+    if (kind == "chest") {
+        s.phantom = PhantomKind::Chest;
+        s.phantomSize = 160;
+    } else if (kind == "shepp-logan") {
+        s.phantom = PhantomKind::SheppLogan;
+        s.phantomSize = 128;
+    } else {
+        throw SettingsError("INPUT: unknown phantom '" + kind +
+                            "' (expected phantom:chest[:N] or phantom:shepp-logan[:N])");
+    }
     if (colon != std::string::npos) {
         const std::string n = rest.substr(colon + 1);
         std::size_t used = 0;
@@ -118,7 +126,9 @@ OpenedStudy openStudy(const InputSource& source, const OpenOptions& options,
     switch (source.kind) {
     case InputKind::Phantom:
         if (progress) progress(0.05, "building phantom");
-        study.volume = makeSheppLoganVolume(source.phantomSize);
+        study.volume = source.phantom == PhantomKind::Chest
+                           ? makeChestPhantomVolume(source.phantomSize)
+                           : makeSheppLoganVolume(source.phantomSize);
         break;
     case InputKind::VolumeFile:
         if (progress) progress(0.05, "reading file");

@@ -38,6 +38,128 @@ bool boxInterval(const Vec3& o, const Vec3& dir, const Vec3& h, double& t0, doub
 double weightedLength(double t0, double t1, double a, double b) {
     return a * (t1 - t0) + b * 0.5 * (t1 * t1 - t0 * t0);
 }
+
+/** A piece of a line with one density: t in [t0, t1]. */
+struct Segment {
+    double t0, t1, density;
+};
+
+/**
+ * The painted density along o + t dir for t in [tMin, tMax]: the line's pieces between the
+ * points where it crosses ellipsoid surfaces, each with the density of the last of `candidates`
+ * (indices into `all`, in painting order) that holds it; pieces in no ellipsoid are left out.
+ */
+void paintedSegments(const std::vector<Ellipsoid>& all, const std::vector<int>& candidates,
+                     const Vec3& o, const Vec3& dir, double tMin, double tMax,
+                     std::vector<Segment>& hits, std::vector<double>& cuts,
+                     std::vector<Segment>& out) {
+    hits.clear();
+    cuts.clear();
+    out.clear();
+    for (int i : candidates) {
+        double t0, t1;
+        if (!all[std::size_t(i)].interval(o, dir, t0, t1)) continue;
+        t0 = std::max(t0, tMin);
+        t1 = std::min(t1, tMax);
+        if (t1 <= t0) continue;
+        hits.push_back({t0, t1, all[std::size_t(i)].density});
+        cuts.push_back(t0);
+        cuts.push_back(t1);
+    }
+    std::sort(cuts.begin(), cuts.end());
+    for (std::size_t k = 0; k + 1 < cuts.size(); ++k) {
+        const double a = cuts[k], b = cuts[k + 1];
+        if (b <= a) continue;
+        const double mid = 0.5 * (a + b);
+        for (auto h = hits.rbegin(); h != hits.rend(); ++h)
+            if (h->t0 <= mid && mid <= h->t1) {
+                out.push_back({a, b, h->density});
+                break;
+            }
+    }
+}
+
+/** Axis-aligned half-extents of an ellipsoid (exact bounding box). */
+Vec3 boundingHalfExtent(const Ellipsoid& e) {
+    Vec3 h;
+    for (int k = 0; k < 3; ++k) {
+        double s = 0;
+        for (int i = 0; i < 3; ++i) s += std::pow(e.semiAxes[i] * e.axes[std::size_t(i)][k], 2);
+        h[k] = std::sqrt(s);
+    }
+    return h;
+}
+
+/** Voxel-centre coordinate (mm from the centre) of index i on an axis of n voxels. */
+double voxelCentre(std::int64_t i, std::int64_t n, double s) {
+    return (double(i) - double(n - 1) / 2.0) * s;
+}
+
+/** Paint-composition voxel values (mu) of one row (y, z) of voxels: the mean over S x S lines
+ *  along x through the row, each integrated exactly over every voxel's length. */
+void paintRow(const std::vector<Ellipsoid>& all, const std::vector<int>& candidates,
+              const Dims3& dims, const Vec3& spacing, std::int64_t y, std::int64_t z, int S,
+              std::vector<double>& row) {
+    std::vector<Segment> hits, segs;
+    std::vector<double> cuts;
+    const double x0 = -dims[0] * spacing[0] / 2.0, sx = spacing[0];
+    std::fill(row.begin(), row.end(), 0.0);
+    const double weight = 1.0 / (double(S) * S * sx);
+    for (int j = 0; j < S; ++j)
+        for (int k = 0; k < S; ++k) {
+            const Vec3 o{0.0,
+                         voxelCentre(y, dims[1], spacing[1]) + ((j + 0.5) / S - 0.5) * spacing[1],
+                         voxelCentre(z, dims[2], spacing[2]) + ((k + 0.5) / S - 0.5) * spacing[2]};
+            paintedSegments(all, candidates, o, {1, 0, 0}, x0, -x0, hits, cuts, segs);
+            for (const Segment& sg : segs) {
+                const auto first = std::int64_t(std::floor((sg.t0 - x0) / sx));
+                const auto last = std::min<std::int64_t>(
+                    std::int64_t(std::floor((sg.t1 - x0) / sx)), dims[0] - 1);
+                for (std::int64_t x = std::max<std::int64_t>(first, 0); x <= last; ++x) {
+                    const double a = std::max(sg.t0, x0 + double(x) * sx);
+                    const double b = std::min(sg.t1, x0 + double(x + 1) * sx);
+                    if (b > a) row[std::size_t(x)] += sg.density * (b - a) * weight;
+                }
+            }
+        }
+}
+
+/** Paint composition: see EllipsoidPhantom::voxelize. Returns mu per voxel. */
+std::vector<float> voxelizePainted(const std::vector<Ellipsoid>& all, const Dims3& dims,
+                                   const Vec3& spacing, int S) {
+    std::vector<float> mu(std::size_t(dims[0] * dims[1] * dims[2]), 0.0f);
+    std::vector<Vec3> lo(all.size()), hi(all.size());
+    for (std::size_t i = 0; i < all.size(); ++i) {
+        const Vec3 h = boundingHalfExtent(all[i]);
+        lo[i] = sub(all[i].centre, h);
+        hi[i] = add(all[i].centre, h);
+    }
+    ThreadPool pool;
+    pool.parallelFor(dims[2], 1, [&](std::int64_t z0, std::int64_t z1) {
+        std::vector<double> row(static_cast<std::size_t>(dims[0]));
+        std::vector<int> inSlice, inRow;
+        for (std::int64_t z = z0; z < z1; ++z) {
+            const double zc = voxelCentre(z, dims[2], spacing[2]), hz = spacing[2] / 2;
+            inSlice.clear();
+            for (std::size_t i = 0; i < all.size(); ++i)
+                if (lo[i][2] < zc + hz && hi[i][2] > zc - hz) inSlice.push_back(int(i));
+            for (std::int64_t y = 0; y < dims[1]; ++y) {
+                const double yc = voxelCentre(y, dims[1], spacing[1]), hy = spacing[1] / 2;
+                inRow.clear();
+                for (int i : inSlice)
+                    if (lo[std::size_t(i)][1] < yc + hy && hi[std::size_t(i)][1] > yc - hy)
+                        inRow.push_back(i);
+                paintRow(all, inRow, dims, spacing, y, z, S, row);
+                float* out = mu.data() + std::size_t(dims[0] * (y + dims[1] * z));
+                for (std::int64_t x = 0; x < dims[0]; ++x) out[x] = float(row[std::size_t(x)]);
+            }
+        }
+    });
+    return mu;
+}
+
+std::vector<float> voxelizeSum(const std::vector<Ellipsoid>& ellipsoids, const Dims3& dims,
+                               const Vec3& spacing, int S);
 } // namespace
 
 bool Ellipsoid::interval(const Vec3& o, const Vec3& dir, double& t0, double& t1) const {
@@ -106,8 +228,19 @@ Volume EllipsoidPhantom::voxelize(const Dims3& dims, const Vec3& spacing, int su
     v.name = "phantom";
     v.origin = {-(dims[0] - 1) / 2.0 * spacing[0], -(dims[1] - 1) / 2.0 * spacing[1],
                 -(dims[2] - 1) / 2.0 * spacing[2]};
-    std::vector<float> mu(std::size_t(v.voxelCount()), 0.0f);
     const int S = std::max(1, supersample);
+    std::vector<float> mu = composition == Composition::Paint
+                                ? voxelizePainted(ellipsoids, dims, spacing, S)
+                                : voxelizeSum(ellipsoids, dims, spacing, S);
+    v.voxels.resize(mu.size());
+    for (std::size_t i = 0; i < mu.size(); ++i) v.voxels[i] = 1000.0f * (mu[i] - 1.0f);
+    return v;
+}
+
+namespace {
+std::vector<float> voxelizeSum(const std::vector<Ellipsoid>& ellipsoids, const Dims3& dims,
+                               const Vec3& spacing, int S) {
+    std::vector<float> mu(std::size_t(dims[0] * dims[1] * dims[2]), 0.0f);
     const double halfDiag = 0.5 * std::sqrt(dot(spacing, spacing));
     ThreadPool pool;
     for (const Ellipsoid& e : ellipsoids) {
@@ -148,14 +281,13 @@ Volume EllipsoidPhantom::voxelize(const Dims3& dims, const Vec3& spacing, int su
                                     }
                             frac = float(inside) / float(S * S * S);
                         }
-                        mu[v.index(x, y, z)] += dens * frac;
+                        mu[std::size_t(x + dims[0] * (y + dims[1] * z))] += dens * frac;
                     }
         });
     }
-    v.voxels.resize(mu.size());
-    for (std::size_t i = 0; i < mu.size(); ++i) v.voxels[i] = 1000.0f * (mu[i] - 1.0f);
-    return v;
+    return mu;
 }
+} // namespace
 
 ProjectionImage EllipsoidPhantom::project(const ViewFrame& view, const ImageGeometry& image,
                                           ValueMapping mapping, const Dims3& dims,
@@ -172,20 +304,36 @@ ProjectionImage EllipsoidPhantom::project(const ViewFrame& view, const ImageGeom
     img.pixelSize = d;
     img.view = view;
     img.mapping = mapping;
-    img.pixels.resize(std::size_t(M) * M);
+    img.pixels.assign(std::size_t(M) * M, 0.0f);
+    std::vector<int> everyone(ellipsoids.size());
+    for (std::size_t i = 0; i < everyone.size(); ++i) everyone[i] = int(i);
+    std::vector<Segment> hits, segs;
+    std::vector<double> cuts;
+    // The phantom's integral along the ray inside the volume's box [b0, b1].
+    auto lineIntegral = [&](const Vec3& o, double b0, double b1) {
+        double mu = 0.0;
+        if (composition == Composition::Paint) {
+            paintedSegments(ellipsoids, everyone, o, view.d, b0, b1, hits, cuts, segs);
+            for (const Segment& sg : segs)
+                mu += sg.density * weightedLength(sg.t0, sg.t1, w.a, w.b);
+            return mu;
+        }
+        double t0, t1;
+        for (const Ellipsoid& e : ellipsoids)
+            if (e.interval(o, view.d, t0, t1) && std::min(t1, b1) > std::max(t0, b0))
+                mu += e.density * weightedLength(std::max(t0, b0), std::min(t1, b1), w.a, w.b);
+        return mu;
+    };
     const Vec3 half{dims[0] * spacing[0] / 2, dims[1] * spacing[1] / 2, dims[2] * spacing[2] / 2};
     for (int row = 0; row < M; ++row)
         for (int col = 0; col < M; ++col) {
             Vec3 o;
             for (int a = 0; a < 3; ++a)
                 o[a] = (col - M / 2) * d * view.r[a] - (row - M / 2) * d * view.u[a];
-            double mu = 0.0, t0, t1;
-            for (const Ellipsoid& e : ellipsoids)
-                if (e.interval(o, view.d, t0, t1))
-                    mu += e.density * weightedLength(t0, t1, w.a, w.b);
-            double box = 0.0;
-            if (mapping != ValueMapping::Mu && boxInterval(o, view.d, half, t0, t1))
-                box = weightedLength(t0, t1, w.a, w.b);
+            double b0, b1;
+            if (!boxInterval(o, view.d, half, b0, b1)) continue; // the ray misses the volume
+            const double mu = lineIntegral(o, b0, b1);
+            const double box = weightedLength(b0, b1, w.a, w.b);
             const double v = mapping == ValueMapping::Mu ? mu : 1000.0 * mu - 1000.0 * box;
             img.pixels[std::size_t(row) * M + col] = float(v);
         }
@@ -199,6 +347,16 @@ Volume makeSheppLoganVolume(int n) {
     Volume v = EllipsoidPhantom::sheppLogan3D(field).voxelize({n, n, n},
                                                               {field / n, field / n, field / n});
     v.name = "shepp-logan-" + std::to_string(n);
+    return v;
+}
+
+Volume makeChestPhantomVolume(int n) {
+    if (n < 8 || n > 1024)
+        throw SettingsError("phantom size: expected 8..1024, found " + std::to_string(n));
+    const double field = 420.0;
+    Volume v =
+        EllipsoidPhantom::chest(field).voxelize({n, n, n}, {field / n, field / n, field / n});
+    v.name = "chest-phantom-" + std::to_string(n);
     return v;
 }
 

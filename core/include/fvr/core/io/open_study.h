@@ -17,22 +17,27 @@
 namespace fvr::core {
 
 enum class InputKind {
-    Phantom, ///< "phantom:shepp-logan[:N]": the built-in Shepp-Logan phantom, N^3 voxels
+    Phantom, ///< "phantom:chest[:N]" or "phantom:shepp-logan[:N]": a built-in phantom, N^3 voxels
     DicomFolder, ///< a folder (scanned recursively; its DICOMDIR is read when present)
     DicomFile, ///< one DICOM file (single image or multi-frame)
     VolumeFile, ///< .mhd, .mha, .nii, .nii.gz (or a headerless raw file with a RawSpec)
 };
 
+/** The built-in phantoms: makeChestPhantomVolume, makeSheppLoganVolume (xray/phantom.h). */
+enum class PhantomKind { SheppLogan, Chest };
+
 /** What an input names. */
 struct InputSource {
     InputKind kind = InputKind::Phantom;
     std::filesystem::path path; ///< the folder or file (a DICOMDIR names its folder)
-    int phantomSize = 128; ///< Phantom: voxels per axis
+    int phantomSize = 128; ///< Phantom: voxels per axis (default 128 Shepp-Logan, 160 chest)
+    PhantomKind phantom = PhantomKind::SheppLogan; ///< Phantom: which one
 };
 
 /**
- * The rule, in this order: "phantom:shepp-logan[:N]" is the phantom (N voxels per axis, default
- * 128; the size is checked when it is built); a folder is a DICOM folder; a file named DICOMDIR
+ * The rule, in this order: "phantom:chest[:N]" and "phantom:shepp-logan[:N]" are the built-in
+ * phantoms (N voxels per axis, default 160 for the chest, 128 for Shepp-Logan; the size is
+ * checked when it is built); a folder is a DICOM folder; a file named DICOMDIR
  * stands for its folder; a file with the DICM preamble is DICOM whatever its name; .mhd, .mha,
  * .nii and .nii.gz are volume files; .dcm, .dicom and names without extension are DICOM (old
  * files lack the preamble); anything else is a volume file (loadVolume then says which formats
