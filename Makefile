@@ -8,7 +8,8 @@ JOBS ?= $(shell nproc)
 STUDY ?=
 SHARED_DATA ?= $(abspath $(CURDIR)/../shared/data)
 
-.PHONY: all deps configure build run test bench bench-gpu package sanitize format format-check clean
+.PHONY: all deps configure build run test bench bench-gpu package sanitize format format-check \
+  screenshots clean
 
 all: build
 
@@ -59,6 +60,34 @@ format: deps
 
 format-check: deps
 	@clang-format --dry-run -Werror $(FORMAT_FILES)
+
+# The README's screenshots (resources/screenshots), regenerated headless under Xvfb at a fixed
+# window size by the workstation itself (--screenshot … --quit), each run with settings of its
+# own (XDG_CONFIG_HOME: no user's saved settings; the file is "<organization>/<application>.conf"
+# of ui/src/app_info.cpp). Studies from ../shared/data, the built-in phantom where missing.
+SCREENSHOT_DIR ?= resources/screenshots
+SCREENSHOT_SIZE ?= 1400x1000
+SHOT_CONFIG = $(abspath $(BUILD_DIR))/screenshots-config
+SHOT_SETTINGS = $(SHOT_CONFIG)/fvr-workstation/FVR Workstation.conf
+HEAD_PHANTOM = $(SHARED_DATA)/dicom/ct_phantom_philips_512x512x140
+BODY_CT = $(SHARED_DATA)/volumes/body_ct_hu_3mm/example_ct.mhd
+SHOT = xvfb-run -a -s "-screen 0 1600x1200x24" env XDG_CONFIG_HOME="$(SHOT_CONFIG)" \
+  QT_QPA_PLATFORM=xcb $(BUILD_DIR)/app/fvr-workstation --window-size $(SCREENSHOT_SIZE) --quit
+screenshots: build
+	@mkdir -p $(SCREENSHOT_DIR)
+	@# Four kernels side by side (view 1 Kaiser-Bessel 4, linear, nearest, sinc4), AP.
+	@rm -rf "$(SHOT_CONFIG)"
+	@study="$(HEAD_PHANTOM)"; [ -d "$$study" ] || study=phantom:shepp-logan:128; \
+	 $(SHOT) "$$study" --compare 4 --view AP --screenshot $(SCREENSHOT_DIR)/workstation.png
+	@# Beer-Lambert film look: transmitted intensity at 70 keV, exposure 2, edge enhancement
+	@# (amount 1, sigma 2 mm), inverted (bone white), through the X-ray and Display panels' keys.
+	@rm -rf "$(SHOT_CONFIG)" && mkdir -p "$(SHOT_CONFIG)/fvr-workstation"
+	@printf '[xray]\noutput=1\nenergyKeV=70\nexposure=2\nsharpen=1\nsharpenRadius=2\n[display]\ninvert=true\n' \
+	  > "$(SHOT_SETTINGS)"
+	@study="$(BODY_CT)"; [ -f "$$study" ] || study=phantom:shepp-logan:128; \
+	 $(SHOT) "$$study" --view AP --screenshot $(SCREENSHOT_DIR)/xray-film.png
+	@rm -rf "$(SHOT_CONFIG)"
+	@ls -l $(SCREENSHOT_DIR)/workstation.png $(SCREENSHOT_DIR)/xray-film.png
 
 clean:
 	@rm -rf $(BUILD_DIR) build-asan out

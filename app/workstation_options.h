@@ -1,0 +1,41 @@
+#pragma once
+// fvr-workstation's command line: the study to open, the views to start with, and the scripted
+// exports (documentation, checks).
+#include <QSize>
+#include <QString>
+
+#include <optional>
+
+#include <fvr/core/render/kernels.h>
+#include <fvr/core/xray/patient_views.h>
+#include <fvr/ui/scripted_run.h>
+#include <fvr/ui/study.h>
+
+class QApplication;
+
+namespace fvr::ui {
+class MainWindow;
+}
+
+namespace fvr::app {
+
+struct WorkstationOptions {
+    ui::StudySource source; ///< the built-in phantom when no study is named
+    int compare = 1;
+    std::optional<core::PatientView> view;
+    std::optional<core::Kernel> kernel; ///< view 1's
+    std::optional<int> size; ///< every view's
+    std::optional<QSize> windowSize;
+    ui::ScriptedRunOptions script;
+};
+
+/** Parses the command line (--help and --version print and exit, as QCommandLineParser does);
+ *  throws core::SettingsError naming the option for a bad value. */
+WorkstationOptions parseWorkstationOptions(const QApplication& app);
+
+/** Applies the views' options to a shown window before its study opens: compare count, view 1's
+ *  kernel and every view's size (through the Rendering panel, as a user would: the startup settings
+ * follow), the patient view once the study is loaded, the window size. */
+void applyWorkstationOptions(ui::MainWindow& window, const WorkstationOptions& o);
+
+} // namespace fvr::app

@@ -1,0 +1,152 @@
+// The workstation driven from the command line (--export-views, --screenshot, --quit): the real
+// fvr-workstation binary under the test's X display. Its exports are checked against fvr-render
+// (the same view, kernel, size and spectrum: an independent program and renderer), the display
+// window's mapping and the window's size.
+#include <QFile>
+#include <QImage>
+#include <QJsonArray>
+#include <QJsonDocument>
+#include <QJsonObject>
+
+#include <cmath>
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include <fvr/core/io/image_io.h>
+#include <fvr/core/xray/display_window.h>
+
+#include "image_metrics.h"
+#include "test_support.h"
+
+namespace {
+namespace fs = std::filesystem;
+using fvr::test::CommandOutput;
+
+/** Runs the workstation with `args`, its settings in a fresh folder (no user's saved settings);
+ *  `out` gets its stderr. */
+CommandOutput runWorkstation(const std::string& args, const fs::path& scratch) {
+    const fs::path config = scratch / "config";
+    fs::remove_all(config);
+    fs::create_directories(config);
+    std::string cmd = "XDG_CONFIG_HOME='";
+    cmd += config.string();
+    cmd += "' QT_QPA_PLATFORM=xcb '";
+    cmd += FVR_WORKSTATION_EXE;
+    cmd += "' ";
+    cmd += args;
+    cmd += " 2>&1 >/dev/null";
+    return fvr::test::runCommand(cmd);
+}
+
+QJsonObject readJson(const fs::path& path) {
+    QFile f(QString::fromStdString(path.string()));
+    if (!f.open(QIODevice::ReadOnly)) return {};
+    return QJsonDocument::fromJson(f.readAll()).object();
+}
+
+std::vector<float> readImage(const fs::path& path, std::vector<std::int64_t>& shape) {
+    shape.clear();
+    if (!fs::exists(path)) return {};
+    return fvr::core::readNpy(path, shape);
+}
+
+TEST(ScriptedRun, ExportsEveryViewAsShownAndQuits) {
+    const fs::path dir = fvr::test::tmpDir() / "scripted_run";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const fs::path views = dir / "views";
+    const fs::path shot = dir / "window.png";
+    const CommandOutput r = runWorkstation(
+        "phantom:shepp-logan:64 --compare 2 --kernel catmull-rom --size 128 --window-size "
+        "1100x1050 --export-views '" +
+            views.string() + "' --screenshot '" + shot.string() + "' --quit",
+        dir);
+    ASSERT_EQ(r.status, 0) << r.out;
+
+    // views.json: two views, view 1 with the kernel and size asked for.
+    const QJsonObject info = readJson(views / "views.json");
+    const QJsonArray list = info["views"].toArray();
+    ASSERT_EQ(list.size(), 2) << QJsonDocument(info).toJson().toStdString();
+    const QJsonObject v1 = list[0].toObject();
+    EXPECT_EQ(v1["kernel"].toString(), "catmull-rom");
+    EXPECT_EQ(v1["size"].toInt(), 128);
+    EXPECT_EQ(list[1].toObject()["kernel"].toString(), "linear"); // compare mode's second kernel
+    EXPECT_EQ(list[1].toObject()["size"].toInt(), 128); // --size: every view
+    EXPECT_TRUE(info["study"].toString().contains("phantom"));
+    const QJsonObject spectrum = info["spectrum"].toObject();
+    EXPECT_TRUE(spectrum["deapodizedFor"].isNull()); // compare mode: no gridding correction
+
+    std::vector<std::int64_t> shape;
+    for (const char* name : {"view1.npy", "view2.npy"}) {
+        EXPECT_EQ(readImage(views / name, shape).size(), 128u * 128u) << name;
+        EXPECT_EQ(shape, (std::vector<std::int64_t>{128, 128})) << name;
+    }
+    const std::vector<float> view1 = readImage(views / "view1.npy", shape);
+    ASSERT_EQ(view1.size(), 128u * 128u);
+
+    // fvr-render: the same study, view (AP, the workstation's first view), kernel, size and
+    // spectrum (values, transform, oversampling as views.json reports them), on the CPU.
+    const fs::path ref = dir / "render.npy";
+    std::string args = "phantom:shepp-logan:64 --view AP --kernel catmull-rom --size 128 ";
+    args += "--deapodize off --values " + spectrum["values"].toString().toStdString();
+    args += " --transform " + spectrum["transform"].toString().toStdString();
+    args += " --oversampling " + std::to_string(spectrum["oversampling"].toDouble());
+    args += " --out '" + ref.string() + "'";
+    const CommandOutput cli =
+        fvr::test::runCommand(std::string(FVR_RENDER_EXE) + " " + args + " 2>&1");
+    ASSERT_EQ(cli.status, 0) << cli.out;
+    const std::vector<float> expected = readImage(ref, shape);
+    ASSERT_EQ(expected.size(), view1.size());
+    const auto cmp = fvr::test::compare(view1, expected);
+    std::printf("[scripted] view 1 vs fvr-render: PSNR %.1f dB, rel. RMSE %.2e (%s)\n", cmp.psnr,
+                cmp.relRmse, v1["backend"].toString().toStdString().c_str());
+    EXPECT_GT(cmp.psnr, 100.0); // measured 149 dB (Mesa llvmpipe against the CPU renderer)
+
+    // view1.png: the projection through the view's window (DisplayWindow::map), row 0 at the top.
+    const QJsonObject w = v1["window"].toObject();
+    const fvr::core::DisplayWindow window{w["low"].toDouble(), w["high"].toDouble(),
+                                          w["invert"].toBool()};
+    ASSERT_LT(window.low, window.high);
+    const QImage png(QString::fromStdString((views / "view1.png").string()));
+    ASSERT_EQ(png.size(), QSize(128, 128));
+    int worst = 0, distinct = 0, last = -1;
+    for (int y = 0; y < 128; ++y)
+        for (int x = 0; x < 128; ++x) {
+            const int grey = qGray(png.pixel(x, y));
+            const int want = int(std::lround(255.0 * window.map(view1[std::size_t(y) * 128 + x])));
+            worst = std::max(worst, std::abs(grey - want));
+            distinct += grey != last;
+            last = grey;
+        }
+    EXPECT_LE(worst, 1);
+    EXPECT_GT(distinct, 500); // an image, not a flat field
+
+    // The screenshot: the whole window at its size, with the views' images in it (the skull's
+    // white ring in view 1, left of the docks and below the toolbar).
+    const QImage window_shot(QString::fromStdString(shot.string()));
+    ASSERT_FALSE(window_shot.isNull());
+    const QJsonArray size = info["windowSize"].toArray();
+    EXPECT_EQ(window_shot.size(), QSize(size[0].toInt(), size[1].toInt()));
+    EXPECT_EQ(window_shot.size(), QSize(1100, 1050)); // --window-size
+    int white = 0;
+    for (int y = 80; y < 600 && y < window_shot.height(); ++y)
+        for (int x = 0; x < 250 && x < window_shot.width(); ++x)
+            white += qGray(window_shot.pixel(x, y)) >= 250;
+    EXPECT_GT(white, 50);
+}
+
+TEST(ScriptedRun, FailedStudyExitsNonZeroNamingThePath) {
+    const fs::path dir = fvr::test::tmpDir() / "scripted_run_failed";
+    fs::create_directories(dir);
+    const std::string missing = (dir / "no_such_study.mhd").string();
+    const CommandOutput r = runWorkstation(
+        "'" + missing + "' --export-views '" + (dir / "out").string() + "' --quit", dir);
+    EXPECT_NE(r.status, 0);
+    EXPECT_NE(r.out.find("fvr-workstation: "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find(missing), std::string::npos) << r.out;
+    EXPECT_FALSE(fs::exists(dir / "out" / "views.json"));
+}
+
+} // namespace

@@ -1,0 +1,182 @@
+#include <fvr/ui/scripted_run.h>
+
+#include <QBuffer>
+#include <QCoreApplication>
+#include <QDir>
+#include <QImage>
+#include <QJsonArray>
+#include <QJsonDocument>
+#include <QJsonObject>
+
+#include <cstdio>
+
+#include <fvr/core/errors.h>
+#include <fvr/core/io/atomic_file.h>
+#include <fvr/core/io/image_io.h>
+#include <fvr/core/render/voxel_model.h>
+#include <fvr/core/xray/xray.h>
+#include <fvr/ui/main_window.h>
+
+namespace fvr::ui {
+
+namespace {
+
+QJsonArray vec(const core::Vec3& v) { return {v[0], v[1], v[2]}; }
+
+QJsonObject windowJson(const core::DisplayWindow& w) {
+    QJsonObject o{{"low", w.low}, {"high", w.high}, {"invert", w.invert}};
+    if (w.transmission.active())
+        o["transmission"] = QJsonObject{{"muWaterPerMm", w.transmission.muWaterPerMm},
+                                        {"exposure", w.transmission.exposure}};
+    return o;
+}
+
+QJsonObject spectrumJson(const SpectrumSettings& s) {
+    return {{"values", core::valueMappingName(s.mapping)},
+            {"transform", core::transformName(s.transform)},
+            {"oversampling", s.oversampling},
+            {"deapodizedFor", s.deapodizeFor ? QJsonValue(core::kernelName(*s.deapodizeFor))
+                                             : QJsonValue(QJsonValue::Null)}};
+}
+
+/** One view's entry of views.json. */
+QJsonObject viewJson(int index, ProjectionView& v, const core::ProjectionImage& p,
+                     bool transmission) {
+    const QString stem = QStringLiteral("view%1").arg(index + 1);
+    return {{"index", index + 1},
+            {"npy", stem + ".npy"},
+            {"png", stem + ".png"},
+            {"kernel", core::kernelName(v.settings().kernel)},
+            {"size", p.size},
+            {"pixelSizeMm", p.pixelSize},
+            {"voxelModel", core::voxelModelName(v.settings().voxelModel)},
+            {"npyValues", transmission ? "transmitted intensity" : "line integrals"},
+            {"window", windowJson(v.window())},
+            {"viewFrame", QJsonObject{{"dir", vec(v.viewFrame().d)},
+                                      {"up", vec(v.viewFrame().u)},
+                                      {"right", vec(v.viewFrame().r)}}},
+            {"backend", v.usingGpu() ? "gpu" : "cpu"}};
+}
+
+} // namespace
+
+ScriptedRun::ScriptedRun(MainWindow& window, ScriptedRunOptions options, QObject* parent)
+    : QObject(parent), m_window(window), m_options(std::move(options)) {
+    StudyController& study = m_window.study();
+    // Connected after the main window's own handlers: the views already hold the new spectrum.
+    connect(&study, &StudyController::spectrumReady, this, &ScriptedRun::onSpectrumReady);
+    connect(&study, &StudyController::failed, this,
+            [this](const QString& title, const QString& details) {
+                finish(kScriptedFailed, title + ": " + details);
+            });
+    connect(&study, &StudyController::cancelled, this,
+            [this] { finish(kScriptedFailed, tr("the study's preprocessing was cancelled")); });
+    connect(&m_poll, &QTimer::timeout, this, &ScriptedRun::poll);
+    m_poll.start(50);
+    m_timeout.setSingleShot(true);
+    connect(&m_timeout, &QTimer::timeout, this, [this] {
+        finish(kScriptedTimeout,
+               tr("the views were not ready within %1 s (--script-timeout); nothing written")
+                   .arg(m_options.timeoutSeconds));
+    });
+    m_timeout.start(m_options.timeoutSeconds * 1000);
+}
+
+void ScriptedRun::onSpectrumReady() {
+    // Every view must show a frame rendered after this spectrum arrived (and after any view,
+    // kernel or window change made in the same handlers).
+    m_armed = true;
+    m_readyTicks = 0;
+    m_baselineViews = m_window.views();
+    m_baselineFrames.clear();
+    for (ProjectionView* v : m_baselineViews) m_baselineFrames.push_back(v->framesRendered());
+}
+
+bool ScriptedRun::ready() {
+    const StudyController& study = m_window.study();
+    if (!m_armed || !study.spectrum() || study.newerJobStarted() || study.busy()) return false;
+    const auto& views = m_window.views();
+    if (views.empty()) return false;
+    for (std::size_t i = 0; i < views.size(); ++i) {
+        const ProjectionView* v = views[i];
+        const bool known = i < m_baselineViews.size() && m_baselineViews[i] == v;
+        const int before = known ? m_baselineFrames[i] : 0;
+        if (!v->isVisible() || v->framesRendered() <= before || v->displayedLevel() != 0 ||
+            v->progressive().interacting())
+            return false;
+    }
+    return true;
+}
+
+void ScriptedRun::poll() {
+    if (m_finished) return;
+    // Ready on two polls in a row: a frame rendered for an export (projection()) is on screen
+    // by the next paint.
+    m_readyTicks = ready() ? m_readyTicks + 1 : 0;
+    if (m_readyTicks < 2) return;
+    try {
+        writeOutputs();
+    } catch (const std::exception& e) {
+        finish(kScriptedFailed, QString::fromUtf8(e.what()));
+        return;
+    }
+    finish(kScriptedOk, {});
+}
+
+void ScriptedRun::writeOutputs() {
+    if (!m_options.exportDir.isEmpty()) writeViews(m_options.exportDir);
+    if (!m_options.screenshotFile.isEmpty()) {
+        const QImage shot = m_window.grab().toImage();
+        QByteArray bytes;
+        QBuffer buffer(&bytes);
+        buffer.open(QIODevice::WriteOnly);
+        const std::string path = m_options.screenshotFile.toStdString();
+        if (shot.isNull() || !shot.save(&buffer, "PNG"))
+            throw core::WriteError(path + ": the window could not be captured");
+        core::writeFileAtomic(path, bytes.toStdString());
+    }
+}
+
+void ScriptedRun::writeViews(const QString& dir) {
+    if (!QDir().mkpath(dir))
+        throw core::WriteError(dir.toStdString() + ": cannot create the folder");
+    const QDir out(dir);
+    const core::Transmission t = m_window.currentTransmission();
+    QJsonArray views;
+    for (std::size_t i = 0; i < m_window.views().size(); ++i) {
+        ProjectionView& v = *m_window.views()[i];
+        const auto p = v.projection();
+        const QString stem = QStringLiteral("view%1").arg(i + 1);
+        if (!p) throw core::WriteError(out.filePath(stem).toStdString() + ": view has no image");
+        // As File ▸ Export projection: the float image the display windows (the transmitted
+        // intensity in Beer-Lambert mode); the PNG is the line integrals through the view's
+        // window, the mapping the display shader applies (row 0 at the top, as on screen).
+        std::vector<float> values = p->pixels;
+        if (t.active()) core::applyTransmission(values, t);
+        core::writeNpy(out.filePath(stem + ".npy").toStdString(), values.data(), p->size, p->size);
+        core::writePng(out.filePath(stem + ".png").toStdString(), p->pixels.data(), p->size,
+                       p->size, v.window(), 8);
+        views.append(viewJson(int(i), v, *p, t.active()));
+    }
+    const StudyController& study = m_window.study();
+    const QJsonObject doc{{"study", study.title()},
+                          {"source", study.source().path.isEmpty() ? study.source().displayName()
+                                                                   : study.source().path},
+                          {"spectrum", spectrumJson(study.spectrumSettings())},
+                          {"windowSize", QJsonArray{m_window.width(), m_window.height()}},
+                          {"views", views}};
+    core::writeFileAtomic(out.filePath("views.json").toStdString(),
+                          QJsonDocument(doc).toJson().toStdString());
+}
+
+void ScriptedRun::finish(int exitCode, const QString& message) {
+    if (m_finished) return;
+    m_finished = true;
+    m_poll.stop();
+    m_timeout.stop();
+    if (!message.isEmpty()) std::fprintf(stderr, "fvr-workstation: %s\n", qPrintable(message));
+    emit done(exitCode, message);
+    if (m_options.quit) QCoreApplication::exit(exitCode);
+}
+
+} // namespace fvr::ui
