@@ -32,8 +32,8 @@ void declareOptions(QCommandLineParser& p) {
     p.addVersionOption();
     p.addPositionalArgument("study",
                             "DICOM folder, DICOMDIR or DICOM file, volume file (.mhd, .mha, "
-                            ".nii, .nii.gz) or phantom:shepp-logan[:N], as fvr-render opens "
-                            "them; without it the built-in phantom opens");
+                            ".nii, .nii.gz), phantom:chest[:N] or phantom:shepp-logan[:N], as "
+                            "fvr-render opens them; without it the built-in chest phantom opens");
     p.addOptions({
         {"series", "DICOM series to open (key or SeriesInstanceUID)", "uid"},
         {"compare", "Start with N synchronised views side by side (1, 2 or 4)", "n", "1"},
@@ -93,7 +93,7 @@ WorkstationOptions parseWorkstationOptions(const QApplication& app) {
     o.script.quit = p.isSet("quit");
     o.script.timeoutSeconds = positiveInt(p, "script-timeout");
     const QStringList args = p.positionalArguments();
-    o.source = args.isEmpty() ? ui::StudySource::phantom(128) : ui::StudySource::fromPath(args[0]);
+    o.source = args.isEmpty() ? ui::StudySource::chest() : ui::StudySource::fromPath(args[0]);
     o.source.seriesKey = p.value("series");
     return o;
 }

@@ -26,7 +26,9 @@ void MainWindow::buildMenus() {
     QAction* openFile =
         file->addAction(tr("&Open volume file…"), this, &MainWindow::openFileDialog);
     openFile->setShortcut(QKeySequence::Open);
-    file->addAction(tr("Open built-in &phantom"), this,
+    file->addAction(tr("Open built-in &chest phantom"), this,
+                    [this] { openStudy(StudySource::chest()); });
+    file->addAction(tr("Open built-in Shepp-&Logan phantom"), this,
                     [this] { openStudy(StudySource::phantom(128)); });
     m_recentMenu = file->addMenu(tr("&Recent studies"));
     file->addSeparator();
@@ -81,7 +83,8 @@ void MainWindow::buildViewMenu(QMenu* view, QToolBar* tb) {
         showPatientView(core::PatientView::AP);
         for (auto* v : m_views) v->resetPanZoom();
     });
-    reset->setShortcut(QKeySequence(Qt::Key_R));
+    // R, and Shift+R (Caps Lock, or a user who types a capital R) the same.
+    reset->setShortcuts({QKeySequence(Qt::Key_R), QKeySequence(Qt::SHIFT | Qt::Key_R)});
     tb->addAction(reset);
     view->addSeparator();
     tb->addSeparator();

@@ -15,7 +15,10 @@ namespace fvr::ui {
 QString StudySource::displayName() const {
     switch (kind) {
     case Kind::Phantom:
-        return QStringLiteral("Shepp-Logan phantom %1 (built-in)")
+        return (phantomKind == core::PhantomKind::Chest
+                    ? QStringLiteral("Chest phantom %1 (built-in)")
+                    : QStringLiteral("Shepp-Logan phantom %1 "
+                                     "(built-in)"))
             .arg(QString::number(phantomSize) + QStringLiteral("³"));
     case Kind::VolumeFile:
     case Kind::DicomFile: return QFileInfo(path).fileName();
@@ -30,6 +33,13 @@ StudySource StudySource::phantom(int n) {
     StudySource s;
     s.kind = Kind::Phantom;
     s.phantomSize = n;
+    s.phantomKind = core::PhantomKind::SheppLogan;
+    return s;
+}
+
+StudySource StudySource::chest(int n) {
+    StudySource s = phantom(n);
+    s.phantomKind = core::PhantomKind::Chest;
     return s;
 }
 
@@ -40,6 +50,7 @@ StudySource StudySource::fromPath(const QString& path) {
         const core::InputSource in = core::classifyInput(path.toStdString());
         s.path = QString::fromStdString(in.path.string());
         s.phantomSize = in.phantomSize;
+        s.phantomKind = in.phantom;
         switch (in.kind) {
         case core::InputKind::Phantom: s.kind = Kind::Phantom; break;
         case core::InputKind::DicomFolder: s.kind = Kind::DicomFolder; break;
@@ -53,7 +64,7 @@ StudySource StudySource::fromPath(const QString& path) {
 }
 
 core::InputSource StudySource::toCore() const {
-    if (kind == Kind::Phantom) return {core::InputKind::Phantom, {}, phantomSize};
+    if (kind == Kind::Phantom) return {core::InputKind::Phantom, {}, phantomSize, phantomKind};
     return core::classifyInput(path.toStdString()); // throws for a path that vanished
 }
 
