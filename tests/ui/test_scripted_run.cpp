@@ -76,7 +76,8 @@ TEST(ScriptedRun, ExportsEveryViewAsShownAndQuits) {
     EXPECT_EQ(list[1].toObject()["size"].toInt(), 128); // --size: every view
     EXPECT_TRUE(info["study"].toString().contains("phantom"));
     const QJsonObject spectrum = info["spectrum"].toObject();
-    EXPECT_TRUE(spectrum["deapodizedFor"].isNull()); // compare mode: no gridding correction
+    // Gridding correction stays on in compare mode: view 1's kernel has the main spectrum.
+    EXPECT_EQ(spectrum["deapodizedFor"].toString(), "catmull-rom");
 
     std::vector<std::int64_t> shape;
     for (const char* name : {"view1.npy", "view2.npy"}) {
@@ -90,7 +91,7 @@ TEST(ScriptedRun, ExportsEveryViewAsShownAndQuits) {
     // spectrum (values, transform, oversampling as views.json reports them), on the CPU.
     const fs::path ref = dir / "render.npy";
     std::string args = "phantom:shepp-logan:64 --view AP --kernel catmull-rom --size 128 ";
-    args += "--deapodize off --values " + spectrum["values"].toString().toStdString();
+    args += "--deapodize on --values " + spectrum["values"].toString().toStdString();
     args += " --transform " + spectrum["transform"].toString().toStdString();
     args += " --oversampling " + std::to_string(spectrum["oversampling"].toDouble());
     args += " --out '" + ref.string() + "'";

@@ -7,6 +7,7 @@
 #include <QFileInfo>
 #include <QGuiApplication>
 #include <QInputDialog>
+#include <QPainter>
 #include <QProgressDialog>
 #include <QSaveFile>
 #include <QSettings>
@@ -23,8 +24,7 @@ namespace fvr::ui {
 
 bool MainWindow::exportScreenshot(const QString& path) {
     if (m_views.empty()) return false;
-    const QImage img =
-        m_compareCount == 1 ? m_views[0]->screenshot() : m_viewHost->grab().toImage();
+    const QImage img = m_compareCount == 1 ? m_views[0]->screenshot() : grabWithViews(m_viewHost);
     QSaveFile f(path);
     if (!f.open(QIODevice::WriteOnly) || !img.save(&f, "PNG") || !f.commit()) {
         message(tr("Could not write %1: %2").arg(path, f.errorString()), true);
@@ -32,6 +32,16 @@ bool MainWindow::exportScreenshot(const QString& path) {
     }
     message(tr("Saved screenshot %1").arg(path));
     return true;
+}
+
+QImage MainWindow::grabWithViews(QWidget* w) const {
+    QImage img = w->grab().toImage();
+    QPainter p(&img); // logical coordinates, whatever the device pixel ratio
+    for (ProjectionView* v : m_views) {
+        const QPoint at = v->mapTo(w, QPoint(0, 0));
+        p.drawImage(QRectF(QPointF(at), QSizeF(v->size())), v->screenshot());
+    }
+    return img;
 }
 
 bool MainWindow::exportProjection(const QString& path) {

@@ -83,13 +83,11 @@ ScriptedRun::ScriptedRun(MainWindow& window, ScriptedRunOptions options, QObject
 }
 
 void ScriptedRun::onSpectrumReady() {
-    // Every view must show a frame rendered after this spectrum arrived (and after any view,
-    // kernel or window change made in the same handlers).
+    // A study is in: from now on every view must show its current full-quality frame (after
+    // any view, kernel or window change made in the same handlers; compare views wait for
+    // their kernels' spectra).
     m_armed = true;
     m_readyTicks = 0;
-    m_baselineViews = m_window.views();
-    m_baselineFrames.clear();
-    for (ProjectionView* v : m_baselineViews) m_baselineFrames.push_back(v->framesRendered());
 }
 
 bool ScriptedRun::ready() {
@@ -97,14 +95,8 @@ bool ScriptedRun::ready() {
     if (!m_armed || !study.spectrum() || study.newerJobStarted() || study.busy()) return false;
     const auto& views = m_window.views();
     if (views.empty()) return false;
-    for (std::size_t i = 0; i < views.size(); ++i) {
-        const ProjectionView* v = views[i];
-        const bool known = i < m_baselineViews.size() && m_baselineViews[i] == v;
-        const int before = known ? m_baselineFrames[i] : 0;
-        if (!v->isVisible() || v->framesRendered() <= before || v->displayedLevel() != 0 ||
-            v->progressive().interacting())
-            return false;
-    }
+    for (const ProjectionView* v : views)
+        if (!v->isVisible() || !v->showsCurrentFrame()) return false;
     return true;
 }
 
@@ -126,7 +118,7 @@ void ScriptedRun::poll() {
 void ScriptedRun::writeOutputs() {
     if (!m_options.exportDir.isEmpty()) writeViews(m_options.exportDir);
     if (!m_options.screenshotFile.isEmpty()) {
-        const QImage shot = m_window.grab().toImage();
+        const QImage shot = m_window.grabWithViews(&m_window);
         QByteArray bytes;
         QBuffer buffer(&bytes);
         buffer.open(QIODevice::WriteOnly);

@@ -59,8 +59,6 @@ private:
     bool m_armed = false; ///< a spectrum arrived
     int m_readyTicks = 0;
     bool m_finished = false;
-    std::vector<ProjectionView*> m_baselineViews; ///< views when the spectrum arrived
-    std::vector<int> m_baselineFrames; ///< their frame counts then
 };
 
 } // namespace fvr::ui
