@@ -59,7 +59,10 @@ void MainWindow::connectStudy() {
             [this](double f, const QString& stage) {
                 showProgress(true);
                 m_progress->setValue(int(std::lround(f * 1000)));
-                m_progress->setFormat(QStringLiteral("%1 %p%").arg(stage));
+                const bool cancelling = m_study->cancelling();
+                m_progress->setFormat(cancelling ? tr("cancelling… (%1 ends first)").arg(stage)
+                                                 : QStringLiteral("%1 %p%").arg(stage));
+                m_cancel->setEnabled(!cancelling);
             });
     connect(m_study.get(), &StudyController::studyLoaded, this, &MainWindow::onStudyLoaded);
     connect(m_study.get(), &StudyController::spectrumReady, this, &MainWindow::onSpectrumReady);
@@ -144,7 +147,14 @@ void MainWindow::buildStatusBar() {
     m_cancel = new QPushButton(tr("Cancel"), this);
     m_cancel->setVisible(false);
     statusBar()->addPermanentWidget(m_cancel);
-    connect(m_cancel, &QPushButton::clicked, this, [this] { m_study->cancel(); });
+    connect(m_cancel, &QPushButton::clicked, this, [this] {
+        m_study->cancel();
+        // At once: the job may take a moment to stop (FFTW's planner ends its plan first).
+        if (m_study->cancelling()) {
+            m_progress->setFormat(tr("cancelling…"));
+            m_cancel->setEnabled(false);
+        }
+    });
 }
 
 void MainWindow::restorePanels() {
@@ -168,7 +178,8 @@ void MainWindow::connectPanels() {
     connect(m_rendering, &RenderingPanel::voxelModelChanged, this, &MainWindow::applyVoxelModel);
     connect(m_rendering, &RenderingPanel::appliesToChanged, this, [this](int slot) {
         if (slot <= 0 || slot > int(m_views.size())) return;
-        m_rendering->showViewSettings(m_views[slot - 1]->settings());
+        // What the view is set to (it may still wait for its kernel's spectrum).
+        m_rendering->showViewSettings(m_viewSettings[std::size_t(slot - 1)]);
     });
     connect(m_rendering, &RenderingPanel::spectrumSettingsChanged, this,
             &MainWindow::applySpectrumSettings);

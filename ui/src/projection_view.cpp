@@ -6,6 +6,7 @@
 #include <QOpenGLShaderProgram>
 #include <QOpenGLVertexArrayObject>
 #include <QPainter>
+#include <QThread>
 #include <QWheelEvent>
 
 #include <algorithm>
@@ -42,6 +43,7 @@ ProjectionView::ProjectionView(QWidget* parent) : QOpenGLWidget(parent) {
     setFocusPolicy(Qt::StrongFocus);
     setMouseTracking(false);
     m_view = core::ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0});
+    connect(this, &QOpenGLWidget::frameSwapped, this, &ProjectionView::framePresented);
 }
 
 ProjectionView::~ProjectionView() {
@@ -65,6 +67,7 @@ void ProjectionView::releaseGl() {
 
 void ProjectionView::setStudy(std::shared_ptr<const core::Volume> volume,
                               std::shared_ptr<const core::Spectrum> spectrum) {
+    if (volume == m_volume && spectrum == m_spectrum) return; // nothing new to render
     const bool newVolume = volume != m_volume;
     m_volume = std::move(volume);
     m_spectrum = std::move(spectrum);
@@ -109,15 +112,29 @@ void ProjectionView::setInteracting(bool on) {
         m_progressive.endInteraction();
         if (m_renderedLevel != 0) m_renderDirty = true; // the full-quality frame
     }
+    requestFrame();
+}
+
+void ProjectionView::requestFrame() {
+    if (!m_frameRequested) m_requestClock.start();
+    m_frameRequested = true;
     update();
 }
 
-void ProjectionView::frameTimed(double ms) { m_progressive.frameRendered(ms + m_extraFrameMs); }
+void ProjectionView::framePresented() {
+    if (!m_framePending) return;
+    m_framePending = false;
+    m_frameRequested = false;
+    // What the user sees: from the change to the frame on screen, display and composition of
+    // the window (all synchronised views) included; not one stage's timer.
+    m_stats.wallMs = double(m_requestClock.elapsed());
+    if (m_pendingLevel == m_progressive.level()) m_progressive.frameRendered(m_stats.wallMs);
+}
 
 void ProjectionView::setViewFrame(const core::ViewFrame& f) {
     m_view = f;
     m_renderDirty = true;
-    update();
+    requestFrame();
 }
 
 void ProjectionView::setWindow(const core::DisplayWindow& w) {
@@ -230,9 +247,6 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
     if (!m_windowSet) windowFromFrame();
     m_renderDirty = false; // only after a frame really exists
     ++m_frames;
-    const double wall = m_frameClock.isValid() ? m_frameClock.restart() : 0.0;
-    m_stats.fps = wall > 0 ? 1000.0 / wall : 0.0;
-    if (!m_frameClock.isValid()) m_frameClock.start();
     emit rendered();
 }
 
@@ -244,7 +258,6 @@ void ProjectionView::renderFrame(const core::RenderParams& params, int level) {
         const bool fuseDisplay = m_windowSet && !(m_reference && m_reference != this);
         m_gpu->renderToGpu(params, fuseDisplay ? &m_window : nullptr);
         m_gpuTimesPending = true;
-        m_timedLevel = level;
         m_cpuImage.reset();
         return;
     }
@@ -255,7 +268,6 @@ void ProjectionView::renderFrame(const core::RenderParams& params, int level) {
     m_stats.totalMs = t.totalMs;
     m_stats.fused = false;
     m_stats.displayFused = false;
-    if (level == m_progressive.level()) frameTimed(t.totalMs);
 }
 
 void ProjectionView::subtractReference() {
@@ -302,7 +314,6 @@ GLuint ProjectionView::frameTexture() {
             m_stats.displayFused = t.displayFused;
             m_stats.displayMs = t.displayMs;
             m_gpuTimesPending = false;
-            if (m_timedLevel == m_progressive.level()) frameTimed(t.totalMs);
         }
         return tex;
     }
@@ -345,9 +356,20 @@ void ProjectionView::paintGL() {
         drawOverlay();
         return;
     }
+    const int framesBefore = m_frames;
+    if (!m_frameRequested) m_requestClock.start(); // a repaint nobody timed: from here
     try {
         renderIfNeeded();
         m_renderError.clear();
+        if (m_frames != framesBefore) {
+            m_framePending = true; // timed when the window's frame is on screen
+            m_pendingLevel = m_renderedLevel;
+            if (m_simulatedMsAt512 > 0) {
+                const double r = m_renderedQuality.size / 512.0;
+                QThread::msleep(
+                    static_cast<unsigned long>(std::lround(m_simulatedMsAt512 * r * r)));
+            }
+        }
     } catch (const std::exception& e) {
         m_renderError = tr("Not rendered: %1").arg(QString::fromUtf8(e.what()));
         drawOverlay();
@@ -399,9 +421,7 @@ void drawHaloText(QPainter& p, const QRectF& r, int flags, const QString& text,
 void ProjectionView::drawOverlay() {
     QPainter p(this);
     p.setRenderHint(QPainter::TextAntialiasing);
-    QFont font = p.font();
-    font.setPointSizeF(std::max(8.0, font.pointSizeF()));
-    p.setFont(font);
+    p.setFont(overlayFont());
     if (!m_spectrum) {
         p.setPen(QColor(180, 180, 180));
         p.drawText(
@@ -415,17 +435,12 @@ void ProjectionView::drawOverlay() {
         return;
     }
     if (m_volume) drawOrientationLabels(p);
-    QStringList lines;
-    if (!m_title.isEmpty()) lines << m_title;
-    if (m_overlay) lines << overlayLines();
-    if (m_reference) lines << tr("difference to %1").arg(m_reference->m_title);
-    if (!lines.isEmpty()) {
-        const QString text = lines.join('\n');
-        const QRect box = p.fontMetrics().boundingRect(QRect(8, 6, width() - 16, height() - 12),
-                                                       Qt::AlignLeft | Qt::AlignTop, text);
-        p.fillRect(box.adjusted(-4, -2, 4, 2), QColor(0, 0, 0, 150));
+    const QString text = overlayText();
+    if (!text.isEmpty()) {
+        const QRect box = overlayBox();
+        p.fillRect(box, QColor(0, 0, 0, 150));
         p.setPen(QColor(140, 240, 140));
-        p.drawText(box, Qt::AlignLeft | Qt::AlignTop, text);
+        p.drawText(box.adjusted(4, 2, -4, -2), Qt::AlignLeft | Qt::AlignTop, text);
     }
     const QString notice = m_renderError.isEmpty() ? m_notice : m_renderError + '\n' + m_notice;
     if (!notice.trimmed().isEmpty()) {
@@ -450,28 +465,72 @@ QStringList ProjectionView::orientationLabels() const {
     return {lbl(neg_r), lbl(m_view.r), lbl(m_view.u), lbl(neg_u)};
 }
 
+QFont ProjectionView::overlayFont(bool bold) const {
+    QFont f = font();
+    f.setPointSizeF(std::max(8.0, f.pointSizeF()));
+    f.setBold(bold);
+    return f;
+}
+
+QString ProjectionView::overlayText() const {
+    QStringList lines;
+    if (!m_title.isEmpty()) lines << m_title;
+    if (m_overlay) lines << overlayLines();
+    if (m_reference) lines << tr("difference to %1").arg(m_reference->m_title);
+    return lines.join('\n');
+}
+
+QRect ProjectionView::overlayBox() const {
+    const QString text = overlayText();
+    if (text.isEmpty() || !m_spectrum) return {};
+    const QRect box = QFontMetrics(overlayFont())
+                          .boundingRect(QRect(8, 6, width() - 16, height() - 12),
+                                        Qt::AlignLeft | Qt::AlignTop, text);
+    return box.adjusted(-4, -2, 4, 2);
+}
+
+QList<QRect> ProjectionView::orientationLabelRects() const {
+    const QStringList labels = orientationLabels(); // left, right, top, bottom
+    if (labels.size() != 4) return {};
+    const QFontMetrics fm(overlayFont(true));
+    const QRect r = imageRect().intersected(QRectF(rect())).toAlignedRect();
+    const int pad = 6;
+    const QRect inner = r.adjusted(pad, pad, -pad, -pad);
+    const int flags[4] = {Qt::AlignLeft | Qt::AlignVCenter, Qt::AlignRight | Qt::AlignVCenter,
+                          Qt::AlignHCenter | Qt::AlignTop, Qt::AlignHCenter | Qt::AlignBottom};
+    const QRect avoid = overlayBox();
+    QList<QRect> rects;
+    for (int i = 0; i < 4; ++i) {
+        QRect b = fm.boundingRect(inner, flags[i], labels[i]);
+        // Never under the overlay box (compare views: their image starts at the top): below it.
+        if (!avoid.isNull() && b.intersects(avoid)) b.moveTop(avoid.bottom() + 3);
+        rects << b;
+    }
+    return rects;
+}
+
 void ProjectionView::drawOrientationLabels(QPainter& p) {
     const QColor label(255, 210, 80);
     const QFont font = p.font();
-    const QRectF r = imageRect().intersected(QRectF(rect()));
-    const QStringList labels = orientationLabels(); // left, right, top, bottom
-    const int pad = 6;
-    QFont bold = font;
-    bold.setBold(true);
-    p.setFont(bold);
-    const QRectF inner(r.left() + pad, r.top() + pad, r.width() - 2 * pad, r.height() - 2 * pad);
-    drawHaloText(p, inner, Qt::AlignLeft | Qt::AlignVCenter, labels[0], label);
-    drawHaloText(p, inner, Qt::AlignRight | Qt::AlignVCenter, labels[1], label);
-    drawHaloText(p, inner, Qt::AlignHCenter | Qt::AlignTop, labels[2], label);
-    drawHaloText(p, inner, Qt::AlignHCenter | Qt::AlignBottom, labels[3], label);
+    const QStringList labels = orientationLabels();
+    const QList<QRect> rects = orientationLabelRects();
+    p.setFont(overlayFont(true));
+    for (int i = 0; i < int(rects.size()); ++i)
+        drawHaloText(p, rects[i], Qt::AlignLeft | Qt::AlignTop, labels[i], label);
     p.setFont(font);
 }
 
 QStringList ProjectionView::overlayLines() const {
     QStringList lines;
     const core::QualityLevel shown = m_renderedQuality;
-    lines << QStringLiteral("%1 fps  %2  %3×%3  %4  %5 voxels%6")
-                 .arg(m_stats.fps > 0 ? QString::number(m_stats.fps, 'f', 0) : QStringLiteral("–"))
+    // While dragging the frame rate the user sees; at rest the last frame's time.
+    const QString speed =
+        m_stats.wallMs <= 0 ? QStringLiteral("–")
+        : m_progressive.interacting()
+            ? QStringLiteral("%1 fps").arg(1000.0 / std::max(1.0, m_stats.wallMs), 0, 'f', 0)
+            : tr("frame %1 ms").arg(m_stats.wallMs, 0, 'f', 0);
+    lines << QStringLiteral("%1  %2  %3×%3  %4  %5 voxels%6")
+                 .arg(speed)
                  .arg(QString::fromUtf8(core::kernelName(shown.kernel)))
                  .arg(shown.size)
                  .arg(m_gpu ? QStringLiteral("GPU") : QStringLiteral("CPU"))

@@ -20,7 +20,7 @@ DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
     m_preset = new QComboBox(this);
     m_preset->addItem(tr("Auto (0.5–99.5 %)"), int(WindowPreset::Auto));
     m_preset->addItem(tr("Full range"), int(WindowPreset::FullRange));
-    m_preset->addItem(tr("Bone (upper 45 %)"), int(WindowPreset::Bone));
+    m_preset->addItem(tr("Bone (upper 70 %)"), int(WindowPreset::Bone));
     m_preset->addItem(tr("Soft tissue (10–70 %)"), int(WindowPreset::SoftTissue));
     m_preset->addItem(tr("Custom (set by hand)"), int(WindowPreset::Custom));
     // Custom is a state, not a choice: shown after a manual change, never offered.
@@ -118,7 +118,12 @@ core::DisplayWindow presetWindow(WindowPreset preset, const std::vector<float>& 
     core::DisplayWindow w;
     switch (preset) {
     case WindowPreset::FullRange: w = {v.front(), v.back(), false}; break;
-    case WindowPreset::Bone: w = {q(0.005) + 0.55 * (q(0.995) - q(0.005)), q(0.995), false}; break;
+    case WindowPreset::Bone:
+        // Thin bone seen edge-on (a skull vault, ribs) projects to 40-45 % of the range where
+        // the skull base reaches the top: the window starts at 30 % and ends at the 99.9th
+        // percentile so that both show (it started at 55 % and blacked the vault out).
+        w = {q(0.005) + 0.30 * (q(0.995) - q(0.005)), q(0.999), false};
+        break;
     case WindowPreset::SoftTissue:
         w = {q(0.005) + 0.10 * (q(0.995) - q(0.005)), q(0.005) + 0.70 * (q(0.995) - q(0.005)),
              false};

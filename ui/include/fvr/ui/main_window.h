@@ -43,6 +43,10 @@ public:
     void showPatientView(core::PatientView v);
     /** Exports (export_actions.cpp); return false and report in the message panel on failure. */
     bool exportScreenshot(const QString& path);
+    /** `w` (the window, or the view area) as on screen. QWidget::grab() alone loses what the
+     *  views paint over their image (overlay, orientation labels, titles): each view's own
+     *  framebuffer is drawn over it. */
+    QImage grabWithViews(QWidget* w) const;
     bool exportProjection(const QString& path); ///< .npy (float), .png (16-bit), .pfm
     bool exportSweep(const QString& folder, int frames, const core::Vec3& axis);
     /** Where export dialogs start: the last export folder, else Pictures, else home; never the
@@ -60,6 +64,7 @@ public:
     XrayPanel* xrayPanel() const { return m_xray; }
     MessagesPanel* messages() const { return m_messages; }
     QProgressBar* progressBar() const { return m_progress; }
+    QPushButton* cancelButton() const { return m_cancel; }
     /** The transmission the X-ray panel asks for (inactive for line integrals). */
     core::Transmission currentTransmission() const;
     /** The per-frame effects of the Rendering and X-ray panels. */

@@ -73,8 +73,10 @@ public:
     int displayedLevel() const { return m_displayedLevel; }
     /** Size of the frame on screen (differs from settings().size at interactive levels). */
     int displayedSize() const { return m_displayedSize; }
-    /** Tests: adds this many ms to every measured frame time (simulates a slow machine). */
-    void setSimulatedExtraFrameMs(double ms) { m_extraFrameMs = ms; }
+    /** Tests: a slow machine. Every frame rendered also waits `msAt512` × (M / 512)² ms (a
+     *  renderer whose cost grows with the pixel count), in real time: the wall clock sees it,
+     *  the renderer's stage timers do not. */
+    void setSimulatedRenderCost(double msAt512) { m_simulatedMsAt512 = msAt512; }
     void setViewFrame(const core::ViewFrame& f);
     const core::ViewFrame& viewFrame() const { return m_view; }
     void setWindow(const core::DisplayWindow& w);
@@ -100,15 +102,30 @@ public:
     /** The patient-direction labels at the image's left, right, top and bottom edges ("L",
      *  "S", ...; with " (assumed)" when the file states no orientation). */
     QStringList orientationLabels() const;
+    /** Where the labels are drawn (left, right, top, bottom): at the image's edges, and below
+     *  the overlay box where they would fall under it. */
+    QList<QRect> orientationLabelRects() const;
+    /** The overlay box (title, performance lines) in widget coordinates; null without one. */
+    QRect overlayBox() const;
+    /** The overlay box's lines: the title, the performance overlay, the difference note. */
+    QString overlayText() const;
     bool usingGpu() const { return m_gpu != nullptr; }
     QString backendNotice() const { return m_notice; }
-    /** Stage times of the last frame (ms): slice, inverse, display, total, and fps. */
+    /** Stage times of the last frame (ms): slice, inverse, display, total; and what the user
+     *  saw: the wall-clock time from the change (a drag step) to the frame on screen. */
     struct FrameStats {
-        double sliceMs = 0, inverseMs = 0, displayMs = 0, totalMs = 0, fps = 0;
+        double sliceMs = 0, inverseMs = 0, displayMs = 0, totalMs = 0;
+        double wallMs = 0; ///< change to frame on screen (what progressive refinement holds)
         bool fused = false;
         bool displayFused = false;
     };
     FrameStats frameStats() const { return m_stats; }
+    /** The frame on screen is the full-quality frame of the current study, spectrum, view and
+     *  settings (nothing left to render, no drag). */
+    bool showsCurrentFrame() const {
+        return m_spectrum && !m_spectrumDirty && !m_renderDirty && m_frames > 0 &&
+               m_displayedLevel == 0 && m_renderedLevel == 0 && !m_progressive.interacting();
+    }
     /** Number of frames rendered (tests). */
     int framesRendered() const { return m_frames; }
 
@@ -146,7 +163,12 @@ private:
     void subtractReference();
     /** The first frame of a study sets the window from its image. */
     void windowFromFrame();
-    void frameTimed(double ms);
+    /** A change that needs a new frame: the wall clock runs from the first one until that
+     *  frame is on screen. */
+    void requestFrame();
+    /** The window's frame is on screen (QOpenGLWidget::frameSwapped): the wall-clock time of
+     *  the frame this view rendered for it goes to the progressive controller. */
+    void framePresented();
     void endDrag();
     /** The texture showing the frame through the window (0: none): the GPU's display texture,
      *  or the CPU image uploaded. */
@@ -154,6 +176,7 @@ private:
     void uploadCpuTexture(const core::ProjectionImage& image);
     void drawOverlay();
     void drawOrientationLabels(QPainter& p);
+    QFont overlayFont(bool bold = false) const;
     /** The performance overlay: fps, kernel, size, backend, level, effects, stage times, window. */
     QStringList overlayLines() const;
     QStringList effectsSummary() const;
@@ -166,9 +189,9 @@ private:
     ViewSettings m_settings;
     FrameEffects m_effects;
     core::ProgressiveController m_progressive;
-    int m_renderedLevel = 0, m_displayedLevel = 0, m_displayedSize = 0, m_timedLevel = 0;
+    int m_renderedLevel = 0, m_displayedLevel = 0, m_displayedSize = 0;
     core::QualityLevel m_renderedQuality; ///< what the last frame rendered with
-    double m_extraFrameMs = 0.0;
+    double m_simulatedMsAt512 = 0.0;
     core::ViewFrame m_view;
     core::DisplayWindow m_window{0.0, 1.0, false};
     bool m_windowSet = false;
@@ -195,7 +218,10 @@ private:
     Qt::KeyboardModifiers m_dragMods;
     QPoint m_lastPos;
     FrameStats m_stats;
-    QElapsedTimer m_frameClock;
+    QElapsedTimer m_requestClock; ///< since the first change not yet on screen
+    bool m_frameRequested = false;
+    bool m_framePending = false; ///< a new frame was painted and is not on screen yet
+    int m_pendingLevel = 0;
     int m_frames = 0;
 };
 

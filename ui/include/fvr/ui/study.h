@@ -35,11 +35,15 @@ struct StudySource {
     QString path; ///< file or folder (a DICOMDIR: its folder)
     QString seriesKey; ///< DICOM series (empty: the only one, or the user is asked)
     int phantomSize = 128;
+    core::PhantomKind phantomKind = core::PhantomKind::SheppLogan;
 
     QString displayName() const;
+    /** The built-in Shepp-Logan phantom (tests: small and quick). */
     static StudySource phantom(int n = 128);
-    /** By core::classifyInput ("phantom:shepp-logan[:N]" included). A path that cannot be
-     *  classified (missing) keeps it as given; opening it then reports the error. */
+    /** The built-in chest phantom: the first study, a radiograph's anatomy. */
+    static StudySource chest(int n = 160);
+    /** By core::classifyInput ("phantom:chest[:N]" and "phantom:shepp-logan[:N]" included). A path
+     * that cannot be classified (missing) keeps it as given; opening it then reports the error. */
     static StudySource fromPath(const QString& path);
     core::InputSource toCore() const;
 };
@@ -68,6 +72,9 @@ public:
     /** Cancels the running load or preprocessing; the previous study stays usable. */
     void cancel();
     bool busy() const { return m_worker.joinable() && !m_done.load(); }
+    /** Cancel was asked of the running job, which has not stopped yet (FFTW's planner, for one,
+     *  cannot be interrupted: it ends its plan first). */
+    bool cancelling() const { return busy() && m_cancel && m_cancel->cancelled(); }
     /** In a spectrumReady handler: a job started after the one whose result this is (its own
      *  progress and result follow). Exact on the GUI thread, unlike busy(), which races with
      *  the worker's last instructions. */
