@@ -75,6 +75,9 @@ SHOT = xvfb-run -a -s "-screen 0 1600x1200x24" env XDG_CONFIG_HOME="$(SHOT_CONFI
   QT_QPA_PLATFORM=xcb $(BUILD_DIR)/app/fvr-workstation --window-size $(SCREENSHOT_SIZE) --quit
 screenshots: build
 	@mkdir -p $(SCREENSHOT_DIR)
+	@# The first image: no study named, the built-in chest phantom at the default window.
+	@rm -rf "$(SHOT_CONFIG)"
+	@$(SHOT) --screenshot $(SCREENSHOT_DIR)/first-image.png
 	@# Four kernels side by side (view 1 Kaiser-Bessel 4, linear, nearest, sinc4), AP.
 	@rm -rf "$(SHOT_CONFIG)"
 	@study="$(HEAD_PHANTOM)"; [ -d "$$study" ] || study=phantom:shepp-logan:128; \
@@ -87,7 +90,8 @@ screenshots: build
 	@study="$(BODY_CT)"; [ -f "$$study" ] || study=phantom:shepp-logan:128; \
 	 $(SHOT) "$$study" --view AP --screenshot $(SCREENSHOT_DIR)/xray-film.png
 	@rm -rf "$(SHOT_CONFIG)"
-	@ls -l $(SCREENSHOT_DIR)/workstation.png $(SCREENSHOT_DIR)/xray-film.png
+	@ls -l $(SCREENSHOT_DIR)/first-image.png $(SCREENSHOT_DIR)/workstation.png \
+	  $(SCREENSHOT_DIR)/xray-film.png
 
 clean:
 	@rm -rf $(BUILD_DIR) build-asan out

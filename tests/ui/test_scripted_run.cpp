@@ -136,6 +136,59 @@ TEST(ScriptedRun, ExportsEveryViewAsShownAndQuits) {
         for (int x = 0; x < 250 && x < window_shot.width(); ++x)
             white += qGray(window_shot.pixel(x, y)) >= 250;
     EXPECT_GT(white, 50);
+    // The views' overlays are in the screenshot (QWidget::grab alone lost them): view 1's green
+    // overlay text in its top-left corner.
+    int green = 0;
+    for (int y = 40; y < 160 && y < window_shot.height(); ++y)
+        for (int x = 0; x < 300 && x < window_shot.width(); ++x) {
+            const QColor c = window_shot.pixelColor(x, y);
+            green += c.green() > 200 && c.red() < 180 && c.blue() < 180;
+        }
+    EXPECT_GT(green, 30);
+}
+
+// #15 item 11: the first image (no study named) is the built-in chest phantom, at a window that
+// shows its anatomy: the lung fields clearly darker than the mediastinum and spine between them.
+TEST(ScriptedRun, FirstImageIsAChestRadiographShowingItsAnatomy) {
+    const fs::path dir = fvr::test::tmpDir() / "scripted_run_first";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const fs::path views = dir / "views";
+    const CommandOutput r =
+        runWorkstation("--size 256 --export-views '" + views.string() + "' --quit", dir);
+    ASSERT_EQ(r.status, 0) << r.out;
+    const QJsonObject info = readJson(views / "views.json");
+    EXPECT_TRUE(info["study"].toString().contains("Chest"))
+        << info["study"].toString().toStdString();
+    std::vector<std::int64_t> shape;
+    const std::vector<float> p = readImage(views / "view1.npy", shape);
+    ASSERT_EQ(shape, (std::vector<std::int64_t>{256, 256}));
+    const QImage png(QString::fromStdString((views / "view1.png").string()));
+    ASSERT_EQ(png.size(), QSize(256, 256));
+    // The body's extent in the projection.
+    float peak = 0;
+    for (float v : p) peak = std::max(peak, v);
+    int x0 = 256, x1 = -1, y0 = 256, y1 = -1;
+    for (int y = 0; y < 256; ++y)
+        for (int x = 0; x < 256; ++x)
+            if (p[std::size_t(y) * 256 + x] > 0.1f * peak) {
+                x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y),
+                y1 = std::max(y1, y);
+            }
+    ASSERT_GT(x1 - x0, 60);
+    // Mid-chest row: the mediastinum in the middle, a lung field a quarter of the width out on
+    // either side (grey levels as displayed).
+    const int y = y0 + (y1 - y0) * 2 / 5, xc = (x0 + x1) / 2, dx = (x1 - x0) / 4;
+    auto grey = [&](int x) {
+        int sum = 0;
+        for (int k = -2; k <= 2; ++k) sum += qGray(png.pixel(x + k, y));
+        return sum / 5;
+    };
+    const int middle = grey(xc), right = grey(xc - dx), left = grey(xc + dx);
+    std::printf("[scripted] first image: mediastinum %d, lung fields %d and %d (grey levels)\n",
+                middle, right, left);
+    EXPECT_GT(middle - right, 60);
+    EXPECT_GT(middle - left, 60);
 }
 
 TEST(ScriptedRun, FailedStudyExitsNonZeroNamingThePath) {
