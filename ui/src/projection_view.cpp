@@ -75,7 +75,8 @@ void ProjectionView::setStudy(std::shared_ptr<const core::Volume> volume,
     m_renderDirty = true;
     m_cpu.reset();
     if (newVolume) m_windowSet = false;
-    update();
+    m_frameRequested = false; // the next frame is timed from here (its upload included)
+    requestFrame();
 }
 
 void ProjectionView::setPendingText(const QString& text) {
@@ -116,8 +117,11 @@ void ProjectionView::setInteracting(bool on) {
 }
 
 void ProjectionView::requestFrame() {
-    if (!m_frameRequested) m_requestClock.start();
-    m_frameRequested = true;
+    // Timed from the first change that can render (waiting for a spectrum is not a frame).
+    if (!m_frameRequested && m_spectrum) {
+        m_requestClock.start();
+        m_frameRequested = true;
+    }
     update();
 }
 
@@ -369,6 +373,8 @@ void ProjectionView::paintGL() {
                 QThread::msleep(
                     static_cast<unsigned long>(std::lround(m_simulatedMsAt512 * r * r)));
             }
+        } else {
+            m_frameRequested = false; // served without a new frame: the clock starts afresh
         }
     } catch (const std::exception& e) {
         m_renderError = tr("Not rendered: %1").arg(QString::fromUtf8(e.what()));

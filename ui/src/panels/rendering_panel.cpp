@@ -238,10 +238,10 @@ void RenderingPanel::setViewCount(int n) {
 int RenderingPanel::appliesTo() const { return m_appliesTo->currentIndex(); }
 
 void RenderingPanel::setSpectrumMiB(double mib, int count) {
-    m_memory->setText(count > 1 ? tr("%1 MiB (%2 spectra, one per gridding-corrected kernel)")
-                                      .arg(mib, 0, 'f', 1)
-                                      .arg(count)
-                                : tr("%1 MiB").arg(mib, 0, 'f', 1));
+    m_memory->setText(
+        count > 1
+            ? tr("%1 MiB (%2 spectra: the compare kernels' own)").arg(mib, 0, 'f', 1).arg(count)
+            : tr("%1 MiB").arg(mib, 0, 'f', 1));
     m_memory->setWordWrap(true);
 }
 
