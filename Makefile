@@ -89,8 +89,20 @@ screenshots: build
 	  > "$(SHOT_SETTINGS)"
 	@study="$(BODY_CT)"; [ -f "$$study" ] || study=phantom:shepp-logan:128; \
 	 $(SHOT) "$$study" --view AP --screenshot $(SCREENSHOT_DIR)/xray-film.png
+	@# Voxel models side by side: band-limited (view 1) and trilinear (view 2), the same kernel
+	@# (Kaiser-Bessel 4 deapodized), body CT, AP, 70 keV film, one window for both; the
+	@# two views' PNG exports (what they display, without the overlay), cropped alike.
+	@command -v convert >/dev/null || { echo "make screenshots: needs imagemagick (convert)"; exit 1; }
+	@rm -rf "$(SHOT_CONFIG)" && mkdir -p "$(SHOT_CONFIG)/fvr-workstation"
+	@printf '[xray]\noutput=1\nenergyKeV=70\n[display]\ninvert=true\n' > "$(SHOT_SETTINGS)"
+	@study="$(BODY_CT)"; [ -f "$$study" ] || study=phantom:chest; \
+	 $(SHOT) "$$study" --view AP --compare 2 --kernel kaiser-bessel4,kaiser-bessel4 \
+	   --voxel-model bandlimited,trilinear --export-views "$(SHOT_CONFIG)/voxel-models"
+	@cd "$(SHOT_CONFIG)/voxel-models" && crop=$$(convert view1.png -trim -format '%wx%h%X%Y' info:) && \
+	 convert view1.png view2.png -crop "$$crop" +repage -bordercolor black -border 24 +append \
+	   "$(abspath $(SCREENSHOT_DIR))/voxel-models.png"
 	@rm -rf "$(SHOT_CONFIG)"
-	@ls -l $(SCREENSHOT_DIR)/first-image.png $(SCREENSHOT_DIR)/workstation.png \
+	@ls -l $(SCREENSHOT_DIR)/voxel-models.png $(SCREENSHOT_DIR)/first-image.png $(SCREENSHOT_DIR)/workstation.png \
 	  $(SCREENSHOT_DIR)/xray-film.png
 
 clean:

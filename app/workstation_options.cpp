@@ -39,9 +39,14 @@ void declareOptions(QCommandLineParser& p) {
         {"compare", "Start with N synchronised views side by side (1, 2 or 4)", "n", "1"},
         {"view", "Start with a patient view: AP, PA, LEFT, RIGHT, HEAD or FEET", "view"},
         {"kernel",
-         "View 1's interpolation kernel: nearest, linear, bspline, catmull-rom, sinc4, "
-         "kaiser-bessel4 or kaiser-bessel6 (names as fvr-render's --kernel)",
+         "View 1's interpolation kernel, or the views' in order (K1,K2,…): nearest, linear, "
+         "bspline, catmull-rom, sinc4, kaiser-bessel4 or kaiser-bessel6 (names as fvr-render's "
+         "--kernel)",
          "K"},
+        {"voxel-model",
+         "Every view's voxel model, or the views' in order (M1,M2,…): trilinear, bspline or "
+         "bandlimited (as fvr-render's --voxel-model)",
+         "M"},
         {"size", "Every view's slice/image size: 128, 256, 512, 1024 or 2048", "M"},
         {"window-size", "The main window's size, e.g. 1400x1000", "WxH"},
         {"export-views",
@@ -77,7 +82,12 @@ WorkstationOptions parseWorkstationOptions(const QApplication& app) {
     if (o.compare != 1 && o.compare != 2 && o.compare != 4)
         throw core::SettingsError("--compare: expected 1, 2 or 4");
     if (p.isSet("view")) o.view = parsed("view", p.value("view"), core::parsePatientView);
-    if (p.isSet("kernel")) o.kernel = parsed("kernel", p.value("kernel"), core::parseKernel);
+    for (const QString& k : p.value("kernel").split(',', Qt::SkipEmptyParts))
+        o.kernels.push_back(parsed("kernel", k, core::parseKernel));
+    for (const QString& m : p.value("voxel-model").split(',', Qt::SkipEmptyParts))
+        o.voxelModels.push_back(parsed("voxel-model", m, core::parseVoxelModel));
+    if (int(o.kernels.size()) > o.compare || int(o.voxelModels.size()) > o.compare)
+        throw core::SettingsError("--kernel, --voxel-model: at most one per view (--compare)");
     if (p.isSet("size")) {
         o.size = positiveInt(p, "size");
         if (*o.size < 128 || *o.size > 2048 || (*o.size & (*o.size - 1)) != 0)
@@ -117,7 +127,13 @@ void applyWorkstationOptions(ui::MainWindow& window, const WorkstationOptions& o
     };
     if (o.size)
         for (int i = 0; i < o.compare; ++i) forView(i, [&] { choose(panel.sizeCombo(), *o.size); });
-    if (o.kernel) forView(0, [&] { choose(panel.kernelCombo(), int(*o.kernel)); });
+    for (std::size_t i = 0; i < o.kernels.size(); ++i)
+        forView(int(i), [&] { choose(panel.kernelCombo(), int(o.kernels[i])); });
+    for (int i = 0; i < o.compare && !o.voxelModels.empty(); ++i) {
+        const core::VoxelModel m =
+            o.voxelModels[std::min<std::size_t>(i, o.voxelModels.size() - 1)];
+        forView(i, [&] { choose(panel.voxelModelCombo(), int(m)); });
+    }
     panel.appliesToCombo()->setCurrentIndex(0);
     if (o.view) {
         const core::PatientView pv = *o.view;

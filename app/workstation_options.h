@@ -5,8 +5,10 @@
 #include <QString>
 
 #include <optional>
+#include <vector>
 
 #include <fvr/core/render/kernels.h>
+#include <fvr/core/render/voxel_model.h>
 #include <fvr/core/xray/patient_views.h>
 #include <fvr/ui/scripted_run.h>
 #include <fvr/ui/study.h>
@@ -23,7 +25,8 @@ struct WorkstationOptions {
     ui::StudySource source; ///< the built-in phantom when no study is named
     int compare = 1;
     std::optional<core::PatientView> view;
-    std::optional<core::Kernel> kernel; ///< view 1's
+    std::vector<core::Kernel> kernels; ///< view 1's, 2's … (fewer: the others keep theirs)
+    std::vector<core::VoxelModel> voxelModels; ///< one: every view's; more: view 1's, 2's …
     std::optional<int> size; ///< every view's
     std::optional<QSize> windowSize;
     ui::ScriptedRunOptions script;

@@ -58,11 +58,12 @@ TEST(ScriptedRun, ExportsEveryViewAsShownAndQuits) {
     fs::create_directories(dir);
     const fs::path views = dir / "views";
     const fs::path shot = dir / "window.png";
-    const CommandOutput r = runWorkstation(
-        "phantom:shepp-logan:64 --compare 2 --kernel catmull-rom --size 128 --window-size "
-        "1100x1050 --export-views '" +
-            views.string() + "' --screenshot '" + shot.string() + "' --quit",
-        dir);
+    const CommandOutput r =
+        runWorkstation("phantom:shepp-logan:64 --compare 2 --kernel catmull-rom --voxel-model "
+                       "trilinear,bandlimited --size 128 --window-size "
+                       "1100x1050 --export-views '" +
+                           views.string() + "' --screenshot '" + shot.string() + "' --quit",
+                       dir);
     ASSERT_EQ(r.status, 0) << r.out;
 
     // views.json: two views, view 1 with the kernel and size asked for.
@@ -74,6 +75,8 @@ TEST(ScriptedRun, ExportsEveryViewAsShownAndQuits) {
     EXPECT_EQ(v1["size"].toInt(), 128);
     EXPECT_EQ(list[1].toObject()["kernel"].toString(), "linear"); // compare mode's second kernel
     EXPECT_EQ(list[1].toObject()["size"].toInt(), 128); // --size: every view
+    EXPECT_EQ(v1["voxelModel"].toString(), "trilinear"); // --voxel-model: one per view
+    EXPECT_EQ(list[1].toObject()["voxelModel"].toString(), "bandlimited");
     EXPECT_TRUE(info["study"].toString().contains("phantom"));
     const QJsonObject spectrum = info["spectrum"].toObject();
     // Gridding correction stays on in compare mode: view 1's kernel has the main spectrum.
