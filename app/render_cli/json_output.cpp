@@ -66,7 +66,7 @@ Json seriesListJson(const core::DicomScanResult& scan) {
         s["default"] = i == byDefault; // what fvr-render and the workstation open without --series
         series.push_back(std::move(s));
     }
-    return Json{{"series", series}, {"skipped", scan.skipped}};
+    return Json{{"series", series}, {"skipped", scan.skipped}, {"warnings", scan.warnings}};
 }
 
 Json settingsJson(const RunFacts& run) {

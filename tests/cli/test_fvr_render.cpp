@@ -257,6 +257,18 @@ TEST(FvrRender, DicomFolderInfoListsSeriesWithWarnings) {
     EXPECT_NE(warnings.find("uneven slice spacing"), std::string::npos) << r.output;
 }
 
+// #15 item 10: --info says once what the scan skipped (here the folder's README.md).
+TEST(FvrRender, DicomFolderInfoSaysWhatWasSkipped) {
+    FVR_REQUIRE_DATA("dicom_edge/enhanced_multiframe_mr");
+    const auto dir = fvr::test::sharedData() / "dicom_edge/enhanced_multiframe_mr";
+    const Result r = run(dir.string() + " --info");
+    ASSERT_EQ(r.status, 0) << r.output;
+    const Json j = stdoutJson(r);
+    ASSERT_TRUE(j["warnings"].is_array()) << r.output;
+    ASSERT_EQ(j["warnings"].size(), 1u) << r.output;
+    EXPECT_EQ(j["warnings"][0], "skipped 1 file that is not DICOM: README.md") << r.output;
+}
+
 TEST(FvrRender, DicomPatientViewsFollowTheDirectionCosines) {
     FVR_REQUIRE_DATA("dicom/ct_head_slicer_64x64x93");
     const auto dir = (fvr::test::sharedData() / "dicom/ct_head_slicer_64x64x93").string();
