@@ -361,13 +361,20 @@ TEST_F(Workstation, CancelledChangeLeavesThePanelShowingWhatIsInEffect) {
     QSignalSpy cancelled(&window->study(), &ui::StudyController::cancelled);
     os->setCurrentIndex(os->findData(2.0)); // 512^3: long enough to cancel
     ASSERT_TRUE(window->study().busy());
+    // Meanwhile the memory readout says what is in use and what the 2x spectrum will take.
+    const QString preparing = window->renderingPanel()->memoryLabel()->text();
+    const double estimate = window->study().estimatedSpectrumMiB(window->study().targetSettings());
+    EXPECT_GT(estimate, 2 * mib);
+    EXPECT_TRUE(preparing.startsWith(QString::number(mib, 'f', 1)) &&
+                preparing.contains(QString::number(estimate, 'f', 1) + " MiB once"))
+        << preparing.toStdString();
     window->study().cancel();
     ASSERT_TRUE(cancelled.wait(60000));
     EXPECT_DOUBLE_EQ(os->currentData().toDouble(), inEffect);
     EXPECT_DOUBLE_EQ(window->study().requestedSettings().oversampling, inEffect);
-    EXPECT_TRUE(
-        window->renderingPanel()->memoryLabel()->text().contains(QString::number(mib, 'f', 1)))
-        << window->renderingPanel()->memoryLabel()->text().toStdString();
+    const QString after = window->renderingPanel()->memoryLabel()->text();
+    EXPECT_TRUE(after.contains(QString::number(mib, 'f', 1)) && !after.contains("once"))
+        << after.toStdString();
     EXPECT_FALSE(window->progressBar()->isVisible());
 }
 

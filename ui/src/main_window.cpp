@@ -249,17 +249,6 @@ SpectrumSettings MainWindow::spectrumSettingsFromPanel() const {
 void MainWindow::applySpectrumSettings() {
     const SpectrumSettings s = spectrumSettingsFromPanel();
     saveRenderingSettings();
-    if (m_study->volume()) {
-        // One spectrum per gridding-corrected kernel in compare mode.
-        std::vector<SpectrumSettings> spectra;
-        for (std::size_t i = 0; i < m_views.size(); ++i) {
-            const auto v =
-                RenderingPanel::spectrumSettings(m_rendering->values(), m_viewSettings[i].kernel);
-            if (std::find(spectra.begin(), spectra.end(), v) == spectra.end()) spectra.push_back(v);
-        }
-        const int count = std::max<int>(1, int(spectra.size()));
-        m_rendering->setSpectrumMiB(count * m_study->estimatedSpectrumMiB(s), count);
-    }
     if (m_study->volume() && !(s == m_study->spectrumSettings()))
         message(tr("Preprocessing again (%1, oversampling %2, %3)…")
                     .arg(QString::fromUtf8(core::transformName(s.transform)))
@@ -445,8 +434,13 @@ void MainWindow::updateStudyInfo() {
 }
 
 void MainWindow::updateSpectrumMemory() {
-    if (m_rendering && m_study->spectrum())
-        m_rendering->setSpectrumMiB(m_study->spectraMiB(), m_study->spectrumCount());
+    if (!m_rendering || !m_study->spectrum()) return;
+    // While a new main spectrum is prepared the panel shows its settings: say both.
+    const SpectrumSettings& target = m_study->targetSettings();
+    const bool preparing = !(target == m_study->spectrumSettings());
+    m_rendering->setSpectrumMiB(m_study->spectraMiB(), m_study->spectrumCount(),
+                                preparing ? std::optional(m_study->estimatedSpectrumMiB(target))
+                                          : std::nullopt);
 }
 
 void MainWindow::showProgress(bool on) {

@@ -654,8 +654,8 @@ std::vector<DicomHeader> readHeaders(const fs::path& folder, const std::vector<f
 /** The error when no series was found: the file count and the first three reasons to skip. */
 std::string noSeriesMessage(const fs::path& folder, std::size_t fileCount,
                             const std::vector<std::string>& skipped) {
-    std::string msg =
-        folder.string() + ": no DICOM image series found (" + std::to_string(fileCount) + " files";
+    std::string msg = folder.string() + ": no DICOM image series found (" +
+                      std::to_string(fileCount) + (fileCount == 1 ? " file" : " files");
     if (!skipped.empty()) {
         msg += "; e.g. ";
         for (std::size_t k = 0; k < std::min<std::size_t>(3, skipped.size()); ++k)

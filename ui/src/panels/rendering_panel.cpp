@@ -237,11 +237,16 @@ void RenderingPanel::setViewCount(int n) {
 
 int RenderingPanel::appliesTo() const { return m_appliesTo->currentIndex(); }
 
-void RenderingPanel::setSpectrumMiB(double mib, int count) {
-    m_memory->setText(
+void RenderingPanel::setSpectrumMiB(double mib, int count, std::optional<double> preparingMiB) {
+    QString text =
         count > 1
             ? tr("%1 MiB (%2 spectra: the compare kernels' own)").arg(mib, 0, 'f', 1).arg(count)
-            : tr("%1 MiB").arg(mib, 0, 'f', 1));
+            : tr("%1 MiB").arg(mib, 0, 'f', 1);
+    if (preparingMiB)
+        text = tr("%1 in use; %2 MiB once the new spectrum is ready")
+                   .arg(text)
+                   .arg(*preparingMiB, 0, 'f', 1);
+    m_memory->setText(text);
     m_memory->setWordWrap(true);
 }
 

@@ -4,6 +4,8 @@
  *  values, gridding correction), the interactive frame rate and the per-frame options. */
 #include <QWidget>
 
+#include <optional>
+
 #include <fvr/core/render/kernels.h>
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/render/spectrum.h>
@@ -58,9 +60,10 @@ public:
     void setViewCount(int n);
     /** 0: all views, i: view i. */
     int appliesTo() const;
-    /** The "Spectrum memory" readout: `mib` in all, over `count` spectra (compare mode with
-     *  gridding correction keeps one per kernel). */
-    void setSpectrumMiB(double mib, int count = 1);
+    /** The "Spectrum memory" readout: `mib` in use, over `count` spectra (compare mode with
+     *  gridding correction keeps one per kernel), and what the spectrum being prepared will
+     *  take instead. */
+    void setSpectrumMiB(double mib, int count = 1, std::optional<double> preparingMiB = {});
 
     /** The controls (tests drive them like a user). */
     QComboBox* kernelCombo() const { return m_kernel; }
