@@ -80,8 +80,17 @@ void MainWindow::connectStudy() {
     connect(m_study.get(), &StudyController::cancelled, this, [this] {
         showProgress(false);
         showSpectrumSettingsInEffect(true);
+        // A cancelled kernel change (gridding on): view 1 and the panel keep the kernel in use.
+        const auto main = m_study->spectrum();
+        if (!m_views.empty() && main && main->deapodizedFor &&
+            *main->deapodizedFor != m_viewSettings[0].kernel) {
+            m_viewSettings[0].kernel = *main->deapodizedFor;
+            if (m_rendering->appliesTo() <= 1) m_rendering->showViewSettings(m_viewSettings[0]);
+        }
+        updateCompareKernels(); // the gridding correction in effect; views say what they wait for
         message(tr("Cancelled; the previous study and its settings stay."));
     });
+    connect(m_study.get(), &StudyController::idle, this, [this] { showProgress(false); });
     connect(m_study.get(), &StudyController::warningsChanged, this, [this](const QStringList& w) {
         for (const auto& s : w) message(tr("Warning: %1").arg(s), true);
         updateStudyInfo();

@@ -27,7 +27,6 @@ void MainWindow::setCompareCount(int n) {
     const std::optional<core::DisplayWindow> window =
         m_views.empty() ? std::nullopt : std::optional<core::DisplayWindow>(m_views[0]->window());
     if (m_compareCount == 1 && !m_views.empty()) {
-        m_viewSettings[0] = m_views[0]->settings();
         // The other views start with the other kernels, so the comparison shows something.
         const core::Kernel order[] = {core::Kernel::Linear, core::Kernel::Nearest,
                                       core::Kernel::Sinc4, core::Kernel::CatmullRom,
@@ -42,23 +41,24 @@ void MainWindow::setCompareCount(int n) {
     m_compareCount = n;
     for (int i = 0; i < n; ++i) {
         ProjectionView* v = addView(i, n, frame);
-        // After setStudy (a new view's first study would reset the window to an auto window
-        // computed whenever it first paints, possibly after the user changed the output).
-        if (window) v->setWindow(*window);
         connectView(v);
         m_views.push_back(v);
     }
-    setDifferenceMode(m_difference);
     if (m_rendering) m_rendering->setViewCount(n);
-    updateCompareKernels();
+    updateCompareKernels(true); // Compare again: retries spectra that were not prepared
+    // After setStudy (a new view's first study would reset the window to an auto window
+    // computed whenever it first paints, losing the user's window or preset).
+    if (window)
+        for (auto* v : m_views) v->setWindow(*window);
+    setDifferenceMode(m_difference);
 }
 
-void MainWindow::updateCompareKernels() {
+void MainWindow::updateCompareKernels(bool retry) {
     // A fair comparison: with gridding correction every kernel renders from its own corrected
     // spectrum (the controller prepares them in the background; views wait for theirs).
     std::vector<core::Kernel> kernels;
     for (std::size_t i = 1; i < m_views.size(); ++i) kernels.push_back(m_viewSettings[i].kernel);
-    m_study->setCompareKernels(kernels, !m_rendering || m_rendering->values().deapodize);
+    m_study->setCompareKernels(kernels, !m_rendering || m_rendering->values().deapodize, retry);
     assignSpectra();
     updateSpectrumMemory();
 }

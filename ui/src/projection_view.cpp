@@ -118,7 +118,7 @@ void ProjectionView::setInteracting(bool on) {
 
 void ProjectionView::requestFrame() {
     // Timed from the first change that can render (waiting for a spectrum is not a frame).
-    if (!m_frameRequested && m_spectrum) {
+    if (!m_frameRequested && m_spectrum && isVisible()) {
         m_requestClock.start();
         m_frameRequested = true;
     }
@@ -131,7 +131,7 @@ void ProjectionView::framePresented() {
     m_frameRequested = false;
     // What the user sees: from the change to the frame on screen, display and composition of
     // the window (all synchronised views) included; not one stage's timer.
-    m_stats.wallMs = double(m_requestClock.elapsed());
+    m_stats.wallMs = double(m_requestClock.nsecsElapsed()) / 1e6;
     if (m_pendingLevel == m_progressive.level()) m_progressive.frameRendered(m_stats.wallMs);
 }
 
@@ -377,6 +377,7 @@ void ProjectionView::paintGL() {
             m_frameRequested = false; // served without a new frame: the clock starts afresh
         }
     } catch (const std::exception& e) {
+        m_frameRequested = false; // no frame: the next one is timed afresh
         m_renderError = tr("Not rendered: %1").arg(QString::fromUtf8(e.what()));
         drawOverlay();
         return;

@@ -102,6 +102,9 @@ bool ScriptedRun::ready() {
 
 void ScriptedRun::poll() {
     if (m_finished) return;
+    // A view that cannot show its image (its spectrum was not prepared, or rendering failed)
+    // ends the run with the reason rather than at the timeout.
+    if (const QString why = viewFailure(); !why.isEmpty()) return finish(kScriptedFailed, why);
     // Ready on two polls in a row: a frame rendered for an export (projection()) is on screen
     // by the next paint.
     m_readyTicks = ready() ? m_readyTicks + 1 : 0;
@@ -113,6 +116,17 @@ void ScriptedRun::poll() {
         return;
     }
     finish(kScriptedOk, {});
+}
+
+QString ScriptedRun::viewFailure() const {
+    const StudyController& study = m_window.study();
+    if (!m_armed || study.busy()) return {};
+    for (const ProjectionView* v : m_window.views()) {
+        if (!v->renderError().isEmpty()) return v->renderError();
+        if (!v->spectrum() && v->pendingText().startsWith(tr("Not prepared")))
+            return v->pendingText();
+    }
+    return {};
 }
 
 void ScriptedRun::writeOutputs() {

@@ -5,6 +5,8 @@
 #include <QDir>
 #include <QFileInfo>
 
+#include <chrono>
+
 #include <fvr/core/errors.h>
 #include <fvr/core/io/volume_io.h>
 #include <fvr/core/xray/phantom.h>
@@ -118,8 +120,22 @@ void StudyController::poll() {
     emit progress(m_fraction.load(), stage);
 }
 
+void StudyController::markFinished(std::uint64_t id) {
+    m_finishedJob = std::max(m_finishedJob, id);
+    QMetaObject::invokeMethod(
+        this,
+        [this] {
+            if (m_finishedJob >= m_jobsStarted) emit idle();
+        },
+        Qt::QueuedConnection);
+}
+
 void StudyController::cancel() {
     if (m_cancel) m_cancel->cancel();
+    // The user's cancel of a compare job stops the preparation of the others too, even when
+    // this one ends before it sees the cancel.
+    if (m_finishedJob < m_jobsStarted && m_compareJob.id == m_jobsStarted)
+        m_compareJob.cancelledByUser = true;
 }
 
 void StudyController::waitIdle() {
@@ -145,6 +161,7 @@ void StudyController::startJob(std::function<void(core::CancelToken&, std::uint6
                     if (token != m_cancel) return;
                     markFinished(id);
                     revertRequestToSettingsInEffect();
+                    declinePendingCompare(tr("cancelled")); // the user stopped the work
                     emit cancelled();
                 },
                 Qt::QueuedConnection);
@@ -154,6 +171,7 @@ void StudyController::startJob(std::function<void(core::CancelToken&, std::uint6
                 [this, id] {
                     markFinished(id);
                     m_target = m_settings;
+                    declinePendingCompare(tr("out of memory"));
                     emit failed(tr("Out of memory"),
                                 tr("The study or its spectrum does not fit in memory. "
                                    "Try a smaller oversampling."));
@@ -166,6 +184,7 @@ void StudyController::startJob(std::function<void(core::CancelToken&, std::uint6
                 [this, what, id] {
                     markFinished(id);
                     m_target = m_settings;
+                    prepareCompareSpectra(); // the study in use still wants them
                     emit failed(tr("Could not open the study"), what);
                 },
                 Qt::QueuedConnection);
@@ -244,6 +263,7 @@ bool StudyController::needsSeriesChoice(const StudySource& source,
         this,
         [this, source, keys, labels, id] {
             markFinished(id);
+            prepareCompareSpectra(); // the study in use still wants them
             emit seriesChoiceNeeded(source, keys, labels);
         },
         Qt::QueuedConnection);
@@ -361,28 +381,56 @@ std::shared_ptr<const core::Spectrum> StudyController::spectrumFor(core::Kernel 
 
 QString StudyController::spectrumPendingReason(core::Kernel kernel) const {
     const QString name = QString::fromUtf8(core::kernelName(kernel));
+    const QString what = settingsFor(kernel).deapodizeFor
+                             ? tr("the gridding-corrected spectrum for %1").arg(name)
+                             : tr("the spectrum for %1").arg(name);
     if (const auto it = m_compareDeclined.find(kernel); it != m_compareDeclined.end())
-        return tr("No gridding-corrected spectrum for %1 (%2): choose the kernel again to retry, "
-                  "or turn gridding correction off")
-            .arg(name, it->second);
-    return tr("Preparing the gridding-corrected spectrum for %1…").arg(name);
+        return tr("Not prepared: %1 (%2). View ▸ Compare again to retry.").arg(what, it->second);
+    return tr("Preparing %1…").arg(what);
 }
 
-void StudyController::setCompareKernels(const std::vector<core::Kernel>& kernels, bool gridding) {
-    if (kernels != m_compareKernels || gridding != m_compareGridding) m_compareDeclined.clear();
+std::optional<QString> StudyController::compareDeclined(core::Kernel kernel) const {
+    const auto it = m_compareDeclined.find(kernel);
+    return it == m_compareDeclined.end() ? std::nullopt : std::optional(it->second);
+}
+
+void StudyController::setCompareKernels(const std::vector<core::Kernel>& kernels, bool gridding,
+                                        bool retry) {
+    if (retry || kernels != m_compareKernels || gridding != m_compareGridding)
+        m_compareDeclined.clear();
     m_compareKernels = kernels;
     m_compareGridding = gridding;
+    // A compare job whose spectrum is no longer wanted stops (not the user's cancel).
+    const bool running = m_finishedJob < m_jobsStarted && m_compareJob.id == m_jobsStarted;
+    if (running &&
+        !(std::find(kernels.begin(), kernels.end(), m_compareJob.kernel) != kernels.end() &&
+          settingsFor(m_compareJob.kernel) == m_compareJob.settings)) {
+        m_compareJob.dropped = true;
+        if (m_cancel) m_cancel->cancel();
+    }
     pruneCompareSpectra();
     prepareCompareSpectra();
 }
 
+bool StudyController::wantedCompareSpectrum(core::Kernel kernel,
+                                            const SpectrumSettings& settings) const {
+    return std::find(m_compareKernels.begin(), m_compareKernels.end(), kernel) !=
+               m_compareKernels.end() &&
+           settings == settingsFor(kernel) && !(settings == m_settings);
+}
+
 void StudyController::pruneCompareSpectra() {
+    // Kept: a listed kernel's spectrum at the settings in effect, unless the main spectrum is
+    // that one (view 1 switched to a compare view's kernel).
     std::erase_if(m_compare, [this](const auto& entry) {
         const auto& [kernel, c] = entry;
-        return c.volume != m_volume || !(c.settings == settingsFor(kernel)) ||
-               std::find(m_compareKernels.begin(), m_compareKernels.end(), kernel) ==
-                   m_compareKernels.end();
+        return c.volume != m_volume || !wantedCompareSpectrum(kernel, c.settings);
     });
+}
+
+void StudyController::declinePendingCompare(const QString& reason) {
+    for (const core::Kernel k : m_compareKernels)
+        if (!spectrumFor(k)) m_compareDeclined.emplace(k, reason);
 }
 
 double StudyController::spectraMiB() const {
@@ -395,49 +443,63 @@ int StudyController::spectrumCount() const { return (m_spectrum ? 1 : 0) + int(m
 
 void StudyController::prepareCompareSpectra() {
     if (!m_volume || !m_spectrum || m_finishedJob < m_jobsStarted) return; // a job runs
-    for (const core::Kernel k : m_compareKernels) {
-        if (spectrumFor(k) || m_compareDeclined.count(k)) continue;
-        const SpectrumSettings settings = settingsFor(k);
-        auto vol = m_volume;
-        const QString stage = tr("spectrum for %1: ").arg(QString::fromUtf8(core::kernelName(k)));
-        startJob([this, vol, settings, k, stage](core::CancelToken& token, std::uint64_t id) {
-            const core::CancelToken* mine = &token;
-            auto done = [this, id, k, vol, settings,
-                         mine](std::shared_ptr<const core::Spectrum> spectrum, QString failure) {
-                markFinished(id);
-                if (spectrum && vol == m_volume && settings == settingsFor(k)) {
-                    m_resultJob = id;
-                    m_compare[k] = {settings, vol, spectrum};
-                    emit spectrumReady();
-                } else if (!failure.isEmpty() && mine == m_cancel.get()) {
-                    m_compareDeclined[k] = failure; // the user's cancel, or out of memory
-                    emit spectrumReady(); // the views say why
-                }
-                prepareCompareSpectra();
-            };
-            std::shared_ptr<const core::Spectrum> spectrum;
-            QString failure;
-            try {
-                spectrum = core::preprocess(
-                    *vol, settings,
-                    [this, stage](double f, std::string_view st) {
-                        report(
-                            f,
-                            (stage + QString::fromUtf8(st.data(), int(st.size()))).toStdString());
-                    },
-                    &token);
-            } catch (const core::Cancelled&) {
-                failure = tr("cancelled");
-            } catch (const std::bad_alloc&) {
-                failure = tr("out of memory");
-            } catch (const std::exception& e) {
-                failure = QString::fromUtf8(e.what());
+    for (const core::Kernel k : m_compareKernels)
+        if (!spectrumFor(k) && !m_compareDeclined.count(k)) return startCompareJob(k);
+}
+
+void StudyController::startCompareJob(core::Kernel k) {
+    const SpectrumSettings settings = settingsFor(k);
+    auto vol = m_volume;
+    const QString stage = tr("spectrum for %1: ").arg(QString::fromUtf8(core::kernelName(k)));
+    startJob([this, vol, settings, k, stage](core::CancelToken& token, std::uint64_t id) {
+        std::shared_ptr<const core::Spectrum> spectrum;
+        QString failure;
+        try {
+            for (int waited = 0; waited < m_simulatedCompareDelayMs.load(); waited += 10) {
+                token.check();
+                std::this_thread::sleep_for(std::chrono::milliseconds(10));
             }
-            QMetaObject::invokeMethod(
-                this, [done, spectrum, failure] { done(spectrum, failure); }, Qt::QueuedConnection);
-        });
-        return;
-    }
+            spectrum = core::preprocess(
+                *vol, settings,
+                [this, stage](double f, std::string_view st) {
+                    report(f, (stage + QString::fromUtf8(st.data(), int(st.size()))).toStdString());
+                },
+                &token);
+        } catch (const core::Cancelled&) {
+            failure = tr("cancelled");
+        } catch (const std::bad_alloc&) {
+            failure = tr("out of memory");
+        } catch (const std::exception& e) {
+            failure = QString::fromUtf8(e.what());
+        }
+        QMetaObject::invokeMethod(
+            this,
+            [this, id, k, vol, settings, spectrum, failure] {
+                compareJobDone(id, k, vol, settings, spectrum, failure);
+            },
+            Qt::QueuedConnection);
+    });
+    m_compareJob = {m_jobsStarted, k, settings, false};
+}
+
+void StudyController::compareJobDone(std::uint64_t id, core::Kernel k,
+                                     const std::shared_ptr<const core::Volume>& vol,
+                                     const SpectrumSettings& settings,
+                                     std::shared_ptr<const core::Spectrum> spectrum,
+                                     const QString& failure) {
+    markFinished(id);
+    const bool replaced = id != m_jobsStarted; // a newer job cancelled this one
+    const bool dropped = m_compareJob.id == id && m_compareJob.dropped;
+    const bool userCancel = m_compareJob.id == id && m_compareJob.cancelledByUser;
+    if (!replaced) m_resultJob = id; // the views and the progress bar take this result
+    if (spectrum && vol == m_volume && wantedCompareSpectrum(k, settings))
+        m_compare[k] = {settings, vol, std::move(spectrum)};
+    else if (!failure.isEmpty() && !replaced && !dropped && !userCancel)
+        m_compareDeclined[k] = failure; // out of memory or an error: this kernel's
+    // The user's cancel stops the preparation of every missing spectrum.
+    if (userCancel && !replaced) declinePendingCompare(tr("cancelled"));
+    if (!replaced) emit spectrumReady(); // the views show their spectra or say why not
+    prepareCompareSpectra();
 }
 
 } // namespace fvr::ui

@@ -89,8 +89,9 @@ private:
     void buildViewMenu(QMenu* view, QToolBar* toolbar);
     ProjectionView* addView(int index, int count, const core::ViewFrame& frame);
     void connectView(ProjectionView* v);
-    /** Tells the study controller the compare views' kernels, then assignSpectra(). */
-    void updateCompareKernels();
+    /** Tells the study controller the compare views' kernels (`retry`: also those whose
+     *  spectrum was not prepared), then assignSpectra(). */
+    void updateCompareKernels(bool retry = false);
     /** Each view gets the spectrum that renders its kernel at the settings in effect, or says
      *  why it waits. */
     void assignSpectra();

@@ -57,6 +57,9 @@ public:
     /** Instead of an image while the view has no spectrum: why (e.g. its kernel's spectrum is
      *  being prepared); empty: "No study loaded". */
     void setPendingText(const QString& text);
+    const QString& pendingText() const { return m_pending; }
+    /** The last render failure ("Not rendered: …"), empty after a good frame. */
+    const QString& renderError() const { return m_renderError; }
     const std::shared_ptr<const core::Volume>& volume() const { return m_volume; }
     const std::shared_ptr<const core::Spectrum>& spectrum() const { return m_spectrum; }
     void setSettings(const ViewSettings& s);

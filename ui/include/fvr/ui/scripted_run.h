@@ -37,6 +37,8 @@ public:
     /** Writes the exports of the views as they are now (throws core::WriteError naming the
      *  file); what the run does once ready. */
     void writeOutputs();
+    /** Why a view cannot show its image (empty: none). */
+    QString viewFailure() const;
     bool finished() const { return m_finished; }
 
 signals:

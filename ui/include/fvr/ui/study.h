@@ -107,12 +107,16 @@ public:
      *  spectrum settingsFor() gives (its own gridding-corrected one where the kernel needs
      *  one), prepared in the background one after the other once no other job runs, each
      *  announced by spectrumReady(). Spectra of kernels no longer listed are freed. */
-    void setCompareKernels(const std::vector<core::Kernel>& kernels, bool gridding);
+    void setCompareKernels(const std::vector<core::Kernel>& kernels, bool gridding,
+                           bool retry = false);
     /** The spectrum that renders `kernel` at the settings in effect: the main spectrum, or a
      *  compare kernel's own; null while it is being prepared (or was cancelled). */
     std::shared_ptr<const core::Spectrum> spectrumFor(core::Kernel kernel) const;
     /** Why spectrumFor(kernel) is null: being prepared, or cancelled / out of memory. */
     QString spectrumPendingReason(core::Kernel kernel) const;
+    /** Why a compare kernel's spectrum will not be prepared (cancelled, out of memory, an
+     *  error) until setCompareKernels is called with `retry`; empty while it is wanted. */
+    std::optional<QString> compareDeclined(core::Kernel kernel) const;
     /** The settings of the spectrum that renders `kernel`: the values, transform and
      *  oversampling in effect, deapodized for `kernel` when gridding correction is on and
      *  helps the kernel (core::griddingCorrectionHelps: all but linear). */
@@ -122,6 +126,8 @@ public:
     int spectrumCount() const;
     /** Blocks until the running job ends (tests). */
     void waitIdle();
+    /** Tests: every compare-spectrum job first waits this long (a slow machine), cancellable. */
+    void setSimulatedCompareDelayMs(int ms) { m_simulatedCompareDelayMs = ms; }
 
 signals:
     void progress(double fraction, const QString& stage);
@@ -130,6 +136,8 @@ signals:
     /** A load or preprocessing failed: `title` names what, `details` is the error text. */
     void failed(const QString& title, const QString& details);
     void cancelled();
+    /** No job runs any more (every job's end was handled): nothing to show progress for. */
+    void idle();
     void warningsChanged(const QStringList& warnings);
     /** A DICOM folder holds several series: the GUI asks the user and calls open() again with
      *  the chosen key. `labels` describe the series (same order as `keys`); the first is the
@@ -159,8 +167,18 @@ private:
                            std::uint64_t id);
     /** Starts the next missing compare spectrum when no job runs. */
     void prepareCompareSpectra();
+    void startCompareJob(core::Kernel k);
+    /** GUI thread: a compare job ended (with its spectrum, or `failure`). */
+    void compareJobDone(std::uint64_t id, core::Kernel k,
+                        const std::shared_ptr<const core::Volume>& vol,
+                        const SpectrumSettings& settings,
+                        std::shared_ptr<const core::Spectrum> spectrum, const QString& failure);
+    /** A compare kernel still listed, at these settings, that the main spectrum does not serve. */
+    bool wantedCompareSpectrum(core::Kernel kernel, const SpectrumSettings& settings) const;
     /** Drops compare spectra that no longer match the volume and the settings in effect. */
     void pruneCompareSpectra();
+    /** Every compare kernel without a spectrum is not prepared, for `reason`. */
+    void declinePendingCompare(const QString& reason);
     /** Worker: preprocesses the opened volume and hands volume and spectrum to the GUI thread. */
     void finishOpen(const StudySource& source, const SpectrumSettings& settings,
                     core::OpenedStudy opened, core::CancelToken& token, std::uint64_t id);
@@ -178,7 +196,9 @@ private:
     std::uint64_t m_jobsStarted = 0; ///< GUI thread
     std::uint64_t m_resultJob = 0; ///< the job whose result is in use (GUI thread)
     std::uint64_t m_finishedJob = 0; ///< the latest job whose end was handled (GUI thread)
-    void markFinished(std::uint64_t id) { m_finishedJob = std::max(m_finishedJob, id); }
+    /** A job's end was handled (GUI thread); once the handler has run (and maybe started the
+     *  next job), idle() says so if no job runs. */
+    void markFinished(std::uint64_t id);
     std::shared_ptr<core::CancelToken> m_cancel;
     std::atomic<double> m_fraction{0};
     QString m_stage;
@@ -189,10 +209,18 @@ private:
         std::shared_ptr<const core::Volume> volume;
         std::shared_ptr<const core::Spectrum> spectrum;
     };
+    std::atomic<int> m_simulatedCompareDelayMs{0};
     std::vector<core::Kernel> m_compareKernels;
     bool m_compareGridding = true;
     std::map<core::Kernel, CompareSpectrum> m_compare;
     std::map<core::Kernel, QString> m_compareDeclined; ///< cancelled or failed: not retried
+    struct CompareJob {
+        std::uint64_t id = 0;
+        core::Kernel kernel = core::Kernel::Linear;
+        SpectrumSettings settings;
+        bool dropped = false; ///< cancelled because its spectrum is no longer wanted
+        bool cancelledByUser = false;
+    } m_compareJob;
     std::shared_ptr<const core::DicomScanResult> m_scan; ///< last DICOM scan (series picking)
     QString m_scanFolder;
 };
