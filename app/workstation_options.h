@@ -26,7 +26,7 @@ struct WorkstationOptions {
     int compare = 1;
     std::optional<core::PatientView> view;
     std::vector<core::Kernel> kernels; ///< view 1's, 2's … (fewer: the others keep theirs)
-    std::vector<core::VoxelModel> voxelModels; ///< one: every view's; more: view 1's, 2's …
+    std::vector<core::VoxelModel> voxelModels; ///< view 1's, 2's …; the last for the rest
     std::optional<int> size; ///< every view's
     std::optional<QSize> windowSize;
     ui::ScriptedRunOptions script;

@@ -447,9 +447,10 @@ void MainWindow::updateSpectrumMemory() {
     // While a new main spectrum is prepared the panel shows its settings: say both.
     const SpectrumSettings& target = m_study->targetSettings();
     const bool preparing = !(target == m_study->spectrumSettings());
-    m_rendering->setSpectrumMiB(m_study->spectraMiB(), m_study->spectrumCount(),
-                                preparing ? std::optional(m_study->estimatedSpectrumMiB(target))
-                                          : std::nullopt);
+    m_rendering->setSpectrumMiB(
+        m_study->spectraMiB(), m_study->spectrumCount(),
+        preparing ? std::optional(m_study->estimatedSpectrumMiB(target) * m_study->spectrumCount())
+                  : std::nullopt);
 }
 
 void MainWindow::showProgress(bool on) {
