@@ -37,6 +37,7 @@
 #include <fvr/ui/panels/study_panel.h>
 #include <fvr/ui/panels/xray_panel.h>
 #include <fvr/ui/settings_keys.h>
+#include <fvr/ui/settings_model.h>
 
 #include "image_metrics.h"
 #include "test_support.h"
@@ -1039,6 +1040,37 @@ TEST_F(Workstation, PanelsRoundTripTheirValuesWithoutSignals) {
     EXPECT_FALSE(xray.transmission().active());
     EXPECT_FALSE(xray.exposureSpin()->isEnabled());
     EXPECT_EQ(xrayChanged.count(), 0);
+}
+
+// One source of truth: the panels show the settings model, a user's edit lands in it, and a
+// change of the model (from anywhere) is what the window acts on.
+TEST_F(Workstation, PanelsShowTheSettingsModelAndTheWindowActsOnIt) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    ui::SettingsModel& model = window->settings();
+    auto* rp = window->renderingPanel();
+    ASSERT_TRUE(waitSpectrum(*window, [&] {
+        rp->oversamplingCombo()->setCurrentIndex(rp->oversamplingCombo()->findData(1.5));
+    }));
+    EXPECT_EQ(model.rendering().oversampling, 1.5); // the user's edit is in the model
+    EXPECT_EQ(window->study().spectrumSettings().oversampling, 1.5);
+
+    ui::RenderingPanel::Values r = model.rendering();
+    r.mapping = core::ValueMapping::Raw;
+    r.clip = false;
+    ASSERT_TRUE(waitSpectrum(*window, [&] { model.setRendering(r); }));
+    EXPECT_EQ(core::ValueMapping(rp->valuesCombo()->currentData().toInt()),
+              core::ValueMapping::Raw);
+    EXPECT_FALSE(rp->clipCheck()->isChecked());
+    EXPECT_EQ(rp->values(), model.rendering());
+    EXPECT_EQ(window->study().spectrumSettings().mapping, core::ValueMapping::Raw);
+    EXPECT_FALSE(window->views()[0]->effects().clip);
+
+    ui::XrayPanel::Values x = model.xray();
+    x.depthCuePercent = 30;
+    model.setXray(x);
+    EXPECT_EQ(window->xrayPanel()->depthCueSpin()->value(), 30);
+    EXPECT_DOUBLE_EQ(window->views()[0]->effects().depthCue, 0.3);
+    EXPECT_EQ(window->xrayPanel()->values(), model.xray());
 }
 
 TEST_F(Workstation, PanelSettingsPersistForTheNextWindow) {

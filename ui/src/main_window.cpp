@@ -25,12 +25,14 @@
 #include <fvr/ui/panels/study_panel.h>
 #include <fvr/ui/panels/xray_panel.h>
 #include <fvr/ui/settings_keys.h>
+#include <fvr/ui/settings_model.h>
 
 namespace fvr::ui {
 
 MainWindow::MainWindow(QWidget* parent)
     : QMainWindow(parent), m_study(std::make_unique<StudyController>()),
       m_accuracy(std::make_unique<AccuracyReadout>()) {
+    m_model = new SettingsModel(this);
     setWindowTitle(QString::fromUtf8(applicationName()));
     setAcceptDrops(true);
     setDockNestingEnabled(true);
@@ -85,7 +87,7 @@ void MainWindow::connectStudy() {
         if (!m_views.empty() && main && main->deapodizedFor &&
             *main->deapodizedFor != m_viewSettings[0].kernel) {
             m_viewSettings[0].kernel = *main->deapodizedFor;
-            if (m_rendering->appliesTo() <= 1) m_rendering->showViewSettings(m_viewSettings[0]);
+            if (m_rendering->appliesTo() <= 1) showViewSettings(m_viewSettings[0]);
         }
         updateCompareKernels(); // the gridding correction in effect; views say what they wait for
         message(tr("Cancelled; the previous study and its settings stay."));
@@ -141,6 +143,10 @@ void MainWindow::buildDocks() {
     resizeDocks({msgDock}, {110}, Qt::Vertical);
     resizeDocks({studyDock, renderDock, displayDock}, {220, 260, 300}, Qt::Vertical);
     buildStatusBar();
+    // The panels show the model (from the restored settings on); they write the user's edits
+    // into it, and the window acts on the model's change signals, never on the widgets.
+    connect(m_model, &SettingsModel::renderingShown, m_rendering, &RenderingPanel::setValues);
+    connect(m_model, &SettingsModel::xrayShown, m_xray, &XrayPanel::setValues);
     restorePanels();
     connectPanels();
 }
@@ -168,49 +174,54 @@ void MainWindow::buildStatusBar() {
 
 void MainWindow::restorePanels() {
     const QSettings s;
-    m_rendering->setValues(RenderingPanel::load(s));
+    m_model->setRendering(RenderingPanel::load(s), SettingsModel::Notify::No);
     m_display->setValues(
         DisplayPanel::load(s, m_display->values())); // the window follows the image
-    m_xray->setValues(XrayPanel::load(s));
+    m_model->setXray(XrayPanel::load(s), SettingsModel::Notify::No);
     for (auto* v : m_views) {
         v->setEffects(currentEffects());
-        v->setTargetFps(m_rendering->values().targetFps);
+        v->setTargetFps(m_model->rendering().targetFps);
     }
-    m_viewSettings[0] = m_rendering->viewSettings();
+    m_viewSettings[0] = m_model->viewSettings();
     if (!m_views.empty()) m_views[0]->setSettings(m_viewSettings[0]);
     m_study->setSpectrumSettings(spectrumSettingsFromPanel());
 }
 
 void MainWindow::connectPanels() {
-    connect(m_rendering, &RenderingPanel::viewSettingsChanged, this,
-            &MainWindow::applyRenderSettings);
-    connect(m_rendering, &RenderingPanel::voxelModelChanged, this, &MainWindow::applyVoxelModel);
+    connect(m_rendering, &RenderingPanel::changed, m_model,
+            [this] { m_model->setRendering(m_rendering->values()); });
+    connect(m_xray, &XrayPanel::changed, m_model, [this] { m_model->setXray(m_xray->values()); });
     connect(m_rendering, &RenderingPanel::appliesToChanged, this, [this](int slot) {
         if (slot <= 0 || slot > int(m_views.size())) return;
         // What the view is set to (it may still wait for its kernel's spectrum).
-        m_rendering->showViewSettings(m_viewSettings[std::size_t(slot - 1)]);
+        showViewSettings(m_viewSettings[std::size_t(slot - 1)]);
     });
-    connect(m_rendering, &RenderingPanel::spectrumSettingsChanged, this,
+    connect(m_display, &DisplayPanel::windowChanged, this, &MainWindow::applyWindowFromPanel);
+    connect(m_display, &DisplayPanel::presetRequested, this, &MainWindow::applyPreset);
+    connectSettings();
+    if (isTransmission(m_model->xray().output)) applyOutput(true);
+}
+
+void MainWindow::connectSettings() {
+    connect(m_model, &SettingsModel::viewSettingsChanged, this, &MainWindow::applyRenderSettings);
+    connect(m_model, &SettingsModel::voxelModelChanged, this, &MainWindow::applyVoxelModel);
+    connect(m_model, &SettingsModel::spectrumSettingsChanged, this,
             &MainWindow::applySpectrumSettings);
-    connect(m_rendering, &RenderingPanel::valueMappingChanged, this,
-            &MainWindow::applyValueMapping);
-    connect(m_rendering, &RenderingPanel::targetFpsChanged, this, [this](int fps) {
+    connect(m_model, &SettingsModel::valueMappingChanged, this, &MainWindow::applyValueMapping);
+    connect(m_model, &SettingsModel::targetFpsChanged, this, [this](int fps) {
         for (auto* v : m_views) v->setTargetFps(m_difference ? 0 : fps);
         saveRenderingSettings();
     });
-    connect(m_rendering, &RenderingPanel::frameOptionsChanged, this, &MainWindow::applyEffects);
-    connect(m_display, &DisplayPanel::windowChanged, this, &MainWindow::applyWindowFromPanel);
-    connect(m_display, &DisplayPanel::presetRequested, this, &MainWindow::applyPreset);
-    connect(m_xray, &XrayPanel::outputChanged, this, [this] { applyOutput(true); });
-    connect(m_xray, &XrayPanel::beamChanged, this, [this] { applyOutput(false); });
-    connect(m_xray, &XrayPanel::effectsChanged, this, &MainWindow::applyEffects);
-    if (isTransmission(m_xray->output())) applyOutput(true);
+    connect(m_model, &SettingsModel::frameOptionsChanged, this, &MainWindow::applyEffects);
+    connect(m_model, &SettingsModel::outputChanged, this, [this] { applyOutput(true); });
+    connect(m_model, &SettingsModel::beamChanged, this, [this] { applyOutput(false); });
+    connect(m_model, &SettingsModel::effectsChanged, this, &MainWindow::applyEffects);
 }
 
 void MainWindow::applyVoxelModel() {
     // Only the voxel model of the views "Applies to" names: their kernels and sizes stay (in
     // compare mode each view keeps its own). Same spectrum: nothing is preprocessed again.
-    const core::VoxelModel model = m_rendering->values().voxelModel;
+    const core::VoxelModel model = m_model->rendering().voxelModel;
     const int slot = m_rendering->appliesTo();
     for (int i = 0; i < int(m_views.size()); ++i) {
         if (m_compareCount > 1 && slot > 0 && slot - 1 != i) continue;
@@ -223,7 +234,7 @@ void MainWindow::applyVoxelModel() {
 }
 
 void MainWindow::saveRenderingSettings() {
-    RenderingPanel::Values v = m_rendering->values();
+    RenderingPanel::Values v = m_model->rendering();
     // The startup kernel, size and voxel model are view 1's (in compare mode the panel may be
     // showing another view's).
     v.kernel = m_viewSettings[0].kernel;
@@ -234,7 +245,7 @@ void MainWindow::saveRenderingSettings() {
 }
 
 void MainWindow::applyRenderSettings() {
-    const ViewSettings s = m_rendering->viewSettings();
+    const ViewSettings s = m_model->viewSettings();
     const int slot = m_rendering->appliesTo();
     for (int i = 0; i < int(m_views.size()); ++i) {
         if (m_compareCount > 1 && slot > 0 && slot - 1 != i) continue;
@@ -245,14 +256,14 @@ void MainWindow::applyRenderSettings() {
     // A spectrum deapodized for another kernel cannot render this one: view 1's kernel is the
     // main spectrum's, the others get their own (assignSpectra switches each view when its
     // spectrum is ready).
-    if (m_rendering->values().deapodize)
+    if (m_model->rendering().deapodize)
         applySpectrumSettings(); // also updateCompareKernels()
     else
         updateCompareKernels();
 }
 
 SpectrumSettings MainWindow::spectrumSettingsFromPanel() const {
-    return RenderingPanel::spectrumSettings(m_rendering->values(), m_viewSettings[0].kernel);
+    return RenderingPanel::spectrumSettings(m_model->rendering(), m_viewSettings[0].kernel);
 }
 
 void MainWindow::applySpectrumSettings() {
@@ -271,9 +282,9 @@ void MainWindow::applySpectrumSettings() {
     if (m_study->volume() && m_study->targetSettings().mapping != s.mapping) {
         // The study cannot have these values (attenuation of data that are not HU): the panel
         // shows what is in effect; the request stays for the next study.
-        RenderingPanel::Values r = m_rendering->values();
+        RenderingPanel::Values r = m_model->rendering();
         r.mapping = m_study->targetSettings().mapping;
-        m_rendering->setValues(r);
+        m_model->setRendering(r, SettingsModel::Notify::No);
         message(tr("This study's values are not Hounsfield units: they stay %1; studies in HU "
                    "open with %2.")
                     .arg(QString::fromUtf8(core::valueMappingName(r.mapping)),
@@ -283,10 +294,10 @@ void MainWindow::applySpectrumSettings() {
 }
 
 void MainWindow::applyValueMapping() {
-    if (isTransmission(m_xray->output()) &&
-        m_rendering->values().mapping == core::ValueMapping::Raw) {
+    if (isTransmission(m_model->xray().output) &&
+        m_model->rendering().mapping == core::ValueMapping::Raw) {
         message(tr("Raw values have no transmission: the output is line integrals again."));
-        m_xray->setOutput(XrayOutput::LineIntegrals);
+        showOutput(XrayOutput::LineIntegrals);
         applyOutput(true);
     }
     m_rewindow = true; // new values, new range: window again when the spectrum is ready
@@ -319,16 +330,27 @@ void MainWindow::applyPreset(WindowPreset preset) {
     applyWindowFromPanel();
 }
 
-core::Transmission MainWindow::currentTransmission() const {
-    return m_xray ? m_xray->transmission() : core::Transmission{};
+void MainWindow::showViewSettings(const ViewSettings& s) {
+    RenderingPanel::Values r = m_model->rendering();
+    r.kernel = s.kernel;
+    r.size = s.size;
+    r.voxelModel = s.voxelModel;
+    m_model->setRendering(r, SettingsModel::Notify::No);
 }
+
+void MainWindow::showOutput(XrayOutput o) {
+    XrayPanel::Values x = m_model->xray();
+    x.output = o;
+    m_model->setXray(x, SettingsModel::Notify::No); // the caller applies it
+}
+
+core::Transmission MainWindow::currentTransmission() const { return m_model->transmission(); }
 
 FrameEffects MainWindow::currentEffects() const {
     FrameEffects e;
-    if (!m_xray || !m_rendering) return e;
-    const RenderingPanel::Values r = m_rendering->values();
-    e.depthCue = m_xray->depthCue();
-    e.filter = m_xray->sliceFilter();
+    const RenderingPanel::Values& r = m_model->rendering();
+    e.depthCue = m_model->depthCue();
+    e.filter = m_model->sliceFilter();
     e.clip = r.clip;
     e.nonNegative = r.nonNegative;
     e.pixelAperture = r.pixelAperture;
@@ -340,7 +362,7 @@ void MainWindow::applyEffects() {
     for (auto* v : m_views) v->setEffects(e);
     {
         QSettings st;
-        XrayPanel::save(st, m_xray->values());
+        XrayPanel::save(st, m_model->xray());
     }
     saveRenderingSettings();
     if (e.depthCue > 0 && std::any_of(m_views.begin(), m_views.end(), [](ProjectionView* v) {
@@ -353,12 +375,12 @@ void MainWindow::applyEffects() {
 }
 
 void MainWindow::applyOutput(bool resetWindow) {
-    const bool transmission = isTransmission(m_xray->output());
+    const bool transmission = isTransmission(m_model->xray().output);
     {
         QSettings st;
-        XrayPanel::save(st, m_xray->values());
+        XrayPanel::save(st, m_model->xray());
     }
-    if (transmission && m_rendering->values().mapping == core::ValueMapping::Raw) {
+    if (transmission && m_model->rendering().mapping == core::ValueMapping::Raw) {
         // Beer-Lambert needs attenuation: switch the values to mu (preprocesses again).
         const auto vol = m_study->volume();
         if (vol && vol->units != core::ValueUnits::HounsfieldUnits) {
@@ -367,13 +389,13 @@ void MainWindow::applyOutput(bool resetWindow) {
                        "units (%1), so the output stays line integrals.")
                         .arg(QString::fromUtf8(core::unitsName(vol->units))),
                     true);
-            m_xray->setOutput(XrayOutput::LineIntegrals);
+            showOutput(XrayOutput::LineIntegrals);
             return applyOutput(true);
         }
         message(tr("Transmitted intensity needs attenuation values: switching the values to μ."));
-        RenderingPanel::Values r = m_rendering->values();
+        RenderingPanel::Values r = m_model->rendering();
         r.mapping = core::ValueMapping::Mu;
-        m_rendering->setValues(r);
+        m_model->setRendering(r, SettingsModel::Notify::No);
         applyValueMapping();
         m_rewindow = true; // the window follows the new spectrum's image (onSpectrumReady)
     }
@@ -407,13 +429,13 @@ void MainWindow::onSpectrumReady() {
         // The controller may have adjusted the settings (e.g. raw values for non-HU data).
         showSpectrumSettingsInEffect(false);
     }
-    if (!newer && isTransmission(m_xray->output()) &&
+    if (!newer && isTransmission(m_model->xray().output) &&
         m_study->spectrumSettings().mapping == core::ValueMapping::Raw) {
         message(tr("This study integrates raw values (not Hounsfield units): no transmitted "
                    "intensity, the output "
                    "is line integrals."),
                 true);
-        m_xray->setOutput(XrayOutput::LineIntegrals);
+        showOutput(XrayOutput::LineIntegrals);
         applyOutput(true);
     }
     assignSpectra();
@@ -426,14 +448,14 @@ void MainWindow::onSpectrumReady() {
 
 void MainWindow::showSpectrumSettingsInEffect(bool withGridding) {
     const SpectrumSettings& s = m_study->spectrumSettings();
-    RenderingPanel::Values r = m_rendering->values();
+    RenderingPanel::Values r = m_model->rendering();
     r.mapping = s.mapping;
     r.transform = s.transform;
     r.oversampling = s.oversampling;
     // The gridding correction shows in the spectrum only for a kernel it helps.
     if (withGridding && core::griddingCorrectionHelps(m_viewSettings[0].kernel))
         r.deapodize = s.deapodizeFor.has_value();
-    m_rendering->setValues(r);
+    m_model->setRendering(r, SettingsModel::Notify::No);
     updateSpectrumMemory();
 }
 

@@ -7,6 +7,7 @@
 #include <QLabel>
 
 #include <fvr/ui/panels/rendering_panel.h>
+#include <fvr/ui/settings_model.h>
 
 namespace fvr::ui {
 
@@ -58,7 +59,7 @@ void MainWindow::updateCompareKernels(bool retry) {
     // spectrum (the controller prepares them in the background; views wait for theirs).
     std::vector<core::Kernel> kernels;
     for (std::size_t i = 1; i < m_views.size(); ++i) kernels.push_back(m_viewSettings[i].kernel);
-    m_study->setCompareKernels(kernels, !m_rendering || m_rendering->values().deapodize, retry);
+    m_study->setCompareKernels(kernels, m_model->rendering().deapodize, retry);
     assignSpectra();
     updateSpectrumMemory();
 }
@@ -97,7 +98,7 @@ ProjectionView* MainWindow::addView(int index, int count, const core::ViewFrame&
     v->setViewFrame(frame);
     v->setOverlayVisible(m_overlayAction ? m_overlayAction->isChecked() : true);
     if (m_xray) v->setEffects(currentEffects());
-    if (m_rendering) v->setTargetFps(m_difference ? 0 : m_rendering->values().targetFps);
+    v->setTargetFps(m_difference ? 0 : m_model->rendering().targetFps);
     connect(v, &ProjectionView::interactionChanged, this, [this, v](bool on) {
         for (auto* o : m_views)
             if (o != v) o->setInteracting(on); // synchronised views follow at their own level
@@ -137,8 +138,7 @@ void MainWindow::setDifferenceMode(bool on) {
     for (std::size_t i = 1; i < m_views.size(); ++i)
         m_views[i]->setDifferenceReference(on ? m_views[0] : nullptr);
     // Differences compare full-quality frames: no progressive levels while they are shown.
-    for (auto* v : m_views)
-        v->setTargetFps(on || !m_rendering ? 0 : m_rendering->values().targetFps);
+    for (auto* v : m_views) v->setTargetFps(on ? 0 : m_model->rendering().targetFps);
     // Back from differences: the views take view 1's window again (transmission included).
     if (!on && !m_views.empty())
         for (std::size_t i = 1; i < m_views.size(); ++i)

@@ -22,9 +22,11 @@ class AccuracyReadout;
 class DisplayPanel;
 class MessagesPanel;
 class RenderingPanel;
+class SettingsModel;
 class StudyPanel;
 class XrayPanel;
 enum class WindowPreset;
+enum class XrayOutput;
 
 class MainWindow : public QMainWindow {
     Q_OBJECT
@@ -57,6 +59,8 @@ public:
      *  RMSE) goes to the Messages panel and accuracyMeasured(). */
     void measureAccuracy();
 
+    /** The render settings (the one source of truth the panels show). */
+    SettingsModel& settings() { return *m_model; }
     /** The panels (tests drive their controls like a user). */
     StudyPanel* studyPanel() const { return m_studyPanel; }
     RenderingPanel* renderingPanel() const { return m_rendering; }
@@ -84,6 +88,8 @@ private:
     void buildStatusBar();
     void connectStudy();
     void connectPanels();
+    /** The model's change signals to the window's actions. */
+    void connectSettings();
     void restorePanels();
     void buildMenus(); // main_window_menus.cpp
     void buildViewMenu(QMenu* view, QToolBar* toolbar);
@@ -129,8 +135,13 @@ private:
     void applyPreset(WindowPreset preset);
     void applyEffects();
     void applyOutput(bool resetWindow);
+    /** The Rendering panel (through the model) shows a view's kernel, size and voxel model. */
+    void showViewSettings(const ViewSettings& s);
+    /** The X-ray panel shows another output (the caller applies it). */
+    void showOutput(XrayOutput o);
 
     std::unique_ptr<StudyController> m_study;
+    SettingsModel* m_model = nullptr; ///< child of the window
     std::vector<ProjectionView*> m_views;
     std::vector<ViewSettings> m_viewSettings; // per compare slot
     QWidget* m_viewHost = nullptr;
