@@ -58,7 +58,13 @@ QApplication& app() {
         fmt.setProfile(QSurfaceFormat::CoreProfile);
         QSurfaceFormat::setDefaultFormat(fmt);
         QApplication::setAttribute(Qt::AA_ShareOpenGLContexts);
-        QStandardPaths::setTestModeEnabled(true); // settings go to a test location
+        QStandardPaths::setTestModeEnabled(true);
+        // Settings of this process's own: CTest runs the tests in parallel processes, and one
+        // test's QSettings().clear() must not reach another's (a flaky persistence check).
+        const auto dir =
+            test::tmpDir() / ("settings-" + std::to_string(QCoreApplication::applicationPid()));
+        QSettings::setPath(QSettings::NativeFormat, QSettings::UserScope,
+                           QString::fromStdString(dir.string()));
         auto* x = new QApplication(argc, argv);
         QApplication::setOrganizationName("fvr-workstation-tests");
         QApplication::setApplicationName("fvr-ui-tests");
