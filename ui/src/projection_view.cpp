@@ -509,8 +509,15 @@ QList<QRect> ProjectionView::orientationLabelRects() const {
     QList<QRect> rects;
     for (int i = 0; i < 4; ++i) {
         QRect b = fm.boundingRect(inner, flags[i], labels[i]);
-        // Never under the overlay box (compare views: their image starts at the top): below it.
-        if (!avoid.isNull() && b.intersects(avoid)) b.moveTop(avoid.bottom() + 3);
+        // Never under the overlay box (compare views: their image starts at the top): below it,
+        // or right of it where below would leave the image (a small view).
+        if (!avoid.isNull() && b.intersects(avoid)) {
+            const QRect below = b.translated(0, avoid.bottom() + 3 - b.top());
+            if (below.bottom() < inner.bottom() - 2 * b.height())
+                b = below;
+            else
+                b.moveLeft(std::max(b.left(), avoid.right() + 6));
+        }
         rects << b;
     }
     return rects;
