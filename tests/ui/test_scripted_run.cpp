@@ -194,6 +194,25 @@ TEST(ScriptedRun, FirstImageIsAChestRadiographShowingItsAnatomy) {
     EXPECT_GT(middle - left, 60);
 }
 
+// A folder of several series: nobody to ask, so the default series opens (as fvr-render's),
+// instead of a dialog waiting until the timeout.
+TEST(ScriptedRun, SeveralSeriesOpenTheDefaultOne) {
+    FVR_REQUIRE_DATA("dicom_edge/enhanced_multiframe_mr");
+    const fs::path dir = fvr::test::tmpDir() / "scripted_run_series";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const fs::path study = fvr::test::sharedData() / "dicom_edge/enhanced_multiframe_mr";
+    std::string args = "'";
+    args += study.string();
+    args += "' --size 128 --export-views '";
+    args += (dir / "views").string();
+    args += "' --quit";
+    const CommandOutput r = runWorkstation(args, dir);
+    ASSERT_EQ(r.status, 0) << r.out;
+    std::vector<std::int64_t> shape;
+    EXPECT_EQ(readImage(dir / "views" / "view1.npy", shape).size(), 128u * 128u);
+}
+
 TEST(ScriptedRun, FailedStudyExitsNonZeroNamingThePath) {
     const fs::path dir = fvr::test::tmpDir() / "scripted_run_failed";
     fs::create_directories(dir);

@@ -100,6 +100,13 @@ void MainWindow::connectStudy() {
     connect(m_study.get(), &StudyController::seriesChoiceNeeded, this,
             [this](const StudySource& src, const QStringList& keys, const QStringList& labels) {
                 showProgress(false);
+                if (!m_askForSeries) { // scripted: the default series, as fvr-render
+                    message(tr("%1 holds several series: opening the default one (%2)")
+                                .arg(src.path, labels.first()));
+                    StudySource chosen = src;
+                    chosen.seriesKey = keys.first();
+                    return openStudy(chosen);
+                }
                 bool ok = false;
                 const QString pick = QInputDialog::getItem(
                     this, tr("Choose a series"), tr("%1 holds several series:").arg(src.path),

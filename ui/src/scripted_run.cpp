@@ -63,6 +63,7 @@ QJsonObject viewJson(int index, ProjectionView& v, const core::ProjectionImage& 
 ScriptedRun::ScriptedRun(MainWindow& window, ScriptedRunOptions options, QObject* parent)
     : QObject(parent), m_window(window), m_options(std::move(options)) {
     StudyController& study = m_window.study();
+    m_window.setAskForSeries(false); // nobody to ask: the default series, as fvr-render
     // Connected after the main window's own handlers: the views already hold the new spectrum.
     connect(&study, &StudyController::spectrumReady, this, &ScriptedRun::onSpectrumReady);
     connect(&study, &StudyController::failed, this,

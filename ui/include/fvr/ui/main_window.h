@@ -39,6 +39,9 @@ public:
     const std::vector<ProjectionView*>& views() const { return m_views; }
     /** Opens a study as the menus do (phantom, file or DICOM folder). */
     void openStudy(const StudySource& source);
+    /** Whether a folder of several series asks which one (off: the default series opens,
+     *  as in fvr-render; scripted runs). */
+    void setAskForSeries(bool ask) { m_askForSeries = ask; }
     /** Number of views side by side: 1, 2 or 4. */
     void setCompareCount(int n);
     void setDifferenceMode(bool on);
@@ -149,6 +152,7 @@ private:
     int m_compareCount = 1;
     bool m_difference = false;
     bool m_syncing = false;
+    bool m_askForSeries = true;
     bool m_rewindow = false; ///< auto window once the next spectrum is ready (values changed)
 
     StudyPanel* m_studyPanel = nullptr;
