@@ -255,7 +255,7 @@ TEST_F(Workstation, CompareViewRendersEachKernelAtItsBest) {
     EXPECT_NEAR(window->study().spectraMiB(), 4 * singleMiB, 1e-6);
     const QString memory = window->renderingPanel()->memoryLabel()->text();
     EXPECT_TRUE(memory.contains(QString::number(4 * singleMiB, 'f', 1)) &&
-                memory.contains(QStringLiteral("4 spectra")))
+                memory.contains(QStringLiteral("in 4 spectra")))
         << memory.toStdString();
 
     window->setDifferenceMode(true);

@@ -238,16 +238,17 @@ void RenderingPanel::setViewCount(int n) {
 int RenderingPanel::appliesTo() const { return m_appliesTo->currentIndex(); }
 
 void RenderingPanel::setSpectrumMiB(double mib, int count, std::optional<double> preparingMiB) {
-    QString text =
-        count > 1
-            ? tr("%1 MiB (%2 spectra: the compare kernels' own)").arg(mib, 0, 'f', 1).arg(count)
-            : tr("%1 MiB").arg(mib, 0, 'f', 1);
+    QString text = count > 1 ? tr("%1 MiB in %2 spectra").arg(mib, 0, 'f', 1).arg(count)
+                             : tr("%1 MiB").arg(mib, 0, 'f', 1);
     if (preparingMiB)
         text = tr("%1 in use; %2 MiB once the new spectrum is ready")
                    .arg(text)
                    .arg(*preparingMiB, 0, 'f', 1);
     m_memory->setText(text);
     m_memory->setWordWrap(true);
+    m_memory->setToolTip(count > 1 ? tr("Compare mode: each view's kernel renders from its own "
+                                        "spectrum (gridding-corrected for that kernel)")
+                                   : QString());
 }
 
 core::PreprocessOptions RenderingPanel::spectrumSettings(const Values& v, core::Kernel kernel) {
