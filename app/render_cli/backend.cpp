@@ -2,17 +2,11 @@
 #include "backend.h"
 
 #include <cstdio>
-#include <cstdlib>
-
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include <fvr/core/render/cpu_renderer.h>
 #ifdef FVR_HAVE_GPU
-#include <QGuiApplication>
-
+#include <fvr/gpu/egl_context.h>
 #include <fvr/gpu/gpu_renderer.h>
-#include <fvr/gpu/offscreen_context.h>
 #endif
 
 namespace fvr::cli {
@@ -46,20 +40,11 @@ private:
 };
 
 #ifdef FVR_HAVE_GPU
-/** A Qt GUI application without windows, an offscreen GL 4.3 context and the GPU renderer. */
+/** A headless EGL OpenGL 4.3 context (no X server, no Qt) and the GPU renderer. */
 class GpuBackend final : public RenderBackend {
 public:
     explicit GpuBackend(bool fp16) : m_fp16(fp16) {
-        // Try X first, then Qt's offscreen platform; a missing display must not abort the program.
-        if (!std::getenv("QT_QPA_PLATFORM"))
-            setenv("QT_QPA_PLATFORM", std::getenv("DISPLAY") ? "xcb;offscreen" : "offscreen", 1);
-        if (!std::getenv("XDG_RUNTIME_DIR")) {
-            const std::string dir = "/tmp/fvr-runtime-" + std::to_string(getuid());
-            mkdir(dir.c_str(), 0700);
-            setenv("XDG_RUNTIME_DIR", dir.c_str(), 1);
-        }
-        m_app = std::make_unique<QGuiApplication>(m_argc, m_argv);
-        m_context = std::make_unique<fvr::gpu::OffscreenContext>();
+        m_context = std::make_unique<fvr::gpu::EglContext>();
         m_renderer = std::make_unique<fvr::gpu::GpuFourierRenderer>();
     }
     /** Uploads the spectrum (after construction: a failure here still releases the GL objects
@@ -74,7 +59,6 @@ public:
             m_renderer.reset();
         }
         m_context.reset();
-        m_app.reset();
     }
     core::Renderer& renderer() override { return *m_renderer; }
     std::string name() const override {
@@ -85,12 +69,8 @@ public:
                            int count) override;
 
 private:
-    int m_argc = 1;
-    char m_name[16] = "fvr-render";
-    char* m_argv[2] = {m_name, nullptr};
     bool m_fp16 = false;
-    std::unique_ptr<QGuiApplication> m_app;
-    std::unique_ptr<fvr::gpu::OffscreenContext> m_context;
+    std::unique_ptr<fvr::gpu::EglContext> m_context;
     std::unique_ptr<fvr::gpu::GpuFourierRenderer> m_renderer;
 };
 

@@ -8,9 +8,15 @@ struct GlInfo {
     std::string vendor, renderer, version;
     int major = 0, minor = 0;
     bool coreProfile = false;
+    bool desktop = false; ///< desktop OpenGL (not OpenGL ES)
+    int max3dTextureSize = 0;
     /** Compute shaders need OpenGL 4.3. */
-    bool hasCompute() const { return major > 4 || (major == 4 && minor >= 3); }
+    bool hasCompute() const { return desktop && (major > 4 || (major == 4 && minor >= 3)); }
 };
+
+/** The native context (EGL or GLX) current on this thread, or nullptr when there is none: every
+ *  GL call of fvr::gpu needs one. Works whichever library created it (Qt, EglContext). */
+const void* currentNativeContext();
 
 /** Queries the context current on this thread; returns an empty GlInfo when there is none. */
 GlInfo currentGlInfo();
