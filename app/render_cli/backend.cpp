@@ -6,6 +6,7 @@
 #include <fvr/core/render/cpu_renderer.h>
 #ifdef FVR_HAVE_GPU
 #include <fvr/gpu/egl_context.h>
+#include <fvr/gpu/gl_info.h>
 #include <fvr/gpu/gpu_renderer.h>
 #endif
 
@@ -122,6 +123,46 @@ std::unique_ptr<RenderBackend> makeRenderBackend(const Options& o,
         std::fprintf(stderr, "fvr-render: built without the GPU renderer; rendering on the CPU\n");
 #endif
     return std::make_unique<CpuBackend>(std::move(spectrum), o.threads);
+}
+
+nlohmann::json gpuInfoJson() {
+    nlohmann::json j;
+#ifdef FVR_HAVE_GPU
+    j["eglClientExtensions"] = fvr::gpu::EglContext::clientExtensions();
+    j["devices"] = nlohmann::json::array();
+    for (const auto& d : fvr::gpu::EglContext::devices())
+        j["devices"].push_back({{"index", d.index},
+                                {"name", d.name},
+                                {"drmFile", d.drmFile},
+                                {"software", d.software},
+                                {"nvidia", d.nvidia},
+                                {"extensions", d.extensions}});
+    try {
+        const fvr::gpu::EglContext context;
+        const auto gl = fvr::gpu::currentGlInfo();
+        j["available"] = true;
+        j["chosen"] = {{"device", context.deviceIndex()},
+                       {"description", context.description()},
+                       {"egl", context.eglVersion()}};
+        j["gl"] = {{"vendor", gl.vendor},
+                   {"renderer", gl.renderer},
+                   {"version", gl.version},
+                   {"major", gl.major},
+                   {"minor", gl.minor},
+                   {"coreProfile", gl.coreProfile},
+                   {"max3dTextureSize", gl.max3dTextureSize},
+                   {"freeMemoryMiB", gl.freeMemoryKiB < 0
+                                         ? nlohmann::json()
+                                         : nlohmann::json(gl.freeMemoryKiB / 1024)}};
+    } catch (const std::exception& e) {
+        j["available"] = false;
+        j["reason"] = e.what();
+    }
+#else
+    j["available"] = false;
+    j["reason"] = "built without the GPU renderer";
+#endif
+    return j;
 }
 
 } // namespace fvr::cli

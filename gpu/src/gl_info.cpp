@@ -45,6 +45,12 @@ GlInfo currentGlInfo() {
         info.coreProfile = (mask & GL_CONTEXT_CORE_PROFILE_BIT) != 0;
     }
     glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &info.max3dTextureSize);
+    GLint freeKiB[4] = {-1, 0, 0, 0};
+    if (epoxy_has_gl_extension("GL_NVX_gpu_memory_info"))
+        glGetIntegerv(0x9049, freeKiB); // GL_GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX
+    else if (epoxy_has_gl_extension("GL_ATI_meminfo"))
+        glGetIntegerv(0x87FC, freeKiB); // GL_TEXTURE_FREE_MEMORY_ATI
+    info.freeMemoryKiB = freeKiB[0];
     while (glGetError() != GL_NO_ERROR) {}
     return info;
 }

@@ -242,6 +242,44 @@ TEST(FvrRender, GpuBackendMatchesCpuOrFallsBackWithANotice) {
         90.0);
 }
 
+TEST(FvrRender, GpuInfoListsTheEglDevicesAndTheChosenContext) {
+    // Headless: no display, no INPUT. The devices are eglQueryDevicesEXT's; the context is
+    // OpenGL >= 4.3 core, whose spec requires a 3D texture limit of at least 2048.
+    const std::string headless = "env -u DISPLAY -u QT_QPA_PLATFORM -u WAYLAND_DISPLAY";
+    Result r = run("--gpu-info", headless);
+    ASSERT_EQ(r.status, 0) << r.output;
+    Json j = stdoutJson(r);
+    ASSERT_TRUE(j["available"].get<bool>()) << r.output;
+    ASSERT_TRUE(j["devices"].is_array()) << r.output;
+    for (std::size_t i = 0; i < j["devices"].size(); ++i) {
+        EXPECT_EQ(j["devices"][i]["index"], int(i));
+        EXPECT_TRUE(j["devices"][i]["extensions"].is_string());
+    }
+    const int chosen = j["chosen"]["device"];
+    EXPECT_GE(chosen, -1);
+    EXPECT_LT(chosen, int(j["devices"].size()));
+    const auto& gl = j["gl"];
+    EXPECT_TRUE(gl["major"].get<int>() > 4 || (gl["major"] == 4 && gl["minor"].get<int>() >= 3));
+    EXPECT_TRUE(gl["coreProfile"].get<bool>());
+    EXPECT_GE(gl["max3dTextureSize"].get<int>(), 2048);
+    EXPECT_FALSE(gl["renderer"].get<std::string>().empty());
+    EXPECT_EQ(gl["version"].get<std::string>().rfind(std::to_string(gl["major"].get<int>()) + "." +
+                                                         std::to_string(gl["minor"].get<int>()),
+                                                     0),
+              0u)
+        << gl;
+    // FVR_EGL_DEVICE picks the surfaceless platform; a device that does not exist is named.
+    r = run("--gpu-info", headless + " FVR_EGL_DEVICE=surfaceless");
+    ASSERT_EQ(r.status, 0) << r.output;
+    j = stdoutJson(r);
+    EXPECT_EQ(j["chosen"]["device"], -1) << r.output;
+    r = run("--gpu-info", headless + " FVR_EGL_DEVICE=99");
+    ASSERT_EQ(r.status, 0) << r.output;
+    j = stdoutJson(r);
+    EXPECT_FALSE(j["available"].get<bool>());
+    EXPECT_NE(j["reason"].get<std::string>().find("FVR_EGL_DEVICE=99"), std::string::npos) << j;
+}
+
 TEST(FvrRender, DicomFolderInfoListsSeriesWithWarnings) {
     FVR_REQUIRE_DATA("dicom/ct_head_ge_gantrytilt_28");
     const auto dir = fvr::test::sharedData() / "dicom/ct_head_ge_gantrytilt_28";

@@ -10,6 +10,9 @@ struct GlInfo {
     bool coreProfile = false;
     bool desktop = false; ///< desktop OpenGL (not OpenGL ES)
     int max3dTextureSize = 0;
+    /** Free GPU memory in KiB where the driver reports it (GL_NVX_gpu_memory_info,
+     *  GL_ATI_meminfo), else -1. */
+    long long freeMemoryKiB = -1;
     /** Compute shaders need OpenGL 4.3. */
     bool hasCompute() const { return desktop && (major > 4 || (major == 4 && minor >= 3)); }
 };
