@@ -12,13 +12,12 @@
  *                                               wait per batch of 16: what an interactive loop
  * gets)
  *
- * Needs an OpenGL 4.3 context: run under a display (or xvfb-run with QT_QPA_PLATFORM=xcb; Mesa
- * llvmpipe numbers are a sanity check only). N is 256 unless FVR_BENCH_GPU_N says otherwise
- * (e.g. 128,256,512). The 3D Shepp-Logan phantom, mu values, no oversampling: the paper's setup.
+ * Needs an OpenGL 4.3 context: a headless EGL one (gpu::EglContext, no X server; a hardware EGL
+ * device, else Mesa llvmpipe, whose numbers are a sanity check only). N is 256 unless
+ * FVR_BENCH_GPU_N says otherwise (e.g. 128,256,512). The 3D Shepp-Logan phantom, mu values, no
+ * oversampling: the paper's setup.
  */
-#include <QGuiApplication>
-#include <QOpenGLContext>
-#include <QOpenGLFunctions>
+#include <epoxy/gl.h>
 
 #include <benchmark/benchmark.h>
 
@@ -36,8 +35,8 @@
 
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/xray/phantom.h>
+#include <fvr/gpu/egl_context.h>
 #include <fvr/gpu/gpu_renderer.h>
-#include <fvr/gpu/offscreen_context.h>
 
 namespace {
 
@@ -109,7 +108,6 @@ void BM_GpuFrame(benchmark::State& state, int n, TransformKind kind, int M, Kern
     const DisplayWindow window{0.0, 0.5 * phantom(n).dims[0] * phantom(n).spacing[0], true, {}};
     r.renderToGpu({views()[0], g, kernel}, &window);
     r.lastTimes();
-    auto* gl = QOpenGLContext::currentContext()->functions();
     std::vector<double> gpu, wall;
     std::size_t i = 0;
     constexpr int kBatch = 16;
@@ -120,7 +118,7 @@ void BM_GpuFrame(benchmark::State& state, int n, TransformKind kind, int M, Kern
         const auto t0 = std::chrono::steady_clock::now();
         for (int b = 0; b < kBatch; ++b)
             r.renderToGpu({views()[(i + b) % views().size()], g, kernel}, &window);
-        gl->glFinish();
+        glFinish();
         wall.push_back(
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
                 .count() /
@@ -148,10 +146,9 @@ std::vector<int> volumeSizes() {
 } // namespace
 
 int main(int argc, char** argv) {
-    QGuiApplication app(argc, argv);
-    std::unique_ptr<fvr::gpu::OffscreenContext> ctx;
+    std::unique_ptr<fvr::gpu::EglContext> ctx;
     try {
-        ctx = std::make_unique<fvr::gpu::OffscreenContext>();
+        ctx = std::make_unique<fvr::gpu::EglContext>();
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fvr_bench_gpu: %s\n", e.what());
         return 1;

@@ -2,17 +2,12 @@
 #include "backend.h"
 
 #include <cstdio>
-#include <cstdlib>
-
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include <fvr/core/render/cpu_renderer.h>
 #ifdef FVR_HAVE_GPU
-#include <QGuiApplication>
-
+#include <fvr/gpu/egl_context.h>
+#include <fvr/gpu/gl_info.h>
 #include <fvr/gpu/gpu_renderer.h>
-#include <fvr/gpu/offscreen_context.h>
 #endif
 
 namespace fvr::cli {
@@ -46,20 +41,11 @@ private:
 };
 
 #ifdef FVR_HAVE_GPU
-/** A Qt GUI application without windows, an offscreen GL 4.3 context and the GPU renderer. */
+/** A headless EGL OpenGL 4.3 context (no X server, no Qt) and the GPU renderer. */
 class GpuBackend final : public RenderBackend {
 public:
     explicit GpuBackend(bool fp16) : m_fp16(fp16) {
-        // Try X first, then Qt's offscreen platform; a missing display must not abort the program.
-        if (!std::getenv("QT_QPA_PLATFORM"))
-            setenv("QT_QPA_PLATFORM", std::getenv("DISPLAY") ? "xcb;offscreen" : "offscreen", 1);
-        if (!std::getenv("XDG_RUNTIME_DIR")) {
-            const std::string dir = "/tmp/fvr-runtime-" + std::to_string(getuid());
-            mkdir(dir.c_str(), 0700);
-            setenv("XDG_RUNTIME_DIR", dir.c_str(), 1);
-        }
-        m_app = std::make_unique<QGuiApplication>(m_argc, m_argv);
-        m_context = std::make_unique<fvr::gpu::OffscreenContext>();
+        m_context = std::make_unique<fvr::gpu::EglContext>();
         m_renderer = std::make_unique<fvr::gpu::GpuFourierRenderer>();
     }
     /** Uploads the spectrum (after construction: a failure here still releases the GL objects
@@ -74,7 +60,6 @@ public:
             m_renderer.reset();
         }
         m_context.reset();
-        m_app.reset();
     }
     core::Renderer& renderer() override { return *m_renderer; }
     std::string name() const override {
@@ -85,12 +70,8 @@ public:
                            int count) override;
 
 private:
-    int m_argc = 1;
-    char m_name[16] = "fvr-render";
-    char* m_argv[2] = {m_name, nullptr};
     bool m_fp16 = false;
-    std::unique_ptr<QGuiApplication> m_app;
-    std::unique_ptr<fvr::gpu::OffscreenContext> m_context;
+    std::unique_ptr<fvr::gpu::EglContext> m_context;
     std::unique_ptr<fvr::gpu::GpuFourierRenderer> m_renderer;
 };
 
@@ -142,6 +123,46 @@ std::unique_ptr<RenderBackend> makeRenderBackend(const Options& o,
         std::fprintf(stderr, "fvr-render: built without the GPU renderer; rendering on the CPU\n");
 #endif
     return std::make_unique<CpuBackend>(std::move(spectrum), o.threads);
+}
+
+nlohmann::json gpuInfoJson() {
+    nlohmann::json j;
+#ifdef FVR_HAVE_GPU
+    j["eglClientExtensions"] = fvr::gpu::EglContext::clientExtensions();
+    j["devices"] = nlohmann::json::array();
+    for (const auto& d : fvr::gpu::EglContext::devices())
+        j["devices"].push_back({{"index", d.index},
+                                {"name", d.name},
+                                {"drmFile", d.drmFile},
+                                {"software", d.software},
+                                {"nvidia", d.nvidia},
+                                {"extensions", d.extensions}});
+    try {
+        const fvr::gpu::EglContext context;
+        const auto gl = fvr::gpu::currentGlInfo();
+        j["available"] = true;
+        j["chosen"] = {{"device", context.deviceIndex()},
+                       {"description", context.description()},
+                       {"egl", context.eglVersion()}};
+        j["gl"] = {{"vendor", gl.vendor},
+                   {"renderer", gl.renderer},
+                   {"version", gl.version},
+                   {"major", gl.major},
+                   {"minor", gl.minor},
+                   {"coreProfile", gl.coreProfile},
+                   {"max3dTextureSize", gl.max3dTextureSize},
+                   {"freeMemoryMiB", gl.freeMemoryKiB < 0
+                                         ? nlohmann::json()
+                                         : nlohmann::json(gl.freeMemoryKiB / 1024)}};
+    } catch (const std::exception& e) {
+        j["available"] = false;
+        j["reason"] = e.what();
+    }
+#else
+    j["available"] = false;
+    j["reason"] = "built without the GPU renderer";
+#endif
+    return j;
 }
 
 } // namespace fvr::cli

@@ -1,10 +1,12 @@
 #pragma once
-/** The renderer fvr-render runs on: the CPU renderer, or the GPU renderer with the offscreen GL
+/** The renderer fvr-render runs on: the CPU renderer, or the GPU renderer with the headless EGL
  *  context that it needs. The only place that knows whether the GPU renderer is built in. */
 #include <functional>
 #include <memory>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include <fvr/core/render/renderer.h>
 #include <fvr/core/render/spectrum.h>
@@ -38,5 +40,11 @@ public:
  *  stderr, where no GPU is usable or the program is built without the GPU renderer. */
 std::unique_ptr<RenderBackend> makeRenderBackend(const Options& o,
                                                  std::shared_ptr<const core::Spectrum> spectrum);
+
+/** --gpu-info: {"available", "reason" (when not), "eglClientExtensions", "devices": [{"index",
+ *  "name", "drmFile", "software", "nvidia", "extensions"}], "chosen": {"device" (-1:
+ *  surfaceless), "description", "egl"}, "gl": {"vendor", "renderer", "version", "major",
+ *  "minor", "coreProfile", "max3dTextureSize", "freeMemoryMiB" (null where not reported)}}. */
+nlohmann::json gpuInfoJson();
 
 } // namespace fvr::cli

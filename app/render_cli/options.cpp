@@ -25,6 +25,7 @@ constexpr double kDefaultMuWater = 0.0193; // per mm, about 70 keV
 const char* kUsage = R"(usage: fvr-render INPUT [options] --out FILE
        fvr-render INPUT --info
        fvr-render INPUT --bench N [options]
+       fvr-render --gpu-info
 
 INPUT is a DICOM folder, its DICOMDIR or one DICOM file, a volume file (.mhd, .mha, .nii,
 .nii.gz; values without units that look like CT are taken for HU), a headerless raw file with
@@ -322,12 +323,17 @@ void declareBackend(CLI::App& app, Options& o) {
     const std::string g = "Rendering";
     app.add_option_function<std::string>(
            "--backend", [&o](const std::string& s) { o.gpu = s == "gpu"; },
-           "renderer (default cpu); gpu renders offscreen with OpenGL 4.3 compute\n"
-           "shaders and falls back to the CPU, saying why, when no GPU is usable")
+           "renderer (default cpu); gpu renders headless (EGL, no X server) with OpenGL\n"
+           "4.3 compute shaders and falls back to the CPU, saying why, when no GPU is\n"
+           "usable; FVR_EGL_DEVICE=N|surfaceless picks the EGL device")
         ->check(CLI::IsMember({"cpu", "gpu"}))
         ->option_text("cpu|gpu")
         ->group(g);
     app.add_flag("--fp16", o.fp16, "GPU: store the spectrum as float16 (2 bytes per voxel)")
+        ->group(g);
+    app.add_flag("--gpu-info", o.gpuInfo,
+                 "print the EGL devices, the one --backend gpu takes and its OpenGL facts as\n"
+                 "JSON (no INPUT needed)")
         ->group(g);
     app.add_option("--threads", o.threads, "worker threads (default: all cores)")
         ->check(CLI::NonNegativeNumber)
@@ -416,6 +422,7 @@ void declareBenchmark(CLI::App& app, Options& o) {
 
 /** The rules that join several options (each option's own range is checked as it is parsed). */
 void checkCombinations(Options& o) {
+    if (o.gpuInfo && o.input.empty()) return;
     if (o.input.empty()) throw SettingsError("no INPUT given (see --help)");
     if (!o.info && o.bench <= 0 && o.out.empty())
         throw SettingsError("no --out FILE given (or --info, --bench N)");

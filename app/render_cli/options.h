@@ -55,6 +55,7 @@ struct Options {
     std::string out;
     OutputFormat format = OutputFormat::None; ///< from the extension of `out`
     bool info = false;
+    bool gpuInfo = false; ///< --gpu-info: the EGL devices and the GL facts as JSON
     int bench = 0;
 
     bool kaiserBessel() const {

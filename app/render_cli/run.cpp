@@ -89,6 +89,10 @@ int renderVolume(const Options& o, const Volume& volume, const std::vector<ViewF
 } // namespace
 
 int run(const Options& o) {
+    if (o.gpuInfo) {
+        printJson(gpuInfoJson());
+        return 0;
+    }
     // The views file is read before the input, so that its errors come before the loading.
     const std::vector<ViewFrame> fileViews = !o.out.empty() && !o.viewsFile.empty()
                                                  ? readViewsFile(o.viewsFile)

@@ -1,8 +1,6 @@
 #include <fvr/gpu/gpu_renderer.h>
 
-#include <QOpenGLContext>
-#include <QOpenGLFunctions_4_3_Core>
-#include <QOpenGLVersionFunctionsFactory>
+#include <epoxy/gl.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -16,6 +14,7 @@
 #include <fvr/core/render/slice_params.h>
 #include <fvr/gpu/errors.h>
 #include <fvr/gpu/fft_plan.h>
+#include <fvr/gpu/gl_info.h>
 #include <fvr/gpu/shader_source.h>
 
 namespace fvr::gpu {
@@ -59,37 +58,35 @@ std::string glErrorName(GLenum e) {
 }
 } // namespace
 
-GpuFourierRenderer::GpuFourierRenderer() {
-    QOpenGLContext* ctx = QOpenGLContext::currentContext();
+GpuFourierRenderer::GpuFourierRenderer(const void* shareGroup) {
+    const void* ctx = currentNativeContext();
     if (!ctx) throw GlError("GPU renderer: no current OpenGL context");
-    const auto fmt = ctx->format();
-    if (fmt.majorVersion() < 4 || (fmt.majorVersion() == 4 && fmt.minorVersion() < 3) ||
-        ctx->isOpenGLES())
+    const int version = epoxy_gl_version();
+    if (version < 43 || !epoxy_is_desktop_gl())
         throw GlError("GPU renderer: OpenGL 4.3 (compute shaders) needed, the context offers " +
-                      std::to_string(fmt.majorVersion()) + "." +
-                      std::to_string(fmt.minorVersion()));
-    m_gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(ctx);
-    if (!m_gl || !m_gl->initializeOpenGLFunctions())
-        throw GlError("GPU renderer: could not resolve the OpenGL 4.3 core functions");
+                      std::string(epoxy_is_desktop_gl() ? "" : "OpenGL ES ") +
+                      std::to_string(version / 10) + "." + std::to_string(version % 10));
+    m_gl = true;
+    m_shareGroup = shareGroup ? shareGroup : ctx;
     for (Kernel k : core::allKernels()) m_tables.emplace(k, std::make_unique<core::KernelTable>(k));
-    m_gl->glGenQueries(4, m_queries);
+    glGenQueries(4, m_queries);
 }
 
 GpuFourierRenderer::~GpuFourierRenderer() {
-    if (QOpenGLContext::currentContext()) releaseGl();
+    if (currentNativeContext()) releaseGl();
 }
 
 void GpuFourierRenderer::releaseGl() {
     if (!m_gl) return;
     auto del = [&](unsigned& b) {
-        if (b) m_gl->glDeleteBuffers(1, &b);
+        if (b) glDeleteBuffers(1, &b);
         b = 0;
     };
-    for (auto& [name, p] : m_programs) m_gl->glDeleteProgram(p);
+    for (auto& [name, p] : m_programs) glDeleteProgram(p);
     m_programs.clear();
-    for (auto& [k, b] : m_kernelBuffers) m_gl->glDeleteBuffers(1, &b);
+    for (auto& [k, b] : m_kernelBuffers) glDeleteBuffers(1, &b);
     m_kernelBuffers.clear();
-    for (auto& [k, b] : m_kernelDerivativeBuffers) m_gl->glDeleteBuffers(1, &b);
+    for (auto& [k, b] : m_kernelDerivativeBuffers) glDeleteBuffers(1, &b);
     m_kernelDerivativeBuffers.clear();
     del(m_twiddles);
     del(m_bufA);
@@ -98,18 +95,18 @@ void GpuFourierRenderer::releaseGl() {
     del(m_hartleyT);
     del(m_filterAxis);
     releaseTexture();
-    if (m_display) m_gl->glDeleteTextures(1, &m_display);
+    if (m_display) glDeleteTextures(1, &m_display);
     m_display = 0;
     m_displayed.reset();
-    if (m_queries[0]) m_gl->glDeleteQueries(4, m_queries);
+    if (m_queries[0]) glDeleteQueries(4, m_queries);
     std::fill(std::begin(m_queries), std::end(m_queries), 0u);
     m_size = 0;
-    m_gl = nullptr;
+    m_gl = false;
 }
 
 std::string GpuFourierRenderer::rendererInfo() const {
     auto str = [&](GLenum e) {
-        const auto* s = reinterpret_cast<const char*>(m_gl->glGetString(e));
+        const auto* s = reinterpret_cast<const char*>(glGetString(e));
         return s ? std::string(s) : std::string("?");
     };
     return str(GL_RENDERER) + " (" + str(GL_VERSION) + ")";
@@ -121,31 +118,31 @@ unsigned GpuFourierRenderer::program(
     for (const auto& [n, v] : defines) key += "|" + n + "=" + v;
     if (auto it = m_programs.find(key); it != m_programs.end()) return it->second;
     const ShaderSource src = ShaderSource::assemble(path, defines, ShaderSource::defaultReader());
-    const GLuint sh = m_gl->glCreateShader(GL_COMPUTE_SHADER);
+    const GLuint sh = glCreateShader(GL_COMPUTE_SHADER);
     const char* text = src.text().c_str();
-    m_gl->glShaderSource(sh, 1, &text, nullptr);
-    m_gl->glCompileShader(sh);
+    glShaderSource(sh, 1, &text, nullptr);
+    glCompileShader(sh);
     GLint ok = 0;
-    m_gl->glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
+    glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
     if (!ok) {
         GLint len = 0;
-        m_gl->glGetShaderiv(sh, GL_INFO_LOG_LENGTH, &len);
+        glGetShaderiv(sh, GL_INFO_LOG_LENGTH, &len);
         std::string log(std::size_t(std::max(len, 1)), '\0');
-        m_gl->glGetShaderInfoLog(sh, len, nullptr, log.data());
-        m_gl->glDeleteShader(sh);
+        glGetShaderInfoLog(sh, len, nullptr, log.data());
+        glDeleteShader(sh);
         throw ShaderError("shader " + key + " failed to compile:\n" + src.mapLog(log.c_str()));
     }
-    const GLuint prog = m_gl->glCreateProgram();
-    m_gl->glAttachShader(prog, sh);
-    m_gl->glLinkProgram(prog);
-    m_gl->glDeleteShader(sh);
-    m_gl->glGetProgramiv(prog, GL_LINK_STATUS, &ok);
+    const GLuint prog = glCreateProgram();
+    glAttachShader(prog, sh);
+    glLinkProgram(prog);
+    glDeleteShader(sh);
+    glGetProgramiv(prog, GL_LINK_STATUS, &ok);
     if (!ok) {
         GLint len = 0;
-        m_gl->glGetProgramiv(prog, GL_INFO_LOG_LENGTH, &len);
+        glGetProgramiv(prog, GL_INFO_LOG_LENGTH, &len);
         std::string log(std::size_t(std::max(len, 1)), '\0');
-        m_gl->glGetProgramInfoLog(prog, len, nullptr, log.data());
-        m_gl->glDeleteProgram(prog);
+        glGetProgramInfoLog(prog, len, nullptr, log.data());
+        glDeleteProgram(prog);
         throw ShaderError("shader " + key + " failed to link:\n" + src.mapLog(log.c_str()));
     }
     m_programs.emplace(key, prog);
@@ -160,11 +157,11 @@ void GpuFourierRenderer::releaseTexture() {
     auto it = cache.find(key);
     if (it != cache.end() && it->second.id == m_texture) {
         if (--it->second.refs == 0) {
-            m_gl->glDeleteTextures(1, &it->second.id);
+            glDeleteTextures(1, &it->second.id);
             cache.erase(it);
         }
     } else {
-        m_gl->glDeleteTextures(1, &m_texture);
+        glDeleteTextures(1, &m_texture);
     }
     m_texture = 0;
     m_textureBytes = 0;
@@ -207,10 +204,9 @@ GLuint findSharedTexture(const TextureKey& key, std::size_t& bytes) {
 
 /** Throws GpuMemoryError when the texture exceeds the 3D texture limit or, where the driver
  *  reports it (NVIDIA, AMD), the free memory plus what the current texture frees. */
-void checkTextureFits(QOpenGLFunctions_4_3_Core* gl, const TextureShape& t,
-                      std::size_t currentBytes) {
+void checkTextureFits(const TextureShape& t, std::size_t currentBytes) {
     GLint max3d = 0;
-    gl->glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
+    glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
     if (t.width > max3d || t.height > max3d || t.depth > max3d)
         throw GpuMemoryError("spectrum texture " + std::to_string(t.width) + "x" +
                              std::to_string(t.height) + "x" + std::to_string(t.depth) +
@@ -218,12 +214,11 @@ void checkTextureFits(QOpenGLFunctions_4_3_Core* gl, const TextureShape& t,
                              " per axis");
     // Free memory where the driver tells (NVIDIA, AMD); otherwise the upload's GL_OUT_OF_MEMORY.
     GLint freeKiB[4] = {0, 0, 0, 0};
-    const QOpenGLContext* ctx = QOpenGLContext::currentContext();
-    if (ctx->hasExtension("GL_NVX_gpu_memory_info"))
-        gl->glGetIntegerv(kGpuMemoryInfoAvailableNvx, freeKiB);
-    else if (ctx->hasExtension("GL_ATI_meminfo"))
-        gl->glGetIntegerv(kTextureFreeMemoryAti, freeKiB);
-    while (gl->glGetError() != GL_NO_ERROR) {}
+    if (epoxy_has_gl_extension("GL_NVX_gpu_memory_info"))
+        glGetIntegerv(kGpuMemoryInfoAvailableNvx, freeKiB);
+    else if (epoxy_has_gl_extension("GL_ATI_meminfo"))
+        glGetIntegerv(kTextureFreeMemoryAti, freeKiB);
+    while (glGetError() != GL_NO_ERROR) {}
     const std::size_t freeBytes = std::size_t(freeKiB[0]) * 1024;
     if (freeBytes > 0 && t.bytes > freeBytes + currentBytes)
         throw GpuMemoryError("spectrum needs " + std::to_string(t.bytes >> 20) +
@@ -233,27 +228,25 @@ void checkTextureFits(QOpenGLFunctions_4_3_Core* gl, const TextureShape& t,
 }
 
 /** Allocates the bound 3D texture and uploads the spectrum in slabs; returns the first GL error. */
-GLenum uploadSpectrum(QOpenGLFunctions_4_3_Core* gl, const core::Spectrum& s,
-                      const TextureShape& t) {
-    gl->glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    gl->glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    gl->glTexStorage3D(GL_TEXTURE_3D, 1, t.internal, t.width, t.height, t.depth);
-    GLenum err = gl->glGetError();
+GLenum uploadSpectrum(const core::Spectrum& s, const TextureShape& t) {
+    glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glTexStorage3D(GL_TEXTURE_3D, 1, t.internal, t.width, t.height, t.depth);
+    GLenum err = glGetError();
     if (err != GL_NO_ERROR) return err;
     const bool fht = s.kind == core::TransformKind::Fht;
-    gl->glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    gl->glPixelStorei(GL_UNPACK_ROW_LENGTH, GLint(fht ? s.rowStride() : 0));
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, GLint(fht ? s.rowStride() : 0));
     // Upload in slabs so the driver never copies the whole volume at once.
     const GLint slab =
         std::max<GLint>(1, GLint((64 << 20) / (std::size_t(s.rowStride()) * t.height * 4)));
     for (GLint z = 0; z < t.depth && err == GL_NO_ERROR; z += slab) {
         const GLint n = std::min(slab, t.depth - z);
         const float* src = s.data.get() + std::size_t(z) * s.rowStride() * t.height;
-        gl->glTexSubImage3D(GL_TEXTURE_3D, 0, 0, 0, z, t.width, t.height, n, t.format, GL_FLOAT,
-                            src);
-        err = gl->glGetError();
+        glTexSubImage3D(GL_TEXTURE_3D, 0, 0, 0, z, t.width, t.height, n, t.format, GL_FLOAT, src);
+        err = glGetError();
     }
-    gl->glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
     return err;
 }
 
@@ -268,7 +261,7 @@ void GpuFourierRenderer::adoptTexture(unsigned id, std::size_t bytes, const void
 void GpuFourierRenderer::setSpectrum(std::shared_ptr<const core::Spectrum> s,
                                      SpectrumPrecision precision) {
     if (!s || !s->data) throw GlError("GPU renderer: no spectrum");
-    const void* group = QOpenGLContext::currentContext()->shareGroup();
+    const void* group = m_shareGroup;
     const TextureKey key{s.get(), reinterpret_cast<const void*>(std::uintptr_t(precision) + 1),
                          group};
     const void* const keyParts[3] = {std::get<0>(key), std::get<1>(key), std::get<2>(key)};
@@ -285,12 +278,12 @@ void GpuFourierRenderer::setSpectrum(std::shared_ptr<const core::Spectrum> s,
         return;
     }
     const TextureShape shape = textureShape(*s, precision);
-    checkTextureFits(m_gl, shape, m_texture ? m_textureBytes : 0);
+    checkTextureFits(shape, m_texture ? m_textureBytes : 0);
     releaseTexture();
-    m_gl->glGenTextures(1, &m_texture);
-    m_gl->glBindTexture(GL_TEXTURE_3D, m_texture);
-    if (const GLenum err = uploadSpectrum(m_gl, *s, shape); err != GL_NO_ERROR) {
-        m_gl->glDeleteTextures(1, &m_texture);
+    glGenTextures(1, &m_texture);
+    glBindTexture(GL_TEXTURE_3D, m_texture);
+    if (const GLenum err = uploadSpectrum(*s, shape); err != GL_NO_ERROR) {
+        glDeleteTextures(1, &m_texture);
         m_texture = 0;
         m_spectrum.reset();
         if (err == GL_OUT_OF_MEMORY)
@@ -310,9 +303,9 @@ void GpuFourierRenderer::setSpectrum(std::shared_ptr<const core::Spectrum> s,
 void GpuFourierRenderer::ensureSize(int M) {
     if (m_size == M) return;
     auto buffer = [&](unsigned& b, std::size_t bytes, const void* data = nullptr) {
-        if (!b) m_gl->glGenBuffers(1, &b);
-        m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
-        m_gl->glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(bytes), data, GL_DYNAMIC_COPY);
+        if (!b) glGenBuffers(1, &b);
+        glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
+        glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(bytes), data, GL_DYNAMIC_COPY);
     };
     const FftPlan plan(M, +1);
     buffer(m_twiddles, plan.twiddles().size() * sizeof(float), plan.twiddles().data());
@@ -321,14 +314,14 @@ void GpuFourierRenderer::ensureSize(int M) {
     buffer(m_bufB, n * 8);
     buffer(m_image, n * 4);
     buffer(m_hartleyT, n * 4);
-    if (const GLenum err = m_gl->glGetError(); err != GL_NO_ERROR)
+    if (const GLenum err = glGetError(); err != GL_NO_ERROR)
         throw GlError("GPU buffers for M = " + std::to_string(M) + ": " + glErrorName(err));
-    if (m_display) m_gl->glDeleteTextures(1, &m_display);
-    m_gl->glGenTextures(1, &m_display);
-    m_gl->glBindTexture(GL_TEXTURE_2D, m_display);
-    m_gl->glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA8, M, M);
-    m_gl->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-    m_gl->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    if (m_display) glDeleteTextures(1, &m_display);
+    glGenTextures(1, &m_display);
+    glBindTexture(GL_TEXTURE_2D, m_display);
+    glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA8, M, M);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
     m_size = M;
 }
 
@@ -341,66 +334,63 @@ void GpuFourierRenderer::bindKernel(unsigned prog, Kernel kernel, bool derivativ
     if (m_tables.at(kernel)->oversampling() != sigma) {
         m_tables[kernel] = std::make_unique<core::KernelTable>(kernel, sigma);
         if (it != m_kernelBuffers.end()) {
-            m_gl->glDeleteBuffers(1, &it->second);
+            glDeleteBuffers(1, &it->second);
             m_kernelBuffers.erase(it);
             it = m_kernelBuffers.end();
         }
         if (auto d = m_kernelDerivativeBuffers.find(kernel); d != m_kernelDerivativeBuffers.end()) {
-            m_gl->glDeleteBuffers(1, &d->second);
+            glDeleteBuffers(1, &d->second);
             m_kernelDerivativeBuffers.erase(d);
         }
     }
     auto upload = [&](const std::vector<float>& t) {
         GLuint b = 0;
-        m_gl->glGenBuffers(1, &b);
-        m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
-        m_gl->glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(t.size() * sizeof(float)), t.data(),
-                           GL_STATIC_DRAW);
+        glGenBuffers(1, &b);
+        glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
+        glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(t.size() * sizeof(float)), t.data(),
+                     GL_STATIC_DRAW);
         return b;
     };
     if (it == m_kernelBuffers.end())
         it = m_kernelBuffers.emplace(kernel, upload(m_tables.at(kernel)->table())).first;
-    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, it->second);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, it->second);
     if (derivative) {
         auto d = m_kernelDerivativeBuffers.find(kernel);
         if (d == m_kernelDerivativeBuffers.end())
             d = m_kernelDerivativeBuffers
                     .emplace(kernel, upload(m_tables.at(kernel)->derivativeTable()))
                     .first;
-        m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, d->second);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, d->second);
     }
-    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uKernelRes"),
-                      core::KernelTable::kResolution);
-    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uKernelFirst"),
-                      m_tables.at(kernel)->firstTapOffset());
+    glUniform1i(glGetUniformLocation(prog, "uKernelRes"), core::KernelTable::kResolution);
+    glUniform1i(glGetUniformLocation(prog, "uKernelFirst"), m_tables.at(kernel)->firstTapOffset());
 }
 
 void GpuFourierRenderer::setSliceUniforms(unsigned prog, const core::RenderParams& p) {
     const core::Spectrum& s = *m_spectrum;
     const core::SliceParams sp = core::sliceParams(s, p);
-    auto loc = [&](const char* n) { return m_gl->glGetUniformLocation(prog, n); };
+    auto loc = [&](const char* n) { return glGetUniformLocation(prog, n); };
     auto vec3 = [&](const char* n, const double* v) {
-        m_gl->glUniform3f(loc(n), float(v[0]), float(v[1]), float(v[2]));
+        glUniform3f(loc(n), float(v[0]), float(v[1]), float(v[2]));
     };
-    m_gl->glUniform3i(loc("uPadded"), GLint(sp.padded[0]), GLint(sp.padded[1]),
-                      GLint(sp.padded[2]));
+    glUniform3i(loc("uPadded"), GLint(sp.padded[0]), GLint(sp.padded[1]), GLint(sp.padded[2]));
     // The band cut of the band-limited model with a tolerance for float rounding; the other
     // models read every frequency.
     float half[3];
     for (int a = 0; a < 3; ++a) half[a] = sp.banded ? float(sp.half[a] + 1e-4) : 1e30f;
-    m_gl->glUniform3f(loc("uHalf"), half[0], half[1], half[2]);
-    m_gl->glUniform1i(loc("uVoxelModel"),
-                      sp.banded ? 0 : (p.voxelModel == core::VoxelModel::Trilinear ? 1 : 2));
-    m_gl->glUniform3i(loc("uAnti"), GLint(sp.anti[0]), GLint(sp.anti[1]), GLint(sp.anti[2]));
+    glUniform3f(loc("uHalf"), half[0], half[1], half[2]);
+    glUniform1i(loc("uVoxelModel"),
+                sp.banded ? 0 : (p.voxelModel == core::VoxelModel::Trilinear ? 1 : 2));
+    glUniform3i(loc("uAnti"), GLint(sp.anti[0]), GLint(sp.anti[1]), GLint(sp.anti[2]));
     vec3("uInvP", sp.invP);
     vec3("uA", sp.A);
     vec3("uB", sp.B);
-    m_gl->glUniform1f(loc("uScale"), float(sp.scale));
-    m_gl->glActiveTexture(GL_TEXTURE0);
-    m_gl->glBindTexture(GL_TEXTURE_3D, m_texture);
-    m_gl->glUniform1i(loc("uSpectrum"), 0);
+    glUniform1f(loc("uScale"), float(sp.scale));
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_3D, m_texture);
+    glUniform1i(loc("uSpectrum"), 0);
     if (sp.depth) {
-        m_gl->glUniform1f(loc("uDepthA"), float(sp.depthA));
+        glUniform1f(loc("uDepthA"), float(sp.depthA));
         vec3("uDepthE", sp.E);
     }
     setFilterUniforms(prog, p);
@@ -409,18 +399,18 @@ void GpuFourierRenderer::setSliceUniforms(unsigned prog, const core::RenderParam
 
 void GpuFourierRenderer::setFilterUniforms(unsigned prog, const core::RenderParams& p) {
     const core::SliceFilterTable filter(p.filter, p.pixelAperture, p.image.size, p.image.pixelSize);
-    auto loc = [&](const char* n) { return m_gl->glGetUniformLocation(prog, n); };
-    m_gl->glUniform1i(loc("uFilterOn"), filter.on ? 1 : 0);
-    m_gl->glUniform1f(loc("uSharpenAmount"), filter.amount);
-    m_gl->glUniform1f(loc("uBandInv2"), filter.invCut2);
-    m_gl->glUniform1i(loc("uAperture"), filter.aperture ? 1 : 0);
+    auto loc = [&](const char* n) { return glGetUniformLocation(prog, n); };
+    glUniform1i(loc("uFilterOn"), filter.on ? 1 : 0);
+    glUniform1f(loc("uSharpenAmount"), filter.amount);
+    glUniform1f(loc("uBandInv2"), filter.invCut2);
+    glUniform1i(loc("uAperture"), filter.aperture ? 1 : 0);
     if (!filter.on) return;
     // The per-axis table (blur, aperture) of core::SliceFilterTable: slice.glsl combines it.
-    if (!m_filterAxis) m_gl->glGenBuffers(1, &m_filterAxis);
-    m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_filterAxis);
-    m_gl->glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(filter.axis.size() * sizeof(float)),
-                       filter.axis.data(), GL_DYNAMIC_DRAW);
-    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, m_filterAxis);
+    if (!m_filterAxis) glGenBuffers(1, &m_filterAxis);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_filterAxis);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(filter.axis.size() * sizeof(float)),
+                 filter.axis.data(), GL_DYNAMIC_DRAW);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, m_filterAxis);
 }
 
 void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel,
@@ -435,14 +425,14 @@ void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel,
     }
     if (hartley) defs.emplace_back("HARTLEY_ROWS", "1");
     const GLuint prog = program("fft/rows.comp", defs);
-    m_gl->glUseProgram(prog);
-    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
+    glUseProgram(prog);
+    glUniform1i(glGetUniformLocation(prog, "uM"), M);
     if (fused) setSliceUniforms(prog, *params);
-    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_bufA); // input (unfused)
-    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_bufB); // transposed output
-    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, m_twiddles);
-    m_gl->glDispatchCompute(GLuint(M), 1, 1);
-    m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_bufA); // input (unfused)
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_bufB); // transposed output
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, m_twiddles);
+    glDispatchCompute(GLuint(M), 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 }
 
 void GpuFourierRenderer::runCols(int M, const char* outputMode, const core::RenderParams* params,
@@ -456,46 +446,46 @@ void GpuFourierRenderer::runCols(int M, const char* outputMode, const core::Rend
         throw std::logic_error("runCols: the display mapping fuses into OUTPUT_REAL only");
     if (display) defs.emplace_back("FUSED_DISPLAY", "1");
     const GLuint prog = program("fft/cols.comp", defs);
-    m_gl->glUseProgram(prog);
-    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
+    glUseProgram(prog);
+    glUniform1i(glGetUniformLocation(prog, "uM"), M);
     if (real) setClipUniforms(prog, params);
     if (display) setDisplayUniforms(prog, *display);
-    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_bufB);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_bufB);
     const bool complexOut = std::strcmp(outputMode, "OUTPUT_COMPLEX") == 0;
     const bool hartleyOut = std::strcmp(outputMode, "OUTPUT_HARTLEY") == 0;
-    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0,
-                           complexOut ? m_bufA : (hartleyOut ? m_hartleyT : m_image));
-    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, m_twiddles);
-    m_gl->glDispatchCompute(GLuint(M), 1, 1);
-    m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0,
+                     complexOut ? m_bufA : (hartleyOut ? m_hartleyT : m_image));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, m_twiddles);
+    glDispatchCompute(GLuint(M), 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 }
 
 void GpuFourierRenderer::setClipUniforms(unsigned prog, const core::RenderParams* p) {
-    auto loc = [&](const char* n) { return m_gl->glGetUniformLocation(prog, n); };
+    auto loc = [&](const char* n) { return glGetUniformLocation(prog, n); };
     const bool clip = p && p->clipToVolume && m_spectrum;
-    m_gl->glUniform1i(loc("uClip"), clip ? 1 : 0);
-    m_gl->glUniform1i(loc("uNonNegative"),
-                      p && p->nonNegative && m_spectrum && m_spectrum->nonNegative ? 1 : 0);
+    glUniform1i(loc("uClip"), clip ? 1 : 0);
+    glUniform1i(loc("uNonNegative"),
+                p && p->nonNegative && m_spectrum && m_spectrum->nonNegative ? 1 : 0);
     if (!clip) return;
     const core::Spectrum& s = *m_spectrum;
     const core::Vec3 half =
         core::supportHalfExtents(s.volumeDims, s.spacing, core::voxelModelReach(p->voxelModel));
-    m_gl->glUniform3f(loc("uBoxHalf"), float(half[0]), float(half[1]), float(half[2]));
-    m_gl->glUniform3f(loc("uViewD"), float(p->view.d[0]), float(p->view.d[1]), float(p->view.d[2]));
-    m_gl->glUniform3f(loc("uViewR"), float(p->view.r[0]), float(p->view.r[1]), float(p->view.r[2]));
-    m_gl->glUniform3f(loc("uViewU"), float(p->view.u[0]), float(p->view.u[1]), float(p->view.u[2]));
-    m_gl->glUniform1f(loc("uPixel"), float(p->image.pixelSize));
+    glUniform3f(loc("uBoxHalf"), float(half[0]), float(half[1]), float(half[2]));
+    glUniform3f(loc("uViewD"), float(p->view.d[0]), float(p->view.d[1]), float(p->view.d[2]));
+    glUniform3f(loc("uViewR"), float(p->view.r[0]), float(p->view.r[1]), float(p->view.r[2]));
+    glUniform3f(loc("uViewU"), float(p->view.u[0]), float(p->view.u[1]), float(p->view.u[2]));
+    glUniform1f(loc("uPixel"), float(p->image.pixelSize));
 }
 
 void GpuFourierRenderer::setDisplayUniforms(unsigned prog, const core::DisplayWindow& w) {
-    auto loc = [&](const char* n) { return m_gl->glGetUniformLocation(prog, n); };
-    m_gl->glUniform1f(loc("uLow"), float(w.low));
-    m_gl->glUniform1f(loc("uHigh"), float(w.high > w.low ? w.high : w.low + 1.0));
-    m_gl->glUniform1i(loc("uInvert"), w.invert ? 1 : 0);
-    m_gl->glUniform1f(loc("uMuWater"),
-                      float(w.transmission.active() ? w.transmission.muWaterPerMm : 0.0));
-    m_gl->glUniform1f(loc("uExposure"), float(w.transmission.exposure));
-    m_gl->glBindImageTexture(0, m_display, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA8);
+    auto loc = [&](const char* n) { return glGetUniformLocation(prog, n); };
+    glUniform1f(loc("uLow"), float(w.low));
+    glUniform1f(loc("uHigh"), float(w.high > w.low ? w.high : w.low + 1.0));
+    glUniform1i(loc("uInvert"), w.invert ? 1 : 0);
+    glUniform1f(loc("uMuWater"),
+                float(w.transmission.active() ? w.transmission.muWaterPerMm : 0.0));
+    glUniform1f(loc("uExposure"), float(w.transmission.exposure));
+    glBindImageTexture(0, m_display, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA8);
 }
 
 void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* params,
@@ -504,14 +494,14 @@ void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* p
         program("fft/hartley_correct.comp",
                 display ? std::vector<std::pair<std::string, std::string>>{{"FUSED_DISPLAY", "1"}}
                         : std::vector<std::pair<std::string, std::string>>{});
-    m_gl->glUseProgram(prog);
-    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
+    glUseProgram(prog);
+    glUniform1i(glGetUniformLocation(prog, "uM"), M);
     setClipUniforms(prog, params);
     if (display) setDisplayUniforms(prog, *display);
-    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_hartleyT);
-    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_image);
-    m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
-    m_gl->glMemoryBarrier(
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_hartleyT);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_image);
+    glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
+    glMemoryBarrier(
         GL_SHADER_STORAGE_BARRIER_BIT |
         (display ? GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT : 0));
 }
@@ -525,21 +515,21 @@ void GpuFourierRenderer::renderToGpu(const core::RenderParams& p,
     if (M > 4096) throw core::SettingsError("GPU slice size: at most 4096");
     ensureSize(M);
     const bool fht = m_spectrum->kind == core::TransformKind::Fht;
-    m_gl->glQueryCounter(m_queries[0], GL_TIMESTAMP);
+    glQueryCounter(m_queries[0], GL_TIMESTAMP);
     if (!m_fuse) {
         std::vector<std::pair<std::string, std::string>> defs{
             {"TAPS", std::to_string(core::sliceTaps(p.kernel, p.depthCue > 0.0))}};
         if (fht) defs.emplace_back("SPECTRUM_FHT", "1");
         if (p.depthCue > 0.0) defs.emplace_back("DEPTH_CUE", "1");
         const GLuint prog = program("slice/slice.comp", defs);
-        m_gl->glUseProgram(prog);
-        m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
+        glUseProgram(prog);
+        glUniform1i(glGetUniformLocation(prog, "uM"), M);
         setSliceUniforms(prog, p);
-        m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_bufA);
-        m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
-        m_gl->glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_bufA);
+        glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
+        glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     }
-    m_gl->glQueryCounter(m_queries[1], GL_TIMESTAMP);
+    glQueryCounter(m_queries[1], GL_TIMESTAMP);
     runRows(M, m_fuse, fht, p.kernel, &p);
     if (!fht) {
         runCols(M, "OUTPUT_REAL", &p, display);
@@ -547,8 +537,8 @@ void GpuFourierRenderer::renderToGpu(const core::RenderParams& p,
         runCols(M, "OUTPUT_HARTLEY", &p);
         runHartleyCorrection(M, &p, display);
     }
-    m_gl->glQueryCounter(m_queries[2], GL_TIMESTAMP);
-    if (const GLenum err = m_gl->glGetError(); err != GL_NO_ERROR)
+    glQueryCounter(m_queries[2], GL_TIMESTAMP);
+    if (const GLenum err = glGetError(); err != GL_NO_ERROR)
         throw GlError("GPU render failed: " + glErrorName(err));
     m_timesPending = true;
     m_displayTimed = false;
@@ -564,10 +554,10 @@ core::ProjectionImage GpuFourierRenderer::readback() const {
     img.view = m_last.view;
     img.mapping = m_spectrum->mapping;
     img.pixels.resize(std::size_t(img.size) * img.size);
-    m_gl->glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
-    m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_image);
-    m_gl->glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(img.pixels.size() * 4),
-                             img.pixels.data());
+    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_image);
+    glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(img.pixels.size() * 4),
+                       img.pixels.data());
     return img;
 }
 
@@ -602,13 +592,13 @@ unsigned GpuFourierRenderer::displayTexture(const core::DisplayWindow& w) {
     if (m_displayed && sameWindow(*m_displayed, w)) return m_display; // fused into the render
     const int M = m_size;
     const GLuint prog = program("display/display.comp", {});
-    m_gl->glUseProgram(prog);
-    m_gl->glUniform1i(m_gl->glGetUniformLocation(prog, "uM"), M);
+    glUseProgram(prog);
+    glUniform1i(glGetUniformLocation(prog, "uM"), M);
     setDisplayUniforms(prog, w);
-    m_gl->glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_image);
-    m_gl->glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
-    m_gl->glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
-    m_gl->glQueryCounter(m_queries[3], GL_TIMESTAMP);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_image);
+    glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+    glQueryCounter(m_queries[3], GL_TIMESTAMP);
     m_displayTimed = m_timesPending;
     m_displayed = w;
     return m_display;
@@ -618,7 +608,7 @@ GpuStageTimes GpuFourierRenderer::lastTimes() {
     if (!m_timesPending) return m_times;
     GLuint64 t[4] = {0, 0, 0, 0};
     const int n = m_displayTimed ? 4 : 3;
-    for (int i = 0; i < n; ++i) m_gl->glGetQueryObjectui64v(m_queries[i], GL_QUERY_RESULT, &t[i]);
+    for (int i = 0; i < n; ++i) glGetQueryObjectui64v(m_queries[i], GL_QUERY_RESULT, &t[i]);
     m_times.fused = m_fuse;
     m_times.displayFused = m_displayed.has_value() && !m_displayTimed;
     m_times.sliceMs = double(t[1] - t[0]) * 1e-6;
@@ -635,14 +625,14 @@ std::vector<std::complex<float>> GpuFourierRenderer::inverseFft2D(
         throw core::SettingsError("inverseFft2D: data size is not M*M");
     ensureSize(M);
     m_displayed.reset();
-    m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
-    m_gl->glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(data.size() * 8), data.data());
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
+    glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(data.size() * 8), data.data());
     runRows(M, false, false, Kernel::Linear, nullptr);
     runCols(M, "OUTPUT_COMPLEX", nullptr);
     std::vector<std::complex<float>> out(data.size());
-    m_gl->glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
-    m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
-    m_gl->glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(out.size() * 8), out.data());
+    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
+    glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(out.size() * 8), out.data());
     return out;
 }
 
@@ -652,15 +642,15 @@ std::vector<float> GpuFourierRenderer::inverseFht2D(const std::vector<float>& da
     ensureSize(M);
     m_displayed.reset();
     std::vector<std::complex<float>> in(data.begin(), data.end());
-    m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
-    m_gl->glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(in.size() * 8), in.data());
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_bufA);
+    glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(in.size() * 8), in.data());
     runRows(M, false, true, Kernel::Linear, nullptr);
     runCols(M, "OUTPUT_HARTLEY", nullptr);
     runHartleyCorrection(M, nullptr);
-    m_gl->glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     std::vector<float> out(data.size());
-    m_gl->glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_image);
-    m_gl->glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(out.size() * 4), out.data());
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_image);
+    glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(out.size() * 4), out.data());
     return out;
 }
 

@@ -1,6 +1,5 @@
 #include <fvr/gpu/shader_source.h>
 
-#include <QFile>
 #include <cstdlib>
 #include <fstream>
 #include <regex>
@@ -8,6 +7,8 @@
 #include <sstream>
 
 #include <fvr/gpu/errors.h>
+
+#include "embedded_shaders.h"
 
 namespace fvr::gpu {
 
@@ -77,9 +78,10 @@ ShaderSource::Reader ShaderSource::defaultReader() {
             ss << in.rdbuf();
             return ss.str();
         }
-        QFile f(QString::fromStdString(":/shaders/" + path));
-        if (!f.open(QIODevice::ReadOnly)) return std::nullopt;
-        return f.readAll().toStdString();
+        for (std::size_t i = 0; i < detail::kEmbeddedShaderCount; ++i)
+            if (path == detail::kEmbeddedShaders[i].path)
+                return std::string(detail::kEmbeddedShaders[i].text);
+        return std::nullopt;
     };
 }
 

@@ -213,14 +213,15 @@ TEST(FvrRender, UnwritableOutputExitsOne) {
 TEST(FvrRender, GpuBackendMatchesCpuOrFallsBackWithANotice) {
     const std::string args =
         "phantom:shepp-logan:48 --dir 0.3,0.5,0.8 --size 128 --kernel sinc4 --oversampling 1.5 ";
-    // Without any display the GPU cannot be used here: the CPU renders and says so.
-    const Result noDisplay = run("--backend gpu " + args + "--out " + tmp("nogpu.npy"),
-                                 "env -u DISPLAY -u QT_QPA_PLATFORM -u WAYLAND_DISPLAY");
-    EXPECT_EQ(noDisplay.status, 0) << noDisplay.output;
-    EXPECT_NE(noDisplay.output.find("rendering on the CPU"), std::string::npos) << noDisplay.output;
-    if (!std::getenv("DISPLAY"))
-        GTEST_SKIP() << "no X display (make test runs the suite under xvfb-run)";
-    Result r = run("--backend gpu " + args + "--out " + tmp("gpu.npy"));
+    // A GPU that cannot be had (an EGL device that does not exist): the CPU renders and says why.
+    const Result noGpu =
+        run("--backend gpu " + args + "--out " + tmp("nogpu.npy"), "env FVR_EGL_DEVICE=99");
+    EXPECT_EQ(noGpu.status, 0) << noGpu.output;
+    EXPECT_NE(noGpu.output.find("rendering on the CPU"), std::string::npos) << noGpu.output;
+    EXPECT_NE(noGpu.output.find("FVR_EGL_DEVICE=99"), std::string::npos) << noGpu.output;
+    // The GPU backend is headless (EGL): no X display, no Qt platform (llvmpipe where no GPU).
+    const std::string headless = "env -u DISPLAY -u QT_QPA_PLATFORM -u WAYLAND_DISPLAY";
+    Result r = run("--backend gpu " + args + "--out " + tmp("gpu.npy"), headless);
     ASSERT_EQ(r.status, 0) << r.output;
     ASSERT_NE(r.output.find("gpu: "), std::string::npos) << "GPU backend not used: " << r.output;
     r = run("--backend cpu " + args + "--out " + tmp("cpu.npy"));
@@ -232,13 +233,51 @@ TEST(FvrRender, GpuBackendMatchesCpuOrFallsBackWithANotice) {
     // Depth cue and slice filter reach both renderers the same way.
     const std::string xray =
         "--values mu --depth-cue 0.6 --sharpen 1 --sharpen-radius 2 --band-limit 0.1 ";
-    r = run("--backend gpu " + args + xray + "--out " + tmp("gpux.npy"));
+    r = run("--backend gpu " + args + xray + "--out " + tmp("gpux.npy"), headless);
     ASSERT_EQ(r.status, 0) << r.output;
     ASSERT_NE(r.output.find("gpu: "), std::string::npos) << "GPU backend not used: " << r.output;
     ASSERT_EQ(run("--backend cpu " + args + xray + "--out " + tmp("cpux.npy")).status, 0);
     EXPECT_GT(
         fvr::test::compare(readNpy(tmp("gpux.npy"), shape), readNpy(tmp("cpux.npy"), shape)).psnr,
         90.0);
+}
+
+TEST(FvrRender, GpuInfoListsTheEglDevicesAndTheChosenContext) {
+    // Headless: no display, no INPUT. The devices are eglQueryDevicesEXT's; the context is
+    // OpenGL >= 4.3 core, whose spec requires a 3D texture limit of at least 2048.
+    const std::string headless = "env -u DISPLAY -u QT_QPA_PLATFORM -u WAYLAND_DISPLAY";
+    Result r = run("--gpu-info", headless);
+    ASSERT_EQ(r.status, 0) << r.output;
+    Json j = stdoutJson(r);
+    ASSERT_TRUE(j["available"].get<bool>()) << r.output;
+    ASSERT_TRUE(j["devices"].is_array()) << r.output;
+    for (std::size_t i = 0; i < j["devices"].size(); ++i) {
+        EXPECT_EQ(j["devices"][i]["index"], int(i));
+        EXPECT_TRUE(j["devices"][i]["extensions"].is_string());
+    }
+    const int chosen = j["chosen"]["device"];
+    EXPECT_GE(chosen, -1);
+    EXPECT_LT(chosen, int(j["devices"].size()));
+    const auto& gl = j["gl"];
+    EXPECT_TRUE(gl["major"].get<int>() > 4 || (gl["major"] == 4 && gl["minor"].get<int>() >= 3));
+    EXPECT_TRUE(gl["coreProfile"].get<bool>());
+    EXPECT_GE(gl["max3dTextureSize"].get<int>(), 2048);
+    EXPECT_FALSE(gl["renderer"].get<std::string>().empty());
+    EXPECT_EQ(gl["version"].get<std::string>().rfind(std::to_string(gl["major"].get<int>()) + "." +
+                                                         std::to_string(gl["minor"].get<int>()),
+                                                     0),
+              0u)
+        << gl;
+    // FVR_EGL_DEVICE picks the surfaceless platform; a device that does not exist is named.
+    r = run("--gpu-info", headless + " FVR_EGL_DEVICE=surfaceless");
+    ASSERT_EQ(r.status, 0) << r.output;
+    j = stdoutJson(r);
+    EXPECT_EQ(j["chosen"]["device"], -1) << r.output;
+    r = run("--gpu-info", headless + " FVR_EGL_DEVICE=99");
+    ASSERT_EQ(r.status, 0) << r.output;
+    j = stdoutJson(r);
+    EXPECT_FALSE(j["available"].get<bool>());
+    EXPECT_NE(j["reason"].get<std::string>().find("FVR_EGL_DEVICE=99"), std::string::npos) << j;
 }
 
 TEST(FvrRender, DicomFolderInfoListsSeriesWithWarnings) {

@@ -1,8 +1,6 @@
-// GPU renderer on a real OpenGL 4.3 context (Mesa llvmpipe under Xvfb in CI): the inverse
+// GPU renderer on a real OpenGL 4.3 context (headless EGL; Mesa llvmpipe where no GPU): the inverse
 // transforms against FFTW in double, projections against the CPU renderer, every shader.
-#include <QOpenGLContext>
-#include <QOpenGLFunctions_4_3_Core>
-#include <QOpenGLVersionFunctionsFactory>
+#include <epoxy/gl.h>
 
 #include <complex>
 #include <random>
@@ -71,18 +69,16 @@ TEST_F(GlTest, CompileErrorsNameTheShaderFileAndLine) {
         return it == files.end() ? std::nullopt : std::optional<std::string>(it->second);
     };
     const auto src = ShaderSource::assemble("bad.comp", {}, reader);
-    auto* gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(
-        QOpenGLContext::currentContext());
-    const GLuint sh = gl->glCreateShader(GL_COMPUTE_SHADER);
+    const GLuint sh = glCreateShader(GL_COMPUTE_SHADER);
     const char* text = src.text().c_str();
-    gl->glShaderSource(sh, 1, &text, nullptr);
-    gl->glCompileShader(sh);
+    glShaderSource(sh, 1, &text, nullptr);
+    glCompileShader(sh);
     GLint ok = 1;
-    gl->glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
+    glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
     ASSERT_EQ(ok, 0);
     char log[4096] = {0};
-    gl->glGetShaderInfoLog(sh, sizeof log, nullptr, log);
-    gl->glDeleteShader(sh);
+    glGetShaderInfoLog(sh, sizeof log, nullptr, log);
+    glDeleteShader(sh);
     EXPECT_NE(src.mapLog(log).find("inc.glsl:2"), std::string::npos) << src.mapLog(log);
 }
 
@@ -279,7 +275,7 @@ TEST_F(GlTest, DisplayTextureAndTimes) {
 }
 
 TEST(GpuRendererNoContext, RefusesWithoutContext) {
-    fvr::test::glContext().context()->doneCurrent();
+    fvr::test::glContext().doneCurrent();
     EXPECT_THROW(GpuFourierRenderer(), GlError);
 }
 
@@ -356,12 +352,10 @@ TEST_F(GlTest, TransmissionDisplayIsExpOfTheLineIntegrals) {
     for (bool film : {true, false}) {
         const DisplayWindow w{-2.5, -0.05, film, {waterAttenuationPerMm(60), 1.3}};
         const unsigned tex = gpu.displayTexture(w);
-        auto* gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(
-            QOpenGLContext::currentContext());
         std::vector<unsigned char> rgba(std::size_t(M) * M * 4);
-        gl->glBindTexture(GL_TEXTURE_2D, tex);
-        gl->glPixelStorei(GL_PACK_ALIGNMENT, 1);
-        gl->glGetTexImage(GL_TEXTURE_2D, 0, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+        glBindTexture(GL_TEXTURE_2D, tex);
+        glPixelStorei(GL_PACK_ALIGNMENT, 1);
+        glGetTexImage(GL_TEXTURE_2D, 0, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
         int worst = 0, distinct = 0;
         std::vector<bool> seen(256, false);
         for (std::size_t i = 0; i < L.pixels.size(); ++i) {
@@ -376,12 +370,10 @@ TEST_F(GlTest, TransmissionDisplayIsExpOfTheLineIntegrals) {
 
 namespace {
 std::vector<unsigned char> readTexture(unsigned tex, int M) {
-    auto* gl = QOpenGLVersionFunctionsFactory::get<QOpenGLFunctions_4_3_Core>(
-        QOpenGLContext::currentContext());
     std::vector<unsigned char> rgba(std::size_t(M) * M * 4);
-    gl->glBindTexture(GL_TEXTURE_2D, tex);
-    gl->glPixelStorei(GL_PACK_ALIGNMENT, 1);
-    gl->glGetTexImage(GL_TEXTURE_2D, 0, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+    glBindTexture(GL_TEXTURE_2D, tex);
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    glGetTexImage(GL_TEXTURE_2D, 0, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
     return rgba;
 }
 } // namespace

@@ -191,7 +191,7 @@ void ProjectionView::initializeGL() {
     m_glReady = true;
     m_spectrumDirty = true;
     try {
-        m_gpu = std::make_unique<gpu::GpuFourierRenderer>();
+        m_gpu = std::make_unique<gpu::GpuFourierRenderer>(context()->shareGroup());
         m_notice.clear();
     } catch (const std::exception& e) {
         m_gpu.reset();

@@ -1,6 +1,6 @@
 #pragma once
 /** Fourier volume rendering on the GPU (OpenGL 4.3 compute shaders). Renders into whatever
- *  context is current: the workstation's QOpenGLWidget, an offscreen context for fvr-render and
+ *  context is current: the workstation's QOpenGLWidget, an EGL context for fvr-render and
  *  the tests. Computes exactly what fvr::core::CpuFourierRenderer computes. */
 #include <complex>
 #include <map>
@@ -12,8 +12,6 @@
 #include <fvr/core/io/image_io.h>
 #include <fvr/core/render/renderer.h>
 #include <fvr/core/render/spectrum.h>
-
-class QOpenGLFunctions_4_3_Core;
 
 namespace fvr::gpu {
 
@@ -35,8 +33,11 @@ struct GpuStageTimes {
 class GpuFourierRenderer final : public core::Renderer {
 public:
     /** Needs a current OpenGL >= 4.3 context; throws GlError otherwise. All later calls need the
-     *  same context current; releaseGl() (or the destructor) frees the GL objects. */
-    GpuFourierRenderer();
+     *  same context current; releaseGl() (or the destructor) frees the GL objects. `shareGroup`
+     *  identifies the OpenGL share group of that context (the workstation passes its Qt share
+     *  group, so its views share spectrum textures); nullptr: the current native context alone.
+     */
+    explicit GpuFourierRenderer(const void* shareGroup = nullptr);
     ~GpuFourierRenderer();
     GpuFourierRenderer(const GpuFourierRenderer&) = delete;
     GpuFourierRenderer& operator=(const GpuFourierRenderer&) = delete;
@@ -114,7 +115,8 @@ private:
     /** Holds the texture `id` of `bytes` under the cache key (spectrum, precision, share group). */
     void adoptTexture(unsigned id, std::size_t bytes, const void* const key[3]);
 
-    QOpenGLFunctions_4_3_Core* m_gl = nullptr;
+    bool m_gl = false; ///< GL objects live (constructed, not yet released)
+    const void* m_shareGroup = nullptr;
     std::shared_ptr<const core::Spectrum> m_spectrum;
     std::size_t m_textureBytes = 0;
     unsigned m_texture = 0;

@@ -20,8 +20,8 @@ public:
      *  include cycle or a missing #version. */
     static ShaderSource assemble(const std::string& path, const Defines& defines,
                                  const Reader& reader);
-    /** Reader for the shaders embedded in fvr::gpu (":/shaders/..."), or FVR_SHADER_DIR when set
-     *  (edit shaders without rebuilding). */
+    /** Reader for the shaders embedded in fvr::gpu (resources/shaders at build time), or
+     *  FVR_SHADER_DIR when set (edit shaders without rebuilding). */
     static Reader defaultReader();
 
     const std::string& text() const { return m_text; }
