@@ -107,19 +107,29 @@ BenchFrames GpuBackend::timeFrames(const core::RenderParams& warmUp,
 
 std::unique_ptr<RenderBackend> makeRenderBackend(const Options& o,
                                                  std::shared_ptr<const core::Spectrum> spectrum) {
+    using Backend = Options::Backend;
 #ifdef FVR_HAVE_GPU
-    if (o.gpu) {
+    if (o.backend != Backend::Cpu) {
         try {
             auto gpu = std::make_unique<GpuBackend>(o.fp16);
-            gpu->setSpectrum(spectrum);
-            return gpu;
+            const fvr::gpu::GlInfo info = fvr::gpu::currentGlInfo();
+            if (o.backend == Backend::Auto && info.software()) {
+                // Software OpenGL is slower than the CPU renderer (README, GPU renderer).
+                std::fprintf(stderr,
+                             "fvr-render: the GPU is a software renderer (%s): rendering on the "
+                             "CPU, which is faster here (--backend gpu uses it anyway)\n",
+                             info.renderer.c_str());
+            } else {
+                gpu->setSpectrum(spectrum);
+                return gpu;
+            }
         } catch (const std::exception& e) {
             std::fprintf(stderr, "fvr-render: GPU backend unavailable (%s); rendering on the CPU\n",
                          e.what());
         }
     }
 #else
-    if (o.gpu)
+    if (o.backend != Backend::Cpu)
         std::fprintf(stderr, "fvr-render: built without the GPU renderer; rendering on the CPU\n");
 #endif
     return std::make_unique<CpuBackend>(std::move(spectrum), o.threads);
@@ -150,6 +160,7 @@ nlohmann::json gpuInfoJson() {
                    {"major", gl.major},
                    {"minor", gl.minor},
                    {"coreProfile", gl.coreProfile},
+                   {"software", gl.software()}, // --backend auto does not take it
                    {"max3dTextureSize", gl.max3dTextureSize},
                    {"freeMemoryMiB", gl.freeMemoryKiB < 0
                                          ? nlohmann::json()

@@ -322,12 +322,19 @@ void declareModel(CLI::App& app, Options& o) {
 void declareBackend(CLI::App& app, Options& o) {
     const std::string g = "Rendering";
     app.add_option_function<std::string>(
-           "--backend", [&o](const std::string& s) { o.gpu = s == "gpu"; },
-           "renderer (default cpu); gpu renders headless (EGL, no X server) with OpenGL\n"
-           "4.3 compute shaders and falls back to the CPU, saying why, when no GPU is\n"
+           "--backend",
+           [&o](const std::string& s) {
+               o.backend = s == "gpu"   ? Options::Backend::Gpu
+                           : s == "cpu" ? Options::Backend::Cpu
+                                        : Options::Backend::Auto;
+           },
+           "renderer (default auto: the GPU when it is hardware, else the CPU, saying why on\n"
+           "stderr: a software OpenGL such as llvmpipe is slower than the CPU renderer);\n"
+           "gpu renders headless (EGL, no X server) with OpenGL 4.3 compute shaders even\n"
+           "on a software renderer, and falls back to the CPU, saying why, when no GPU is\n"
            "usable; FVR_EGL_DEVICE=N|surfaceless picks the EGL device")
-        ->check(CLI::IsMember({"cpu", "gpu"}))
-        ->option_text("cpu|gpu")
+        ->check(CLI::IsMember({"auto", "cpu", "gpu"}))
+        ->option_text("auto|cpu|gpu")
         ->group(g);
     app.add_flag("--fp16", o.fp16, "GPU: store the spectrum as float16 (2 bytes per voxel)")
         ->group(g);

@@ -31,7 +31,9 @@ struct Options {
     double oversampling = 1.0;
     core::ValueMapping values = core::ValueMapping::Raw;
     int threads = 0;
-    bool gpu = false;
+    /** --backend: auto (the GPU when it is hardware, else the CPU, saying why), cpu or gpu
+     *  (the GPU even when it is a software renderer). */
+    enum class Backend { Auto, Cpu, Gpu } backend = Backend::Auto;
     bool fp16 = false;
     std::optional<core::RawSpec> raw;
     std::optional<core::PatientView> view;

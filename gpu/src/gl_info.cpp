@@ -4,6 +4,8 @@
 
 #include <dlfcn.h>
 
+#include <cctype>
+
 namespace fvr::gpu {
 
 namespace {
@@ -23,6 +25,15 @@ const void* currentNativeContext() {
     if (const void* c = callIfLoaded("libEGL.so.1", "eglGetCurrentContext")) return c;
     if (const void* c = callIfLoaded("libGLX.so.0", "glXGetCurrentContext")) return c;
     return callIfLoaded("libGL.so.1", "glXGetCurrentContext");
+}
+
+bool GlInfo::software() const {
+    std::string r = renderer;
+    for (char& c : r) c = char(std::tolower(static_cast<unsigned char>(c)));
+    for (const char* name :
+         {"llvmpipe", "softpipe", "swrast", "swiftshader", "software rasterizer"})
+        if (r.find(name) != std::string::npos) return true;
+    return false;
 }
 
 GlInfo currentGlInfo() {

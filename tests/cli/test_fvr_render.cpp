@@ -242,6 +242,32 @@ TEST(FvrRender, GpuBackendMatchesCpuOrFallsBackWithANotice) {
         90.0);
 }
 
+// --backend auto (the default) renders on the GPU only when it is hardware: on a software
+// OpenGL (llvmpipe here) on the CPU, saying so; --backend gpu takes any GPU.
+TEST(FvrRender, AutoBackendTakesTheGpuOnlyWhenItIsHardware) {
+    const std::string headless = "env -u DISPLAY -u QT_QPA_PLATFORM -u WAYLAND_DISPLAY";
+    const Json info = stdoutJson(run("--gpu-info", headless));
+    const std::string args = "phantom:shepp-logan:32 --size 128 ";
+    Result r = run(args + "--out " + tmp("auto.npy"), headless);
+    ASSERT_EQ(r.status, 0) << r.output;
+    const std::string backend = jsonFile(tmp("auto.npy") + ".json")["settings"]["backend"];
+    if (!info["available"].get<bool>()) {
+        EXPECT_EQ(backend, "cpu");
+        EXPECT_NE(r.output.find("GPU backend unavailable"), std::string::npos) << r.output;
+    } else if (info["gl"]["software"].get<bool>()) {
+        EXPECT_EQ(backend, "cpu") << info["gl"]["renderer"];
+        EXPECT_NE(r.output.find("software renderer"), std::string::npos) << r.output;
+        r = run("--backend gpu " + args + "--out " + tmp("forced.npy"), headless);
+        ASSERT_EQ(r.status, 0) << r.output;
+        EXPECT_EQ(
+            jsonFile(tmp("forced.npy") + ".json")["settings"]["backend"].get<std::string>().rfind(
+                "gpu", 0),
+            0u);
+    } else {
+        EXPECT_EQ(backend.rfind("gpu", 0), 0u) << backend;
+    }
+}
+
 TEST(FvrRender, GpuInfoListsTheEglDevicesAndTheChosenContext) {
     // Headless: no display, no INPUT. The devices are eglQueryDevicesEXT's; the context is
     // OpenGL >= 4.3 core, whose spec requires a 3D texture limit of at least 2048.

@@ -13,6 +13,9 @@ struct GlInfo {
     /** Free GPU memory in KiB where the driver reports it (GL_NVX_gpu_memory_info,
      *  GL_ATI_meminfo), else -1. */
     long long freeMemoryKiB = -1;
+    /** A software renderer (Mesa llvmpipe, softpipe or swrast, SwiftShader): slower than the
+     *  CPU renderer, so the automatic choices do not take it. */
+    bool software() const;
     /** Compute shaders need OpenGL 4.3. */
     bool hasCompute() const { return desktop && (major > 4 || (major == 4 && minor >= 3)); }
 };
