@@ -102,6 +102,9 @@ protected:
     void SetUp() override {
         app();
         QSettings().clear(); // each test starts from the defaults
+        // but with the GPU path under test even on a software OpenGL (llvmpipe here), where the
+        // workstation's default is the CPU renderer (SoftwareOpenGlRendersOnTheCpu).
+        QSettings().setValue("render/softwareGpu", true);
         window = std::make_unique<MainWindow>();
         window->resize(1200, 800);
         window->show();
@@ -208,6 +211,35 @@ static bool waitAllViewsReady(MainWindow& w) {
             return true;
         },
         60000);
+}
+
+// #16: on a software OpenGL (llvmpipe, slower than the CPU renderer) the views render on the
+// CPU and the status bar says why; View ▸ Use a software GPU takes it anyway. A hardware GPU is
+// always used.
+TEST_F(Workstation, SoftwareOpenGlRendersOnTheCpu) {
+    QSettings().setValue("render/softwareGpu", false); // the default
+    window = std::make_unique<MainWindow>();
+    window->resize(1200, 800);
+    window->show();
+    ASSERT_TRUE(QTest::qWaitForWindowExposed(window.get()));
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    auto* v = window->views()[0];
+    EXPECT_FALSE(window->softwareGpuAction()->isChecked());
+    EXPECT_EQ(v->usingGpu(), !v->softwareGl());
+    const auto cpuFrame = *v->projection();
+    EXPECT_GT(test::compare(cpuFrame.pixels, cpuReference(*window, *v).pixels).psnr, 90.0);
+    if (v->softwareGl()) {
+        EXPECT_TRUE(window->messages()->toPlainText().contains("the OpenGL is software"))
+            << window->messages()->toPlainText().toStdString();
+        window->softwareGpuAction()->setChecked(true); // View ▸ Use a software GPU
+        EXPECT_TRUE(v->usingGpu());
+        EXPECT_TRUE(window->settings().rendering().softwareGpu);
+        EXPECT_TRUE(QSettings().value("render/softwareGpu").toBool());
+        // The same image from the GPU renderer.
+        EXPECT_GT(test::compare(v->projection()->pixels, cpuFrame.pixels).psnr, 90.0);
+        window->softwareGpuAction()->setChecked(false);
+        EXPECT_FALSE(v->usingGpu());
+    }
 }
 
 // #15 item 2: compare mode is fair: gridding correction stays on, every kernel renders from its
@@ -1083,7 +1115,9 @@ TEST_F(Workstation, PanelSettingsPersistForTheNextWindow) {
     // Changed like a user does (no study open), then read back by a fresh window.
     auto* rp = window->renderingPanel();
     auto* xp = window->xrayPanel();
-    EXPECT_EQ(rp->values(), ui::RenderingPanel::Values{}); // no settings saved: the defaults
+    ui::RenderingPanel::Values defaults;
+    defaults.softwareGpu = true; // the fixture's (the GPU path under test)
+    EXPECT_EQ(rp->values(), defaults); // no other settings saved: the defaults
     EXPECT_EQ(xp->values(), ui::XrayPanel::Values{});
     auto pick = [](QComboBox* c, const QVariant& data) { c->setCurrentIndex(c->findData(data)); };
     pick(rp->kernelCombo(), int(core::Kernel::Linear));
@@ -1111,7 +1145,7 @@ TEST_F(Workstation, PanelSettingsPersistForTheNextWindow) {
     ASSERT_EQ(rendering,
               (ui::RenderingPanel::Values{core::Kernel::Linear, 256, core::VoxelModel::BSpline,
                                           core::TransformKind::Fht, 1.5, core::ValueMapping::MuBone,
-                                          false, 12, true, false, false}));
+                                          false, 12, true, false, false, true}));
     ASSERT_EQ(xray,
               (ui::XrayPanel::Values{ui::XrayOutput::Transmission, 90.0, 2.5, 40, 1.25, 2.0, 0.5}));
     window.reset();

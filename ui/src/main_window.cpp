@@ -188,6 +188,7 @@ void MainWindow::restorePanels() {
     for (auto* v : m_views) {
         v->setEffects(currentEffects());
         v->setTargetFps(m_model->rendering().targetFps);
+        v->setAllowSoftwareGpu(m_model->rendering().softwareGpu);
     }
     m_viewSettings[0] = m_model->viewSettings();
     if (!m_views.empty()) m_views[0]->setSettings(m_viewSettings[0]);
@@ -220,6 +221,10 @@ void MainWindow::connectSettings() {
         saveRenderingSettings();
     });
     connect(m_model, &SettingsModel::frameOptionsChanged, this, &MainWindow::applyEffects);
+    connect(m_model, &SettingsModel::rendererChoiceChanged, this, [this] {
+        for (auto* v : m_views) v->setAllowSoftwareGpu(m_model->rendering().softwareGpu);
+        saveRenderingSettings();
+    });
     connect(m_model, &SettingsModel::outputChanged, this, [this] { applyOutput(true); });
     connect(m_model, &SettingsModel::beamChanged, this, [this] { applyOutput(false); });
     connect(m_model, &SettingsModel::effectsChanged, this, &MainWindow::applyEffects);

@@ -7,10 +7,12 @@
 #include <QMenuBar>
 #include <QMessageBox>
 #include <QSettings>
+#include <QSignalBlocker>
 #include <QToolBar>
 
 #include <fvr/ui/app_info.h>
 #include <fvr/ui/settings_keys.h>
+#include <fvr/ui/settings_model.h>
 
 namespace fvr::ui {
 
@@ -105,6 +107,21 @@ void MainWindow::buildViewMenu(QMenu* view, QToolBar* tb) {
         for (auto* v : m_views) v->setOverlayVisible(on);
     });
     for (auto* v : m_views) v->setOverlayVisible(m_overlayAction->isChecked());
+    // A software OpenGL (llvmpipe …) is slower than the CPU renderer: the views use the CPU
+    // there unless this is on. A hardware GPU is always used.
+    m_softwareGpuAction = view->addAction(tr("Use a &software GPU (slower than the CPU)"));
+    m_softwareGpuAction->setCheckable(true);
+    m_softwareGpuAction->setChecked(m_model->rendering().softwareGpu);
+    connect(m_softwareGpuAction, &QAction::toggled, this, [this](bool on) {
+        RenderingPanel::Values r = m_model->rendering();
+        r.softwareGpu = on;
+        m_model->setRendering(r);
+    });
+    connect(m_model, &SettingsModel::renderingShown, m_softwareGpuAction,
+            [this](const RenderingPanel::Values& r) {
+                const QSignalBlocker block(m_softwareGpuAction);
+                m_softwareGpuAction->setChecked(r.softwareGpu);
+            });
     QAction* acc =
         view->addAction(tr("&Accuracy against ray casting"), this, &MainWindow::measureAccuracy);
     acc->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_A));

@@ -99,6 +99,7 @@ ProjectionView* MainWindow::addView(int index, int count, const core::ViewFrame&
     v->setOverlayVisible(m_overlayAction ? m_overlayAction->isChecked() : true);
     if (m_xray) v->setEffects(currentEffects());
     v->setTargetFps(m_difference ? 0 : m_model->rendering().targetFps);
+    v->setAllowSoftwareGpu(m_model->rendering().softwareGpu);
     connect(v, &ProjectionView::interactionChanged, this, [this, v](bool on) {
         for (auto* o : m_views)
             if (o != v) o->setInteracting(on); // synchronised views follow at their own level
@@ -127,10 +128,25 @@ void MainWindow::connectView(ProjectionView* v) {
                 }
                 m_syncing = false;
             });
-    connect(v, &ProjectionView::backendChanged, this, [this](bool gpu, const QString& notice) {
-        if (m_backend) m_backend->setText(gpu ? tr("Renderer: GPU") : tr("Renderer: CPU"));
-        if (!notice.isEmpty()) message(notice, true);
-    });
+    connect(v, &ProjectionView::backendChanged, this,
+            [this, v](bool gpu, const QString& notice) { showBackend(*v, gpu, notice); });
+}
+
+void MainWindow::showBackend(const ProjectionView& v, bool gpu, const QString& notice) {
+    // Honest: a software OpenGL (llvmpipe …) is slower than the CPU renderer, so the views use
+    // the CPU there unless the Rendering panel says otherwise; the status bar says which.
+    const QString text =
+        gpu ? (v.softwareGl() ? tr("Renderer: GPU (software OpenGL, slower than the CPU)")
+                              : tr("Renderer: GPU"))
+            : (v.softwareGl() && notice.isEmpty()
+                   ? tr("Renderer: CPU (the OpenGL is software, slower; View ▸ Use a software "
+                        "GPU)")
+                   : tr("Renderer: CPU"));
+    if (m_backend && m_backend->text() != text) {
+        m_backend->setText(text);
+        if (v.softwareGl() && !gpu) message(text.mid(text.indexOf('(') + 1).chopped(1));
+    }
+    if (!notice.isEmpty()) message(notice, true);
 }
 
 void MainWindow::setDifferenceMode(bool on) {

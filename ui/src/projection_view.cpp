@@ -16,6 +16,7 @@
 #include <fvr/core/xray/display_window.h>
 #include <fvr/core/xray/patient_views.h>
 #include <fvr/gpu/errors.h>
+#include <fvr/gpu/gl_info.h>
 #include <fvr/gpu/gpu_renderer.h>
 
 namespace fvr::ui {
@@ -189,22 +190,42 @@ void ProjectionView::initializeGL() {
         doneCurrent();
     });
     m_glReady = true;
-    m_spectrumDirty = true;
-    try {
-        m_gpu = std::make_unique<gpu::GpuFourierRenderer>(context()->shareGroup());
-        m_notice.clear();
-    } catch (const std::exception& e) {
-        m_gpu.reset();
-        m_notice = tr("GPU renderer unavailable (%1): rendering on the CPU")
-                       .arg(QString::fromUtf8(e.what()));
-    }
+    m_softwareGl = gpu::currentGlInfo().software();
+    chooseRenderer();
     m_quad = std::make_unique<QOpenGLShaderProgram>();
     m_quad->addShaderFromSourceCode(QOpenGLShader::Vertex, kQuadVertex);
     m_quad->addShaderFromSourceCode(QOpenGLShader::Fragment, kQuadFragment);
     if (!m_quad->link()) m_notice += tr(" (display shader failed: %1)").arg(m_quad->log());
     m_vao = std::make_unique<QOpenGLVertexArrayObject>();
     m_vao->create();
-    emit backendChanged(m_gpu != nullptr, m_notice);
+    emit backendChanged(m_gpu != nullptr, backendNotice());
+}
+
+void ProjectionView::chooseRenderer() {
+    m_gpu.reset();
+    m_cpu.reset();
+    m_spectrumDirty = true;
+    m_renderDirty = true;
+    m_notice.clear();
+    if (m_softwareGl && !m_allowSoftwareGpu) return; // the CPU renderer: faster here
+    try {
+        m_gpu = std::make_unique<gpu::GpuFourierRenderer>(context()->shareGroup());
+    } catch (const std::exception& e) {
+        m_gpu.reset();
+        m_notice = tr("GPU renderer unavailable (%1): rendering on the CPU")
+                       .arg(QString::fromUtf8(e.what()));
+    }
+}
+
+void ProjectionView::setAllowSoftwareGpu(bool allow) {
+    if (allow == m_allowSoftwareGpu) return;
+    m_allowSoftwareGpu = allow;
+    if (!m_glReady || !m_softwareGl) return;
+    makeCurrent();
+    chooseRenderer();
+    doneCurrent();
+    emit backendChanged(m_gpu != nullptr, backendNotice());
+    update();
 }
 
 void ProjectionView::resizeGL(int, int) {}

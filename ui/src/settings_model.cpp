@@ -30,6 +30,7 @@ void SettingsModel::setRendering(const RenderingPanel::Values& v, Notify notify)
     if (v.pixelAperture != old.pixelAperture || v.clip != old.clip ||
         v.nonNegative != old.nonNegative)
         emit frameOptionsChanged();
+    if (v.softwareGpu != old.softwareGpu) emit rendererChoiceChanged();
 }
 
 void SettingsModel::setXray(const XrayPanel::Values& v, Notify notify) {

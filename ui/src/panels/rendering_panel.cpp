@@ -158,6 +158,7 @@ RenderingPanel::Values RenderingPanel::values() const {
     v.pixelAperture = m_pixelAperture->isChecked();
     v.clip = m_clip->isChecked();
     v.nonNegative = m_nonNegative->isChecked();
+    v.softwareGpu = m_softwareGpu;
     return v;
 }
 
@@ -176,6 +177,7 @@ void RenderingPanel::setValues(const Values& v) {
     m_pixelAperture->setChecked(v.pixelAperture);
     m_clip->setChecked(v.clip);
     m_nonNegative->setChecked(v.nonNegative);
+    m_softwareGpu = v.softwareGpu; // the View menu's choice, kept with the others
 }
 
 RenderingPanel::Values RenderingPanel::load(const QSettings& s) { return load(s, Values()); }
@@ -191,6 +193,7 @@ RenderingPanel::Values RenderingPanel::load(const QSettings& s, Values v) {
     v.clip = s.value(keys::kRenderClip, v.clip).toBool();
     v.nonNegative = s.value(keys::kRenderNonNegative, v.nonNegative).toBool();
     v.pixelAperture = s.value(keys::kRenderPixelAperture, v.pixelAperture).toBool();
+    v.softwareGpu = s.value(keys::kRenderSoftwareGpu, v.softwareGpu).toBool();
     try {
         const QString name =
             s.value(keys::kRenderVoxelModel, core::voxelModelName(v.voxelModel)).toString();
@@ -213,6 +216,7 @@ void RenderingPanel::save(QSettings& s, const Values& v) {
     s.setValue(keys::kRenderPixelAperture, v.pixelAperture);
     s.setValue(keys::kRenderClip, v.clip);
     s.setValue(keys::kRenderNonNegative, v.nonNegative);
+    s.setValue(keys::kRenderSoftwareGpu, v.softwareGpu);
 }
 
 ViewSettings RenderingPanel::viewSettings() const {

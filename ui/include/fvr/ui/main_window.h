@@ -64,6 +64,8 @@ public:
 
     /** The render settings (the one source of truth the panels show). */
     SettingsModel& settings() { return *m_model; }
+    /** View ▸ Use a software GPU (tests). */
+    QAction* softwareGpuAction() const { return m_softwareGpuAction; }
     /** The panels (tests drive their controls like a user). */
     StudyPanel* studyPanel() const { return m_studyPanel; }
     RenderingPanel* renderingPanel() const { return m_rendering; }
@@ -98,6 +100,8 @@ private:
     void buildViewMenu(QMenu* view, QToolBar* toolbar);
     ProjectionView* addView(int index, int count, const core::ViewFrame& frame);
     void connectView(ProjectionView* v);
+    /** The status bar's renderer (GPU, CPU, and why) and a view's backend notice. */
+    void showBackend(const ProjectionView& v, bool gpu, const QString& notice);
     /** Tells the study controller the compare views' kernels (`retry`: also those whose
      *  spectrum was not prepared), then assignSpectra(). */
     void updateCompareKernels(bool retry = false);
@@ -165,6 +169,7 @@ private:
     QLabel* m_backend = nullptr;
     QMenu* m_recentMenu = nullptr;
     QAction* m_overlayAction = nullptr;
+    QAction* m_softwareGpuAction = nullptr;
     std::unique_ptr<AccuracyReadout> m_accuracy;
 };
 

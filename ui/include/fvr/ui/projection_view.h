@@ -113,6 +113,11 @@ public:
     /** The overlay box's lines: the title, the performance overlay, the difference note. */
     QString overlayText() const;
     bool usingGpu() const { return m_gpu != nullptr; }
+    /** Whether the view may render on a software GPU (llvmpipe …); by default it renders on
+     *  the CPU there, which is faster. A hardware GPU is always used. */
+    void setAllowSoftwareGpu(bool allow);
+    /** The OpenGL of this view is a software renderer (known once the view is shown). */
+    bool softwareGl() const { return m_softwareGl; }
     QString backendNotice() const { return m_notice; }
     /** Stage times of the last frame (ms): slice, inverse, display, total; and what the user
      *  saw: the wall-clock time from the change (a drag step) to the frame on screen. */
@@ -153,6 +158,9 @@ protected:
 
 private:
     void releaseGl();
+    /** With the context current: the GPU renderer, unless the GL is software and not allowed
+     *  (then the CPU renderer; the notice says why). */
+    void chooseRenderer();
     void renderIfNeeded(bool fullQuality = false);
     /** The renderer of float images: the GPU's when there is one, else the CPU's (made on demand).
      */
@@ -209,6 +217,8 @@ private:
     std::unique_ptr<core::CpuFourierRenderer> m_cpu;
     std::optional<core::ProjectionImage> m_cpuImage; // CPU path / difference mode
     QString m_notice; ///< backend notice (CPU fallback)
+    bool m_allowSoftwareGpu = false;
+    bool m_softwareGl = false;
     QString m_renderError; ///< last render failure, cleared by the next good frame
     std::unique_ptr<QOpenGLShaderProgram> m_quad;
     std::unique_ptr<QOpenGLVertexArrayObject> m_vao;

@@ -14,6 +14,7 @@ inline constexpr char kRenderTargetFps[] = "render/targetFps";
 inline constexpr char kRenderClip[] = "render/clip";
 inline constexpr char kRenderNonNegative[] = "render/nonNegative";
 inline constexpr char kRenderPixelAperture[] = "render/pixelAperture";
+inline constexpr char kRenderSoftwareGpu[] = "render/softwareGpu";
 inline constexpr char kRenderVoxelModel[] = "render/voxelModel"; ///< a name (voxelModelName)
 
 // Display panel

@@ -45,6 +45,7 @@ signals:
     void valueMappingChanged();
     void targetFpsChanged(int fps);
     void frameOptionsChanged(); ///< pixel aperture, clip or non-negative
+    void rendererChoiceChanged(); ///< a software GPU used or not
     void outputChanged(); ///< line integrals or transmission
     void beamChanged(); ///< energy or exposure
     void effectsChanged(); ///< depth cueing or a slice filter

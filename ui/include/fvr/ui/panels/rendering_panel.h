@@ -35,6 +35,9 @@ public:
         bool pixelAperture = false;
         bool clip = true;
         bool nonNegative = true;
+        /** Render on the GPU even when it is a software renderer (llvmpipe …: slower than the
+         *  CPU renderer, so off by default). */
+        bool softwareGpu = false;
         bool operator==(const Values&) const = default;
     };
 
@@ -106,6 +109,7 @@ private:
     QComboBox* m_values = nullptr;
     QCheckBox* m_deapodize = nullptr;
     QLabel* m_memory = nullptr;
+    bool m_softwareGpu = false; ///< not a control here: View ▸ Use a software GPU
     QSpinBox* m_targetFps = nullptr;
     QCheckBox* m_pixelAperture = nullptr;
     QCheckBox* m_clip = nullptr;
