@@ -587,11 +587,15 @@ QStringList ProjectionView::overlayLines() const {
         lines << QStringLiteral("slice+inverse %1 ms  display %2 ms")
                      .arg(m_stats.inverseMs, 0, 'f', 2)
                      .arg(m_stats.displayMs, 0, 'f', 2);
-    else
+    else if (m_gpu)
         lines << QStringLiteral("slice %1  inverse %2  display %3 ms")
                      .arg(m_stats.sliceMs, 0, 'f', 2)
                      .arg(m_stats.inverseMs, 0, 'f', 2)
                      .arg(m_stats.displayMs, 0, 'f', 2);
+    else // the CPU renderer's stages (the display is the upload, in the frame time)
+        lines << QStringLiteral("slice %1  inverse %2 ms")
+                     .arg(m_stats.sliceMs, 0, 'f', 2)
+                     .arg(m_stats.inverseMs, 0, 'f', 2);
     lines << QStringLiteral("W %1  L %2")
                  .arg(m_window.high - m_window.low, 0, 'g', 4)
                  .arg((m_window.high + m_window.low) / 2, 0, 'g', 4);
