@@ -261,7 +261,8 @@ void declareSpectrum(CLI::App& app, Options& o) {
     app.add_option_function<std::string>(
            "--deapodize", [&o](const std::string& s) { o.deapodize = s == "on"; },
            "divide the volume by the kernel's Fourier transform before the 3D FFT\n"
-           "(gridding correction; default on for kaiser-bessel, off otherwise)")
+           "(gridding correction; default on for every kernel but linear, which does not\n"
+           "gain from it: the workstation's rule, core::griddingCorrectionHelps)")
         ->check(CLI::IsMember({"on", "off"}))
         ->option_text("on|off")
         ->group(g);

@@ -43,7 +43,8 @@ std::shared_ptr<const Spectrum> preprocessVolume(const Options& o, const Volume&
     po.transform = o.transform;
     po.oversampling = o.oversampling;
     po.threads = o.threads;
-    if (o.deapodize.value_or(o.kaiserBessel()))
+    // The workstation's rule: gridding correction for every kernel it helps (all but linear).
+    if (o.deapodize.value_or(griddingCorrectionHelps(o.kernel)))
         po.deapodizeFor = o.kernel;
     else if (o.kaiserBessel())
         std::fprintf(stderr, "fvr-render: warning: kaiser-bessel without deapodization is less "
