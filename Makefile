@@ -8,8 +8,8 @@ JOBS ?= $(shell nproc)
 STUDY ?=
 SHARED_DATA ?= $(abspath $(CURDIR)/../shared/data)
 
-.PHONY: all deps configure build run test bench bench-gpu package sanitize format format-check \
-  screenshots clean
+.PHONY: all deps configure build run test bench bench-gpu gpu-kit package sanitize format \
+  format-check screenshots clean
 
 all: build
 
@@ -44,6 +44,13 @@ bench: build
 # Headless EGL: no X server needed (FVR_EGL_DEVICE=N picks the device).
 bench-gpu: build
 	@$(BUILD_DIR)/bench/fvr_bench_gpu
+
+# The hardware bench kit: build/fvr-gpu-kit.tar.gz (build/gpu-kit/fvr-gpu-kit unpacked) holding
+# fvr-render, fvr_bench_gpu and the libraries a bare GPU machine lacks, and run.sh (--gpu-info,
+# the GPU Table 1, GPU = CPU) writing results/ (packaging/gpu-kit/README.txt). Release build;
+# fails when the tarball exceeds 48 MB.
+gpu-kit: build
+	@bash packaging/gpu-kit/make_kit.sh $(BUILD_DIR) $(BUILD_DIR)/gpu-kit $(BUILD_DIR)/fvr-gpu-kit.tar.gz
 
 # Loaders and tests under AddressSanitizer + UndefinedBehaviorSanitizer.
 sanitize: deps
