@@ -119,26 +119,12 @@ void RenderingPanel::addFrameRows(QFormLayout* rf) {
 }
 
 void RenderingPanel::connectControls() {
-    auto relay = [this](auto* sender, auto signal, void (RenderingPanel::*specific)()) {
-        connect(sender, signal, this, [this, specific] {
-            emit(this->*specific)();
-            emit changed();
-        });
-    };
-    relay(m_kernel, &QComboBox::currentIndexChanged, &RenderingPanel::viewSettingsChanged);
-    relay(m_size, &QComboBox::currentIndexChanged, &RenderingPanel::viewSettingsChanged);
-    relay(m_voxelModel, &QComboBox::currentIndexChanged, &RenderingPanel::voxelModelChanged);
-    relay(m_transform, &QComboBox::currentIndexChanged, &RenderingPanel::spectrumSettingsChanged);
-    relay(m_oversampling, &QComboBox::currentIndexChanged,
-          &RenderingPanel::spectrumSettingsChanged);
-    relay(m_deapodize, &QCheckBox::toggled, &RenderingPanel::spectrumSettingsChanged);
-    relay(m_values, &QComboBox::currentIndexChanged, &RenderingPanel::valueMappingChanged);
-    for (QCheckBox* c : {m_pixelAperture, m_clip, m_nonNegative})
-        relay(c, &QCheckBox::toggled, &RenderingPanel::frameOptionsChanged);
-    connect(m_targetFps, &QSpinBox::valueChanged, this, [this](int fps) {
-        emit targetFpsChanged(fps);
-        emit changed();
-    });
+    // What changed is the settings model's to say (SettingsModel::setRendering).
+    for (QComboBox* c : {m_kernel, m_size, m_voxelModel, m_transform, m_oversampling, m_values})
+        connect(c, &QComboBox::currentIndexChanged, this, &RenderingPanel::changed);
+    for (QCheckBox* c : {m_deapodize, m_pixelAperture, m_clip, m_nonNegative})
+        connect(c, &QCheckBox::toggled, this, &RenderingPanel::changed);
+    connect(m_targetFps, &QSpinBox::valueChanged, this, &RenderingPanel::changed);
     connect(m_appliesTo, &QComboBox::currentIndexChanged, this, [this](int slot) {
         emit appliesToChanged(slot);
         emit changed();

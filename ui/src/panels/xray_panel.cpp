@@ -84,19 +84,15 @@ void XrayPanel::addEffectRows(QFormLayout* xf) {
 }
 
 void XrayPanel::connectControls() {
-    auto emitBoth = [this](void (XrayPanel::*specific)()) {
-        return [this, specific] {
-            updateBeam();
-            emit(this->*specific)();
-            emit changed();
-        };
+    // What changed is the settings model's to say (SettingsModel::setXray).
+    auto edited = [this] {
+        updateBeam();
+        emit changed();
     };
-    connect(m_output, &QComboBox::currentIndexChanged, this, emitBoth(&XrayPanel::outputChanged));
-    connect(m_energy, &QDoubleSpinBox::valueChanged, this, emitBoth(&XrayPanel::beamChanged));
-    connect(m_exposure, &QDoubleSpinBox::valueChanged, this, emitBoth(&XrayPanel::beamChanged));
-    for (auto* sb : {m_sharpen, m_sharpenRadius, m_bandLimit})
-        connect(sb, &QDoubleSpinBox::valueChanged, this, emitBoth(&XrayPanel::effectsChanged));
-    connect(m_depthCue, &QSpinBox::valueChanged, this, emitBoth(&XrayPanel::effectsChanged));
+    connect(m_output, &QComboBox::currentIndexChanged, this, edited);
+    for (auto* sb : {m_energy, m_exposure, m_sharpen, m_sharpenRadius, m_bandLimit})
+        connect(sb, &QDoubleSpinBox::valueChanged, this, edited);
+    connect(m_depthCue, &QSpinBox::valueChanged, this, edited);
 }
 
 void XrayPanel::updateBeam() {

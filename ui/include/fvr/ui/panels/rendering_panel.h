@@ -84,14 +84,8 @@ public:
     QCheckBox* nonNegativeCheck() const { return m_nonNegative; }
 
 signals:
-    /** Any control changed by the user (after the specific signal below). */
+    /** Any control changed by the user (what changed: SettingsModel's signals). */
     void changed();
-    void viewSettingsChanged(); ///< kernel or slice resolution
-    void voxelModelChanged();
-    void spectrumSettingsChanged(); ///< transform, oversampling or gridding correction
-    void valueMappingChanged();
-    void targetFpsChanged(int fps);
-    void frameOptionsChanged(); ///< pixel aperture, clip or non-negative
     void appliesToChanged(int slot);
 
 private:

@@ -65,11 +65,8 @@ public:
     QDoubleSpinBox* bandLimitSpin() const { return m_bandLimit; }
 
 signals:
-    /** Any control changed by the user (after the specific signal below). */
+    /** Any control changed by the user (what changed: SettingsModel's signals). */
     void changed();
-    void outputChanged();
-    void beamChanged(); ///< energy or exposure
-    void effectsChanged(); ///< depth cueing or a slice filter
 
 private:
     void addOutputRows(QFormLayout* form);
