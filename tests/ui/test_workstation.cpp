@@ -368,6 +368,7 @@ TEST_F(Workstation, CompareSpectraSurviveCancelsAndModeChanges) {
     for (auto* v : window->views())
         if (!v->spectrum()) {
             ++waiting;
+            EXPECT_TRUE(v->pendingFailed());
             EXPECT_TRUE(v->pendingText().startsWith("Not prepared"))
                 << v->pendingText().toStdString();
         }

@@ -87,7 +87,8 @@ void MainWindow::assignSpectra() {
                              v->spectrum() == m_study->spectrumFor(v->settings().kernel);
         if (current) continue;
         v->setStudy(volume, nullptr);
-        v->setPendingText(m_study->spectrumPendingReason(s.kernel));
+        v->setPendingText(m_study->spectrumPendingReason(s.kernel),
+                          m_study->compareDeclined(s.kernel).has_value());
     }
 }
 

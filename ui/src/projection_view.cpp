@@ -80,7 +80,8 @@ void ProjectionView::setStudy(std::shared_ptr<const core::Volume> volume,
     requestFrame();
 }
 
-void ProjectionView::setPendingText(const QString& text) {
+void ProjectionView::setPendingText(const QString& text, bool failed) {
+    m_pendingFailed = failed;
     if (text == m_pending) return;
     m_pending = text;
     update();
@@ -462,10 +463,11 @@ void ProjectionView::drawOverlay() {
                          QColor(140, 240, 140));
         return;
     }
-    if (m_volume) drawOrientationLabels(p);
+    // The overlay's text, its box and the labels that keep clear of it: once per frame.
     const QString text = overlayText();
+    const QRect box = overlayBox(text);
+    if (m_volume) drawOrientationLabels(p, box);
     if (!text.isEmpty()) {
-        const QRect box = overlayBox();
         p.fillRect(box, QColor(0, 0, 0, 150));
         p.setPen(QColor(140, 240, 140));
         p.drawText(box.adjusted(4, 2, -4, -2), Qt::AlignLeft | Qt::AlignTop, text);
@@ -473,11 +475,11 @@ void ProjectionView::drawOverlay() {
     const QString notice = m_renderError.isEmpty() ? m_notice : m_renderError + '\n' + m_notice;
     if (!notice.trimmed().isEmpty()) {
         const QRect area(8, 6, width() - 16, height() - 12);
-        const QRect box = p.fontMetrics().boundingRect(
+        const QRect noticeBox = p.fontMetrics().boundingRect(
             area, Qt::AlignLeft | Qt::AlignBottom | Qt::TextWordWrap, notice.trimmed());
-        p.fillRect(box.adjusted(-4, -2, 4, 2), QColor(0, 0, 0, 170));
+        p.fillRect(noticeBox.adjusted(-4, -2, 4, 2), QColor(0, 0, 0, 170));
         p.setPen(QColor(255, 130, 110));
-        p.drawText(box, Qt::AlignLeft | Qt::AlignBottom | Qt::TextWordWrap, notice.trimmed());
+        p.drawText(noticeBox, Qt::AlignLeft | Qt::AlignBottom | Qt::TextWordWrap, notice.trimmed());
     }
 }
 
@@ -508,8 +510,9 @@ QString ProjectionView::overlayText() const {
     return lines.join('\n');
 }
 
-QRect ProjectionView::overlayBox() const {
-    const QString text = overlayText();
+QRect ProjectionView::overlayBox() const { return overlayBox(overlayText()); }
+
+QRect ProjectionView::overlayBox(const QString& text) const {
     if (text.isEmpty() || !m_spectrum) return {};
     const QRect box = QFontMetrics(overlayFont())
                           .boundingRect(QRect(8, 6, width() - 16, height() - 12),
@@ -518,15 +521,18 @@ QRect ProjectionView::overlayBox() const {
 }
 
 QList<QRect> ProjectionView::orientationLabelRects() const {
-    const QStringList labels = orientationLabels(); // left, right, top, bottom
-    if (labels.size() != 4) return {};
+    return orientationLabelRects(orientationLabels(), overlayBox());
+}
+
+QList<QRect> ProjectionView::orientationLabelRects(const QStringList& labels,
+                                                   const QRect& avoid) const {
+    if (labels.size() != 4) return {}; // left, right, top, bottom
     const QFontMetrics fm(overlayFont(true));
     const QRect r = imageRect().intersected(QRectF(rect())).toAlignedRect();
     const int pad = 6;
     const QRect inner = r.adjusted(pad, pad, -pad, -pad);
     const int flags[4] = {Qt::AlignLeft | Qt::AlignVCenter, Qt::AlignRight | Qt::AlignVCenter,
                           Qt::AlignHCenter | Qt::AlignTop, Qt::AlignHCenter | Qt::AlignBottom};
-    const QRect avoid = overlayBox();
     QList<QRect> rects;
     for (int i = 0; i < 4; ++i) {
         QRect b = fm.boundingRect(inner, flags[i], labels[i]);
@@ -544,11 +550,11 @@ QList<QRect> ProjectionView::orientationLabelRects() const {
     return rects;
 }
 
-void ProjectionView::drawOrientationLabels(QPainter& p) {
+void ProjectionView::drawOrientationLabels(QPainter& p, const QRect& overlay) {
     const QColor label(255, 210, 80);
     const QFont font = p.font();
     const QStringList labels = orientationLabels();
-    const QList<QRect> rects = orientationLabelRects();
+    const QList<QRect> rects = orientationLabelRects(labels, overlay);
     p.setFont(overlayFont(true));
     for (int i = 0; i < int(rects.size()); ++i)
         drawHaloText(p, rects[i], Qt::AlignLeft | Qt::AlignTop, labels[i], label);

@@ -124,8 +124,7 @@ QString ScriptedRun::viewFailure() const {
     if (!m_armed || study.busy()) return {};
     for (const ProjectionView* v : m_window.views()) {
         if (!v->renderError().isEmpty()) return v->renderError();
-        if (!v->spectrum() && v->pendingText().startsWith(tr("Not prepared")))
-            return v->pendingText();
+        if (!v->spectrum() && v->pendingFailed()) return v->pendingText();
     }
     return {};
 }

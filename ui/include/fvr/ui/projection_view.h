@@ -56,8 +56,10 @@ public:
                   std::shared_ptr<const core::Spectrum> spectrum);
     /** Instead of an image while the view has no spectrum: why (e.g. its kernel's spectrum is
      *  being prepared); empty: "No study loaded". */
-    void setPendingText(const QString& text);
+    void setPendingText(const QString& text, bool failed = false);
     const QString& pendingText() const { return m_pending; }
+    /** The spectrum it waits for will not come (cancelled, out of memory, an error). */
+    bool pendingFailed() const { return m_pendingFailed; }
     /** The last render failure ("Not rendered: …"), empty after a good frame. */
     const QString& renderError() const { return m_renderError; }
     const std::shared_ptr<const core::Volume>& volume() const { return m_volume; }
@@ -186,7 +188,10 @@ private:
     unsigned frameTexture();
     void uploadCpuTexture(const core::ProjectionImage& image);
     void drawOverlay();
-    void drawOrientationLabels(QPainter& p);
+    /** The orientation labels, clear of the overlay box `overlay`. */
+    void drawOrientationLabels(QPainter& p, const QRect& overlay);
+    QRect overlayBox(const QString& text) const;
+    QList<QRect> orientationLabelRects(const QStringList& labels, const QRect& avoid) const;
     QFont overlayFont(bool bold = false) const;
     /** The performance overlay: fps, kernel, size, backend, level, effects, stage times, window. */
     QStringList overlayLines() const;
@@ -211,6 +216,7 @@ private:
     bool m_overlay = true;
     QString m_title;
     QString m_pending;
+    bool m_pendingFailed = false;
     ProjectionView* m_reference = nullptr;
 
     std::unique_ptr<gpu::GpuFourierRenderer> m_gpu;
