@@ -9,6 +9,7 @@
 # library is missing, when a kit program would load a library from outside the kit, or when the
 # tarball exceeds the size limit.
 set -euo pipefail
+trap 'echo "make_kit.sh:$LINENO: failed (status $?): $BASH_COMMAND" >&2' ERR
 build=${1:?usage: make_kit.sh BUILD_DIR [OUT_DIR [TARBALL]]}
 out=$(realpath -m "${2:-$build/gpu-kit}")
 tarball=$(realpath -m "${3:-$out/fvr-gpu-kit.tar.gz}")
@@ -36,7 +37,8 @@ for p in "${programs[@]}"; do
   cp "$build/$p" "$kit/bin/"
   strip --strip-unneeded "$kit/bin/$(basename "$p")"
   cmake -DFILE="$kit/bin/$(basename "$p")" -P "$here/set_rpath.cmake" > /dev/null
-  readelf -d "$kit/bin/$(basename "$p")" | grep -qF '(RPATH)              Library rpath: [$ORIGIN/../lib]' ||
+  dynamic=$(readelf -d "$kit/bin/$(basename "$p")")
+  grep -qF '(RPATH)              Library rpath: [$ORIGIN/../lib]' <<<"$dynamic" ||
     fail "$p: no DT_RPATH \$ORIGIN/../lib (app/ and bench/CMakeLists.txt link it)"
   while read -r name arrow path _; do
     [ "$arrow" = "=>" ] || continue

@@ -4,14 +4,19 @@
 # Debian packages, whose copyright files (the licences of what the kit redistributes) it copies
 # into KIT_DIR/licenses.
 set -euo pipefail
+trap 'echo "manifest.sh:$LINENO: failed (status $?): $BASH_COMMAND" >&2' ERR
+PATH=$PATH:/usr/sbin:/sbin # ldconfig, for users whose PATH lacks the sbin folders
 build=${1:?usage: manifest.sh BUILD_DIR KIT_DIR}
 kit=${2:?usage: manifest.sh BUILD_DIR KIT_DIR}
 cache=$build/CMakeCache.txt
 src=$(sed -n 's/^CMAKE_HOME_DIRECTORY:INTERNAL=//p' "$cache")
+# git may refuse the checkout (another user's clone: "dubious ownership"): the commit is then
+# unknown, never a failure.
 commit=$(git -C "$src" rev-parse --short HEAD 2>/dev/null || echo unknown)
-dirty=$(git -C "$src" status --porcelain --untracked-files=no 2>/dev/null | head -c 1)
-glibc=$(objdump -T "$kit"/bin/* "$kit"/lib/* 2>/dev/null | grep -o 'GLIBC_[0-9][0-9.]*' | sort -uV |
-  tail -n 1)
+changes=$(git -C "$src" status --porcelain --untracked-files=no 2>/dev/null || true)
+dirty=${changes:0:1}
+versions=$(objdump -T "$kit"/bin/* "$kit"/lib/* 2>/dev/null || true)
+glibc=$(grep -o 'GLIBC_[0-9][0-9.]*' <<<"$versions" | sort -uV | tail -n 1 || true)
 os=$(. /etc/os-release && echo "$PRETTY_NAME")
 echo "FVR Workstation GPU bench kit"
 echo "built:        $(date -u +%Y-%m-%dT%H:%M:%SZ) on $os, $(uname -m)"
@@ -26,7 +31,7 @@ for f in "$kit"/lib/*; do
   name=$(basename "$f")
   # The file the soname resolves to here; dpkg knows it by its real name and multiarch folder
   # (in /lib or /usr/lib: /usr-merged).
-  real=$(ldconfig -p | awk -v n="$name" '$1 == n { print $NF; exit }')
+  real=$(ldconfig -p | awk -v n="$name" '$1 == n { print $NF }' | head -n 1)
   pkg="" ver=""
   if [ -n "$real" ]; then
     file=$(readlink -f "$real")

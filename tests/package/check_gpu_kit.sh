@@ -5,6 +5,7 @@
 # headless (EGL: Mesa surfaceless llvmpipe where no GPU) and checks its results: the files, the
 # Table 1 rows, GPU = CPU >= 140 dB.
 set -euo pipefail
+trap 'echo "check_gpu_kit.sh:$LINENO: failed (status $?): $BASH_COMMAND" >&2' ERR
 build=$(realpath "${1:?usage: check_gpu_kit.sh BUILD_DIR}")
 src=$(cd "$(dirname "$0")/../.." && pwd)
 tmp=$(mktemp -d)
@@ -30,7 +31,8 @@ for f in "$kit"/lib/*; do
   [[ $n =~ $host || $n =~ ^lib(gbm|glapi|drm|EGL_mesa|GLX_mesa|gallium) ]] && bad "lib/ holds $n"
 done
 for p in "$kit"/bin/*; do
-  readelf -d "$p" | grep -qF "Library rpath: [\$ORIGIN/../lib]" || bad "$(basename "$p"): RPATH is not \$ORIGIN/../lib"
+  dynamic=$(readelf -d "$p")
+  grep -qF "Library rpath: [\$ORIGIN/../lib]" <<<"$dynamic" || bad "$(basename "$p"): RPATH is not \$ORIGIN/../lib"
   while read -r name arrow path _; do
     [[ $name =~ $host ]] && continue
     [ "$arrow" = "=>" ] || continue
@@ -60,7 +62,7 @@ runs=$(grep -c '"name": "BM_Gpu' "$r/table1.json" || true)
 for s in "## FFT, N = 128" "## FHT, N = 128" "| 256×256 |"; do
   grep -qF "$s" "$r/table1.md" || bad "table1.md lacks '$s'"
 done
-psnrs=$(grep -o '"psnr":[0-9.e+-]*' "$r/correctness.json" | cut -d: -f2)
+psnrs=$( (grep -o '"psnr":[0-9.e+-]*' "$r/correctness.json" || true) | cut -d: -f2)
 [ "$(wc -w <<<"$psnrs")" -eq 2 ] || bad "correctness.json: expected 2 cases, found: $psnrs"
 for p in $psnrs; do
   echo "GPU = CPU: $p dB"
