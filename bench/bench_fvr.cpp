@@ -6,6 +6,8 @@
  *   BM_Preprocess/N<n>/<fft|fht-fromfft|fht-dht>   3D transform of the Shepp-Logan phantom
  *   BM_Frame/N<n>/<fft|fht>/M<m>/<kernel>         one projection per iteration, rotating view
  *   BM_RayCast/N128/M<m>/step<0.25vox|1vox>       spatial ray casting (trilinear), same views
+ *   BM_BareFft/M<m>                                one in-place M x M complex FFT (FFTW, MEASURE):
+ *                                                  the yardstick of issue #17 (frame / bare FFT)
  *   BM_Effects/N256/<fft|fht>/M512/<kernel>/<effect> the per-frame cost of depth cueing and the
  *                                                  slice filters (plain, depth, filters, both) and
  *                                                  of the clip to the volume
@@ -21,6 +23,7 @@
  * (e.g. --benchmark_filter=N512, --benchmark_filter=BM_Preprocess/N512) or FVR_BENCH_LARGE=1.
  */
 #include <benchmark/benchmark.h>
+#include <fftw3.h>
 
 #include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/render/kernels.h>
@@ -36,6 +39,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <numbers>
 #include <numeric>
 #include <sstream>
@@ -368,6 +372,37 @@ SpatialProjector& projector(int n, double stepFraction) {
     return *p;
 }
 
+// --- 2c. The yardstick: one bare 2D FFT ------------------------------------------------------
+
+/** One in-place M x M complex FFTW transform (forward, FFTW_MEASURE, the renderer's thread count
+ *  for that M): the unit issue #17's targets measure a frame in (frame ms / bare FFT ms). */
+void BM_BareFft(benchmark::State& state, int M) {
+    static std::once_flag init;
+    std::call_once(init, [] { fftwf_init_threads(); });
+    const int threads = M >= 512 ? hardwareThreads() : 1;
+    auto* data = fftwf_alloc_complex(std::size_t(M) * M);
+    fftwf_plan_with_nthreads(threads);
+    fftwf_plan plan = fftwf_plan_dft_2d(M, M, data, data, FFTW_FORWARD, FFTW_MEASURE);
+    for (std::size_t i = 0; i < std::size_t(M) * M; ++i) {
+        data[i][0] = float(i % 7) - 3.0f; // planning overwrote the buffer
+        data[i][1] = float(i % 5) - 2.0f;
+    }
+    std::vector<double> ms;
+    const LoadProbe probe;
+    for (auto _ : state) {
+        const auto t0 = Clock::now();
+        fftwf_execute(plan);
+        ms.push_back(msSince(t0));
+        benchmark::DoNotOptimize(data[0][0]);
+    }
+    fftwf_destroy_plan(plan);
+    fftwf_free(data);
+    state.counters["fft_ms"] = mean(ms);
+    state.counters["fft_p50"] = median(ms);
+    state.counters["threads"] = threads;
+    state.counters["other_cores"] = probe.otherCores();
+}
+
 void BM_RayCast(benchmark::State& state, int n, int M, double stepFraction) {
     SpatialProjector& p = projector(n, stepFraction);
     const ImageGeometry g = geometry(n, M);
@@ -448,6 +483,13 @@ void registerAll(const std::vector<int>& sizes) {
                             ->Unit(benchmark::kMillisecond)
                             ->UseRealTime();
                     }
+    for (int M : {256, 512, 1024}) {
+        const std::string name = "BM_BareFft/M" + std::to_string(M);
+        benchmark::RegisterBenchmark(name.c_str(), BM_BareFft, M)
+            ->Iterations(framesFor(M) * 5)
+            ->Unit(benchmark::kMillisecond)
+            ->UseRealTime();
+    }
     for (int M : {256, 512})
         for (double step : {0.25, 1.0}) {
             const std::string name = "BM_RayCast/N128/M" + std::to_string(M) + "/step" +

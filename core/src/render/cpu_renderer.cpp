@@ -97,13 +97,6 @@ struct FrameMapping {
     float scale;
 };
 
-inline std::int64_t wrapSmall(std::int64_t i, std::int64_t p) {
-    // i is within a few periods of [0, p)
-    while (i < 0) i += p;
-    while (i >= p) i -= p;
-    return i;
-}
-
 /** Signed index in (-P/2, P/2] of the T taps base, base + 1, ... of one axis; where the axis is
  *  antiperiodic, the taps of odd periods negate their weights (and derivative weights): the
  *  interpolation then runs over the spectrum's true continuation (Spectrum, voxel_model.h). */
@@ -204,35 +197,112 @@ inline bool outOfBand(const SliceContext& c, double kx, double ky, double kz) {
     return std::abs(kx) > c.half0 || std::abs(ky) > c.half1 || std::abs(kz) > c.half2;
 }
 
-/** Prefetches the spectrum rows a later sample will read (the slice walks the spectrum along a
- *  plane: the loads are cache misses, so issuing them early overlaps their latency). */
-template <int T>
-inline void prefetchComplex(const SliceContext& c, double kx, double ky, double kz) {
-    if (outOfBand(c, kx, ky, kz)) return;
-    if (kx < 0) {
-        kx = -kx;
-        ky = -ky;
-        kz = -kz;
-    }
-    const std::int64_t off = T >= 4 ? -(T / 2 - 1) : (T == 3 ? -1 : 0);
-    const std::int64_t bx = std::int64_t(T == 1 ? std::floor(kx + 0.5) : std::floor(kx)) + off;
-    const std::int64_t by = std::int64_t(T == 1 ? std::floor(ky + 0.5) : std::floor(ky)) + off;
-    const std::int64_t bz = std::int64_t(T == 1 ? std::floor(kz + 0.5) : std::floor(kz)) + off;
-    std::int64_t jx = wrapSmall(bx, c.P0);
-    if (jx > c.P0 / 2) jx = c.P0 - jx;
-    const float* base = c.data + 2 * jx;
-    for (int zc = 0; zc < T; ++zc)
-        for (int yc = 0; yc < T; ++yc)
-            __builtin_prefetch(base +
-                               (wrapSmall(by + yc, c.P1) + c.P1 * wrapSmall(bz + zc, c.P2)) * c.rs);
-}
-
 /** The interpolated spectrum and, with Depth, E.grad of it, at one continuous frequency. */
 template <class V>
 struct Sampled {
     V v{};
     V dv{};
 };
+
+/** floor(k) as an index, without a libm call (|k| < 2^62). */
+inline std::int64_t floorIndex(double k) {
+    const auto i = std::int64_t(k);
+    return i - std::int64_t(k < double(i));
+}
+
+/** The first tap and the weights of one axis (the kernels without depth cueing: 1, 2, 4, 6 taps);
+ *  the same weights as axisWeights. */
+template <int T>
+[[gnu::always_inline]] inline std::int64_t interiorAxis(const SliceContext& c, double k, float* w) {
+    if constexpr (T == 1) {
+        w[0] = 1.0f;
+        return floorIndex(k + 0.5);
+    } else if constexpr (T == 2) {
+        const std::int64_t f = floorIndex(k);
+        w[1] = float(k - double(f));
+        w[0] = 1.0f - w[1];
+        return f;
+    } else {
+        const std::int64_t f = floorIndex(k);
+        c.table->weights<T>(k - double(f), w);
+        return f + c.first;
+    }
+}
+
+/** Whether the taps b .. b + T - 1 lie in one period (-P/2, P/2] (no wrap, no period sign). */
+template <int T>
+inline bool inPrincipalPeriod(std::int64_t b, std::int64_t P) {
+    const std::int64_t hi = P / 2;
+    return b > hi - P && b + T - 1 <= hi;
+}
+
+/** The storage row of signed index i in (-P, P). */
+inline std::int64_t storedIndex(std::int64_t i, std::int64_t P) { return i < 0 ? i + P : i; }
+
+/** Four floats (two complex values) as one SIMD register: GCC's portable vector extension (SSE2
+ *  on the x86-64 baseline, NEON on arm64). */
+using Float4 = float __attribute__((vector_size(16)));
+
+inline Float4 load4(const float* p) {
+    Float4 v;
+    std::memcpy(&v, p, sizeof v); // unaligned
+    return v;
+}
+
+/** The common case of the half-spectrum lookup, for kx >= 0 and an even tap count: every tap in
+ *  the stored half along x and in the principal period along y and z, so no mirror, no wrap and
+ *  no period sign; false (nothing written) otherwise. The T complex values of a tap row are T/2
+ *  SIMD registers, weighted by (w_x w_y) pairs; the z weights apply per plane. */
+template <int T>
+[[gnu::always_inline]] inline bool interiorComplex(const SliceContext& c, double kx, double ky,
+                                                   double kz, cfloat& out) {
+    static_assert(T % 2 == 0);
+    constexpr int V = T / 2; // registers per tap row
+    float wx[T], wy[T], wz[T];
+    const std::int64_t bx = interiorAxis<T>(c, kx, wx);
+    const std::int64_t by = interiorAxis<T>(c, ky, wy);
+    const std::int64_t bz = interiorAxis<T>(c, kz, wz);
+    if (bx < 0 || bx + T - 1 > c.P0 / 2 || !inPrincipalPeriod<T>(by, c.P1) ||
+        !inPrincipalPeriod<T>(bz, c.P2))
+        return false;
+    Float4 wxy[T][V]; // (w_x w_y) for the (re, im) pairs of two taps
+    for (int v = 0; v < V; ++v) {
+        const Float4 w = {wx[2 * v], wx[2 * v], wx[2 * v + 1], wx[2 * v + 1]};
+        for (int yc = 0; yc < T; ++yc) wxy[yc][v] = wy[yc] * w;
+    }
+    const std::int64_t rs = c.rs; // floats per row
+    const float* base = c.data + 2 * bx;
+    std::int64_t rowY[T];
+    for (int t = 0; t < T; ++t) rowY[t] = storedIndex(by + t, c.P1);
+    Float4 acc = {0, 0, 0, 0};
+    for (int zc = 0; zc < T; ++zc) {
+        const std::int64_t plane = c.P1 * storedIndex(bz + zc, c.P2);
+        Float4 accZ = {0, 0, 0, 0};
+        for (int yc = 0; yc < T; ++yc) {
+            const float* row = base + (rowY[yc] + plane) * rs;
+            for (int v = 0; v < V; ++v) accZ += wxy[yc][v] * load4(row + 4 * v);
+        }
+        acc += wz[zc] * accZ;
+    }
+    out = {acc[0] + acc[2], acc[1] + acc[3]};
+    return true;
+}
+
+/** Nearest: the one tap, interior as above. */
+template <>
+[[gnu::always_inline]] inline bool interiorComplex<1>(const SliceContext& c, double kx, double ky,
+                                                      double kz, cfloat& out) {
+    float w;
+    const std::int64_t bx = interiorAxis<1>(c, kx, &w);
+    const std::int64_t by = interiorAxis<1>(c, ky, &w);
+    const std::int64_t bz = interiorAxis<1>(c, kz, &w);
+    if (bx < 0 || bx > c.P0 / 2 || !inPrincipalPeriod<1>(by, c.P1) ||
+        !inPrincipalPeriod<1>(bz, c.P2))
+        return false;
+    const std::int64_t row = storedIndex(by, c.P1) + c.P1 * storedIndex(bz, c.P2);
+    out = reinterpret_cast<const cfloat*>(c.data)[row * (c.rs / 2) + bx];
+    return true;
+}
 
 /** Interpolated complex G at continuous signed frequency k from the half spectrum (with Depth
  *  also E.grad G), the period signs included; no band cut, no model. */
@@ -316,7 +386,15 @@ template <int T, bool Depth>
 inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double kz, float t,
                             float gt) {
     if (outOfBand(c, kx, ky, kz)) return {};
-    Sampled<cfloat> s = interpolateComplex<T, Depth>(c, kx, ky, kz);
+    Sampled<cfloat> s;
+    bool interior = false;
+    if constexpr (!Depth) {
+        // G(k) = conj G(-k) for kx < 0, as in interpolateComplex.
+        const double sx = kx < 0 ? -1.0 : 1.0;
+        interior = interiorComplex<T>(c, sx * kx, sx * ky, sx * kz, s.v);
+        if (interior && kx < 0) s.v = std::conj(s.v);
+    }
+    if (!interior) s = interpolateComplex<T, Depth>(c, kx, ky, kz);
     if (c.model) {
         if constexpr (Depth) s.dv = t * s.dv + gt * s.v; // E.grad (T G)
         s.v *= t;
@@ -326,23 +404,51 @@ inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double 
     return s.v;
 }
 
-template <int T>
-inline void prefetchHartley(const SliceContext& c, double kx, double ky, double kz) {
-    if (outOfBand(c, kx, ky, kz)) return;
-    const std::int64_t off = T >= 4 ? -(T / 2 - 1) : (T == 3 ? -1 : 0);
-    const std::int64_t bx = std::int64_t(T == 1 ? std::floor(kx + 0.5) : std::floor(kx)) + off;
-    const std::int64_t by = std::int64_t(T == 1 ? std::floor(ky + 0.5) : std::floor(ky)) + off;
-    const std::int64_t bz = std::int64_t(T == 1 ? std::floor(kz + 0.5) : std::floor(kz)) + off;
-    const float* base = c.data + wrapSmall(bx, c.P0);
-    for (int zc = 0; zc < T; ++zc)
-        for (int yc = 0; yc < T; ++yc)
-            __builtin_prefetch(base +
-                               (wrapSmall(by + yc, c.P1) + c.P1 * wrapSmall(bz + zc, c.P2)) * c.rs);
-}
-
 /** Interpolated Hartley value at continuous signed frequency k; with Derivative also E.grad H
  *  there (depth cueing, FHT path), from the same taps with the derivative weights. Period signs
  *  included; no band cut, no model. */
+/** The common case of the Hartley lookup: every tap in the principal period (-P/2, P/2] of each
+ *  axis, so no wrap and no period sign; false (nothing written) otherwise. Four taps of a row are
+ *  one SIMD register. */
+template <int T>
+[[gnu::always_inline]] inline bool interiorHartley(const SliceContext& c, double kx, double ky,
+                                                   double kz, float& out) {
+    float wx[T], wy[T], wz[T];
+    const std::int64_t bx = interiorAxis<T>(c, kx, wx);
+    const std::int64_t by = interiorAxis<T>(c, ky, wy);
+    const std::int64_t bz = interiorAxis<T>(c, kz, wz);
+    if (!inPrincipalPeriod<T>(bx, c.P0) || !inPrincipalPeriod<T>(by, c.P1) ||
+        !inPrincipalPeriod<T>(bz, c.P2))
+        return false;
+    std::int64_t ix[T], rowY[T];
+    for (int t = 0; t < T; ++t) {
+        ix[t] = storedIndex(bx + t, c.P0);
+        rowY[t] = storedIndex(by + t, c.P1);
+    }
+    const bool contiguous = ix[T - 1] == ix[0] + T - 1; // the x taps do not cross kx = 0
+    float acc = 0.0f;
+    for (int zc = 0; zc < T; ++zc) {
+        const std::int64_t plane = c.P1 * storedIndex(bz + zc, c.P2);
+        float accZ = 0.0f;
+        for (int yc = 0; yc < T; ++yc) {
+            const float* row = c.data + (rowY[yc] + plane) * c.rs;
+            if constexpr (T == 4) {
+                if (contiguous) {
+                    const Float4 p = Float4{wx[0], wx[1], wx[2], wx[3]} * load4(row + ix[0]);
+                    accZ += wy[yc] * ((p[0] + p[1]) + (p[2] + p[3]));
+                    continue;
+                }
+            }
+            float sx = 0.0f;
+            for (int xc = 0; xc < T; ++xc) sx += wx[xc] * row[ix[xc]];
+            accZ += wy[yc] * sx;
+        }
+        acc += wz[zc] * accZ;
+    }
+    out = acc;
+    return true;
+}
+
 template <int T, bool Derivative = false>
 inline Sampled<float> interpolateHartley(const SliceContext& c, double kx, double ky, double kz) {
     std::int64_t ix[T], iy[T], iz[T];
@@ -376,7 +482,9 @@ template <int T, bool Depth>
 inline float sampleHartley(const SliceContext& c, double kx, double ky, double kz, float t,
                            float gt) {
     if (outOfBand(c, kx, ky, kz)) return 0.0f;
-    const float h = interpolateHartley<T>(c, kx, ky, kz).v;
+    float h;
+    if (!interiorHartley < T == 3 ? 2 : T > (c, kx, ky, kz, h))
+        h = interpolateHartley<T>(c, kx, ky, kz).v;
     if constexpr (!Depth) {
         return c.model ? t * h : h;
     } else {
@@ -472,10 +580,6 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
                 if (m == M / 2 || nyqRow) {
                     v = nyquistMean<cfloat>(sample, m, n, m == M / 2, nyqRow);
                 } else {
-                    constexpr int kAhead = 6;
-                    const double ma = m + kAhead;
-                    prefetchComplex<T>(c, ma * f.A[0] + n * f.B[0], ma * f.A[1] + n * f.B[1],
-                                       ma * f.A[2] + n * f.B[2]);
                     v = sample(m, n, m);
                 }
                 row[m] = v * (filter.on ? sign * filter(m, n) : sign);
@@ -507,10 +611,6 @@ void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const SliceF
                 if (m == -M / 2 || nyqRow) {
                     v = nyquistMean<float>(sample, m, n, m == -M / 2, nyqRow);
                 } else {
-                    constexpr int kAhead = 6;
-                    const double ma = m + kAhead;
-                    prefetchHartley<T>(c, ma * f.A[0] + n * f.B[0], ma * f.A[1] + n * f.B[1],
-                                       ma * f.A[2] + n * f.B[2]);
                     v = sample(m, n, col);
                 }
                 row[col] = v * (filter.on ? sign * filter(m, n) : sign);

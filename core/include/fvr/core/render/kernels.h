@@ -80,6 +80,17 @@ public:
 
     /** Fills weights[0..taps) for fractional part frac in [0,1). */
     void weights(double frac, float* w) const { interpolate(m_table, frac, w); }
+    /** weights() with the tap count known at compile time (T == taps()): the renderer's inner
+     *  loop. The same values. */
+    template <int T>
+    void weights(double frac, float* w) const {
+        const double pos = frac * kResolution;
+        int i = int(pos);
+        if (i >= kResolution) i = kResolution - 1;
+        const float t = float(pos - i);
+        const float* a = m_table.data() + std::size_t(i) * T;
+        for (int j = 0; j < T; ++j) w[j] = a[j] + t * (a[T + j] - a[j]);
+    }
     /** Derivatives d w_j / d frac of the weights (the derivative of the interpolant along an
      *  axis: depth cueing). Nearest has none (a zero row); linear gives -1, +1. */
     void derivativeWeights(double frac, float* w) const { interpolate(m_derivative, frac, w); }
