@@ -304,6 +304,49 @@ template <>
     return true;
 }
 
+/** interiorComplex with depth cueing: G and E.grad G from the same taps, for kx >= 0 (T = 3 is
+ *  linear over three taps; its x row loads a fourth, zero-weighted tap to fill two registers). */
+template <int T>
+[[gnu::always_inline]] inline bool interiorComplexDepth(const SliceContext& c, double kx, double ky,
+                                                        double kz, Sampled<cfloat>& out) {
+    constexpr int TX = (T + 1) / 2 * 2; // taps loaded along x
+    constexpr int V = TX / 2;
+    float wx[TX] = {}, dx[TX] = {}, wy[T], dy[T], wz[T], dz[T];
+    std::int64_t bx, by, bz;
+    axisDerivWeights<T>(c, kx, bx, wx, dx);
+    axisDerivWeights<T>(c, ky, by, wy, dy);
+    axisDerivWeights<T>(c, kz, bz, wz, dz);
+    if (bx < 0 || bx + TX - 1 > c.P0 / 2 || !inPrincipalPeriod<T>(by, c.P1) ||
+        !inPrincipalPeriod<T>(bz, c.P2))
+        return false;
+    Float4 wv[V], dv[V];
+    for (int v = 0; v < V; ++v) {
+        wv[v] = Float4{wx[2 * v], wx[2 * v], wx[2 * v + 1], wx[2 * v + 1]};
+        dv[v] = Float4{dx[2 * v], dx[2 * v], dx[2 * v + 1], dx[2 * v + 1]};
+    }
+    const float* base = c.data + 2 * bx;
+    std::int64_t rowY[T];
+    for (int t = 0; t < T; ++t) rowY[t] = storedIndex(by + t, c.P1);
+    Float4 acc = {0, 0, 0, 0}, dacc = {0, 0, 0, 0};
+    for (int zc = 0; zc < T; ++zc) {
+        const std::int64_t plane = c.P1 * storedIndex(bz + zc, c.P2);
+        for (int yc = 0; yc < T; ++yc) {
+            const float* row = base + (rowY[yc] + plane) * c.rs;
+            Float4 sx = {0, 0, 0, 0}, dsx = {0, 0, 0, 0};
+            for (int v = 0; v < V; ++v) {
+                const Float4 x = load4(row + 4 * v);
+                sx += wv[v] * x;
+                dsx += dv[v] * x;
+            }
+            acc += (wz[zc] * wy[yc]) * sx;
+            dacc += (wz[zc] * wy[yc] * c.E[0]) * dsx +
+                    (c.E[1] * dy[yc] * wz[zc] + c.E[2] * wy[yc] * dz[zc]) * sx;
+        }
+    }
+    out = {{acc[0] + acc[2], acc[1] + acc[3]}, {dacc[0] + dacc[2], dacc[1] + dacc[3]}};
+    return true;
+}
+
 /** Interpolated complex G at continuous signed frequency k from the half spectrum (with Depth
  *  also E.grad G), the period signs included; no band cut, no model. */
 template <int T, bool Depth>
@@ -388,9 +431,12 @@ inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double 
     if (outOfBand(c, kx, ky, kz)) return {};
     Sampled<cfloat> s;
     bool interior = false;
-    if constexpr (!Depth) {
-        // G(k) = conj G(-k) for kx < 0, as in interpolateComplex.
-        const double sx = kx < 0 ? -1.0 : 1.0;
+    // G(k) = conj G(-k) for kx < 0, and then grad G(k) = -conj grad G(-k) (interpolateComplex).
+    const double sx = kx < 0 ? -1.0 : 1.0;
+    if constexpr (Depth) {
+        interior = interiorComplexDepth<T>(c, sx * kx, sx * ky, sx * kz, s);
+        if (interior && kx < 0) s = {std::conj(s.v), -std::conj(s.dv)};
+    } else {
         interior = interiorComplex<T>(c, sx * kx, sx * ky, sx * kz, s.v);
         if (interior && kx < 0) s.v = std::conj(s.v);
     }
