@@ -2,7 +2,9 @@
 #include <algorithm>
 #include <chrono>
 #include <condition_variable>
+#include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <deque>
 #include <exception>
 #include <fstream>
@@ -11,9 +13,12 @@
 #include <numbers>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
+#include <string>
 #include <thread>
 #include <utility>
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <fvr/core/errors.h>
@@ -236,6 +241,65 @@ private:
     std::thread m_thread; // last: started when the rest is ready
 };
 
+/** Thrown by the render loop when SIGINT or SIGTERM came: unwinds the writers (the stack's
+ *  temporary file removed) before InterruptGuard dies of the signal. */
+struct Interrupted : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+/**
+ * SIGINT and SIGTERM while the views are rendered and written set a flag that the render loop
+ * checks after each view, so that an interrupted run removes its unfinished files, then dies of
+ * the signal as it would have (a shell or make sees the signal). Only where the signal had its
+ * default action (a background job's ignored SIGINT stays ignored); one-shot (SA_RESETHAND), so
+ * that a second signal ends the run at once.
+ */
+class InterruptGuard {
+public:
+    InterruptGuard() {
+        s_signal = 0;
+        for (std::size_t k = 0; k < std::size(kSignals); ++k) {
+            struct sigaction old {};
+            m_installed[k] = sigaction(kSignals[k], nullptr, &old) == 0 &&
+                             !(old.sa_flags & SA_SIGINFO) && old.sa_handler == SIG_DFL;
+            if (!m_installed[k]) continue;
+            struct sigaction sa {};
+            sa.sa_handler = &InterruptGuard::onSignal;
+            sigemptyset(&sa.sa_mask);
+            sa.sa_flags = SA_RESTART | SA_RESETHAND;
+            sigaction(kSignals[k], &sa, nullptr);
+        }
+    }
+    ~InterruptGuard() { restore(); }
+    InterruptGuard(const InterruptGuard&) = delete;
+    InterruptGuard& operator=(const InterruptGuard&) = delete;
+
+    /** The signal that came, or 0. */
+    static int signal() { return s_signal; }
+
+    /** Where a signal came: says `what` and dies of the signal. */
+    void dieIfInterrupted(const std::string& what) {
+        const int sig = s_signal;
+        if (sig == 0) return;
+        std::fprintf(stderr, "fvr-render: %s\n", what.c_str());
+        restore();
+        std::raise(sig);
+        std::_Exit(128 + sig); // not reached: the default action ends the process
+    }
+
+private:
+    static void onSignal(int sig) { s_signal = sig; }
+    void restore() {
+        for (std::size_t k = 0; k < std::size(kSignals); ++k)
+            if (m_installed[k]) std::signal(kSignals[k], SIG_DFL);
+        m_installed[0] = m_installed[1] = false;
+    }
+
+    static constexpr int kSignals[2] = {SIGINT, SIGTERM};
+    static inline volatile std::sig_atomic_t s_signal = 0;
+    bool m_installed[2] = {};
+};
+
 /** The DICOM outputs' value description: the values, depth cue and slice filter. */
 DicomExportInfo dicomInfo(const Session& s, DicomExportInfo info) {
     info.valueDescription = valuesText(s);
@@ -255,6 +319,13 @@ double renderViews(const Session& s, const std::vector<ViewFrame>& views, ViewWr
     for (std::size_t i = 0; i < views.size(); ++i) {
         if (!writerThread.push(i, s.backend.renderer().render(s.params(views[i]))))
             break; // the writer failed: finish() says why
+        if (InterruptGuard::signal() != 0) {
+            if (views.size() > 1 && isatty(2)) std::fprintf(stderr, "\n");
+            throw Interrupted("interrupted after view " + std::to_string(i + 1) + " of " +
+                              std::to_string(views.size()) +
+                              (writer.stacked() ? ": the stack " + s.options.out + " not written"
+                                                : ": the views before it stay written"));
+        }
         const auto now = std::chrono::steady_clock::now();
         if (views.size() > 1 &&
             (now - lastReport > std::chrono::seconds(1) || i + 1 == views.size())) {
@@ -288,14 +359,21 @@ void printSummary(const Session& s, std::size_t viewCount, bool stacked, double 
 void writeOutputs(const Session& s, const std::vector<ViewFrame>& fileViews,
                   const DicomExportInfo& exportInfo) {
     const std::vector<ViewFrame> views = outputViews(s, fileViews);
-    ViewWriter writer(s, views.size(), dicomInfo(s, exportInfo));
-    const double msPerView = renderViews(s, views, writer);
-    // JSON sidecar: every parameter, so the output can be reproduced and registered.
-    const WrittenOutput output{valuesText(s), writer.stacked(), writer.written(), s.preprocessMs,
-                               msPerView};
-    writeFileAtomic(s.options.out + ".json",
-                    jsonText(sidecarJson(s.facts(), s.volume, output, views)));
-    printSummary(s, views.size(), writer.stacked(), msPerView);
+    InterruptGuard interrupt; // before the writer opens its files
+    std::string interrupted = "interrupted after the last view"; // the files are complete
+    try {
+        ViewWriter writer(s, views.size(), dicomInfo(s, exportInfo));
+        const double msPerView = renderViews(s, views, writer);
+        // JSON sidecar: every parameter, so the output can be reproduced and registered.
+        const WrittenOutput output{valuesText(s), writer.stacked(), writer.written(),
+                                   s.preprocessMs, msPerView};
+        writeFileAtomic(s.options.out + ".json",
+                        jsonText(sidecarJson(s.facts(), s.volume, output, views)));
+        printSummary(s, views.size(), writer.stacked(), msPerView);
+    } catch (const Interrupted& e) {
+        interrupted = e.what();
+    }
+    interrupt.dieIfInterrupted(interrupted);
 }
 
 } // namespace fvr::cli

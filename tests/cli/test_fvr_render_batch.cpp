@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -64,21 +65,29 @@ std::vector<std::string> filesIn(const fs::path& dir) {
     return names;
 }
 
-/** Runs fvr-render with `args` (no shell, its stderr in `log`) and returns its peak resident
- *  memory in KB, or -1 where it did not exit with 0. */
-long maxRssKb(const std::vector<std::string>& args, const fs::path& log) {
-    std::vector<char*> argv;
-    std::string exe = FVR_RENDER_EXE;
-    argv.push_back(exe.data());
+/** Starts fvr-render with `args` (no shell, its stderr in `log`, SIGINT and SIGTERM at their
+ *  default actions whatever the test runner's are); its pid, or -1. */
+pid_t start(const std::vector<std::string>& args, const fs::path& log) {
     std::vector<std::string> copy = args;
+    std::string exe = FVR_RENDER_EXE;
+    std::vector<char*> argv{exe.data()};
     for (std::string& a : copy) argv.push_back(a.data());
     argv.push_back(nullptr);
     const pid_t pid = fork();
     if (pid == 0) {
         if (std::freopen(log.c_str(), "w", stderr) == nullptr) _exit(126);
+        std::signal(SIGINT, SIG_DFL);
+        std::signal(SIGTERM, SIG_DFL);
         execv(argv[0], argv.data());
         _exit(127);
     }
+    return pid;
+}
+
+/** Runs fvr-render with `args` (its stderr in `log`) and returns its peak resident memory in KB,
+ *  or -1 where it did not exit with 0. */
+long maxRssKb(const std::vector<std::string>& args, const fs::path& log) {
+    const pid_t pid = start(args, log);
     int status = 0;
     rusage usage{};
     if (pid < 0 || wait4(pid, &status, 0, &usage) != pid) return -1;
@@ -189,4 +198,34 @@ TEST(FvrRenderBatch, WriteErrorMidStackStopsTheRunAndLeavesNoFile) {
     EXPECT_EQ(r.output.find("view 64/64"), std::string::npos) << r.output;
     EXPECT_EQ(r.output.find("terminate"), std::string::npos) << r.output;
     EXPECT_EQ(filesIn(dir), std::vector<std::string>{}); // neither big.npy nor big.npy.part
+}
+
+TEST(FvrRenderBatch, InterruptedRunRemovesItsStackAndDiesOfTheSignal) {
+    for (const int sig : {SIGINT, SIGTERM}) {
+        const fs::path dir = scratch("interrupt" + std::to_string(sig));
+        const fs::path out = dir / "s.npy";
+        const fs::path log = fvr::test::tmpDir() / "batch_interrupt.log";
+        const pid_t pid = start({"phantom:shepp-logan:16", "--backend", "cpu", "--size", "128",
+                                 "--sweep", "3000", "--out", out.string()},
+                                log);
+        ASSERT_GT(pid, 0);
+        // The stack's temporary file appears when the rendering starts: the signal comes then.
+        int status = 0;
+        bool ended = false;
+        while (!ended && !fs::exists(dir / "s.npy.part")) {
+            ended = waitpid(pid, &status, WNOHANG) == pid;
+            usleep(500);
+        }
+        ASSERT_FALSE(ended) << "fvr-render ended before its stack file appeared:\n"
+                            << readBytes(log);
+        kill(pid, sig);
+        ASSERT_EQ(waitpid(pid, &status, 0), pid);
+        const std::string err = readBytes(log);
+        // Dies of the signal (a shell or make stops), after removing what it had written.
+        EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == sig) << status << "\n" << err;
+        EXPECT_NE(err.find("interrupted after view "), std::string::npos) << err;
+        EXPECT_NE(err.find(out.string() + " not written"), std::string::npos) << err;
+        EXPECT_EQ(filesIn(dir), std::vector<std::string>{}); // neither s.npy nor s.npy.part
+        fs::remove(log);
+    }
 }
