@@ -73,9 +73,10 @@ void writeNpy(const fs::path& path, const float* data, std::int64_t rows, std::i
 
 NpyStackWriter::NpyStackWriter(const fs::path& path, std::int64_t rows, std::int64_t cols,
                                std::int64_t count)
-    : m_file(std::make_unique<AtomicFileWriter>(path)), m_rows(rows), m_cols(cols), m_count(count) {
+    : m_path(path), m_rows(rows), m_cols(cols), m_count(count) {
     if (rows <= 0 || cols <= 0 || count <= 0)
         fail<WriteError>(path, "a .npy stack needs at least one image of at least one pixel");
+    m_file = std::make_unique<AtomicFileWriter>(path);
     const std::string header = npyHeader(rows, cols, count);
     m_file->write(header.data(), header.size());
 }
@@ -83,19 +84,21 @@ NpyStackWriter::NpyStackWriter(const fs::path& path, std::int64_t rows, std::int
 NpyStackWriter::~NpyStackWriter() = default; // an unfinished file is removed
 
 void NpyStackWriter::add(const float* image) {
+    if (!m_file) fail<WriteError>(m_path, "the stack is closed");
     if (m_written >= m_count)
-        fail<WriteError>(m_file->path(),
+        fail<WriteError>(m_path,
                          "more images than the " + std::to_string(m_count) + " of the header");
     m_file->write(image, std::size_t(m_rows * m_cols) * sizeof(float)); // little-endian
     ++m_written;
 }
 
 void NpyStackWriter::finish() {
+    if (!m_file) fail<WriteError>(m_path, "the stack is closed");
+    std::unique_ptr<AtomicFileWriter> file = std::move(m_file); // removed unless committed
     if (m_written != m_count)
-        fail<WriteError>(m_file->path(), "the stack has " + std::to_string(m_written) +
-                                             " images of the " + std::to_string(m_count) +
-                                             " of its header");
-    m_file->commit();
+        fail<WriteError>(m_path, "the stack has " + std::to_string(m_written) + " images of the " +
+                                     std::to_string(m_count) + " of its header");
+    file->commit();
 }
 
 std::vector<float> readNpy(const fs::path& path, std::vector<std::int64_t>& shape) {

@@ -21,8 +21,9 @@ class AtomicFileWriter;
  * A float32 .npy stack of `count` images of rows x cols written as it is produced (nothing of
  * it held in memory): the header with the final shape (count, rows, cols) first, then each image
  * as add() gets it, into `<path>.part` (io/atomic_file.h); finish() checks that all `count`
- * images came and moves the file into place. Destroyed before finish() (an error, an exception),
- * it removes the temporary file. Throws WriteError naming `path` and the problem.
+ * images came and moves the file into place (a short stack is removed). Destroyed before
+ * finish() (an error, an exception), it removes the temporary file. Throws WriteError naming `path`
+ * and the problem.
  */
 class NpyStackWriter {
 public:
@@ -38,7 +39,8 @@ public:
     std::int64_t written() const { return m_written; }
 
 private:
-    std::unique_ptr<AtomicFileWriter> m_file;
+    std::filesystem::path m_path;
+    std::unique_ptr<AtomicFileWriter> m_file; ///< null once finished (or failed to finish)
     std::int64_t m_rows, m_cols, m_count, m_written = 0;
 };
 
