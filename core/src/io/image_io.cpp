@@ -65,10 +65,12 @@ std::string npyHeader(std::int64_t rows, std::int64_t cols, std::int64_t count) 
 
 void writeNpy(const fs::path& path, const float* data, std::int64_t rows, std::int64_t cols,
               std::int64_t count) {
-    std::string out = npyHeader(rows, cols, count);
+    const std::string header = npyHeader(rows, cols, count);
     const std::size_t n = std::size_t(rows * cols * std::max<std::int64_t>(1, count));
-    out.append(reinterpret_cast<const char*>(data), n * sizeof(float)); // x86/ARM: little-endian
-    writeFileAtomic(path, out);
+    AtomicFileWriter out(path); // the data written from where it is, not copied first
+    out.write(header.data(), header.size());
+    out.write(data, n * sizeof(float)); // x86/ARM: little-endian
+    out.commit();
 }
 
 NpyStackWriter::NpyStackWriter(const fs::path& path, std::int64_t rows, std::int64_t cols,
