@@ -164,6 +164,7 @@ TEST(FvrRenderBatch, StackIsWrittenAsItIsProducedNotHeldInMemory) {
     fs::remove(log);
     EXPECT_LT(std::size_t(rss), stackKb / 2) << "peak " << rss << " KB, stack " << stackKb << " KB";
     EXPECT_EQ(fs::file_size(dir / "big.npy"), 128u + stackKb * 1024);
+    fs::remove_all(dir); // 98 MB
 }
 
 TEST(FvrRenderBatch, OutputUnderARegularFileFailsAtOnceNamingIt) {
