@@ -1,12 +1,24 @@
 // fvr-render --out: the views, the image files and the JSON sidecar.
 #include <algorithm>
 #include <chrono>
+#include <condition_variable>
+#include <csignal>
 #include <cstdio>
+#include <cstdlib>
+#include <deque>
+#include <exception>
 #include <fstream>
+#include <memory>
+#include <mutex>
 #include <numbers>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <utility>
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <fvr/core/errors.h>
@@ -91,36 +103,41 @@ std::string valuesText(const Session& s) {
                                  : projectionUnits(s.options.values, s.volume.units);
 }
 
-/** Writes the views one by one, or gathers them into one .npy stack. */
+/** Writes the views one by one, or streams them into one .npy stack (written as it is produced:
+ *  header first, into FILE.npy.part, moved into place by finish()). */
 class ViewWriter {
 public:
     ViewWriter(const Session& s, std::size_t viewCount, DicomExportInfo exportInfo)
         : m_o(s.options), m_count(viewCount), m_exportInfo(std::move(exportInfo)),
-          m_stacked(viewCount > 1 && m_o.format == OutputFormat::Npy && !m_o.numbered) {}
+          m_stacked(viewCount > 1 && m_o.format == OutputFormat::Npy && !m_o.numbered) {
+        // Opened before the first view is rendered: an unwritable path fails at once.
+        if (m_stacked)
+            m_stack = std::make_unique<NpyStackWriter>(m_o.out, m_o.size, m_o.size,
+                                                       std::int64_t(m_count));
+    }
 
     bool stacked() const { return m_stacked; }
     const std::vector<std::string>& written() const { return m_written; }
 
-    void add(std::size_t i, ProjectionImage img) {
+    /** Post-processes and writes view i (the writer thread calls it, in view order). */
+    void add(std::size_t i, ProjectionImage& img) {
         // Line integrals in the image; transmission where --beer-lambert asks for it.
         std::optional<DisplayWindow> film;
-        std::vector<float> lineIntegrals;
         if (m_o.beerLambert && m_o.format == OutputFormat::Png) {
-            lineIntegrals = img.pixels;
+            m_lineIntegrals = img.pixels; // the buffer is reused from view to view
             // A Beer-Lambert PNG shows the film, as the workstation does: the window on the log
             // exposure, bone white (the float outputs hold the intensity itself).
-            film = core::filmWindow(lineIntegrals, m_o.transmission, true);
+            film = core::filmWindow(m_lineIntegrals, m_o.transmission, true);
         }
         if (m_o.beerLambert) applyTransmission(img.pixels, m_o.transmission);
         if (m_stacked) {
-            if (m_stack.empty()) m_stack.reserve(m_count * img.pixels.size());
-            m_stack.insert(m_stack.end(), img.pixels.begin(), img.pixels.end());
+            m_stack->add(img.pixels.data());
             return;
         }
         const std::string path = m_count > 1 ? numberedPath(m_o.out, i) : m_o.out;
         const int M = m_o.size;
         if (m_o.format == OutputFormat::Png)
-            writePng(path, film ? lineIntegrals.data() : img.pixels.data(), M, M,
+            writePng(path, film ? m_lineIntegrals.data() : img.pixels.data(), M, M,
                      film ? *film : autoWindow(img.pixels), m_o.bitDepth);
         else if (m_o.format == OutputFormat::Dicom)
             writeDicomProjection(path, img, m_exportInfo);
@@ -131,7 +148,7 @@ public:
 
     void finish() {
         if (!m_stacked) return;
-        writeNpy(m_o.out, m_stack.data(), m_o.size, m_o.size, std::int64_t(m_count));
+        m_stack->finish();
         m_written.push_back(m_o.out);
     }
 
@@ -140,8 +157,147 @@ private:
     std::size_t m_count;
     DicomExportInfo m_exportInfo;
     bool m_stacked;
-    std::vector<float> m_stack;
+    std::unique_ptr<NpyStackWriter> m_stack;
+    std::vector<float> m_lineIntegrals;
     std::vector<std::string> m_written;
+};
+
+/**
+ * The writer thread: ViewWriter::add runs here, a few views behind the render loop, so that the
+ * loop renders view i+1 while view i is post-processed and written. The queue is bounded
+ * (kQueued views wait at most), so that the images in memory stay few whatever the view count.
+ * A writer error makes the next push() return false (the loop stops) and finish() rethrow it.
+ */
+class WriterThread {
+public:
+    static constexpr std::size_t kQueued = 3;
+
+    explicit WriterThread(ViewWriter& writer) : m_writer(writer), m_thread([this] { loop(); }) {}
+
+    /** Stops the writer where it is (an exception in the render loop) and waits for it. */
+    ~WriterThread() {
+        {
+            std::lock_guard lock(m_mutex);
+            m_closed = m_cancelled = true;
+        }
+        m_changed.notify_all();
+        if (m_thread.joinable()) m_thread.join();
+    }
+
+    WriterThread(const WriterThread&) = delete;
+    WriterThread& operator=(const WriterThread&) = delete;
+
+    /** Queues view i, waiting while the queue is full; false once the writer has failed. */
+    bool push(std::size_t i, ProjectionImage img) {
+        std::unique_lock lock(m_mutex);
+        m_changed.wait(lock, [&] { return m_queue.size() < kQueued || m_error; });
+        if (m_error) return false;
+        m_queue.emplace_back(i, std::move(img));
+        m_changed.notify_all();
+        return true;
+    }
+
+    /** Waits until every queued view is written; rethrows the writer's error. */
+    void finish() {
+        {
+            std::lock_guard lock(m_mutex);
+            m_closed = true;
+        }
+        m_changed.notify_all();
+        m_thread.join();
+        if (m_error) std::rethrow_exception(m_error);
+    }
+
+private:
+    void loop() {
+        for (;;) {
+            std::pair<std::size_t, ProjectionImage> item;
+            {
+                std::unique_lock lock(m_mutex);
+                m_changed.wait(lock, [&] { return !m_queue.empty() || m_closed; });
+                if (m_cancelled || m_queue.empty()) return;
+                item = std::move(m_queue.front());
+                m_queue.pop_front();
+            }
+            m_changed.notify_all(); // room in the queue
+            try {
+                m_writer.add(item.first, item.second);
+            } catch (...) {
+                std::lock_guard lock(m_mutex);
+                m_error = std::current_exception();
+                m_queue.clear();
+                m_changed.notify_all();
+                return;
+            }
+        }
+    }
+
+    ViewWriter& m_writer;
+    std::mutex m_mutex;
+    std::condition_variable m_changed;
+    std::deque<std::pair<std::size_t, ProjectionImage>> m_queue;
+    bool m_closed = false, m_cancelled = false;
+    std::exception_ptr m_error;
+    std::thread m_thread; // last: started when the rest is ready
+};
+
+/** Thrown by the render loop when SIGINT or SIGTERM came: unwinds the writers (the stack's
+ *  temporary file removed) before InterruptGuard dies of the signal. */
+struct Interrupted : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+/**
+ * SIGINT and SIGTERM while the views are rendered and written set a flag that the render loop
+ * checks after each view, so that an interrupted run removes its unfinished files, then dies of
+ * the signal as it would have (a shell or make sees the signal). Only where the signal had its
+ * default action (a background job's ignored SIGINT stays ignored); one-shot (SA_RESETHAND), so
+ * that a second signal ends the run at once.
+ */
+class InterruptGuard {
+public:
+    InterruptGuard() {
+        s_signal = 0;
+        for (std::size_t k = 0; k < std::size(kSignals); ++k) {
+            struct sigaction old {};
+            m_installed[k] = sigaction(kSignals[k], nullptr, &old) == 0 &&
+                             !(old.sa_flags & SA_SIGINFO) && old.sa_handler == SIG_DFL;
+            if (!m_installed[k]) continue;
+            struct sigaction sa {};
+            sa.sa_handler = &InterruptGuard::onSignal;
+            sigemptyset(&sa.sa_mask);
+            sa.sa_flags = SA_RESTART | SA_RESETHAND;
+            sigaction(kSignals[k], &sa, nullptr);
+        }
+    }
+    ~InterruptGuard() { restore(); }
+    InterruptGuard(const InterruptGuard&) = delete;
+    InterruptGuard& operator=(const InterruptGuard&) = delete;
+
+    /** The signal that came, or 0. */
+    static int signal() { return s_signal; }
+
+    /** Where a signal came: says `what` and dies of the signal. */
+    void dieIfInterrupted(const std::string& what) {
+        const int sig = s_signal;
+        if (sig == 0) return;
+        std::fprintf(stderr, "fvr-render: %s\n", what.c_str());
+        restore();
+        std::raise(sig);
+        std::_Exit(128 + sig); // not reached: the default action ends the process
+    }
+
+private:
+    static void onSignal(int sig) { s_signal = sig; }
+    void restore() {
+        for (std::size_t k = 0; k < std::size(kSignals); ++k)
+            if (m_installed[k]) std::signal(kSignals[k], SIG_DFL);
+        m_installed[0] = m_installed[1] = false;
+    }
+
+    static constexpr int kSignals[2] = {SIGINT, SIGTERM};
+    static inline volatile std::sig_atomic_t s_signal = 0;
+    bool m_installed[2] = {};
 };
 
 /** The DICOM outputs' value description: the values, depth cue and slice filter. */
@@ -154,12 +310,22 @@ DicomExportInfo dicomInfo(const Session& s, DicomExportInfo info) {
     return info;
 }
 
-/** Renders and writes every view with a progress line; returns the time per view in ms. */
+/** Renders every view with a progress line while the writer thread writes them; returns the
+ *  wall time from the first render to the last byte written, per view, in ms. */
 double renderViews(const Session& s, const std::vector<ViewFrame>& views, ViewWriter& writer) {
     const auto t0 = std::chrono::steady_clock::now();
     auto lastReport = t0;
+    WriterThread writerThread(writer);
     for (std::size_t i = 0; i < views.size(); ++i) {
-        writer.add(i, s.backend.renderer().render(s.params(views[i])));
+        if (!writerThread.push(i, s.backend.renderer().render(s.params(views[i]))))
+            break; // the writer failed: finish() says why
+        if (InterruptGuard::signal() != 0) {
+            if (views.size() > 1 && isatty(2)) std::fprintf(stderr, "\n");
+            throw Interrupted("interrupted after view " + std::to_string(i + 1) + " of " +
+                              std::to_string(views.size()) +
+                              (writer.stacked() ? ": the stack " + s.options.out + " not written"
+                                                : ": the views before it stay written"));
+        }
         const auto now = std::chrono::steady_clock::now();
         if (views.size() > 1 &&
             (now - lastReport > std::chrono::seconds(1) || i + 1 == views.size())) {
@@ -169,6 +335,7 @@ double renderViews(const Session& s, const std::vector<ViewFrame>& views, ViewWr
         }
     }
     if (views.size() > 1 && isatty(2)) std::fprintf(stderr, "\n");
+    writerThread.finish();
     writer.finish();
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
                .count() /
@@ -192,14 +359,21 @@ void printSummary(const Session& s, std::size_t viewCount, bool stacked, double 
 void writeOutputs(const Session& s, const std::vector<ViewFrame>& fileViews,
                   const DicomExportInfo& exportInfo) {
     const std::vector<ViewFrame> views = outputViews(s, fileViews);
-    ViewWriter writer(s, views.size(), dicomInfo(s, exportInfo));
-    const double msPerView = renderViews(s, views, writer);
-    // JSON sidecar: every parameter, so the output can be reproduced and registered.
-    const WrittenOutput output{valuesText(s), writer.stacked(), writer.written(), s.preprocessMs,
-                               msPerView};
-    writeFileAtomic(s.options.out + ".json",
-                    jsonText(sidecarJson(s.facts(), s.volume, output, views)));
-    printSummary(s, views.size(), writer.stacked(), msPerView);
+    InterruptGuard interrupt; // before the writer opens its files
+    std::string interrupted = "interrupted after the last view"; // the files are complete
+    try {
+        ViewWriter writer(s, views.size(), dicomInfo(s, exportInfo));
+        const double msPerView = renderViews(s, views, writer);
+        // JSON sidecar: every parameter, so the output can be reproduced and registered.
+        const WrittenOutput output{valuesText(s), writer.stacked(), writer.written(),
+                                   s.preprocessMs, msPerView};
+        writeFileAtomic(s.options.out + ".json",
+                        jsonText(sidecarJson(s.facts(), s.volume, output, views)));
+        printSummary(s, views.size(), writer.stacked(), msPerView);
+    } catch (const Interrupted& e) {
+        interrupted = e.what();
+    }
+    interrupt.dieIfInterrupted(interrupted);
 }
 
 } // namespace fvr::cli

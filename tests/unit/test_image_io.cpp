@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cstring>
 #include <fstream>
 #include <iterator>
@@ -43,6 +44,46 @@ TEST(ImageIo, NpyRoundTripAndHeader) {
     writeNpy(p, stack.data(), 4, 4, 3);
     EXPECT_EQ(readNpy(p, shape).size(), 48u);
     EXPECT_EQ(shape, (std::vector<std::int64_t>{3, 4, 4}));
+}
+
+TEST(ImageIo, NpyStackWriterStreamsTheSameBytesAsWriteNpy) {
+    const auto dir = fvr::test::tmpDir() / "npy_stack";
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    const auto v = ramp(3 * 5, 7); // three 5 x 7 images
+    writeNpy(dir / "whole.npy", v.data(), 5, 7, 3);
+    {
+        NpyStackWriter w(dir / "streamed.npy", 5, 7, 3);
+        for (int i = 0; i < 3; ++i) {
+            // Written as it comes: the header and the images so far, under the temporary name.
+            w.add(v.data() + std::size_t(i) * 5 * 7);
+            EXPECT_FALSE(std::filesystem::exists(dir / "streamed.npy"));
+            EXPECT_EQ(std::filesystem::file_size(dir / "streamed.npy.part"),
+                      128u + std::size_t(i + 1) * 5 * 7 * sizeof(float));
+        }
+        w.finish();
+    }
+    EXPECT_EQ(slurp(dir / "streamed.npy"), slurp(dir / "whole.npy"));
+    // Fewer images than the header says: finish() fails naming the file, and nothing stays.
+    {
+        NpyStackWriter w(dir / "short.npy", 5, 7, 3);
+        w.add(v.data());
+        try {
+            w.finish();
+            ADD_FAILURE() << "a stack of 1 of 3 images was finished";
+        } catch (const WriteError& e) {
+            EXPECT_NE(std::string(e.what()).find("short.npy: the stack has 1 images of the 3"),
+                      std::string::npos)
+                << e.what();
+        }
+        EXPECT_THROW(w.add(v.data()), WriteError); // closed: nothing more goes in
+    }
+    { NpyStackWriter abandoned(dir / "abandoned.npy", 5, 7, 3); }
+    std::vector<std::string> names;
+    for (const auto& e : std::filesystem::directory_iterator(dir))
+        names.push_back(e.path().filename());
+    std::sort(names.begin(), names.end());
+    EXPECT_EQ(names, (std::vector<std::string>{"streamed.npy", "whole.npy"}));
 }
 
 TEST(ImageIo, PfmStoresRowsBottomToTop) {

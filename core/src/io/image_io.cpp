@@ -43,10 +43,9 @@ std::string lower(std::string s) {
     return s;
 }
 
-} // namespace
-
-void writeNpy(const fs::path& path, const float* data, std::int64_t rows, std::int64_t cols,
-              std::int64_t count) {
+/** The .npy preamble and header: float32 little-endian, C order, shape (rows, cols), or
+ *  (count, rows, cols) when count > 0, padded so that the data starts at a multiple of 64. */
+std::string npyHeader(std::int64_t rows, std::int64_t cols, std::int64_t count) {
     std::ostringstream hdr;
     hdr << "{'descr': '<f4', 'fortran_order': False, 'shape': (";
     if (count > 0) hdr << count << ", ";
@@ -59,9 +58,49 @@ void writeNpy(const fs::path& path, const float* data, std::int64_t rows, std::i
     out.push_back(char(h.size() & 0xff));
     out.push_back(char((h.size() >> 8) & 0xff));
     out += h;
+    return out;
+}
+
+} // namespace
+
+void writeNpy(const fs::path& path, const float* data, std::int64_t rows, std::int64_t cols,
+              std::int64_t count) {
+    const std::string header = npyHeader(rows, cols, count);
     const std::size_t n = std::size_t(rows * cols * std::max<std::int64_t>(1, count));
-    out.append(reinterpret_cast<const char*>(data), n * sizeof(float)); // x86/ARM: little-endian
-    writeFileAtomic(path, out);
+    AtomicFileWriter out(path); // the data written from where it is, not copied first
+    out.write(header.data(), header.size());
+    out.write(data, n * sizeof(float)); // x86/ARM: little-endian
+    out.commit();
+}
+
+NpyStackWriter::NpyStackWriter(const fs::path& path, std::int64_t rows, std::int64_t cols,
+                               std::int64_t count)
+    : m_path(path), m_rows(rows), m_cols(cols), m_count(count) {
+    if (rows <= 0 || cols <= 0 || count <= 0)
+        fail<WriteError>(path, "a .npy stack needs at least one image of at least one pixel");
+    m_file = std::make_unique<AtomicFileWriter>(path);
+    const std::string header = npyHeader(rows, cols, count);
+    m_file->write(header.data(), header.size());
+}
+
+NpyStackWriter::~NpyStackWriter() = default; // an unfinished file is removed
+
+void NpyStackWriter::add(const float* image) {
+    if (!m_file) fail<WriteError>(m_path, "the stack is closed");
+    if (m_written >= m_count)
+        fail<WriteError>(m_path,
+                         "more images than the " + std::to_string(m_count) + " of the header");
+    m_file->write(image, std::size_t(m_rows * m_cols) * sizeof(float)); // little-endian
+    ++m_written;
+}
+
+void NpyStackWriter::finish() {
+    if (!m_file) fail<WriteError>(m_path, "the stack is closed");
+    std::unique_ptr<AtomicFileWriter> file = std::move(m_file); // removed unless committed
+    if (m_written != m_count)
+        fail<WriteError>(m_path, "the stack has " + std::to_string(m_written) + " images of the " +
+                                     std::to_string(m_count) + " of its header");
+    file->commit();
 }
 
 std::vector<float> readNpy(const fs::path& path, std::vector<std::int64_t>& shape) {

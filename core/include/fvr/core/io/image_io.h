@@ -3,6 +3,7 @@
  *  display window (xray/display_window.h). All writes go to a temporary file renamed into place. */
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <vector>
 
 #include <fvr/core/render/projection.h>
@@ -13,6 +14,36 @@ namespace fvr::core {
 /** float32 little-endian, C order, shape (rows, cols) or (count, rows, cols) when count > 0. */
 void writeNpy(const std::filesystem::path& path, const float* data, std::int64_t rows,
               std::int64_t cols, std::int64_t count = 0);
+
+class AtomicFileWriter;
+
+/**
+ * A float32 .npy stack of `count` images of rows x cols written as it is produced (nothing of
+ * it held in memory): the header with the final shape (count, rows, cols) first, then each image
+ * as add() gets it, into `<path>.part` (io/atomic_file.h); finish() checks that all `count`
+ * images came and moves the file into place (a short stack is removed). Destroyed before
+ * finish() (an error, an exception), it removes the temporary file. Throws WriteError naming `path`
+ * and the problem.
+ */
+class NpyStackWriter {
+public:
+    NpyStackWriter(const std::filesystem::path& path, std::int64_t rows, std::int64_t cols,
+                   std::int64_t count);
+    ~NpyStackWriter();
+    NpyStackWriter(const NpyStackWriter&) = delete;
+    NpyStackWriter& operator=(const NpyStackWriter&) = delete;
+
+    /** Appends the next image: rows x cols floats. */
+    void add(const float* image);
+    void finish();
+    std::int64_t written() const { return m_written; }
+
+private:
+    std::filesystem::path m_path;
+    std::unique_ptr<AtomicFileWriter> m_file; ///< null once finished (or failed to finish)
+    std::int64_t m_rows, m_cols, m_count, m_written = 0;
+};
+
 /** Reads a float32 .npy written by writeNpy (tests); shape returned in `shape`. */
 std::vector<float> readNpy(const std::filesystem::path& path, std::vector<std::int64_t>& shape);
 /** Grayscale PFM ("Pf", little-endian scale -1), rows stored bottom-to-top as the format says. */
