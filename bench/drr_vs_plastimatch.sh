@@ -1,0 +1,200 @@
+#!/usr/bin/env bash
+# DRR batch benchmark (issue #17): a fvr-render --sweep of a CT against `plastimatch drr -i exact`
+# on the same CT and detector, timed in the same run; prints a Markdown table.
+#
+# Usage: bench/drr_vs_plastimatch.sh [FVR_RENDER] [CT_DIR] [PLASTIMATCH_VIEWS]
+#   FVR_RENDER         default build/app/fvr-render
+#   CT_DIR             default ../shared/data/dicom/ct_phantom_philips_512x512x140
+#   PLASTIMATCH_VIEWS  default 36 (plastimatch is slow; its per-view time is what compares)
+#   env REPEATS        runs of each timing, the median is reported (default 3)
+#   env SWEEP, SIZE    fvr-render views (default 360) and detector size (default 512)
+#   env WORK           scratch folder (default: a fresh one under /tmp, deleted at the end)
+# Needs plastimatch (Debian package; a bench-only tool, not a test dependency) and /usr/bin/python3
+# with numpy (the image check). Not a ctest test: one run takes about a minute or more.
+#
+# Like with like: both render the same CT at SIZE x SIZE with the same pixel size at the rotation
+# axis (fvr-render's default, the volume diagonal / SIZE, read from its JSON sidecar), rotating
+# about the head-feet axis through the volume centre over 360 degrees: a gantry rotation.
+# fvr-render gets --view AP: its default view (--dir 0,0,1) looks along the head-feet axis of an
+# axial CT, and a --sweep about that axis would only spin one projection in the image plane.
+# What differs, on purpose:
+#   - projection: fvr-render is parallel; plastimatch is perspective, run here with a 100 m SAD
+#     (and the detector 0.5 m beyond the axis) so its rays diverge by <= 0.1 degree;
+#   - values: fvr-render --values mu (1 + HU/1000, the line integral in mm); plastimatch's default
+#     HU conversion (its attenuation scale differs by a constant factor: reported, not compared);
+#   - plastimatch reads the CT as one MetaImage (converted once, not timed); fvr-render decodes the
+#     DICOM series in its timed job; both write every view (plastimatch .pfm files, fvr-render one
+#     .npy stack);
+#   - threads: fvr-render --threads default (all cores), plastimatch OpenMP default (all cores);
+#     the CPU use (user + sys) / wall of each run is reported.
+set -euo pipefail
+trap 'echo "drr_vs_plastimatch.sh: line $LINENO failed: $BASH_COMMAND" >&2' ERR
+
+FVR=${1:-build/app/fvr-render}
+CT=${2:-../shared/data/dicom/ct_phantom_philips_512x512x140}
+PLM_VIEWS=${3:-36}
+REPEATS=${REPEATS:-3}
+SWEEP=${SWEEP:-360}
+SIZE=${SIZE:-512}
+PY=/usr/bin/python3
+
+for tool in plastimatch /usr/bin/time "$PY" "$FVR"; do
+    command -v "$tool" > /dev/null || { echo "drr_vs_plastimatch.sh: $tool not found" >&2; exit 2; }
+done
+[[ -d $CT ]] || { echo "drr_vs_plastimatch.sh: $CT: no such folder" >&2; exit 2; }
+FVR=$(realpath "$FVR")
+CT=$(realpath "$CT")
+if [[ -z ${WORK:-} ]]; then
+    WORK=$(mktemp -d /tmp/drr-bench.XXXXXX)
+    trap 'rm -rf "$WORK"' EXIT
+fi
+mkdir -p "$WORK/plm"
+LOAD_AT_START=$(cut -d' ' -f1-3 /proc/loadavg)
+CPU_MODEL=$(awk -F': ' '/^model name/{print $2; exit}' /proc/cpuinfo)
+
+# /usr/bin/time's "wall user sys" of one command; its own output goes to $WORK/last.log.
+timed() {
+    /usr/bin/time -f "%e %U %S" -o "$WORK/time.txt" "$@" > "$WORK/last.log" 2>&1 || {
+        echo "drr_vs_plastimatch.sh: failed: $*" >&2
+        tail -20 "$WORK/last.log" >&2
+        return 1
+    }
+    cat "$WORK/time.txt"
+}
+median() { sort -g | awk '{v[NR] = $1} END {print v[int((NR + 1) / 2)]}'; }
+
+# 1. Not timed: the MetaImage plastimatch reads (this also brings the DICOM files into the page
+#    cache, so the fvr-render runs below all read them from memory).
+plastimatch convert --input "$CT" --output-img "$WORK/ct.mha" > "$WORK/convert.log" 2>&1
+read -r ISO_X ISO_Y ISO_Z < <(plastimatch header "$WORK/ct.mha" | awk '
+    /^Origin/ {ox = $3; oy = $4; oz = $5} /^Size/ {nx = $3; ny = $4; nz = $5}
+    /^Spacing/ {sx = $3; sy = $4; sz = $5}
+    END {printf "%.4f %.4f %.4f\n", ox + (nx - 1) / 2 * sx, oy + (ny - 1) / 2 * sy, oz + (nz - 1) / 2 * sz}')
+
+# 2. fvr-render: per repeat, a first run with a new (empty) FFTW wisdom file, then a warm run
+#    with the wisdom the first one saved.
+FVR_ARGS=(--view AP --sweep "$SWEEP" --size "$SIZE" --values mu --out "$WORK/fvr.npy")
+WISDOM="$WORK/wisdom"
+: > "$WORK/fvr_cold.txt"
+: > "$WORK/fvr_warm.txt"
+for ((r = 0; r < REPEATS; ++r)); do
+    rm -f "$WISDOM"
+    FVR_FFTW_WISDOM="$WISDOM" timed "$FVR" "$CT" "${FVR_ARGS[@]}" >> "$WORK/fvr_cold.txt"
+    FVR_FFTW_WISDOM="$WISDOM" timed "$FVR" "$CT" "${FVR_ARGS[@]}" >> "$WORK/fvr_warm.txt"
+done
+read -r PIXEL FVR_THREADS < <("$PY" -c '
+import json, sys
+s = json.load(open(sys.argv[1]))["settings"]
+print("%.6f %d" % (s["pixel_size_mm"], s["threads"]))' "$WORK/fvr.npy.json")
+
+# 3. plastimatch: the same pixel size at the axis, the same detector size, near-parallel rays.
+SAD=100000
+SID=100500
+DET=$(awk -v p="$PIXEL" -v n="$SIZE" -v a="$SAD" -v i="$SID" 'BEGIN {printf "%.4f", p * n * i / a}')
+STEP=$(awk -v n="$PLM_VIEWS" 'BEGIN {printf "%.6g", 360 / n}')
+PLM_CMD=(plastimatch drr -A cpu -i exact -r "$SIZE $SIZE" -z "$DET $DET" --sad "$SAD" --sid "$SID"
+    -o "$ISO_X $ISO_Y $ISO_Z" -a "$PLM_VIEWS" -N "$STEP" -t pfm -O "$WORK/plm/view_" "$WORK/ct.mha")
+: > "$WORK/plm.txt"
+: > "$WORK/plm_render.txt"
+for ((r = 0; r < REPEATS; ++r)); do
+    timed "${PLM_CMD[@]}" >> "$WORK/plm.txt"
+    awk '/^Total time:/ {print $3}' "$WORK/last.log" >> "$WORK/plm_render.txt"
+done
+
+# 4. The table. CPU use = (user + sys) / wall of the median-wall run's neighbours is noisy, so
+#    it is given for the run with the median wall time.
+stats() { # file -> "median_wall cpu_use" (cpu use of the run with the median wall time)
+    local m
+    m=$(awk '{print $1}' "$1" | median)
+    awk -v m="$m" '$1 == m {printf "%s %.2f\n", $1, ($2 + $3) / ($1 > 0 ? $1 : 1); exit}' "$1"
+}
+read -r COLD COLD_CPU < <(stats "$WORK/fvr_cold.txt")
+read -r WARM WARM_CPU < <(stats "$WORK/fvr_warm.txt")
+read -r PLM PLM_CPU < <(stats "$WORK/plm.txt")
+PLM_RENDER=$(median < "$WORK/plm_render.txt")
+ALL_COLD=$(awk '{printf "%s%s", s, $1; s = ", "}' "$WORK/fvr_cold.txt")
+ALL_WARM=$(awk '{printf "%s%s", s, $1; s = ", "}' "$WORK/fvr_warm.txt")
+ALL_PLM=$(awk '{printf "%s%s", s, $1; s = ", "}' "$WORK/plm.txt")
+per() { awk -v t="$1" -v n="$2" 'BEGIN {printf "%.1f", 1000 * t / n}'; }
+ratio() { awk -v a="$1" -v b="$2" 'BEGIN {printf "%.1f", a / b}'; }
+FVR_CMD="FVR_FFTW_WISDOM=W $(basename "$FVR") CT ${FVR_ARGS[*]}"
+FVR_CMD=${FVR_CMD//$WORK\//}
+PLM_TEXT=$(for a in "${PLM_CMD[@]}"; do [[ $a == *" "* ]] && printf '"%s" ' "$a" || printf '%s ' "$a"; done)
+PLM_TEXT=${PLM_TEXT% }
+PLM_TEXT=${PLM_TEXT//$WORK\//}
+
+COLD_V=$(per "$COLD" "$SWEEP")
+WARM_V=$(per "$WARM" "$SWEEP")
+PLM_V=$(per "$PLM" "$PLM_VIEWS")
+PLM_RV=$(per "$PLM_RENDER" "$PLM_VIEWS")
+echo "### DRR batch: fvr-render against plastimatch (CT $(basename "$CT"), ${SIZE}x${SIZE})"
+echo
+echo "Machine: $(nproc) cores, $CPU_MODEL, load average at start $LOAD_AT_START;" \
+    "median of $REPEATS runs each (all runs: cold $ALL_COLD s; warm $ALL_WARM s;" \
+    "plastimatch $ALL_PLM s). Pixel ${PIXEL} mm at the axis."
+echo
+echo "| run | views | whole job (s) | per view (ms) | CPU use | plastimatch per view / this |"
+echo "|---|---:|---:|---:|---:|---:|"
+echo "| plastimatch drr -i exact, whole job (load, render, write) | $PLM_VIEWS | $PLM | $PLM_V |" \
+    "$PLM_CPU | 1.0 |"
+echo "| plastimatch drr -i exact, its own \"Total time\" (render, write) | $PLM_VIEWS |" \
+    "$PLM_RENDER | $PLM_RV | | |"
+echo "| fvr-render warm (wisdom from the run before) | $SWEEP | $WARM | $WARM_V | $WARM_CPU |" \
+    "$(ratio "$PLM_V" "$WARM_V") (render only: $(ratio "$PLM_RV" "$WARM_V")) |"
+echo "| fvr-render first run, no FFTW wisdom | $SWEEP | $COLD | $COLD_V | $COLD_CPU |" \
+    "$(ratio "$PLM_V" "$COLD_V") (render only: $(ratio "$PLM_RV" "$COLD_V")) |"
+echo
+echo "First run / warm run: $(ratio "$COLD" "$WARM"). fvr-render threads: $FVR_THREADS;" \
+    "plastimatch: OpenMP, OMP_NUM_THREADS=${OMP_NUM_THREADS:-unset (all cores)}."
+echo
+echo "- plastimatch: \`$PLM_TEXT\` (ct.mha from \`plastimatch convert --input CT --output-img" \
+    "ct.mha\`, not timed; -o is the volume centre)"
+echo "- fvr-render: \`$FVR_CMD\` (W: the wisdom file, deleted before each first run)"
+
+# 5. Do both draw the same radiograph? Plastimatch's first view and the one a quarter turn
+#    later, each against every fvr-render view, flipped either way; the best normalised
+#    correlation, not a claim of equality.
+"$PY" - "$WORK/fvr.npy" "$WORK/plm" "$PLM_VIEWS" << 'EOF'
+import sys
+import numpy as np
+
+stack = np.load(sys.argv[1], mmap_mode="r")
+n = int(sys.argv[3])
+
+
+def read_pfm(path):
+    with open(path, "rb") as f:
+        f.readline()
+        w, h = map(int, f.readline().split())
+        scale = float(f.readline())
+        a = np.frombuffer(f.read(), dtype="<f4" if scale < 0 else ">f4").reshape(h, w)
+    return a[::-1].astype(np.float64)  # PFM rows run bottom to top
+
+
+def normalise(a):
+    a = a - a.mean()
+    return a / (np.linalg.norm(a) or 1.0)
+
+
+flat = stack.reshape(stack.shape[0], -1).astype(np.float64)
+flat -= flat.mean(axis=1, keepdims=True)
+flat /= np.maximum(np.linalg.norm(flat, axis=1, keepdims=True), 1e-30)
+print()
+print("| plastimatch view (gantry deg) | best fvr-render view | flip | correlation | scale (plastimatch / fvr) |")
+print("|---|---:|---|---:|---:|")
+for k in sorted({0, n // 4}):
+    p = read_pfm("%s/view_%04d.pfm" % (sys.argv[2], k))
+    best = (-2.0, 0, "none", p)
+    for name, q in (("none", p), ("left-right", p[:, ::-1]), ("up-down", p[::-1]),
+                    ("both", p[::-1, ::-1])):
+        c = flat @ normalise(q).ravel()
+        i = int(np.argmax(c))
+        if c[i] > best[0]:
+            best = (float(c[i]), i, name, q)
+    c, i, name, q = best
+    f = np.asarray(stack[i], dtype=np.float64)
+    scale = float((q * f).sum() / max((f * f).sum(), 1e-30))
+    print("| %d (%.4g) | %d | %s | %.4f | %.4g |" % (k, 360.0 * k / n, i, name, c, scale))
+print()
+print("Shapes: fvr-render stack %s, plastimatch view %s." % (stack.shape, p.shape))
+EOF
