@@ -25,8 +25,9 @@
 #   - plastimatch reads the CT as one MetaImage (converted once, not timed); fvr-render decodes the
 #     DICOM series in its timed job; both write every view (plastimatch .pfm files, fvr-render one
 #     .npy stack);
-#   - threads: fvr-render --threads default (all cores), plastimatch OpenMP default (all cores);
-#     the CPU use (user + sys) / wall of each run is reported.
+#   - threads: fvr-render --threads default (all cores), plastimatch OpenMP default (all cores;
+#     its drr_ray_trace_image is an OpenMP loop), and both again on one thread; the CPU use
+#     (user + sys) / wall of each run is reported.
 set -euo pipefail
 trap 'echo "drr_vs_plastimatch.sh: line $LINENO failed: $BASH_COMMAND" >&2' ERR
 
@@ -86,6 +87,14 @@ read -r PIXEL FVR_THREADS < <("$PY" -c '
 import json, sys
 s = json.load(open(sys.argv[1]))["settings"]
 print("%.6f %d" % (s["pixel_size_mm"], s["threads"]))' "$WORK/fvr.npy.json")
+# One thread each, a per-core comparison (plastimatch's ray tracing, drr_ray_trace_image, is an
+# OpenMP loop; OMP_NUM_THREADS=1 below): fvr-render --threads 1, warm (a first untimed run adds
+# the one-thread plans to the wisdom).
+FVR_FFTW_WISDOM="$WISDOM" timed "$FVR" "$CT" "${FVR_ARGS[@]}" --threads 1 > /dev/null
+: > "$WORK/fvr_one.txt"
+for ((r = 0; r < REPEATS; ++r)); do
+    FVR_FFTW_WISDOM="$WISDOM" timed "$FVR" "$CT" "${FVR_ARGS[@]}" --threads 1 >> "$WORK/fvr_one.txt"
+done
 
 # 3. plastimatch: the same pixel size at the axis, the same detector size, near-parallel rays.
 SAD=100000
@@ -100,52 +109,72 @@ for ((r = 0; r < REPEATS; ++r)); do
     timed "${PLM_CMD[@]}" >> "$WORK/plm.txt"
     awk '/^Total time:/ {print $3}' "$WORK/last.log" >> "$WORK/plm_render.txt"
 done
+OMP_NUM_THREADS=1 timed "${PLM_CMD[@]}" > "$WORK/plm_one.txt"
 
-# 4. The table. CPU use = (user + sys) / wall of the median-wall run's neighbours is noisy, so
-#    it is given for the run with the median wall time.
-stats() { # file -> "median_wall cpu_use" (cpu use of the run with the median wall time)
+# 4. The table: for each series of runs the median and (in brackets) the best wall time; the
+#    machine is shared, so the best is often the better estimate of what the code can do.
+stats() { # file of "wall user sys" lines -> "median best cpu_use_of_the_median_run all_walls"
     local m
     m=$(awk '{print $1}' "$1" | median)
-    awk -v m="$m" '$1 == m {printf "%s %.2f\n", $1, ($2 + $3) / ($1 > 0 ? $1 : 1); exit}' "$1"
+    awk -v m="$m" '{a = a s $1; s = ", "; if (NR == 1 || $1 < b) b = $1}
+        $1 == m && !c {c = sprintf("%.2f", ($2 + $3) / ($1 > 0 ? $1 : 1))}
+        END {print m, b, c, a}' "$1"
 }
-read -r COLD COLD_CPU < <(stats "$WORK/fvr_cold.txt")
-read -r WARM WARM_CPU < <(stats "$WORK/fvr_warm.txt")
-read -r PLM PLM_CPU < <(stats "$WORK/plm.txt")
-PLM_RENDER=$(median < "$WORK/plm_render.txt")
-ALL_COLD=$(awk '{printf "%s%s", s, $1; s = ", "}' "$WORK/fvr_cold.txt")
-ALL_WARM=$(awk '{printf "%s%s", s, $1; s = ", "}' "$WORK/fvr_warm.txt")
-ALL_PLM=$(awk '{printf "%s%s", s, $1; s = ", "}' "$WORK/plm.txt")
 per() { awk -v t="$1" -v n="$2" 'BEGIN {printf "%.1f", 1000 * t / n}'; }
 ratio() { awk -v a="$1" -v b="$2" 'BEGIN {printf "%.1f", a / b}'; }
+read -r PLM PLM_B _ _ < <(stats "$WORK/plm.txt")
+read -r PLM1 PLM1_B _ _ < <(stats "$WORK/plm_one.txt")
+awk '{print $1, 0, 0}' "$WORK/plm_render.txt" > "$WORK/plm_render3.txt"
+read -r PLMR PLMR_B _ _ < <(stats "$WORK/plm_render3.txt")
+PLM_V=$(per "$PLM" "$PLM_VIEWS")
+PLM_VB=$(per "$PLM_B" "$PLM_VIEWS")
+# row LABEL FILE VIEWS [REFERENCE_MEDIAN_MS REFERENCE_BEST_MS]: one table row; sets ROW_M, ROW_B.
+row() {
+    local m b c all vm vb r=""
+    read -r m b c all < <(stats "$2")
+    vm=$(per "$m" "$3")
+    vb=$(per "$b" "$3")
+    [[ $# -ge 5 ]] && r="$(ratio "$4" "$vm") ($(ratio "$5" "$vb"))"
+    echo "| $1 | $3 | $m ($b) | $vm ($vb) | $c | $r |"
+    ALL_RUNS+=("$1: $all s")
+    ROW_M=$m
+    ROW_B=$b
+}
+ALL_RUNS=()
 FVR_CMD="FVR_FFTW_WISDOM=W $(basename "$FVR") CT ${FVR_ARGS[*]}"
 FVR_CMD=${FVR_CMD//$WORK\//}
 PLM_TEXT=$(for a in "${PLM_CMD[@]}"; do [[ $a == *" "* ]] && printf '"%s" ' "$a" || printf '%s ' "$a"; done)
 PLM_TEXT=${PLM_TEXT% }
 PLM_TEXT=${PLM_TEXT//$WORK\//}
 
-COLD_V=$(per "$COLD" "$SWEEP")
-WARM_V=$(per "$WARM" "$SWEEP")
-PLM_V=$(per "$PLM" "$PLM_VIEWS")
-PLM_RV=$(per "$PLM_RENDER" "$PLM_VIEWS")
 echo "### DRR batch: fvr-render against plastimatch (CT $(basename "$CT"), ${SIZE}x${SIZE})"
 echo
-echo "Machine: $(nproc) cores, $CPU_MODEL, load average at start $LOAD_AT_START;" \
-    "median of $REPEATS runs each (all runs: cold $ALL_COLD s; warm $ALL_WARM s;" \
-    "plastimatch $ALL_PLM s). Pixel ${PIXEL} mm at the axis."
+echo "Machine: $(nproc) cores, $CPU_MODEL, load average at start $LOAD_AT_START. Pixel" \
+    "${PIXEL} mm at the axis. Times: median (best) of $REPEATS runs; CPU use: (user + sys) /" \
+    "wall of the median run."
 echo
 echo "| run | views | whole job (s) | per view (ms) | CPU use | plastimatch per view / this |"
 echo "|---|---:|---:|---:|---:|---:|"
-echo "| plastimatch drr -i exact, whole job (load, render, write) | $PLM_VIEWS | $PLM | $PLM_V |" \
-    "$PLM_CPU | 1.0 |"
-echo "| plastimatch drr -i exact, its own \"Total time\" (render, write) | $PLM_VIEWS |" \
-    "$PLM_RENDER | $PLM_RV | | |"
-echo "| fvr-render warm (wisdom from the run before) | $SWEEP | $WARM | $WARM_V | $WARM_CPU |" \
-    "$(ratio "$PLM_V" "$WARM_V") (render only: $(ratio "$PLM_RV" "$WARM_V")) |"
-echo "| fvr-render first run, no FFTW wisdom | $SWEEP | $COLD | $COLD_V | $COLD_CPU |" \
-    "$(ratio "$PLM_V" "$COLD_V") (render only: $(ratio "$PLM_RV" "$COLD_V")) |"
+row "plastimatch drr -i exact (load, render, write)" "$WORK/plm.txt" "$PLM_VIEWS" "$PLM_V" "$PLM_VB"
+row "fvr-render warm (wisdom from the run before)" "$WORK/fvr_warm.txt" "$SWEEP" "$PLM_V" "$PLM_VB"
+WARM=$ROW_M
+WARM_B=$ROW_B
+row "fvr-render first run, no FFTW wisdom" "$WORK/fvr_cold.txt" "$SWEEP" "$PLM_V" "$PLM_VB"
+COLD=$ROW_M
+COLD_B=$ROW_B
+row "plastimatch, OMP_NUM_THREADS=1 (one run)" "$WORK/plm_one.txt" "$PLM_VIEWS"
+row "fvr-render warm, --threads 1" "$WORK/fvr_one.txt" "$SWEEP" "$(per "$PLM1" "$PLM_VIEWS")" \
+    "$(per "$PLM1_B" "$PLM_VIEWS")"
 echo
-echo "First run / warm run: $(ratio "$COLD" "$WARM"). fvr-render threads: $FVR_THREADS;" \
-    "plastimatch: OpenMP, OMP_NUM_THREADS=${OMP_NUM_THREADS:-unset (all cores)}."
+echo "Ratios of the last row: against the plastimatch OMP_NUM_THREADS=1 run (one core each)."
+echo "First run / warm run: $(ratio "$COLD" "$WARM") ($(ratio "$COLD_B" "$WARM_B") from the best)." \
+    "plastimatch's own \"Total time\" (render and write, no load): $(per "$PLMR" "$PLM_VIEWS")" \
+    "($(per "$PLMR_B" "$PLM_VIEWS")) ms per view; warm fvr-render is" \
+    "$(ratio "$(per "$PLMR" "$PLM_VIEWS")" "$(per "$WARM" "$SWEEP")")" \
+    "($(ratio "$(per "$PLMR_B" "$PLM_VIEWS")" "$(per "$WARM_B" "$SWEEP")")) times faster per view than that." \
+    "fvr-render threads: $FVR_THREADS; plastimatch: OpenMP, OMP_NUM_THREADS=${OMP_NUM_THREADS:-unset (all cores)}."
+echo
+echo "All runs (s): $(printf '%s; ' "${ALL_RUNS[@]}")"
 echo
 echo "- plastimatch: \`$PLM_TEXT\` (ct.mha from \`plastimatch convert --input CT --output-img" \
     "ct.mha\`, not timed; -o is the volume centre)"
