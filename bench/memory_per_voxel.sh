@@ -11,6 +11,7 @@
 #   env KERNELS        default "linear kaiser-bessel" (linear: fvr-render's default, no
 #                      deapodization; kaiser-bessel: width 4, deapodized, the workstation default)
 #   env SIZE           image size, default 512
+#   env EXTRA          more fvr-render options for every run (e.g. "--backend cpu": no GPU probe)
 # Peak RSS from /usr/bin/time (%M); the spectrum size and padded size from the JSON sidecar.
 # "Data" is what the job cannot do without: the float32 volume (4 bytes a voxel) and the padded
 # spectrum, both alive while the 3D transform runs. The wall time includes FFTW's planning where
@@ -26,6 +27,7 @@ OVERSAMPLINGS=${OVERSAMPLINGS:-1 1.25 2}
 TRANSFORMS=${TRANSFORMS:-fft fht}
 KERNELS=${KERNELS:-linear kaiser-bessel}
 SIZE=${SIZE:-512}
+read -r -a EXTRA_ARGS <<< "${EXTRA:-}"
 command -v /usr/bin/time > /dev/null || { echo "memory_per_voxel.sh: needs /usr/bin/time" >&2; exit 2; }
 [[ -x $FVR ]] || { echo "memory_per_voxel.sh: $FVR: not an executable" >&2; exit 2; }
 WORK=$(mktemp -d /tmp/memory-bench.XXXXXX)
@@ -33,7 +35,7 @@ trap 'rm -rf "$WORK"' EXIT
 
 # Runs fvr-render with ARGS; prints "wall_s peak_kb".
 measure() {
-    if ! /usr/bin/time -f "%e %M" -o "$WORK/time.txt" "$FVR" "$@" > "$WORK/log.txt" 2>&1; then
+    if ! /usr/bin/time -f "%e %M" -o "$WORK/time.txt" "$FVR" "$@" "${EXTRA_ARGS[@]}" > "$WORK/log.txt" 2>&1; then
         echo "memory_per_voxel.sh: failed: $FVR $*" >&2
         tail -5 "$WORK/log.txt" >&2
         echo "failed failed"
@@ -41,6 +43,7 @@ measure() {
     fi
     tail -1 "$WORK/time.txt"
 }
+per_voxel() { awk -v k="$1" -v v="$VOXELS" 'BEGIN {printf "%.2f", 1024 * k / v}'; }
 mb() { awk -v b="$1" 'BEGIN {printf "%.0f", b / 1048576}'; }
 
 VOXELS=$((N * N * N))
@@ -50,15 +53,21 @@ echo
 echo "Machine: $(nproc) cores, $(awk '/^MemTotal/ {printf "%.1f GiB", $2 / 1048576}' /proc/meminfo);" \
     "$N^3 = $VOXELS voxels, volume $(mb "$VOLUME_BYTES") MiB as float32."
 echo
-echo "| phantom | oversampling | transform | kernel | padded | spectrum (MiB) | data: volume + spectrum (MiB) | peak RSS (MiB) | peak / data | bytes per voxel | wall (s) |"
-echo "|---|---:|---|---|---|---:|---:|---:|---:|---:|---:|"
+echo "| phantom | oversampling | transform | kernel | padded | spectrum (MiB) | data: volume + spectrum (MiB) | peak RSS (MiB) | peak / data | bytes per voxel | above the fixed cost | wall (s) |"
+echo "|---|---:|---|---|---|---:|---:|---:|---:|---:|---:|---:|"
+# The fixed cost of a run: an 8^3 phantom (the program, its libraries, the GPU probe of the
+# default backend: --backend cpu skips it).
+read -r wall kb < <(measure phantom:shepp-logan:8 --size "$SIZE" --out "$WORK/t.npy")
+FIXED_KB=$kb
+read -r _ FIXED_INFO_KB < <(measure phantom:shepp-logan:8 --info) # --info: no renderer, no probe
+echo "| fixed cost (phantom:shepp-logan:8, ${SIZE}^2 view) | | | | | | | $((kb / 1024)) | | | | $wall |"
 for phantom in $PHANTOMS; do
     # The phantom alone (--info: build it, print its facts): the floor before any spectrum.
     read -r wall kb < <(measure "phantom:$phantom:$N" --info)
     if [[ $kb != failed ]]; then
         echo "| $phantom (--info: the volume alone) | | | | | | $(mb "$VOLUME_BYTES") | $((kb / 1024)) |" \
             "$(awk -v k="$kb" -v d="$VOLUME_BYTES" 'BEGIN {printf "%.2f", 1024 * k / d}') |" \
-            "$(awk -v k="$kb" -v v="$VOXELS" 'BEGIN {printf "%.2f", 1024 * k / v}') | $wall |"
+            "$(per_voxel "$kb") | $(per_voxel $((kb - FIXED_INFO_KB))) | $wall |"
     fi
     for f in $OVERSAMPLINGS; do
         for t in $TRANSFORMS; do
@@ -78,11 +87,12 @@ print("x".join(map(str, s["padded_dims"])), int(round(s["spectrum_mb"] * 1048576
                 data=$((VOLUME_BYTES + spectrum_b))
                 echo "| $phantom | $f | $t | $k ($deap) | $padded | $(mb "$spectrum_b") | $(mb "$data") |" \
                     "$((kb / 1024)) | $(awk -v k="$kb" -v d="$data" 'BEGIN {printf "%.2f", 1024 * k / d}') |" \
-                    "$(awk -v k="$kb" -v v="$VOXELS" 'BEGIN {printf "%.2f", 1024 * k / v}') | $wall |"
+                    "$(per_voxel "$kb") | $(per_voxel $((kb - FIXED_KB))) | $wall |"
             done
         done
     done
 done
 echo
 echo "Command: \`/usr/bin/time -f \"%e s %M KB\" $FVR phantom:P:$N --size $SIZE --oversampling F" \
-    "--transform T --kernel K --out m.npy\`; bytes per voxel = peak RSS / $N^3."
+    "--transform T --kernel K --out m.npy ${EXTRA:-}\`; bytes per voxel = peak RSS / $N^3;" \
+    "above the fixed cost: (peak RSS - the same run's on an 8^3 phantom) / $N^3."
