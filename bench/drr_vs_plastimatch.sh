@@ -6,9 +6,12 @@
 #   FVR_RENDER         default build/app/fvr-render
 #   CT_DIR             default ../shared/data/dicom/ct_phantom_philips_512x512x140
 #   PLASTIMATCH_VIEWS  default 36 (plastimatch is slow; its per-view time is what compares)
-#   env REPEATS        runs of each timing, the median is reported (default 3)
+#   env REPEATS        runs of each timing: the median and the best are reported (default 3)
 #   env SWEEP, SIZE    fvr-render views (default 360) and detector size (default 512)
 #   env WORK           scratch folder (default: a fresh one under /tmp, deleted at the end)
+#   env FVR_EXTRA      more fvr-render options, e.g. "--kernel kaiser-bessel --oversampling 1.25"
+#                      (the workstation's default: slower; its images correlate 0.994 with
+#                      plastimatch's, the linear default's 0.96, measured on the Philips CT)
 # Needs plastimatch (Debian package; a bench-only tool, not a test dependency) and /usr/bin/python3
 # with numpy (the image check). Not a ctest test: one run takes about a minute or more.
 #
@@ -20,6 +23,9 @@
 # What differs, on purpose:
 #   - projection: fvr-render is parallel; plastimatch is perspective, run here with a 100 m SAD
 #     (and the detector 0.5 m beyond the axis) so its rays diverge by <= 0.1 degree;
+#   - interpolation: plastimatch -i exact sums exact path lengths through voxel boxes (Siddon);
+#     fvr-render renders its default trilinear voxel model with the linear kernel (FVR_EXTRA
+#     picks another);
 #   - values: fvr-render --values mu (1 + HU/1000, the line integral in mm); plastimatch's default
 #     HU conversion (its attenuation scale differs by a constant factor: reported, not compared);
 #   - plastimatch reads the CT as one MetaImage (converted once, not timed); fvr-render decodes the
@@ -78,7 +84,9 @@ read -r ISO_X ISO_Y ISO_Z < <(plastimatch header "$WORK/ct.mha" | awk '
 
 # 2. fvr-render: per repeat, a first run with a new (empty) FFTW wisdom file, then a warm run
 #    with the wisdom the first one saved.
-FVR_ARGS=(--view AP --sweep "$SWEEP" --size "$SIZE" --values mu --out "$WORK/fvr.npy")
+read -r -a FVR_EXTRA_ARGS <<< "${FVR_EXTRA:-}"
+FVR_ARGS=(--view AP --sweep "$SWEEP" --size "$SIZE" --values mu "${FVR_EXTRA_ARGS[@]}"
+    --out "$WORK/fvr.npy")
 WISDOM="$WORK/wisdom"
 : > "$WORK/fvr_cold.txt"
 : > "$WORK/fvr_warm.txt"
