@@ -32,7 +32,8 @@
 #     DICOM series in its timed job; both write every view (plastimatch .pfm files, fvr-render one
 #     .npy stack);
 #   - threads: fvr-render --threads default (all cores), plastimatch OpenMP default (all cores;
-#     its drr_ray_trace_image is an OpenMP loop), and both again on one thread; the CPU use
+#     its drr_ray_trace_image calls GOMP_parallel, yet on the 2-core machine its CPU use stayed
+#     at 1.0 and OMP_NUM_THREADS=1 ran as fast), and both again on one thread; the CPU use
 #     (user + sys) / wall of each run is reported.
 set -euo pipefail
 trap 'echo "drr_vs_plastimatch.sh: line $LINENO failed: $BASH_COMMAND" >&2' ERR
