@@ -229,11 +229,10 @@ Volume EllipsoidPhantom::voxelize(const Dims3& dims, const Vec3& spacing, int su
     v.origin = {-(dims[0] - 1) / 2.0 * spacing[0], -(dims[1] - 1) / 2.0 * spacing[1],
                 -(dims[2] - 1) / 2.0 * spacing[2]};
     const int S = std::max(1, supersample);
-    std::vector<float> mu = composition == Composition::Paint
-                                ? voxelizePainted(ellipsoids, dims, spacing, S)
-                                : voxelizeSum(ellipsoids, dims, spacing, S);
-    v.voxels.resize(mu.size());
-    for (std::size_t i = 0; i < mu.size(); ++i) v.voxels[i] = 1000.0f * (mu[i] - 1.0f);
+    // mu becomes HU in place: one volume in memory, not two (0.5 GiB more at 512^3).
+    v.voxels = composition == Composition::Paint ? voxelizePainted(ellipsoids, dims, spacing, S)
+                                                 : voxelizeSum(ellipsoids, dims, spacing, S);
+    for (float& x : v.voxels) x = 1000.0f * (x - 1.0f);
     return v;
 }
 
