@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/thread_pool.h>
 #ifdef FVR_HAVE_GPU
 #include <fvr/gpu/egl_context.h>
 #include <fvr/gpu/gl_info.h>
@@ -27,17 +28,51 @@ BenchFrames RenderBackend::timeFrames(const core::RenderParams& warmUp,
     return b;
 }
 
+std::vector<core::ProjectionImage> RenderBackend::renderBatch(
+    const std::vector<core::RenderParams>& params) {
+    std::vector<core::ProjectionImage> images;
+    for (const auto& p : params) images.push_back(renderer().render(p));
+    return images;
+}
+
 namespace {
 
 class CpuBackend final : public RenderBackend {
 public:
     CpuBackend(std::shared_ptr<const core::Spectrum> spectrum, int threads)
-        : m_renderer(std::move(spectrum), threads) {}
+        : m_spectrum(spectrum), m_renderer(std::move(spectrum), threads),
+          m_threads(threads > 0 ? threads : core::hardwareThreads()) {}
     core::Renderer& renderer() override { return m_renderer; }
     std::string name() const override { return "cpu"; }
+    int batchWidth() const override { return m_threads; }
+    std::vector<core::ProjectionImage> renderBatch(
+        const std::vector<core::RenderParams>& params) override {
+        if (params.size() < 2) return RenderBackend::renderBatch(params);
+        if (!m_lanes) m_lanes = std::make_unique<Lanes>(m_spectrum, m_threads);
+        std::vector<core::ProjectionImage> images(params.size());
+        m_lanes->pool.parallelFor(
+            std::int64_t(params.size()), 1, [&](std::int64_t first, std::int64_t last) {
+                for (std::int64_t i = first; i < last; ++i)
+                    images[std::size_t(i)] =
+                        m_lanes->renderers[std::size_t(i)]->render(params[std::size_t(i)]);
+            });
+        return images;
+    }
 
 private:
+    /** One single-threaded renderer per thread, made on the first batch. */
+    struct Lanes {
+        Lanes(const std::shared_ptr<const core::Spectrum>& spectrum, int threads) : pool(threads) {
+            for (int i = 0; i < threads; ++i)
+                renderers.push_back(std::make_unique<core::CpuFourierRenderer>(spectrum, 1));
+        }
+        core::ThreadPool pool;
+        std::vector<std::unique_ptr<core::CpuFourierRenderer>> renderers;
+    };
+    std::shared_ptr<const core::Spectrum> m_spectrum;
     core::CpuFourierRenderer m_renderer;
+    int m_threads;
+    std::unique_ptr<Lanes> m_lanes;
 };
 
 #ifdef FVR_HAVE_GPU

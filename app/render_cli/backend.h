@@ -34,6 +34,14 @@ public:
     virtual BenchFrames timeFrames(const core::RenderParams& warmUp,
                                    const std::function<core::RenderParams(int)>& paramsAt,
                                    int count);
+    /** How many views renderBatch() renders at once (1: one after the other). */
+    virtual int batchWidth() const { return 1; }
+    /** The views of `params` (at most batchWidth()), in order: the batches of --sweep and
+     *  --views. The CPU renders one view per thread, each on a single-threaded renderer over the
+     *  shared spectrum (no synchronisation inside a frame: more views per second than all threads
+     *  on one frame); the GPU renders them in turn. */
+    virtual std::vector<core::ProjectionImage> renderBatch(
+        const std::vector<core::RenderParams>& params);
 };
 
 /** The renderer of --backend holding `spectrum`. The GPU falls back to the CPU, saying why on

@@ -353,7 +353,8 @@ void declareViews(CLI::App& app, Options& o) {
     const std::string g = "Many views (DRRs)";
     auto* sweep = app.add_option("--sweep", o.sweep,
                                  "N views rotating about --axis (default: the patient's\n"
-                                 "head-feet axis)")
+                                 "head-feet axis) from --view/--dir (AP where the default\n"
+                                 "view looks along the axis)")
                       ->check(CLI::Range(0, 100000))
                       ->option_text("N")
                       ->group(g);
@@ -484,6 +485,7 @@ std::optional<Options> parseOptions(int argc, char** argv) {
         throw SettingsError(std::string(e.what()) + " (see --help)");
     }
     if (app.count("--raw-dims") > 0) p.o.raw = p.raw;
+    p.o.viewGiven = p.o.view || app.count("--dir") > 0 || app.count("--up") > 0;
     checkCombinations(p.o);
     return p.o;
 }

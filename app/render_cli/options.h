@@ -21,6 +21,8 @@ enum class OutputFormat { None, Npy, Pfm, Png, Dicom };
 struct Options {
     std::string input;
     core::Vec3 dir{0, 0, 1};
+    /** --view, --dir or --up given (else the default view). */
+    bool viewGiven = false;
     core::Vec3 up{0, -1, 0};
     int size = 512;
     std::optional<double> pixelSize;

@@ -27,6 +27,7 @@
 #include <fvr/core/render/kernels.h>
 #include <fvr/core/render/projection.h>
 #include <fvr/core/xray/display_window.h>
+#include <fvr/core/xray/patient_views.h>
 
 #include "session.h"
 
@@ -88,9 +89,21 @@ std::vector<ViewFrame> outputViews(const Session& s, const std::vector<ViewFrame
     if (o.sweep > 0) {
         const auto& dir = s.volume.direction;
         const Vec3 axis = o.axis ? *o.axis : Vec3{dir[0][2], dir[1][2], dir[2][2]}; // head-feet
+        // Views along the axis would all be one projection turned in the image plane: the
+        // default view (along the slices, usually the head-feet axis) gives way to AP.
+        auto alongAxis = [&](const ViewFrame& v) {
+            return std::abs(dot(v.d, axis)) > 0.999 * norm(v.d) * norm(axis);
+        };
+        ViewFrame start = s.base;
+        if (alongAxis(start) && !o.viewGiven) start = patientViewFrame(s.volume, PatientView::AP);
+        if (alongAxis(start))
+            throw SettingsError(
+                "--sweep: the view looks along the rotation axis, so every view "
+                "would be the same projection turned in the image plane; give a "
+                "--view or --dir across the axis (AP, LEFT, ...) or another --axis");
         std::vector<ViewFrame> views;
         for (int i = 0; i < o.sweep; ++i)
-            views.push_back(s.base.rotated(axis, 2.0 * std::numbers::pi * i / o.sweep));
+            views.push_back(start.rotated(axis, 2.0 * std::numbers::pi * i / o.sweep));
         return views;
     }
     if (!o.viewsFile.empty()) return fileViews;
@@ -316,8 +329,16 @@ double renderViews(const Session& s, const std::vector<ViewFrame>& views, ViewWr
     const auto t0 = std::chrono::steady_clock::now();
     auto lastReport = t0;
     WriterThread writerThread(writer);
+    const std::size_t width = std::size_t(std::max(1, s.backend.batchWidth()));
+    std::vector<ProjectionImage> batch;
     for (std::size_t i = 0; i < views.size(); ++i) {
-        if (!writerThread.push(i, s.backend.renderer().render(s.params(views[i]))))
+        if (i % width == 0) { // the next views at once (one per CPU thread)
+            std::vector<RenderParams> params;
+            for (std::size_t j = i; j < std::min(views.size(), i + width); ++j)
+                params.push_back(s.params(views[j]));
+            batch = s.backend.renderBatch(params);
+        }
+        if (!writerThread.push(i, std::move(batch[i % width])))
             break; // the writer failed: finish() says why
         if (InterruptGuard::signal() != 0) {
             if (views.size() > 1 && isatty(2)) std::fprintf(stderr, "\n");

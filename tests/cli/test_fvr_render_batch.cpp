@@ -20,6 +20,7 @@
 
 #include <fvr/core/io/image_io.h>
 
+#include "image_metrics.h"
 #include "test_support.h"
 
 namespace fs = std::filesystem;
@@ -229,4 +230,32 @@ TEST(FvrRenderBatch, InterruptedRunRemovesItsStackAndDiesOfTheSignal) {
         EXPECT_EQ(filesIn(dir), std::vector<std::string>{}); // neither s.npy nor s.npy.part
         fs::remove(log);
     }
+}
+
+TEST(FvrRenderBatch, DefaultSweepIsAGantryRotationFromAP) {
+    // The default view looks along the slices, the head-feet axis a sweep turns about: the views
+    // would all be one projection spun in the image plane. The sweep starts from AP instead.
+    const fs::path dir = scratch("gantry");
+    const std::string common = "phantom:shepp-logan:32 --size 128 --values mu ";
+    Result r = run(common + "--sweep 4 --out " + (dir / "s.npy").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    r = run(common + "--view AP --out " + (dir / "ap.npy").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::vector<std::int64_t> shape;
+    const auto stack = fvr::core::readNpy(dir / "s.npy", shape);
+    ASSERT_EQ(shape, (std::vector<std::int64_t>{4, 128, 128}));
+    const auto ap = fvr::core::readNpy(dir / "ap.npy", shape);
+    const std::size_t n = 128 * 128;
+    const std::vector<float> view0(stack.begin(), stack.begin() + n);
+    const std::vector<float> view1(stack.begin() + n, stack.begin() + 2 * n);
+    EXPECT_GT(fvr::test::compare(view0, ap).psnr, 100.0); // view 0 is AP
+    // View 1 is the lateral view (90 degrees on): a different projection, not AP turned.
+    EXPECT_LT(fvr::test::compare(view1, ap).psnr, 30.0);
+
+    // A view of the user's own along the axis is refused, naming the problem.
+    r = run(common + "--sweep 4 --view HEAD --out " + (dir / "h.npy").string());
+    EXPECT_EQ(r.status, 2) << r.output;
+    EXPECT_NE(r.output.find("--sweep: the view looks along the rotation axis"), std::string::npos)
+        << r.output;
+    EXPECT_FALSE(fs::exists(dir / "h.npy"));
 }
