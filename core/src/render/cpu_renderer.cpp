@@ -31,6 +31,10 @@ struct CpuFourierRenderer::SizeResources {
     FftwBuffer image; // Fft: M x M real output
     detail::Plan c2r; // complex-to-real, out of place
     detail::Plan dht; // separable 2D DHT, in place on slice
+    /** The measured plan the background planner is making (null: the plan above is final),
+     *  and the estimate plan it replaced (kept: destroying it would wait for the planner). */
+    std::shared_ptr<detail::PlanSlot> measured;
+    detail::Plan replaced;
 };
 
 CpuFourierRenderer::CpuFourierRenderer(std::shared_ptr<const Spectrum> spectrum, int threads)
@@ -43,30 +47,47 @@ CpuFourierRenderer::CpuFourierRenderer(std::shared_ptr<const Spectrum> spectrum,
 
 CpuFourierRenderer::~CpuFourierRenderer() = default;
 
+namespace {
+/** The inverse 2D transform of an M x M slice: c2r (slice -> image) or in-place DHT (slice). */
+fftwf_plan planInverse(bool dht, int M, float* slice, float* image, unsigned flags) {
+    if (dht) return fftwf_plan_r2r_2d(M, M, slice, slice, FFTW_DHT, FFTW_DHT, flags);
+    return fftwf_plan_dft_c2r_2d(M, M, reinterpret_cast<fftwf_complex*>(slice), image, flags);
+}
+} // namespace
+
 CpuFourierRenderer::SizeResources& CpuFourierRenderer::resources(int M) {
     auto it = m_resources.find(M);
     if (it != m_resources.end()) return *it->second;
     detail::ensureFftwInitialised();
     auto r = std::make_unique<SizeResources>();
     r->size = M;
-    const std::size_t halfFloats = std::size_t(M) * (M / 2 + 1) * 2;
-    if (m_spectrum->kind == TransformKind::Fft) {
-        r->slice = allocateFftw(halfFloats);
-        r->image = allocateFftw(std::size_t(M) * M);
+    const bool dht = m_spectrum->kind == TransformKind::Fht;
+    const std::size_t sliceFloats = dht ? std::size_t(M) * M : std::size_t(M) * (M / 2 + 1) * 2;
+    r->slice = allocateFftw(sliceFloats);
+    if (!dht) r->image = allocateFftw(std::size_t(M) * M);
+    const int threads = M >= 512 ? m_threads : 1;
+    detail::QuickPlan q;
+    {
         std::lock_guard lock(detail::planMutex());
-        fftwf_plan_with_nthreads(M >= 512 ? m_threads : 1);
-        r->c2r = detail::Plan(
-            fftwf_plan_dft_c2r_2d(M, M, reinterpret_cast<fftwf_complex*>(r->slice.get()),
-                                  r->image.get(), detail::plannerFlags(true)));
-    } else {
-        r->slice = allocateFftw(std::size_t(M) * M);
-        std::lock_guard lock(detail::planMutex());
-        fftwf_plan_with_nthreads(M >= 512 ? m_threads : 1);
-        r->dht = detail::Plan(fftwf_plan_r2r_2d(M, M, r->slice.get(), r->slice.get(), FFTW_DHT,
-                                                FFTW_DHT, detail::plannerFlags(true)));
+        fftwf_plan_with_nthreads(threads);
+        q = detail::planQuickly(true, [&](unsigned flags) {
+            return planInverse(dht, M, r->slice.get(), r->image.get(), flags);
+        });
     }
-    if (!r->c2r && !r->dht)
-        throw std::runtime_error("FFTW could not plan the inverse 2D transform");
+    (dht ? r->dht : r->c2r) = detail::Plan(q.plan);
+    if (!q.plan) throw std::runtime_error("FFTW could not plan the inverse 2D transform");
+    if (q.measureLater) {
+        // Measured on buffers of its own (MEASURE overwrites them), executed on ours: both come
+        // from fftwf_malloc, so their alignment agrees (new-array execution is legal).
+        r->measured = std::make_shared<detail::PlanSlot>();
+        detail::planInBackground([slot = r->measured, dht, M, threads, sliceFloats] {
+            FftwBuffer slice = allocateFftw(sliceFloats);
+            FftwBuffer image = allocateFftw(dht ? 1 : std::size_t(M) * M);
+            std::lock_guard lock(detail::planMutex());
+            fftwf_plan_with_nthreads(threads);
+            slot->set(planInverse(dht, M, slice.get(), image.get(), detail::plannerFlags(true)));
+        });
+    }
     detail::saveWisdom();
     return *m_resources.emplace(M, std::move(r)).first->second;
 }
@@ -651,6 +672,15 @@ const TransferTable* CpuFourierRenderer::transferTable(VoxelModel model, double 
 }
 
 void CpuFourierRenderer::invertSlice(SizeResources& res, ProjectionImage& img) {
+    if (res.measured && res.measured->ready()) { // swap in the background planner's plan
+        detail::Plan p = res.measured->take();
+        res.measured.reset();
+        detail::Plan& current = m_spectrum->kind == TransformKind::Fft ? res.c2r : res.dht;
+        if (p) {
+            res.replaced = std::move(current);
+            current = std::move(p);
+        }
+    }
     if (m_spectrum->kind == TransformKind::Fft) {
         fftwf_execute_dft_c2r(res.c2r.get(), reinterpret_cast<fftwf_complex*>(res.slice.get()),
                               res.image.get());

@@ -3,7 +3,12 @@
 // destruction goes through planMutex(). Wisdom is loaded once and saved after new plans.
 #include <fftw3.h>
 
+#include <atomic>
+#include <functional>
+#include <memory>
 #include <mutex>
+
+#include <fvr/core/render/fftw_planning.h>
 
 namespace fvr::core::detail {
 
@@ -42,6 +47,44 @@ public:
 
 private:
     fftwf_plan m_plan = nullptr;
+};
+
+/** A plan made now, and whether its measured version is still to be made (background). */
+struct QuickPlan {
+    fftwf_plan plan = nullptr;
+    bool measureLater = false;
+};
+
+/** With planMutex() held: `make(flags)` planned as the policy says. measure = false: ESTIMATE.
+ *  measure = true: from wisdom when wisdom has the problem (FFTW_WISDOM_ONLY); else MEASURE at
+ *  once (FftwPlanning::Foreground) or ESTIMATE now, with measureLater set for Background. */
+template <class Make>
+QuickPlan planQuickly(bool measure, Make&& make) {
+    if (!measure) return {make(FFTW_ESTIMATE), false};
+    if (fftwPlanning() == FftwPlanning::Foreground) return {make(plannerFlags(true)), false};
+    if (fftwf_plan p = make(FFTW_MEASURE | FFTW_WISDOM_ONLY)) return {p, false};
+    return {make(FFTW_ESTIMATE), fftwPlanning() == FftwPlanning::Background};
+}
+
+/** Runs `job` on the process-wide background planning thread (first in, first out), then saves
+ *  wisdom. The job makes its MEASURE plans on buffers of its own, under planMutex(). The thread
+ *  is never joined: a process may end with a plan half made (its wisdom is then not saved). */
+void planInBackground(std::function<void()> job);
+
+/** A measured plan handed from the background planner to the thread that renders: set() once
+ *  by the planner, take() by the owner after ready(). */
+class PlanSlot {
+public:
+    bool ready() const { return m_ready.load(std::memory_order_acquire); }
+    void set(fftwf_plan p) {
+        m_plan = Plan(p);
+        m_ready.store(true, std::memory_order_release);
+    }
+    Plan take() { return std::move(m_plan); }
+
+private:
+    Plan m_plan;
+    std::atomic<bool> m_ready{false};
 };
 
 } // namespace fvr::core::detail
