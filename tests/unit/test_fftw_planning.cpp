@@ -156,7 +156,8 @@ TEST(FftwPlanning, RenderersOnThreadsWhileThePlannerSwaps) {
     freshWisdom();
     setFftwPlanning(FftwPlanning::Background);
     const fvr::test::PhantomFixture fx;
-    const auto s = phantomSpectrum(TransformKind::Fft, PlannerEffort::Measure, fx.volume);
+    // Fht: its DHT plans are measured at once (Urgent), so they are swapped in mid-run.
+    const auto s = phantomSpectrum(TransformKind::Fht, PlannerEffort::Estimate, fx.volume);
     const int sizes[] = {32, 64, 256};
     std::vector<ViewFrame> views;
     for (int i = 0; i < 12; ++i)
@@ -171,6 +172,7 @@ TEST(FftwPlanning, RenderersOnThreadsWhileThePlannerSwaps) {
                 ref[k].push_back(r.render({v, {sizes[k], fx.d * fx.kM / sizes[k]}}).pixels);
         setFftwPlanning(FftwPlanning::Background);
     }
+    const int before = backgroundPlansMade();
     std::vector<double> worst(std::size(sizes), 0.0);
     std::vector<std::thread> threads;
     for (std::size_t k = 0; k < std::size(sizes); ++k)
@@ -184,5 +186,8 @@ TEST(FftwPlanning, RenderersOnThreadsWhileThePlannerSwaps) {
         });
     for (auto& t : threads) t.join();
     finishBackgroundPlanning();
+    if (before == 0) { // a fresh process (CTest); a repetition finds the plans in wisdom
+        EXPECT_EQ(backgroundPlansMade(), int(std::size(sizes)));
+    }
     for (std::size_t k = 0; k < std::size(sizes); ++k) EXPECT_LT(worst[k], 1e-5) << sizes[k];
 }

@@ -80,13 +80,16 @@ CpuFourierRenderer::SizeResources& CpuFourierRenderer::resources(int M) {
         // Measured on buffers of its own (MEASURE overwrites them), executed on ours: both come
         // from fftwf_malloc, so their alignment agrees (new-array execution is legal).
         r->measured = std::make_shared<detail::PlanSlot>();
-        detail::planInBackground([slot = r->measured, dht, M, threads, sliceFloats] {
-            FftwBuffer slice = allocateFftw(sliceFloats);
-            FftwBuffer image = allocateFftw(dht ? 1 : std::size_t(M) * M);
-            std::lock_guard lock(detail::planMutex());
-            fftwf_plan_with_nthreads(threads);
-            slot->set(planInverse(dht, M, slice.get(), image.get(), detail::plannerFlags(true)));
-        });
+        detail::planInBackground(
+            [slot = r->measured, dht, M, threads, sliceFloats] {
+                FftwBuffer slice = allocateFftw(sliceFloats);
+                FftwBuffer image = allocateFftw(dht ? 1 : std::size_t(M) * M);
+                std::lock_guard lock(detail::planMutex());
+                fftwf_plan_with_nthreads(threads);
+                slot->set(
+                    planInverse(dht, M, slice.get(), image.get(), detail::plannerFlags(true)));
+            },
+            dht ? detail::When::Urgent : detail::When::WhenIdle);
     }
     detail::saveWisdom();
     return *m_resources.emplace(M, std::move(r)).first->second;
@@ -672,6 +675,7 @@ const TransferTable* CpuFourierRenderer::transferTable(VoxelModel model, double 
 }
 
 void CpuFourierRenderer::invertSlice(SizeResources& res, ProjectionImage& img) {
+    detail::noteBusy();
     if (res.measured && res.measured->ready()) { // swap in the background planner's plan
         detail::Plan p = res.measured->take();
         res.measured.reset();

@@ -1,5 +1,6 @@
 #include "fftw_support.h"
 
+#include <chrono>
 #include <condition_variable>
 #include <cstdlib>
 #include <cstring>
@@ -24,13 +25,21 @@ std::atomic<FftwPlanning>& planningPolicy() {
     return p;
 }
 
+using Clock = std::chrono::steady_clock;
+/** The last time a renderer or the preprocessing was at work (noteBusy). */
+std::atomic<Clock::rep> g_lastBusy{0};
+/** How long the process must have rendered nothing before a WhenIdle job starts. */
+constexpr auto kQuiet = std::chrono::milliseconds(500);
+
 /** One worker thread, started on the first job and never joined (the object is never
- *  destroyed, so a job still running at exit touches nothing that was). */
+ *  destroyed, so a job still running at exit touches nothing that was). Urgent jobs run first
+ *  and at once; WhenIdle jobs wait until the process has been quiet for kQuiet, so that they
+ *  neither slow the work at hand (2 cores) nor measure plans while it competes for the cores. */
 class BackgroundPlanner {
 public:
-    void enqueue(std::function<void()> job) {
+    void enqueue(std::function<void()> job, bool urgent) {
         std::lock_guard lock(m_mutex);
-        m_queue.push_back(std::move(job));
+        (urgent ? m_urgent : m_whenIdle).push_back(std::move(job));
         if (!m_started) {
             m_started = true;
             std::thread([this] { run(); }).detach();
@@ -39,7 +48,7 @@ public:
     }
     void finish() {
         std::unique_lock lock(m_mutex);
-        m_idle.wait(lock, [this] { return m_queue.empty() && !m_busy; });
+        m_idle.wait(lock, [this] { return empty() && !m_busy; });
     }
     int made() {
         std::lock_guard lock(m_mutex);
@@ -47,12 +56,28 @@ public:
     }
 
 private:
+    bool empty() const { return m_urgent.empty() && m_whenIdle.empty(); }
+
+    /** The next job to run, waiting as the queues say (m_mutex held). */
+    std::function<void()> next(std::unique_lock<std::mutex>& lock) {
+        for (;;) {
+            m_wake.wait(lock, [this] { return !empty(); });
+            auto& q = m_urgent.empty() ? m_whenIdle : m_urgent;
+            const auto quietSince = Clock::time_point(Clock::duration(g_lastBusy.load()));
+            const auto wait = quietSince + kQuiet - Clock::now();
+            if (&q == &m_urgent || wait <= Clock::duration::zero()) {
+                auto job = std::move(q.front());
+                q.pop_front();
+                return job;
+            }
+            m_wake.wait_for(lock, wait); // an urgent job may come meanwhile
+        }
+    }
+
     void run() {
         std::unique_lock lock(m_mutex);
         for (;;) {
-            m_wake.wait(lock, [this] { return !m_queue.empty(); });
-            auto job = std::move(m_queue.front());
-            m_queue.pop_front();
+            auto job = next(lock);
             m_busy = true;
             lock.unlock();
             try {
@@ -64,13 +89,13 @@ private:
             lock.lock();
             m_busy = false;
             ++m_made;
-            if (m_queue.empty()) m_idle.notify_all();
+            if (empty()) m_idle.notify_all();
         }
     }
 
     std::mutex m_mutex;
     std::condition_variable m_wake, m_idle;
-    std::deque<std::function<void()>> m_queue;
+    std::deque<std::function<void()>> m_urgent, m_whenIdle;
     bool m_started = false, m_busy = false;
     int m_made = 0;
 };
@@ -144,7 +169,13 @@ void saveWisdom() {
         std::filesystem::remove(tmp, ec);
 }
 
-void planInBackground(std::function<void()> job) { backgroundPlanner().enqueue(std::move(job)); }
+void planInBackground(std::function<void()> job, When when) {
+    backgroundPlanner().enqueue(std::move(job), when == When::Urgent);
+}
+
+void noteBusy() {
+    g_lastBusy.store(Clock::now().time_since_epoch().count(), std::memory_order_relaxed);
+}
 
 } // namespace detail
 } // namespace fvr::core

@@ -17,7 +17,8 @@ enum class FftwPlanning {
     EstimateOnly
 };
 
-/** The policy in force: FVR_FFTW_PLANNING=background|foreground|estimate when set, else Background. */
+/** The policy in force: FVR_FFTW_PLANNING=background|foreground|estimate when set, else
+ *  Background. */
 FftwPlanning fftwPlanning();
 void setFftwPlanning(FftwPlanning planning);
 
