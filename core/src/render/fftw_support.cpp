@@ -37,9 +37,10 @@ constexpr auto kQuiet = std::chrono::milliseconds(500);
  *  neither slow the work at hand (2 cores) nor measure plans while it competes for the cores. */
 class BackgroundPlanner {
 public:
-    void enqueue(std::function<void()> job, bool urgent) {
+    /** plans: the job makes a plan (counted by made()), else it only destroys one. */
+    void enqueue(std::function<void()> job, bool urgent, bool plans = true) {
         std::lock_guard lock(m_mutex);
-        (urgent ? m_urgent : m_whenIdle).push_back(std::move(job));
+        (urgent ? m_urgent : m_whenIdle).push_back({std::move(job), plans});
         if (!m_started) {
             m_started = true;
             std::thread([this] { run(); }).detach();
@@ -59,7 +60,12 @@ private:
     bool empty() const { return m_urgent.empty() && m_whenIdle.empty(); }
 
     /** The next job to run, waiting as the queues say (m_mutex held). */
-    std::function<void()> next(std::unique_lock<std::mutex>& lock) {
+    struct Job {
+        std::function<void()> run;
+        bool plans = true;
+    };
+
+    Job next(std::unique_lock<std::mutex>& lock) {
         for (;;) {
             m_wake.wait(lock, [this] { return !empty(); });
             auto& q = m_urgent.empty() ? m_whenIdle : m_urgent;
@@ -81,21 +87,22 @@ private:
             m_busy = true;
             lock.unlock();
             try {
-                job();
+                job.run();
                 detail::saveWisdom();
             } catch (...) { // an optimisation failed (no memory for the scratch buffers)
             }
-            job = nullptr; // what it held (a plan slot) goes before m_mutex is taken again
+            const bool plans = job.plans;
+            job.run = nullptr; // what it held (a plan slot) goes before m_mutex is taken again
             lock.lock();
             m_busy = false;
-            ++m_made;
+            m_made += plans ? 1 : 0;
             if (empty()) m_idle.notify_all();
         }
     }
 
     std::mutex m_mutex;
     std::condition_variable m_wake, m_idle;
-    std::deque<std::function<void()>> m_urgent, m_whenIdle;
+    std::deque<Job> m_urgent, m_whenIdle;
     bool m_started = false, m_busy = false;
     int m_made = 0;
 };
@@ -125,7 +132,9 @@ std::filesystem::path wisdomPath() {
         return {};
     return base / "fvr-workstation" / "fftwf-wisdom";
 }
-bool g_dirty = false;
+/** Plans were measured since the last save (written under planMutex, read before taking it: a
+ *  save with nothing to write never waits for the background planner). */
+std::atomic<bool> g_dirty{false};
 } // namespace
 
 std::mutex& planMutex() {
@@ -155,9 +164,9 @@ unsigned plannerFlags(bool measure) {
 }
 
 void saveWisdom() {
+    if (!g_dirty.load()) return;
     std::lock_guard lock(planMutex());
-    if (!g_dirty) return;
-    g_dirty = false;
+    if (!g_dirty.exchange(false)) return;
     const auto p = wisdomPath();
     if (p.empty()) return;
     std::error_code ec;
@@ -171,6 +180,15 @@ void saveWisdom() {
 
 void planInBackground(std::function<void()> job, When when) {
     backgroundPlanner().enqueue(std::move(job), when == When::Urgent);
+}
+
+void destroyLater(fftwf_plan plan) {
+    backgroundPlanner().enqueue(
+        [plan] {
+            std::lock_guard lock(planMutex());
+            fftwf_destroy_plan(plan);
+        },
+        true, false);
 }
 
 void noteBusy() {

@@ -20,6 +20,9 @@ std::mutex& planMutex();
 void saveWisdom();
 unsigned plannerFlags(bool measure);
 
+/** Destroys `plan` on the background planner, after the plan it is making. */
+void destroyLater(fftwf_plan plan);
+
 /** RAII owner of an fftwf_plan. */
 class Plan {
 public:
@@ -35,12 +38,16 @@ public:
         return *this;
     }
     ~Plan() { reset(); }
+    /** Destroys the plan now, or, while another thread plans (the background planner measures
+     *  for up to seconds), hands it to the background planner (destroyLater): a renderer never
+     *  waits for a plan it does not need. Never call with planMutex() held. */
     void reset() {
-        if (m_plan) {
-            std::lock_guard lock(planMutex());
+        if (!m_plan) return;
+        if (std::unique_lock lock(planMutex(), std::try_to_lock); lock.owns_lock())
             fftwf_destroy_plan(m_plan);
-            m_plan = nullptr;
-        }
+        else
+            destroyLater(m_plan);
+        m_plan = nullptr;
     }
     fftwf_plan get() const { return m_plan; }
     explicit operator bool() const { return m_plan != nullptr; }
