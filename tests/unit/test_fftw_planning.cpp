@@ -63,10 +63,13 @@ double relativeDifference(const std::vector<float>& a, const std::vector<float>&
 
 // A size no plan was made for: the renderer plans ESTIMATE at once, the background planner makes
 // the measured plan and writes the wisdom file; the next frame uses the measured plan (same image
-// to float rounding) and a new renderer plans from wisdom without queueing anything.
+// to float rounding) and a new renderer plans from wisdom without queueing anything. The counts
+// and the file are checked in a process of its own (CTest), where no plan was made before.
 TEST(FftwPlanning, BackgroundPlanIsSavedAndSwappedIn) {
     const auto wisdom = freshWisdom();
     setFftwPlanning(FftwPlanning::Background);
+    finishBackgroundPlanning();
+    const bool fresh = backgroundPlansMade() == 0;
     const fvr::test::PhantomFixture fx;
     const ViewFrame view = ViewFrame::fromDirUp({0.3, 1, 0.2}, {0, 0, 1});
     for (auto t : {TransformKind::Fft, TransformKind::Fht}) {
@@ -76,16 +79,20 @@ TEST(FftwPlanning, BackgroundPlanIsSavedAndSwappedIn) {
         const int before = backgroundPlansMade();
         const auto estimated = r.render({view, geometry, Kernel::Linear});
         finishBackgroundPlanning();
-        EXPECT_EQ(backgroundPlansMade(), before + 1) << transformName(t);
-        ASSERT_TRUE(std::filesystem::exists(wisdom)) << transformName(t);
-        EXPECT_NE(readFile(wisdom).find("fftwf_wisdom"), std::string::npos);
+        if (fresh) {
+            EXPECT_EQ(backgroundPlansMade(), before + 1) << transformName(t);
+            ASSERT_TRUE(std::filesystem::exists(wisdom)) << transformName(t);
+            EXPECT_NE(readFile(wisdom).find("fftwf_wisdom"), std::string::npos);
+        }
         const auto measured = r.render({view, geometry, Kernel::Linear});
         EXPECT_LT(relativeDifference(estimated.pixels, measured.pixels), 1e-5) << transformName(t);
 
         CpuFourierRenderer fromWisdom(s, 2);
         const auto again = fromWisdom.render({view, geometry, Kernel::Linear});
         finishBackgroundPlanning();
-        EXPECT_EQ(backgroundPlansMade(), before + 1) << "the plan came from wisdom";
+        if (fresh) {
+            EXPECT_EQ(backgroundPlansMade(), before + 1) << "the plan came from wisdom";
+        }
         EXPECT_EQ(again.pixels, measured.pixels) << "the same measured plan, the same image";
     }
 }
@@ -96,6 +103,8 @@ TEST(FftwPlanning, BackgroundPlanIsSavedAndSwappedIn) {
 TEST(FftwPlanning, PreprocessMeasuresInBackground) {
     freshWisdom();
     setFftwPlanning(FftwPlanning::Background);
+    finishBackgroundPlanning();
+    const bool fresh = backgroundPlansMade() == 0; // a process of its own (CTest)
     const Volume v = makeSheppLoganVolume(36);
     for (auto method : {HartleyMethod::FromFft, HartleyMethod::Dht}) {
         PreprocessOptions o;
@@ -105,10 +114,14 @@ TEST(FftwPlanning, PreprocessMeasuresInBackground) {
         const int before = backgroundPlansMade();
         const auto a = preprocess(v, o);
         finishBackgroundPlanning();
-        EXPECT_EQ(backgroundPlansMade(), before + 1);
+        if (fresh) {
+            EXPECT_EQ(backgroundPlansMade(), before + 1);
+        }
         const auto b = preprocess(v, o);
         finishBackgroundPlanning();
-        EXPECT_EQ(backgroundPlansMade(), before + 1) << "planned from wisdom";
+        if (fresh) {
+            EXPECT_EQ(backgroundPlansMade(), before + 1) << "planned from wisdom";
+        }
         double peak = 0, err = 0;
         const auto& P = a->padded;
         for (std::int64_t z = 0; z < P[2]; ++z)
@@ -156,7 +169,7 @@ TEST(FftwPlanning, RenderersOnThreadsWhileThePlannerSwaps) {
     freshWisdom();
     setFftwPlanning(FftwPlanning::Background);
     const fvr::test::PhantomFixture fx;
-    // Fht: its DHT plans are measured at once (Urgent), so they are swapped in mid-run.
+    setPlannerQuietPeriod(std::chrono::milliseconds(0)); // measure while the threads render
     const auto s = phantomSpectrum(TransformKind::Fht, PlannerEffort::Estimate, fx.volume);
     const int sizes[] = {32, 64, 256};
     std::vector<ViewFrame> views;
@@ -172,6 +185,7 @@ TEST(FftwPlanning, RenderersOnThreadsWhileThePlannerSwaps) {
                 ref[k].push_back(r.render({v, {sizes[k], fx.d * fx.kM / sizes[k]}}).pixels);
         setFftwPlanning(FftwPlanning::Background);
     }
+    finishBackgroundPlanning();
     const int before = backgroundPlansMade();
     std::vector<double> worst(std::size(sizes), 0.0);
     std::vector<std::thread> threads;
@@ -190,4 +204,5 @@ TEST(FftwPlanning, RenderersOnThreadsWhileThePlannerSwaps) {
         EXPECT_EQ(backgroundPlansMade(), int(std::size(sizes)));
     }
     for (std::size_t k = 0; k < std::size(sizes); ++k) EXPECT_LT(worst[k], 1e-5) << sizes[k];
+    setPlannerQuietPeriod(std::chrono::milliseconds(500));
 }

@@ -28,13 +28,13 @@ std::atomic<FftwPlanning>& planningPolicy() {
 using Clock = std::chrono::steady_clock;
 /** The last time a renderer or the preprocessing was at work (noteBusy). */
 std::atomic<Clock::rep> g_lastBusy{0};
-/** How long the process must have rendered nothing before a WhenIdle job starts. */
-constexpr auto kQuiet = std::chrono::milliseconds(500);
+/** How long the process must have rendered nothing before a planning job starts (ms). */
+std::atomic<long> g_quietMs{500};
 
 /** One worker thread, started on the first job and never joined (the object is never
- *  destroyed, so a job still running at exit touches nothing that was). Urgent jobs run first
- *  and at once; WhenIdle jobs wait until the process has been quiet for kQuiet, so that they
- *  neither slow the work at hand (2 cores) nor measure plans while it competes for the cores. */
+ *  destroyed, so a job still running at exit touches nothing that was). Urgent jobs (plans to
+ *  destroy) run first and at once; the others wait until the process has been quiet for
+ *  g_quietMs (planInBackground). */
 class BackgroundPlanner {
 public:
     /** plans: the job makes a plan (counted by made()), else it only destroys one. */
@@ -70,7 +70,8 @@ private:
             m_wake.wait(lock, [this] { return !empty(); });
             auto& q = m_urgent.empty() ? m_whenIdle : m_urgent;
             const auto quietSince = Clock::time_point(Clock::duration(g_lastBusy.load()));
-            const auto wait = quietSince + kQuiet - Clock::now();
+            const auto wait =
+                quietSince + std::chrono::milliseconds(g_quietMs.load()) - Clock::now();
             if (&q == &m_urgent || wait <= Clock::duration::zero()) {
                 auto job = std::move(q.front());
                 q.pop_front();
@@ -116,6 +117,9 @@ BackgroundPlanner& backgroundPlanner() {
 FftwPlanning fftwPlanning() { return planningPolicy().load(); }
 void setFftwPlanning(FftwPlanning planning) { planningPolicy().store(planning); }
 void finishBackgroundPlanning() { backgroundPlanner().finish(); }
+void setPlannerQuietPeriod(std::chrono::milliseconds quiet) {
+    g_quietMs.store(long(quiet.count()));
+}
 int backgroundPlansMade() { return backgroundPlanner().made(); }
 
 namespace detail {
@@ -178,8 +182,8 @@ void saveWisdom() {
         std::filesystem::remove(tmp, ec);
 }
 
-void planInBackground(std::function<void()> job, When when) {
-    backgroundPlanner().enqueue(std::move(job), when == When::Urgent);
+void planInBackground(std::function<void()> job) {
+    backgroundPlanner().enqueue(std::move(job), false);
 }
 
 void destroyLater(fftwf_plan plan) {

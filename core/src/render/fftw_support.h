@@ -73,16 +73,14 @@ QuickPlan planQuickly(bool measure, Make&& make) {
     return {make(FFTW_ESTIMATE), fftwPlanning() == FftwPlanning::Background};
 }
 
-/** When a background job runs: Urgent at once (its plan pays back within the run that asks:
- *  the 2D DHT, 5x slower from ESTIMATE), WhenIdle once nothing has rendered for a while (its
- *  plan only saves a few percent: it is for the wisdom of the next run). */
-enum class When { Urgent, WhenIdle };
-
-/** Runs `job` on the process-wide background planning thread, then saves wisdom. The job makes
- *  its MEASURE plans on buffers of its own, under planMutex(). The thread is never joined: a
- *  process may end with a plan half made (its wisdom is then not saved). */
-void planInBackground(std::function<void()> job, When when);
-/** Marks the process busy now (renderers per frame, the preprocessing): WhenIdle jobs wait. */
+/** Runs `job` on the process-wide background planning thread once the process has been quiet
+ *  for a while (noteBusy, setPlannerQuietPeriod), then saves wisdom: measuring competes for the
+ *  cores with the work at hand (2 cores) and measures badly meanwhile, and a measured plan saves
+ *  only a few percent over the ESTIMATE one in use. The job makes its MEASURE plans on buffers
+ *  of its own, under planMutex(). The thread is never joined: a process may end with a plan
+ *  half made (its wisdom is then not saved). */
+void planInBackground(std::function<void()> job);
+/** Marks the process busy now (renderers per frame, the preprocessing): planning waits. */
 void noteBusy();
 
 /** A measured plan handed from the background planner to the thread that renders: set() once

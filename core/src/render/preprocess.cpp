@@ -266,25 +266,23 @@ fftwf_plan makeColumnPlan(const TransformShape& s, float* buf, unsigned flags) {
  *  foreground planning waits for one plan at most. */
 void measureInBackground(const TransformShape& s, std::vector<std::pair<int, int>> planes,
                          bool columns) {
-    detail::planInBackground(
-        [s, planes = std::move(planes), columns] {
-            for (const auto& [howmany, alignment] : planes) {
-                const std::size_t floats = std::size_t(howmany * s.rs * s.P[1]);
-                FftwBuffer scratch = allocateFftw(floats + 16);
-                float* p = scratch.get() + alignment / int(sizeof(float));
-                std::lock_guard lock(detail::planMutex());
-                fftwf_plan_with_nthreads(s.threads);
-                if (fftwf_plan plan = makePlanePlan(s, p, howmany, detail::plannerFlags(true)))
-                    fftwf_destroy_plan(plan);
-            }
-            if (!columns) return;
-            FftwBuffer scratch = allocateFftw(columnBufferFloats(s));
+    detail::planInBackground([s, planes = std::move(planes), columns] {
+        for (const auto& [howmany, alignment] : planes) {
+            const std::size_t floats = std::size_t(howmany * s.rs * s.P[1]);
+            FftwBuffer scratch = allocateFftw(floats + 16);
+            float* p = scratch.get() + alignment / int(sizeof(float));
             std::lock_guard lock(detail::planMutex());
-            fftwf_plan_with_nthreads(1);
-            if (fftwf_plan plan = makeColumnPlan(s, scratch.get(), detail::plannerFlags(true)))
+            fftwf_plan_with_nthreads(s.threads);
+            if (fftwf_plan plan = makePlanePlan(s, p, howmany, detail::plannerFlags(true)))
                 fftwf_destroy_plan(plan);
-        },
-        detail::When::WhenIdle);
+        }
+        if (!columns) return;
+        FftwBuffer scratch = allocateFftw(columnBufferFloats(s));
+        std::lock_guard lock(detail::planMutex());
+        fftwf_plan_with_nthreads(1);
+        if (fftwf_plan plan = makeColumnPlan(s, scratch.get(), detail::plannerFlags(true)))
+            fftwf_destroy_plan(plan);
+    });
 }
 
 /** Copies the block of `floats` floats at column x0 of every plane of row y into buf (block
