@@ -45,7 +45,7 @@ void row(const std::string& name, int count, const Make& make, const Exec& exec,
         }
         fftwf_destroy_plan(p);
     }
-    std::printf("| %-40s | %5d | %9.1f | %7.2f | %9.3f | %9.3f | %6.2f |\n", name.c_str(), count,
+    std::printf("| %-40s | %5d | %9.1f | %7.2f | %9.4f | %9.4f | %6.2f |\n", name.c_str(), count,
                 plan[0], plan[1], run[0], run[1], run[1] / run[0]);
     std::fflush(stdout);
 }
