@@ -103,6 +103,7 @@ TEST(FftwPlanning, BackgroundPlanIsSavedAndSwappedIn) {
 TEST(FftwPlanning, PreprocessMeasuresInBackground) {
     freshWisdom();
     setFftwPlanning(FftwPlanning::Background);
+    setPlannerQuietPeriod(std::chrono::milliseconds(0)); // no need to wait between steps
     finishBackgroundPlanning();
     const bool fresh = backgroundPlansMade() == 0; // a process of its own (CTest)
     const Volume v = makeSheppLoganVolume(36);
@@ -132,6 +133,7 @@ TEST(FftwPlanning, PreprocessMeasuresInBackground) {
                 }
         EXPECT_LT(err / peak, 1e-5);
     }
+    setPlannerQuietPeriod(std::chrono::milliseconds(2000));
 }
 
 // Estimate and measured plans against the analytic line integrals of the accuracy fixture: both
@@ -204,5 +206,5 @@ TEST(FftwPlanning, RenderersOnThreadsWhileThePlannerSwaps) {
         EXPECT_EQ(backgroundPlansMade(), int(std::size(sizes)));
     }
     for (std::size_t k = 0; k < std::size(sizes); ++k) EXPECT_LT(worst[k], 1e-5) << sizes[k];
-    setPlannerQuietPeriod(std::chrono::milliseconds(500));
+    setPlannerQuietPeriod(std::chrono::milliseconds(2000));
 }

@@ -28,8 +28,10 @@ std::atomic<FftwPlanning>& planningPolicy() {
 using Clock = std::chrono::steady_clock;
 /** The last time a renderer or the preprocessing was at work (noteBusy). */
 std::atomic<Clock::rep> g_lastBusy{0};
-/** How long the process must have rendered nothing before a planning job starts (ms). */
-std::atomic<long> g_quietMs{500};
+/** How long the process must have rendered nothing before a planning job starts (ms): longer
+ *  than the pauses inside a batch (fvr-render probes the GPU between the preprocessing and the
+ *  first frame: ~0.5 s on a busy machine), short against a user's pause in the workstation. */
+std::atomic<long> g_quietMs{2000};
 
 /** One worker thread, started on the first job and never joined (the object is never
  *  destroyed, so a job still running at exit touches nothing that was). Urgent jobs (plans to

@@ -29,7 +29,7 @@ void setFftwPlanning(FftwPlanning planning);
  *  far. Nothing needs to call it: tests and benchmarks do. */
 void finishBackgroundPlanning();
 /** How long the process must have been quiet (no frame rendered, no preprocessing) before the
- *  background planner measures (default 500 ms): measuring on 2 busy cores would slow the work
+ *  background planner measures (default 2 s): measuring on 2 busy cores would slow the work
  *  at hand and measure badly. Tests set 0 to plan while rendering. */
 void setPlannerQuietPeriod(std::chrono::milliseconds quiet);
 /** How many measured plans the background planner has made since the process started. */
