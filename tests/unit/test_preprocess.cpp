@@ -98,6 +98,9 @@ TEST(Preprocess, FftMatchesDirectDftInDouble) {
     checkAgainstNaive(randomVolume({6, 8, 5}, 2), o); // padded, even N with half-voxel phase
     o.paddedDims = Dims3{9, 10, 12};
     checkAgainstNaive(randomVolume({8, 7, 9}, 3), o); // even N inside odd P
+    o.paddedDims.reset();
+    o.oversampling = 1.0;
+    checkAgainstNaive(randomVolume({37, 4, 6}, 8), o); // rows of 38 floats: two column blocks
 }
 
 TEST(Preprocess, HartleyBothMethodsMatchDirectDft) {
@@ -109,6 +112,8 @@ TEST(Preprocess, HartleyBothMethodsMatchDirectDft) {
         checkAgainstNaive(randomVolume({7, 6, 5}, 4), o);
         o.oversampling = 1.4;
         checkAgainstNaive(randomVolume({6, 8, 7}, 5), o);
+        o.oversampling = 1.0;
+        checkAgainstNaive(randomVolume({37, 4, 5}, 9), o); // two column blocks
     }
 }
 

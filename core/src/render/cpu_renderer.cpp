@@ -27,10 +27,16 @@ std::string projectionUnits(ValueMapping mapping, ValueUnits source) {
 
 struct CpuFourierRenderer::SizeResources {
     int size = 0;
-    FftwBuffer slice; // Fft: M rows x (M/2+1) complex; Fht: M x M real (in place)
-    FftwBuffer image; // Fft: M x M real output
-    detail::Plan c2r; // complex-to-real, out of place
-    detail::Plan dht; // separable 2D DHT, in place on slice
+    FftwBuffer slice; // Fft: M rows x (M/2+1) complex; Fht: M x M real
+    FftwBuffer image; // Fft: M x M real output; Fht: M rows x (M/2+1) complex
+    /** Fft: complex-to-real, slice -> image. Fht: real-to-complex, slice -> image, whose
+     *  Re - Im is the 2D Hartley transform (hartleyFromHalfSpectrum): FFTW_DHT plans are 5x
+     *  slower from ESTIMATE and 4x slower measured, and give the separable transform. */
+    detail::Plan inverse;
+    /** The measured plan the background planner is making (null: the plan above is final),
+     *  and the estimate plan it replaced (kept: destroying it would wait for the planner). */
+    std::shared_ptr<detail::PlanSlot> measured;
+    detail::Plan replaced;
 };
 
 CpuFourierRenderer::CpuFourierRenderer(std::shared_ptr<const Spectrum> spectrum, int threads)
@@ -43,30 +49,67 @@ CpuFourierRenderer::CpuFourierRenderer(std::shared_ptr<const Spectrum> spectrum,
 
 CpuFourierRenderer::~CpuFourierRenderer() = default;
 
+namespace {
+/** The inverse 2D transform of an M x M slice, out of place (SizeResources::inverse). */
+fftwf_plan planInverse(bool hartley, int M, float* slice, float* image, unsigned flags) {
+    if (hartley)
+        return fftwf_plan_dft_r2c_2d(M, M, slice, reinterpret_cast<fftwf_complex*>(image), flags);
+    return fftwf_plan_dft_c2r_2d(M, M, reinterpret_cast<fftwf_complex*>(slice), image, flags);
+}
+
+/** The 2D Hartley transform H = Re F - Im F of an M x M real image from its r2c transform F
+ *  (M rows of M/2+1; F(-k) = conj F(k) gives the columns beyond M/2). */
+void hartleyFromHalfSpectrum(const float* F, float* H, int M, ThreadPool& pool) {
+    const std::int64_t h = M / 2 + 1;
+    pool.parallelFor(M, 16, [&](std::int64_t r0, std::int64_t r1) {
+        for (std::int64_t y = r0; y < r1; ++y) {
+            const float* row = F + 2 * h * y;
+            const float* mirror = F + 2 * h * ((M - y) % M);
+            float* out = H + std::int64_t(M) * y;
+            for (std::int64_t x = 0; x < h; ++x) out[x] = row[2 * x] - row[2 * x + 1];
+            for (std::int64_t x = h; x < M; ++x)
+                out[x] = mirror[2 * (M - x)] + mirror[2 * (M - x) + 1];
+        }
+    });
+}
+} // namespace
+
 CpuFourierRenderer::SizeResources& CpuFourierRenderer::resources(int M) {
     auto it = m_resources.find(M);
     if (it != m_resources.end()) return *it->second;
     detail::ensureFftwInitialised();
     auto r = std::make_unique<SizeResources>();
     r->size = M;
-    const std::size_t halfFloats = std::size_t(M) * (M / 2 + 1) * 2;
-    if (m_spectrum->kind == TransformKind::Fft) {
-        r->slice = allocateFftw(halfFloats);
-        r->image = allocateFftw(std::size_t(M) * M);
+    const bool hartley = m_spectrum->kind == TransformKind::Fht;
+    const std::size_t half = std::size_t(M) * (M / 2 + 1) * 2, full = std::size_t(M) * M;
+    const std::size_t sliceFloats = hartley ? full : half, imageFloats = hartley ? half : full;
+    r->slice = allocateFftw(sliceFloats);
+    r->image = allocateFftw(imageFloats);
+    const int threads = M >= 512 ? m_threads : 1;
+    detail::QuickPlan q;
+    {
         std::lock_guard lock(detail::planMutex());
-        fftwf_plan_with_nthreads(M >= 512 ? m_threads : 1);
-        r->c2r = detail::Plan(
-            fftwf_plan_dft_c2r_2d(M, M, reinterpret_cast<fftwf_complex*>(r->slice.get()),
-                                  r->image.get(), detail::plannerFlags(true)));
-    } else {
-        r->slice = allocateFftw(std::size_t(M) * M);
-        std::lock_guard lock(detail::planMutex());
-        fftwf_plan_with_nthreads(M >= 512 ? m_threads : 1);
-        r->dht = detail::Plan(fftwf_plan_r2r_2d(M, M, r->slice.get(), r->slice.get(), FFTW_DHT,
-                                                FFTW_DHT, detail::plannerFlags(true)));
+        fftwf_plan_with_nthreads(threads);
+        q = detail::planQuickly(true, [&](unsigned flags) {
+            return planInverse(hartley, M, r->slice.get(), r->image.get(), flags);
+        });
     }
-    if (!r->c2r && !r->dht)
-        throw std::runtime_error("FFTW could not plan the inverse 2D transform");
+    r->inverse = detail::Plan(q.plan);
+    if (!q.plan) throw std::runtime_error("FFTW could not plan the inverse 2D transform");
+    if (q.measureLater) {
+        // Measured on buffers of its own (MEASURE overwrites them), executed on ours: both come
+        // from fftwf_malloc, so their alignment agrees (new-array execution is legal).
+        r->measured = std::make_shared<detail::PlanSlot>();
+        detail::planInBackground(
+            [slot = r->measured, hartley, M, threads, sliceFloats, imageFloats] {
+                FftwBuffer slice = allocateFftw(sliceFloats);
+                FftwBuffer image = allocateFftw(imageFloats);
+                std::lock_guard lock(detail::planMutex());
+                fftwf_plan_with_nthreads(threads);
+                slot->set(
+                    planInverse(hartley, M, slice.get(), image.get(), detail::plannerFlags(true)));
+            });
+    }
     detail::saveWisdom();
     return *m_resources.emplace(M, std::move(r)).first->second;
 }
@@ -688,27 +731,6 @@ void dispatchTaps(int taps, bool depth, F&& f) {
     }
 }
 
-/** Eq. 4: H(u,v) = 1/2 (T(u,v) + T(-u,v) + T(u,-v) - T(-u,-v)), in place, 4 mirror points at once.
- */
-void hartleyCorrection2D(float* d, int M, ThreadPool& pool) {
-    pool.parallelFor(M / 2 + 1, 8, [&](std::int64_t v0, std::int64_t v1) {
-        for (std::int64_t v = v0; v < v1; ++v) {
-            const std::int64_t vy[2] = {v, (M - v) % M};
-            for (int u = 0; u <= M / 2; ++u) {
-                const int ux[2] = {u, (M - u) % M};
-                float t[2][2], h[2][2];
-                for (int b = 0; b < 2; ++b)
-                    for (int a = 0; a < 2; ++a) t[b][a] = d[vy[b] * M + ux[a]];
-                for (int b = 0; b < 2; ++b)
-                    for (int a = 0; a < 2; ++a)
-                        h[b][a] = 0.5f * (t[b][a] + t[b][1 - a] + t[1 - b][a] - t[1 - b][1 - a]);
-                for (int b = 0; b < 2; ++b)
-                    for (int a = 0; a < 2; ++a) d[vy[b] * M + ux[a]] = h[b][a];
-            }
-        }
-    });
-}
-
 } // namespace
 
 std::string CpuFourierRenderer::describe() const {
@@ -797,15 +819,23 @@ const TransferTable* CpuFourierRenderer::transferTable(VoxelModel model, double 
 }
 
 void CpuFourierRenderer::invertSlice(SizeResources& res, ProjectionImage& img) {
+    detail::noteBusy();
+    if (res.measured && res.measured->ready()) { // swap in the background planner's plan
+        detail::Plan p = res.measured->take();
+        res.measured.reset();
+        if (p) {
+            res.replaced = std::move(res.inverse);
+            res.inverse = std::move(p);
+        }
+    }
     if (m_spectrum->kind == TransformKind::Fft) {
-        fftwf_execute_dft_c2r(res.c2r.get(), reinterpret_cast<fftwf_complex*>(res.slice.get()),
+        fftwf_execute_dft_c2r(res.inverse.get(), reinterpret_cast<fftwf_complex*>(res.slice.get()),
                               res.image.get());
         std::memcpy(img.pixels.data(), res.image.get(), sizeof(float) * img.pixels.size());
     } else {
-        float* slice = res.slice.get();
-        fftwf_execute_r2r(res.dht.get(), slice, slice);
-        hartleyCorrection2D(slice, img.size, m_pool);
-        std::memcpy(img.pixels.data(), slice, sizeof(float) * img.pixels.size());
+        fftwf_execute_dft_r2c(res.inverse.get(), res.slice.get(),
+                              reinterpret_cast<fftwf_complex*>(res.image.get()));
+        hartleyFromHalfSpectrum(res.image.get(), img.pixels.data(), img.size, m_pool);
     }
 }
 

@@ -13,7 +13,8 @@ namespace fvr::core {
  * Per frame: resample the central slice perpendicular to D from the spectrum (separable kernel
  * tables; Hermitian lookups into the half spectrum; the output centring (-1)^(m+n) and the
  * physical scale (s_x s_y s_z)/(M d)^2 folded into the slice), then one inverse 2D transform:
- * complex-to-real FFT (only the half slice is sampled) or FHT with the eq. 4 correction.
+ * complex-to-real FFT (only the half slice is sampled) or the 2D Hartley transform (Re - Im of
+ * the slice's real-to-complex FFT).
  * With the band-limited voxel model, spatial frequencies outside the volume's band (|k_a| > P_a/2)
  * are zero; the other models read the spectrum's periodic continuation (taps carry the (-1)-per-
  * period sign of axes with an even voxel count) times the model's transfer function. The Nyquist

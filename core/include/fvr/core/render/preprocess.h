@@ -43,8 +43,9 @@ struct PreprocessOptions {
      *  Empty: no deapodization (any kernel). */
     std::optional<Kernel> deapodizeFor;
     int threads = 0; ///< 0: all hardware threads
-    /** FFTW planning: Measure (default) caches plans as wisdom on disk (XDG cache) so repeated
-     *  loads plan instantly; Estimate plans at once without measuring. */
+    /** FFTW planning: Measure (default) uses the measured plans of the wisdom on disk (XDG
+     *  cache); those it lacks are planned ESTIMATE at once and measured in the background for
+     *  the next load (fftw_planning.h). Estimate plans at once without measuring. */
     PlannerEffort effort = PlannerEffort::Measure;
     bool operator==(const PreprocessOptions&) const = default;
 };
