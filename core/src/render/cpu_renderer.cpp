@@ -390,6 +390,33 @@ template <int T>
     return true;
 }
 
+/** Samples ahead whose spectrum rows the slice walk prefetches (nearest and linear: their loads
+ *  are cache misses more than arithmetic; measured: -25 % slice time at 512^2 of a 256^3
+ *  spectrum, 8-24 ahead alike; none for the wider kernels, where it did not pay). */
+constexpr int kPrefetchAhead = 12;
+
+/** Prefetches the rows an interior sample at continuous k will read (nothing for the others). */
+template <int T>
+[[gnu::always_inline]] inline void prefetchInterior(const SliceContext& c, double kx, double ky,
+                                                    double kz) {
+    if (kx < 0) {
+        kx = -kx;
+        ky = -ky;
+        kz = -kz;
+    }
+    const std::int64_t bx = floorIndex(T == 1 ? kx + 0.5 : kx);
+    const std::int64_t by = floorIndex(T == 1 ? ky + 0.5 : ky);
+    const std::int64_t bz = floorIndex(T == 1 ? kz + 0.5 : kz);
+    if (bx < 0 || bx + T - 1 > c.P0 / 2 || !inPrincipalPeriod<T>(by, c.P1) ||
+        !inPrincipalPeriod<T>(bz, c.P2))
+        return;
+    const float* base = c.data + 2 * bx;
+    for (int zc = 0; zc < T; ++zc)
+        for (int yc = 0; yc < T; ++yc)
+            __builtin_prefetch(
+                base + (storedIndex(by + yc, c.P1) + c.P1 * storedIndex(bz + zc, c.P2)) * c.rs);
+}
+
 /** Interpolated complex G at continuous signed frequency k from the half spectrum (with Depth
  *  also E.grad G), the period signs included; no band cut, no model. */
 template <int T, bool Depth>
@@ -669,6 +696,11 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
                 if (m == M / 2 || nyqRow) {
                     v = nyquistMean<cfloat>(sample, m, n, m == M / 2, nyqRow);
                 } else {
+                    if constexpr (T <= 2) {
+                        const double ma = m + kPrefetchAhead;
+                        prefetchInterior<T>(c, ma * f.A[0] + n * f.B[0], ma * f.A[1] + n * f.B[1],
+                                            ma * f.A[2] + n * f.B[2]);
+                    }
                     v = sample(m, n, m);
                 }
                 row[m] = v * (filter.on ? sign * filter(m, n) : sign);
