@@ -417,6 +417,23 @@ template <int T>
                 base + (storedIndex(by + yc, c.P1) + c.P1 * storedIndex(bz + zc, c.P2)) * c.rs);
 }
 
+/** prefetchInterior for the Hartley spectrum (no half-spectrum mirror). */
+template <int T>
+[[gnu::always_inline]] inline void prefetchHartleyInterior(const SliceContext& c, double kx,
+                                                           double ky, double kz) {
+    const std::int64_t bx = floorIndex(T == 1 ? kx + 0.5 : kx);
+    const std::int64_t by = floorIndex(T == 1 ? ky + 0.5 : ky);
+    const std::int64_t bz = floorIndex(T == 1 ? kz + 0.5 : kz);
+    if (!inPrincipalPeriod<T>(bx, c.P0) || !inPrincipalPeriod<T>(by, c.P1) ||
+        !inPrincipalPeriod<T>(bz, c.P2))
+        return;
+    const float* base = c.data + storedIndex(bx, c.P0);
+    for (int zc = 0; zc < T; ++zc)
+        for (int yc = 0; yc < T; ++yc)
+            __builtin_prefetch(
+                base + (storedIndex(by + yc, c.P1) + c.P1 * storedIndex(bz + zc, c.P2)) * c.rs);
+}
+
 /** Interpolated complex G at continuous signed frequency k from the half spectrum (with Depth
  *  also E.grad G), the period signs included; no band cut, no model. */
 template <int T, bool Depth>
@@ -732,6 +749,12 @@ void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const SliceF
                 if (m == -M / 2 || nyqRow) {
                     v = nyquistMean<float>(sample, m, n, m == -M / 2, nyqRow);
                 } else {
+                    if constexpr (T <= 2) {
+                        const double ma = m + kPrefetchAhead;
+                        prefetchHartleyInterior<T>(c, ma * f.A[0] + n * f.B[0],
+                                                   ma * f.A[1] + n * f.B[1],
+                                                   ma * f.A[2] + n * f.B[2]);
+                    }
                     v = sample(m, n, col);
                 }
                 row[col] = v * (filter.on ? sign * filter(m, n) : sign);
