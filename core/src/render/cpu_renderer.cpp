@@ -279,6 +279,23 @@ inline bool inPrincipalPeriod(std::int64_t b, std::int64_t P) {
     return b > hi - P && b + T - 1 <= hi;
 }
 
+/** Moves the taps b .. b + T - 1 by whole periods into (-P/2, P/2] (the periodic continuation
+ *  the non-band-limited voxel models read), negating `sign` for an odd number of periods of an
+ *  antiperiodic axis, as wrapAxis does tap by tap; false where the taps straddle a period's
+ *  edge. */
+template <int T>
+[[gnu::always_inline]] inline bool intoPrincipalPeriod(std::int64_t& b, std::int64_t P, bool anti,
+                                                       float& sign) {
+    const std::int64_t hi = P / 2;
+    if (b > hi || b <= hi - P) {
+        const std::int64_t a = b - hi; // periods to remove: ceil(a / P)
+        const std::int64_t q = a > 0 ? (a + P - 1) / P : -((-a) / P);
+        b -= q * P;
+        if (anti && (q & 1)) sign = -sign;
+    }
+    return b + T - 1 <= hi;
+}
+
 /** The storage row of signed index i in (-P, P). */
 inline std::int64_t storedIndex(std::int64_t i, std::int64_t P) { return i < 0 ? i + P : i; }
 
@@ -292,21 +309,23 @@ inline Float4 load4(const float* p) {
     return v;
 }
 
-/** The common case of the half-spectrum lookup, for kx >= 0 and an even tap count: every tap in
- *  the stored half along x and in the principal period along y and z, so no mirror, no wrap and
- *  no period sign; false (nothing written) otherwise. The T complex values of a tap row are T/2
- *  SIMD registers, weighted by (w_x w_y) pairs; the z weights apply per plane. */
+/** The common case of the half-spectrum lookup, for kx >= 0 and an even tap count: the taps of
+ *  each axis in one period (moved into (-P/2, P/2] with its sign) and, along x, in the stored
+ *  half, so no mirror and no tap-by-tap wrap; false (nothing written) otherwise. The T complex
+ * values of a tap row are T/2 SIMD registers, weighted by (w_x w_y) pairs; the z weights apply per
+ * plane. */
 template <int T>
 [[gnu::always_inline]] inline bool interiorComplex(const SliceContext& c, double kx, double ky,
                                                    double kz, cfloat& out) {
     static_assert(T % 2 == 0);
     constexpr int V = T / 2; // registers per tap row
-    float wx[T], wy[T], wz[T];
-    const std::int64_t bx = interiorAxis<T>(c, kx, wx);
-    const std::int64_t by = interiorAxis<T>(c, ky, wy);
-    const std::int64_t bz = interiorAxis<T>(c, kz, wz);
-    if (bx < 0 || bx + T - 1 > c.P0 / 2 || !inPrincipalPeriod<T>(by, c.P1) ||
-        !inPrincipalPeriod<T>(bz, c.P2))
+    float wx[T], wy[T], wz[T], sign = 1.0f;
+    std::int64_t bx = interiorAxis<T>(c, kx, wx);
+    std::int64_t by = interiorAxis<T>(c, ky, wy);
+    std::int64_t bz = interiorAxis<T>(c, kz, wz);
+    if (!intoPrincipalPeriod<T>(bx, c.P0, c.anti[0], sign) || bx < 0 || bx + T - 1 > c.P0 / 2 ||
+        !intoPrincipalPeriod<T>(by, c.P1, c.anti[1], sign) ||
+        !intoPrincipalPeriod<T>(bz, c.P2, c.anti[2], sign))
         return false;
     Float4 wxy[T][V]; // (w_x w_y) for the (re, im) pairs of two taps
     for (int v = 0; v < V; ++v) {
@@ -327,7 +346,7 @@ template <int T>
         }
         acc += wz[zc] * accZ;
     }
-    out = {acc[0] + acc[2], acc[1] + acc[3]};
+    out = {sign * (acc[0] + acc[2]), sign * (acc[1] + acc[3])};
     return true;
 }
 
@@ -335,15 +354,16 @@ template <int T>
 template <>
 [[gnu::always_inline]] inline bool interiorComplex<1>(const SliceContext& c, double kx, double ky,
                                                       double kz, cfloat& out) {
-    float w;
-    const std::int64_t bx = interiorAxis<1>(c, kx, &w);
-    const std::int64_t by = interiorAxis<1>(c, ky, &w);
-    const std::int64_t bz = interiorAxis<1>(c, kz, &w);
-    if (bx < 0 || bx > c.P0 / 2 || !inPrincipalPeriod<1>(by, c.P1) ||
-        !inPrincipalPeriod<1>(bz, c.P2))
+    float w, sign = 1.0f;
+    std::int64_t bx = interiorAxis<1>(c, kx, &w);
+    std::int64_t by = interiorAxis<1>(c, ky, &w);
+    std::int64_t bz = interiorAxis<1>(c, kz, &w);
+    if (!intoPrincipalPeriod<1>(bx, c.P0, c.anti[0], sign) || bx < 0 || bx > c.P0 / 2 ||
+        !intoPrincipalPeriod<1>(by, c.P1, c.anti[1], sign) ||
+        !intoPrincipalPeriod<1>(bz, c.P2, c.anti[2], sign))
         return false;
     const std::int64_t row = storedIndex(by, c.P1) + c.P1 * storedIndex(bz, c.P2);
-    out = reinterpret_cast<const cfloat*>(c.data)[row * (c.rs / 2) + bx];
+    out = sign * reinterpret_cast<const cfloat*>(c.data)[row * (c.rs / 2) + bx];
     return true;
 }
 
@@ -356,11 +376,13 @@ template <int T>
     constexpr int V = TX / 2;
     float wx[TX] = {}, dx[TX] = {}, wy[T], dy[T], wz[T], dz[T];
     std::int64_t bx, by, bz;
+    float sign = 1.0f;
     axisDerivWeights<T>(c, kx, bx, wx, dx);
     axisDerivWeights<T>(c, ky, by, wy, dy);
     axisDerivWeights<T>(c, kz, bz, wz, dz);
-    if (bx < 0 || bx + TX - 1 > c.P0 / 2 || !inPrincipalPeriod<T>(by, c.P1) ||
-        !inPrincipalPeriod<T>(bz, c.P2))
+    if (!intoPrincipalPeriod<TX>(bx, c.P0, c.anti[0], sign) || bx < 0 || bx + TX - 1 > c.P0 / 2 ||
+        !intoPrincipalPeriod<T>(by, c.P1, c.anti[1], sign) ||
+        !intoPrincipalPeriod<T>(bz, c.P2, c.anti[2], sign))
         return false;
     Float4 wv[V], dv[V];
     for (int v = 0; v < V; ++v) {
@@ -386,7 +408,8 @@ template <int T>
                     (c.E[1] * dy[yc] * wz[zc] + c.E[2] * wy[yc] * dz[zc]) * sx;
         }
     }
-    out = {{acc[0] + acc[2], acc[1] + acc[3]}, {dacc[0] + dacc[2], dacc[1] + dacc[3]}};
+    out = {{sign * (acc[0] + acc[2]), sign * (acc[1] + acc[3])},
+           {sign * (dacc[0] + dacc[2]), sign * (dacc[1] + dacc[3])}};
     return true;
 }
 
@@ -537,21 +560,19 @@ inline cfloat sampleComplex(const SliceContext& c, double kx, double ky, double 
     return s.v;
 }
 
-/** Interpolated Hartley value at continuous signed frequency k; with Derivative also E.grad H
- *  there (depth cueing, FHT path), from the same taps with the derivative weights. Period signs
- *  included; no band cut, no model. */
-/** The common case of the Hartley lookup: every tap in the principal period (-P/2, P/2] of each
- *  axis, so no wrap and no period sign; false (nothing written) otherwise. Four taps of a row are
- *  one SIMD register. */
+/** The common case of the Hartley lookup: the taps of each axis in one period (moved into
+ *  (-P/2, P/2] with its sign), so no tap-by-tap wrap; false (nothing written) otherwise. Four taps
+ * of a row are one SIMD register. */
 template <int T>
 [[gnu::always_inline]] inline bool interiorHartley(const SliceContext& c, double kx, double ky,
                                                    double kz, float& out) {
-    float wx[T], wy[T], wz[T];
-    const std::int64_t bx = interiorAxis<T>(c, kx, wx);
-    const std::int64_t by = interiorAxis<T>(c, ky, wy);
-    const std::int64_t bz = interiorAxis<T>(c, kz, wz);
-    if (!inPrincipalPeriod<T>(bx, c.P0) || !inPrincipalPeriod<T>(by, c.P1) ||
-        !inPrincipalPeriod<T>(bz, c.P2))
+    float wx[T], wy[T], wz[T], sign = 1.0f;
+    std::int64_t bx = interiorAxis<T>(c, kx, wx);
+    std::int64_t by = interiorAxis<T>(c, ky, wy);
+    std::int64_t bz = interiorAxis<T>(c, kz, wz);
+    if (!intoPrincipalPeriod<T>(bx, c.P0, c.anti[0], sign) ||
+        !intoPrincipalPeriod<T>(by, c.P1, c.anti[1], sign) ||
+        !intoPrincipalPeriod<T>(bz, c.P2, c.anti[2], sign))
         return false;
     std::int64_t ix[T], rowY[T];
     for (int t = 0; t < T; ++t) {
@@ -578,10 +599,13 @@ template <int T>
         }
         acc += wz[zc] * accZ;
     }
-    out = acc;
+    out = sign * acc;
     return true;
 }
 
+/** Interpolated Hartley value at continuous signed frequency k; with Derivative also E.grad H
+ *  there (depth cueing, FHT path), from the same taps with the derivative weights. Period signs
+ *  included; no band cut, no model. */
 template <int T, bool Derivative = false>
 inline Sampled<float> interpolateHartley(const SliceContext& c, double kx, double ky, double kz) {
     std::int64_t ix[T], iy[T], iz[T];
