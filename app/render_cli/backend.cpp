@@ -47,7 +47,9 @@ public:
     int batchWidth() const override { return m_threads; }
     std::vector<core::ProjectionImage> renderBatch(
         const std::vector<core::RenderParams>& params) override {
-        if (params.size() < 2) return RenderBackend::renderBatch(params);
+        // One view alone goes to the renderer with every thread; the views of a batch run, its
+        // last one included, all to the single-threaded lanes (the same plans: the same bytes).
+        if (params.size() < 2 && !m_lanes) return RenderBackend::renderBatch(params);
         if (!m_lanes) m_lanes = std::make_unique<Lanes>(m_spectrum, m_threads);
         std::vector<core::ProjectionImage> images(params.size());
         m_lanes->pool.parallelFor(

@@ -1,5 +1,6 @@
 // fvr-render --out: the views, the image files and the JSON sidecar.
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <csignal>
@@ -32,6 +33,28 @@
 #include "session.h"
 
 namespace fvr::cli {
+
+std::vector<core::ViewFrame> sweepViews(const Options& o, const core::Volume& volume,
+                                        const core::ViewFrame& base) {
+    using namespace fvr::core;
+    const auto& dir = volume.direction;
+    const Vec3 axis = o.axis ? *o.axis : Vec3{dir[0][2], dir[1][2], dir[2][2]}; // head-feet
+    // Views along the axis would all be one projection turned in the image plane: the default
+    // view (along the slices, usually the head-feet axis) gives way to AP.
+    auto alongAxis = [&](const ViewFrame& v) {
+        return std::abs(dot(v.d, axis)) > 0.999 * norm(v.d) * norm(axis);
+    };
+    ViewFrame start = base;
+    if (alongAxis(start) && !o.viewGiven) start = patientViewFrame(volume, PatientView::AP);
+    if (alongAxis(start))
+        throw SettingsError("--sweep: the view looks along the rotation axis, so every view would "
+                            "be the same projection turned in the image plane; give a --view "
+                            "(AP, LEFT, ...) or a --dir across the axis, or another --axis");
+    std::vector<ViewFrame> views;
+    for (int i = 0; i < o.sweep; ++i)
+        views.push_back(start.rotated(axis, 2.0 * std::numbers::pi * i / o.sweep));
+    return views;
+}
 
 std::vector<core::ViewFrame> readViewsFile(const std::string& path) {
     using core::SettingsError;
@@ -86,26 +109,7 @@ std::string numberedPath(const std::string& out, std::size_t i) {
  */
 std::vector<ViewFrame> outputViews(const Session& s, const std::vector<ViewFrame>& fileViews) {
     const Options& o = s.options;
-    if (o.sweep > 0) {
-        const auto& dir = s.volume.direction;
-        const Vec3 axis = o.axis ? *o.axis : Vec3{dir[0][2], dir[1][2], dir[2][2]}; // head-feet
-        // Views along the axis would all be one projection turned in the image plane: the
-        // default view (along the slices, usually the head-feet axis) gives way to AP.
-        auto alongAxis = [&](const ViewFrame& v) {
-            return std::abs(dot(v.d, axis)) > 0.999 * norm(v.d) * norm(axis);
-        };
-        ViewFrame start = s.base;
-        if (alongAxis(start) && !o.viewGiven) start = patientViewFrame(s.volume, PatientView::AP);
-        if (alongAxis(start))
-            throw SettingsError(
-                "--sweep: the view looks along the rotation axis, so every view "
-                "would be the same projection turned in the image plane; give a "
-                "--view or --dir across the axis (AP, LEFT, ...) or another --axis");
-        std::vector<ViewFrame> views;
-        for (int i = 0; i < o.sweep; ++i)
-            views.push_back(start.rotated(axis, 2.0 * std::numbers::pi * i / o.sweep));
-        return views;
-    }
+    if (o.sweep > 0) return sweepViews(o, s.volume, s.base);
     if (!o.viewsFile.empty()) return fileViews;
     return {s.base};
 }
@@ -309,7 +313,7 @@ private:
     }
 
     static constexpr int kSignals[2] = {SIGINT, SIGTERM};
-    static inline volatile std::sig_atomic_t s_signal = 0;
+    static inline std::atomic<int> s_signal{0}; // lock-free: set by the handler on any thread
     bool m_installed[2] = {};
 };
 
@@ -342,10 +346,15 @@ double renderViews(const Session& s, const std::vector<ViewFrame>& views, ViewWr
             break; // the writer failed: finish() says why
         if (InterruptGuard::signal() != 0) {
             if (views.size() > 1 && isatty(2)) std::fprintf(stderr, "\n");
-            throw Interrupted("interrupted after view " + std::to_string(i + 1) + " of " +
-                              std::to_string(views.size()) +
-                              (writer.stacked() ? ": the stack " + s.options.out + " not written"
-                                                : ": the views before it stay written"));
+            std::string what = "interrupted after view " + std::to_string(i + 1) + " of " +
+                               std::to_string(views.size());
+            if (writer.stacked()) {
+                what += ": the stack " + s.options.out + " not written";
+            } else { // the views rendered so far are written (the queue drained), and stay
+                writerThread.finish();
+                what += ": " + std::to_string(writer.written().size()) + " views written";
+            }
+            throw Interrupted(what);
         }
         const auto now = std::chrono::steady_clock::now();
         if (views.size() > 1 &&

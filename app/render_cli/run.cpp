@@ -68,14 +68,15 @@ std::shared_ptr<const Spectrum> preprocessVolume(const Options& o, const Volume&
 /** Renders what the options ask for from the loaded volume. */
 int renderVolume(const Options& o, const Volume& volume, const std::vector<ViewFrame>& fileViews,
                  const DicomExportInfo& exportInfo) {
+    const ViewFrame base =
+        o.view ? patientViewFrame(volume, *o.view) : ViewFrame::fromDirUp(o.dir, o.up);
+    if (o.sweep > 0 && !o.out.empty()) sweepViews(o, volume, base); // its errors before the work
     double preprocessMs = 0.0;
     auto spectrum = preprocessVolume(o, volume, preprocessMs);
     const double d =
         o.pixelSize ? *o.pixelSize : defaultPixelSize(volume.dims, volume.spacing, o.size);
     const ImageGeometry geometry{o.size, d};
     validateImageGeometry(geometry);
-    const ViewFrame base =
-        o.view ? patientViewFrame(volume, *o.view) : ViewFrame::fromDirUp(o.dir, o.up);
     auto backend = makeRenderBackend(o, spectrum);
     const Session s{o,        volume,
                     spectrum, preprocessMs,

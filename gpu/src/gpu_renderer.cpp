@@ -10,6 +10,7 @@
 #include <tuple>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/render/fftw_planning.h>
 #include <fvr/core/render/slice_filter.h>
 #include <fvr/core/render/slice_params.h>
 #include <fvr/gpu/errors.h>
@@ -508,6 +509,7 @@ void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* p
 
 void GpuFourierRenderer::renderToGpu(const core::RenderParams& p,
                                      const core::DisplayWindow* display) {
+    const core::PlannerBusyScope busy; // the CPU's FFTW planner measures between frames only
     core::validateRenderParams(p);
     if (!m_spectrum) throw GlError("GPU renderer: no spectrum uploaded");
     core::checkKernelMatchesSpectrum(*m_spectrum, p.kernel);

@@ -429,9 +429,10 @@ template <int T>
         ky = -ky;
         kz = -kz;
     }
-    const std::int64_t bx = floorIndex(T == 1 ? kx + 0.5 : kx);
-    const std::int64_t by = floorIndex(T == 1 ? ky + 0.5 : ky);
-    const std::int64_t bz = floorIndex(T == 1 ? kz + 0.5 : kz);
+    const std::int64_t off = T >= 4 ? c.first : 0; // the first tap, as interiorAxis
+    const std::int64_t bx = floorIndex(T == 1 ? kx + 0.5 : kx) + off;
+    const std::int64_t by = floorIndex(T == 1 ? ky + 0.5 : ky) + off;
+    const std::int64_t bz = floorIndex(T == 1 ? kz + 0.5 : kz) + off;
     if (bx < 0 || bx + T - 1 > c.P0 / 2 || !inPrincipalPeriod<T>(by, c.P1) ||
         !inPrincipalPeriod<T>(bz, c.P2))
         return;
@@ -446,9 +447,10 @@ template <int T>
 template <int T>
 [[gnu::always_inline]] inline void prefetchHartleyInterior(const SliceContext& c, double kx,
                                                            double ky, double kz) {
-    const std::int64_t bx = floorIndex(T == 1 ? kx + 0.5 : kx);
-    const std::int64_t by = floorIndex(T == 1 ? ky + 0.5 : ky);
-    const std::int64_t bz = floorIndex(T == 1 ? kz + 0.5 : kz);
+    const std::int64_t off = T >= 4 ? c.first : 0; // the first tap, as interiorAxis
+    const std::int64_t bx = floorIndex(T == 1 ? kx + 0.5 : kx) + off;
+    const std::int64_t by = floorIndex(T == 1 ? ky + 0.5 : ky) + off;
+    const std::int64_t bz = floorIndex(T == 1 ? kz + 0.5 : kz) + off;
     if (!inPrincipalPeriod<T>(bx, c.P0) || !inPrincipalPeriod<T>(by, c.P1) ||
         !inPrincipalPeriod<T>(bz, c.P2))
         return;
@@ -641,9 +643,10 @@ template <int T, bool Depth>
 inline float sampleHartley(const SliceContext& c, double kx, double ky, double kz, float t,
                            float gt) {
     if (outOfBand(c, kx, ky, kz)) return 0.0f;
+    // The value's taps (linear with depth cueing runs on 3, the first of weight 0: 2 here).
+    constexpr int TV = T == 3 ? 2 : T;
     float h;
-    if (!interiorHartley < T == 3 ? 2 : T > (c, kx, ky, kz, h))
-        h = interpolateHartley<T>(c, kx, ky, kz).v;
+    if (!interiorHartley<TV>(c, kx, ky, kz, h)) h = interpolateHartley<T>(c, kx, ky, kz).v;
     if constexpr (!Depth) {
         return c.model ? t * h : h;
     } else {
@@ -948,6 +951,7 @@ void CpuFourierRenderer::clipAndClamp(const RenderParams& params, ProjectionImag
 }
 
 ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTimes* times) {
+    const PlannerBusyScope busy; // the background planner measures between frames, not during
     validateRenderParams(params);
     const auto t0 = Clock::now();
     const Spectrum& s = *m_spectrum;

@@ -28,6 +28,8 @@ std::atomic<FftwPlanning>& planningPolicy() {
 using Clock = std::chrono::steady_clock;
 /** The last time a renderer or the preprocessing was at work (noteBusy). */
 std::atomic<Clock::rep> g_lastBusy{0};
+/** Frames (and preprocessing runs) at work now (PlannerBusyScope). */
+std::atomic<int> g_active{0};
 /** How long the process must have rendered nothing before a planning job starts (ms): longer
  *  than the pauses inside a batch (fvr-render probes the GPU between the preprocessing and the
  *  first frame: ~0.5 s on a busy machine), short against a user's pause in the workstation. */
@@ -72,8 +74,9 @@ private:
             m_wake.wait(lock, [this] { return !empty(); });
             auto& q = m_urgent.empty() ? m_whenIdle : m_urgent;
             const auto quietSince = Clock::time_point(Clock::duration(g_lastBusy.load()));
+            const auto quiet = std::chrono::milliseconds(g_quietMs.load());
             const auto wait =
-                quietSince + std::chrono::milliseconds(g_quietMs.load()) - Clock::now();
+                g_active.load() > 0 ? Clock::duration(quiet) : quietSince + quiet - Clock::now();
             if (&q == &m_urgent || wait <= Clock::duration::zero()) {
                 auto job = std::move(q.front());
                 q.pop_front();
@@ -202,4 +205,14 @@ void noteBusy() {
 }
 
 } // namespace detail
+
+PlannerBusyScope::PlannerBusyScope() {
+    g_active.fetch_add(1);
+    detail::noteBusy();
+}
+
+PlannerBusyScope::~PlannerBusyScope() {
+    detail::noteBusy();
+    g_active.fetch_sub(1);
+}
 } // namespace fvr::core

@@ -589,6 +589,7 @@ std::shared_ptr<const Spectrum> preprocess(const Volume& volume, const Preproces
         throw SettingsError(volume.name + ": voxel buffer holds " +
                             std::to_string(volume.voxels.size()) + " values, dims need " +
                             std::to_string(volume.voxelCount()));
+    const PlannerBusyScope busy; // no background measuring while the 3D transform runs
     ProgressReporter pr(progress, cancel);
     pr.stage("planning", 0.0, 0.02);
 

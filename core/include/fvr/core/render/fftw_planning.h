@@ -35,4 +35,15 @@ void setPlannerQuietPeriod(std::chrono::milliseconds quiet);
 /** How many measured plans the background planner has made since the process started. */
 int backgroundPlansMade();
 
+/** Marks the process busy while it lives: every frame (CPU and GPU renderers) and the
+ *  preprocessing hold one. The background planner measures only while none is alive and the last
+ *  one ended a quiet period ago (a frame longer than the quiet period does not let it start). */
+class PlannerBusyScope {
+public:
+    PlannerBusyScope();
+    ~PlannerBusyScope();
+    PlannerBusyScope(const PlannerBusyScope&) = delete;
+    PlannerBusyScope& operator=(const PlannerBusyScope&) = delete;
+};
+
 } // namespace fvr::core

@@ -20,7 +20,8 @@ enum class ValueMapping {
 /** Spectrum representation and matching inverse 2D transform. */
 enum class TransformKind {
     Fft, ///< complex half spectrum (Hermitian), inverse 2D complex-to-real FFT
-    Fht ///< real 3D Hartley transform, inverse 2D FHT with the paper's eq. 4 correction
+    Fht ///< real 3D Hartley transform; inverse 2D Hartley transform (CPU: Re - Im of one
+        ///< real-to-complex FFT; GPU: separable passes and the paper's eq. 4 correction)
 };
 
 const char* valueMappingName(ValueMapping m);
