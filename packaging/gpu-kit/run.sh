@@ -88,6 +88,15 @@ else
 fi
 
 # --- 3. GPU = CPU ------------------------------------------------------------------------------
+# A case that produced no image: the log line, its JSON object (error) and table row (reason).
+case_failed() {
+    say "  N=$n M=$m $t $k: $1"
+    printf '%s{%s,"error":"%s"}' "$sep" "$fields" "$2" >> "$work/cases"
+    printf '| %s | %s | %s | %s | – | – | FAIL (%s) |\n' "$n" "$m" "$t" "$k" "$3" >> "$work/rows"
+    status=1
+    sep=,
+}
+
 # One case: N, M, transform, kernel, deapodize (on|off|default: fvr-render's). Appends a JSON
 # object to $work/cases and a table row to $work/rows; sets status=1 when it fails or the PSNR is below $min_psnr.
 compare_case() {
@@ -100,21 +109,15 @@ compare_case() {
     if ! "$bin/fvr-render" $args --backend gpu --out "$work/gpu.npy" > "$work/gpu.log" 2>&1 ||
         ! grep -q "gpu: " "$work/gpu.log"; then
         # --backend gpu renders on the CPU (saying why) where the GPU is unavailable.
-        say "  N=$n M=$m $t $k: the GPU did not render: $(tail -n 1 "$work/gpu.log")"
-        printf '%s{%s,"error":"the GPU did not render"}' "$sep" "$fields" >> "$work/cases"
-        printf '| %s | %s | %s | %s | – | – | FAIL (no GPU image) |\n' "$n" "$m" "$t" "$k" >> "$work/rows"
-        status=1
-        sep=,
+        case_failed "the GPU did not render: $(tail -n 1 "$work/gpu.log")" \
+            "the GPU did not render" "no GPU image"
         return
     fi
     # shellcheck disable=SC2086
     if ! "$bin/fvr-render" $args --backend cpu --out "$work/cpu.npy" > "$work/cpu.log" 2>&1 ||
         ! c=$("$bin/fvr_compare_npy" "$work/gpu.npy" "$work/cpu.npy"); then
-        say "  N=$n M=$m $t $k: the CPU render or the comparison failed: $(tail -n 1 "$work/cpu.log")"
-        printf '%s{%s,"error":"no CPU image"}' "$sep" "$fields" >> "$work/cases"
-        printf '| %s | %s | %s | %s | – | – | FAIL (no CPU image) |\n' "$n" "$m" "$t" "$k" >> "$work/rows"
-        status=1
-        sep=,
+        case_failed "the CPU render or the comparison failed: $(tail -n 1 "$work/cpu.log")" \
+            "no CPU image" "no CPU image"
         return
     fi
     psnr=$(printf '%s' "$c" | sed -n 's/.*"psnr":\([^,}]*\).*/\1/p')
