@@ -34,6 +34,8 @@
 
 namespace fvr::cli {
 
+namespace {
+
 std::vector<core::ViewFrame> sweepViews(const Options& o, const core::Volume& volume,
                                         const core::ViewFrame& base) {
     using namespace fvr::core;
@@ -54,6 +56,16 @@ std::vector<core::ViewFrame> sweepViews(const Options& o, const core::Volume& vo
     for (int i = 0; i < o.sweep; ++i)
         views.push_back(start.rotated(axis, 2.0 * std::numbers::pi * i / o.sweep));
     return views;
+}
+
+} // namespace
+
+std::vector<core::ViewFrame> outputViews(const Options& o, const core::Volume& volume,
+                                         const core::ViewFrame& base,
+                                         const std::vector<core::ViewFrame>& fileViews) {
+    if (o.sweep > 0) return sweepViews(o, volume, base);
+    if (!o.viewsFile.empty()) return fileViews;
+    return {base};
 }
 
 std::vector<core::ViewFrame> readViewsFile(const std::string& path) {
@@ -103,15 +115,6 @@ std::string numberedPath(const std::string& out, std::size_t i) {
     char num[16];
     std::snprintf(num, sizeof num, "_%04zu", i);
     return (p.parent_path() / (p.stem().string() + num + p.extension().string())).string();
-}
-
-/** --sweep about --axis (default: the volume's head-feet axis), the views file, else the one view.
- */
-std::vector<ViewFrame> outputViews(const Session& s, const std::vector<ViewFrame>& fileViews) {
-    const Options& o = s.options;
-    if (o.sweep > 0) return sweepViews(o, s.volume, s.base);
-    if (!o.viewsFile.empty()) return fileViews;
-    return {s.base};
 }
 
 /** What the output's pixels hold. */
@@ -386,9 +389,8 @@ void printSummary(const Session& s, std::size_t viewCount, bool stacked, double 
 
 } // namespace
 
-void writeOutputs(const Session& s, const std::vector<ViewFrame>& fileViews,
+void writeOutputs(const Session& s, const std::vector<ViewFrame>& views,
                   const DicomExportInfo& exportInfo) {
-    const std::vector<ViewFrame> views = outputViews(s, fileViews);
     InterruptGuard interrupt; // before the writer opens its files
     std::string interrupted = "interrupted after the last view"; // the files are complete
     try {

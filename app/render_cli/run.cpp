@@ -70,7 +70,9 @@ int renderVolume(const Options& o, const Volume& volume, const std::vector<ViewF
                  const DicomExportInfo& exportInfo) {
     const ViewFrame base =
         o.view ? patientViewFrame(volume, *o.view) : ViewFrame::fromDirUp(o.dir, o.up);
-    if (o.sweep > 0 && !o.out.empty()) sweepViews(o, volume, base); // its errors before the work
+    // The views first: their errors (a sweep along its axis) before the work.
+    const std::vector<ViewFrame> views =
+        o.out.empty() ? std::vector<ViewFrame>{} : outputViews(o, volume, base, fileViews);
     double preprocessMs = 0.0;
     auto spectrum = preprocessVolume(o, volume, preprocessMs);
     const double d =
@@ -84,7 +86,7 @@ int renderVolume(const Options& o, const Volume& volume, const std::vector<ViewF
                     base,     *backend};
     validateRenderParams(s.params(base));
     if (o.bench > 0) runBench(s);
-    if (!o.out.empty()) writeOutputs(s, fileViews, exportInfo);
+    if (!o.out.empty()) writeOutputs(s, views, exportInfo);
     return 0;
 }
 

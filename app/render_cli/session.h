@@ -36,15 +36,17 @@ void runBench(const Session& s);
 /** Views from --views FILE: "dx dy dz ux uy uz" per line. Throws SettingsError naming
  *  file:line, LoadError where the file cannot be read. */
 std::vector<core::ViewFrame> readViewsFile(const std::string& path);
-/** The views of --sweep from `base`: N views about --axis (default the head-feet axis); where
- *  the default view looks along the axis, from AP. Throws SettingsError for a view of the user's
- *  own along the axis (every view would be one projection turned). */
-std::vector<core::ViewFrame> sweepViews(const Options& o, const core::Volume& volume,
-                                        const core::ViewFrame& base);
+/** The views --out renders: --sweep's N views about --axis (default the head-feet axis) from
+ *  `base` (from AP where the default view looks along the axis; SettingsError for a view of the
+ *  user's own along it: every view would be one projection turned), the views file, else `base`.
+ */
+std::vector<core::ViewFrame> outputViews(const Options& o, const core::Volume& volume,
+                                         const core::ViewFrame& base,
+                                         const std::vector<core::ViewFrame>& fileViews);
 
-/** --out: renders the views (--sweep, --views FILE, else the one view), writes the images and
- *  the JSON sidecar FILE.json, and says what it wrote on stderr. */
-void writeOutputs(const Session& s, const std::vector<core::ViewFrame>& fileViews,
+/** --out: renders `views` (outputViews), writes the images and the JSON sidecar FILE.json, and
+ *  says what it wrote on stderr. */
+void writeOutputs(const Session& s, const std::vector<core::ViewFrame>& views,
                   const core::DicomExportInfo& exportInfo);
 
 } // namespace fvr::cli
