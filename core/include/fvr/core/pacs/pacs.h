@@ -1,0 +1,115 @@
+#pragma once
+/** DICOM networking with a PACS (DIMSE over TCP, DCMTK dcmnet): verification (C-ECHO), query
+ *  (C-FIND, Study Root), retrieve (C-GET, or C-MOVE to our own StorageListener) into a
+ *  LocalStore, and send (C-STORE). No Qt: fvr-render and the workstation share it. Every call
+ *  blocks (run it off the UI thread) and throws PacsError with a message in plain words that
+ *  names the peer ("ORTHANC@127.0.0.1:4242: ..."). */
+#include <filesystem>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <fvr/core/render/preprocess.h> // CancelToken
+
+namespace fvr::core::pacs {
+
+enum class RetrieveMethod { Get, Move };
+
+/** A remote PACS (Application Entity). */
+struct Node {
+    std::string name; ///< the user's label (may be empty)
+    std::string calledAe; ///< its AE title (the "called AE" of our associations)
+    std::string host;
+    int port = 104;
+    RetrieveMethod retrieve = RetrieveMethod::Get;
+};
+
+/** Us: our AE title (the "calling AE"), the port of our StorageListener (C-MOVE destination,
+ *  the PACS must know us under aeTitle at this port), and the network timeout (connection,
+ *  association and each DIMSE message). */
+struct LocalAe {
+    std::string aeTitle = "FVR";
+    int listenPort = 11112;
+    int timeoutSeconds = 10;
+};
+
+/** A network operation failed; the message says why in plain words and names the peer. */
+struct PacsError : std::runtime_error {
+    using runtime_error::runtime_error;
+};
+
+/** "ORTHANC@127.0.0.1:4242": how messages name a node. */
+std::string describe(const Node& node);
+
+/** Checks AE titles (1..16 characters, no backslash or control characters, not all spaces),
+ *  host (non-empty) and port (1..65535). Throws PacsError naming the field. */
+void validate(const Node& node);
+void validate(const LocalAe& local);
+
+/**
+ * C-ECHO. Returns normally when the PACS answers; throws PacsError otherwise, e.g.
+ * "ORTHANC@127.0.0.1:4242: connection refused (nothing listens at 127.0.0.1:4242)",
+ * "... association rejected (permanent) by the service user: called AE title not recognised",
+ * "... the peer aborted the association (is our AE title FVR known to the PACS?)",
+ * "... no answer within 10 s".
+ */
+void echo(const Node& node, const LocalAe& local);
+
+/** Study-level query keys; empty = any. Name and IDs may hold the wildcards * and ?. Dates are
+ *  YYYYMMDD; dateFrom only = from then on, dateTo only = up to then. */
+struct StudyQuery {
+    std::string patientName, patientId, accessionNumber;
+    std::string dateFrom, dateTo; ///< YYYYMMDD or empty
+    std::string modality; ///< e.g. "CT" (matched against ModalitiesInStudy)
+};
+
+/** A study as the PACS describes it; strings in UTF-8 (SpecificCharacterSet converted).
+ *  Person names in DICOM form ("DOE^JOHN"). -1: the PACS did not say. */
+struct StudyRecord {
+    std::string studyUid, patientName, patientId, patientBirthDate, studyDate, studyTime,
+        accessionNumber, description, modalities; ///< modalities: "CT\\MR" as in the tag
+    int numberOfSeries = -1, numberOfInstances = -1;
+};
+
+struct SeriesRecord {
+    std::string seriesUid, modality, description;
+    int seriesNumber = -1, numberOfInstances = -1;
+};
+
+/** C-FIND at STUDY level (Study Root). Throws PacsError (bad date, network, a failed status). */
+std::vector<StudyRecord> findStudies(const Node& node, const LocalAe& local,
+                                     const StudyQuery& query);
+/** C-FIND at SERIES level within one study, sorted by series number. */
+std::vector<SeriesRecord> findSeries(const Node& node, const LocalAe& local,
+                                     const std::string& studyUid);
+
+/** Progress of a retrieve: instances received (stored in the store), expected (from the PACS's
+ *  responses; -1 until it says), failed (sub-operations the PACS reports as failed). */
+struct RetrieveProgress {
+    int received = 0, expected = -1, failed = 0;
+};
+using RetrieveProgressFn = std::function<void(const RetrieveProgress&)>;
+
+class LocalStore;
+
+/**
+ * Retrieves a study (seriesUid empty) or one series into `store` with the node's method:
+ * C-GET on one association, or C-MOVE to our AE title, received by the StorageListener running
+ * on local.listenPort in this process (one is started for the retrieve when none runs). Returns
+ * the folder of the study (or of the series), complete: every sub-operation succeeded. Throws
+ * PacsError (network, refused, some instances failed: the entry stays partial, a second
+ * retrieve completes it) or core::Cancelled when `cancel` fires (C-CANCEL sent, the entry stays
+ * partial). Files are written atomically; nothing half-written is listed as complete.
+ */
+std::filesystem::path retrieve(const Node& node, const LocalAe& local, const std::string& studyUid,
+                               const std::string& seriesUid, LocalStore& store,
+                               const RetrieveProgressFn& progress = {},
+                               const CancelToken* cancel = nullptr);
+
+/** C-STORE of DICOM files on one association (their SOP classes and transfer syntaxes
+ *  proposed). Throws PacsError naming the file the PACS refused, or a file that is not DICOM. */
+void sendFiles(const Node& node, const LocalAe& local,
+               const std::vector<std::filesystem::path>& files);
+
+} // namespace fvr::core::pacs
