@@ -28,11 +28,7 @@ LoadedInput loadInput(const Options& o) {
     OpenedStudy study = openStudy(source, options);
     for (const auto& w : study.warnings)
         std::fprintf(stderr, "fvr-render: warning: %s\n", w.c_str());
-    if (study.series) {
-        in.exportInfo.patientName = study.series->patientName;
-        in.exportInfo.patientId = study.series->patientId;
-        in.exportInfo.studyInstanceUid = study.series->studyUid;
-    }
+    in.exportInfo = exportInfoFor(study.series);
     in.volume = std::move(study.volume);
     return in;
 }

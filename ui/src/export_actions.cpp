@@ -15,6 +15,7 @@
 
 #include <numbers>
 
+#include <fvr/core/dicom/dicom_export.h>
 #include <fvr/core/errors.h>
 #include <fvr/core/io/image_io.h>
 #include <fvr/core/xray/xray.h>
@@ -65,8 +66,10 @@ bool MainWindow::exportProjection(const QString& path) {
             core::writePfm(out, values.data(), p->size, p->size);
         else if (ext == "png")
             core::writePng(out, p->pixels.data(), p->size, p->size, m_views[0]->window(), 16);
+        else if (ext == "dcm")
+            writeDicomProjection(out);
         else
-            throw core::WriteError(out + ": unknown format (expected .npy, .pfm or .png)");
+            throw core::WriteError(out + ": unknown format (expected .npy, .pfm, .png or .dcm)");
     } catch (const std::exception& e) {
         message(tr("Could not export: %1").arg(QString::fromUtf8(e.what())), true);
         return false;
@@ -80,6 +83,25 @@ bool MainWindow::exportProjection(const QString& path) {
                                       .arg(t.exposure)
                                 : tr("line integrals")));
     return true;
+}
+
+void MainWindow::writeDicomProjection(const std::string& path) const {
+    const auto p = m_views.empty() ? std::nullopt : m_views[0]->projection();
+    if (!p) throw core::WriteError(path + ": nothing to export yet");
+    core::DicomExportInfo info = core::exportInfoFor(m_study->series());
+    core::ProjectionImage image = *p;
+    const core::Transmission t = currentTransmission();
+    if (t.active()) {
+        core::applyTransmission(image.pixels, t);
+        info.valueDescription = "transmitted intensity (mu_water " +
+                                std::to_string(t.muWaterPerMm) + "/mm, exposure " +
+                                std::to_string(t.exposure) + ")";
+    } else {
+        info.valueDescription = core::isAttenuation(m_study->spectrumSettings().mapping)
+                                    ? "line integral, mm (mu/mu_water x mm)"
+                                    : "line integral of the stored values x mm";
+    }
+    core::writeDicomProjection(path, image, info);
 }
 
 bool MainWindow::exportSweep(const QString& folder, int frames, const core::Vec3& axis) {
@@ -167,7 +189,8 @@ void MainWindow::exportScreenshotDialog() {
 void MainWindow::exportProjectionDialog() {
     const QString path = QFileDialog::getSaveFileName(
         this, tr("Export projection"), exportFolder() + "/projection.npy",
-        tr("Float line integrals (*.npy);;16-bit PNG, current window (*.png);;PFM float (*.pfm)"));
+        tr("Float line integrals (*.npy);;16-bit PNG, current window (*.png);;PFM float (*.pfm);;"
+           "DICOM Secondary Capture (*.dcm)"));
     if (!path.isEmpty() && exportProjection(path))
         rememberExportFolder(QFileInfo(path).absolutePath());
 }

@@ -1,5 +1,8 @@
 #include <fvr/ui/main_window.h>
 
+#include <fvr/ui/pacs_dialog.h>
+#include <fvr/ui/pacs_service.h>
+
 #include <QCloseEvent>
 #include <QDockWidget>
 #include <QDragEnterEvent>
@@ -54,7 +57,9 @@ MainWindow::MainWindow(QWidget* parent)
     rebuildRecentMenu();
 }
 
-MainWindow::~MainWindow() = default;
+MainWindow::~MainWindow() {
+    delete m_pacsDialog.data(); // its retrieve ends before the store and listener go
+}
 
 void MainWindow::connectStudy() {
     connect(m_study.get(), &StudyController::progress, this,

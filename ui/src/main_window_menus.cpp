@@ -37,12 +37,14 @@ void MainWindow::buildMenus() {
     QAction* shot =
         file->addAction(tr("Export &screenshot (PNG)…"), this, &MainWindow::exportScreenshotDialog);
     shot->setShortcut(QKeySequence::Save);
-    file->addAction(tr("Export &projection (16-bit PNG, .npy, .pfm)…"), this,
+    file->addAction(tr("Export &projection (16-bit PNG, .npy, .pfm, DICOM)…"), this,
                     &MainWindow::exportProjectionDialog);
     file->addAction(tr("Export rotation s&weep…"), this, &MainWindow::exportSweepDialog);
     QAction* copy =
         file->addAction(tr("&Copy view to clipboard"), this, &MainWindow::copyToClipboard);
     copy->setShortcut(QKeySequence::Copy);
+    file->addSeparator();
+    buildPacsMenu(file);
     file->addSeparator();
     QAction* quit = file->addAction(tr("&Quit"), this, &QWidget::close);
     quit->setShortcut(QKeySequence::Quit);

@@ -94,4 +94,14 @@ void writeDicomProjection(const std::filesystem::path& path, const ProjectionIma
     });
 }
 
+DicomExportInfo exportInfoFor(const std::optional<DicomSeriesInfo>& series) {
+    DicomExportInfo info;
+    if (series) {
+        info.patientName = series->patientName;
+        info.patientId = series->patientId;
+        info.studyInstanceUid = series->studyUid;
+    }
+    return info;
+}
+
 } // namespace fvr::core

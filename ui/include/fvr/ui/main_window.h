@@ -4,7 +4,9 @@
  *  toolbar, status bar with progress and Cancel. The panels own their controls; the window wires
  *  their values to the views and the study controller. */
 #include <QMainWindow>
+#include <QPointer>
 
+#include <fvr/core/pacs/pacs.h>
 #include <fvr/core/xray/patient_views.h>
 #include <fvr/ui/projection_view.h>
 #include <fvr/ui/study.h>
@@ -19,6 +21,8 @@ class QToolBar;
 namespace fvr::ui {
 
 class AccuracyReadout;
+class PacsDialog;
+class PacsService;
 class DisplayPanel;
 class MessagesPanel;
 class RenderingPanel;
@@ -62,6 +66,16 @@ public:
      *  RMSE) goes to the Messages panel and accuracyMeasured(). */
     void measureAccuracy();
 
+    /** PACS (main_window_pacs.cpp): the local store, listener and sends. */
+    PacsService& pacs() { return *m_pacs; }
+    /** File ▸ PACS…: the dialog, made once and kept (its results survive closing it). */
+    PacsDialog* pacsDialog();
+    /** File ▸ Send projection to PACS: view 1's projection as the .dcm export writes it
+     *  (Secondary Capture, in the source's study when it came from DICOM), sent to `node` on a
+     *  worker thread; the outcome goes to the Messages panel and PacsService::sent(). False
+     *  when there is nothing to send or the file could not be written. */
+    bool sendProjection(const core::pacs::Node& node);
+
     /** The render settings (the one source of truth the panels show). */
     SettingsModel& settings() { return *m_model; }
     /** View ▸ Use a software GPU (tests). */
@@ -97,6 +111,12 @@ private:
     void connectSettings();
     void restorePanels();
     void buildMenus(); // main_window_menus.cpp
+    void buildPacsMenu(QMenu* file); // main_window_pacs.cpp
+    void editPacsNodes();
+    void sendProjectionDialog();
+    /** View 1's projection as DICOM Secondary Capture: the values the float exports hold, the
+     *  source's patient and study. Throws (WriteError, or nothing to export). */
+    void writeDicomProjection(const std::string& path) const;
     void buildViewMenu(QMenu* view, QToolBar* toolbar);
     ProjectionView* addView(int index, int count, const core::ViewFrame& frame);
     void connectView(ProjectionView* v);
@@ -171,6 +191,8 @@ private:
     QAction* m_overlayAction = nullptr;
     QAction* m_softwareGpuAction = nullptr;
     std::unique_ptr<AccuracyReadout> m_accuracy;
+    std::unique_ptr<PacsService> m_pacs;
+    QPointer<PacsDialog> m_pacsDialog;
 };
 
 } // namespace fvr::ui

@@ -37,4 +37,12 @@ inline constexpr char kRecentStudies[] = "recent";
 inline constexpr char kLastFolder[] = "lastFolder"; ///< the last study's folder (open dialogs)
 inline constexpr char kLastExportFolder[] = "export/lastFolder"; ///< where exports went last
 
+// PACS (pacs_settings.cpp)
+inline constexpr char kPacsNodes[] = "pacs/nodes"; ///< array: name, calledAe, host, port, retrieve
+inline constexpr char kPacsAeTitle[] = "pacs/aeTitle";
+inline constexpr char kPacsListenPort[] = "pacs/listenPort";
+inline constexpr char kPacsListen[] = "pacs/listen";
+inline constexpr char kPacsTimeout[] = "pacs/timeoutSeconds";
+inline constexpr char kPacsLastNode[] = "pacs/lastNode"; ///< the node the PACS dialog used last
+
 } // namespace fvr::ui::keys

@@ -3,6 +3,9 @@
 #include <filesystem>
 #include <string>
 
+#include <optional>
+
+#include <fvr/core/dicom/dicom.h>
 #include <fvr/core/render/projection.h>
 #include <fvr/core/volume.h>
 
@@ -14,6 +17,10 @@ struct DicomExportInfo {
     std::string seriesDescription = "FVR projection";
     std::string valueDescription = "line integral"; ///< e.g. "mm (mu/mu_water x mm)"
 };
+
+/** Patient, patient ID and study UID of the series a projection comes from (none for a phantom
+ *  or a volume file): the export joins the source's study in a PACS. */
+DicomExportInfo exportInfoFor(const std::optional<DicomSeriesInfo>& series);
 
 /**
  * Writes a Secondary Capture image (MONOCHROME2, 16-bit unsigned stored values with

@@ -1,0 +1,120 @@
+#pragma once
+/** File ▸ PACS…: find studies on a PACS node (C-FIND), retrieve a study or series into the local
+ *  study store (C-GET or C-MOVE) with progress and cancel, and open it; the local studies (open
+ *  again without the network, resume a partial retrieve). Network work runs on worker threads,
+ *  never on the GUI thread; results and progress come back as queued calls. */
+#include <QDialog>
+#include <QPointer>
+
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include <fvr/core/pacs/local_store.h>
+#include <fvr/core/pacs/pacs.h>
+#include <fvr/core/render/preprocess.h>
+#include <fvr/ui/pacs_settings.h>
+
+class QComboBox;
+class QDateEdit;
+class QLabel;
+class QLineEdit;
+class QProgressBar;
+class QPushButton;
+class QTabWidget;
+class QThread;
+class QTreeWidget;
+class QTreeWidgetItem;
+
+namespace fvr::ui {
+
+class PacsDialog : public QDialog {
+    Q_OBJECT
+public:
+    /** `store`: the local study store, shared with the storage listener (one object per
+     *  process: it serialises their writes). */
+    explicit PacsDialog(std::shared_ptr<core::pacs::LocalStore> store, QWidget* parent = nullptr);
+    ~PacsDialog() override; ///< cancels a retrieve and waits for every worker
+
+    /** Reloads the nodes from the settings (after Edit nodes or elsewhere). */
+    void reloadSettings();
+    /** Whether a network job (echo, find, retrieve) runs. */
+    bool busy() const { return m_jobs > 0; }
+
+    // For tests, which drive the dialog as a user does.
+    QComboBox* nodeCombo() const { return m_node; }
+    QLineEdit* patientNameEdit() const { return m_patientName; }
+    QLineEdit* patientIdEdit() const { return m_patientId; }
+    QComboBox* datePresetCombo() const { return m_datePreset; }
+    QDateEdit* dateFromEdit() const { return m_dateFrom; }
+    QDateEdit* dateToEdit() const { return m_dateTo; }
+    QComboBox* modalityCombo() const { return m_modality; }
+    QPushButton* echoButton() const { return m_echo; }
+    QPushButton* searchButton() const { return m_search; }
+    QPushButton* retrieveButton() const { return m_retrieve; }
+    QPushButton* cancelButton() const { return m_cancel; }
+    QTreeWidget* results() const { return m_results; }
+    QTreeWidget* localStudies() const { return m_local; }
+    QProgressBar* progress() const { return m_progress; }
+    QLabel* status() const { return m_status; }
+    /** The query the form describes. */
+    core::pacs::StudyQuery query() const;
+
+signals:
+    /** A complete study or series in the local store, to open like a folder. */
+    void openRequested(const QString& folder);
+    /** For the Messages panel. */
+    void message(const QString& text, bool error);
+
+private:
+    QWidget* buildQueryTab();
+    QWidget* buildQueryForm();
+    QWidget* buildLocalTab();
+    /** Runs `work` on a worker thread; `done` runs on the GUI thread with the error message
+     *  (empty on success, "cancelled" when cancelled) unless the dialog is gone. */
+    void run(std::function<void()> work, std::function<void(const QString&)> done);
+    const core::pacs::Node* currentNode() const;
+    void testConnection();
+    void search();
+    void showStudies(const std::vector<core::pacs::StudyRecord>& studies);
+    void loadSeries(QTreeWidgetItem* study);
+    void retrieveSelected();
+    void retrieve(const core::pacs::Node& node, const std::string& studyUid,
+                  const std::string& seriesUid, const QString& label);
+    void onRetrieveProgress(const core::pacs::RetrieveProgress& p);
+    void refreshLocal();
+    void openLocal();
+    void resumeLocal();
+    void setStatus(const QString& text, bool error = false);
+    void updateButtons();
+
+    std::shared_ptr<core::pacs::LocalStore> m_store;
+    PacsSettings m_settings;
+    int m_jobs = 0;
+    bool m_retrieving = false;
+    std::shared_ptr<core::CancelToken> m_retrieveCancel;
+    std::vector<QPointer<QThread>> m_threads;
+    std::vector<std::shared_ptr<core::CancelToken>> m_tokens;
+
+    QTabWidget* m_tabs = nullptr;
+    QComboBox* m_node = nullptr;
+    QPushButton* m_echo = nullptr;
+    QLineEdit* m_patientName = nullptr;
+    QLineEdit* m_patientId = nullptr;
+    QLineEdit* m_accession = nullptr;
+    QComboBox* m_datePreset = nullptr;
+    QDateEdit* m_dateFrom = nullptr;
+    QDateEdit* m_dateTo = nullptr;
+    QComboBox* m_modality = nullptr;
+    QPushButton* m_search = nullptr;
+    QTreeWidget* m_results = nullptr;
+    QPushButton* m_retrieve = nullptr;
+    QPushButton* m_cancel = nullptr;
+    QProgressBar* m_progress = nullptr;
+    QLabel* m_status = nullptr;
+    QTreeWidget* m_local = nullptr;
+    QPushButton* m_openLocal = nullptr;
+    QPushButton* m_resumeLocal = nullptr;
+};
+
+} // namespace fvr::ui

@@ -1,0 +1,49 @@
+#pragma once
+/** The workstation's PACS state beside the dialog: the local study store (one per process,
+ *  shared by retrieves and the listener), the storage listener that the settings start and stop,
+ *  and sends (C-STORE) on worker threads. */
+#include <QObject>
+#include <QPointer>
+
+#include <filesystem>
+#include <memory>
+#include <vector>
+
+#include <fvr/core/pacs/local_store.h>
+#include <fvr/core/pacs/storage_listener.h>
+
+class QThread;
+
+namespace fvr::ui {
+
+struct PacsSettings;
+
+class PacsService : public QObject {
+    Q_OBJECT
+public:
+    /** `storeRoot` empty: core::pacs::defaultLocalStoreRoot(). */
+    explicit PacsService(std::filesystem::path storeRoot = {}, QObject* parent = nullptr);
+    ~PacsService() override; ///< stops the listener, waits for sends
+
+    const std::shared_ptr<core::pacs::LocalStore>& store() const { return m_store; }
+    /** Starts or stops the listener as `s` says (restarted when its AE title or port changed).
+     *  Returns what happened, for the Messages panel; `ok` false when it could not start. */
+    QString applyListener(const PacsSettings& s, bool* ok = nullptr);
+    bool listening() const { return m_listener && m_listener->running(); }
+    /** Sends `files` to `node` on a worker thread, then removes `cleanup` (a temporary folder, if
+     *  not empty); sent() tells the outcome. */
+    void send(const core::pacs::Node& node, const core::pacs::LocalAe& local,
+              std::vector<std::filesystem::path> files, std::filesystem::path cleanup = {});
+    bool sending() const { return m_sending > 0; }
+
+signals:
+    void sent(bool ok, const QString& message);
+
+private:
+    std::shared_ptr<core::pacs::LocalStore> m_store;
+    std::unique_ptr<core::pacs::StorageListener> m_listener;
+    std::vector<QPointer<QThread>> m_threads;
+    int m_sending = 0;
+};
+
+} // namespace fvr::ui

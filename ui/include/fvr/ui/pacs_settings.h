@@ -1,0 +1,49 @@
+#pragma once
+/** The PACS nodes the workstation knows, its own AE title and storage listener: kept in the
+ *  settings (keys in settings_keys.h) and edited in PacsNodesDialog. */
+#include <QDialog>
+
+#include <vector>
+
+#include <fvr/core/pacs/pacs.h>
+
+class QCheckBox;
+class QLineEdit;
+class QSpinBox;
+class QTableWidget;
+
+namespace fvr::ui {
+
+struct PacsSettings {
+    std::vector<core::pacs::Node> nodes;
+    core::pacs::LocalAe local;
+    bool listen = false; ///< the storage listener runs (off by default)
+
+    static PacsSettings load();
+    void save() const;
+    /** The node named `name`, else the first; null when there is none. */
+    const core::pacs::Node* node(const QString& name) const;
+};
+
+/** Settings ▸ PACS nodes: a table of nodes (name, called AE, host, port, retrieve method), our AE
+ *  title, the listener port and whether the listener runs. */
+class PacsNodesDialog : public QDialog {
+    Q_OBJECT
+public:
+    explicit PacsNodesDialog(const PacsSettings& settings, QWidget* parent = nullptr);
+    /** What the dialog holds now; the caller saves it after accept(). */
+    PacsSettings settings() const;
+    QTableWidget* table() const { return m_table; }
+
+private:
+    void addRow(const core::pacs::Node& n);
+    void accept() override;
+
+    QTableWidget* m_table = nullptr;
+    QLineEdit* m_aeTitle = nullptr;
+    QSpinBox* m_port = nullptr;
+    QSpinBox* m_timeout = nullptr;
+    QCheckBox* m_listen = nullptr;
+};
+
+} // namespace fvr::ui

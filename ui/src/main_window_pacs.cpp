@@ -1,0 +1,102 @@
+// The main window's PACS actions: the PACS dialog, the nodes, the listener, Send to PACS.
+#include <fvr/ui/main_window.h>
+
+#include <QInputDialog>
+#include <QMenu>
+#include <QTemporaryDir>
+
+#include <fvr/ui/pacs_dialog.h>
+#include <fvr/ui/pacs_service.h>
+#include <fvr/ui/pacs_settings.h>
+
+namespace fvr::ui {
+
+namespace {
+QString text(const std::string& s) { return QString::fromStdString(s); }
+} // namespace
+
+void MainWindow::buildPacsMenu(QMenu* file) {
+    m_pacs = std::make_unique<PacsService>();
+    connect(m_pacs.get(), &PacsService::sent, this,
+            [this](bool ok, const QString& text) { message(text, !ok); });
+    QAction* open = file->addAction(tr("&PACS: search and retrieve…"), this, [this] {
+        PacsDialog* d = pacsDialog();
+        d->show();
+        d->raise();
+        d->activateWindow();
+    });
+    open->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_P));
+    file->addAction(tr("Send projection to P&ACS…"), this, &MainWindow::sendProjectionDialog);
+    file->addAction(tr("PACS &nodes and listener…"), this, &MainWindow::editPacsNodes);
+    const PacsSettings s = PacsSettings::load();
+    if (s.listen) { // off by default; a port in use says so instead of failing the start
+        bool ok = true;
+        const QString what = m_pacs->applyListener(s, &ok);
+        message(what, !ok);
+    }
+}
+
+PacsDialog* MainWindow::pacsDialog() {
+    if (!m_pacsDialog) {
+        m_pacsDialog = new PacsDialog(m_pacs->store(), this);
+        connect(m_pacsDialog, &PacsDialog::openRequested, this,
+                [this](const QString& folder) { openStudy(StudySource::fromPath(folder)); });
+        connect(m_pacsDialog, &PacsDialog::message, this, &MainWindow::message);
+    }
+    return m_pacsDialog;
+}
+
+void MainWindow::editPacsNodes() {
+    PacsNodesDialog d(PacsSettings::load(), this);
+    if (d.exec() != QDialog::Accepted) return;
+    const PacsSettings s = d.settings();
+    s.save();
+    bool ok = true;
+    const QString what = m_pacs->applyListener(s, &ok);
+    if (!what.isEmpty()) message(what, !ok);
+    if (m_pacsDialog) m_pacsDialog->reloadSettings();
+}
+
+void MainWindow::sendProjectionDialog() {
+    const PacsSettings s = PacsSettings::load();
+    if (s.nodes.empty()) {
+        message(tr("No PACS node to send to: File ▸ PACS nodes and listener… adds one"), true);
+        return;
+    }
+    QStringList names;
+    for (const core::pacs::Node& n : s.nodes)
+        names << QStringLiteral("%1 (%2)").arg(text(n.name), text(core::pacs::describe(n)));
+    int chosen = 0;
+    if (names.size() > 1) {
+        bool ok = false;
+        const QString item = QInputDialog::getItem(this, tr("Send projection to PACS"), tr("Node"),
+                                                   names, 0, false, &ok);
+        if (!ok) return;
+        chosen = int(names.indexOf(item));
+    }
+    sendProjection(s.nodes[std::size_t(std::max(0, chosen))]);
+}
+
+bool MainWindow::sendProjection(const core::pacs::Node& node) {
+    QTemporaryDir dir;
+    if (!dir.isValid()) {
+        message(tr("Send to PACS: no temporary folder (%1)").arg(dir.errorString()), true);
+        return false;
+    }
+    dir.setAutoRemove(false); // the send's worker removes it when done
+    const std::filesystem::path folder = dir.path().toStdString();
+    const std::filesystem::path file = folder / "projection.dcm";
+    try {
+        writeDicomProjection(file.string());
+    } catch (const std::exception& e) {
+        std::error_code ec;
+        std::filesystem::remove_all(folder, ec);
+        message(tr("Send to PACS: %1").arg(QString::fromUtf8(e.what())), true);
+        return false;
+    }
+    message(tr("Sending the projection to %1…").arg(text(core::pacs::describe(node))));
+    m_pacs->send(node, PacsSettings::load().local, {file}, folder);
+    return true;
+}
+
+} // namespace fvr::ui

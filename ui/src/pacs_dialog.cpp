@@ -1,0 +1,513 @@
+// File ▸ PACS…: query, retrieve with progress and cancel, local studies.
+#include <fvr/ui/pacs_dialog.h>
+
+#include <QComboBox>
+#include <QDate>
+#include <QDateEdit>
+#include <QDir>
+#include <QFormLayout>
+#include <QHBoxLayout>
+#include <QHeaderView>
+#include <QLabel>
+#include <QLineEdit>
+#include <QProgressBar>
+#include <QPushButton>
+#include <QSettings>
+#include <QSignalBlocker>
+#include <QTabWidget>
+#include <QThread>
+#include <QTreeWidget>
+#include <QVBoxLayout>
+
+#include <algorithm>
+
+#include <fvr/core/errors.h>
+#include <fvr/ui/settings_keys.h>
+
+namespace fvr::ui {
+
+namespace {
+
+namespace pacs = core::pacs;
+
+enum Role { kStudyUid = Qt::UserRole, kSeriesUid, kSeriesLoaded, kFolder, kComplete };
+enum ResultColumn { kPatient, kPatientId, kDate, kDescription, kModalities, kSeries, kImages };
+enum LocalColumn { kLocalPatient, kLocalDate, kLocalDescription, kLocalImages, kLocalState };
+
+QString text(const std::string& s) { return QString::fromStdString(s); }
+
+/** "20150206" as "2015-02-06"; other strings as they are. */
+QString dicomDate(const std::string& d) {
+    const QDate date = QDate::fromString(text(d), QStringLiteral("yyyyMMdd"));
+    return date.isValid() ? date.toString(Qt::ISODate) : text(d);
+}
+
+QString count(int n) { return n >= 0 ? QString::number(n) : QString(); }
+
+enum DatePreset { kAnyDate, kToday, kYesterday, kLast7, kLast30, kLast365, kRange };
+
+} // namespace
+
+PacsDialog::PacsDialog(std::shared_ptr<pacs::LocalStore> store, QWidget* parent)
+    : QDialog(parent), m_store(std::move(store)) {
+    setWindowTitle(tr("PACS"));
+    auto* layout = new QVBoxLayout(this);
+    auto* nodeRow = new QHBoxLayout;
+    m_node = new QComboBox(this);
+    m_node->setMinimumContentsLength(24);
+    nodeRow->addWidget(new QLabel(tr("PACS node"), this));
+    nodeRow->addWidget(m_node, 1);
+    auto* edit = new QPushButton(tr("Edit nodes…"), this);
+    m_echo = new QPushButton(tr("Test connection"), this);
+    m_echo->setToolTip(tr("C-ECHO: whether the node answers and accepts our AE title"));
+    nodeRow->addWidget(edit);
+    nodeRow->addWidget(m_echo);
+    layout->addLayout(nodeRow);
+    m_tabs = new QTabWidget(this);
+    m_tabs->addTab(buildQueryTab(), tr("Search the PACS"));
+    m_tabs->addTab(buildLocalTab(), tr("Local studies"));
+    layout->addWidget(m_tabs, 1);
+    auto* bottom = new QHBoxLayout;
+    m_progress = new QProgressBar(this);
+    m_progress->setVisible(false);
+    m_cancel = new QPushButton(tr("Cancel"), this);
+    m_cancel->setVisible(false);
+    m_status = new QLabel(this);
+    m_status->setWordWrap(true);
+    m_status->setTextInteractionFlags(Qt::TextSelectableByMouse);
+    bottom->addWidget(m_status, 1);
+    bottom->addWidget(m_progress);
+    bottom->addWidget(m_cancel);
+    layout->addLayout(bottom);
+
+    connect(edit, &QPushButton::clicked, this, [this] {
+        PacsNodesDialog d(PacsSettings::load(), this);
+        if (d.exec() != QDialog::Accepted) return;
+        d.settings().save();
+        reloadSettings();
+    });
+    connect(m_echo, &QPushButton::clicked, this, &PacsDialog::testConnection);
+    connect(m_cancel, &QPushButton::clicked, this, [this] {
+        if (m_retrieveCancel) m_retrieveCancel->cancel();
+        setStatus(tr("Cancelling…"));
+    });
+    connect(m_node, &QComboBox::currentTextChanged, this, [](const QString& name) {
+        if (!name.isEmpty()) QSettings().setValue(keys::kPacsLastNode, name);
+    });
+    reloadSettings();
+    refreshLocal();
+    resize(980, 640);
+}
+
+PacsDialog::~PacsDialog() {
+    for (const auto& t : m_tokens) t->cancel();
+    for (const QPointer<QThread>& t : m_threads)
+        if (t) t->wait();
+}
+
+QWidget* PacsDialog::buildQueryTab() {
+    auto* tab = new QWidget(this);
+    auto* layout = new QVBoxLayout(tab);
+    layout->addWidget(buildQueryForm());
+    m_results = new QTreeWidget(tab);
+    m_results->setHeaderLabels({tr("Patient"), tr("Patient ID"), tr("Study date"),
+                                tr("Description"), tr("Modalities"), tr("Series"), tr("Images")});
+    m_results->setSelectionMode(QAbstractItemView::SingleSelection);
+    m_results->header()->setSectionResizeMode(QHeaderView::ResizeToContents);
+    m_results->setToolTip(tr("Expand a study to list its series; retrieve a study or a series"));
+    layout->addWidget(m_results, 1);
+    auto* row = new QHBoxLayout;
+    row->addStretch(1);
+    m_retrieve = new QPushButton(tr("Retrieve and open"), tab);
+    m_retrieve->setEnabled(false);
+    row->addWidget(m_retrieve);
+    layout->addLayout(row);
+    connect(m_results, &QTreeWidget::itemExpanded, this, &PacsDialog::loadSeries);
+    connect(m_results, &QTreeWidget::itemSelectionChanged, this, &PacsDialog::updateButtons);
+    connect(m_results, &QTreeWidget::itemDoubleClicked, this, &PacsDialog::retrieveSelected);
+    connect(m_retrieve, &QPushButton::clicked, this, &PacsDialog::retrieveSelected);
+    return tab;
+}
+
+QWidget* PacsDialog::buildQueryForm() {
+    auto* box = new QWidget(this);
+    auto* form = new QFormLayout(box);
+    m_patientName = new QLineEdit(box);
+    m_patientName->setPlaceholderText(tr("e.g. DOE* (wildcards * and ?)"));
+    form->addRow(tr("Patient name"), m_patientName);
+    m_patientId = new QLineEdit(box);
+    form->addRow(tr("Patient ID"), m_patientId);
+    m_accession = new QLineEdit(box);
+    form->addRow(tr("Accession number"), m_accession);
+    auto* dates = new QHBoxLayout;
+    m_datePreset = new QComboBox(box);
+    m_datePreset->addItems({tr("Any date"), tr("Today"), tr("Yesterday"), tr("Last 7 days"),
+                            tr("Last 30 days"), tr("Last 365 days"), tr("From … to …")});
+    m_dateFrom = new QDateEdit(QDate::currentDate().addDays(-7), box);
+    m_dateTo = new QDateEdit(QDate::currentDate(), box);
+    for (QDateEdit* d : {m_dateFrom, m_dateTo}) {
+        d->setCalendarPopup(true);
+        d->setDisplayFormat(QStringLiteral("yyyy-MM-dd"));
+        d->setEnabled(false);
+    }
+    dates->addWidget(m_datePreset);
+    dates->addWidget(m_dateFrom);
+    dates->addWidget(new QLabel(QStringLiteral("–"), box));
+    dates->addWidget(m_dateTo);
+    dates->addStretch(1);
+    form->addRow(tr("Study date"), dates);
+    m_modality = new QComboBox(box);
+    m_modality->setEditable(true);
+    m_modality->addItems({tr("Any"), "CT", "MR", "CR", "DX", "XA", "PT", "NM", "US", "OT"});
+    form->addRow(tr("Modality"), m_modality);
+    m_search = new QPushButton(tr("Search"), box);
+    m_search->setDefault(true);
+    form->addRow(QString(), m_search);
+    connect(m_datePreset, &QComboBox::currentIndexChanged, this, [this](int i) {
+        m_dateFrom->setEnabled(i == kRange);
+        m_dateTo->setEnabled(i == kRange);
+    });
+    connect(m_search, &QPushButton::clicked, this, &PacsDialog::search);
+    for (QLineEdit* e : {m_patientName, m_patientId, m_accession})
+        connect(e, &QLineEdit::returnPressed, this, &PacsDialog::search);
+    return box;
+}
+
+QWidget* PacsDialog::buildLocalTab() {
+    auto* tab = new QWidget(this);
+    auto* layout = new QVBoxLayout(tab);
+    layout->addWidget(new QLabel(
+        tr("Studies retrieved into %1")
+            .arg(QDir::toNativeSeparators(QString::fromStdString(m_store->root().string()))),
+        tab));
+    m_local = new QTreeWidget(tab);
+    m_local->setHeaderLabels(
+        {tr("Patient"), tr("Study date"), tr("Description"), tr("Images"), tr("State")});
+    m_local->header()->setSectionResizeMode(QHeaderView::ResizeToContents);
+    layout->addWidget(m_local, 1);
+    auto* row = new QHBoxLayout;
+    auto* refresh = new QPushButton(tr("Refresh"), tab);
+    m_resumeLocal = new QPushButton(tr("Resume retrieve"), tab);
+    m_resumeLocal->setToolTip(tr("Retrieves what is missing of a partial study from the node"));
+    m_openLocal = new QPushButton(tr("Open"), tab);
+    row->addWidget(refresh);
+    row->addStretch(1);
+    row->addWidget(m_resumeLocal);
+    row->addWidget(m_openLocal);
+    layout->addLayout(row);
+    connect(refresh, &QPushButton::clicked, this, &PacsDialog::refreshLocal);
+    connect(m_openLocal, &QPushButton::clicked, this, &PacsDialog::openLocal);
+    connect(m_resumeLocal, &QPushButton::clicked, this, &PacsDialog::resumeLocal);
+    connect(m_local, &QTreeWidget::itemDoubleClicked, this, &PacsDialog::openLocal);
+    connect(m_local, &QTreeWidget::itemSelectionChanged, this, &PacsDialog::updateButtons);
+    return tab;
+}
+
+void PacsDialog::reloadSettings() {
+    m_settings = PacsSettings::load();
+    const QString last = QSettings().value(keys::kPacsLastNode).toString();
+    const QSignalBlocker block(m_node);
+    m_node->clear();
+    for (const pacs::Node& n : m_settings.nodes)
+        m_node->addItem(QStringLiteral("%1 (%2@%3:%4)")
+                            .arg(text(n.name), text(n.calledAe), text(n.host))
+                            .arg(n.port),
+                        text(n.name));
+    const int i = m_node->findData(last);
+    if (i >= 0) m_node->setCurrentIndex(i);
+    if (m_settings.nodes.empty())
+        setStatus(tr("No PACS node yet: Edit nodes… adds one (AE title, host, port)."));
+    updateButtons();
+}
+
+const pacs::Node* PacsDialog::currentNode() const {
+    if (m_node->currentIndex() < 0) return nullptr;
+    return m_settings.node(m_node->currentData().toString());
+}
+
+void PacsDialog::run(std::function<void()> work, std::function<void(const QString&)> done) {
+    ++m_jobs;
+    updateButtons();
+    QPointer<PacsDialog> self(this);
+    QThread* t = QThread::create([self, work = std::move(work), done = std::move(done)] {
+        QString error;
+        try {
+            work();
+        } catch (const core::Cancelled&) {
+            error = QStringLiteral("cancelled");
+        } catch (const std::exception& e) {
+            error = QString::fromUtf8(e.what());
+        }
+        if (self)
+            QMetaObject::invokeMethod(
+                self.data(),
+                [self, done, error] {
+                    if (!self) return;
+                    --self->m_jobs;
+                    done(error);
+                    self->updateButtons();
+                },
+                Qt::QueuedConnection);
+    });
+    connect(t, &QThread::finished, t, &QObject::deleteLater);
+    m_threads.erase(std::remove(m_threads.begin(), m_threads.end(), nullptr), m_threads.end());
+    m_threads.emplace_back(t);
+    t->start();
+}
+
+void PacsDialog::testConnection() {
+    const pacs::Node* node = currentNode();
+    if (!node) return;
+    const pacs::Node n = *node;
+    const pacs::LocalAe local = m_settings.local;
+    setStatus(tr("Testing %1…").arg(text(n.name)));
+    run([n, local] { pacs::echo(n, local); },
+        [this, n](const QString& error) {
+            if (error.isEmpty())
+                setStatus(tr("%1 answers (C-ECHO) and accepts %2 as our AE title.")
+                              .arg(text(n.name), text(m_settings.local.aeTitle)));
+            else
+                setStatus(tr("%1: %2").arg(text(n.name), error), true);
+        });
+}
+
+core::pacs::StudyQuery PacsDialog::query() const {
+    pacs::StudyQuery q;
+    q.patientName = m_patientName->text().trimmed().toStdString();
+    q.patientId = m_patientId->text().trimmed().toStdString();
+    q.accessionNumber = m_accession->text().trimmed().toStdString();
+    const QString modality = m_modality->currentText().trimmed();
+    if (m_modality->currentIndex() != 0 || modality != m_modality->itemText(0))
+        q.modality = modality.toUpper().toStdString();
+    const QDate today = QDate::currentDate();
+    QDate from, to = today;
+    switch (m_datePreset->currentIndex()) {
+    case kToday: from = today; break;
+    case kYesterday: from = to = today.addDays(-1); break;
+    case kLast7: from = today.addDays(-6); break;
+    case kLast30: from = today.addDays(-29); break;
+    case kLast365: from = today.addDays(-364); break;
+    case kRange: from = m_dateFrom->date(), to = m_dateTo->date(); break;
+    default: to = QDate(); break;
+    }
+    if (from.isValid()) q.dateFrom = from.toString(QStringLiteral("yyyyMMdd")).toStdString();
+    if (to.isValid()) q.dateTo = to.toString(QStringLiteral("yyyyMMdd")).toStdString();
+    return q;
+}
+
+void PacsDialog::search() {
+    const pacs::Node* node = currentNode();
+    if (!node) return;
+    const pacs::Node n = *node;
+    const pacs::LocalAe local = m_settings.local;
+    const pacs::StudyQuery q = query();
+    auto found = std::make_shared<std::vector<pacs::StudyRecord>>();
+    setStatus(tr("Searching %1…").arg(text(n.name)));
+    m_results->clear();
+    run([n, local, q, found] { *found = pacs::findStudies(n, local, q); },
+        [this, n, found](const QString& error) {
+            if (!error.isEmpty()) {
+                setStatus(tr("Search on %1 failed: %2").arg(text(n.name), error), true);
+                return;
+            }
+            showStudies(*found);
+            setStatus(tr("%n study(s) found on %1", nullptr, int(found->size())).arg(text(n.name)));
+        });
+}
+
+void PacsDialog::showStudies(const std::vector<pacs::StudyRecord>& studies) {
+    m_results->clear();
+    for (const pacs::StudyRecord& s : studies) {
+        auto* item = new QTreeWidgetItem(m_results);
+        item->setText(kPatient, text(s.patientName));
+        item->setText(kPatientId, text(s.patientId));
+        item->setText(kDate, dicomDate(s.studyDate));
+        item->setText(kDescription, text(s.description));
+        item->setText(kModalities, text(s.modalities));
+        item->setText(kSeries, count(s.numberOfSeries));
+        item->setText(kImages, count(s.numberOfInstances));
+        item->setData(0, kStudyUid, text(s.studyUid));
+        item->setToolTip(0, tr("Study Instance UID %1").arg(text(s.studyUid)));
+        item->setChildIndicatorPolicy(QTreeWidgetItem::ShowIndicator);
+    }
+    updateButtons();
+}
+
+void PacsDialog::loadSeries(QTreeWidgetItem* study) {
+    if (!study || study->parent() || study->data(0, kSeriesLoaded).toBool()) return;
+    const pacs::Node* node = currentNode();
+    if (!node) return;
+    study->setData(0, kSeriesLoaded, true);
+    const pacs::Node n = *node;
+    const pacs::LocalAe local = m_settings.local;
+    const std::string uid = study->data(0, kStudyUid).toString().toStdString();
+    auto found = std::make_shared<std::vector<pacs::SeriesRecord>>();
+    QPointer<QTreeWidget> tree(m_results);
+    run([n, local, uid, found] { *found = pacs::findSeries(n, local, uid); },
+        [this, study, tree, found](const QString& error) {
+            // The item may be gone (a new search cleared the results).
+            if (!tree || tree->indexOfTopLevelItem(study) < 0) return;
+            if (!error.isEmpty()) {
+                study->setData(0, kSeriesLoaded, false);
+                setStatus(tr("Series query failed: %1").arg(error), true);
+                return;
+            }
+            for (const pacs::SeriesRecord& s : *found) {
+                auto* item = new QTreeWidgetItem(study);
+                item->setText(kPatient, tr("Series %1").arg(count(s.seriesNumber)));
+                item->setText(kDescription, text(s.description));
+                item->setText(kModalities, text(s.modality));
+                item->setText(kImages, count(s.numberOfInstances));
+                item->setData(0, kStudyUid, study->data(0, kStudyUid));
+                item->setData(0, kSeriesUid, text(s.seriesUid));
+                item->setToolTip(0, tr("Series Instance UID %1").arg(text(s.seriesUid)));
+            }
+            if (found->empty()) study->setChildIndicatorPolicy(QTreeWidgetItem::DontShowIndicator);
+        });
+}
+
+void PacsDialog::retrieveSelected() {
+    const auto selected = m_results->selectedItems();
+    const pacs::Node* node = currentNode();
+    if (selected.isEmpty() || !node || m_retrieving) return;
+    const QTreeWidgetItem* item = selected.front();
+    const QTreeWidgetItem* study = item->parent() ? item->parent() : item;
+    const QString label = item->parent()
+                              ? tr("%1, %2").arg(study->text(kPatient), item->text(kPatient))
+                              : study->text(kPatient);
+    retrieve(*node, item->data(0, kStudyUid).toString().toStdString(),
+             item->data(0, kSeriesUid).toString().toStdString(), label);
+}
+
+void PacsDialog::retrieve(const pacs::Node& n, const std::string& studyUid,
+                          const std::string& seriesUid, const QString& label) {
+    m_retrieving = true;
+    m_retrieveCancel = std::make_shared<core::CancelToken>();
+    m_tokens.push_back(m_retrieveCancel);
+    m_progress->setRange(0, 0);
+    m_progress->setVisible(true);
+    m_cancel->setVisible(true);
+    setStatus(tr("Retrieving %1 from %2 (%3)…")
+                  .arg(label, text(n.name),
+                       n.retrieve == pacs::RetrieveMethod::Move ? tr("C-MOVE") : tr("C-GET")));
+    const pacs::LocalAe local = m_settings.local;
+    auto store = m_store;
+    auto token = m_retrieveCancel;
+    auto folder = std::make_shared<std::filesystem::path>();
+    QPointer<PacsDialog> self(this);
+    auto progress = [self](const pacs::RetrieveProgress& p) {
+        QMetaObject::invokeMethod(
+            self.data(),
+            [self, p] {
+                if (self) self->onRetrieveProgress(p);
+            },
+            Qt::QueuedConnection);
+    };
+    run(
+        [=] {
+            *folder = pacs::retrieve(n, local, studyUid, seriesUid, *store, progress, token.get());
+        },
+        [this, label, folder](const QString& error) {
+            m_retrieving = false;
+            m_progress->setVisible(false);
+            m_cancel->setVisible(false);
+            refreshLocal();
+            if (error == QLatin1String("cancelled")) {
+                setStatus(tr("Retrieve of %1 cancelled: the images received are kept as a partial "
+                             "study (Local studies ▸ Resume retrieve), never opened as complete.")
+                              .arg(label));
+                return;
+            }
+            if (!error.isEmpty()) {
+                setStatus(tr("Retrieve of %1 failed: %2").arg(label, error), true);
+                return;
+            }
+            const QString path = QString::fromStdString(folder->string());
+            setStatus(tr("Retrieved %1 into %2").arg(label, QDir::toNativeSeparators(path)));
+            emit message(tr("Retrieved %1 from the PACS into %2").arg(label, path), false);
+            emit openRequested(path);
+        });
+}
+
+void PacsDialog::onRetrieveProgress(const pacs::RetrieveProgress& p) {
+    if (!m_retrieving) return;
+    if (p.expected > 0) {
+        m_progress->setRange(0, p.expected);
+        m_progress->setValue(std::min(p.received, p.expected));
+        m_progress->setFormat(tr("%1 of %2 images").arg(p.received).arg(p.expected));
+    } else {
+        m_progress->setRange(0, 0);
+    }
+    if (p.failed > 0) setStatus(tr("%n image(s) failed so far", nullptr, p.failed), true);
+}
+
+void PacsDialog::refreshLocal() {
+    m_local->clear();
+    try {
+        for (const pacs::LocalStore::Entry& e : m_store->studies()) {
+            auto* item = new QTreeWidgetItem(m_local);
+            item->setText(kLocalPatient, text(e.study.patientName));
+            item->setText(kLocalDate, dicomDate(e.study.studyDate));
+            item->setText(kLocalDescription, text(e.study.description));
+            item->setText(kLocalImages, QString::number(e.instances));
+            item->setText(kLocalState, e.complete ? tr("complete") : tr("partial"));
+            item->setData(0, kStudyUid, text(e.study.studyUid));
+            item->setData(0, kFolder, QString::fromStdString(e.folder.string()));
+            item->setData(0, kComplete, e.complete);
+            for (const pacs::LocalStore::SeriesEntry& s : e.series) {
+                auto* child = new QTreeWidgetItem(item);
+                child->setText(kLocalPatient, text(s.modality));
+                child->setText(kLocalDescription, text(s.description));
+                child->setText(kLocalImages, QString::number(s.instances));
+                child->setText(kLocalState, s.complete ? tr("complete") : tr("partial"));
+                child->setData(0, kStudyUid, text(e.study.studyUid));
+                child->setData(0, kSeriesUid, text(s.seriesUid));
+                child->setData(0, kFolder, QString::fromStdString(s.folder.string()));
+                child->setData(0, kComplete, s.complete);
+            }
+        }
+    } catch (const std::exception& e) {
+        setStatus(tr("Local studies: %1").arg(QString::fromUtf8(e.what())), true);
+    }
+    updateButtons();
+}
+
+void PacsDialog::openLocal() {
+    const auto selected = m_local->selectedItems();
+    if (selected.isEmpty()) return;
+    const QTreeWidgetItem* item = selected.front();
+    if (!item->data(0, kComplete).toBool()) {
+        setStatus(tr("This study is partial: Resume retrieve completes it first."), true);
+        return;
+    }
+    emit openRequested(item->data(0, kFolder).toString());
+}
+
+void PacsDialog::resumeLocal() {
+    const auto selected = m_local->selectedItems();
+    const pacs::Node* node = currentNode();
+    if (selected.isEmpty() || !node || m_retrieving) return;
+    const QTreeWidgetItem* item = selected.front();
+    const QTreeWidgetItem* study = item->parent() ? item->parent() : item;
+    retrieve(*node, item->data(0, kStudyUid).toString().toStdString(),
+             item->data(0, kSeriesUid).toString().toStdString(), study->text(kLocalPatient));
+}
+
+void PacsDialog::setStatus(const QString& t, bool error) {
+    m_status->setText(t);
+    m_status->setStyleSheet(error ? QStringLiteral("color: #c0392b") : QString());
+    if (error) emit message(t, true);
+}
+
+void PacsDialog::updateButtons() {
+    const bool haveNode = currentNode() != nullptr;
+    m_echo->setEnabled(haveNode);
+    m_search->setEnabled(haveNode);
+    m_retrieve->setEnabled(haveNode && !m_retrieving && !m_results->selectedItems().isEmpty());
+    const auto local = m_local->selectedItems();
+    const bool complete = !local.isEmpty() && local.front()->data(0, kComplete).toBool();
+    m_openLocal->setEnabled(complete);
+    m_resumeLocal->setEnabled(haveNode && !m_retrieving && !local.isEmpty() && !complete);
+}
+
+} // namespace fvr::ui

@@ -1,0 +1,82 @@
+// The local study store, the storage listener and sends on worker threads.
+#include <fvr/ui/pacs_service.h>
+
+#include <QThread>
+
+#include <algorithm>
+
+#include <fvr/ui/pacs_settings.h>
+
+namespace fvr::ui {
+
+namespace pacs = core::pacs;
+
+PacsService::PacsService(std::filesystem::path storeRoot, QObject* parent)
+    : QObject(parent),
+      m_store(std::make_shared<pacs::LocalStore>(storeRoot.empty() ? pacs::defaultLocalStoreRoot()
+                                                                   : std::move(storeRoot))) {}
+
+PacsService::~PacsService() {
+    if (m_listener) m_listener->stop();
+    for (const QPointer<QThread>& t : m_threads)
+        if (t) t->wait();
+}
+
+QString PacsService::applyListener(const PacsSettings& s, bool* ok) {
+    if (ok) *ok = true;
+    const bool same = m_listener && m_listener->local().aeTitle == s.local.aeTitle &&
+                      m_listener->local().listenPort == s.local.listenPort;
+    if (!s.listen || !same) {
+        const bool was = listening();
+        m_listener.reset(); // stops it
+        if (!s.listen) return was ? tr("Storage listener stopped") : QString();
+    }
+    if (listening()) return QString();
+    try {
+        m_listener = std::make_unique<pacs::StorageListener>(s.local, *m_store);
+        m_listener->start();
+    } catch (const std::exception& e) {
+        m_listener.reset();
+        if (ok) *ok = false;
+        return tr("Storage listener not started: %1").arg(QString::fromUtf8(e.what()));
+    }
+    return tr("Storage listener: %1 on port %2, into %3")
+        .arg(QString::fromStdString(s.local.aeTitle))
+        .arg(s.local.listenPort)
+        .arg(QString::fromStdString(m_store->root().string()));
+}
+
+void PacsService::send(const pacs::Node& node, const pacs::LocalAe& local,
+                       std::vector<std::filesystem::path> files, std::filesystem::path cleanup) {
+    ++m_sending;
+    QPointer<PacsService> self(this);
+    QThread* t = QThread::create([self, node, local, files = std::move(files), cleanup] {
+        bool ok = true;
+        QString text;
+        try {
+            pacs::sendFiles(node, local, files);
+            text = tr("Sent %n image(s) to %1", nullptr, int(files.size()))
+                       .arg(QString::fromStdString(pacs::describe(node)));
+        } catch (const std::exception& e) {
+            ok = false;
+            text = tr("Send failed: %1").arg(QString::fromUtf8(e.what()));
+        }
+        std::error_code ec;
+        if (!cleanup.empty()) std::filesystem::remove_all(cleanup, ec);
+        if (self)
+            QMetaObject::invokeMethod(
+                self.data(),
+                [self, ok, text] {
+                    if (!self) return;
+                    --self->m_sending;
+                    emit self->sent(ok, text);
+                },
+                Qt::QueuedConnection);
+    });
+    connect(t, &QThread::finished, t, &QObject::deleteLater);
+    m_threads.erase(std::remove(m_threads.begin(), m_threads.end(), nullptr), m_threads.end());
+    m_threads.emplace_back(t);
+    t->start();
+}
+
+} // namespace fvr::ui

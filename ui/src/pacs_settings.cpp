@@ -1,0 +1,194 @@
+// PACS nodes, our AE title and the storage listener in the settings; the dialog that edits them.
+#include <fvr/ui/pacs_settings.h>
+
+#include <QCheckBox>
+#include <QComboBox>
+#include <QDialogButtonBox>
+#include <QFormLayout>
+#include <QHeaderView>
+#include <QLineEdit>
+#include <QMessageBox>
+#include <QPushButton>
+#include <QSettings>
+#include <QSpinBox>
+#include <QTableWidget>
+#include <QVBoxLayout>
+
+#include <fvr/ui/settings_keys.h>
+
+namespace fvr::ui {
+
+namespace {
+
+using core::pacs::Node;
+using core::pacs::RetrieveMethod;
+
+enum Column { kName, kCalledAe, kHost, kPort, kRetrieve, kColumns };
+
+QString text(const std::string& s) { return QString::fromStdString(s); }
+
+} // namespace
+
+PacsSettings PacsSettings::load() {
+    QSettings s;
+    PacsSettings p;
+    const int n = s.beginReadArray(keys::kPacsNodes);
+    for (int i = 0; i < n; ++i) {
+        s.setArrayIndex(i);
+        Node node;
+        node.name = s.value("name").toString().toStdString();
+        node.calledAe = s.value("calledAe").toString().toStdString();
+        node.host = s.value("host").toString().toStdString();
+        node.port = s.value("port", 104).toInt();
+        node.retrieve = s.value("retrieve").toString() == QLatin1String("move")
+                            ? RetrieveMethod::Move
+                            : RetrieveMethod::Get;
+        p.nodes.push_back(node);
+    }
+    s.endArray();
+    p.local.aeTitle = s.value(keys::kPacsAeTitle, text(p.local.aeTitle)).toString().toStdString();
+    p.local.listenPort = s.value(keys::kPacsListenPort, p.local.listenPort).toInt();
+    p.local.timeoutSeconds = s.value(keys::kPacsTimeout, p.local.timeoutSeconds).toInt();
+    p.listen = s.value(keys::kPacsListen, false).toBool();
+    return p;
+}
+
+void PacsSettings::save() const {
+    QSettings s;
+    s.beginWriteArray(keys::kPacsNodes, int(nodes.size()));
+    for (int i = 0; i < int(nodes.size()); ++i) {
+        s.setArrayIndex(i);
+        const Node& n = nodes[std::size_t(i)];
+        s.setValue("name", text(n.name));
+        s.setValue("calledAe", text(n.calledAe));
+        s.setValue("host", text(n.host));
+        s.setValue("port", n.port);
+        s.setValue("retrieve", n.retrieve == RetrieveMethod::Move ? "move" : "get");
+    }
+    s.endArray();
+    s.setValue(keys::kPacsAeTitle, text(local.aeTitle));
+    s.setValue(keys::kPacsListenPort, local.listenPort);
+    s.setValue(keys::kPacsTimeout, local.timeoutSeconds);
+    s.setValue(keys::kPacsListen, listen);
+}
+
+const Node* PacsSettings::node(const QString& name) const {
+    for (const Node& n : nodes)
+        if (text(n.name) == name) return &n;
+    return nodes.empty() ? nullptr : &nodes.front();
+}
+
+PacsNodesDialog::PacsNodesDialog(const PacsSettings& settings, QWidget* parent) : QDialog(parent) {
+    setWindowTitle(tr("PACS nodes"));
+    auto* layout = new QVBoxLayout(this);
+    m_table = new QTableWidget(0, kColumns, this);
+    m_table->setHorizontalHeaderLabels(
+        {tr("Name"), tr("Called AE title"), tr("Host"), tr("Port"), tr("Retrieve with")});
+    m_table->horizontalHeader()->setStretchLastSection(true);
+    m_table->setToolTip(tr("C-GET needs no listener; C-MOVE sends the images to our storage "
+                           "listener, which the PACS must know by our AE title, host and port"));
+    for (const Node& n : settings.nodes) addRow(n);
+    layout->addWidget(m_table);
+    auto* rowButtons = new QDialogButtonBox(this);
+    QPushButton* add = rowButtons->addButton(tr("Add node"), QDialogButtonBox::ActionRole);
+    QPushButton* remove = rowButtons->addButton(tr("Remove node"), QDialogButtonBox::ActionRole);
+    connect(add, &QPushButton::clicked, this, [this] {
+        Node n;
+        n.name = "PACS";
+        n.calledAe = "ORTHANC";
+        n.host = "localhost";
+        n.port = 4242;
+        addRow(n);
+    });
+    connect(remove, &QPushButton::clicked, this, [this] {
+        if (m_table->currentRow() >= 0) m_table->removeRow(m_table->currentRow());
+    });
+    layout->addWidget(rowButtons);
+
+    auto* form = new QFormLayout;
+    m_aeTitle = new QLineEdit(text(settings.local.aeTitle), this);
+    m_aeTitle->setMaxLength(16);
+    form->addRow(tr("Our AE title"), m_aeTitle);
+    m_port = new QSpinBox(this);
+    m_port->setRange(1, 65535);
+    m_port->setValue(settings.local.listenPort);
+    form->addRow(tr("Listener port"), m_port);
+    m_timeout = new QSpinBox(this);
+    m_timeout->setRange(1, 600);
+    m_timeout->setSuffix(tr(" s"));
+    m_timeout->setValue(settings.local.timeoutSeconds);
+    form->addRow(tr("Network timeout"), m_timeout);
+    m_listen = new QCheckBox(tr("Run the storage listener (receives C-MOVE and sent studies)"));
+    m_listen->setChecked(settings.listen);
+    form->addRow(QString(), m_listen);
+    layout->addLayout(form);
+    auto* buttons = new QDialogButtonBox(QDialogButtonBox::Ok | QDialogButtonBox::Cancel, this);
+    connect(buttons, &QDialogButtonBox::accepted, this, &PacsNodesDialog::accept);
+    connect(buttons, &QDialogButtonBox::rejected, this, &QDialog::reject);
+    layout->addWidget(buttons);
+    resize(720, 360);
+}
+
+void PacsNodesDialog::addRow(const Node& n) {
+    const int row = m_table->rowCount();
+    m_table->insertRow(row);
+    m_table->setItem(row, kName, new QTableWidgetItem(text(n.name)));
+    m_table->setItem(row, kCalledAe, new QTableWidgetItem(text(n.calledAe)));
+    m_table->setItem(row, kHost, new QTableWidgetItem(text(n.host)));
+    auto* port = new QSpinBox(m_table);
+    port->setRange(1, 65535);
+    port->setValue(n.port);
+    m_table->setCellWidget(row, kPort, port);
+    auto* retrieve = new QComboBox(m_table);
+    retrieve->addItems({tr("C-GET"), tr("C-MOVE")});
+    retrieve->setCurrentIndex(n.retrieve == RetrieveMethod::Move ? 1 : 0);
+    m_table->setCellWidget(row, kRetrieve, retrieve);
+}
+
+PacsSettings PacsNodesDialog::settings() const {
+    PacsSettings p;
+    for (int row = 0; row < m_table->rowCount(); ++row) {
+        Node n;
+        auto cell = [&](int c) {
+            const QTableWidgetItem* item = m_table->item(row, c);
+            return item ? item->text().trimmed().toStdString() : std::string();
+        };
+        n.name = cell(kName);
+        n.calledAe = cell(kCalledAe);
+        n.host = cell(kHost);
+        n.port = static_cast<QSpinBox*>(m_table->cellWidget(row, kPort))->value();
+        n.retrieve = static_cast<QComboBox*>(m_table->cellWidget(row, kRetrieve))->currentIndex()
+                         ? RetrieveMethod::Move
+                         : RetrieveMethod::Get;
+        p.nodes.push_back(n);
+    }
+    p.local.aeTitle = m_aeTitle->text().trimmed().toStdString();
+    p.local.listenPort = m_port->value();
+    p.local.timeoutSeconds = m_timeout->value();
+    p.listen = m_listen->isChecked();
+    return p;
+}
+
+void PacsNodesDialog::accept() {
+    const PacsSettings p = settings();
+    QStringList problems;
+    auto check = [&](auto&& validate) {
+        try {
+            validate();
+        } catch (const std::exception& e) {
+            problems << QString::fromUtf8(e.what());
+        }
+    };
+    check([&] { core::pacs::validate(p.local); });
+    for (const Node& n : p.nodes) {
+        if (n.name.empty()) problems << tr("A node has no name.");
+        check([&] { core::pacs::validate(n); });
+    }
+    if (!problems.isEmpty()) {
+        QMessageBox::warning(this, tr("PACS nodes"), problems.join(QLatin1Char('\n')));
+        return;
+    }
+    QDialog::accept();
+}
+
+} // namespace fvr::ui
