@@ -41,54 +41,16 @@
 
 #include "image_metrics.h"
 #include "test_support.h"
+#include "ui/ui_support.h"
 
 using namespace fvr;
+using fvr::test::app;
+using fvr::test::openAndWait;
+using fvr::test::Workstation;
 using fvr::ui::MainWindow;
 using fvr::ui::StudySource;
 
 namespace {
-
-QApplication& app() {
-    static int argc = 1;
-    static char name[] = "fvr_ui_tests";
-    static char* argv[] = {name, nullptr};
-    static QApplication* a = [] {
-        QSurfaceFormat fmt;
-        fmt.setVersion(4, 3);
-        fmt.setProfile(QSurfaceFormat::CoreProfile);
-        QSurfaceFormat::setDefaultFormat(fmt);
-        QApplication::setAttribute(Qt::AA_ShareOpenGLContexts);
-        QStandardPaths::setTestModeEnabled(true);
-        // Settings of this process's own: CTest runs the tests in parallel processes, and one
-        // test's QSettings().clear() must not reach another's (a flaky persistence check).
-        const auto dir =
-            test::tmpDir() / ("settings-" + std::to_string(QCoreApplication::applicationPid()));
-        QSettings::setPath(QSettings::NativeFormat, QSettings::UserScope,
-                           QString::fromStdString(dir.string()));
-        auto* x = new QApplication(argc, argv);
-        QApplication::setOrganizationName("fvr-workstation-tests");
-        QApplication::setApplicationName("fvr-ui-tests");
-        return x;
-    }();
-    return *a;
-}
-
-/** Opens a study and waits until its spectrum is ready and view 0 has rendered. */
-bool openAndWait(MainWindow& w, const StudySource& s, int timeoutMs = 60000) {
-    QSignalSpy ready(&w.study(), &ui::StudyController::spectrumReady);
-    const int before = w.views()[0]->framesRendered();
-    w.openStudy(s);
-    if (!ready.wait(timeoutMs)) {
-        ADD_FAILURE() << "no spectrum; messages:\n" << w.messages()->toPlainText().toStdString();
-        return false;
-    }
-    if (!QTest::qWaitFor([&] { return w.views()[0]->framesRendered() > before; }, timeoutMs)) {
-        ADD_FAILURE() << "view 0 did not render; messages:\n"
-                      << w.messages()->toPlainText().toStdString();
-        return false;
-    }
-    return true;
-}
 
 /** Waits for a new spectrum after a panel change. */
 bool waitSpectrum(MainWindow& w, const std::function<void()>& change) {
@@ -96,23 +58,6 @@ bool waitSpectrum(MainWindow& w, const std::function<void()>& change) {
     change();
     return ready.wait(60000);
 }
-
-class Workstation : public ::testing::Test {
-protected:
-    void SetUp() override {
-        app();
-        QSettings().clear(); // each test starts from the defaults
-        // but with the GPU path under test even on a software OpenGL (llvmpipe here), where the
-        // workstation's default is the CPU renderer (SoftwareOpenGlRendersOnTheCpu).
-        QSettings().setValue("render/softwareGpu", true);
-        window = std::make_unique<MainWindow>();
-        window->resize(1200, 800);
-        window->show();
-        ASSERT_TRUE(QTest::qWaitForWindowExposed(window.get()));
-    }
-    void TearDown() override { window.reset(); }
-    std::unique_ptr<MainWindow> window;
-};
 
 core::ProjectionImage cpuReference(MainWindow& w, const ui::ProjectionView& v) {
     (void)w;

@@ -6,8 +6,8 @@
 #include <QDialogButtonBox>
 #include <QFormLayout>
 #include <QHeaderView>
+#include <QLabel>
 #include <QLineEdit>
-#include <QMessageBox>
 #include <QPushButton>
 #include <QSettings>
 #include <QSpinBox>
@@ -122,6 +122,11 @@ PacsNodesDialog::PacsNodesDialog(const PacsSettings& settings, QWidget* parent) 
     m_listen->setChecked(settings.listen);
     form->addRow(QString(), m_listen);
     layout->addLayout(form);
+    m_error = new QLabel(this);
+    m_error->setStyleSheet(QStringLiteral("color: #c0392b"));
+    m_error->setWordWrap(true);
+    m_error->setVisible(false);
+    layout->addWidget(m_error);
     auto* buttons = new QDialogButtonBox(QDialogButtonBox::Ok | QDialogButtonBox::Cancel, this);
     connect(buttons, &QDialogButtonBox::accepted, this, &PacsNodesDialog::accept);
     connect(buttons, &QDialogButtonBox::rejected, this, &QDialog::reject);
@@ -184,10 +189,9 @@ void PacsNodesDialog::accept() {
         if (n.name.empty()) problems << tr("A node has no name.");
         check([&] { core::pacs::validate(n); });
     }
-    if (!problems.isEmpty()) {
-        QMessageBox::warning(this, tr("PACS nodes"), problems.join(QLatin1Char('\n')));
-        return;
-    }
+    m_error->setText(problems.join(QLatin1Char('\n')));
+    m_error->setVisible(!problems.isEmpty());
+    if (!problems.isEmpty()) return;
     QDialog::accept();
 }
 

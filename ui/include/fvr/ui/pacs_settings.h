@@ -8,6 +8,7 @@
 #include <fvr/core/pacs/pacs.h>
 
 class QCheckBox;
+class QLabel;
 class QLineEdit;
 class QSpinBox;
 class QTableWidget;
@@ -34,6 +35,9 @@ public:
     /** What the dialog holds now; the caller saves it after accept(). */
     PacsSettings settings() const;
     QTableWidget* table() const { return m_table; }
+    QLineEdit* aeTitleEdit() const { return m_aeTitle; }
+    /** Why OK did not close the dialog (invalid AE titles, a node without host). */
+    QLabel* errorLabel() const { return m_error; }
 
 private:
     void addRow(const core::pacs::Node& n);
@@ -44,6 +48,7 @@ private:
     QSpinBox* m_port = nullptr;
     QSpinBox* m_timeout = nullptr;
     QCheckBox* m_listen = nullptr;
+    QLabel* m_error = nullptr;
 };
 
 } // namespace fvr::ui

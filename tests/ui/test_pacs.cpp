@@ -1,0 +1,142 @@
+// The workstation's PACS side without a network: nodes kept in the settings and checked with
+// core's rules, the query the form describes, and the projection as DICOM Secondary Capture
+// (what Send to PACS sends). The retrieve and send against a real Orthanc are in
+// test_pacs_orthanc.cpp.
+#include <QComboBox>
+#include <QDateEdit>
+#include <QLabel>
+#include <QLineEdit>
+#include <QPushButton>
+#include <QTableWidget>
+
+#include <dcmtk/dcmdata/dctk.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include <fvr/ui/pacs_dialog.h>
+#include <fvr/ui/pacs_service.h>
+#include <fvr/ui/pacs_settings.h>
+
+#include "ui/ui_support.h"
+
+using namespace fvr;
+using fvr::test::openAndWait;
+using fvr::test::Workstation;
+namespace pacs = fvr::core::pacs;
+
+namespace {
+
+pacs::Node node(const std::string& name, const std::string& ae, int port, pacs::RetrieveMethod m) {
+    pacs::Node n;
+    n.name = name;
+    n.calledAe = ae;
+    n.host = "127.0.0.1";
+    n.port = port;
+    n.retrieve = m;
+    return n;
+}
+
+std::string date(const QDate& d) { return d.toString("yyyyMMdd").toStdString(); }
+
+} // namespace
+
+TEST_F(Workstation, PacsNodesPersistAndInvalidOnesAreRefusedWithTheReason) {
+    ui::PacsSettings s;
+    s.nodes = {node("Hospital", "ORTHANC", 4242, pacs::RetrieveMethod::Move),
+               node("Lab", "LABPACS", 11113, pacs::RetrieveMethod::Get)};
+    s.local.aeTitle = "FVRTEST";
+    s.local.listenPort = 11500;
+    s.listen = false;
+    s.save();
+    const ui::PacsSettings back = ui::PacsSettings::load();
+    ASSERT_EQ(back.nodes.size(), 2u);
+    EXPECT_EQ(back.nodes[0].calledAe, "ORTHANC");
+    EXPECT_EQ(back.nodes[0].port, 4242);
+    EXPECT_EQ(back.nodes[0].retrieve, pacs::RetrieveMethod::Move);
+    EXPECT_EQ(back.nodes[1].name, "Lab");
+    EXPECT_EQ(back.nodes[1].retrieve, pacs::RetrieveMethod::Get);
+    EXPECT_EQ(back.local.aeTitle, "FVRTEST");
+    EXPECT_EQ(back.local.listenPort, 11500);
+    EXPECT_FALSE(back.listen); // off unless the user turns it on
+
+    ui::PacsNodesDialog d(back);
+    EXPECT_EQ(d.table()->rowCount(), 2);
+    d.aeTitleEdit()->setText("THIS AE TITLE IS FAR TOO LONG");
+    d.table()->item(1, 1)->setText("BAD\\AE");
+    d.accept();
+    EXPECT_NE(d.result(), QDialog::Accepted); // stays open and says why
+    const QString why = d.errorLabel()->text();
+    EXPECT_TRUE(d.errorLabel()->isVisibleTo(&d));
+    EXPECT_TRUE(why.contains("THIS AE TITLE IS FAR TOO LONG")) << why.toStdString();
+    EXPECT_TRUE(why.contains("BAD\\AE")) << why.toStdString();
+    d.aeTitleEdit()->setText("FVR");
+    d.table()->item(1, 1)->setText("LABPACS");
+    d.accept();
+    EXPECT_EQ(d.result(), QDialog::Accepted);
+    EXPECT_EQ(d.settings().local.aeTitle, "FVR");
+}
+
+TEST_F(Workstation, PacsQueryFormGivesTheDicomQuery) {
+    ui::PacsSettings s;
+    s.nodes = {node("Hospital", "ORTHANC", 4242, pacs::RetrieveMethod::Get)};
+    s.save();
+    ui::PacsDialog* d = window->pacsDialog();
+    ASSERT_EQ(d->nodeCombo()->count(), 1);
+    d->patientNameEdit()->setText("  DOE*  ");
+    d->patientIdEdit()->setText("12345");
+    pacs::StudyQuery q = d->query();
+    EXPECT_EQ(q.patientName, "DOE*");
+    EXPECT_EQ(q.patientId, "12345");
+    EXPECT_TRUE(q.dateFrom.empty() && q.dateTo.empty()); // any date
+    EXPECT_TRUE(q.modality.empty()); // any modality
+
+    const QDate today = QDate::currentDate();
+    d->datePresetCombo()->setCurrentIndex(3); // last 7 days: today and the 6 before
+    q = d->query();
+    EXPECT_EQ(q.dateFrom, date(today.addDays(-6)));
+    EXPECT_EQ(q.dateTo, date(today));
+    d->datePresetCombo()->setCurrentIndex(2); // yesterday
+    q = d->query();
+    EXPECT_EQ(q.dateFrom, date(today.addDays(-1)));
+    EXPECT_EQ(q.dateTo, q.dateFrom);
+    d->datePresetCombo()->setCurrentIndex(6); // a range the user picks
+    EXPECT_TRUE(d->dateFromEdit()->isEnabled());
+    d->dateFromEdit()->setDate(QDate(2015, 2, 1));
+    d->dateToEdit()->setDate(QDate(2015, 2, 28));
+    d->modalityCombo()->setCurrentText("ct");
+    q = d->query();
+    EXPECT_EQ(q.dateFrom, "20150201");
+    EXPECT_EQ(q.dateTo, "20150228");
+    EXPECT_EQ(q.modality, "CT");
+}
+
+TEST_F(Workstation, ProjectionExportsAsDicomSecondaryCaptureWithItsValues) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
+    const auto p = window->views()[0]->projection();
+    ASSERT_TRUE(p);
+    const auto path = test::tmpDir() / "ui-projection.dcm";
+    std::filesystem::remove(path);
+    ASSERT_TRUE(window->exportProjection(QString::fromStdString(path.string())));
+    DcmFileFormat file;
+    ASSERT_TRUE(file.loadFile(path.c_str()).good());
+    DcmDataset* ds = file.getDataset();
+    OFString sop;
+    ds->findAndGetOFString(DCM_SOPClassUID, sop);
+    EXPECT_EQ(sop, OFString(UID_SecondaryCaptureImageStorage));
+    Uint16 rows = 0, cols = 0;
+    ds->findAndGetUint16(DCM_Rows, rows);
+    ds->findAndGetUint16(DCM_Columns, cols);
+    ASSERT_EQ(int(rows), p->size);
+    ASSERT_EQ(int(cols), p->size);
+    Float64 slope = 0, intercept = 0;
+    ds->findAndGetFloat64(DCM_RescaleSlope, slope);
+    ds->findAndGetFloat64(DCM_RescaleIntercept, intercept);
+    const Uint16* stored = nullptr;
+    ASSERT_TRUE(ds->findAndGetUint16Array(DCM_PixelData, stored).good());
+    double worst = 0;
+    for (std::size_t i = 0; i < p->pixels.size(); ++i)
+        worst = std::max(worst, std::abs(stored[i] * slope + intercept - p->pixels[i]));
+    EXPECT_LE(worst, slope); // the float values back to within one stored step
+    EXPECT_GT(slope, 0.0);
+}
