@@ -4,6 +4,7 @@
  *  sub-folder per series, a file per instance named after its SOP Instance UID), and an index,
  *  `index.json` (nlohmann-json), of the studies with their series: complete or partial. */
 #include <filesystem>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -59,6 +60,11 @@ public:
     std::filesystem::path storeInstance(const StudyRecord& study, const SeriesRecord& series,
                                         const std::string& sopInstanceUid,
                                         const std::string& bytes);
+    /** The same, the file written by `write` into the temporary path it is given (renamed into
+     *  place when it returns). */
+    std::filesystem::path storeInstance(
+        const StudyRecord& study, const SeriesRecord& series, const std::string& sopInstanceUid,
+        const std::function<void(const std::filesystem::path& tmp)>& write);
     /** Instances written by storeInstance() in this process since the store was made. */
     int instancesStored() const;
 

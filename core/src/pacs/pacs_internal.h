@@ -1,0 +1,61 @@
+#pragma once
+// Shared by the DIMSE sources (private to core): the configured DcmSCU, failures in words, and
+// records and store writes from received datasets.
+#include <fvr/core/pacs/local_store.h>
+#include <fvr/core/pacs/pacs.h>
+
+#include <dcmtk/config/osconfig.h> // first DCMTK include
+#include <dcmtk/dcmdata/dctk.h>
+#include <dcmtk/dcmnet/scu.h>
+
+#include <string>
+
+namespace fvr::core::pacs::detail {
+
+/** DcmSCU set up for a node: our AE title, the timeouts, non-blocking DIMSE (so that a silent
+ *  peer ends in a timeout, not a hang). */
+class Scu : public DcmSCU {
+public:
+    Scu(const Node& node, const LocalAe& local);
+    ~Scu() override;
+    /** initNetwork() and negotiateAssociation(); throws PacsError in words (the rejection with
+     *  its reason, refused, aborted, timeout; `what` names the service for "accepts none"). */
+    void connect(const std::string& what);
+    /** The accepted presentation context for `abstractSyntax` (any transfer syntax), or throws
+     *  PacsError "the PACS does not offer <what>". */
+    T_ASC_PresentationContextID context(const char* abstractSyntax, const std::string& what);
+    /** Throws PacsError for a failed DIMSE exchange (in words); no-op when good. */
+    void check(const OFCondition& cond, const std::string& what) const;
+    /** Releases the association (or aborts it when `abort`); never throws. */
+    void close(bool abort);
+
+    const Node& node() const { return m_node; }
+    const LocalAe& local() const { return m_local; }
+
+private:
+    Node m_node;
+    LocalAe m_local;
+};
+
+/** The failure of a network operation in words, prefixed with the node ("ORTHANC@h:p: ..."). */
+std::string failureText(const OFCondition& cond, const Node& node, const LocalAe& local);
+/** A-ASSOCIATE-RJ's result, source and reason in words: "rejected (permanent) by the service
+ *  user: called AE title not recognised". */
+std::string rejectionText(const T_ASC_RejectParameters& rej);
+
+/** Converts the item's strings to UTF-8 per its SpecificCharacterSet (kept as they are when the
+ *  converter does not know it). */
+void toUtf8(DcmItem& item);
+
+/** Records from a dataset (C-FIND response or received instance), strings in UTF-8. */
+StudyRecord studyRecordFrom(DcmItem& item);
+SeriesRecord seriesRecordFrom(DcmItem& item);
+
+/** Writes a received dataset into the store (atomically, DICOM file with meta header in the
+ *  dataset's transfer syntax). Returns its study and series UIDs. Throws WriteError/PacsError. */
+std::pair<std::string, std::string> storeDataset(LocalStore& store, DcmDataset& dataset);
+
+/** The C-GET/C-STORE transfer syntaxes we take: explicit and implicit VR little endian. */
+OFList<OFString> uncompressedSyntaxes();
+
+} // namespace fvr::core::pacs::detail

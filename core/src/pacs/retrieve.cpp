@@ -1,0 +1,254 @@
+// C-GET and C-MOVE into the local store, with progress and cancel (C-CANCEL).
+#include "pacs_internal.h"
+
+#include <fvr/core/errors.h>
+#include <fvr/core/pacs/storage_listener.h>
+
+#include <dcmtk/dcmnet/diutil.h>
+
+#include <memory>
+#include <optional>
+
+namespace fs = std::filesystem;
+
+namespace fvr::core::pacs {
+namespace detail {
+
+namespace {
+
+const DcmTagKey kRecordTags[] = {
+    DCM_SpecificCharacterSet, DCM_StudyInstanceUID, DCM_PatientName,       DCM_PatientID,
+    DCM_PatientBirthDate,     DCM_StudyDate,        DCM_StudyTime,         DCM_AccessionNumber,
+    DCM_StudyDescription,     DCM_Modality,         DCM_SeriesInstanceUID, DCM_SeriesDescription,
+    DCM_SeriesNumber};
+
+std::string getString(DcmItem& item, const DcmTagKey& tag) {
+    OFString value;
+    item.findAndGetOFString(tag, value);
+    return value.c_str();
+}
+
+} // namespace
+
+std::pair<std::string, std::string> storeDataset(LocalStore& store, DcmDataset& dataset) {
+    // The records from a copy of the few elements they need, in UTF-8; the file keeps the
+    // dataset as it came.
+    DcmItem info;
+    for (const DcmTagKey& tag : kRecordTags) {
+        DcmElement* element = nullptr;
+        if (dataset.findAndGetElement(tag, element).good() && element)
+            info.insert(static_cast<DcmElement*>(element->clone()));
+    }
+    toUtf8(info);
+    const StudyRecord study = studyRecordFrom(info);
+    const SeriesRecord series = seriesRecordFrom(info);
+    const std::string sop = getString(dataset, DCM_SOPInstanceUID);
+    if (study.studyUid.empty() || series.seriesUid.empty() || sop.empty())
+        throw PacsError("a received instance lacks its study, series or SOP instance UID");
+    E_TransferSyntax xfer = dataset.getOriginalXfer();
+    if (xfer == EXS_Unknown) xfer = EXS_LittleEndianExplicit;
+    DcmFileFormat file(&dataset);
+    store.storeInstance(study, series, sop, [&](const fs::path& tmp) {
+        const OFCondition cond = file.saveFile(tmp.c_str(), xfer);
+        if (cond.bad())
+            throw WriteError(tmp.string() + ": cannot write the received instance: " + cond.text());
+    });
+    return {study.studyUid, series.seriesUid};
+}
+
+} // namespace detail
+
+namespace {
+
+/** The SCU of one retrieve: stores what C-GET brings, follows the responses' counts, sends
+ *  C-CANCEL when the token fires and then ends the session. */
+class RetrieveScu : public detail::Scu {
+public:
+    RetrieveScu(const Node& node, const LocalAe& local, LocalStore& store,
+                const RetrieveProgressFn& progressFn, const CancelToken* cancel)
+        : Scu(node, local), m_store(store), m_progressFn(progressFn), m_cancel(cancel),
+          m_storedBefore(store.instancesStored()) {}
+
+    OFCondition handleSTORERequest(const T_ASC_PresentationContextID, DcmDataset* incoming,
+                                   OFBool& continueSession, Uint16& status) override {
+        std::unique_ptr<DcmDataset> owned(incoming);
+        if (cancelRequested(continueSession)) {
+            status = STATUS_STORE_Refused_OutOfResources;
+            return EC_Normal;
+        }
+        try {
+            detail::storeDataset(m_store, *owned);
+            status = STATUS_Success;
+        } catch (const std::exception& e) {
+            m_storeError = e.what();
+            status = STATUS_STORE_Refused_OutOfResources;
+            continueSession = OFFalse;
+        }
+        report(std::nullopt);
+        return EC_Normal;
+    }
+
+    OFCondition handleCGETResponse(const T_ASC_PresentationContextID presID,
+                                   RetrieveResponse* response, OFBool& cont) override {
+        const OFCondition cond = DcmSCU::handleCGETResponse(presID, response, cont);
+        follow(*response, cont);
+        return cond;
+    }
+
+    OFCondition handleMOVEResponse(const T_ASC_PresentationContextID presID,
+                                   RetrieveResponse* response, OFBool& cont) override {
+        const OFCondition cond = DcmSCU::handleMOVEResponse(presID, response, cont);
+        follow(*response, cont);
+        return cond;
+    }
+
+    T_ASC_PresentationContextID pc = 0;
+    RetrieveProgress progress;
+    std::optional<Uint16> finalStatus;
+    std::string m_storeError;
+    bool cancelSent = false;
+
+private:
+    bool cancelRequested(OFBool& cont) {
+        if (!m_cancel || !m_cancel->cancelled()) return false;
+        if (!cancelSent) {
+            sendCANCELRequest(pc);
+            cancelSent = true;
+        }
+        cont = OFFalse;
+        return true;
+    }
+
+    void follow(const RetrieveResponse& r, OFBool& cont) {
+        if (!DICOM_PENDING_STATUS(r.m_status)) finalStatus = r.m_status;
+        const int total = r.m_numberOfRemainingSubops + r.m_numberOfCompletedSubops +
+                          r.m_numberOfFailedSubops + r.m_numberOfWarningSubops;
+        report(total > 0 ? std::optional<int>(total) : std::nullopt);
+        progress.failed = r.m_numberOfFailedSubops;
+        if (DICOM_PENDING_STATUS(r.m_status)) cancelRequested(cont);
+    }
+
+    void report(std::optional<int> expected) {
+        if (expected) progress.expected = *expected;
+        progress.received = m_store.instancesStored() - m_storedBefore;
+        if (m_progressFn) m_progressFn(progress);
+    }
+
+    LocalStore& m_store;
+    RetrieveProgressFn m_progressFn;
+    const CancelToken* m_cancel;
+    int m_storedBefore;
+};
+
+void addGetContexts(RetrieveScu& scu) {
+    scu.addPresentationContext(UID_GETStudyRootQueryRetrieveInformationModel,
+                               detail::uncompressedSyntaxes());
+    // Storage sub-operations on the same association: we take the SCP role (as getscu does).
+    for (int i = 0; i < numberOfDcmLongSCUStorageSOPClassUIDs; ++i)
+        scu.addPresentationContext(dcmLongSCUStorageSOPClassUIDs[i], detail::uncompressedSyntaxes(),
+                                   ASC_SC_ROLE_SCP);
+}
+
+/** The listener C-MOVE sends to: the one running on our port, else one for this retrieve. */
+std::unique_ptr<StorageListener> ensureListener(const LocalAe& local, LocalStore& store) {
+    if (StorageListener* running = StorageListener::runningOn(local.listenPort)) {
+        if (&running->store() != &store)
+            throw PacsError("the storage listener on port " + std::to_string(local.listenPort) +
+                            " writes into " + running->store().root().string() + ", not into " +
+                            store.root().string());
+        return nullptr;
+    }
+    auto listener = std::make_unique<StorageListener>(local, store);
+    listener->start();
+    return listener;
+}
+
+/** Runs the C-GET or C-MOVE; the SCU's state says how it ended. */
+void runRetrieve(RetrieveScu& scu, const Node& node, const LocalAe& local, DcmDataset& keys) {
+    const bool move = node.retrieve == RetrieveMethod::Move;
+    const std::string what = move ? "Study Root C-MOVE" : "Study Root C-GET";
+    if (move)
+        scu.addPresentationContext(UID_MOVEStudyRootQueryRetrieveInformationModel,
+                                   detail::uncompressedSyntaxes());
+    else
+        addGetContexts(scu);
+    scu.connect(what);
+    scu.pc = scu.context(move ? UID_MOVEStudyRootQueryRetrieveInformationModel
+                              : UID_GETStudyRootQueryRetrieveInformationModel,
+                         what);
+    const OFCondition cond =
+        move ? scu.sendMOVERequest(scu.pc, local.aeTitle.c_str(), &keys, nullptr)
+             : scu.sendCGETRequest(scu.pc, &keys, nullptr);
+    if (scu.cancelSent || !scu.m_storeError.empty()) {
+        scu.close(true);
+        return;
+    }
+    scu.check(cond, move ? "C-MOVE" : "C-GET");
+    scu.close(false);
+}
+
+[[noreturn]] void failed(const RetrieveScu& scu, const Node& node, const std::string& what,
+                         bool move) {
+    if (!scu.m_storeError.empty())
+        throw PacsError("retrieve from " + describe(node) + " stopped: " + scu.m_storeError);
+    const Uint16 status = scu.finalStatus.value_or(0xFFFF);
+    std::string text = describe(node) + ": " + (move ? "C-MOVE" : "C-GET") + " of " + what;
+    if (scu.progress.failed > 0)
+        text += ": " + std::to_string(scu.progress.failed) + " of " +
+                std::to_string(scu.progress.expected) + " instances failed";
+    else
+        text += " ended with status " +
+                std::string(move ? DU_cmoveStatusString(status) : DU_cgetStatusString(status));
+    if (move && status == STATUS_MOVE_Failed_MoveDestinationUnknown)
+        text += " (the PACS does not know our AE title as a destination)";
+    throw PacsError(text + "; what arrived is kept as partial: retrieve again to complete it");
+}
+
+/** Nothing came: an unknown UID (Orthanc then fails the C-GET) or an empty study. The empty
+ *  entry begun for it goes. */
+[[noreturn]] void nothingArrived(const RetrieveScu& scu, LocalStore& store, const Node& node,
+                                 const std::string& studyUid, const std::string& what, bool move) {
+    if (const auto entry = store.find(studyUid); entry && entry->instances == 0)
+        store.remove(studyUid);
+    std::string text = describe(node) + ": the PACS has no instances of " + what;
+    if (scu.finalStatus && *scu.finalStatus != STATUS_Success)
+        text += " (" +
+                std::string(move ? DU_cmoveStatusString(*scu.finalStatus)
+                                 : DU_cgetStatusString(*scu.finalStatus)) +
+                ")";
+    throw PacsError(text);
+}
+
+} // namespace
+
+fs::path retrieve(const Node& node, const LocalAe& local, const std::string& studyUid,
+                  const std::string& seriesUid, LocalStore& store,
+                  const RetrieveProgressFn& progress, const CancelToken* cancel) {
+    const std::string what = seriesUid.empty() ? "study " + studyUid : "series " + seriesUid;
+    const fs::path folder =
+        seriesUid.empty() ? store.studyFolder(studyUid) : store.seriesFolder(studyUid, seriesUid);
+    DcmDataset keys;
+    keys.putAndInsertString(DCM_QueryRetrieveLevel, seriesUid.empty() ? "STUDY" : "SERIES");
+    keys.putAndInsertString(DCM_StudyInstanceUID, studyUid.c_str());
+    if (!seriesUid.empty()) keys.putAndInsertString(DCM_SeriesInstanceUID, seriesUid.c_str());
+    const bool move = node.retrieve == RetrieveMethod::Move;
+    RetrieveScu scu(node, local, store, progress, cancel);
+    const auto listener = move ? ensureListener(local, store) : nullptr;
+    store.beginRetrieve(StudyRecord{studyUid}, seriesUid);
+    try {
+        runRetrieve(scu, node, local, keys);
+    } catch (...) {
+        store.finishRetrieve(studyUid, seriesUid, false);
+        throw;
+    }
+    const bool ok = !scu.cancelSent && scu.m_storeError.empty() &&
+                    scu.finalStatus == STATUS_Success && scu.progress.failed == 0;
+    store.finishRetrieve(studyUid, seriesUid, ok && scu.progress.received > 0);
+    if (scu.cancelSent) throw Cancelled();
+    if (scu.progress.received == 0 && scu.m_storeError.empty())
+        nothingArrived(scu, store, node, studyUid, what, move);
+    if (!ok) failed(scu, node, what, move);
+    return folder;
+}
+
+} // namespace fvr::core::pacs
