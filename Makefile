@@ -109,7 +109,12 @@ screenshots: build
 	 convert view1.png view2.png -crop "$$crop" +repage -bordercolor black -border 24 +append \
 	   "$(abspath $(SCREENSHOT_DIR))/voxel-models.png"
 	@rm -rf "$(SHOT_CONFIG)"
-	@ls -l $(SCREENSHOT_DIR)/voxel-models.png $(SCREENSHOT_DIR)/first-image.png $(SCREENSHOT_DIR)/workstation.png \
+	@# The PACS dialog after a search and a retrieve from a real Orthanc (the UI test grabs it).
+	@rm -f $(BUILD_DIR)/tests/tmp/pacs-dialog.png
+	@cd $(BUILD_DIR) && QT_QPA_PLATFORM=xcb xvfb-run -a -s "-screen 0 1280x1024x24" \
+	  ./tests/fvr_ui_tests --gtest_filter='PacsWorkstation.FindRetrieveOpenAndSendBack' >/dev/null
+	@cp $(BUILD_DIR)/tests/tmp/pacs-dialog.png $(SCREENSHOT_DIR)/pacs.png
+	@ls -l $(SCREENSHOT_DIR)/pacs.png $(SCREENSHOT_DIR)/voxel-models.png $(SCREENSHOT_DIR)/first-image.png $(SCREENSHOT_DIR)/workstation.png \
 	  $(SCREENSHOT_DIR)/xray-film.png
 
 clean:

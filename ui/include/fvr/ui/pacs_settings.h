@@ -39,9 +39,11 @@ public:
     /** Why OK did not close the dialog (invalid AE titles, a node without host). */
     QLabel* errorLabel() const { return m_error; }
 
+    /** OK: closes only when every node and our AE title are valid (else errorLabel() says why). */
+    void accept() override;
+
 private:
     void addRow(const core::pacs::Node& n);
-    void accept() override;
 
     QTableWidget* m_table = nullptr;
     QLineEdit* m_aeTitle = nullptr;

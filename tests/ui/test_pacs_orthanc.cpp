@@ -1,0 +1,171 @@
+// The workstation against a real PACS (the Debian package's Orthanc, started by the test on
+// free loopback ports): Test connection, search, series on demand, retrieve with C-GET and
+// C-MOVE (our listener) into the local store and open, Send projection back, and a wrong called
+// AE title said in words. Skips with the reason without Orthanc or the shared data.
+#include <QComboBox>
+#include <QLabel>
+#include <QLineEdit>
+#include <QProgressBar>
+#include <QPushButton>
+#include <QTreeWidget>
+
+#include <algorithm>
+#include <filesystem>
+#include <set>
+
+#include <nlohmann/json.hpp>
+
+#include <fvr/core/io/open_study.h>
+#include <fvr/ui/pacs_dialog.h>
+#include <fvr/ui/pacs_service.h>
+#include <fvr/ui/pacs_settings.h>
+
+#include "pacs/orthanc_server.h"
+#include "ui/ui_support.h"
+
+using namespace fvr;
+namespace fs = std::filesystem;
+namespace pacs = fvr::core::pacs;
+
+namespace {
+
+constexpr const char* kOurAe = "FVRUI";
+constexpr const char* kSeries = "dicom/ct_head_slicer_64x64x93";
+
+/** The workstation with its local store in a folder of the test's own, and an Orthanc holding
+ *  the 93-image Slicer head CT. */
+class PacsWorkstation : public test::Workstation {
+protected:
+    void SetUp() override {
+        if (test::OrthancServer::executable().empty())
+            GTEST_SKIP() << "Orthanc is not installed (Debian package orthanc)";
+        FVR_REQUIRE_DATA(kSeries);
+        dir = test::tmpDir() / ("ui-pacs-" + std::to_string(QCoreApplication::applicationPid()));
+        fs::remove_all(dir);
+        fs::create_directories(dir / "data");
+        qputenv("XDG_DATA_HOME", QByteArray::fromStdString((dir / "data").string()));
+        listenPort = test::freeLoopbackPort();
+        orthanc = std::make_unique<test::OrthancServer>(dir / "orthanc", kOurAe, listenPort);
+        ASSERT_EQ(orthanc->upload(test::sharedData() / kSeries), 93) << orthanc->log();
+        test::Workstation::SetUp();
+    }
+    void TearDown() override {
+        test::Workstation::TearDown();
+        orthanc.reset();
+        qunsetenv("XDG_DATA_HOME");
+    }
+    /** The settings pointing at the test's Orthanc. */
+    ui::PacsSettings settings(pacs::RetrieveMethod m, const std::string& calledAe = "ORTHANC") {
+        ui::PacsSettings s;
+        pacs::Node n;
+        n.name = "Test PACS";
+        n.calledAe = calledAe;
+        n.host = "127.0.0.1";
+        n.port = orthanc->dicomPort();
+        n.retrieve = m;
+        s.nodes = {n};
+        s.local.aeTitle = kOurAe;
+        s.local.listenPort = listenPort;
+        s.listen = m == pacs::RetrieveMethod::Move;
+        return s;
+    }
+    std::set<std::string> instances() const {
+        const auto r = orthanc->get("/instances");
+        std::set<std::string> ids;
+        for (const auto& id : nlohmann::json::parse(r.body)) ids.insert(id.get<std::string>());
+        return ids;
+    }
+
+    fs::path dir;
+    int listenPort = 0;
+    std::unique_ptr<test::OrthancServer> orthanc;
+};
+
+/** Clicks `b` and waits until the dialog's network job ended. */
+bool clickAndWait(ui::PacsDialog& d, QPushButton* b) {
+    if (!b->isEnabled()) return false;
+    b->click();
+    return QTest::qWaitFor([&] { return !d.busy(); }, 60000);
+}
+
+/** Retrieves the first study of the results and waits for the workstation to show it. */
+bool retrieveAndOpen(ui::MainWindow& w, ui::PacsDialog& d) {
+    QSignalSpy ready(&w.study(), &ui::StudyController::spectrumReady);
+    d.results()->setCurrentItem(d.results()->topLevelItem(0));
+    if (!d.retrieveButton()->isEnabled()) return false;
+    d.retrieveButton()->click();
+    EXPECT_TRUE(d.progress()->isVisibleTo(&d) && d.cancelButton()->isVisibleTo(&d));
+    return ready.wait(120000);
+}
+
+} // namespace
+
+TEST_F(PacsWorkstation, FindRetrieveOpenAndSendBack) {
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    d->show(); // as File ▸ PACS does
+    ASSERT_TRUE(clickAndWait(*d, d->echoButton()));
+    EXPECT_TRUE(d->status()->text().contains("answers")) << d->status()->text().toStdString();
+
+    d->modalityCombo()->setCurrentText("CT");
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_EQ(d->results()->topLevelItemCount(), 1) << d->status()->text().toStdString();
+    QTreeWidgetItem* study = d->results()->topLevelItem(0);
+    EXPECT_EQ(study->text(6), "93"); // images in the study, as the PACS counts them
+    study->setExpanded(true); // the series, asked for on demand
+    ASSERT_TRUE(QTest::qWaitFor([&] { return !d->busy() && study->childCount() > 0; }, 30000));
+    EXPECT_EQ(study->childCount(), 1);
+
+    ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
+    const auto volume = window->study().volume();
+    ASSERT_TRUE(volume);
+    const core::OpenedStudy direct =
+        core::openStudy(core::classifyInput((test::sharedData() / kSeries).string()));
+    EXPECT_EQ(volume->dims, direct.volume.dims);
+    EXPECT_TRUE(volume->voxels == direct.volume.voxels); // the retrieved study is the series
+    d->resize(1000, 560); // what the README shows (build/tests/tmp/pacs-dialog.png)
+    d->grab().save(QString::fromStdString((test::tmpDir() / "pacs-dialog.png").string()));
+    ASSERT_EQ(d->localStudies()->topLevelItemCount(), 1);
+    EXPECT_EQ(d->localStudies()->topLevelItem(0)->text(4), "complete");
+
+    // Send the projection back: a Secondary Capture in the source's study.
+    ASSERT_TRUE(QTest::qWaitFor([&] { return window->views()[0]->projection().has_value(); }));
+    const auto before = instances();
+    QSignalSpy sent(&window->pacs(), &ui::PacsService::sent);
+    ASSERT_TRUE(window->sendProjection(settings(pacs::RetrieveMethod::Get).nodes[0]));
+    ASSERT_TRUE(sent.wait(60000));
+    EXPECT_TRUE(sent.front()[0].toBool()) << sent.front()[1].toString().toStdString();
+    std::vector<std::string> added;
+    for (const auto& id : instances())
+        if (!before.count(id)) added.push_back(id);
+    ASSERT_EQ(added.size(), 1u);
+    const auto tags =
+        nlohmann::json::parse(orthanc->get("/instances/" + added[0] + "/tags?simplify").body);
+    EXPECT_EQ(tags["SOPClassUID"], "1.2.840.10008.5.1.4.1.1.7"); // Secondary Capture
+    EXPECT_EQ(tags["StudyInstanceUID"], window->study().series()->studyUid);
+    EXPECT_EQ(tags["Rows"], std::to_string(window->views()[0]->projection()->size));
+}
+
+TEST_F(PacsWorkstation, MoveToOurListenerAndAWrongCalledAeSaidInWords) {
+    const ui::PacsSettings s = settings(pacs::RetrieveMethod::Move);
+    s.save();
+    bool ok = false;
+    const QString started = window->pacs().applyListener(s, &ok);
+    ASSERT_TRUE(ok) << started.toStdString();
+    EXPECT_TRUE(window->pacs().listening());
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_EQ(d->results()->topLevelItemCount(), 1);
+    ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
+    EXPECT_EQ(window->study().volume()->dims, (core::Dims3{64, 64, 93}));
+    EXPECT_EQ(d->progress()->maximum(), 93); // images expected, as the C-MOVE said
+
+    settings(pacs::RetrieveMethod::Get, "NOSUCHAE").save();
+    d->reloadSettings();
+    ASSERT_TRUE(clickAndWait(*d, d->echoButton()));
+    EXPECT_TRUE(d->status()->text().contains("called AE title not recognised"))
+        << d->status()->text().toStdString();
+    EXPECT_TRUE(window->messages()->toPlainText().contains("called AE title not recognised"));
+}
