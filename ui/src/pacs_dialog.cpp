@@ -23,6 +23,7 @@
 
 #include <fvr/core/errors.h>
 #include <fvr/ui/settings_keys.h>
+#include <fvr/ui/study.h>
 
 namespace fvr::ui {
 
@@ -319,7 +320,7 @@ void PacsDialog::showStudies(const std::vector<pacs::StudyRecord>& studies) {
     m_results->clear();
     for (const pacs::StudyRecord& s : studies) {
         auto* item = new QTreeWidgetItem(m_results);
-        item->setText(kPatient, text(s.patientName));
+        item->setText(kPatient, personName(s.patientName));
         item->setText(kPatientId, text(s.patientId));
         item->setText(kDate, dicomDate(s.studyDate));
         item->setText(kDescription, text(s.description));
@@ -446,7 +447,7 @@ void PacsDialog::refreshLocal() {
     try {
         for (const pacs::LocalStore::Entry& e : m_store->studies()) {
             auto* item = new QTreeWidgetItem(m_local);
-            item->setText(kLocalPatient, text(e.study.patientName));
+            item->setText(kLocalPatient, personName(e.study.patientName));
             item->setText(kLocalDate, dicomDate(e.study.studyDate));
             item->setText(kLocalDescription, text(e.study.description));
             item->setText(kLocalImages, QString::number(e.instances));

@@ -74,9 +74,12 @@ QString StudyController::title() const {
     if (!m_series) return m_source.displayName();
     QStringList parts;
     if (!m_series->description.empty()) parts << QString::fromStdString(m_series->description);
-    if (!m_series->patientName.empty())
-        parts << QString::fromStdString(m_series->patientName).replace('^', ' ').trimmed();
+    if (!m_series->patientName.empty()) parts << personName(m_series->patientName);
     return parts.isEmpty() ? m_source.displayName() : parts.join(QStringLiteral(" — "));
+}
+
+QString personName(const std::string& dicomName) {
+    return QString::fromStdString(dicomName).replace('^', ' ').simplified();
 }
 
 SpectrumSettings workstationSpectrumDefaults() {

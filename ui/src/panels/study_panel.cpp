@@ -36,10 +36,7 @@ QString seriesLines(const core::DicomSeriesInfo& s) {
     QString html;
     if (!s.patientName.empty() || !s.patientId.empty())
         html += StudyPanel::tr("Patient: %1%2<br>")
-                    .arg(QString::fromStdString(s.patientName)
-                             .replace('^', ' ')
-                             .trimmed()
-                             .toHtmlEscaped(),
+                    .arg(personName(s.patientName).toHtmlEscaped(),
                          s.patientId.empty() ? QString()
                                              : QStringLiteral(" (%1)").arg(esc(s.patientId)));
     if (!s.studyDate.empty() || !s.modality.empty())

@@ -56,6 +56,10 @@ using SpectrumSettings = core::PreprocessOptions;
  * own. */
 SpectrumSettings workstationSpectrumDefaults();
 
+/** A DICOM person name as the panels, the title and the PACS dialog show it: the components
+ *  ("DOE^JOHN") separated by spaces ("DOE JOHN"). */
+QString personName(const std::string& dicomName);
+
 class StudyController : public QObject {
     Q_OBJECT
 public:
