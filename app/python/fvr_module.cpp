@@ -55,7 +55,11 @@ PyVolume volumeFromArray(py::array_t<float, py::array::c_style | py::array::forc
                                   std::to_string(a.ndim()));
     auto v = std::make_shared<core::Volume>();
     v->dims = {a.shape(2), a.shape(1), a.shape(0)};
-    core::validateGeometry(v->dims, spacing, name);
+    try {
+        core::validateGeometry(v->dims, spacing, name);
+    } catch (const core::InputError& e) { // a bad argument here, not a bad file
+        throw core::SettingsError(e.what());
+    }
     v->spacing = spacing;
     v->origin = origin;
     v->direction = direction;
