@@ -1,11 +1,21 @@
 """Shared fixtures of the Python tests: the shared data and the built fvr-render (CTest passes
 their paths in FVR_SHARED_DATA_DIR and FVR_RENDER_EXE; PYTHONPATH holds build/python)."""
+import atexit
 import os
+import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+# Bit-for-bit comparisons need the same FFTW plans in this process and in fvr-render: ESTIMATE
+# plans, no wisdom from earlier runs (a measured plan gives other roundings), set before fvr loads.
+os.environ["FVR_FFTW_PLANNING"] = "estimate"
+_WISDOM = tempfile.mkdtemp(prefix="fvr-wisdom-")
+atexit.register(shutil.rmtree, _WISDOM, ignore_errors=True)
+os.environ["FVR_FFTW_WISDOM"] = os.path.join(_WISDOM, "none")
 
 DATA = Path(os.environ.get("FVR_SHARED_DATA_DIR", Path(__file__).parents[3] / "shared" / "data"))
 BODY_CT_MHD = DATA / "volumes/body_ct_hu_3mm/example_ct.mhd"
