@@ -173,7 +173,7 @@ def _client(scheduler: Optional[str], workers: int, processes: bool):
     if scheduler:
         return Client(scheduler), None
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                           dashboard_address=None)
+                           host="127.0.0.1", dashboard_address=":0")
     return Client(cluster), cluster
 
 
