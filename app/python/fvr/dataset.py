@@ -172,8 +172,10 @@ def _client(scheduler: Optional[str], workers: int, processes: bool):
 
     if scheduler:
         return Client(scheduler), None
+    # Worker processes listen on the loopback only; threads (processes=False) talk in-process.
+    where = {"host": "127.0.0.1"} if processes else {}
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                           host="127.0.0.1", dashboard_address=":0")
+                           dashboard_address=":0", **where)
     return Client(cluster), cluster
 
 
