@@ -5,6 +5,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <cstring>
 #include <memory>
 #include <mutex>
@@ -146,7 +147,13 @@ public:
 
     /** One view; `extra` adds view and image settings (--view, --dir, --size...). */
     py::array_t<float> render(const Args& extra) {
-        const cli::Options o = options(extra);
+        cli::Options o = options(extra);
+        // dir/up given to the call replace the renderer's own view (fvr-render's --view would
+        // win over them).
+        auto given = [&](const char* name) {
+            return std::find(extra.begin(), extra.end(), name) != extra.end();
+        };
+        if ((given("--dir") || given("--up")) && !given("--view")) o.view.reset();
         const core::ImageGeometry g = cli::imageGeometry(o, *m_volume.volume);
         const core::RenderParams p = cli::renderParams(o, cli::baseView(o, *m_volume.volume), g);
         core::validateRenderParams(p);

@@ -126,10 +126,11 @@ def test_manifest_errors_name_the_file_and_line(tmp_path, text, message):
 
 
 def test_the_command_line_reports_a_failure_in_its_exit_status(tmp_path):
+    """The command as documented: a LocalCluster of 2 worker processes (on the loopback)."""
     (tmp_path / "m.csv").write_text(f"id,path,size\nphantom,phantom:shepp-logan:64,128\n"
                                     f"missing,{tmp_path}/nothing.nii.gz,128\n")
     done = subprocess.run([sys.executable, "-m", "fvr.dataset", str(tmp_path / "m.csv"), "--out",
-                           str(tmp_path / "out"), "--workers", "0"], capture_output=True, text=True)
+                           str(tmp_path / "out"), "--workers", "2"], capture_output=True, text=True)
     assert done.returncode == 1, done.stderr
     assert "missing: RuntimeError" in done.stderr and "1 studies done, 1 failed" in done.stderr
     assert np.load(tmp_path / "out" / "phantom.npy").shape == (128, 128)

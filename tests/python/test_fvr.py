@@ -89,6 +89,14 @@ def test_render_many_equals_a_loop_of_render(renderer):
         np.testing.assert_array_equal(stack[i], renderer.render(dir=d, up=u, size=128, pixel_size=3.0))
 
 
+def test_a_view_of_the_call_replaces_the_renderers_own(body, renderer):
+    left = fvr.Renderer(body, view="LEFT", **SETTINGS)
+    d, u = (0.6, 0.8, 0.0), (0.0, 0.0, 1.0)
+    np.testing.assert_array_equal(left.render(dir=d, up=u, size=128),
+                                  renderer.render(dir=d, up=u, size=128))
+    np.testing.assert_array_equal(left.render(size=128), renderer.render(view="LEFT", size=128))
+
+
 def test_volume_from_numpy_renders_as_the_loaded_volume(body, renderer):
     copy = fvr.Volume(np.array(body.array), spacing=body.spacing, origin=body.origin,
                       direction=body.direction, units=body.units)
