@@ -19,6 +19,12 @@ if(CMAKE_SYSTEM_NAME STREQUAL "Linux")
   set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
   # Mesa or a vendor driver provides OpenGL; the CPU renderer works without.
   set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "libgl1-mesa-dri")
+  # The Python module fvr (/usr/lib/python3/dist-packages/fvr) runs on Debian's python3 with
+  # numpy; python3 -m fvr.dataset needs Dask (and Zarr for --format zarr).
+  if(TARGET fvr_python)
+    set(CPACK_DEBIAN_PACKAGE_DEPENDS "python3 (>= 3.11), python3 (<< 3.12), python3-numpy")
+    set(CPACK_DEBIAN_PACKAGE_SUGGESTS "python3-distributed, python3-zarr")
+  endif()
 else()
   set(CPACK_GENERATOR "TGZ")
 endif()

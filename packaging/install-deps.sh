@@ -12,6 +12,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev clang-format
   xvfb xauth libgl1-mesa-dri libegl-mesa0
+  pybind11-dev python3-dev python3-numpy python3-pytest python3-distributed python3-zarr
 )
 
 missing=()

@@ -3,7 +3,7 @@
 
 #include <cstdio>
 
-#include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/render/cpu_batch.h>
 #include <fvr/core/thread_pool.h>
 #ifdef FVR_HAVE_GPU
 #include <fvr/gpu/egl_context.h>
@@ -40,41 +40,17 @@ namespace {
 class CpuBackend final : public RenderBackend {
 public:
     CpuBackend(std::shared_ptr<const core::Spectrum> spectrum, int threads)
-        : m_spectrum(spectrum), m_renderer(std::move(spectrum), threads),
-          m_threads(threads > 0 ? threads : core::hardwareThreads()) {}
-    core::Renderer& renderer() override { return m_renderer; }
+        : m_batch(std::move(spectrum), threads) {}
+    core::Renderer& renderer() override { return m_batch.renderer(); }
     std::string name() const override { return "cpu"; }
-    int batchWidth() const override { return m_threads; }
+    int batchWidth() const override { return m_batch.width(); }
     std::vector<core::ProjectionImage> renderBatch(
         const std::vector<core::RenderParams>& params) override {
-        // One view alone goes to the renderer with every thread; the views of a batch run, its
-        // last one included, all to the single-threaded lanes (the same plans: the same bytes).
-        if (params.size() < 2 && !m_lanes) return RenderBackend::renderBatch(params);
-        if (!m_lanes) m_lanes = std::make_unique<Lanes>(m_spectrum, m_threads);
-        std::vector<core::ProjectionImage> images(params.size());
-        m_lanes->pool.parallelFor(
-            std::int64_t(params.size()), 1, [&](std::int64_t first, std::int64_t last) {
-                for (std::int64_t i = first; i < last; ++i)
-                    images[std::size_t(i)] =
-                        m_lanes->renderers[std::size_t(i)]->render(params[std::size_t(i)]);
-            });
-        return images;
+        return m_batch.renderBatch(params);
     }
 
 private:
-    /** One single-threaded renderer per thread, made on the first batch. */
-    struct Lanes {
-        Lanes(const std::shared_ptr<const core::Spectrum>& spectrum, int threads) : pool(threads) {
-            for (int i = 0; i < threads; ++i)
-                renderers.push_back(std::make_unique<core::CpuFourierRenderer>(spectrum, 1));
-        }
-        core::ThreadPool pool;
-        std::vector<std::unique_ptr<core::CpuFourierRenderer>> renderers;
-    };
-    std::shared_ptr<const core::Spectrum> m_spectrum;
-    core::CpuFourierRenderer m_renderer;
-    int m_threads;
-    std::unique_ptr<Lanes> m_lanes;
+    core::CpuBatchRenderer m_batch; // the batch rule: one view per thread
 };
 
 #ifdef FVR_HAVE_GPU

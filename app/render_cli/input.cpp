@@ -2,8 +2,6 @@
 // the same rule the workstation follows.
 #include "input.h"
 
-#include <cstdio>
-
 #include <fvr/core/io/open_study.h>
 
 namespace fvr::cli {
@@ -26,8 +24,7 @@ LoadedInput loadInput(const Options& o) {
         options.scan = std::move(scan);
     }
     OpenedStudy study = openStudy(source, options);
-    for (const auto& w : study.warnings)
-        std::fprintf(stderr, "fvr-render: warning: %s\n", w.c_str());
+    in.warnings = std::move(study.warnings);
     in.exportInfo = exportInfoFor(study.series);
     in.volume = std::move(study.volume);
     return in;

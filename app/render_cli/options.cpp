@@ -429,12 +429,15 @@ void declareBenchmark(CLI::App& app, Options& o) {
         ->group("Benchmark");
 }
 
-/** The rules that join several options (each option's own range is checked as it is parsed). */
-void checkCombinations(Options& o) {
-    if (o.gpuInfo && o.input.empty()) return;
+/** What the command must name: INPUT, and --out, --info or --bench. */
+void checkCommand(const Options& o) {
     if (o.input.empty()) throw SettingsError("no INPUT given (see --help)");
     if (!o.info && o.bench <= 0 && o.out.empty())
         throw SettingsError("no --out FILE given (or --info, --bench N)");
+}
+
+/** The rules that join several options (each option's own range is checked as it is parsed). */
+void checkCombinations(Options& o) {
     if (o.kernelWidth != 0) {
         if (!o.kaiserBessel())
             throw SettingsError("--kernel-width: only for --kernel kaiser-bessel");
@@ -470,6 +473,13 @@ void declareAll(CLI::App& app, Parsing& p) {
     declareBenchmark(app, p.o);
 }
 
+/** The options of a parsed command line (the options counted by CLI11 resolved). */
+Options parsed(const CLI::App& app, Parsing& p) {
+    if (app.count("--raw-dims") > 0) p.o.raw = p.raw;
+    p.o.viewGiven = p.o.view || app.count("--dir") > 0 || app.count("--up") > 0;
+    return p.o;
+}
+
 } // namespace
 
 std::optional<Options> parseOptions(int argc, char** argv) {
@@ -484,10 +494,26 @@ std::optional<Options> parseOptions(int argc, char** argv) {
     } catch (const CLI::ParseError& e) {
         throw SettingsError(std::string(e.what()) + " (see --help)");
     }
-    if (app.count("--raw-dims") > 0) p.o.raw = p.raw;
-    p.o.viewGiven = p.o.view || app.count("--dir") > 0 || app.count("--up") > 0;
-    checkCombinations(p.o);
-    return p.o;
+    Options o = parsed(app, p);
+    if (o.gpuInfo && o.input.empty()) return o;
+    checkCommand(o);
+    checkCombinations(o);
+    return o;
+}
+
+Options parseSettings(std::vector<std::string> args) {
+    CLI::App app("", "fvr-render");
+    Parsing p;
+    declareAll(app, p);
+    std::reverse(args.begin(), args.end()); // CLI11 takes a vector last argument first
+    try {
+        app.parse(args);
+    } catch (const CLI::ParseError& e) {
+        throw SettingsError(e.what());
+    }
+    Options o = parsed(app, p);
+    checkCombinations(o);
+    return o;
 }
 
 } // namespace fvr::cli

@@ -4,6 +4,7 @@
  *  run before any input is loaded. */
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <fvr/core/io/volume_io.h>
 #include <fvr/core/render/kernels.h>
@@ -71,5 +72,10 @@ struct Options {
  *  printed on stdout). Throws core::SettingsError naming the option for every bad value or
  *  combination (exit status 2). */
 std::optional<Options> parseOptions(int argc, char** argv);
+
+/** Parses and checks settings alone, by the same declarations ("--kernel", "sinc4", ...; no
+ *  INPUT, --out or --info needed): the Python module's settings. Throws core::SettingsError
+ *  naming the option. */
+Options parseSettings(std::vector<std::string> args);
 
 } // namespace fvr::cli

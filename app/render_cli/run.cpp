@@ -16,15 +16,44 @@
 
 namespace fvr::cli {
 
-core::RenderParams Session::params(const core::ViewFrame& view) const {
-    core::RenderParams p{view, geometry, options.kernel};
-    p.depthCue = options.depthCue;
-    p.filter = options.filter;
-    p.clipToVolume = options.clip;
-    p.voxelModel = options.voxelModel;
-    p.pixelAperture = options.pixelAperture;
-    p.nonNegative = !options.keepNegative;
+core::RenderParams renderParams(const Options& o, const core::ViewFrame& view,
+                                const core::ImageGeometry& geometry) {
+    core::RenderParams p{view, geometry, o.kernel};
+    p.depthCue = o.depthCue;
+    p.filter = o.filter;
+    p.clipToVolume = o.clip;
+    p.voxelModel = o.voxelModel;
+    p.pixelAperture = o.pixelAperture;
+    p.nonNegative = !o.keepNegative;
     return p;
+}
+
+core::PreprocessOptions preprocessOptions(const Options& o) {
+    core::PreprocessOptions po;
+    po.mapping = o.values;
+    po.transform = o.transform;
+    po.oversampling = o.oversampling;
+    po.threads = o.threads;
+    // The workstation's rule: gridding correction for every kernel it helps (all but linear).
+    if (o.deapodize.value_or(core::griddingCorrectionHelps(o.kernel))) po.deapodizeFor = o.kernel;
+    return po;
+}
+
+core::ViewFrame baseView(const Options& o, const core::Volume& volume) {
+    return o.view ? core::patientViewFrame(volume, *o.view)
+                  : core::ViewFrame::fromDirUp(o.dir, o.up);
+}
+
+core::ImageGeometry imageGeometry(const Options& o, const core::Volume& volume) {
+    const double d =
+        o.pixelSize ? *o.pixelSize : core::defaultPixelSize(volume.dims, volume.spacing, o.size);
+    const core::ImageGeometry geometry{o.size, d};
+    core::validateImageGeometry(geometry);
+    return geometry;
+}
+
+core::RenderParams Session::params(const core::ViewFrame& view) const {
+    return renderParams(options, view, geometry);
 }
 
 RunFacts Session::facts() const {
@@ -38,15 +67,8 @@ using namespace fvr::core;
 /** The volume's spectrum, with a progress line on a terminal; `ms` gets the time it took. */
 std::shared_ptr<const Spectrum> preprocessVolume(const Options& o, const Volume& volume,
                                                  double& ms) {
-    PreprocessOptions po;
-    po.mapping = o.values;
-    po.transform = o.transform;
-    po.oversampling = o.oversampling;
-    po.threads = o.threads;
-    // The workstation's rule: gridding correction for every kernel it helps (all but linear).
-    if (o.deapodize.value_or(griddingCorrectionHelps(o.kernel)))
-        po.deapodizeFor = o.kernel;
-    else if (o.kaiserBessel())
+    const PreprocessOptions po = preprocessOptions(o);
+    if (!po.deapodizeFor && o.kaiserBessel())
         std::fprintf(stderr, "fvr-render: warning: kaiser-bessel without deapodization is less "
                              "accurate than trilinear\n");
     const auto t0 = std::chrono::steady_clock::now();
@@ -68,17 +90,13 @@ std::shared_ptr<const Spectrum> preprocessVolume(const Options& o, const Volume&
 /** Renders what the options ask for from the loaded volume. */
 int renderVolume(const Options& o, const Volume& volume, const std::vector<ViewFrame>& fileViews,
                  const DicomExportInfo& exportInfo) {
-    const ViewFrame base =
-        o.view ? patientViewFrame(volume, *o.view) : ViewFrame::fromDirUp(o.dir, o.up);
+    const ViewFrame base = baseView(o, volume);
     // The views first: their errors (a sweep along its axis) before the work.
     const std::vector<ViewFrame> views =
         o.out.empty() ? std::vector<ViewFrame>{} : outputViews(o, volume, base, fileViews);
     double preprocessMs = 0.0;
     auto spectrum = preprocessVolume(o, volume, preprocessMs);
-    const double d =
-        o.pixelSize ? *o.pixelSize : defaultPixelSize(volume.dims, volume.spacing, o.size);
-    const ImageGeometry geometry{o.size, d};
-    validateImageGeometry(geometry);
+    const ImageGeometry geometry = imageGeometry(o, volume);
     auto backend = makeRenderBackend(o, spectrum);
     const Session s{o,        volume,
                     spectrum, preprocessMs,
@@ -102,6 +120,7 @@ int run(const Options& o) {
                                                  ? readViewsFile(o.viewsFile)
                                                  : std::vector<ViewFrame>{};
     const LoadedInput in = loadInput(o);
+    for (const auto& w : in.warnings) std::fprintf(stderr, "fvr-render: warning: %s\n", w.c_str());
     if (in.seriesList) { // DICOM folder --info: the series list
         printJson(seriesListJson(*in.seriesList));
         return 0;

@@ -1,5 +1,8 @@
 #pragma once
 /** fvr-render's run: load, preprocess, then --info, --bench and --out in that order. */
+#include <fvr/core/render/preprocess.h>
+#include <fvr/core/render/renderer.h>
+
 #include "options.h"
 
 namespace fvr::cli {
@@ -7,5 +10,18 @@ namespace fvr::cli {
 /** Runs the checked options; returns the exit status. Throws InputError for bad input (exit
  *  status 2) and other exceptions for other failures (1). */
 int run(const Options& o);
+
+/** fvr-render's rules from settings to the core's parameters, shared with the Python module: */
+/** The spectrum's settings: --values, --transform, --oversampling, --threads, and gridding
+ *  correction for --kernel where --deapodize says so, else where it helps (the workstation's
+ *  rule, core::griddingCorrectionHelps). */
+core::PreprocessOptions preprocessOptions(const Options& o);
+/** The view of --view, else of --dir/--up. */
+core::ViewFrame baseView(const Options& o, const core::Volume& volume);
+/** --size and --pixel-size (default: core::defaultPixelSize), checked (SettingsError). */
+core::ImageGeometry imageGeometry(const Options& o, const core::Volume& volume);
+/** What every view is rendered with: the options' kernel, model, filter, clipping... */
+core::RenderParams renderParams(const Options& o, const core::ViewFrame& view,
+                                const core::ImageGeometry& geometry);
 
 } // namespace fvr::cli

@@ -1,0 +1,97 @@
+# Type hints of the package fvr (the implementation: __init__.py over the extension _fvr).
+from typing import Any, Callable, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+Vec3 = Tuple[float, float, float]
+
+def option_args(settings: dict) -> list[str]: ...
+
+class Volume:
+    def __init__(
+        self,
+        array: npt.ArrayLike,
+        spacing: Sequence[float] = ...,
+        origin: Sequence[float] = ...,
+        direction: Sequence[Sequence[float]] = ...,
+        units: str = ...,
+        name: str = ...,
+    ) -> None: ...
+    @property
+    def shape(self) -> Tuple[int, int, int]: ...
+    @property
+    def spacing(self) -> Vec3: ...
+    @property
+    def origin(self) -> Vec3: ...
+    @property
+    def direction(self) -> Tuple[Vec3, Vec3, Vec3]: ...
+    @property
+    def units(self) -> str: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def warnings(self) -> list[str]: ...
+    @property
+    def orientation_stated(self) -> bool: ...
+    @property
+    def array(self) -> npt.NDArray[np.float32]: ...
+    @property
+    def info(self) -> dict[str, Any]: ...
+
+def load(path: str, series: Optional[str] = ..., **settings: Any) -> Volume: ...
+
+class Renderer:
+    volume: Volume
+    def __init__(
+        self,
+        volume: Volume,
+        kernel: Optional[str] = ...,
+        oversampling: Optional[float] = ...,
+        values: Optional[str] = ...,
+        voxel_model: Optional[str] = ...,
+        threads: Optional[int] = ...,
+        progress: Optional[Callable[[float, str], Any]] = ...,
+        **settings: Any,
+    ) -> None: ...
+    @property
+    def args(self) -> list[str]: ...
+    def render(
+        self,
+        view: Optional[str] = ...,
+        dir: Optional[Sequence[float]] = ...,
+        up: Optional[Sequence[float]] = ...,
+        size: Optional[int] = ...,
+        pixel_size: Optional[float] = ...,
+    ) -> npt.NDArray[np.float32]: ...
+    def render_many(
+        self,
+        views: Union[None, Sequence[str], npt.ArrayLike] = ...,
+        size: Optional[int] = ...,
+        pixel_size: Optional[float] = ...,
+    ) -> npt.NDArray[np.float32]: ...
+    def views(self, **settings: Any) -> npt.NDArray[np.float64]: ...
+    @property
+    def settings(self) -> dict[str, Any]: ...
+    def transmission(
+        self,
+        image: npt.ArrayLike,
+        energy_kev: Optional[float] = ...,
+        mu_water: Optional[float] = ...,
+        exposure: Optional[float] = ...,
+    ) -> npt.NDArray[np.float32]: ...
+
+def transmission(
+    image: npt.ArrayLike,
+    energy_kev: Optional[float] = ...,
+    mu_water: Optional[float] = ...,
+    exposure: Optional[float] = ...,
+) -> npt.NDArray[np.float32]: ...
+def film(
+    image: npt.ArrayLike,
+    energy_kev: Optional[float] = ...,
+    mu_water: Optional[float] = ...,
+    exposure: Optional[float] = ...,
+    invert: bool = ...,
+) -> npt.NDArray[np.float32]: ...
+def run_cli(args: Sequence[str]) -> int: ...

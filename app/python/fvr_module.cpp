@@ -1,0 +1,343 @@
+// The Python module fvr._fvr: thin pybind11 bindings over fvr::core and fvr-render's own rules
+// (render_cli: the settings, their checks and defaults, the views, the run with its sidecar).
+// Settings arrive as fvr-render option arguments, so that Python and the CLI cannot disagree.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <algorithm>
+#include <cstring>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <fvr/core/errors.h>
+#include <fvr/core/io/open_study.h>
+#include <fvr/core/render/cpu_batch.h>
+#include <fvr/core/xray/display_window.h>
+#include <fvr/core/xray/patient_views.h>
+
+#include "input.h"
+#include "json_output.h"
+#include "options.h"
+#include "run.h"
+#include "session.h"
+
+namespace py = pybind11;
+using namespace fvr;
+
+namespace {
+
+using Args = std::vector<std::string>;
+
+/** A volume and what its loader said. */
+struct PyVolume {
+    std::shared_ptr<const core::Volume> volume;
+    std::vector<std::string> warnings;
+};
+
+core::ValueUnits unitsFromName(const std::string& name) {
+    using core::ValueUnits;
+    for (auto u : {ValueUnits::Unknown, ValueUnits::HounsfieldUnits,
+                   ValueUnits::LinearAttenuationRelWater, ValueUnits::Intensity})
+        if (name == core::unitsName(u)) return u;
+    throw core::SettingsError("units: expected unknown, HU, mu/mu_water or intensity, found '" +
+                              name + "'");
+}
+
+/** A volume from a (z, y, x) array: one copy into the volume's own storage, GIL released. */
+PyVolume volumeFromArray(py::array_t<float, py::array::c_style | py::array::forcecast> a,
+                         const core::Vec3& spacing, const core::Vec3& origin,
+                         const std::array<core::Vec3, 3>& direction, const std::string& units,
+                         const std::string& name) {
+    if (a.ndim() != 3)
+        throw core::SettingsError("array: expected 3 dimensions (z, y, x), found " +
+                                  std::to_string(a.ndim()));
+    auto v = std::make_shared<core::Volume>();
+    v->dims = {a.shape(2), a.shape(1), a.shape(0)};
+    try {
+        core::validateGeometry(v->dims, spacing, name);
+    } catch (const core::InputError& e) { // a bad argument here, not a bad file
+        throw core::SettingsError(e.what());
+    }
+    v->spacing = spacing;
+    v->origin = origin;
+    v->direction = direction;
+    v->units = unitsFromName(units);
+    v->name = name;
+    const float* data = a.data();
+    {
+        py::gil_scoped_release release;
+        v->voxels.assign(data, data + v->voxelCount());
+    }
+    return PyVolume{std::move(v), {}};
+}
+
+/** fvr.load: the path by core's rule (core::openStudy through fvr-render's loadInput). */
+PyVolume load(const std::string& path, const Args& args) {
+    cli::Options o = cli::parseSettings(args);
+    o.input = path;
+    py::gil_scoped_release release;
+    cli::LoadedInput in = cli::loadInput(o);
+    return PyVolume{std::make_shared<core::Volume>(std::move(*in.volume)), in.warnings};
+}
+
+/** The array (z, y, x) viewing the volume's voxels (read-only; keeps the volume alive). */
+py::array volumeArray(const PyVolume& v) {
+    const auto& d = v.volume->dims;
+    auto* owner = new std::shared_ptr<const core::Volume>(v.volume);
+    py::capsule base(owner,
+                     [](void* p) { delete static_cast<std::shared_ptr<const core::Volume>*>(p); });
+    py::array_t<float> a({d[2], d[1], d[0]}, v.volume->voxels.data(), base);
+    py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+    return a;
+}
+
+/** An image stack (n, M, M), row 0 at the top as fvr-render's .npy. */
+py::array_t<float> imageStack(std::size_t n, int size) {
+    return py::array_t<float>({py::ssize_t(n), py::ssize_t(size), py::ssize_t(size)});
+}
+
+/** Views from an (N, 2, 3) array of (dir, up) rows. */
+std::vector<core::ViewFrame> viewsFromArray(
+    py::array_t<double, py::array::c_style | py::array::forcecast> a) {
+    if (a.ndim() != 3 || a.shape(1) != 2 || a.shape(2) != 3)
+        throw core::SettingsError("views: expected an (N, 2, 3) array of (dir, up), or view names");
+    std::vector<core::ViewFrame> views;
+    auto r = a.unchecked<3>();
+    for (py::ssize_t i = 0; i < a.shape(0); ++i)
+        views.push_back(core::ViewFrame::fromDirUp({r(i, 0, 0), r(i, 0, 1), r(i, 0, 2)},
+                                                   {r(i, 1, 0), r(i, 1, 1), r(i, 1, 2)}));
+    return views;
+}
+
+/**
+ * fvr.Renderer: the volume's spectrum made once with fvr-render's settings, then views on the
+ * CPU (core::CpuBatchRenderer: the batch rule of --sweep). Calls are serialised (one batch
+ * renderer); two renderers render concurrently, the GIL released.
+ */
+class PyRenderer {
+public:
+    PyRenderer(PyVolume volume, Args args, py::object progress)
+        : m_volume(std::move(volume)), m_args(std::move(args)),
+          m_options(cli::parseSettings(m_args)) {
+        const core::PreprocessOptions po = cli::preprocessOptions(m_options);
+        std::string pyError;
+        core::CancelToken cancel;
+        core::ProgressFn fn;
+        if (!progress.is_none())
+            fn = [&](double f, std::string_view stage) {
+                py::gil_scoped_acquire gil;
+                try {
+                    progress(f, std::string(stage));
+                } catch (py::error_already_set& e) {
+                    pyError = e.what(); // stops the preprocessing at its next check
+                    cancel.cancel();
+                }
+            };
+        try {
+            py::gil_scoped_release release;
+            m_spectrum = core::preprocess(*m_volume.volume, po, fn, &cancel);
+            m_batch = std::make_unique<core::CpuBatchRenderer>(m_spectrum, m_options.threads);
+        } catch (const core::Cancelled&) {
+            throw std::runtime_error("progress callback raised: " + pyError);
+        }
+    }
+
+    /** One view; `extra` adds view and image settings (--view, --dir, --size...). */
+    py::array_t<float> render(const Args& extra) {
+        cli::Options o = options(extra);
+        // dir/up given to the call replace the renderer's own view (fvr-render's --view would
+        // win over them).
+        auto given = [&](const char* name) {
+            return std::find(extra.begin(), extra.end(), name) != extra.end();
+        };
+        if ((given("--dir") || given("--up")) && !given("--view")) o.view.reset();
+        const core::ImageGeometry g = cli::imageGeometry(o, *m_volume.volume);
+        const core::RenderParams p = cli::renderParams(o, cli::baseView(o, *m_volume.volume), g);
+        core::validateRenderParams(p);
+        auto out = py::array_t<float>({py::ssize_t(g.size), py::ssize_t(g.size)});
+        float* dst = out.mutable_data();
+        py::gil_scoped_release release;
+        std::lock_guard lock(m_mutex);
+        const auto images = m_batch->renderBatch({p});
+        std::memcpy(dst, images[0].pixels.data(), images[0].pixels.size() * sizeof(float));
+        return out;
+    }
+
+    /** Views by name, as (N, 2, 3) (dir, up), or none: the settings' own (--sweep, --views,
+     *  else --view/--dir/--up), as fvr-render --out renders them. */
+    py::array_t<float> renderMany(const py::object& views, const Args& extra) {
+        const cli::Options o = options(extra);
+        const std::vector<core::ViewFrame> frames = viewList(o, views);
+        const core::ImageGeometry g = cli::imageGeometry(o, *m_volume.volume);
+        std::vector<core::RenderParams> params;
+        for (const auto& v : frames) params.push_back(cli::renderParams(o, v, g));
+        if (!params.empty()) core::validateRenderParams(params[0]);
+        auto out = imageStack(params.size(), g.size);
+        float* dst = out.mutable_data();
+        const std::size_t pixels = std::size_t(g.size) * std::size_t(g.size);
+        py::gil_scoped_release release;
+        std::lock_guard lock(m_mutex);
+        const std::size_t width = std::size_t(m_batch->width());
+        for (std::size_t first = 0; first < params.size(); first += width) {
+            const std::vector<core::RenderParams> batch(
+                params.begin() + std::ptrdiff_t(first),
+                params.begin() + std::ptrdiff_t(std::min(params.size(), first + width)));
+            const auto images = m_batch->renderBatch(batch);
+            for (std::size_t i = 0; i < images.size(); ++i)
+                std::memcpy(dst + (first + i) * pixels, images[i].pixels.data(),
+                            pixels * sizeof(float));
+        }
+        return out;
+    }
+
+    /** The views render_many(None) renders, as (N, 2, 3) (dir, up). */
+    py::array_t<double> views(const Args& extra) {
+        const auto frames = viewList(options(extra), py::none());
+        py::array_t<double> out({py::ssize_t(frames.size()), py::ssize_t(2), py::ssize_t(3)});
+        auto w = out.mutable_unchecked<3>();
+        for (std::size_t i = 0; i < frames.size(); ++i)
+            for (int k = 0; k < 3; ++k) {
+                w(py::ssize_t(i), 0, k) = frames[i].d[k];
+                w(py::ssize_t(i), 1, k) = frames[i].u[k];
+            }
+        return out;
+    }
+
+    /** The "settings" object of fvr-render's sidecar for these settings, as JSON text. */
+    std::string settingsJson(const Args& extra) const {
+        const cli::Options o = options(extra);
+        const core::ImageGeometry g = cli::imageGeometry(o, *m_volume.volume);
+        return cli::jsonText(
+            cli::settingsJson(cli::RunFacts{o, *m_spectrum, g.pixelSize, m_batch->width(), "cpu"}));
+    }
+
+    const PyVolume& volume() const { return m_volume; }
+    const Args& args() const { return m_args; }
+
+private:
+    cli::Options options(const Args& extra) const {
+        Args all = m_args;
+        all.insert(all.end(), extra.begin(), extra.end());
+        return cli::parseSettings(all);
+    }
+
+    std::vector<core::ViewFrame> viewList(const cli::Options& o, const py::object& views) const {
+        const core::Volume& vol = *m_volume.volume;
+        if (views.is_none()) {
+            const auto fileViews = o.viewsFile.empty() ? std::vector<core::ViewFrame>{}
+                                                       : cli::readViewsFile(o.viewsFile);
+            return cli::outputViews(o, vol, cli::baseView(o, vol), fileViews);
+        }
+        if (py::isinstance<py::str>(views))
+            throw core::SettingsError("views: expected a list of view names, not one string");
+        if (py::isinstance<py::sequence>(views) && py::len(views) > 0 &&
+            py::isinstance<py::str>(views[py::int_(0)])) {
+            std::vector<core::ViewFrame> frames;
+            for (const auto& name : views.cast<std::vector<std::string>>())
+                frames.push_back(core::patientViewFrame(vol, core::parsePatientView(name)));
+            return frames;
+        }
+        return viewsFromArray(views);
+    }
+
+    PyVolume m_volume;
+    Args m_args;
+    cli::Options m_options;
+    std::shared_ptr<const core::Spectrum> m_spectrum;
+    std::unique_ptr<core::CpuBatchRenderer> m_batch;
+    std::mutex m_mutex;
+};
+
+/** Beer-Lambert: the transmitted intensity of line integrals (fvr-render --beer-lambert's rule:
+ *  --energy, --mu-water, --exposure resolved by its checks). */
+py::array_t<float> transmission(py::array_t<float, py::array::c_style | py::array::forcecast> img,
+                                const Args& args) {
+    const cli::Options o = cli::parseSettings(args);
+    std::vector<float> pixels(img.data(), img.data() + img.size());
+    core::applyTransmission(pixels, o.transmission);
+    py::array_t<float> out(std::vector<py::ssize_t>(img.shape(), img.shape() + img.ndim()));
+    std::memcpy(out.mutable_data(), pixels.data(), pixels.size() * sizeof(float));
+    return out;
+}
+
+/** The film look of line integrals: brightness in [0, 1] through core::filmWindow (the window
+ *  of fvr-render's Beer-Lambert PNGs and the workstation's views). */
+py::array_t<float> film(py::array_t<float, py::array::c_style | py::array::forcecast> img,
+                        const Args& args, bool invert) {
+    const cli::Options o = cli::parseSettings(args);
+    const std::vector<float> pixels(img.data(), img.data() + img.size());
+    const core::DisplayWindow w = core::filmWindow(pixels, o.transmission, invert);
+    py::array_t<float> out(std::vector<py::ssize_t>(img.shape(), img.shape() + img.ndim()));
+    float* dst = out.mutable_data();
+    for (std::size_t i = 0; i < pixels.size(); ++i) dst[i] = float(w.map(pixels[i]));
+    return out;
+}
+
+/** fvr-render ARGS in this process (the dataset's tasks): its exit status; errors raise. */
+int runCli(const Args& args) {
+    std::vector<std::string> argv{"fvr-render"};
+    argv.insert(argv.end(), args.begin(), args.end());
+    std::vector<char*> ptrs;
+    for (auto& a : argv) ptrs.push_back(a.data());
+    py::gil_scoped_release release;
+    const auto o = cli::parseOptions(int(ptrs.size()), ptrs.data());
+    return o ? cli::run(*o) : 0;
+}
+
+void bindVolume(py::module_& m) {
+    py::class_<PyVolume>(m, "Volume")
+        .def(py::init(&volumeFromArray), py::arg("array"), py::arg("spacing"), py::arg("origin"),
+             py::arg("direction"), py::arg("units"), py::arg("name"))
+        .def_property_readonly("shape",
+                               [](const PyVolume& v) {
+                                   const auto& d = v.volume->dims;
+                                   return py::make_tuple(d[2], d[1], d[0]);
+                               })
+        .def_property_readonly("spacing", [](const PyVolume& v) { return v.volume->spacing; })
+        .def_property_readonly("origin", [](const PyVolume& v) { return v.volume->origin; })
+        .def_property_readonly("direction", [](const PyVolume& v) { return v.volume->direction; })
+        .def_property_readonly("units",
+                               [](const PyVolume& v) { return core::unitsName(v.volume->units); })
+        .def_property_readonly("name", [](const PyVolume& v) { return v.volume->name; })
+        .def_property_readonly("orientation_stated",
+                               [](const PyVolume& v) { return v.volume->orientationStated; })
+        .def_readonly("warnings", &PyVolume::warnings)
+        .def_property_readonly("array", &volumeArray)
+        .def_property_readonly("info_json", [](const PyVolume& v) {
+            return cli::jsonText(cli::volumeInfoJson(*v.volume));
+        });
+}
+
+void bindRenderer(py::module_& m) {
+    py::class_<PyRenderer>(m, "Renderer")
+        .def(py::init<PyVolume, Args, py::object>(), py::arg("volume"), py::arg("args"),
+             py::arg("progress"))
+        .def("render", &PyRenderer::render, py::arg("args"))
+        .def("render_many", &PyRenderer::renderMany, py::arg("views"), py::arg("args"))
+        .def("views", &PyRenderer::views, py::arg("args"))
+        .def("settings_json", &PyRenderer::settingsJson, py::arg("args"))
+        .def_property_readonly("volume", &PyRenderer::volume)
+        .def_property_readonly("args", &PyRenderer::args);
+}
+
+} // namespace
+
+PYBIND11_MODULE(_fvr, m) {
+    m.doc() = "fvr's C++ core (fvr::core and fvr-render's rules); use the package fvr.";
+    py::register_exception_translator([](std::exception_ptr p) {
+        try {
+            if (p) std::rethrow_exception(p);
+        } catch (const core::SettingsError& e) {
+            PyErr_SetString(PyExc_ValueError, e.what());
+        }
+    });
+    bindVolume(m);
+    bindRenderer(m);
+    m.def("load", &load, py::arg("path"), py::arg("args"));
+    m.def("transmission", &transmission, py::arg("image"), py::arg("args"));
+    m.def("film", &film, py::arg("image"), py::arg("args"), py::arg("invert"));
+    m.def("run_cli", &runCli, py::arg("args"));
+}

@@ -1,0 +1,211 @@
+"""The Python module fvr against independent oracles: the shared data's documented sizes, the
+built fvr-render's own .npy outputs (bit for bit), a loop of single renders, the CLI's messages,
+and two threads rendering at once."""
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import fvr
+from conftest import BODY_CT_MHD, BODY_CT_NII, HEAD_DICOM, need, run_fvr_render
+
+SETTINGS = dict(kernel="kaiser-bessel", oversampling=1.25, values="mu", voxel_model="bspline")
+CLI_SETTINGS = ["--kernel", "kaiser-bessel", "--oversampling", "1.25", "--values", "mu",
+                "--voxel-model", "bspline", "--backend", "cpu"]
+
+
+@pytest.fixture(scope="module")
+def body():
+    return fvr.load(need(BODY_CT_MHD))
+
+
+@pytest.fixture(scope="module")
+def renderer(body):
+    return fvr.Renderer(body, **SETTINGS)
+
+
+# The sizes of data/README.md, as (z, y, x).
+@pytest.mark.parametrize("path, shape, units", [
+    (HEAD_DICOM, (93, 64, 64), "intensity"),      # DICOM folder (RescaleType US: not HU)
+    (BODY_CT_MHD, (112, 101, 122), "HU"),         # MetaImage (no units stated: HU by the guess)
+    (BODY_CT_NII, (112, 101, 122), "HU"),         # NIfTI gz, the same study
+])
+def test_load_shared_volume_kinds(path, shape, units):
+    vol = fvr.load(need(path))
+    assert vol.shape == shape
+    assert vol.units == units
+    assert vol.array.shape == shape and vol.array.dtype == np.float32
+    assert not vol.array.flags.writeable
+    assert vol.info["dims"] == list(shape[::-1])
+    assert all(s > 0 for s in vol.spacing)
+
+
+def test_nifti_and_metaimage_of_one_study_hold_the_same_voxels():
+    mhd, nii = fvr.load(need(BODY_CT_MHD)), fvr.load(need(BODY_CT_NII))
+    np.testing.assert_array_equal(mhd.array, nii.array)
+    assert mhd.spacing == nii.spacing == (3.0, 3.0, 3.0)
+
+
+def test_load_phantom_and_its_warnings():
+    vol = fvr.load("phantom:shepp-logan:64")
+    assert vol.shape == (64, 64, 64)
+    assert vol.units == "HU"
+    body = fvr.load(need(BODY_CT_MHD))
+    assert any("no orientation" in w for w in body.warnings)
+    dicom = fvr.load(need(HEAD_DICOM))
+    assert any("RescaleType" in w for w in dicom.warnings)
+
+
+def test_render_is_bit_identical_to_fvr_render(body, renderer, fvr_render, tmp_path):
+    for view, size in [("AP", 128), ("LEFT", 256)]:
+        cli = run_fvr_render(fvr_render, [BODY_CT_MHD, *CLI_SETTINGS, "--view", view,
+                                          "--size", size], tmp_path / f"{view}.npy")
+        img = renderer.render(view=view, size=size)
+        assert img.dtype == np.float32 and img.shape == (size, size)
+        assert cli.tobytes() == img.tobytes(), view
+        assert img.max() > 1.0  # a real projection, not an empty image
+
+
+def test_sweep_is_bit_identical_to_fvr_render(body, fvr_render, tmp_path):
+    cli = run_fvr_render(fvr_render, [BODY_CT_MHD, *CLI_SETTINGS, "--sweep", 5, "--size", 128,
+                                      "--pixel-size", 3.5], tmp_path / "sweep.npy")
+    r = fvr.Renderer(body, sweep=5, **SETTINGS)
+    stack = r.render_many(size=128, pixel_size=3.5)
+    assert stack.shape == (5, 128, 128)
+    assert cli.tobytes() == stack.tobytes()
+    assert r.views().shape == (5, 2, 3)
+
+
+def test_render_many_equals_a_loop_of_render(renderer):
+    names = ["AP", "LEFT", "PA", "RIGHT", "HEAD"]
+    stack = renderer.render_many(names, size=128)
+    for i, name in enumerate(names):
+        np.testing.assert_array_equal(stack[i], renderer.render(view=name, size=128))
+    views = np.array([[[0.6, 0.8, 0.0], [0, 0, 1]], [[0, 1, 0], [0, 0, -1]], [[1, 0, 0], [0, 1, 0]]])
+    stack = renderer.render_many(views, size=128, pixel_size=3.0)
+    for i, (d, u) in enumerate(views):
+        np.testing.assert_array_equal(stack[i], renderer.render(dir=d, up=u, size=128, pixel_size=3.0))
+
+
+def test_a_view_of_the_call_replaces_the_renderers_own(body, renderer):
+    left = fvr.Renderer(body, view="LEFT", **SETTINGS)
+    d, u = (0.6, 0.8, 0.0), (0.0, 0.0, 1.0)
+    np.testing.assert_array_equal(left.render(dir=d, up=u, size=128),
+                                  renderer.render(dir=d, up=u, size=128))
+    np.testing.assert_array_equal(left.render(size=128), renderer.render(view="LEFT", size=128))
+
+
+def test_volume_from_numpy_renders_as_the_loaded_volume(body, renderer):
+    copy = fvr.Volume(np.array(body.array), spacing=body.spacing, origin=body.origin,
+                      direction=body.direction, units=body.units)
+    assert copy.shape == body.shape and copy.spacing == body.spacing
+    r = fvr.Renderer(copy, **SETTINGS)
+    assert r.render(view="AP", size=128).tobytes() == renderer.render(view="AP", size=128).tobytes()
+    # Another dtype converts; float64 doubles round to the same float32 voxels.
+    as64 = fvr.Volume(body.array.astype(np.float64), spacing=body.spacing, units="HU")
+    np.testing.assert_array_equal(as64.array, body.array)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda v, r: fvr.Renderer(v, kernel="bogus"), "--kernel"),
+    (lambda v, r: fvr.Renderer(v, oversampling=3), "expected a factor in [1, 2], found 3"),
+    (lambda v, r: r.render(size=100), "--size: expected a power of two in 128..2048, found 100"),
+    (lambda v, r: r.render(view="SIDEWAYS"), "SIDEWAYS"),
+    (lambda v, r: r.render(dir=(0, 0, 0)), "view direction: expected a non-zero finite vector"),
+    (lambda v, r: r.render(pixel_size=-1), "--pixel-size: expected a positive number of mm"),
+    (lambda v, r: r.render_many(np.zeros((2, 3)), size=128), "(N, 2, 3)"),
+    (lambda v, r: fvr.Renderer(v).transmission(np.zeros((4, 4)), energy_kev=70),
+     "--beer-lambert: needs --values mu or mu-bone"),
+    (lambda v, r: r.transmission(np.zeros((4, 4)), energy_kev=500), "--energy"),
+    (lambda v, r: fvr.Volume(np.zeros((4, 4), np.float32)), "expected 3 dimensions"),
+    (lambda v, r: fvr.Volume(np.zeros((4, 4, 4), np.float32), spacing=(1, 0, 1)), "spacing"),
+])
+def test_bad_arguments_raise_value_error_with_the_message(body, renderer, call, message):
+    with pytest.raises(ValueError) as e:
+        call(body, renderer)
+    assert message in str(e.value)
+
+
+def test_unreadable_input_raises_runtime_error(tmp_path):
+    with pytest.raises(RuntimeError, match="nothing.mhd"):
+        fvr.load(str(tmp_path / "nothing.mhd"))
+
+
+def test_transmission_is_beer_lambert(renderer):
+    img = renderer.render(view="AP", size=128)
+    mu = 0.0193  # fvr-render's default mu_water (per mm)
+    expected = 2.0 * np.exp(-mu * img.astype(np.float64))
+    got = renderer.transmission(img, exposure=2.0)
+    np.testing.assert_allclose(got, expected, rtol=1e-6)
+    film = fvr.film(img, energy_kev=70)
+    assert film.shape == img.shape and 0.0 <= film.min() and film.max() <= 1.0
+    # Film look (inverted): more attenuation is brighter.
+    assert film.flat[np.argmax(img)] >= film.flat[np.argmin(img)]
+
+
+def test_progress_is_reported_and_its_exception_stops_preprocessing(body):
+    seen = []
+    fvr.Renderer(body, progress=lambda f, stage: seen.append(f))
+    assert seen and seen == sorted(seen) and seen[-1] <= 1.0
+
+    def stop(f, stage):
+        raise KeyError("enough")
+    with pytest.raises(RuntimeError, match="enough"):
+        fvr.Renderer(body, progress=stop)
+
+
+def released_gil_during(call, then=None) -> bool:
+    """Whether another Python thread ran while `call` was in C++. The switch interval is set far
+    above the call's length, so that the interpreter never takes the GIL from a thread that
+    holds it: the observer thread, woken just before the call, gets the GIL during the call only
+    if the call releases it, and otherwise only after the call has returned."""
+    state = {"in_call": False}
+    seen = []
+    go = threading.Event()
+
+    def observe():
+        go.wait()
+        seen.append(state["in_call"])
+        if then is not None:
+            then()
+
+    observer = threading.Thread(target=observe)
+    observer.start()
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(60.0)
+    try:
+        state["in_call"] = True
+        go.set()
+        # The observer wakes and queues for the GIL while this thread holds it (a busy wait
+        # gives the GIL away no more than the C++ call would).
+        until = time.perf_counter() + 0.05
+        while time.perf_counter() < until:
+            pass
+        call()
+        state["in_call"] = False
+    finally:
+        sys.setswitchinterval(interval)
+    observer.join()
+    return seen[0]
+
+
+def test_the_gil_is_released_while_cpp_works(body):
+    # One thread in C++: the other core stays free for the observer.
+    r = fvr.Renderer(body, threads=1, **SETTINGS)
+    assert released_gil_during(lambda: fvr.Renderer(body, threads=1, **SETTINGS))
+    assert released_gil_during(lambda: r.render(view="AP", size=512))
+    assert released_gil_during(lambda: r.render_many(["AP", "LEFT"] * 2, size=512))
+    assert released_gil_during(lambda: fvr.load("phantom:chest"))
+
+
+def test_two_threads_render_at_once(body):
+    """The second thread's render starts while the first's is in C++: both render at once."""
+    renderers = [fvr.Renderer(body, threads=1, **SETTINGS) for _ in range(2)]
+    stacks = []
+    views = ["AP", "LEFT", "PA", "RIGHT"] * 2
+    assert released_gil_during(lambda: stacks.append(renderers[0].render_many(views, size=256)),
+                               then=lambda: stacks.append(renderers[1].render_many(views, size=256)))
+    assert len(stacks) == 2
+    np.testing.assert_array_equal(stacks[0], stacks[1])
