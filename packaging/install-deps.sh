@@ -12,6 +12,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev clang-format
   xvfb xauth libgl1-mesa-dri libegl-mesa0
+  orthanc # the real PACS the pacs tests start on their own ports (its service is not used)
 )
 
 missing=()

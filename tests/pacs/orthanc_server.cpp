@@ -108,6 +108,9 @@ OrthancServer::OrthancServer(const fs::path& dir, const std::string& ourAe, int 
     if (m_pid == 0) {
         std::freopen(logPath.c_str(), "w", stdout);
         std::freopen(logPath.c_str(), "a", stderr);
+        // Orthanc's DCMTK as ours (core/src/pacs): Nagle's algorithm off, or each C-STORE it
+        // sends waits for a delayed ACK.
+        ::setenv("TCP_NODELAY", "1", 1);
         ::execl(exe.c_str(), exe.c_str(), (dir / "config.json").c_str(), nullptr);
         std::_Exit(127);
     }
