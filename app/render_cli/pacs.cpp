@@ -1,6 +1,7 @@
 // fvr-render and a PACS: dicom:// INPUT, --query, --send (core/pacs does the DIMSE work).
 #include "pacs.h"
 
+#include <chrono>
 #include <cstdio>
 #include <sstream>
 
@@ -164,12 +165,19 @@ std::filesystem::path retrieveInput(const Options& o) {
             return url.seriesUid.empty() ? entry->folder
                                          : store.seriesFolder(url.studyUid, url.seriesUid);
     }
-    const auto folder = pacs::retrieve(url.node, localAe(o), url.studyUid, url.seriesUid, store,
-                                       progressLine(what));
+    int images = 0;
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto folder =
+        pacs::retrieve(url.node, localAe(o), url.studyUid, url.seriesUid, store,
+                       [&, line = progressLine(what)](const pacs::RetrieveProgress& p) mutable {
+                           images = p.received;
+                           line(p);
+                       });
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (isatty(2)) std::fprintf(stderr, "\n");
-    std::fprintf(stderr, "retrieved %s from %s (%s) into %s\n", what.c_str(),
+    std::fprintf(stderr, "retrieved %s from %s (%s, %d images in %.2f s) into %s\n", what.c_str(),
                  pacs::describe(url.node).c_str(),
-                 o.retrieve == pacs::RetrieveMethod::Move ? "C-MOVE" : "C-GET",
+                 o.retrieve == pacs::RetrieveMethod::Move ? "C-MOVE" : "C-GET", images, s,
                  folder.string().c_str());
     return folder;
 }

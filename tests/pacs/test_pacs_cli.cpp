@@ -80,7 +80,8 @@ TEST(PacsCli, MoveOfASeries) {
     const auto info = nlohmann::json::parse(r.out); // the retrieved folder's series
     ASSERT_EQ(info["series"].size(), 1u) << r.out;
     EXPECT_EQ(info["series"][0]["dims"], nlohmann::json({64, 64, 93})) << r.out;
-    EXPECT_NE(readAll(dir / "err").find("(C-MOVE)"), std::string::npos);
+    EXPECT_NE(readAll(dir / "err").find("(C-MOVE, 93 images in "), std::string::npos)
+        << readAll(dir / "err");
 }
 
 TEST(PacsCli, QueryPrintsTheMatchingStudiesAsJson) {
