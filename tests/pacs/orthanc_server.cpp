@@ -63,7 +63,8 @@ int freeLoopbackPort() {
 }
 
 fs::path OrthancServer::executable() {
-    if (const char* env = std::getenv("FVR_ORTHANC"); env && *env) return env;
+    if (const char* env = std::getenv("FVR_ORTHANC"); env && *env)
+        return fs::exists(env) ? fs::path(env) : fs::path();
     if (fs::exists("/usr/sbin/Orthanc")) return "/usr/sbin/Orthanc";
     if (const char* path = std::getenv("PATH")) {
         std::istringstream dirs(path);
