@@ -164,7 +164,10 @@ void StorageListener::start() {
         scp->addPresentationContext(dcmLongSCUStorageSOPClassUIDs[i], syntaxes);
     const OFCondition cond = scp->openListenPort();
     if (cond.bad())
-        throw PacsError("cannot listen on port " + std::to_string(port) + ": " + cond.text());
+        throw PacsError("cannot listen on port " + std::to_string(port) + ": " + cond.text() +
+                        (std::string(cond.text()).find("in use") != std::string::npos
+                             ? " (another program listens there: choose another port)"
+                             : ""));
     m_impl->scp = std::move(scp);
     m_impl->stop = false;
     m_impl->running = true;
