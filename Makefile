@@ -57,7 +57,7 @@ sanitize: deps
 	@cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFVR_SANITIZE=ON \
 	  -DFVR_BUILD_BENCH=OFF -DFVR_BUILD_GUI=OFF -DFVR_SHARED_DATA_DIR=$(SHARED_DATA) > /dev/null
 	@cmake --build build-asan --parallel $(JOBS)
-	@cd build-asan && ctest --output-on-failure --parallel $(JOBS) -L unit
+	@cd build-asan && ctest --output-on-failure --parallel $(JOBS) -L "unit|pacs"
 
 # Formats the C++ sources in place with .clang-format (STYLE.md: 100 columns, 4 spaces);
 # format-check lists the files it would change and fails if there are any.

@@ -13,6 +13,7 @@ packages=(
   clang libclang-rt-14-dev clang-format
   xvfb xauth libgl1-mesa-dri libegl-mesa0
   pybind11-dev python3-dev python3-numpy python3-pytest python3-distributed python3-zarr
+  orthanc # the real PACS the pacs tests start on their own ports (its service is not used)
 )
 
 missing=()

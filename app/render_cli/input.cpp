@@ -3,12 +3,17 @@
 #include "input.h"
 
 #include <fvr/core/io/open_study.h>
+#include <fvr/core/pacs/dicom_url.h>
+
+#include "pacs.h"
 
 namespace fvr::cli {
 
 LoadedInput loadInput(const Options& o) {
     using namespace fvr::core;
-    InputSource source = classifyInput(o.input);
+    // A study on a PACS: retrieved into the local store, then a folder like any other.
+    InputSource source =
+        classifyInput(pacs::isDicomUrl(o.input) ? retrieveInput(o).string() : o.input);
     if (o.raw && source.kind == InputKind::DicomFolder)
         throw SettingsError("--raw-dims: " + o.input + " is a folder, not a raw file");
     LoadedInput in;

@@ -15,6 +15,8 @@
 #include <fvr/core/errors.h>
 #include <fvr/core/render/view.h>
 
+#include "pacs.h"
+
 namespace fvr::cli {
 namespace {
 
@@ -26,12 +28,15 @@ const char* kUsage = R"(usage: fvr-render INPUT [options] --out FILE
        fvr-render INPUT --info
        fvr-render INPUT --bench N [options]
        fvr-render --gpu-info
+       fvr-render dicom://AE@host:port --query KEY=VALUE[,KEY=VALUE...]
 
 INPUT is a DICOM folder, its DICOMDIR or one DICOM file, a volume file (.mhd, .mha, .nii,
 .nii.gz; values without units that look like CT are taken for HU), a headerless raw file with
 --raw-dims, or a built-in phantom in HU with N^3 voxels: phantom:chest[:N] (an adult chest,
 420 mm field, default N 160; try --view AP) or phantom:shepp-logan[:N] (3D Shepp-Logan, 256 mm
-field, default N 128). The workstation opens paths by the same rule.
+field, default N 128). The workstation opens paths by the same rule. INPUT may also be a
+study (or series) on a PACS, dicom://CALLED_AE@host:port/STUDY_UID[/SERIES_UID]: retrieved
+into the local study store (see --store), then opened like a folder.
 )";
 
 const char* kFooter =
@@ -429,10 +434,56 @@ void declareBenchmark(CLI::App& app, Options& o) {
         ->group("Benchmark");
 }
 
-/** What the command must name: INPUT, and --out, --info or --bench. */
+void declarePacs(CLI::App& app, Options& o) {
+    const std::string g = "PACS";
+    app.add_option("--ae-title", o.aeTitle, "our AE title (the calling AE; default FVR)")
+        ->option_text("AE")
+        ->group(g);
+    app.add_option_function<std::string>(
+           "--retrieve",
+           [&o](const std::string& s) {
+               o.retrieve =
+                   s == "move" ? core::pacs::RetrieveMethod::Move : core::pacs::RetrieveMethod::Get;
+           },
+           "how a dicom:// INPUT is retrieved: get (C-GET, default) or move (C-MOVE to\n"
+           "our storage listener on --listen-port; the PACS must know our AE title)")
+        ->check(CLI::IsMember({"get", "move"}))
+        ->option_text("get|move")
+        ->group(g);
+    app.add_option("--listen-port", o.listenPort,
+                   "our storage listener's port for --retrieve "
+                   "move (default 11112)")
+        ->check(CLI::Range(1, 65535))
+        ->option_text("N")
+        ->group(g);
+    app.add_option("--query", o.query,
+                   "print the studies on INPUT's PACS that match, as JSON (C-FIND); keys:\n"
+                   "PatientName, PatientID, AccessionNumber (wildcards * and ?), Modality,\n"
+                   "StudyDate=YYYYMMDD[-YYYYMMDD]; repeatable, or comma-separated")
+        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)
+        ->option_text("K=V")
+        ->group(g);
+    app.add_flag("--query-series", o.querySeries, "with --query: each study's series too")
+        ->group(g);
+    app.add_option("--send", o.send,
+                   "store every output view as DICOM Secondary Capture on this PACS\n"
+                   "(C-STORE), e.g. dicom://ORTHANC@pacs:4242")
+        ->option_text("URL")
+        ->group(g);
+    app.add_option("--store", o.store,
+                   "the local study store for dicom:// INPUT (default\n"
+                   "$XDG_DATA_HOME/fvr-workstation/studies, the workstation's); a study\n"
+                   "it lists complete opens without the network")
+        ->option_text("DIR")
+        ->group(g);
+}
+
+/** What the command must name: INPUT, and --out, --info, --bench or --query; and the PACS
+ *  options (fvr-render's own, not render settings). */
 void checkCommand(const Options& o) {
     if (o.input.empty()) throw SettingsError("no INPUT given (see --help)");
-    if (!o.info && o.bench <= 0 && o.out.empty())
+    checkPacsOptions(o);
+    if (!o.info && o.bench <= 0 && o.out.empty() && !o.queryGiven)
         throw SettingsError("no --out FILE given (or --info, --bench N)");
 }
 
@@ -471,12 +522,14 @@ void declareAll(CLI::App& app, Parsing& p) {
     declareOutput(app, p.o);
     declareXray(app, p.o);
     declareBenchmark(app, p.o);
+    declarePacs(app, p.o);
 }
 
 /** The options of a parsed command line (the options counted by CLI11 resolved). */
 Options parsed(const CLI::App& app, Parsing& p) {
     if (app.count("--raw-dims") > 0) p.o.raw = p.raw;
     p.o.viewGiven = p.o.view || app.count("--dir") > 0 || app.count("--up") > 0;
+    p.o.queryGiven = app.count("--query") > 0;
     return p.o;
 }
 

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include <fvr/core/io/volume_io.h>
+#include <fvr/core/pacs/pacs.h>
 #include <fvr/core/render/kernels.h>
 #include <fvr/core/render/spectrum.h>
 #include <fvr/core/render/voxel_model.h>
@@ -62,6 +63,15 @@ struct Options {
     bool info = false;
     bool gpuInfo = false; ///< --gpu-info: the EGL devices and the GL facts as JSON
     int bench = 0;
+    // PACS (render_cli/pacs.h): INPUT dicom://AE@host:port/STUDY[/SERIES], --query, --send.
+    std::string aeTitle = "FVR"; ///< --ae-title: ours (the calling AE)
+    core::pacs::RetrieveMethod retrieve = core::pacs::RetrieveMethod::Get; ///< --retrieve
+    int listenPort = 11112; ///< --listen-port: our storage listener, for --retrieve move
+    std::vector<std::string> query; ///< --query KEY=VALUE[,KEY=VALUE] (repeatable)
+    bool queryGiven = false;
+    bool querySeries = false; ///< --query-series: each study's series too
+    std::string send; ///< --send dicom://AE@host:port
+    std::string store; ///< --store DIR: the local study store (default: the user's)
 
     bool kaiserBessel() const {
         return kernel == core::Kernel::KaiserBessel4 || kernel == core::Kernel::KaiserBessel6;

@@ -30,6 +30,7 @@
 #include <fvr/core/xray/display_window.h>
 #include <fvr/core/xray/patient_views.h>
 
+#include "pacs.h"
 #include "session.h"
 
 namespace fvr::cli {
@@ -152,6 +153,7 @@ public:
         if (m_o.beerLambert) applyTransmission(img.pixels, m_o.transmission);
         if (m_stacked) {
             m_stack->add(img.pixels.data());
+            addToSend(i, m_o.out, img);
             return;
         }
         const std::string path = m_count > 1 ? numberedPath(m_o.out, i) : m_o.out;
@@ -164,6 +166,30 @@ public:
         else
             writeProjection(path, img);
         m_written.push_back(path);
+        addToSend(i, path, img);
+    }
+
+    /** --send: the DICOM outputs themselves, else a Secondary Capture of each view written
+     *  into a temporary folder (removed with the writer). */
+    void addToSend(std::size_t i, const std::string& path, const ProjectionImage& img) {
+        if (m_o.send.empty()) return;
+        if (m_o.format == OutputFormat::Dicom) {
+            m_toSend.emplace_back(path);
+            return;
+        }
+        if (m_sendDir.empty()) {
+            m_sendDir = std::filesystem::temp_directory_path() /
+                        ("fvr-render-send-" + std::to_string(::getpid()));
+            std::filesystem::create_directories(m_sendDir);
+        }
+        m_toSend.push_back(m_sendDir / ("view_" + std::to_string(i) + ".dcm"));
+        writeDicomProjection(m_toSend.back(), img, m_exportInfo);
+    }
+    const std::vector<std::filesystem::path>& toSend() const { return m_toSend; }
+
+    ~ViewWriter() {
+        std::error_code ec;
+        if (!m_sendDir.empty()) std::filesystem::remove_all(m_sendDir, ec);
     }
 
     void finish() {
@@ -178,6 +204,8 @@ private:
     DicomExportInfo m_exportInfo;
     bool m_stacked;
     std::unique_ptr<NpyStackWriter> m_stack;
+    std::filesystem::path m_sendDir;
+    std::vector<std::filesystem::path> m_toSend;
     std::vector<float> m_lineIntegrals;
     std::vector<std::string> m_written;
 };
@@ -402,6 +430,7 @@ void writeOutputs(const Session& s, const std::vector<ViewFrame>& views,
         writeFileAtomic(s.options.out + ".json",
                         jsonText(sidecarJson(s.facts(), s.volume, output, views)));
         printSummary(s, views.size(), writer.stacked(), msPerView);
+        if (!s.options.send.empty()) sendViews(s.options, writer.toSend());
     } catch (const Interrupted& e) {
         interrupted = e.what();
     }

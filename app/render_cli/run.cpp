@@ -12,6 +12,7 @@
 #include <fvr/core/xray/patient_views.h>
 
 #include "input.h"
+#include "pacs.h"
 #include "session.h"
 
 namespace fvr::cli {
@@ -115,6 +116,7 @@ int run(const Options& o) {
         printJson(gpuInfoJson());
         return 0;
     }
+    if (o.queryGiven) return runQuery(o); // INPUT is a PACS: the matching studies as JSON
     // The views file is read before the input, so that its errors come before the loading.
     const std::vector<ViewFrame> fileViews = !o.out.empty() && !o.viewsFile.empty()
                                                  ? readViewsFile(o.viewsFile)

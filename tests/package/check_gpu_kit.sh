@@ -25,7 +25,7 @@ for f in run.sh README.txt MANIFEST.txt bin/fvr-render bin/fvr_bench_gpu bin/fvr
 done
 
 # What the host provides never travels with the kit; the rest comes from the kit's lib/.
-host='^(linux-vdso|ld-linux-x86-64|libc|libm|libdl|libpthread|librt|libEGL|libGL|libGLX|libGLdispatch|libOpenGL)\.so'
+host='^(linux-vdso|ld-linux-x86-64|libc|libm|libdl|libpthread|librt|libresolv|libEGL|libGL|libGLX|libGLdispatch|libOpenGL)\.so'
 for f in "$kit"/lib/*; do
   n=$(basename "$f")
   [[ $n =~ $host || $n =~ ^lib(gbm|glapi|drm|EGL_mesa|GLX_mesa|gallium) ]] && bad "lib/ holds $n"

@@ -63,7 +63,8 @@ int freeLoopbackPort() {
 }
 
 fs::path OrthancServer::executable() {
-    if (const char* env = std::getenv("FVR_ORTHANC"); env && *env) return env;
+    if (const char* env = std::getenv("FVR_ORTHANC"); env && *env)
+        return fs::exists(env) ? fs::path(env) : fs::path();
     if (fs::exists("/usr/sbin/Orthanc")) return "/usr/sbin/Orthanc";
     if (const char* path = std::getenv("PATH")) {
         std::istringstream dirs(path);
@@ -108,6 +109,9 @@ OrthancServer::OrthancServer(const fs::path& dir, const std::string& ourAe, int 
     if (m_pid == 0) {
         std::freopen(logPath.c_str(), "w", stdout);
         std::freopen(logPath.c_str(), "a", stderr);
+        // Orthanc's DCMTK as ours (core/src/pacs): Nagle's algorithm off, or each C-STORE it
+        // sends waits for a delayed ACK.
+        ::setenv("TCP_NODELAY", "1", 1);
         ::execl(exe.c_str(), exe.c_str(), (dir / "config.json").c_str(), nullptr);
         std::_Exit(127);
     }

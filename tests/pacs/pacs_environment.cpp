@@ -52,6 +52,14 @@ void PacsEnvironment::SetUp() {
             m_skip = "shared data not found: " + (sharedData() / data).string();
             return;
         }
+    try {
+        startOrthanc();
+    } catch (const std::exception& e) {
+        m_error = e.what();
+    }
+}
+
+void PacsEnvironment::startOrthanc() {
     dir = tmpDir() / ("pacs-" + std::to_string(::getpid()));
     m_listenPort = freeLoopbackPort();
     m_orthanc = std::make_unique<OrthancServer>(dir / "orthanc", kOurAe, m_listenPort);

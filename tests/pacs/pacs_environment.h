@@ -19,12 +19,15 @@ inline const char* kOurAe = "FVRTEST";
 
 class PacsEnvironment : public ::testing::Environment {
 public:
-    void SetUp() override;
+    void SetUp() override; ///< startOrthanc(), its exception kept as setupError()
     void TearDown() override;
 
     static PacsEnvironment& get();
     /** Why the PACS tests skip (no Orthanc, no shared data), empty when they run. */
     const std::string& skipReason() const { return m_skip; }
+    /** Why Orthanc could not be set up (it did not start, an upload failed, with its log):
+     *  every PACS test fails with it. */
+    const std::string& setupError() const { return m_error; }
     OrthancServer& orthanc() { return *m_orthanc; }
     core::pacs::Node node() const;
     core::pacs::LocalAe local() const;
@@ -34,16 +37,20 @@ public:
     std::filesystem::path dir;
 
 private:
+    void startOrthanc();
+
     std::unique_ptr<OrthancServer> m_orthanc;
-    std::string m_skip;
+    std::string m_skip, m_error;
     int m_listenPort = 0;
 };
 
-/** Skips the test with the environment's reason. */
+/** Skips the test with the environment's reason, or fails it with its setup error. */
 #define FVR_REQUIRE_ORTHANC()                                                                      \
     do {                                                                                           \
         if (!::fvr::test::PacsEnvironment::get().skipReason().empty())                             \
             GTEST_SKIP() << ::fvr::test::PacsEnvironment::get().skipReason();                      \
+        if (!::fvr::test::PacsEnvironment::get().setupError().empty())                             \
+            GTEST_FAIL() << ::fvr::test::PacsEnvironment::get().setupError();                      \
     } while (0)
 
 /** A DICOM file's string tag (DCMTK), "" when absent. */

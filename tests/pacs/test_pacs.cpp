@@ -223,6 +223,33 @@ TEST(PacsRetrieve, CancelLeavesAPartialStudyThatASecondRetrieveCompletes) {
     EXPECT_EQ(entry->instances, 140);
 }
 
+TEST(PacsRetrieve, CancelledMoveStaysPartialWhateverArrivesAfter) {
+    FVR_REQUIRE_ORTHANC();
+    LocalStore store(storeRoot("cancel-move"));
+    Node node = env().node();
+    node.retrieve = RetrieveMethod::Move;
+    CancelToken cancel;
+    EXPECT_THROW(retrieve(
+                     node, env().local(), philipsStudy(), "", store,
+                     [&](const RetrieveProgress& p) {
+                         if (p.received >= 10) cancel.cancel();
+                     },
+                     &cancel),
+                 Cancelled);
+    // The PACS may finish its sub-operations to our listener after the C-CANCEL; the study
+    // stays partial all the same (the listener's release does not complete it).
+    auto entry = store.find(philipsStudy());
+    ASSERT_TRUE(entry);
+    EXPECT_FALSE(entry->complete);
+    for (const auto& s : entry->series) EXPECT_FALSE(s.complete);
+    EXPECT_GE(entry->instances, 10);
+    retrieve(node, env().local(), philipsStudy(), "", store);
+    entry = store.find(philipsStudy());
+    ASSERT_TRUE(entry);
+    EXPECT_TRUE(entry->complete);
+    EXPECT_EQ(entry->instances, 140);
+}
+
 TEST(PacsRetrieve, UnknownStudySaysSo) {
     FVR_REQUIRE_ORTHANC();
     LocalStore store(storeRoot("unknown"));

@@ -278,6 +278,7 @@ void LocalStore::beginRetrieve(const StudyRecord& study, const std::string& seri
     const IndexLock fileLock(m_root);
     Index index = load();
     json& entry = studyEntry(index.studies, study);
+    entry["retrievePending"] = true; // until a retrieve completes it (markReceived)
     if (seriesUid.empty())
         entry["complete"] = false;
     else
@@ -293,6 +294,7 @@ void LocalStore::finishRetrieve(const std::string& studyUid, const std::string& 
     const IndexLock fileLock(m_root);
     Index index = load();
     json& entry = studyEntry(index.studies, StudyRecord{studyUid});
+    entry["retrievePending"] = false;
     if (seriesUid.empty()) entry["complete"] = true;
     for (auto& [suid, s] : entry["series"].items())
         if (seriesUid.empty() || suid == seriesUid) s["complete"] = true;
@@ -311,7 +313,9 @@ void LocalStore::markReceived(const std::string& studyUid,
     const IndexLock fileLock(m_root);
     Index index = load();
     auto it = index.studies.find(studyUid);
-    if (it == index.studies.end()) return;
+    // A retrieve that did not finish (cancelled, failed) keeps its study partial: a late
+    // sub-association of its C-MOVE may still end normally.
+    if (it == index.studies.end() || it->second.value("retrievePending", false)) return;
     for (const auto& suid : seriesUids)
         if (it->second["series"].contains(suid)) it->second["series"][suid]["complete"] = true;
     it->second["updated"] = nowIso();

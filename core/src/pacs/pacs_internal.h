@@ -12,6 +12,10 @@
 
 namespace fvr::core::pacs::detail {
 
+/** Before any association: DCMTK's log off (dicom_detail::initDcmtk), Nagle's algorithm off
+ *  (TCP_NODELAY=1 unless set). */
+void prepareNetwork();
+
 /** DcmSCU set up for a node: our AE title, the timeouts, non-blocking DIMSE (so that a silent
  *  peer ends in a timeout, not a hang). */
 class Scu : public DcmSCU {

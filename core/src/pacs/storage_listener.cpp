@@ -1,17 +1,19 @@
 // Our storage SCP (DCMTK's DcmSCP) on its own thread, writing into a LocalStore.
 #include "pacs_internal.h"
 
-#include "../dicom/dicom_internal.h"
-
 #include <fvr/core/pacs/storage_listener.h>
 
 #include <dcmtk/dcmnet/scp.h>
 
+#include <arpa/inet.h>
 #include <atomic>
 #include <map>
 #include <mutex>
+#include <netinet/in.h>
 #include <set>
+#include <sys/socket.h>
 #include <thread>
+#include <unistd.h>
 
 namespace fvr::core::pacs {
 namespace {
@@ -29,6 +31,19 @@ OFList<OFString> acceptedSyntaxes() {
           UID_BigEndianExplicitTransferSyntax})
         ts.push_back(uid);
     return ts;
+}
+
+/** A connection opened and closed at once: the thread, waiting for an association (1 s polls),
+ *  sees stop() now rather than at its next poll. */
+void wakeUp(int port) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (fd < 0) return;
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(static_cast<uint16_t>(port));
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr);
+    ::close(fd);
 }
 
 } // namespace
@@ -119,7 +134,7 @@ private:
 StorageListener::StorageListener(LocalAe local, LocalStore& store)
     : m_impl(std::make_unique<Impl>(std::move(local), store)) {
     validate(m_impl->local);
-    dicom_detail::initDcmtk(); // DCMTK's console log off, codecs registered
+    detail::prepareNetwork();
 }
 
 StorageListener::~StorageListener() { stop(); }
@@ -149,7 +164,10 @@ void StorageListener::start() {
         scp->addPresentationContext(dcmLongSCUStorageSOPClassUIDs[i], syntaxes);
     const OFCondition cond = scp->openListenPort();
     if (cond.bad())
-        throw PacsError("cannot listen on port " + std::to_string(port) + ": " + cond.text());
+        throw PacsError("cannot listen on port " + std::to_string(port) + ": " + cond.text() +
+                        (std::string(cond.text()).find("in use") != std::string::npos
+                             ? " (another program listens there: choose another port)"
+                             : ""));
     m_impl->scp = std::move(scp);
     m_impl->stop = false;
     m_impl->running = true;
@@ -169,6 +187,7 @@ void StorageListener::start() {
 void StorageListener::stop() {
     if (!m_impl->thread.joinable()) return;
     m_impl->stop = true;
+    wakeUp(m_impl->local.listenPort);
     m_impl->thread.join();
     m_impl->scp.reset(); // closes the port
     m_impl->running = false;

@@ -77,7 +77,8 @@ public:
     void finishRetrieve(const std::string& studyUid, const std::string& seriesUid, bool complete);
     bool retrieving(const std::string& studyUid) const;
     /** The listener's rule: series received over an association that ended normally are
-     *  complete (the sender sent what it meant to), unless a retrieve runs on their study. */
+     *  complete (the sender sent what it meant to), unless a retrieve runs on their study or
+     *  the last one on it did not finish (the index keeps that until a retrieve completes). */
     void markReceived(const std::string& studyUid, const std::set<std::string>& seriesUids);
 
     /** Removes the study's folder and its entry. */

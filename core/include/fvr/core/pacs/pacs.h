@@ -99,8 +99,10 @@ class LocalStore;
  * on local.listenPort in this process (one is started for the retrieve when none runs). Returns
  * the folder of the study (or of the series), complete: every sub-operation succeeded. Throws
  * PacsError (network, refused, some instances failed: the entry stays partial, a second
- * retrieve completes it) or core::Cancelled when `cancel` fires (C-CANCEL sent, the entry stays
- * partial). Files are written atomically; nothing half-written is listed as complete.
+ * retrieve completes it) or core::Cancelled when `cancel` fires (looked at on each response and
+ * each instance received; C-CANCEL sent, the association aborted, the entry stays partial).
+ * `progress` is called on the calling thread after each of them. Files are written atomically;
+ * nothing half-written is listed as complete.
  */
 std::filesystem::path retrieve(const Node& node, const LocalAe& local, const std::string& studyUid,
                                const std::string& seriesUid, LocalStore& store,

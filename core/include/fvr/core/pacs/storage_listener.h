@@ -25,7 +25,8 @@ public:
     /** Opens the port and starts the thread. Throws PacsError ("cannot listen on port 11112:
      *  Address already in use"). No-op when running. */
     void start();
-    /** Stops accepting, ends the association in progress, joins the thread. */
+    /** Stops accepting (at once: the thread's wait is woken), lets an association in progress
+     *  finish (each of its messages bounded by the timeout), joins the thread. */
     void stop();
     bool running() const;
     const LocalAe& local() const;

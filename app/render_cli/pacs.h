@@ -1,0 +1,36 @@
+#pragma once
+/** fvr-render and a PACS (core/pacs): INPUT dicom://AE@host:port/STUDY[/SERIES] retrieved into
+ *  the local store, --query printing studies as JSON, --send storing the views. */
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <fvr/core/pacs/pacs.h>
+
+#include "options.h"
+
+namespace fvr::cli {
+
+/** Us, from --ae-title, --listen-port (and the default timeout). */
+core::pacs::LocalAe localAe(const Options& o);
+
+/** --query's KEY=VALUE terms (each option may hold several, comma-separated): PatientName,
+ *  PatientID, AccessionNumber, StudyDate (YYYYMMDD, YYYYMMDD-YYYYMMDD, -YYYYMMDD, YYYYMMDD-),
+ *  Modality. Throws SettingsError naming the term. */
+core::pacs::StudyQuery parseStudyQuery(const std::vector<std::string>& terms);
+
+/** The checks of the PACS options against each other and INPUT (SettingsError). */
+void checkPacsOptions(const Options& o);
+
+/** INPUT dicom://AE@host:port/STUDY[/SERIES]: the folder of the study (series) in the local
+ *  store (--store, default core::pacs::defaultLocalStoreRoot()); retrieved with --retrieve
+ *  (progress on stderr) unless the store lists it complete. Throws PacsError. */
+std::filesystem::path retrieveInput(const Options& o);
+
+/** --query: the matching studies as JSON on stdout (with their series for --query-series). */
+int runQuery(const Options& o);
+
+/** --send: C-STORE of the views' Secondary Capture files to the node; says so on stderr. */
+void sendViews(const Options& o, const std::vector<std::filesystem::path>& files);
+
+} // namespace fvr::cli

@@ -1,0 +1,192 @@
+// core/pacs without a PACS: the dicom:// URL, the local store and its index, and echo's failure
+// messages against sockets that misbehave on purpose (closed port, a peer that never answers,
+// one that hangs up).
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <fstream>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include <fvr/core/errors.h>
+#include <fvr/core/pacs/dicom_url.h>
+#include <fvr/core/pacs/local_store.h>
+#include <fvr/core/pacs/pacs.h>
+
+#include "test_support.h"
+
+namespace fs = std::filesystem;
+using namespace fvr::core::pacs;
+
+namespace {
+
+std::string errorOf(const std::function<void()>& f) {
+    try {
+        f();
+    } catch (const PacsError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+/** A listening loopback socket on a free port (connections queue, nobody answers). */
+struct Listening {
+    Listening() {
+        fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+        sockaddr_in addr{};
+        addr.sin_family = AF_INET;
+        addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        socklen_t len = sizeof addr;
+        ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr);
+        ::listen(fd, 4);
+        ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
+        port = ntohs(addr.sin_port);
+    }
+    ~Listening() { ::close(fd); }
+    int fd = -1, port = 0;
+};
+
+Node nodeAt(int port) { return Node{"test", "PACS", "127.0.0.1", port}; }
+
+StudyRecord study(const std::string& uid) {
+    StudyRecord s;
+    s.studyUid = uid;
+    s.patientName = "DOE^JANE";
+    return s;
+}
+
+} // namespace
+
+TEST(DicomUrl, ParsesNodeStudyAndSeries) {
+    const DicomUrl u = parseDicomUrl("dicom://ORTHANC@pacs.example.org:4242/1.2.3/1.2.3.4");
+    EXPECT_EQ(u.node.calledAe, "ORTHANC");
+    EXPECT_EQ(u.node.host, "pacs.example.org");
+    EXPECT_EQ(u.node.port, 4242);
+    EXPECT_EQ(u.studyUid, "1.2.3");
+    EXPECT_EQ(u.seriesUid, "1.2.3.4");
+    EXPECT_EQ(toString(u), "dicom://ORTHANC@pacs.example.org:4242/1.2.3/1.2.3.4");
+    EXPECT_EQ(parseDicomUrl("DICOM://A@h").node.port, 104); // the DICOM port by default
+    EXPECT_TRUE(parseDicomUrl("dicom://A@h:11112/").studyUid.empty());
+}
+
+TEST(DicomUrl, BadUrlsSayWhatIsWrong) {
+    const std::pair<const char*, const char*> cases[] = {
+        {"http://A@h:1", "not a dicom:// URL"},
+        {"dicom://h:104", "no called AE title before '@'"},
+        {"dicom://A@:104", "no host after '@'"},
+        {"dicom://A@h:0", "the port \"0\" is not a number from 1 to 65535"},
+        {"dicom://A@h:12x", "the port \"12x\" is not a number"},
+        {"dicom://A@h:104/1.2.abc", "the study UID \"1.2.abc\" is not a DICOM UID"},
+        {"dicom://A@h:104/1.2/3.x", "the series UID \"3.x\" is not a DICOM UID"},
+        {"dicom://A@h:104/1.2/3.4/5", "more than a study and a series UID"},
+        {"dicom://ABCDEFGHIJKLMNOPQ@h", "must have 1 to 16 characters"},
+    };
+    for (const auto& [url, what] : cases) {
+        const std::string msg = errorOf([&] { parseDicomUrl(url); });
+        EXPECT_NE(msg.find(what), std::string::npos) << url << " -> " << msg;
+        EXPECT_NE(msg.find(url), std::string::npos) << msg; // names the URL
+    }
+}
+
+TEST(PacsLocalStore, IndexListsPartialThenCompleteAndSurvivesANewObject) {
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-unit";
+    fs::remove_all(root);
+    {
+        LocalStore store(root);
+        EXPECT_TRUE(store.studies().empty());
+        store.beginRetrieve(study("1.2.3"), "");
+        const SeriesRecord series{"1.2.3.1", "CT", "head", 1, 2};
+        const fs::path a = store.storeInstance(study("1.2.3"), series, "1.2.3.1.1", "DICM-a");
+        EXPECT_EQ(a, root / "1.2.3" / "1.2.3.1" / "1.2.3.1.1.dcm");
+        auto entry = store.find("1.2.3");
+        ASSERT_TRUE(entry);
+        EXPECT_FALSE(entry->complete); // a retrieve runs: partial
+        EXPECT_EQ(entry->instances, 1);
+        store.storeInstance(study("1.2.3"), series, "1.2.3.1.2", "DICM-b");
+        store.finishRetrieve("1.2.3", "", true);
+        EXPECT_EQ(store.instancesStored(), 2);
+    }
+    LocalStore again(root); // the index on disk, read by a new object
+    const auto entries = again.studies();
+    ASSERT_EQ(entries.size(), 1u);
+    EXPECT_TRUE(entries[0].complete);
+    EXPECT_EQ(entries[0].instances, 2);
+    EXPECT_EQ(entries[0].study.patientName, "DOE^JANE");
+    ASSERT_EQ(entries[0].series.size(), 1u);
+    EXPECT_TRUE(entries[0].series[0].complete);
+    EXPECT_EQ(entries[0].series[0].modality, "CT");
+    again.remove("1.2.3");
+    EXPECT_TRUE(again.studies().empty());
+    EXPECT_FALSE(fs::exists(root / "1.2.3"));
+}
+
+TEST(PacsLocalStore, AFailedRetrieveStaysPartialEvenWhenTheListenerSeesARelease) {
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-partial";
+    fs::remove_all(root);
+    LocalStore store(root);
+    store.beginRetrieve(study("9.8"), "");
+    store.storeInstance(study("9.8"), {"9.8.1", "MR", "", 1, 1}, "9.8.1.1", "x");
+    store.finishRetrieve("9.8", "", false); // cancelled
+    store.markReceived("9.8", {"9.8.1"}); // a late sub-association ends normally
+    const auto entry = store.find("9.8");
+    ASSERT_TRUE(entry);
+    EXPECT_FALSE(entry->complete);
+    EXPECT_FALSE(entry->series[0].complete);
+}
+
+TEST(PacsLocalStore, BadIndexAndBadUidsAreNamed) {
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-bad";
+    fs::remove_all(root);
+    fs::create_directories(root);
+    std::ofstream(root / "index.json") << "{ not json";
+    LocalStore store(root);
+    const std::string msg = errorOf([&] { store.studies(); });
+    EXPECT_NE(msg.find((root / "index.json").string() + " cannot be read"), std::string::npos)
+        << msg;
+    EXPECT_NE(errorOf([&] { store.studyFolder("../etc"); }).find("cannot name a file"),
+              std::string::npos);
+}
+
+TEST(PacsEchoFailure, ClosedPortSaysConnectionRefused) {
+    int port = 0;
+    {
+        Listening l; // bound then closed: nothing listens there now
+        port = l.port;
+    }
+    const std::string msg = errorOf([&] { echo(nodeAt(port), LocalAe{}); });
+    EXPECT_NE(msg.find("PACS@127.0.0.1:" + std::to_string(port) +
+                       ": connection refused (nothing listens at 127.0.0.1:" +
+                       std::to_string(port) + ")"),
+              std::string::npos)
+        << msg;
+}
+
+TEST(PacsEchoFailure, SilentPeerSaysNoAnswer) {
+    Listening l; // the connection is queued, the association request never answered
+    LocalAe local;
+    local.timeoutSeconds = 1;
+    const std::string msg = errorOf([&] { echo(nodeAt(l.port), local); });
+    EXPECT_NE(msg.find("no answer within 1 s"), std::string::npos) << msg;
+}
+
+TEST(PacsEchoFailure, PeerThatHangsUpSaysSo) {
+    Listening l;
+    std::thread peer([&] { // accepts, then closes without a word
+        const int c = ::accept(l.fd, nullptr, nullptr);
+        if (c >= 0) ::close(c);
+    });
+    const std::string msg = errorOf([&] { echo(nodeAt(l.port), LocalAe{}); });
+    peer.join();
+    EXPECT_NE(msg.find("aborted the association"), std::string::npos) << msg;
+}
+
+TEST(PacsEchoFailure, BadSettingsAreNamed) {
+    LocalAe local;
+    local.aeTitle = "";
+    EXPECT_NE(errorOf([&] { echo(nodeAt(104), local); }).find("our AE title"), std::string::npos);
+    EXPECT_NE(errorOf([&] { echo(nodeAt(70000), LocalAe{}); }).find("the PACS port 70000"),
+              std::string::npos);
+}
