@@ -4,6 +4,7 @@
  *  run before any input is loaded. */
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <fvr/core/io/volume_io.h>
 #include <fvr/core/render/kernels.h>
@@ -11,6 +12,7 @@
 #include <fvr/core/render/voxel_model.h>
 #include <fvr/core/volume.h>
 #include <fvr/core/xray/patient_views.h>
+#include <fvr/core/xray/polychromatic.h>
 #include <fvr/core/xray/xray.h>
 
 namespace fvr::cli {
@@ -61,7 +63,17 @@ struct Options {
     bool info = false;
     bool gpuInfo = false; ///< --gpu-info: the EGL devices and the GL facts as JSON
     int bench = 0;
+    /** Polychromatic X-ray (issue 19), on with --kvp: the output holds I/I0. */
+    std::optional<double> kvp;
+    double filtrationAlMm = 0.0;
+    double filtrationCuMm = 0.0;
+    core::DetectorModel detector;
+    std::vector<core::Material> materials = core::defaultMaterials();
+    double noiseMas = 0.0; ///< 0: no noise
+    std::uint64_t seed = 1;
+    std::string materialOut; ///< --material-out FILE.npy: rhoL (k, M, M) in g/cm^2
 
+    bool polychromatic() const { return kvp.has_value(); }
     bool kaiserBessel() const {
         return kernel == core::Kernel::KaiserBessel4 || kernel == core::Kernel::KaiserBessel6;
     }

@@ -165,6 +165,16 @@ void SpectralResponse::setUp(const TubeSpectrum& spectrum, const DetectorModel& 
     m_axisX = k >= 2 ? k - 2 : 0;
     m_axisY = k >= 2 ? k - 1 : -1;
     for (int m = 0; m < k - 2; ++m) m_others.push_back(m);
+    // Each other material as c times the x axis's material plus a residual: c by weighted least
+    // squares over the spectrum, so that the table's hardening carries most of its attenuation.
+    for (int m : m_others) {
+        double num = 0.0, den = 0.0;
+        for (std::size_t e = 0; e < bins(); ++e) {
+            num += m_weight[e] * m_mu[m][e] * m_mu[m_axisX][e];
+            den += m_weight[e] * m_mu[m_axisX][e] * m_mu[m_axisX][e];
+        }
+        m_scale.push_back(den > 0.0 ? num / den : 0.0);
+    }
     m_extent[0] = m_extent[1] = 80.0;
 }
 
@@ -188,7 +198,7 @@ double SpectralResponse::exactLog(double x, double y, std::vector<double>* muBar
         sum += t;
         if (muBar)
             for (std::size_t o = 0; o < m_others.size(); ++o)
-                (*muBar)[o] += t * m_mu[m_others[o]][e];
+                (*muBar)[o] += t * (m_mu[m_others[o]][e] - m_scale[o] * m_mu[m_axisX][e]);
     }
     if (muBar)
         for (double& v : *muBar) v = sum > 0.0 ? v / sum : 0.0;
@@ -213,7 +223,10 @@ void SpectralResponse::buildTables() {
 float SpectralResponse::lookup(const float* rhoL) const {
     const int n = kTableSize;
     const float sx = float((n - 1) / m_extent[0]), sy = float((n - 1) / m_extent[1]);
-    const float u = std::max(0.0f, rhoL[m_axisX]) * sx;
+    float x = std::max(0.0f, rhoL[m_axisX]);
+    for (std::size_t o = 0; o < m_others.size(); ++o)
+        x += float(m_scale[o]) * std::max(0.0f, rhoL[m_others[o]]);
+    const float u = x * sx;
     const int i = std::min(int(u), n - 2);
     const float tx = u - float(i);
     float ty = 0.0f;

@@ -84,10 +84,12 @@ std::vector<double> detectorAbsorption(const DetectorModel& d, const std::vector
  * I/I0 for material mass thicknesses rhoL_m (g/cm^2), each clamped at >= 0 first.
  * exact() is the double sum over the bins. apply() reads a table: g = -ln(I/I0) over the mass
  * thicknesses of the last two materials (soft tissue and bone by default; one axis with one
- * material), bilinear, with linear extrapolation beyond the table's end; every other material
- * m (air, lung, fat) enters to first order through its effective mass attenuation over the
- * spectrum hardened by the two: I = exp(-g(x, y) - sum_m mubar_m(x, y) rhoL_m), mubar_m
- * tabulated on the same grid (they are low-Z materials close to soft tissue, and thin).
+ * material), bilinear, with linear extrapolation beyond the table's end. Every other material
+ * m (air, lung, fat: low-Z, close to soft tissue) is written mu_m(E) = c_m mu_x(E) + delta_m(E)
+ * (c_m by least squares over the spectrum): its c_m part joins the x axis, x' = x + sum c_m
+ * rhoL_m, and its small residual enters to first order through its mean over the spectrum
+ * hardened by (x', y): I = exp(-g(x', y) - sum_m deltabar_m(x', y) rhoL_m), deltabar_m
+ * tabulated on the same grid.
  */
 class SpectralResponse {
 public:
@@ -136,6 +138,7 @@ private:
     std::vector<float> m_gradX, m_gradY; ///< slopes at the far edges for extrapolation
     std::vector<std::vector<float>> m_muBar; ///< per other material, on the grid
     std::vector<int> m_others;
+    std::vector<double> m_scale; ///< per other material: c in mu_m ~ c mu_x + residual
 };
 
 // ---- Noise ------------------------------------------------------------------------------------
