@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <random>
 #include <sstream>
@@ -122,6 +123,26 @@ std::vector<std::vector<double>> materialAttenuation(const std::vector<Material>
     return mu;
 }
 
+/** exp(-g) in float arithmetic the compiler vectorises (with -fno-trapping-math, which
+ *  core/CMakeLists.txt sets for this file): 2^t = 2^i 2^f with i = round(t),
+ *  f in [-0.5, 0.5], 2^f by the Cephes exp2f polynomial (relative error below 2e-7); t clamped
+ *  to [-126, 126] (exp(-g) of a path beyond 87 attenuation lengths is 1e-38, not 0). */
+inline float expNegative(float g) {
+    float t = -g * 1.44269504088896341f;
+    t = t < -126.0f ? -126.0f : t;
+    t = t > 126.0f ? 126.0f : t;
+    const int i = int(t + 128.5f) - 128;
+    const float f = t - float(i);
+    float p = 1.535336188319500e-4f;
+    p = p * f + 1.339887440266574e-3f;
+    p = p * f + 9.618437357674640e-3f;
+    p = p * f + 5.550332471162809e-2f;
+    p = p * f + 2.402264791363012e-1f;
+    p = p * f + 6.931472028550421e-1f;
+    p = p * f + 1.0f;
+    return p * std::bit_cast<float>((i + 127) << 23);
+}
+
 } // namespace
 
 SpectralResponse::SpectralResponse(const TubeSpectrum& spectrum, const DetectorModel& detector,
@@ -206,63 +227,116 @@ double SpectralResponse::exactLog(double x, double y, std::vector<double>* muBar
 }
 
 void SpectralResponse::buildTables() {
-    const int n = kTableSize;
+    if (m_others.size() > 7) throw SettingsError("spectral response: at most 9 materials");
+    const int n = kTableSize, stride = int(1 + m_others.size());
     m_ny = m_axisY >= 0 ? n : 1;
-    m_g.assign(std::size_t(n) * m_ny, 0.0f);
-    m_muBar.assign(m_others.size(), std::vector<float>(std::size_t(n) * m_ny, 0.0f));
+    m_nodes.assign(std::size_t(n) * m_ny * stride, 0.0f);
     std::vector<double> muBar;
     for (int j = 0; j < m_ny; ++j)
         for (int i = 0; i < n; ++i) {
             const double x = m_extent[0] * i / (n - 1), y = m_extent[1] * j / (n - 1);
-            const std::size_t p = std::size_t(j) * n + i;
-            m_g[p] = float(exactLog(x, y, &muBar));
-            for (std::size_t o = 0; o < m_others.size(); ++o) m_muBar[o][p] = float(muBar[o]);
+            float* node = m_nodes.data() + (std::size_t(j) * n + i) * stride;
+            node[0] = float(exactLog(x, y, &muBar));
+            for (std::size_t o = 0; o < m_others.size(); ++o) node[o + 1] = float(muBar[o]);
         }
 }
 
 float SpectralResponse::lookup(const float* rhoL) const {
-    const int n = kTableSize;
-    const float sx = float((n - 1) / m_extent[0]), sy = float((n - 1) / m_extent[1]);
-    float x = std::max(0.0f, rhoL[m_axisX]);
-    for (std::size_t o = 0; o < m_others.size(); ++o)
-        x += float(m_scale[o]) * std::max(0.0f, rhoL[m_others[o]]);
-    const float u = x * sx;
-    const int i = std::min(int(u), n - 2);
-    const float tx = u - float(i);
-    float ty = 0.0f;
-    int j = 0;
-    if (m_axisY >= 0) {
-        const float v = std::max(0.0f, rhoL[m_axisY]) * sy;
-        j = std::min(int(v), n - 2);
-        ty = v - float(j);
+    std::vector<const float*> one;
+    for (std::size_t m = 0; m < materials(); ++m) one.push_back(rhoL + m);
+    float out = 0.0f;
+    applyRange(one, &out, 0, 1);
+    return out;
+}
+
+namespace {
+
+/** The table walk of SpectralResponse::applyRange for K other materials (K < 0: any number, at
+ *  most 7) and with or without a y axis; writes g = -ln(I/I0). */
+struct TableWalk {
+    const float* nodes;
+    int n, stride;
+    float sx, sy;
+    const float* xs;
+    const float* ys;
+    std::array<const float*, 8> others;
+    std::array<float, 8> scale;
+    int count;
+};
+
+template <int K, bool HasY>
+void walkTable(const TableWalk& t, float* out, std::int64_t begin, std::int64_t end) {
+    const int k = K >= 0 ? K : t.count, stride = K >= 0 ? K + 1 : t.stride;
+    const std::size_t rowStep = std::size_t(t.n) * stride;
+    std::array<float, 8> z{};
+    for (std::int64_t p = begin; p < end; ++p) {
+        float x = std::max(0.0f, t.xs[p]);
+        for (int o = 0; o < k; ++o) {
+            z[o] = std::max(0.0f, t.others[o][p]);
+            x += t.scale[o] * z[o];
+        }
+        const float u = x * t.sx;
+        const int i = std::min(int(u), t.n - 2);
+        const float tx = u - float(i);
+        const float* a = t.nodes + std::size_t(i) * stride;
+        float ty = 0.0f;
+        if constexpr (HasY) {
+            const float w = std::max(0.0f, t.ys[p]) * t.sy;
+            const int j = std::min(int(w), t.n - 2);
+            ty = w - float(j);
+            a += std::size_t(j) * rowStep;
+        }
+        float g = 0.0f;
+        for (int s = 0; s < stride; ++s) {
+            float v = a[s] + tx * (a[s + stride] - a[s]);
+            if constexpr (HasY) {
+                const float* c = a + rowStep;
+                const float r1 = c[s] + tx * (c[s + stride] - c[s]);
+                v += ty * (r1 - v);
+            }
+            g += s == 0 ? v : v * z[s - 1];
+        }
+        out[p] = g;
     }
-    auto bilinear = [&](const std::vector<float>& t) {
-        const float* r0 = t.data() + std::size_t(j) * n + i;
-        const float a = r0[0] + tx * (r0[1] - r0[0]);
-        if (m_ny == 1) return a;
-        const float* r1 = r0 + n;
-        const float b = r1[0] + tx * (r1[1] - r1[0]);
-        return a + ty * (b - a);
-    };
-    float g = bilinear(m_g);
-    for (std::size_t o = 0; o < m_others.size(); ++o)
-        g += bilinear(m_muBar[o]) * std::max(0.0f, rhoL[m_others[o]]);
-    return std::exp(-g);
+    for (std::int64_t p = begin; p < end; ++p) out[p] = expNegative(out[p]); // vectorised
+}
+
+} // namespace
+
+void SpectralResponse::applyRange(const std::vector<const float*>& rhoL, float* out,
+                                  std::int64_t begin, std::int64_t end) const {
+    const int n = kTableSize;
+    TableWalk t{m_nodes.data(),
+                n,
+                int(1 + m_others.size()),
+                float((n - 1) / m_extent[0]),
+                float((n - 1) / m_extent[1]),
+                rhoL[std::size_t(m_axisX)],
+                m_axisY >= 0 ? rhoL[std::size_t(m_axisY)] : nullptr,
+                {},
+                {},
+                int(m_others.size())};
+    for (std::size_t o = 0; o < m_others.size(); ++o) {
+        t.others[o] = rhoL[std::size_t(m_others[o])];
+        t.scale[o] = float(m_scale[o]);
+    }
+    if (t.ys && t.count == 1)
+        walkTable<1, true>(t, out, begin, end);
+    else if (t.ys && t.count == 0)
+        walkTable<0, true>(t, out, begin, end);
+    else if (t.ys)
+        walkTable<-1, true>(t, out, begin, end);
+    else
+        walkTable<-1, false>(t, out, begin, end);
 }
 
 void SpectralResponse::apply(const std::vector<const float*>& rhoL, float* out, std::int64_t count,
                              ThreadPool* pool) const {
     if (rhoL.size() != materials())
         throw SettingsError("spectral response: expected one image per material");
-    auto run = [&](std::int64_t begin, std::int64_t end) {
-        std::array<float, 8> v{};
-        for (std::int64_t p = begin; p < end; ++p) {
-            for (std::size_t m = 0; m < rhoL.size() && m < v.size(); ++m) v[m] = rhoL[m][p];
-            out[p] = lookup(v.data());
-        }
-    };
+    auto run = [&](std::int64_t begin, std::int64_t end) { applyRange(rhoL, out, begin, end); };
     if (pool)
-        pool->parallelFor(count, 4096, run);
+        pool->parallelFor(count, 16384, run);
     else
         run(0, count);
 }

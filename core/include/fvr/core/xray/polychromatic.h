@@ -125,6 +125,9 @@ public:
 private:
     void setUp(const TubeSpectrum& spectrum, const DetectorModel& detector);
     void buildTables();
+    /** out[p] for p in [begin, end) from rhoL[m][p]. */
+    void applyRange(const std::vector<const float*>& rhoL, float* out, std::int64_t begin,
+                    std::int64_t end) const;
     double exactLog(double x, double y, std::vector<double>* muBar) const;
 
     std::vector<double> m_weight;
@@ -134,9 +137,8 @@ private:
     int m_axisX = -1, m_axisY = -1; ///< materials on the table's axes (-1: none)
     double m_extent[2] = {1.0, 1.0};
     int m_ny = 1;
-    std::vector<float> m_g; ///< -ln(I/I0) on the grid, x fastest
-    std::vector<float> m_gradX, m_gradY; ///< slopes at the far edges for extrapolation
-    std::vector<std::vector<float>> m_muBar; ///< per other material, on the grid
+    /** Per grid node (x fastest): -ln(I/I0), then deltabar of each other material. */
+    std::vector<float> m_nodes;
     std::vector<int> m_others;
     std::vector<double> m_scale; ///< per other material: c in mu_m ~ c mu_x + residual
 };
