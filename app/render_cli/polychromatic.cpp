@@ -12,6 +12,7 @@
 #include <fvr/core/thread_pool.h>
 #include <fvr/core/xray/polychromatic_render.h>
 
+#include "backend.h"
 #include "json_output.h"
 
 namespace fvr::cli {
@@ -95,10 +96,8 @@ int renderPolychromatic(const Options& o, const Volume& volume,
     const auto spectra = preprocessMaterials(volume, {o.materials, 70.0}, po);
     const double preprocessMs = msSince(t0);
     const int threads = o.threads > 0 ? o.threads : hardwareThreads();
-    std::vector<std::unique_ptr<Renderer>> renderers;
-    for (const auto& s : spectra)
-        renderers.push_back(std::make_unique<CpuFourierRenderer>(s, threads));
-    PolychromaticRenderer poly(std::move(renderers), response, threads);
+    std::string backendName;
+    PolychromaticRenderer poly(makeMaterialRenderers(o, spectra, backendName), response, threads);
     const double d =
         o.pixelSize ? *o.pixelSize : defaultPixelSize(volume.dims, volume.spacing, o.size);
     const ImageGeometry geometry{o.size, d};
@@ -124,9 +123,11 @@ int renderPolychromatic(const Options& o, const Volume& volume,
     const double msPerView = msSince(t1) / double(views.size());
     const WrittenOutput output{"I/I0 (polychromatic, relative to the unattenuated beam)", false,
                                files, preprocessMs, msPerView};
-    Json j = sidecarJson(RunFacts{o, *spectra.front(), d, threads, "cpu"}, volume, output, views);
+    Json j =
+        sidecarJson(RunFacts{o, *spectra.front(), d, threads, backendName}, volume, output, views);
     Json names = Json::array();
     for (Material m : o.materials) names.push_back(materialNistName(m));
+    j["settings"]["values"] = "materials"; // one spectrum of densities (g/cm^3) per material
     j["settings"]["materials"] = names;
     j["settings"]["memory_spectra_mb"] =
         double(spectra.front()->bytes()) * double(spectra.size()) / (1 << 20);

@@ -124,3 +124,19 @@ TEST(FvrRenderPoly, BadOptionsNameTheOption) {
     expectError(kChest + " --kvp 80 --sweep 3 --material-out " + tmp("m.npy") + out,
                 "--material-out");
 }
+
+TEST(FvrRenderPoly, GpuMaterialFramesMatchTheCpu) {
+    const std::string args = kChest + " --kvp 90 --filtration-cu 0.1";
+    ASSERT_EQ(render(args + " --backend cpu --out " + tmp("pcpu.npy")).status, 0);
+    const auto r = render(args + " --backend gpu --out " + tmp("pgpu.npy"));
+    ASSERT_EQ(r.status, 0) << r.out;
+    std::ifstream in(tmp("pgpu.npy.json"));
+    const auto j = nlohmann::json::parse(in);
+    if (j["settings"]["backend"] == "cpu") GTEST_SKIP() << "no OpenGL 4.3 here: " << r.out;
+    std::vector<std::int64_t> s;
+    const auto a = load(tmp("pcpu.npy"), s), b = load(tmp("pgpu.npy"), s);
+    double worst = 0.0;
+    for (std::size_t p = 0; p < a.size(); ++p)
+        worst = std::max(worst, std::abs(std::log(double(a[p])) - std::log(double(b[p]))));
+    EXPECT_LT(worst, 1e-4); // -ln(I/I0): the GPU and CPU renderers agree to float rounding
+}
