@@ -82,6 +82,10 @@ void writeMaterials(const Options& o, const PolychromaticFrame& f) {
 int renderPolychromatic(const Options& o, const Volume& volume,
                         const std::vector<ViewFrame>& views) {
     if (views.empty()) return 0; // --info alone
+    if (volume.units != ValueUnits::HounsfieldUnits)
+        throw SettingsError(std::string("--kvp: the materials come from CT numbers, but INPUT "
+                                        "holds ") +
+                            unitsName(volume.units) + " (needs HU)");
     if (!o.materialOut.empty() && views.size() != 1)
         throw SettingsError("--material-out: needs one view (found " +
                             std::to_string(views.size()) + ")");
