@@ -46,7 +46,7 @@ Json polychromaticJson(const Options& o, const TubeSpectrum& s, const SpectralRe
 
 std::string numbered(const std::string& out, std::size_t i) {
     const std::filesystem::path p(out);
-    char num[16];
+    char num[32];
     std::snprintf(num, sizeof num, "_%04zu", i);
     return (p.parent_path() / (p.stem().string() + num + p.extension().string())).string();
 }
@@ -77,6 +77,50 @@ void writeMaterials(const Options& o, const PolychromaticFrame& f) {
     writeNpy(o.materialOut, stack.data(), M, M, std::int64_t(f.massThickness.size()));
 }
 
+struct RenderedViews {
+    std::vector<std::string> files;
+    bool stacked = false;
+    double msPerView = 0.0;
+    double spectralSumMs = 0.0; ///< per view
+};
+
+/** Renders and writes every view (several .npy views: one (n, M, M) stack, as without --kvp,
+ *  unless --numbered); each view has its own noise seed (seed + view index). */
+RenderedViews renderViews(const Options& o, PolychromaticRenderer& poly,
+                          const std::vector<ViewFrame>& views, const ImageGeometry& geometry,
+                          const NoiseModel& noise) {
+    RenderedViews out;
+    out.stacked = views.size() > 1 && o.format == OutputFormat::Npy && !o.numbered;
+    std::unique_ptr<NpyStackWriter> stack;
+    if (out.stacked)
+        stack = std::make_unique<NpyStackWriter>(o.out, o.size, o.size, std::int64_t(views.size()));
+    const auto t0 = std::chrono::steady_clock::now();
+    for (std::size_t i = 0; i < views.size(); ++i) {
+        RenderParams p{views[i], geometry, o.kernel};
+        p.clipToVolume = o.clip;
+        p.voxelModel = o.voxelModel;
+        p.pixelAperture = o.pixelAperture;
+        p.nonNegative = !o.keepNegative;
+        p.depthCue = o.depthCue;
+        p.filter = o.filter;
+        NoiseModel n = noise;
+        n.seed = o.seed + i;
+        const PolychromaticFrame f = poly.render(p, n);
+        out.spectralSumMs += f.spectralSumMs / double(views.size());
+        if (stack)
+            stack->add(f.transmission.pixels.data());
+        else
+            out.files.push_back(writeView(o, i, views.size(), f.transmission));
+        if (!o.materialOut.empty()) writeMaterials(o, f);
+    }
+    if (stack) {
+        stack->finish();
+        out.files.push_back(o.out);
+    }
+    out.msPerView = msSince(t0) / double(views.size());
+    return out;
+}
+
 } // namespace
 
 int renderPolychromatic(const Options& o, const Volume& volume,
@@ -104,29 +148,10 @@ int renderPolychromatic(const Options& o, const Volume& volume,
     PolychromaticRenderer poly(makeMaterialRenderers(o, spectra, backendName), response, threads);
     const double d =
         o.pixelSize ? *o.pixelSize : defaultPixelSize(volume.dims, volume.spacing, o.size);
-    const ImageGeometry geometry{o.size, d};
-    NoiseModel noise{o.noiseMas, 1000.0, d * d, 0.0, o.seed};
-    std::vector<std::string> files;
-    const auto t1 = std::chrono::steady_clock::now();
-    double sumMs = 0.0;
-    for (std::size_t i = 0; i < views.size(); ++i) {
-        RenderParams p{views[i], geometry, o.kernel};
-        p.clipToVolume = o.clip;
-        p.voxelModel = o.voxelModel;
-        p.pixelAperture = o.pixelAperture;
-        p.nonNegative = !o.keepNegative;
-        p.depthCue = o.depthCue;
-        p.filter = o.filter;
-        NoiseModel n = noise;
-        n.seed = o.seed + i; // each view its own noise
-        const PolychromaticFrame f = poly.render(p, n);
-        sumMs += f.spectralSumMs;
-        files.push_back(writeView(o, i, views.size(), f.transmission));
-        if (!o.materialOut.empty()) writeMaterials(o, f);
-    }
-    const double msPerView = msSince(t1) / double(views.size());
-    const WrittenOutput output{"I/I0 (polychromatic, relative to the unattenuated beam)", false,
-                               files, preprocessMs, msPerView};
+    const NoiseModel noise{o.noiseMas, 1000.0, d * d, 0.0, o.seed};
+    const RenderedViews rendered = renderViews(o, poly, views, {o.size, d}, noise);
+    const WrittenOutput output{"I/I0 (polychromatic, relative to the unattenuated beam)",
+                               rendered.stacked, rendered.files, preprocessMs, rendered.msPerView};
     Json j =
         sidecarJson(RunFacts{o, *spectra.front(), d, threads, backendName}, volume, output, views);
     Json names = Json::array();
@@ -136,12 +161,12 @@ int renderPolychromatic(const Options& o, const Volume& volume,
     j["settings"]["memory_spectra_mb"] =
         double(spectra.front()->bytes()) * double(spectra.size()) / (1 << 20);
     j["settings"]["polychromatic"] = polychromaticJson(o, spectrum, *response, noise);
-    j["output"]["spectral_sum_ms_per_view"] = sumMs / double(views.size());
+    j["output"]["spectral_sum_ms_per_view"] = rendered.spectralSumMs;
     writeFileAtomic(o.out + ".json", jsonText(j));
     std::fprintf(stderr,
                  "wrote %s (%zu view%s, %dx%d, %g kVp, %zu materials, I/I0; %.2f ms per view)\n",
-                 files.front().c_str(), views.size(), views.size() > 1 ? "s" : "", o.size, o.size,
-                 *o.kvp, o.materials.size(), msPerView);
+                 rendered.files.front().c_str(), views.size(), views.size() > 1 ? "s" : "", o.size,
+                 o.size, *o.kvp, o.materials.size(), rendered.msPerView);
     return 0;
 }
 
