@@ -1173,3 +1173,60 @@ TEST_F(Workstation, PanelSettingsPersistForTheNextWindow) {
               (ui::ViewSettings{core::Kernel::Linear, 256, core::VoxelModel::BSpline}));
     EXPECT_EQ(fresh.views()[0]->effects().filter, (core::SliceFilter{1.25, 2.0, 0.5}));
 }
+
+// Issue 19: the polychromatic output renders the material spectra (prepared once, in the
+// background) through the spectral response; kVp, detector and what is shown re-render without
+// preprocessing again.
+TEST_F(Workstation, PolychromaticOutputRendersTheMaterialsWithoutPreprocessingAgain) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    ui::ProjectionView* v = window->views()[0];
+    auto* x = window->xrayPanel();
+    x->kvpSpin()->setValue(70.0);
+    x->outputCombo()->setCurrentIndex(
+        x->outputCombo()->findData(int(ui::XrayOutput::Polychromatic)));
+    auto polyReady = [&] {
+        return v->polychromatic() && !v->polychromatic()->spectra.empty() && v->showsCurrentFrame();
+    };
+    ASSERT_TRUE(QTest::qWaitFor(polyReady, 60000))
+        << window->messages()->toPlainText().toStdString();
+    const auto source = v->polychromatic();
+    ASSERT_EQ(source->spectra.size(), 3u);
+    const auto shown = *v->projection(); // -ln(I/I0)
+    // The reference: the same material spectra rendered here, the exact double sum per pixel.
+    const core::RenderParams params = v->renderParams(v->settings().size, v->settings().kernel);
+    std::vector<core::ProjectionImage> rhoL;
+    for (const auto& s : source->spectra)
+        rhoL.push_back(core::CpuFourierRenderer(s, 2).render(params));
+    double worst = 0.0, peak = 0.0;
+    for (std::size_t p = 0; p < shown.pixels.size(); ++p) {
+        const double d[3] = {0.1 * rhoL[0].pixels[p], 0.1 * rhoL[1].pixels[p],
+                             0.1 * rhoL[2].pixels[p]};
+        const double ref = -std::log(source->response->exact(d));
+        worst = std::max(worst, std::abs(shown.pixels[p] - ref));
+        peak = std::max(peak, ref);
+    }
+    EXPECT_GT(peak, 1.0);
+    EXPECT_LT(worst, 1e-3);
+    // A higher kVp: the same spectra (no preprocessing), less attenuation everywhere.
+    x->kvpSpin()->setValue(120.0);
+    ASSERT_TRUE(QTest::qWaitFor([&] { return v->polychromatic() != source && polyReady(); }));
+    EXPECT_EQ(v->polychromatic()->spectra, source->spectra);
+    const auto hard = *v->projection();
+    for (std::size_t p = 0; p < shown.pixels.size(); ++p)
+        if (shown.pixels[p] > 0.5f) {
+            ASSERT_LT(hard.pixels[p], shown.pixels[p]) << p;
+        }
+    // The material view: soft tissue's mass thickness in g/cm^2.
+    x->showCombo()->setCurrentIndex(x->showCombo()->findData(1));
+    ASSERT_TRUE(QTest::qWaitFor([&] { return v->polychromatic()->show == 1 && polyReady(); }));
+    const auto soft = *v->projection();
+    double softWorst = 0.0;
+    for (std::size_t p = 0; p < soft.pixels.size(); ++p)
+        softWorst =
+            std::max(softWorst, double(std::abs(soft.pixels[p] - 0.1f * rhoL[1].pixels[p])));
+    EXPECT_LT(softWorst, 1e-4);
+    // Back to line integrals: the views render their own spectrum again.
+    x->outputCombo()->setCurrentIndex(
+        x->outputCombo()->findData(int(ui::XrayOutput::LineIntegrals)));
+    EXPECT_FALSE(v->polychromatic());
+}

@@ -54,7 +54,9 @@ MainWindow::MainWindow(QWidget* parent)
     rebuildRecentMenu();
 }
 
-MainWindow::~MainWindow() = default;
+MainWindow::~MainWindow() {
+    if (m_polyCancel) m_polyCancel->cancel(); // the material job ends at its next check
+}
 
 void MainWindow::connectStudy() {
     connect(m_study.get(), &StudyController::progress, this,
@@ -207,7 +209,8 @@ void MainWindow::connectPanels() {
     connect(m_display, &DisplayPanel::windowChanged, this, &MainWindow::applyWindowFromPanel);
     connect(m_display, &DisplayPanel::presetRequested, this, &MainWindow::applyPreset);
     connectSettings();
-    if (isTransmission(m_model->xray().output)) applyOutput(true);
+    if (isTransmission(m_model->xray().output) || isPolychromatic(m_model->xray().output))
+        applyOutput(true);
 }
 
 void MainWindow::connectSettings() {
@@ -228,6 +231,11 @@ void MainWindow::connectSettings() {
     connect(m_model, &SettingsModel::outputChanged, this, [this] { applyOutput(true); });
     connect(m_model, &SettingsModel::beamChanged, this, [this] { applyOutput(false); });
     connect(m_model, &SettingsModel::effectsChanged, this, &MainWindow::applyEffects);
+    connect(m_model, &SettingsModel::polychromaticChanged, this, [this] {
+        QSettings st;
+        XrayPanel::save(st, m_model->xray());
+        pushPolychromatic();
+    });
 }
 
 void MainWindow::applyVoxelModel() {
@@ -420,6 +428,7 @@ void MainWindow::applyOutput(bool resetWindow) {
     } else {
         applyWindowFromPanel();
     }
+    applyPolychromatic();
 }
 
 void MainWindow::onStudyLoaded(const QString& name) {
@@ -451,6 +460,7 @@ void MainWindow::onSpectrumReady() {
         applyOutput(true);
     }
     assignSpectra();
+    if (isPolychromatic(m_model->xray().output)) applyPolychromatic(); // a new study's materials
     if (m_rewindow && !newer) {
         m_rewindow = false;
         applyPreset(WindowPreset::Auto);

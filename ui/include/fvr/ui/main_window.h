@@ -4,6 +4,7 @@
  *  toolbar, status bar with progress and Cancel. The panels own their controls; the window wires
  *  their values to the views and the study controller. */
 #include <QMainWindow>
+#include <future>
 
 #include <fvr/core/xray/patient_views.h>
 #include <fvr/ui/projection_view.h>
@@ -146,6 +147,15 @@ private:
     void showViewSettings(const ViewSettings& s);
     /** The X-ray panel shows another output (the caller applies it). */
     void showOutput(XrayOutput o);
+    // The polychromatic output (main_window_poly.cpp).
+    /** On: the material spectra of the study's volume (preprocessed in the background once per
+     *  volume), then pushPolychromatic(); off: the views' own spectra again. */
+    void applyPolychromatic();
+    /** The views get the material spectra with the response of the X-ray values (no
+     *  preprocessing: kVp, filtration, detector, noise, what is shown). */
+    void pushPolychromatic();
+    /** The timer's check of the background job. */
+    void pollPolychromaticJob();
 
     std::unique_ptr<StudyController> m_study;
     SettingsModel* m_model = nullptr; ///< child of the window
@@ -158,6 +168,13 @@ private:
     bool m_syncing = false;
     bool m_askForSeries = true;
     bool m_rewindow = false; ///< auto window once the next spectrum is ready (values changed)
+    std::shared_ptr<const core::Volume> m_polyVolume; ///< what m_polySpectra are made from
+    std::vector<std::shared_ptr<const core::Spectrum>> m_polySpectra;
+    std::shared_ptr<const core::Volume> m_polyJobVolume;
+    std::future<std::vector<std::shared_ptr<const core::Spectrum>>> m_polyJob;
+    std::shared_ptr<core::CancelToken> m_polyCancel;
+    class QTimer* m_polyTimer = nullptr;
+    bool m_polyRewindow = false;
 
     StudyPanel* m_studyPanel = nullptr;
     RenderingPanel* m_rendering = nullptr;
