@@ -16,6 +16,7 @@ namespace fvr::ui {
 
 XrayPanel::XrayPanel(QWidget* parent) : QWidget(parent) {
     auto* form = new QFormLayout(this);
+    m_form = form;
     addOutputRows(form);
     addPolychromaticRows(form);
     addEffectRows(form);
@@ -156,10 +157,12 @@ void XrayPanel::updateBeam() {
     m_muWater->setText(tr("%1 /mm").arg(core::waterAttenuationPerMm(m_energy->value()), 0, 'f', 4));
     m_energy->setEnabled(transmission);
     m_exposure->setEnabled(transmission);
+    // The polychromatic rows show with that output only (the panel keeps its height otherwise).
     const bool poly = isPolychromatic(output());
-    for (QWidget* w : std::initializer_list<QWidget*>{m_kvp, m_filtrationAl, m_filtrationCu,
-                                                      m_detector, m_csi, m_noise, m_show})
-        w->setEnabled(poly);
+    for (QWidget* w :
+         std::initializer_list<QWidget*>{m_kvp, m_filtrationAl, m_filtrationCu, m_detector, m_csi,
+                                         m_noise, m_show, m_materialMemory})
+        m_form->setRowVisible(w, poly);
 }
 
 XrayPanel::Values XrayPanel::values() const {

@@ -109,6 +109,7 @@ private:
     QDoubleSpinBox* m_noise = nullptr;
     QComboBox* m_show = nullptr;
     QLabel* m_materialMemory = nullptr;
+    QFormLayout* m_form = nullptr;
 };
 
 } // namespace fvr::ui
