@@ -466,6 +466,13 @@ void declarePolychromatic(CLI::App& app, Options& o) {
         [](double v) { return v >= 0 && v <= 1e6; }, "expected 0..1e6 mAs")
         ->needs(kvp)
         ->group(g);
+    addNumber(
+        app, "--electronic-noise", o.electronicNoise, "Q",
+        "with --noise-mas: Gaussian electronic noise, standard deviation in\n"
+        "quanta per pixel (default 0)",
+        [](double v) { return v >= 0 && v <= 1e9; }, "expected 0..1e9 quanta")
+        ->needs("--noise-mas")
+        ->group(g);
     app.add_option("--seed", o.seed, "seed of the noise (default 1)")->needs(kvp)->group(g);
     app.add_option("--material-out", o.materialOut,
                    "also write the material mass thicknesses rhoL (g/cm^2) as a float32\n"

@@ -70,6 +70,7 @@ struct Options {
     core::DetectorModel detector;
     std::vector<core::Material> materials = core::defaultMaterials();
     double noiseMas = 0.0; ///< 0: no noise
+    double electronicNoise = 0.0; ///< Gaussian, standard deviation in quanta per pixel
     std::uint64_t seed = 1;
     std::string materialOut; ///< --material-out FILE.npy: rhoL (k, M, M) in g/cm^2
 

@@ -39,6 +39,7 @@ Json polychromaticJson(const Options& o, const TubeSpectrum& s, const SpectralRe
         {"csi_um", o.detector.csiUm},
         {"material_mapping", "smoothstep ramps, density from attenuation at 70 keV"},
         {"noise_mas", o.noiseMas},
+        {"electronic_noise_quanta", o.electronicNoise},
         {"noise_quanta_per_pixel", noise.active() ? Json(unattenuatedQuanta(r, noise)) : Json()},
         {"seed", o.seed},
         {"material_out", o.materialOut}};
@@ -148,7 +149,7 @@ int renderPolychromatic(const Options& o, const Volume& volume,
     PolychromaticRenderer poly(makeMaterialRenderers(o, spectra, backendName), response, threads);
     const double d =
         o.pixelSize ? *o.pixelSize : defaultPixelSize(volume.dims, volume.spacing, o.size);
-    const NoiseModel noise{o.noiseMas, 1000.0, d * d, 0.0, o.seed};
+    const NoiseModel noise{o.noiseMas, 1000.0, d * d, o.electronicNoise, o.seed};
     const RenderedViews rendered = renderViews(o, poly, views, {o.size, d}, noise);
     const WrittenOutput output{"I/I0 (polychromatic, relative to the unattenuated beam)",
                                rendered.stacked, rendered.files, preprocessMs, rendered.msPerView};

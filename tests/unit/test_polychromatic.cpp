@@ -210,6 +210,18 @@ TEST(Noise, PoissonVarianceEqualsMeanOnAFlatField) {
     std::vector<float> again(512 * 512, 0.25f);
     applyQuantumNoise(again, quanta, n);
     EXPECT_EQ(again, flat); // seeded
+    // Electronic noise adds its variance: var = mean + sigma^2 (in quanta).
+    NoiseModel withElectronic = n;
+    withElectronic.electronicSigma = 15.0;
+    std::vector<float> noisy(512 * 512, 0.25f);
+    applyQuantumNoise(noisy, quanta, withElectronic);
+    double s1 = 0.0, s2 = 0.0;
+    for (float v : noisy) {
+        s1 += v * quanta;
+        s2 += double(v * quanta) * (v * quanta);
+    }
+    const double m1 = s1 / noisy.size(), v1 = s2 / noisy.size() - m1 * m1;
+    EXPECT_NEAR(v1 / (m1 + 225.0), 1.0, 0.03);
     // The quanta of an ideal photon-counting detector: TASMIP fluence x mAs x (1 m/SID)^2 x area.
     const TubeSpectrum s = tubeSpectrum(80.0, 2.5);
     SpectralResponse r(s, {DetectorKind::PhotonCounting, 0.0}, defaultMaterials());
