@@ -95,8 +95,11 @@ void MainWindow::pushPolychromatic() {
     }
     source->noise.mAs = x.noiseMas;
     source->show = x.show;
+    const bool newQuantity = !m_views.empty() && m_views[0]->polychromatic() &&
+                             !m_views[0]->polychromatic()->spectra.empty() &&
+                             m_views[0]->polychromatic()->show != x.show;
     for (auto* v : m_views) v->setPolychromatic(source);
-    if (m_polyRewindow) {
+    if (m_polyRewindow || newQuantity) { // -ln(I/I0) and g/cm^2 need their own window
         m_polyRewindow = false;
         applyPreset(WindowPreset::Auto);
     }
