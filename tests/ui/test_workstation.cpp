@@ -29,6 +29,7 @@
 #include <fvr/core/dicom/dicom.h>
 #include <fvr/core/io/image_io.h>
 #include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/xray/spectrum_model.h>
 #include <fvr/core/xray/xray.h>
 #include <fvr/ui/main_window.h>
 #include <fvr/ui/panels/display_panel.h>
@@ -1180,6 +1181,7 @@ TEST_F(Workstation, PanelSettingsPersistForTheNextWindow) {
 TEST_F(Workstation, PolychromaticOutputRendersTheMaterialsWithoutPreprocessingAgain) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
     ui::ProjectionView* v = window->views()[0];
+    const auto mono = *v->projection(); // mm of water, the view's own (gridding-corrected) kernel
     auto* x = window->xrayPanel();
     x->kvpSpin()->setValue(70.0);
     x->outputCombo()->setCurrentIndex(
@@ -1207,6 +1209,21 @@ TEST_F(Workstation, PolychromaticOutputRendersTheMaterialsWithoutPreprocessingAg
     }
     EXPECT_GT(peak, 1.0);
     EXPECT_LT(worst, 1e-3);
+    // The materials are prepared for the view's kernel (gridding-corrected like its own
+    // spectrum) and keep the attenuation at 70 keV: sum_m mu_m rhoL_m = mu_water x line integral.
+    EXPECT_EQ(source->spectra[0]->deapodizedFor, v->spectrum()->deapodizedFor);
+    const char* names[3] = {"Air, Dry (near sea level)", "Tissue, Soft (ICRP)",
+                            "Bone, Cortical (ICRP)"};
+    double monoWorst = 0.0, monoPeak = 0.0;
+    for (std::size_t p = 0; p < mono.pixels.size(); ++p) {
+        double a = 0.0;
+        for (int m = 0; m < 3; ++m)
+            a += core::massAttenuation(names[m], 70.0) * 0.1 * rhoL[std::size_t(m)].pixels[p];
+        const double b = core::massAttenuation("Water, Liquid", 70.0) * mono.pixels[p] / 10.0;
+        monoWorst = std::max(monoWorst, std::abs(a - b));
+        monoPeak = std::max(monoPeak, b);
+    }
+    EXPECT_LT(monoWorst, 1e-2 * monoPeak); // the clamp at 0 acts per material there
     // A higher kVp: the same spectra (no preprocessing), less attenuation everywhere.
     x->kvpSpin()->setValue(120.0);
     ASSERT_TRUE(QTest::qWaitFor([&] { return v->polychromatic() != source && polyReady(); }));

@@ -460,7 +460,6 @@ void MainWindow::onSpectrumReady() {
         applyOutput(true);
     }
     assignSpectra();
-    if (isPolychromatic(m_model->xray().output)) applyPolychromatic(); // a new study's materials
     if (m_rewindow && !newer) {
         m_rewindow = false;
         applyPreset(WindowPreset::Auto);
