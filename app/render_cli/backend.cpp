@@ -148,6 +148,84 @@ std::unique_ptr<RenderBackend> makeRenderBackend(const Options& o,
     return std::make_unique<CpuBackend>(std::move(spectrum), o.threads);
 }
 
+namespace {
+
+#ifdef FVR_HAVE_GPU
+/** A GPU renderer on a context shared with the other materials' renderers (kept alive and made
+ *  current to release the GL objects). */
+class SharedContextRenderer final : public core::Renderer {
+public:
+    SharedContextRenderer(std::shared_ptr<fvr::gpu::EglContext> context,
+                          std::shared_ptr<const core::Spectrum> spectrum, bool fp16)
+        : m_context(std::move(context)),
+          m_renderer(std::make_unique<fvr::gpu::GpuFourierRenderer>()) {
+        m_renderer->setSpectrum(std::move(spectrum), fp16 ? fvr::gpu::SpectrumPrecision::Float16
+                                                          : fvr::gpu::SpectrumPrecision::Float32);
+    }
+    ~SharedContextRenderer() override {
+        m_context->makeCurrent();
+        m_renderer.reset();
+    }
+    core::ProjectionImage render(const core::RenderParams& params,
+                                 core::StageTimes* times) override {
+        return m_renderer->render(params, times);
+    }
+    std::string describe() const override { return m_renderer->describe(); }
+    bool isGpu() const override { return true; }
+
+private:
+    std::shared_ptr<fvr::gpu::EglContext> m_context;
+    std::unique_ptr<fvr::gpu::GpuFourierRenderer> m_renderer;
+};
+
+/** The GPU renderers of the materials, or none (saying why) where the CPU is to be used. */
+std::vector<std::unique_ptr<core::Renderer>> gpuMaterialRenderers(
+    const Options& o, const std::vector<std::shared_ptr<const core::Spectrum>>& spectra,
+    std::string& name) {
+    std::vector<std::unique_ptr<core::Renderer>> out;
+    try {
+        auto context = std::make_shared<fvr::gpu::EglContext>();
+        const fvr::gpu::GlInfo info = fvr::gpu::currentGlInfo();
+        if (o.backend == Options::Backend::Auto && info.software()) {
+            std::fprintf(stderr,
+                         "fvr-render: the GPU is a software renderer (%s): rendering on "
+                         "the CPU (--backend gpu uses it anyway)\n",
+                         info.renderer.c_str());
+            return out;
+        }
+        for (const auto& s : spectra)
+            out.push_back(std::make_unique<SharedContextRenderer>(context, s, o.fp16));
+        name = "gpu: " + info.renderer + (o.fp16 ? ", fp16" : "");
+    } catch (const std::exception& e) {
+        out.clear();
+        std::fprintf(stderr, "fvr-render: GPU backend unavailable (%s); rendering on the CPU\n",
+                     e.what());
+    }
+    return out;
+}
+#endif
+
+} // namespace
+
+std::vector<std::unique_ptr<core::Renderer>> makeMaterialRenderers(
+    const Options& o, const std::vector<std::shared_ptr<const core::Spectrum>>& spectra,
+    std::string& name) {
+#ifdef FVR_HAVE_GPU
+    if (o.backend != Options::Backend::Cpu) {
+        auto gpu = gpuMaterialRenderers(o, spectra, name);
+        if (!gpu.empty()) return gpu;
+    }
+#else
+    if (o.backend != Options::Backend::Cpu)
+        std::fprintf(stderr, "fvr-render: built without the GPU renderer; rendering on the CPU\n");
+#endif
+    std::vector<std::unique_ptr<core::Renderer>> out;
+    for (const auto& s : spectra)
+        out.push_back(std::make_unique<core::CpuFourierRenderer>(s, o.threads));
+    name = "cpu";
+    return out;
+}
+
 nlohmann::json gpuInfoJson() {
     nlohmann::json j;
 #ifdef FVR_HAVE_GPU

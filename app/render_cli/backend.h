@@ -49,6 +49,13 @@ public:
 std::unique_ptr<RenderBackend> makeRenderBackend(const Options& o,
                                                  std::shared_ptr<const core::Spectrum> spectrum);
 
+/** The renderers of --kvp, one per material spectrum: GPU renderers sharing one headless EGL
+ *  context where --backend picks the GPU (the same rule and fallback as makeRenderBackend),
+ *  else single CPU renderers with o.threads. `name` gets the backend's name. */
+std::vector<std::unique_ptr<core::Renderer>> makeMaterialRenderers(
+    const Options& o, const std::vector<std::shared_ptr<const core::Spectrum>>& spectra,
+    std::string& name);
+
 /** --gpu-info: {"available", "reason" (when not), "eglClientExtensions", "devices": [{"index",
  *  "name", "drmFile", "software", "nvidia", "extensions"}], "chosen": {"device" (-1:
  *  surfaceless), "description", "egl"}, "gl": {"vendor", "renderer", "version", "major",

@@ -425,6 +425,68 @@ void declareXray(CLI::App& app, Options& o) {
         ->group(g);
 }
 
+/** Polychromatic X-ray (issue 19): TASMIP spectrum, materials, detector and noise. */
+void declarePolychromatic(CLI::App& app, Options& o) {
+    const std::string g = "Polychromatic X-ray";
+    auto* kvp = addNumber(
+                    app, "--kvp", o.kvp, "KV",
+                    "tube voltage 30..140 (TASMIP spectrum): the output holds I/I0 of\n"
+                    "the spectral sum over materials from the CT numbers (HU input)",
+                    [](double v) { return v >= 30 && v <= 140; }, "expected 30..140 kV")
+                    ->excludes("--beer-lambert")
+                    ->group(g);
+    auto mm = [](double v) { return v >= 0 && v <= 100; };
+    addNumber(app, "--filtration-al", o.filtrationAlMm, "MM",
+              "added aluminium filtration (default 0; TASMIP's tube has about 1 mm Al)", mm,
+              "expected 0..100 mm")
+        ->needs(kvp)
+        ->group(g);
+    addNumber(app, "--filtration-cu", o.filtrationCuMm, "MM", "added copper filtration (default 0)",
+              mm, "expected 0..100 mm")
+        ->needs(kvp)
+        ->group(g);
+    addParsed(
+        app, "--detector", o.detector.kind,
+        [](const std::string& s) {
+            if (s == "energy") return core::DetectorKind::EnergyIntegrating;
+            if (s == "counting") return core::DetectorKind::PhotonCounting;
+            throw SettingsError("detector: expected energy or counting, found '" + s + "'");
+        },
+        "energy|counting", "energy-integrating (w = E, default) or photon-counting (w = 1)")
+        ->needs(kvp)
+        ->group(g);
+    addNumber(
+        app, "--csi-um", o.detector.csiUm, "UM",
+        "CsI absorber thickness (default 0: ideal detector)",
+        [](double v) { return v >= 0 && v <= 10000; }, "expected 0..10000 um")
+        ->needs(kvp)
+        ->group(g);
+    addParsed(app, "--materials", o.materials, core::parseMaterials, "LIST",
+              "materials from air,lung,fat,soft,bone (default air,soft,bone)")
+        ->needs(kvp)
+        ->group(g);
+    addNumber(
+        app, "--noise-mas", o.noiseMas, "MAS",
+        "Poisson quantum noise for this exposure at 1 m (default 0: none)",
+        [](double v) { return v >= 0 && v <= 1e6; }, "expected 0..1e6 mAs")
+        ->needs(kvp)
+        ->group(g);
+    addNumber(
+        app, "--electronic-noise", o.electronicNoise, "Q",
+        "with --noise-mas: Gaussian electronic noise, standard deviation in\n"
+        "quanta per pixel (default 0)",
+        [](double v) { return v >= 0 && v <= 1e9; }, "expected 0..1e9 quanta")
+        ->needs("--noise-mas")
+        ->group(g);
+    app.add_option("--seed", o.seed, "seed of the noise (default 1)")->needs(kvp)->group(g);
+    app.add_option("--material-out", o.materialOut,
+                   "also write the material mass thicknesses rhoL (g/cm^2) as a float32\n"
+                   "(k, M, M) .npy, in the order of settings.materials (one view)")
+        ->needs(kvp)
+        ->option_text("FILE.npy")
+        ->group(g);
+}
+
 void declareBenchmark(CLI::App& app, Options& o) {
     app.add_option("--bench", o.bench,
                    "render N frames over varying views, print per-stage timings as JSON,\n"
@@ -500,6 +562,10 @@ void checkCombinations(Options& o) {
     if (o.depthCue > 0 && o.kernel == core::Kernel::Nearest)
         throw SettingsError("--depth-cue: needs the derivative of the interpolation kernel; "
                             "--kernel nearest has none (choose linear or better)");
+    if (o.polychromatic() && o.format == OutputFormat::Dicom)
+        throw SettingsError("--kvp: writes .npy, .pfm or .png (no DICOM export yet)");
+    if (o.polychromatic() && o.bench > 0)
+        throw SettingsError("--kvp: not with --bench (bench/ times the polychromatic frame)");
     // --dir and --up (unless --view replaces them): the message names the vector at fault.
     if (!o.view) core::ViewFrame::fromDirUp(o.dir, o.up);
     o.transmission.muWaterPerMm =
@@ -521,6 +587,7 @@ void declareAll(CLI::App& app, Parsing& p) {
     declareViews(app, p.o);
     declareOutput(app, p.o);
     declareXray(app, p.o);
+    declarePolychromatic(app, p.o);
     declareBenchmark(app, p.o);
     declarePacs(app, p.o);
 }

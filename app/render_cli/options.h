@@ -13,6 +13,7 @@
 #include <fvr/core/render/voxel_model.h>
 #include <fvr/core/volume.h>
 #include <fvr/core/xray/patient_views.h>
+#include <fvr/core/xray/polychromatic.h>
 #include <fvr/core/xray/xray.h>
 
 namespace fvr::cli {
@@ -73,6 +74,18 @@ struct Options {
     std::string send; ///< --send dicom://AE@host:port
     std::string store; ///< --store DIR: the local study store (default: the user's)
 
+    /** Polychromatic X-ray (issue 19), on with --kvp: the output holds I/I0. */
+    std::optional<double> kvp;
+    double filtrationAlMm = 0.0;
+    double filtrationCuMm = 0.0;
+    core::DetectorModel detector;
+    std::vector<core::Material> materials = core::defaultMaterials();
+    double noiseMas = 0.0; ///< 0: no noise
+    double electronicNoise = 0.0; ///< Gaussian, standard deviation in quanta per pixel
+    std::uint64_t seed = 1;
+    std::string materialOut; ///< --material-out FILE.npy: rhoL (k, M, M) in g/cm^2
+
+    bool polychromatic() const { return kvp.has_value(); }
     bool kaiserBessel() const {
         return kernel == core::Kernel::KaiserBessel4 || kernel == core::Kernel::KaiserBessel6;
     }

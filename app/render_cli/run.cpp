@@ -13,6 +13,7 @@
 
 #include "input.h"
 #include "pacs.h"
+#include "polychromatic.h"
 #include "session.h"
 
 namespace fvr::cli {
@@ -95,6 +96,7 @@ int renderVolume(const Options& o, const Volume& volume, const std::vector<ViewF
     // The views first: their errors (a sweep along its axis) before the work.
     const std::vector<ViewFrame> views =
         o.out.empty() ? std::vector<ViewFrame>{} : outputViews(o, volume, base, fileViews);
+    if (o.polychromatic()) return renderPolychromatic(o, volume, views);
     double preprocessMs = 0.0;
     auto spectrum = preprocessVolume(o, volume, preprocessMs);
     const ImageGeometry geometry = imageGeometry(o, volume);

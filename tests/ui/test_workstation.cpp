@@ -29,6 +29,7 @@
 #include <fvr/core/dicom/dicom.h>
 #include <fvr/core/io/image_io.h>
 #include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/xray/spectrum_model.h>
 #include <fvr/core/xray/xray.h>
 #include <fvr/ui/main_window.h>
 #include <fvr/ui/panels/display_panel.h>
@@ -1117,4 +1118,77 @@ TEST_F(Workstation, PanelSettingsPersistForTheNextWindow) {
     EXPECT_EQ(fresh.views()[0]->settings(),
               (ui::ViewSettings{core::Kernel::Linear, 256, core::VoxelModel::BSpline}));
     EXPECT_EQ(fresh.views()[0]->effects().filter, (core::SliceFilter{1.25, 2.0, 0.5}));
+}
+
+// Issue 19: the polychromatic output renders the material spectra (prepared once, in the
+// background) through the spectral response; kVp, detector and what is shown re-render without
+// preprocessing again.
+TEST_F(Workstation, PolychromaticOutputRendersTheMaterialsWithoutPreprocessingAgain) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    ui::ProjectionView* v = window->views()[0];
+    const auto mono = *v->projection(); // mm of water, the view's own (gridding-corrected) kernel
+    auto* x = window->xrayPanel();
+    x->kvpSpin()->setValue(70.0);
+    x->outputCombo()->setCurrentIndex(
+        x->outputCombo()->findData(int(ui::XrayOutput::Polychromatic)));
+    auto polyReady = [&] {
+        return v->polychromatic() && !v->polychromatic()->spectra.empty() && v->showsCurrentFrame();
+    };
+    ASSERT_TRUE(QTest::qWaitFor(polyReady, 60000))
+        << window->messages()->toPlainText().toStdString();
+    const auto source = v->polychromatic();
+    ASSERT_EQ(source->spectra.size(), 3u);
+    const auto shown = *v->projection(); // -ln(I/I0)
+    // The reference: the same material spectra rendered here, the exact double sum per pixel.
+    const core::RenderParams params = v->renderParams(v->settings().size, v->settings().kernel);
+    std::vector<core::ProjectionImage> rhoL;
+    for (const auto& s : source->spectra)
+        rhoL.push_back(core::CpuFourierRenderer(s, 2).render(params));
+    double worst = 0.0, peak = 0.0;
+    for (std::size_t p = 0; p < shown.pixels.size(); ++p) {
+        const double d[3] = {0.1 * rhoL[0].pixels[p], 0.1 * rhoL[1].pixels[p],
+                             0.1 * rhoL[2].pixels[p]};
+        const double ref = -std::log(source->response->exact(d));
+        worst = std::max(worst, std::abs(shown.pixels[p] - ref));
+        peak = std::max(peak, ref);
+    }
+    EXPECT_GT(peak, 1.0);
+    EXPECT_LT(worst, 1e-3);
+    // The materials are prepared for the view's kernel (gridding-corrected like its own
+    // spectrum) and keep the attenuation at 70 keV: sum_m mu_m rhoL_m = mu_water x line integral.
+    EXPECT_EQ(source->spectra[0]->deapodizedFor, v->spectrum()->deapodizedFor);
+    const char* names[3] = {"Air, Dry (near sea level)", "Tissue, Soft (ICRP)",
+                            "Bone, Cortical (ICRP)"};
+    double monoWorst = 0.0, monoPeak = 0.0;
+    for (std::size_t p = 0; p < mono.pixels.size(); ++p) {
+        double a = 0.0;
+        for (int m = 0; m < 3; ++m)
+            a += core::massAttenuation(names[m], 70.0) * 0.1 * rhoL[std::size_t(m)].pixels[p];
+        const double b = core::massAttenuation("Water, Liquid", 70.0) * mono.pixels[p] / 10.0;
+        monoWorst = std::max(monoWorst, std::abs(a - b));
+        monoPeak = std::max(monoPeak, b);
+    }
+    EXPECT_LT(monoWorst, 1e-2 * monoPeak); // the clamp at 0 acts per material there
+    // A higher kVp: the same spectra (no preprocessing), less attenuation everywhere.
+    x->kvpSpin()->setValue(120.0);
+    ASSERT_TRUE(QTest::qWaitFor([&] { return v->polychromatic() != source && polyReady(); }));
+    EXPECT_EQ(v->polychromatic()->spectra, source->spectra);
+    const auto hard = *v->projection();
+    for (std::size_t p = 0; p < shown.pixels.size(); ++p)
+        if (shown.pixels[p] > 0.5f) {
+            ASSERT_LT(hard.pixels[p], shown.pixels[p]) << p;
+        }
+    // The material view: soft tissue's mass thickness in g/cm^2.
+    x->showCombo()->setCurrentIndex(x->showCombo()->findData(1));
+    ASSERT_TRUE(QTest::qWaitFor([&] { return v->polychromatic()->show == 1 && polyReady(); }));
+    const auto soft = *v->projection();
+    double softWorst = 0.0;
+    for (std::size_t p = 0; p < soft.pixels.size(); ++p)
+        softWorst =
+            std::max(softWorst, double(std::abs(soft.pixels[p] - 0.1f * rhoL[1].pixels[p])));
+    EXPECT_LT(softWorst, 1e-4);
+    // Back to line integrals: the views render their own spectrum again.
+    x->outputCombo()->setCurrentIndex(
+        x->outputCombo()->findData(int(ui::XrayOutput::LineIntegrals)));
+    EXPECT_FALSE(v->polychromatic());
 }

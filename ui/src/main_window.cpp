@@ -59,6 +59,7 @@ MainWindow::MainWindow(QWidget* parent)
 
 MainWindow::~MainWindow() {
     delete m_pacsDialog.data(); // its retrieve ends before the store and listener go
+    if (m_polyCancel) m_polyCancel->cancel(); // the material job ends at its next check
 }
 
 void MainWindow::connectStudy() {
@@ -212,7 +213,8 @@ void MainWindow::connectPanels() {
     connect(m_display, &DisplayPanel::windowChanged, this, &MainWindow::applyWindowFromPanel);
     connect(m_display, &DisplayPanel::presetRequested, this, &MainWindow::applyPreset);
     connectSettings();
-    if (isTransmission(m_model->xray().output)) applyOutput(true);
+    if (isTransmission(m_model->xray().output) || isPolychromatic(m_model->xray().output))
+        applyOutput(true);
 }
 
 void MainWindow::connectSettings() {
@@ -233,6 +235,11 @@ void MainWindow::connectSettings() {
     connect(m_model, &SettingsModel::outputChanged, this, [this] { applyOutput(true); });
     connect(m_model, &SettingsModel::beamChanged, this, [this] { applyOutput(false); });
     connect(m_model, &SettingsModel::effectsChanged, this, &MainWindow::applyEffects);
+    connect(m_model, &SettingsModel::polychromaticChanged, this, [this] {
+        QSettings st;
+        XrayPanel::save(st, m_model->xray());
+        pushPolychromatic();
+    });
 }
 
 void MainWindow::applyVoxelModel() {
@@ -425,6 +432,7 @@ void MainWindow::applyOutput(bool resetWindow) {
     } else {
         applyWindowFromPanel();
     }
+    applyPolychromatic();
 }
 
 void MainWindow::onStudyLoaded(const QString& name) {

@@ -90,6 +90,8 @@ void MainWindow::assignSpectra() {
         v->setPendingText(m_study->spectrumPendingReason(s.kernel),
                           m_study->compareDeclined(s.kernel).has_value());
     }
+    // The polychromatic output: each view's materials for its kernel (main_window_poly.cpp).
+    if (isPolychromatic(m_model->xray().output)) applyPolychromatic();
 }
 
 ProjectionView* MainWindow::addView(int index, int count, const core::ViewFrame& frame) {

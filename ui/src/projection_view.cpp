@@ -101,6 +101,33 @@ void ProjectionView::setEffects(const FrameEffects& e) {
     update();
 }
 
+void ProjectionView::setPolychromatic(std::shared_ptr<const PolychromaticSource> source) {
+    if (source == m_poly) return;
+    if (!source || !m_poly || source->spectra != m_poly->spectra) m_polyRenderer.reset();
+    m_poly = std::move(source);
+    m_cpuImage.reset();
+    m_renderDirty = true;
+    update();
+}
+
+core::ProjectionImage ProjectionView::renderPolychromatic(const core::RenderParams& params,
+                                                          core::StageTimes* times) {
+    if (!m_polyRenderer) {
+        std::vector<std::unique_ptr<core::Renderer>> renderers;
+        for (const auto& s : m_poly->spectra)
+            renderers.push_back(std::make_unique<core::CpuFourierRenderer>(s));
+        m_polyRenderer =
+            std::make_unique<core::PolychromaticRenderer>(std::move(renderers), m_poly->response);
+    } else {
+        m_polyRenderer->setResponse(m_poly->response);
+    }
+    core::PolychromaticFrame f = m_polyRenderer->render(params, m_poly->noise, times);
+    if (m_poly->show >= 0 && std::size_t(m_poly->show) < f.massThickness.size())
+        return std::move(f.massThickness[std::size_t(m_poly->show)]);
+    for (float& v : f.transmission.pixels) v = float(-std::log(std::max(1e-30, double(v))));
+    return std::move(f.transmission);
+}
+
 void ProjectionView::setTargetFps(double fps) {
     m_progressive.setTargetFps(fps);
     m_renderDirty = true;
@@ -277,6 +304,16 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
 }
 
 void ProjectionView::renderFrame(const core::RenderParams& params, int level) {
+    if (m_poly && !m_poly->spectra.empty()) {
+        core::StageTimes t;
+        m_cpuImage = renderPolychromatic(params, &t);
+        m_stats.sliceMs = t.sliceMs;
+        m_stats.inverseMs = t.inverseMs;
+        m_stats.totalMs = t.totalMs;
+        m_stats.fused = false;
+        m_stats.displayFused = false;
+        return;
+    }
     if (m_gpu) {
         // With a window already set (and no difference to map), the last pass of the inverse
         // transform also writes the display texture; paintGL's displayTexture() then costs nothing.
@@ -297,7 +334,8 @@ void ProjectionView::renderFrame(const core::RenderParams& params, int level) {
 }
 
 void ProjectionView::subtractReference() {
-    auto own = m_gpu ? std::optional<core::ProjectionImage>(m_gpu->readback()) : m_cpuImage;
+    auto own =
+        m_gpu && !m_poly ? std::optional<core::ProjectionImage>(m_gpu->readback()) : m_cpuImage;
     auto ref = m_reference->projection();
     // The reference made its own context current (and released it): this view's again, or the
     // frame's texture goes to no context and the view stays empty.
@@ -636,7 +674,9 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
         }
         std::optional<core::ProjectionImage> img;
         try {
-            if (m_gpu)
+            if (m_poly && !m_poly->spectra.empty() && m_reference)
+                img = renderPolychromatic(renderParams(m_settings.size, m_settings.kernel));
+            else if (m_gpu && !(m_poly && !m_poly->spectra.empty()))
                 img = m_gpu->readback(); // the view's own projection, also in difference mode
             else if (m_reference && m_cpuImage)
                 img = floatRenderer().render(renderParams(m_settings.size, m_settings.kernel));
@@ -648,6 +688,8 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
         doneCurrent();
         return img;
     }
+    if (m_poly && !m_poly->spectra.empty())
+        return renderPolychromatic(renderParams(m_settings.size, m_settings.kernel));
     return floatRenderer().render(renderParams(m_settings.size, m_settings.kernel));
 }
 

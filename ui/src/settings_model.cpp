@@ -43,6 +43,10 @@ void SettingsModel::setXray(const XrayPanel::Values& v, Notify notify) {
     if (v.depthCuePercent != old.depthCuePercent || v.sharpen != old.sharpen ||
         v.sharpenRadius != old.sharpenRadius || v.bandLimit != old.bandLimit)
         emit effectsChanged();
+    if (v.kvp != old.kvp || v.filtrationAlMm != old.filtrationAlMm ||
+        v.filtrationCuMm != old.filtrationCuMm || v.detector != old.detector ||
+        v.csiUm != old.csiUm || v.noiseMas != old.noiseMas || v.show != old.show)
+        emit polychromaticChanged();
 }
 
 } // namespace fvr::ui

@@ -7,13 +7,18 @@
 #include <QSettings>
 #include <QSpinBox>
 
+#include <algorithm>
+#include <initializer_list>
+
 #include <fvr/ui/settings_keys.h>
 
 namespace fvr::ui {
 
 XrayPanel::XrayPanel(QWidget* parent) : QWidget(parent) {
     auto* form = new QFormLayout(this);
+    m_form = form;
     addOutputRows(form);
+    addPolychromaticRows(form);
     addEffectRows(form);
     updateBeam();
     connectControls();
@@ -23,6 +28,8 @@ void XrayPanel::addOutputRows(QFormLayout* xf) {
     m_output = new QComboBox(this);
     m_output->addItem(tr("Line integrals"), int(XrayOutput::LineIntegrals));
     m_output->addItem(tr("Transmitted intensity (Beer-Lambert)"), int(XrayOutput::Transmission));
+    m_output->addItem(tr("Polychromatic (tube spectrum, materials)"),
+                      int(XrayOutput::Polychromatic));
     m_output->setToolTip(
         tr("Transmitted intensity = exposure × exp(−μ_water × line integral of μ/μ_water): what a "
            "detector records. Needs attenuation values (μ or bone-enhanced μ)."));
@@ -45,6 +52,53 @@ void XrayPanel::addOutputRows(QFormLayout* xf) {
         tr("Relative exposure (mAs): the unattenuated beam reaches this fraction of full scale"));
     xf->addRow(tr("Exposure"), m_exposure);
 }
+
+namespace {
+
+QDoubleSpinBox* numberSpin(QWidget* parent, double lo, double hi, int decimals, double step,
+                           const QString& suffix) {
+    auto* sb = new QDoubleSpinBox(parent);
+    sb->setRange(lo, hi);
+    sb->setDecimals(decimals);
+    sb->setSingleStep(step);
+    sb->setSuffix(suffix);
+    sb->setKeyboardTracking(false);
+    return sb;
+}
+
+} // namespace
+
+void XrayPanel::addPolychromaticRows(QFormLayout* xf) {
+    m_kvp = numberSpin(this, 30.0, 140.0, 0, 5.0, tr(" kV"));
+    m_kvp->setToolTip(tr("Tube voltage: TASMIP tungsten spectrum (Boone & Seibert 1997)"));
+    xf->addRow(tr("Tube voltage"), m_kvp);
+    m_filtrationAl = numberSpin(this, 0.0, 20.0, 1, 0.5, tr(" mm Al"));
+    m_filtrationAl->setToolTip(tr("Added aluminium filtration (the TASMIP tube has about 1 mm)"));
+    xf->addRow(tr("Filtration"), m_filtrationAl);
+    m_filtrationCu = numberSpin(this, 0.0, 2.0, 2, 0.05, tr(" mm Cu"));
+    xf->addRow(tr("Copper filter"), m_filtrationCu);
+    m_detector = new QComboBox(this);
+    m_detector->addItem(tr("Energy-integrating"), 0);
+    m_detector->addItem(tr("Photon-counting"), 1);
+    xf->addRow(tr("Detector"), m_detector);
+    m_csi = numberSpin(this, 0.0, 2000.0, 0, 50.0, tr(" µm CsI"));
+    m_csi->setSpecialValueText(tr("ideal"));
+    xf->addRow(tr("Absorber"), m_csi);
+    m_noise = numberSpin(this, 0.0, 1000.0, 2, 0.5, tr(" mAs"));
+    m_noise->setSpecialValueText(tr("off"));
+    m_noise->setToolTip(tr("Quantum noise for this exposure at 1 m (Poisson, seeded)"));
+    xf->addRow(tr("Noise (dose)"), m_noise);
+    m_show = new QComboBox(this);
+    m_show->addItem(tr("−ln(I/I0)"), -1);
+    m_show->addItem(tr("Air (g/cm²)"), 0);
+    m_show->addItem(tr("Soft tissue (g/cm²)"), 1);
+    m_show->addItem(tr("Bone (g/cm²)"), 2);
+    xf->addRow(tr("Show"), m_show);
+    m_materialMemory = new QLabel(this);
+    xf->addRow(tr("Materials"), m_materialMemory);
+}
+
+void XrayPanel::setMaterialMemory(const QString& text) { m_materialMemory->setText(text); }
 
 void XrayPanel::addEffectRows(QFormLayout* xf) {
     m_depthCue = new QSpinBox(this);
@@ -90,8 +144,11 @@ void XrayPanel::connectControls() {
         emit changed();
     };
     connect(m_output, &QComboBox::currentIndexChanged, this, edited);
-    for (auto* sb : {m_energy, m_exposure, m_sharpen, m_sharpenRadius, m_bandLimit})
+    for (auto* sb : {m_energy, m_exposure, m_sharpen, m_sharpenRadius, m_bandLimit, m_kvp,
+                     m_filtrationAl, m_filtrationCu, m_csi, m_noise})
         connect(sb, &QDoubleSpinBox::valueChanged, this, edited);
+    for (auto* cb : {m_detector, m_show})
+        connect(cb, &QComboBox::currentIndexChanged, this, edited);
     connect(m_depthCue, &QSpinBox::valueChanged, this, edited);
 }
 
@@ -100,6 +157,12 @@ void XrayPanel::updateBeam() {
     m_muWater->setText(tr("%1 /mm").arg(core::waterAttenuationPerMm(m_energy->value()), 0, 'f', 4));
     m_energy->setEnabled(transmission);
     m_exposure->setEnabled(transmission);
+    // The polychromatic rows show with that output only (the panel keeps its height otherwise).
+    const bool poly = isPolychromatic(output());
+    for (QWidget* w :
+         std::initializer_list<QWidget*>{m_kvp, m_filtrationAl, m_filtrationCu, m_detector, m_csi,
+                                         m_noise, m_show, m_materialMemory})
+        m_form->setRowVisible(w, poly);
 }
 
 XrayPanel::Values XrayPanel::values() const {
@@ -111,12 +174,20 @@ XrayPanel::Values XrayPanel::values() const {
     v.sharpen = m_sharpen->value();
     v.sharpenRadius = m_sharpenRadius->value();
     v.bandLimit = m_bandLimit->value();
+    v.kvp = m_kvp->value();
+    v.filtrationAlMm = m_filtrationAl->value();
+    v.filtrationCuMm = m_filtrationCu->value();
+    v.detector = m_detector->currentData().toInt();
+    v.csiUm = m_csi->value();
+    v.noiseMas = m_noise->value();
+    v.show = m_show->currentData().toInt();
     return v;
 }
 
 void XrayPanel::setValues(const Values& v) {
     const QSignalBlocker b1(m_output), b2(m_energy), b3(m_exposure), b4(m_depthCue), b5(m_sharpen),
-        b6(m_sharpenRadius), b7(m_bandLimit);
+        b6(m_sharpenRadius), b7(m_bandLimit), b8(m_kvp), b9(m_filtrationAl), b10(m_filtrationCu),
+        b11(m_detector), b12(m_csi), b13(m_noise), b14(m_show);
     m_output->setCurrentIndex(m_output->findData(int(v.output)));
     m_energy->setValue(v.energyKeV);
     m_exposure->setValue(v.exposure);
@@ -124,21 +195,35 @@ void XrayPanel::setValues(const Values& v) {
     m_sharpen->setValue(v.sharpen);
     m_sharpenRadius->setValue(v.sharpenRadius);
     m_bandLimit->setValue(v.bandLimit);
+    m_kvp->setValue(v.kvp);
+    m_filtrationAl->setValue(v.filtrationAlMm);
+    m_filtrationCu->setValue(v.filtrationCuMm);
+    m_detector->setCurrentIndex(m_detector->findData(v.detector));
+    m_csi->setValue(v.csiUm);
+    m_noise->setValue(v.noiseMas);
+    m_show->setCurrentIndex(std::max(0, m_show->findData(v.show)));
     updateBeam();
 }
 
 XrayPanel::Values XrayPanel::load(const QSettings& s) { return load(s, Values()); }
 
 XrayPanel::Values XrayPanel::load(const QSettings& s, Values v) {
-    v.output = s.value(keys::kXrayOutput, int(v.output)).toInt() == int(XrayOutput::Transmission)
-                   ? XrayOutput::Transmission
-                   : XrayOutput::LineIntegrals;
+    const int output = s.value(keys::kXrayOutput, int(v.output)).toInt();
+    v.output = output == int(XrayOutput::Transmission)    ? XrayOutput::Transmission
+               : output == int(XrayOutput::Polychromatic) ? XrayOutput::Polychromatic
+                                                          : XrayOutput::LineIntegrals;
     v.energyKeV = s.value(keys::kXrayEnergyKeV, v.energyKeV).toDouble();
     v.exposure = s.value(keys::kXrayExposure, v.exposure).toDouble();
     v.depthCuePercent = s.value(keys::kXrayDepthCue, v.depthCuePercent).toInt();
     v.sharpen = s.value(keys::kXraySharpen, v.sharpen).toDouble();
     v.sharpenRadius = s.value(keys::kXraySharpenRadius, v.sharpenRadius).toDouble();
     v.bandLimit = s.value(keys::kXrayBandLimit, v.bandLimit).toDouble();
+    v.kvp = s.value(keys::kXrayKvp, v.kvp).toDouble();
+    v.filtrationAlMm = s.value(keys::kXrayFiltrationAl, v.filtrationAlMm).toDouble();
+    v.filtrationCuMm = s.value(keys::kXrayFiltrationCu, v.filtrationCuMm).toDouble();
+    v.detector = s.value(keys::kXrayDetector, v.detector).toInt() == 1 ? 1 : 0;
+    v.csiUm = s.value(keys::kXrayCsiUm, v.csiUm).toDouble();
+    v.noiseMas = s.value(keys::kXrayNoiseMas, v.noiseMas).toDouble();
     return v;
 }
 
@@ -150,6 +235,12 @@ void XrayPanel::save(QSettings& s, const Values& v) {
     s.setValue(keys::kXraySharpen, v.sharpen);
     s.setValue(keys::kXraySharpenRadius, v.sharpenRadius);
     s.setValue(keys::kXrayBandLimit, v.bandLimit);
+    s.setValue(keys::kXrayKvp, v.kvp);
+    s.setValue(keys::kXrayFiltrationAl, v.filtrationAlMm);
+    s.setValue(keys::kXrayFiltrationCu, v.filtrationCuMm);
+    s.setValue(keys::kXrayDetector, v.detector);
+    s.setValue(keys::kXrayCsiUm, v.csiUm);
+    s.setValue(keys::kXrayNoiseMas, v.noiseMas);
 }
 
 XrayOutput XrayPanel::output() const { return XrayOutput(m_output->currentData().toInt()); }

@@ -5,9 +5,13 @@
  *  their values to the views and the study controller. */
 #include <QMainWindow>
 #include <QPointer>
+#include <future>
+#include <map>
+#include <optional>
 
 #include <fvr/core/pacs/pacs.h>
 #include <fvr/core/xray/patient_views.h>
+#include <fvr/ui/panels/xray_panel.h>
 #include <fvr/ui/projection_view.h>
 #include <fvr/ui/study.h>
 
@@ -166,6 +170,15 @@ private:
     void showViewSettings(const ViewSettings& s);
     /** The X-ray panel shows another output (the caller applies it). */
     void showOutput(XrayOutput o);
+    // The polychromatic output (main_window_poly.cpp).
+    /** On: the material spectra of the study's volume (preprocessed in the background once per
+     *  volume), then pushPolychromatic(); off: the views' own spectra again. */
+    void applyPolychromatic();
+    /** The views get the material spectra with the response of the X-ray values (no
+     *  preprocessing: kVp, filtration, detector, noise, what is shown). */
+    void pushPolychromatic();
+    /** The timer's check of the background job. */
+    void pollPolychromaticJob();
 
     std::unique_ptr<StudyController> m_study;
     SettingsModel* m_model = nullptr; ///< child of the window
@@ -178,6 +191,20 @@ private:
     bool m_syncing = false;
     bool m_askForSeries = true;
     bool m_rewindow = false; ///< auto window once the next spectrum is ready (values changed)
+    /** The material spectra of m_polyVolume per gridding correction: -1 none, else the
+     *  kernel they are deapodized for (each view renders the ones of its kernel). */
+    using MaterialSpectra = std::vector<std::shared_ptr<const core::Spectrum>>;
+    std::map<int, MaterialSpectra> m_polySpectra;
+    std::shared_ptr<const core::Volume> m_polyVolume;
+    std::future<std::map<int, MaterialSpectra>> m_polyJob;
+    std::shared_ptr<core::CancelToken> m_polyCancel;
+    class QTimer* m_polyTimer = nullptr;
+    bool m_polyRewindow = false;
+    /** The sources the views get (per key), made for the X-ray values m_polyValues. */
+    std::map<int, std::shared_ptr<const PolychromaticSource>> m_polySources;
+    std::optional<XrayPanel::Values> m_polyValues;
+    /** The key of m_polySpectra a kernel renders from. */
+    int polyKey(core::Kernel kernel) const;
 
     StudyPanel* m_studyPanel = nullptr;
     RenderingPanel* m_rendering = nullptr;

@@ -14,6 +14,7 @@
 #include <fvr/core/render/spectrum.h>
 #include <fvr/core/render/view.h>
 #include <fvr/core/volume.h>
+#include <fvr/core/xray/polychromatic_render.h>
 
 class QPainter;
 class QOpenGLShaderProgram;
@@ -46,6 +47,15 @@ struct FrameEffects {
     bool operator==(const FrameEffects&) const = default;
 };
 
+/** What the polychromatic output renders (issue 19): the material spectra (shared by the views),
+ *  the spectral response (kVp, filtration, detector), the noise and what the view shows. */
+struct PolychromaticSource {
+    std::vector<std::shared_ptr<const core::Spectrum>> spectra;
+    std::shared_ptr<const core::SpectralResponse> response;
+    core::NoiseModel noise;
+    int show = -1; ///< -1: -ln(I/I0); m: material m's mass thickness (g/cm^2)
+};
+
 class ProjectionView : public QOpenGLWidget {
     Q_OBJECT
 public:
@@ -67,6 +77,13 @@ public:
     void setSettings(const ViewSettings& s);
     const ViewSettings& settings() const { return m_settings; }
     void setEffects(const FrameEffects& e);
+    /** The polychromatic output (null: the spectrum's line integrals, as before): the view
+     *  renders one frame per material on the CPU and shows -ln(I/I0) or one material. A new
+     *  response or noise re-renders without new renderers; new spectra make them anew. A
+     *  source without spectra: they are being prepared (the view shows its line integrals
+     *  meanwhile and is not showsCurrentFrame()). */
+    void setPolychromatic(std::shared_ptr<const PolychromaticSource> source);
+    const std::shared_ptr<const PolychromaticSource>& polychromatic() const { return m_poly; }
     const FrameEffects& effects() const { return m_effects; }
     /** Progressive refinement: the frame rate to hold while dragging (0: off). */
     void setTargetFps(double fps);
@@ -134,6 +151,7 @@ public:
      *  settings (nothing left to render, no drag). */
     bool showsCurrentFrame() const {
         return m_spectrum && !m_spectrumDirty && !m_renderDirty && m_frames > 0 &&
+               !(m_poly && m_poly->spectra.empty()) && // material spectra still coming
                m_displayedLevel == 0 && m_renderedLevel == 0 && !m_progressive.interacting();
     }
     /** Number of frames rendered (tests). */
@@ -172,6 +190,9 @@ private:
     /** One frame at a quality level: on the GPU into its buffers (and display texture), or the
      *  CPU's float image with its stage times. */
     void renderFrame(const core::RenderParams& params, int level);
+    /** The polychromatic frame of m_poly: -ln(I/I0) or the material it shows. */
+    core::ProjectionImage renderPolychromatic(const core::RenderParams& params,
+                                              core::StageTimes* times = nullptr);
     /** Difference mode: the frame minus the reference view's projection. */
     void subtractReference();
     /** The first frame of a study sets the window from its image. */
@@ -222,6 +243,8 @@ private:
     std::unique_ptr<gpu::GpuFourierRenderer> m_gpu;
     std::unique_ptr<core::CpuFourierRenderer> m_cpu;
     std::optional<core::ProjectionImage> m_cpuImage; // CPU path / difference mode
+    std::shared_ptr<const PolychromaticSource> m_poly;
+    std::unique_ptr<core::PolychromaticRenderer> m_polyRenderer;
     QString m_notice; ///< backend notice (CPU fallback)
     bool m_allowSoftwareGpu = false;
     bool m_softwareGl = false;

@@ -28,6 +28,13 @@ inline constexpr char kXrayDepthCue[] = "xray/depthCue";
 inline constexpr char kXraySharpen[] = "xray/sharpen";
 inline constexpr char kXraySharpenRadius[] = "xray/sharpenRadius";
 inline constexpr char kXrayBandLimit[] = "xray/bandLimit";
+// Polychromatic X-ray (issue 19).
+inline constexpr char kXrayKvp[] = "xray/kvp";
+inline constexpr char kXrayFiltrationAl[] = "xray/filtrationAlMm";
+inline constexpr char kXrayFiltrationCu[] = "xray/filtrationCuMm";
+inline constexpr char kXrayDetector[] = "xray/detector"; ///< 0 energy-integrating, 1 counting
+inline constexpr char kXrayCsiUm[] = "xray/csiUm";
+inline constexpr char kXrayNoiseMas[] = "xray/noiseMas";
 
 // Main window
 inline constexpr char kWindowGeometry[] = "window/geometry";

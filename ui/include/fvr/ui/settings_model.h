@@ -49,6 +49,9 @@ signals:
     void outputChanged(); ///< line integrals or transmission
     void beamChanged(); ///< energy or exposure
     void effectsChanged(); ///< depth cueing or a slice filter
+    /** kVp, filtration, detector, noise or what the polychromatic output shows: a new spectral
+     *  response, no preprocessing. */
+    void polychromaticChanged();
 
 private:
     RenderingPanel::Values m_rendering;

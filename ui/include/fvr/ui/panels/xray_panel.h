@@ -16,10 +16,12 @@ namespace fvr::ui {
 
 /** What the projection shows: its line integrals, or the intensity a detector records. The values
  *  are the combo's item data and the saved setting. */
-enum class XrayOutput { LineIntegrals = 0, Transmission = 1 };
+enum class XrayOutput { LineIntegrals = 0, Transmission = 1, Polychromatic = 2 };
 
 /** True for the Beer-Lambert output. */
 inline bool isTransmission(XrayOutput o) { return o == XrayOutput::Transmission; }
+/** True for the polychromatic output (TASMIP spectrum through air, soft tissue and bone). */
+inline bool isPolychromatic(XrayOutput o) { return o == XrayOutput::Polychromatic; }
 
 class XrayPanel : public QWidget {
     Q_OBJECT
@@ -32,6 +34,14 @@ public:
         double sharpen = 0.0; ///< SliceFilter::sharpenAmount
         double sharpenRadius = 1.0; ///< SliceFilter::sharpenSigmaMm
         double bandLimit = 0.0; ///< SliceFilter::bandLimitLpMm
+        // Polychromatic output (issue 19): the tube, the detector, the dose, what is shown.
+        double kvp = 80.0;
+        double filtrationAlMm = 2.5;
+        double filtrationCuMm = 0.0;
+        int detector = 0; ///< 0 energy-integrating, 1 photon-counting
+        double csiUm = 0.0; ///< 0: ideal detector
+        double noiseMas = 0.0; ///< 0: no noise
+        int show = -1; ///< -1: -ln(I/I0); m: material m's mass thickness (g/cm^2)
         bool operator==(const Values&) const = default;
     };
 
@@ -63,6 +73,13 @@ public:
     QDoubleSpinBox* sharpenSpin() const { return m_sharpen; }
     QDoubleSpinBox* sharpenRadiusSpin() const { return m_sharpenRadius; }
     QDoubleSpinBox* bandLimitSpin() const { return m_bandLimit; }
+    QDoubleSpinBox* kvpSpin() const { return m_kvp; }
+    QDoubleSpinBox* filtrationAlSpin() const { return m_filtrationAl; }
+    QComboBox* detectorCombo() const { return m_detector; }
+    QDoubleSpinBox* noiseSpin() const { return m_noise; }
+    QComboBox* showCombo() const { return m_show; }
+    /** The memory readout of the material spectra ("3 material spectra: 47 MB"). */
+    void setMaterialMemory(const QString& text);
 
 signals:
     /** Any control changed by the user (what changed: SettingsModel's signals). */
@@ -71,6 +88,7 @@ signals:
 private:
     void addOutputRows(QFormLayout* form);
     void addEffectRows(QFormLayout* form);
+    void addPolychromaticRows(QFormLayout* form);
     void connectControls();
     /** μ water readout and the beam controls' enabling. */
     void updateBeam();
@@ -83,6 +101,15 @@ private:
     QDoubleSpinBox* m_sharpen = nullptr;
     QDoubleSpinBox* m_sharpenRadius = nullptr;
     QDoubleSpinBox* m_bandLimit = nullptr;
+    QDoubleSpinBox* m_kvp = nullptr;
+    QDoubleSpinBox* m_filtrationAl = nullptr;
+    QDoubleSpinBox* m_filtrationCu = nullptr;
+    QComboBox* m_detector = nullptr;
+    QDoubleSpinBox* m_csi = nullptr;
+    QDoubleSpinBox* m_noise = nullptr;
+    QComboBox* m_show = nullptr;
+    QLabel* m_materialMemory = nullptr;
+    QFormLayout* m_form = nullptr;
 };
 
 } // namespace fvr::ui

@@ -1,0 +1,57 @@
+#pragma once
+/** Polychromatic rendering: one spectrum per material (the same preprocessing, kernel and voxel
+ *  model as a monochromatic study), per frame one slice and inverse transform per material, then
+ *  the spectral sum (polychromatic.h). Fourier rendering is linear, so each material's image is
+ *  its exact line integral up to the renderer's own interpolation error. */
+#include <memory>
+#include <vector>
+
+#include <fvr/core/render/preprocess.h>
+#include <fvr/core/render/renderer.h>
+#include <fvr/core/thread_pool.h>
+#include <fvr/core/volume.h>
+#include <fvr/core/xray/polychromatic.h>
+
+namespace fvr::core {
+
+/** One volume per material of the mapping, each voxel the material's density rho_m (g/cm^3)
+ *  from the CT number (MaterialDecomposer); `hu` must hold Hounsfield units (SettingsError
+ *  otherwise). Memory: materials x the volume. */
+std::vector<Volume> materialVolumes(const Volume& hu, const MaterialMapping& mapping,
+                                    ThreadPool* pool = nullptr);
+
+/** Preprocesses each material volume with the same options (Raw mapping: the line integrals
+ *  are rho x mm; the polychromatic renderer turns them into g/cm^2). Progress spans all of them.
+ *  Memory: one spectrum per material (spectrumBytes(padded) each). */
+std::vector<std::shared_ptr<const Spectrum>> preprocessMaterials(
+    const Volume& hu, const MaterialMapping& mapping, PreprocessOptions options,
+    const ProgressFn& progress = {}, const CancelToken* cancel = nullptr);
+
+/** What the polychromatic frame returns besides I/I0. */
+struct PolychromaticFrame {
+    ProjectionImage transmission; ///< I/I0 (noisy when noise is on)
+    std::vector<ProjectionImage> massThickness; ///< rhoL_m in g/cm^2, per material
+    double spectralSumMs = 0.0;
+};
+
+/** Renders with one renderer per material, then applies the response (and noise). */
+class PolychromaticRenderer {
+public:
+    PolychromaticRenderer(std::vector<std::unique_ptr<Renderer>> perMaterial,
+                          std::shared_ptr<const SpectralResponse> response, int threads = 0);
+    /** Swaps the response (kVp, filtration, detector): no preprocessing again. */
+    void setResponse(std::shared_ptr<const SpectralResponse> response);
+    const SpectralResponse& response() const { return *m_response; }
+    std::size_t materials() const { return m_renderers.size(); }
+
+    /** The frame; times (if given) sum the materials' stages, and totalMs includes the sum. */
+    PolychromaticFrame render(const RenderParams& params, const NoiseModel& noise = {},
+                              StageTimes* times = nullptr);
+
+private:
+    std::vector<std::unique_ptr<Renderer>> m_renderers;
+    std::shared_ptr<const SpectralResponse> m_response;
+    ThreadPool m_pool;
+};
+
+} // namespace fvr::core
