@@ -109,12 +109,18 @@ screenshots: build
 	 convert view1.png view2.png -crop "$$crop" +repage -bordercolor black -border 24 +append \
 	   "$(abspath $(SCREENSHOT_DIR))/voxel-models.png"
 	@rm -rf "$(SHOT_CONFIG)"
+	@# Polychromatic: the chest phantom AP at 70 and 120 kVp (TASMIP + 1.5 mm Al, CsI-free ideal
+	@# energy-integrating detector), -ln(I/I0) each at its own auto window, bone white.
+	@for k in 70 120; do $(BUILD_DIR)/app/fvr-render phantom:chest --view AP --kvp $$k \
+	   --filtration-al 1.5 --size 512 --out $(BUILD_DIR)/kvp-$$k.png 2>/dev/null || exit 1; done
+	@convert $(BUILD_DIR)/kvp-70.png $(BUILD_DIR)/kvp-120.png -trim +repage -bordercolor black \
+	   -border 16 +append $(SCREENSHOT_DIR)/kvp-70-120.png
 	@# The PACS dialog after a search and a retrieve from a real Orthanc (the UI test grabs it).
 	@rm -f $(BUILD_DIR)/tests/tmp/pacs-dialog.png
 	@cd $(BUILD_DIR) && QT_QPA_PLATFORM=xcb xvfb-run -a -s "-screen 0 1280x1024x24" \
 	  ./tests/fvr_ui_tests --gtest_filter='PacsWorkstation.FindRetrieveOpenAndSendBack' >/dev/null
 	@cp $(BUILD_DIR)/tests/tmp/pacs-dialog.png $(SCREENSHOT_DIR)/pacs.png
-	@ls -l $(SCREENSHOT_DIR)/pacs.png $(SCREENSHOT_DIR)/voxel-models.png $(SCREENSHOT_DIR)/first-image.png $(SCREENSHOT_DIR)/workstation.png \
+	@ls -l $(SCREENSHOT_DIR)/pacs.png $(SCREENSHOT_DIR)/kvp-70-120.png $(SCREENSHOT_DIR)/voxel-models.png $(SCREENSHOT_DIR)/first-image.png $(SCREENSHOT_DIR)/workstation.png \
 	  $(SCREENSHOT_DIR)/xray-film.png
 
 clean:
