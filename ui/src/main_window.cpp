@@ -12,8 +12,10 @@
 #include <QMimeData>
 #include <QProgressBar>
 #include <QPushButton>
+#include <QScrollArea>
 #include <QSettings>
 #include <QStatusBar>
+#include <QStyle>
 
 #include <algorithm>
 #include <cmath>
@@ -148,7 +150,16 @@ void MainWindow::buildDocks() {
         dock(tr("Rendering"), "dock.rendering", m_rendering, Qt::RightDockWidgetArea);
     QDockWidget* displayDock =
         dock(tr("Display"), "dock.display", m_display, Qt::RightDockWidgetArea);
-    QDockWidget* xrayDock = dock(tr("X-ray"), "dock.xray", m_xray, Qt::RightDockWidgetArea);
+    // The X-ray panel (its polychromatic rows) scrolls where it is taller than the space, instead
+    // of making the window taller than the screen; as wide as the panel needs.
+    auto* xrayScroll = new QScrollArea(this);
+    xrayScroll->setWidget(m_xray);
+    xrayScroll->setWidgetResizable(true);
+    xrayScroll->setFrameShape(QFrame::NoFrame);
+    xrayScroll->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+    xrayScroll->setMinimumWidth(m_xray->minimumSizeHint().width() +
+                                style()->pixelMetric(QStyle::PM_ScrollBarExtent));
+    QDockWidget* xrayDock = dock(tr("X-ray"), "dock.xray", xrayScroll, Qt::RightDockWidgetArea);
     tabifyDockWidget(displayDock, xrayDock);
     displayDock->raise();
     QDockWidget* msgDock =
