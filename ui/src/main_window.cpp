@@ -159,6 +159,9 @@ void MainWindow::buildDocks() {
     xrayScroll->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
     xrayScroll->setMinimumWidth(m_xray->minimumSizeHint().width() +
                                 style()->pixelMetric(QStyle::PM_ScrollBarExtent));
+    // Tall enough for the panel without its polychromatic rows (hidden until that output is
+    // chosen): only those scroll.
+    xrayScroll->setMinimumHeight(m_xray->minimumSizeHint().height());
     QDockWidget* xrayDock = dock(tr("X-ray"), "dock.xray", xrayScroll, Qt::RightDockWidgetArea);
     tabifyDockWidget(displayDock, xrayDock);
     displayDock->raise();
