@@ -8,13 +8,17 @@ JOBS ?= $(shell nproc)
 STUDY ?=
 SHARED_DATA ?= $(abspath $(CURDIR)/../shared/data)
 
-.PHONY: all deps configure build run test bench bench-gpu gpu-kit package sanitize format \
+.PHONY: all deps test-deps configure build run test bench bench-gpu gpu-kit package sanitize format \
   format-check screenshots clean
 
 all: build
 
 deps:
 	@bash packaging/install-deps.sh
+
+# What only the tests need besides (Orthanc, pytest, Dask, Zarr).
+test-deps:
+	@bash packaging/install-deps.sh --tests
 
 configure: deps
 	@cmake -S . -B $(BUILD_DIR) -G Ninja -DCMAKE_BUILD_TYPE=$(BUILD_TYPE) \
@@ -29,7 +33,7 @@ build: configure
 run: build
 	@$(BUILD_DIR)/app/fvr-workstation $(STUDY)
 
-test: build
+test: test-deps build
 	@cd $(BUILD_DIR) && xvfb-run -a -s "-screen 0 1280x1024x24" \
 	  ctest --output-on-failure --parallel $(JOBS) --timeout 900
 
@@ -53,7 +57,7 @@ gpu-kit: build
 	@bash packaging/gpu-kit/make_kit.sh $(BUILD_DIR) $(BUILD_DIR)/gpu-kit $(BUILD_DIR)/fvr-gpu-kit.tar.gz
 
 # Loaders and tests under AddressSanitizer + UndefinedBehaviorSanitizer.
-sanitize: deps
+sanitize: deps test-deps
 	@cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFVR_SANITIZE=ON \
 	  -DFVR_BUILD_BENCH=OFF -DFVR_BUILD_GUI=OFF -DFVR_SHARED_DATA_DIR=$(SHARED_DATA) > /dev/null
 	@cmake --build build-asan --parallel $(JOBS)

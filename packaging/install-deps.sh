@@ -1,5 +1,8 @@
 #!/usr/bin/env bash
-# Installs what a fresh Debian 12 machine lacks to build, test and run FVR Workstation.
+# Installs what a fresh Debian 12 machine lacks to build and run FVR Workstation; with --tests,
+# also what only the tests need (make test): a real PACS (Orthanc; Debian starts its service,
+# which the tests never use: `systemctl disable --now orthanc` if you do not want it), pytest,
+# and Dask and Zarr for the dataset tests.
 # Non-interactive and idempotent: packages already present are not touched, apt is not even
 # called when nothing is missing. Uses sudo only when not running as root.
 set -euo pipefail
@@ -13,9 +16,14 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev clang-format
   xvfb xauth libgl1-mesa-dri libegl-mesa0
-  pybind11-dev python3-dev python3-numpy python3-pytest python3-distributed python3-zarr
-  orthanc # the real PACS the pacs tests start on their own ports (its service is not used)
+  pybind11-dev python3-dev python3-numpy
 )
+if [ "${1:-}" = "--tests" ]; then
+  packages+=(
+    orthanc # the real PACS the pacs tests start on their own ports (its service is not used)
+    python3-pytest python3-distributed python3-zarr
+  )
+fi
 
 missing=()
 for p in "${packages[@]}"; do
