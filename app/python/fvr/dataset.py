@@ -117,10 +117,20 @@ def _add_record(sidecar: Path, record: dict, replace: Optional[tuple] = None) ->
     os.replace(tmp, sidecar)
 
 
+def _require(module: str, package: str, what: str):
+    """Imports `module`, or stops with what to install (Debian's package) instead of a traceback."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        sys.exit(f"fvr.dataset: {what} needs {module} (Debian: apt install {package})")
+
+
 def _to_zarr(npy: Path, target: Path) -> None:
     import shutil
 
-    import zarr
+    zarr = _require("zarr", "python3-zarr", "--format zarr")
 
     stack = np.load(npy, mmap_mode="r")
     part = target.with_name(target.name + ".part")
@@ -168,7 +178,9 @@ def _log(result: dict, done: int, total: int) -> None:
 
 
 def _client(scheduler: Optional[str], workers: int, processes: bool):
-    from dask.distributed import Client, LocalCluster
+    distributed = _require("dask.distributed", "python3-distributed",
+                           "a cluster (--scheduler, or --workers N > 0; --workers 0 needs none)")
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
 
     if scheduler:
         return Client(scheduler), None
