@@ -1139,6 +1139,10 @@ TEST_F(Workstation, PolychromaticOutputRendersTheMaterialsWithoutPreprocessingAg
     const auto source = v->polychromatic();
     ASSERT_EQ(source->spectra.size(), 3u);
     const auto shown = *v->projection(); // -ln(I/I0)
+    // The fixture's views render on the (software) GPU: so does the spectral sum, in one compute
+    // pass over the material frames (no read-back per material).
+    EXPECT_EQ(v->polychromaticOnGpu(), v->usingGpu());
+    std::printf("[ui-poly] spectral sum on the %s\n", v->polychromaticOnGpu() ? "GPU" : "CPU");
     // The reference: the same material spectra rendered here, the exact double sum per pixel.
     const core::RenderParams params = v->renderParams(v->settings().size, v->settings().kernel);
     std::vector<core::ProjectionImage> rhoL;

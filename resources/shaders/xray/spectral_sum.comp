@@ -3,7 +3,7 @@
 // pixel the material mass thicknesses rhoL_m (the material frames' line integrals in rho x mm,
 // times uUnit = 0.1 -> g/cm^2, clamped at >= 0) index the response's table (same layout and
 // bilinear interpolation, linear beyond its end): g = -ln(I/I0). Writes I/I0 (uOutput 0),
-// -ln(I/I0) (1) or material uShow's rhoL in g/cm^2 (2). MATERIALS (1..5) frames at bindings 1..5.
+// -ln(I/I0) (1) or material uShow's rhoL in g/cm^2 (2, not clamped). MATERIALS (1..5) frames at bindings 1..5.
 layout(local_size_x = 256) in;
 uniform int uCount;
 uniform int uN;
@@ -35,7 +35,7 @@ layout(std430, binding = 4) readonly buffer M3 { float m3[]; };
 layout(std430, binding = 5) readonly buffer M4 { float m4[]; };
 #endif
 
-float rhoL(int m, int p) {
+float raw(int m, int p) {
     float v = m0[p];
 #if MATERIALS > 1
     if (m == 1) v = m1[p];
@@ -49,14 +49,16 @@ float rhoL(int m, int p) {
 #if MATERIALS > 4
     if (m == 4) v = m4[p];
 #endif
-    return max(0.0, v * uUnit);
+    return v * uUnit;
 }
+
+float rhoL(int m, int p) { return max(0.0, raw(m, p)); }
 
 void main() {
     int p = int(gl_GlobalInvocationID.x);
     if (p >= uCount) return;
     if (uOutput == 2) {
-        outValue[p] = rhoL(uShow, p);
+        outValue[p] = raw(uShow, p); // as the CPU shows it: not clamped
         return;
     }
     float x = rhoL(uAxisX, p);

@@ -84,7 +84,7 @@ public:
      *  last frames of `materials` (one renderer per material of `response`, same size; this one
      *  may be among them) where they lie, evaluates the response's table in one compute pass
      *  (SpectralResponse::lookup: same layout and interpolation) and writes I/I0, -ln(I/I0) or
-     *  material `show`'s rhoL (g/cm^2) into this renderer's image: readback() and
+     *  material `show`'s rhoL (g/cm^2, unclamped) into this renderer's image: readback() and
      *  displayTexture() then show it. No read-back per material. Throws SettingsError. */
     void spectralSum(const std::vector<const GpuFourierRenderer*>& materials,
                      const std::shared_ptr<const core::SpectralResponse>& response,
