@@ -151,6 +151,10 @@ private:
     int m_ny = 1;
     /** Per grid node (x fastest): -ln(I/I0), then deltabar of each other material. */
     std::vector<float> m_nodes;
+    /** The same per cell (with a y axis), for the CPU's walk: per cell (x fastest) and value
+     *  the bilinear coefficients {a, b, c, d}, v = a + b tx + c ty + d tx ty: one cache line
+     *  per pixel instead of two rows. */
+    std::vector<float> m_cells;
     std::vector<int> m_others;
     std::vector<double> m_scale; ///< per other material: c in mu_m ~ c mu_x + residual
 };
