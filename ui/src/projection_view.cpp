@@ -310,7 +310,7 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
 }
 
 void ProjectionView::renderFrame(const core::RenderParams& params, int level) {
-    m_polyOnGpu = false;
+    m_polyOnGpu = m_polySumOnGpu = false;
     if (m_poly && !m_poly->spectra.empty()) {
         if (m_gpu && renderPolychromaticOnGpu(params)) return;
         core::StageTimes t;

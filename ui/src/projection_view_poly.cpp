@@ -2,13 +2,17 @@
 // and one compute pass evaluates the spectral response into the frame the view shows.
 #include <QOpenGLContext>
 
+#include <cmath>
+
 #include <fvr/gpu/gpu_renderer.h>
 #include <fvr/ui/projection_view.h>
 
 namespace fvr::ui {
 
 bool ProjectionView::renderPolychromaticOnGpu(const core::RenderParams& params) {
-    if (m_poly->noise.active() || m_poly->spectra.size() > 5) return false; // noise: on the CPU
+    if (m_poly->spectra.size() > 5) return false;
+    // Noise (on -ln(I/I0) only) is drawn on the CPU: then I/I0 is read back once.
+    const bool noisy = m_poly->noise.active() && m_poly->show < 0;
     try {
         if (m_polyGpuSpectra != m_poly->spectra) {
             m_polyGpu.resize(m_poly->spectra.size());
@@ -35,8 +39,18 @@ bool ProjectionView::renderPolychromaticOnGpu(const core::RenderParams& params) 
         using Output = gpu::GpuFourierRenderer::SpectralOutput;
         const bool material = m_poly->show >= 0;
         m_polyGpu.front()->spectralSum(frames, m_poly->response,
-                                       material ? Output::Material : Output::NegativeLog,
+                                       noisy ? Output::Transmission
+                                             : (material ? Output::Material : Output::NegativeLog),
                                        std::max(0, m_poly->show));
+        m_cpuImage.reset();
+        if (noisy) {
+            core::ProjectionImage img = m_polyGpu.front()->readback();
+            core::NoiseModel n = m_poly->noise;
+            n.pixelAreaMm2 = params.image.pixelSize * params.image.pixelSize;
+            core::applyQuantumNoise(img.pixels, core::unattenuatedQuanta(*m_poly->response, n), n);
+            for (float& v : img.pixels) v = float(-std::log(std::max(1e-30, double(v))));
+            m_cpuImage = std::move(img); // shown through the CPU image's texture
+        }
         m_stats.sliceMs = sum.sliceMs;
         m_stats.inverseMs = sum.inverseMs;
         m_stats.totalMs = sum.totalMs;
@@ -49,9 +63,9 @@ bool ProjectionView::renderPolychromaticOnGpu(const core::RenderParams& params) 
                        .arg(QString::fromUtf8(e.what()));
         return false;
     }
-    m_polyOnGpu = true;
+    m_polyOnGpu = !noisy; // the shown frame is the GPU's (else the noisy read-back)
+    m_polySumOnGpu = true;
     m_gpuTimesPending = false;
-    m_cpuImage.reset();
     return true;
 }
 
