@@ -1,6 +1,8 @@
 // fvr-render's renderer factory: the only FVR_HAVE_GPU branches of the program.
 #include "backend.h"
 
+#include <chrono>
+
 #include <cstdio>
 
 #include <fvr/core/render/cpu_batch.h>
@@ -172,6 +174,7 @@ public:
     }
     std::string describe() const override { return m_renderer->describe(); }
     bool isGpu() const override { return true; }
+    fvr::gpu::GpuFourierRenderer& gpu() { return *m_renderer; }
 
 private:
     std::shared_ptr<fvr::gpu::EglContext> m_context;
@@ -224,6 +227,43 @@ std::vector<std::unique_ptr<core::Renderer>> makeMaterialRenderers(
         out.push_back(std::make_unique<core::CpuFourierRenderer>(s, o.threads));
     name = "cpu";
     return out;
+}
+
+PolychromaticFrameFn gpuPolychromaticFrames(
+    [[maybe_unused]] const std::vector<std::unique_ptr<core::Renderer>>& renderers,
+    [[maybe_unused]] std::shared_ptr<const core::SpectralResponse> response) {
+#ifdef FVR_HAVE_GPU
+    std::vector<fvr::gpu::GpuFourierRenderer*> gpus;
+    for (const auto& r : renderers)
+        if (auto* g = dynamic_cast<SharedContextRenderer*>(r.get())) gpus.push_back(&g->gpu());
+    if (gpus.empty() || gpus.size() != renderers.size()) return {};
+    return [gpus, response](const core::RenderParams& p, const core::NoiseModel& noise,
+                            bool materials) {
+        core::PolychromaticFrame f;
+        for (auto* g : gpus) g->renderToGpu(p);
+        if (materials)
+            for (auto* g : gpus) {
+                f.massThickness.push_back(g->readback());
+                for (float& v : f.massThickness.back().pixels) v *= 0.1f; // -> g/cm^2
+            }
+        gpus.back()->lastTimes(); // waits for the material frames
+        const auto t0 = std::chrono::steady_clock::now();
+        gpus.front()->spectralSum({gpus.begin(), gpus.end()}, response);
+        f.transmission = gpus.front()->readback();
+        f.spectralSumMs =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                .count(); // with the read-back of I/I0
+        if (noise.active()) {
+            core::NoiseModel n = noise;
+            n.pixelAreaMm2 = p.image.pixelSize * p.image.pixelSize;
+            core::applyQuantumNoise(f.transmission.pixels, core::unattenuatedQuanta(*response, n),
+                                    n);
+        }
+        return f;
+    };
+#else
+    return {};
+#endif
 }
 
 nlohmann::json gpuInfoJson() {

@@ -10,6 +10,7 @@
 
 #include <fvr/core/render/renderer.h>
 #include <fvr/core/render/spectrum.h>
+#include <fvr/core/xray/polychromatic_render.h>
 
 #include "options.h"
 
@@ -55,6 +56,16 @@ std::unique_ptr<RenderBackend> makeRenderBackend(const Options& o,
 std::vector<std::unique_ptr<core::Renderer>> makeMaterialRenderers(
     const Options& o, const std::vector<std::shared_ptr<const core::Spectrum>>& spectra,
     std::string& name);
+
+/** A polychromatic frame: I/I0 (noise applied) and, with `materials`, the rhoL images. */
+using PolychromaticFrameFn = std::function<core::PolychromaticFrame(
+    const core::RenderParams&, const core::NoiseModel&, bool materials)>;
+/** Where the material renderers are GPU ones (makeMaterialRenderers): frames whose spectral sum
+ *  runs on the GPU over the material frames where they lie (one read-back of I/I0; the
+ *  materials read back only when asked). Empty for CPU renderers. */
+PolychromaticFrameFn gpuPolychromaticFrames(
+    const std::vector<std::unique_ptr<core::Renderer>>& renderers,
+    std::shared_ptr<const core::SpectralResponse> response);
 
 /** --gpu-info: {"available", "reason" (when not), "eglClientExtensions", "devices": [{"index",
  *  "name", "drmFile", "software", "nvidia", "extensions"}], "chosen": {"device" (-1:

@@ -87,7 +87,7 @@ struct RenderedViews {
 
 /** Renders and writes every view (several .npy views: one (n, M, M) stack, as without --kvp,
  *  unless --numbered); each view has its own noise seed (seed + view index). */
-RenderedViews renderViews(const Options& o, PolychromaticRenderer& poly,
+RenderedViews renderViews(const Options& o, const PolychromaticFrameFn& frame,
                           const std::vector<ViewFrame>& views, const ImageGeometry& geometry,
                           const NoiseModel& noise) {
     RenderedViews out;
@@ -106,7 +106,7 @@ RenderedViews renderViews(const Options& o, PolychromaticRenderer& poly,
         p.filter = o.filter;
         NoiseModel n = noise;
         n.seed = o.seed + i;
-        const PolychromaticFrame f = poly.render(p, n);
+        const PolychromaticFrame f = frame(p, n, !o.materialOut.empty());
         out.spectralSumMs += f.spectralSumMs / double(views.size());
         if (stack)
             stack->add(f.transmission.pixels.data());
@@ -146,11 +146,19 @@ int renderPolychromatic(const Options& o, const Volume& volume,
     const double preprocessMs = msSince(t0);
     const int threads = o.threads > 0 ? o.threads : hardwareThreads();
     std::string backendName;
-    PolychromaticRenderer poly(makeMaterialRenderers(o, spectra, backendName), response, threads);
+    auto renderers = makeMaterialRenderers(o, spectra, backendName);
+    // On the GPU the spectral sum runs there too (one read-back per view); else on the CPU.
+    PolychromaticFrameFn frame = gpuPolychromaticFrames(renderers, response);
+    const bool gpuSum = bool(frame);
+    PolychromaticRenderer poly(std::move(renderers), response, threads);
+    if (!frame)
+        frame = [&poly](const RenderParams& p, const NoiseModel& n, bool) {
+            return poly.render(p, n);
+        };
     const double d =
         o.pixelSize ? *o.pixelSize : defaultPixelSize(volume.dims, volume.spacing, o.size);
     const NoiseModel noise{o.noiseMas, 1000.0, d * d, o.electronicNoise, o.seed};
-    const RenderedViews rendered = renderViews(o, poly, views, {o.size, d}, noise);
+    const RenderedViews rendered = renderViews(o, frame, views, {o.size, d}, noise);
     const WrittenOutput output{"I/I0 (polychromatic, relative to the unattenuated beam)",
                                rendered.stacked, rendered.files, preprocessMs, rendered.msPerView};
     Json j =
@@ -163,6 +171,7 @@ int renderPolychromatic(const Options& o, const Volume& volume,
         double(spectra.front()->bytes()) * double(spectra.size()) / (1 << 20);
     j["settings"]["polychromatic"] = polychromaticJson(o, spectrum, *response, noise);
     j["output"]["spectral_sum_ms_per_view"] = rendered.spectralSumMs;
+    j["output"]["spectral_sum_on"] = gpuSum ? "gpu" : "cpu";
     writeFileAtomic(o.out + ".json", jsonText(j));
     std::fprintf(stderr,
                  "wrote %s (%zu view%s, %dx%d, %g kVp, %zu materials, I/I0; %.2f ms per view)\n",

@@ -95,6 +95,8 @@ void GpuFourierRenderer::releaseGl() {
     del(m_image);
     del(m_hartleyT);
     del(m_filterAxis);
+    del(m_table);
+    m_tableFor.reset();
     releaseTexture();
     if (m_display) glDeleteTextures(1, &m_display);
     m_display = 0;
@@ -687,6 +689,8 @@ int GpuFourierRenderer::compileAll(int M) {
     program("fft/hartley_correct.comp", {}), ++count;
     program("fft/hartley_correct.comp", {{"FUSED_DISPLAY", "1"}}), ++count;
     program("display/display.comp", {}), ++count;
+    for (const char* k : {"1", "2", "3", "4", "5"})
+        program("xray/spectral_sum.comp", {{"MATERIALS", k}}), ++count;
     return count;
 }
 

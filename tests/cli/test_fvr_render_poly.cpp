@@ -125,7 +125,7 @@ TEST(FvrRenderPoly, BadOptionsNameTheOption) {
                 "--material-out");
 }
 
-TEST(FvrRenderPoly, GpuMaterialFramesMatchTheCpu) {
+TEST(FvrRenderPoly, GpuMaterialFramesAndSpectralSumMatchTheCpu) {
     const std::string args = kChest + " --kvp 90 --filtration-cu 0.1";
     ASSERT_EQ(render(args + " --backend cpu --out " + tmp("pcpu.npy")).status, 0);
     const auto r = render(args + " --backend gpu --out " + tmp("pgpu.npy"));
@@ -133,6 +133,7 @@ TEST(FvrRenderPoly, GpuMaterialFramesMatchTheCpu) {
     std::ifstream in(tmp("pgpu.npy.json"));
     const auto j = nlohmann::json::parse(in);
     if (j["settings"]["backend"] == "cpu") GTEST_SKIP() << "no OpenGL 4.3 here: " << r.out;
+    EXPECT_EQ(j["output"]["spectral_sum_on"], "gpu"); // the sum runs where the frames lie
     std::vector<std::int64_t> s;
     const auto a = load(tmp("pcpu.npy"), s), b = load(tmp("pgpu.npy"), s);
     double worst = 0.0;

@@ -1139,6 +1139,10 @@ TEST_F(Workstation, PolychromaticOutputRendersTheMaterialsWithoutPreprocessingAg
     const auto source = v->polychromatic();
     ASSERT_EQ(source->spectra.size(), 3u);
     const auto shown = *v->projection(); // -ln(I/I0)
+    // The fixture's views render on the (software) GPU: so does the spectral sum, in one compute
+    // pass over the material frames (no read-back per material).
+    EXPECT_EQ(v->polychromaticOnGpu(), v->usingGpu());
+    std::printf("[ui-poly] spectral sum on the %s\n", v->polychromaticOnGpu() ? "GPU" : "CPU");
     // The reference: the same material spectra rendered here, the exact double sum per pixel.
     const core::RenderParams params = v->renderParams(v->settings().size, v->settings().kernel);
     std::vector<core::ProjectionImage> rhoL;
@@ -1187,6 +1191,32 @@ TEST_F(Workstation, PolychromaticOutputRendersTheMaterialsWithoutPreprocessingAg
         softWorst =
             std::max(softWorst, double(std::abs(soft.pixels[p] - 0.1f * rhoL[1].pixels[p])));
     EXPECT_LT(softWorst, 1e-4);
+    // Quantum noise on -ln(I/I0) (on the GPU view: I/I0 read back once, the noise drawn on the
+    // CPU): z = (noisy - I) / sqrt(I / quanta) has mean 0 and variance 1 (Poisson in quanta).
+    x->showCombo()->setCurrentIndex(x->showCombo()->findData(-1));
+    x->noiseSpin()->setValue(0.05);
+    ASSERT_TRUE(QTest::qWaitFor([&] {
+        return v->polychromatic()->show == -1 && v->polychromatic()->noise.active() && polyReady();
+    }));
+    EXPECT_EQ(v->polychromaticOnGpu(), v->usingGpu());
+    const auto noisy = *v->projection();
+    core::NoiseModel n = v->polychromatic()->noise;
+    n.pixelAreaMm2 = params.image.pixelSize * params.image.pixelSize;
+    const double quanta = core::unattenuatedQuanta(*v->polychromatic()->response, n);
+    double zSum = 0.0, z2Sum = 0.0;
+    for (std::size_t p = 0; p < noisy.pixels.size(); ++p) {
+        const double d[3] = {0.1 * rhoL[0].pixels[p], 0.1 * rhoL[1].pixels[p],
+                             0.1 * rhoL[2].pixels[p]};
+        const double i = v->polychromatic()->response->exact(d);
+        const double z = (std::exp(-double(noisy.pixels[p])) - i) / std::sqrt(i / quanta);
+        zSum += z;
+        z2Sum += z * z;
+    }
+    const double count = double(noisy.pixels.size());
+    std::printf("[ui-poly] noise: %.0f quanta per pixel, z mean %.4f, variance %.4f\n", quanta,
+                zSum / count, z2Sum / count);
+    EXPECT_NEAR(zSum / count, 0.0, 0.05);
+    EXPECT_NEAR(z2Sum / count, 1.0, 0.05);
     // Back to line integrals: the views render their own spectrum again.
     x->outputCombo()->setCurrentIndex(
         x->outputCombo()->findData(int(ui::XrayOutput::LineIntegrals)));

@@ -74,18 +74,54 @@ TEST(TubeSpectrum, HalfValueLayerOfOneEnergyIsLn2OverMu) {
     EXPECT_NEAR(airMassEnergyAbsorption(60.0), 3.041e-02, 1e-12);
 }
 
+/** The aluminium-equivalent filtration of a tungsten spectrum: the t of Kramers' thick-target
+ *  law N(E) ~ (kV - E) / E exp(-(mu/rho)_Al(E) rho_Al t) fitted (log least squares) to the
+ *  spectrum over 15..55 keV (between the L and K lines). It includes the anode's
+ *  self-absorption, so it is an upper estimate of the filtration of the tube's materials. */
+double kramersFiltrationAlMm(const TubeSpectrum& s) {
+    double sx = 0.0, sy = 0.0, sxx = 0.0, sxy = 0.0;
+    int n = 0;
+    for (std::size_t i = 0; i < s.bins(); ++i) {
+        const double e = s.keV[i];
+        if (e < 15.0 || e > 55.0 || !(s.fluence[i] > 0.0)) continue;
+        const double x = -massAttenuation("Al", e) * kAluminiumDensity / 10.0; // per mm
+        const double y = std::log(s.fluence[i] * e / (s.kvp - e));
+        sx += x, sy += y, sxx += x * x, sxy += x * y, ++n;
+    }
+    return (n * sxy - sx * sy) / (n * sxx - sx * sx);
+}
+
 TEST(TubeSpectrum, HalfValueLayersOfTheIecRqrQualities) {
-    // IEC 61267 RQR5..RQR9: first HVL 2.6 / 3.0 / 3.5 / 4.0 / 5.0 mm Al at 70..120 kV, realised
-    // with about 2.5 mm Al total filtration: TASMIP's tube (inherent filtration about 1 mm Al)
-    // plus 1.5 mm Al.
-    const double kv[] = {70, 80, 90, 100, 120}, hvl[] = {2.6, 3.0, 3.5, 4.0, 5.0};
+    // IEC 61267:2005, Table 2 (RQR 5..9): first HVL 2.58 / 3.01 / 3.48 / 3.97 / 5.00 mm Al at
+    // 70 / 80 / 90 / 100 / 120 kV (2.6 / 3.0 / 3.5 / 4.0 / 5.0 rounded, as calibration
+    // laboratories list them) and homogeneity coefficient h = HVL1 / HVL2 of 0.71 / 0.69 / 0.68 /
+    // 0.68 / 0.68, within +-0.03. The standard fixes no filter: a laboratory adds Al to its tube
+    // until it gives the table's HVL1, then checks h. We do the same with TASMIP's tube: solve the
+    // added Al that gives HVL1 (to 1e-6 mm), then check the spectrum's shape independently:
+    // (a) h of the same spectrum within the standard's +-0.03; (b) the filtration is physically
+    // plausible: the added Al lies between 1 and 3 mm, and the total Al-equivalent filtration
+    // (Kramers fit, anode included) is at least the 2.5 mm Al of IEC 60601-1-3 and below 5 mm.
+    const double kv[] = {70, 80, 90, 100, 120}, hvl1[] = {2.58, 3.01, 3.48, 3.97, 5.00};
+    const double h[] = {0.71, 0.69, 0.68, 0.68, 0.68};
     for (int i = 0; i < 5; ++i) {
-        const double h = halfValueLayerAlMm(tubeSpectrum(kv[i], 1.5));
-        std::printf("[phys] RQR %g kV: HVL %.3f mm Al (IEC %.1f, %+.1f %%)\n", kv[i], h, hvl[i],
-                    100.0 * (h / hvl[i] - 1.0));
-        // TASMIP's HVL rises more slowly with kV than the RQR series (which real tubes reach
-        // with more filtration at higher kV): 120 kV lies 8 % below; see README.
-        EXPECT_NEAR(h, hvl[i], (kv[i] < 110 ? 0.05 : 0.10) * hvl[i]) << kv[i] << " kV";
+        double lo = 0.0, hi = 20.0; // HVL1 grows with the added Al
+        while (hi - lo > 1e-6) {
+            const double mid = 0.5 * (lo + hi);
+            (halfValueLayerAlMm(tubeSpectrum(kv[i], mid)) < hvl1[i] ? lo : hi) = mid;
+        }
+        const double al = 0.5 * (lo + hi);
+        const TubeSpectrum s = tubeSpectrum(kv[i], al);
+        const double first = halfValueLayerAlMm(s), second = secondHalfValueLayerAlMm(s);
+        const double total = kramersFiltrationAlMm(s);
+        std::printf("[phys] RQR %g kV: + %.2f mm Al (total ~%.2f) gives HVL1 %.3f, HVL2 %.3f mm "
+                    "Al, h %.3f (IEC %.2f)\n",
+                    kv[i], al, total, first, second, first / second, h[i]);
+        EXPECT_NEAR(first, hvl1[i], 1e-4 * hvl1[i]) << kv[i] << " kV";
+        EXPECT_NEAR(first / second, h[i], 0.03) << kv[i] << " kV";
+        EXPECT_GT(al, 1.0) << kv[i] << " kV";
+        EXPECT_LT(al, 3.0) << kv[i] << " kV";
+        EXPECT_GE(total, 2.5) << kv[i] << " kV";
+        EXPECT_LT(total, 5.0) << kv[i] << " kV";
     }
 }
 

@@ -58,6 +58,9 @@ ProjectionView::~ProjectionView() {
 void ProjectionView::releaseGl() {
     if (!m_glReady) return;
     m_gpu.reset();
+    m_polyGpu.clear();
+    m_polyGpuSpectra.clear();
+    m_polyOnGpu = false;
     m_quad.reset();
     m_vao.reset();
     if (m_cpuTexture) context()->functions()->glDeleteTextures(1, &m_cpuTexture);
@@ -231,6 +234,9 @@ void ProjectionView::initializeGL() {
 
 void ProjectionView::chooseRenderer() {
     m_gpu.reset();
+    m_polyGpu.clear();
+    m_polyGpuSpectra.clear();
+    m_polyOnGpu = false;
     m_cpu.reset();
     m_spectrumDirty = true;
     m_renderDirty = true;
@@ -304,7 +310,9 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
 }
 
 void ProjectionView::renderFrame(const core::RenderParams& params, int level) {
+    m_polyOnGpu = m_polySumOnGpu = false;
     if (m_poly && !m_poly->spectra.empty()) {
+        if (m_gpu && renderPolychromaticOnGpu(params)) return;
         core::StageTimes t;
         m_cpuImage = renderPolychromatic(params, &t);
         m_stats.sliceMs = t.sliceMs;
@@ -314,6 +322,8 @@ void ProjectionView::renderFrame(const core::RenderParams& params, int level) {
         m_stats.displayFused = false;
         return;
     }
+    m_polyGpu.clear(); // the material frames' GPU memory goes with the polychromatic output
+    m_polyGpuSpectra.clear();
     if (m_gpu) {
         // With a window already set (and no difference to map), the last pass of the inverse
         // transform also writes the display texture; paintGL's displayTexture() then costs nothing.
@@ -334,8 +344,9 @@ void ProjectionView::renderFrame(const core::RenderParams& params, int level) {
 }
 
 void ProjectionView::subtractReference() {
-    auto own =
-        m_gpu && !m_poly ? std::optional<core::ProjectionImage>(m_gpu->readback()) : m_cpuImage;
+    auto own = (m_gpu && !m_poly) || m_polyOnGpu
+                   ? std::optional<core::ProjectionImage>(shownGpu().readback())
+                   : m_cpuImage;
     auto ref = m_reference->projection();
     // The reference made its own context current (and released it): this view's again, or the
     // frame's texture goes to no context and the view stays empty.
@@ -354,7 +365,7 @@ void ProjectionView::subtractReference() {
 }
 
 void ProjectionView::windowFromFrame() {
-    auto img = m_cpuImage ? *m_cpuImage : m_gpu->readback();
+    auto img = m_cpuImage ? *m_cpuImage : shownGpu().readback();
     m_window = core::filmWindow(img.pixels, m_window.transmission, m_window.invert);
     m_windowSet = true;
     emit windowChanged(m_window, false);
@@ -368,8 +379,8 @@ QRectF ProjectionView::imageRect() const {
 
 GLuint ProjectionView::frameTexture() {
     if (m_gpu && !m_cpuImage) {
-        const GLuint tex = m_gpu->displayTexture(m_window);
-        const auto t = m_gpu->lastTimes();
+        const GLuint tex = shownGpu().displayTexture(m_window);
+        const auto t = shownGpu().lastTimes();
         if (m_gpuTimesPending) {
             m_stats.sliceMs = t.sliceMs;
             m_stats.inverseMs = t.inverseMs;
@@ -676,8 +687,8 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
         try {
             if (m_poly && !m_poly->spectra.empty() && m_reference)
                 img = renderPolychromatic(renderParams(m_settings.size, m_settings.kernel));
-            else if (m_gpu && !(m_poly && !m_poly->spectra.empty()))
-                img = m_gpu->readback(); // the view's own projection, also in difference mode
+            else if (m_polyOnGpu || (m_gpu && !(m_poly && !m_poly->spectra.empty())))
+                img = shownGpu().readback(); // the view's own projection, also in difference mode
             else if (m_reference && m_cpuImage)
                 img = floatRenderer().render(renderParams(m_settings.size, m_settings.kernel));
             else

@@ -239,6 +239,22 @@ void SpectralResponse::buildTables() {
             node[0] = float(exactLog(x, y, &muBar));
             for (std::size_t o = 0; o < m_others.size(); ++o) node[o + 1] = float(muBar[o]);
         }
+    m_cells.clear();
+    if (m_ny < 2) return;
+    m_cells.assign(std::size_t(n - 1) * (n - 1) * stride * 4, 0.0f);
+    for (int j = 0; j + 1 < n; ++j)
+        for (int i = 0; i + 1 < n; ++i) {
+            const float* a = m_nodes.data() + (std::size_t(j) * n + i) * stride;
+            const float* c = a + std::size_t(n) * stride;
+            float* cell = m_cells.data() + (std::size_t(j) * (n - 1) + i) * stride * 4;
+            for (int v = 0; v < stride; ++v) {
+                const float v00 = a[v], v10 = a[v + stride], v01 = c[v], v11 = c[v + stride];
+                cell[4 * v] = v00;
+                cell[4 * v + 1] = v10 - v00;
+                cell[4 * v + 2] = v01 - v00;
+                cell[4 * v + 3] = v11 - v10 - v01 + v00;
+            }
+        }
 }
 
 float SpectralResponse::lookup(const float* rhoL) const {
@@ -301,6 +317,48 @@ void walkTable(const TableWalk& t, float* out, std::int64_t begin, std::int64_t 
     for (std::int64_t p = begin; p < end; ++p) out[p] = expNegative(out[p]); // vectorised
 }
 
+/** The walk over the cell layout (a y axis): per block of pixels first the cells and weights
+ *  (vectorised), then one contiguous read of 4 x stride coefficients per pixel. */
+template <int K>
+void walkCells(const TableWalk& t, const float* cells, float* out, std::int64_t begin,
+               std::int64_t end) {
+    const int k = K >= 0 ? K : t.count, stride = K >= 0 ? K + 1 : t.stride, cellsPerRow = t.n - 1;
+    constexpr int kBlock = 256;
+    alignas(64) int cell[kBlock];
+    alignas(64) float txs[kBlock], tys[kBlock];
+    alignas(64) float zs[8][kBlock];
+    const float top = float(t.n - 2);
+    for (std::int64_t b0 = begin; b0 < end; b0 += kBlock) {
+        const int count = int(std::min<std::int64_t>(kBlock, end - b0));
+        const float* xs = t.xs + b0;
+        const float* ys = t.ys + b0;
+        for (int q = 0; q < count; ++q) {
+            float x = std::max(0.0f, xs[q]);
+            for (int o = 0; o < k; ++o) {
+                const float z = std::max(0.0f, t.others[o][b0 + q]);
+                zs[o][q] = z;
+                x += t.scale[o] * z;
+            }
+            const float u = x * t.sx, w = std::max(0.0f, ys[q]) * t.sy;
+            const float fi = std::min(float(int(u)), top), fj = std::min(float(int(w)), top);
+            txs[q] = u - fi;
+            tys[q] = w - fj;
+            cell[q] = int(fj) * cellsPerRow + int(fi);
+        }
+        for (int q = 0; q < count; ++q) {
+            const float* c = cells + std::size_t(cell[q]) * stride * 4;
+            const float tx = txs[q], ty = tys[q], txy = tx * ty;
+            float g = c[0] + c[1] * tx + c[2] * ty + c[3] * txy;
+            for (int o = 0; o < k; ++o) {
+                const float* d = c + 4 * (o + 1);
+                g += (d[0] + d[1] * tx + d[2] * ty + d[3] * txy) * zs[o][q];
+            }
+            out[b0 + q] = g;
+        }
+    }
+    for (std::int64_t p = begin; p < end; ++p) out[p] = expNegative(out[p]); // vectorised
+}
+
 } // namespace
 
 void SpectralResponse::applyRange(const std::vector<const float*>& rhoL, float* out,
@@ -321,11 +379,11 @@ void SpectralResponse::applyRange(const std::vector<const float*>& rhoL, float* 
         t.scale[o] = float(m_scale[o]);
     }
     if (t.ys && t.count == 1)
-        walkTable<1, true>(t, out, begin, end);
+        walkCells<1>(t, m_cells.data(), out, begin, end);
     else if (t.ys && t.count == 0)
-        walkTable<0, true>(t, out, begin, end);
+        walkCells<0>(t, m_cells.data(), out, begin, end);
     else if (t.ys)
-        walkTable<-1, true>(t, out, begin, end);
+        walkCells<-1>(t, m_cells.data(), out, begin, end);
     else
         walkTable<-1, false>(t, out, begin, end);
 }

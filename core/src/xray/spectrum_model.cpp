@@ -141,7 +141,9 @@ double airKerma(const TubeSpectrum& s) {
     return sum * 100.0 * kevToJ * 1000.0 * 1e6;
 }
 
-double halfValueLayerAlMm(const TubeSpectrum& s) {
+double aluminiumForKermaFractionMm(const TubeSpectrum& s, double fraction) {
+    if (!(fraction > 0.0 && fraction < 1.0))
+        throw SettingsError("half-value layer: the kerma fraction must lie in (0, 1)");
     const double k0 = airKerma(s);
     if (!(k0 > 0.0)) throw SettingsError("half-value layer: the spectrum has no air kerma");
     std::vector<double> muAl = massAttenuation("Al", s.keV);
@@ -152,14 +154,20 @@ double halfValueLayerAlMm(const TubeSpectrum& s) {
                    std::exp(-muAl[i] * kAluminiumDensity * mm / 10.0);
         return sum;
     };
-    const double half = 0.5 * kerma(0.0);
+    const double target = fraction * kerma(0.0);
     double lo = 0.0, hi = 1.0;
-    while (kerma(hi) > half) hi *= 2.0;
+    while (kerma(hi) > target) hi *= 2.0;
     while (hi - lo > 1e-6) {
         const double mid = 0.5 * (lo + hi);
-        (kerma(mid) > half ? lo : hi) = mid;
+        (kerma(mid) > target ? lo : hi) = mid;
     }
     return 0.5 * (lo + hi);
+}
+
+double halfValueLayerAlMm(const TubeSpectrum& s) { return aluminiumForKermaFractionMm(s, 0.5); }
+
+double secondHalfValueLayerAlMm(const TubeSpectrum& s) {
+    return aluminiumForKermaFractionMm(s, 0.25) - aluminiumForKermaFractionMm(s, 0.5);
 }
 
 } // namespace fvr::core

@@ -12,6 +12,7 @@
 #include <fvr/core/io/image_io.h>
 #include <fvr/core/render/renderer.h>
 #include <fvr/core/render/spectrum.h>
+#include <fvr/core/xray/polychromatic.h>
 
 namespace fvr::gpu {
 
@@ -77,6 +78,18 @@ public:
      *  has one) as an RGBA8 M x M texture: runs the display pass unless the render already fused
      *  this window. */
     unsigned displayTexture(const core::DisplayWindow& window);
+    /** What spectralSum() writes per pixel. */
+    enum class SpectralOutput { Transmission, NegativeLog, Material };
+    /** The polychromatic spectral sum (issue 19) on the GPU, as this renderer's frame: reads the
+     *  last frames of `materials` (one renderer per material of `response`, same size; this one
+     *  may be among them) where they lie, evaluates the response's table in one compute pass
+     *  (SpectralResponse::lookup: same layout and interpolation) and writes I/I0, -ln(I/I0) or
+     *  material `show`'s rhoL (g/cm^2, unclamped) into this renderer's image: readback() and
+     *  displayTexture() then show it. No read-back per material. Throws SettingsError. */
+    void spectralSum(const std::vector<const GpuFourierRenderer*>& materials,
+                     const std::shared_ptr<const core::SpectralResponse>& response,
+                     SpectralOutput output = SpectralOutput::Transmission, int show = 0);
+
     /** Stage times of the last render (and display pass, if any); waits for the GPU. */
     GpuStageTimes lastTimes();
 
@@ -129,6 +142,8 @@ private:
     int m_size = 0;
     unsigned m_twiddles = 0, m_bufA = 0, m_bufB = 0, m_image = 0, m_hartleyT = 0, m_display = 0;
     unsigned m_filterAxis = 0; ///< the slice filter's per-axis table (SliceFilterTable::axis)
+    unsigned m_table = 0; ///< spectralSum(): the response's table
+    std::shared_ptr<const core::SpectralResponse> m_tableFor; ///< the response m_table holds
     unsigned m_queries[4] = {0, 0, 0, 0};
     bool m_timesPending = false, m_displayTimed = false;
     GpuStageTimes m_times;

@@ -84,6 +84,8 @@ public:
      *  meanwhile and is not showsCurrentFrame()). */
     void setPolychromatic(std::shared_ptr<const PolychromaticSource> source);
     const std::shared_ptr<const PolychromaticSource>& polychromatic() const { return m_poly; }
+    /** The last frame's spectral sum ran on the GPU (the view renders there). */
+    bool polychromaticOnGpu() const { return m_polySumOnGpu; }
     const FrameEffects& effects() const { return m_effects; }
     /** Progressive refinement: the frame rate to hold while dragging (0: off). */
     void setTargetFps(double fps);
@@ -193,6 +195,13 @@ private:
     /** The polychromatic frame of m_poly: -ln(I/I0) or the material it shows. */
     core::ProjectionImage renderPolychromatic(const core::RenderParams& params,
                                               core::StageTimes* times = nullptr);
+    /** The same on the GPU (the view renders there): one GPU renderer per material, the
+     *  spectral sum in one compute pass into the first one's frame, shown without a read-back
+     *  (with noise: I/I0 read back once, the noise drawn on the CPU). False where it cannot
+     *  (the caller renders on the CPU). */
+    bool renderPolychromaticOnGpu(const core::RenderParams& params);
+    /** The GPU renderer whose frame the view shows (the polychromatic sum's, or m_gpu). */
+    gpu::GpuFourierRenderer& shownGpu() { return m_polyOnGpu ? *m_polyGpu.front() : *m_gpu; }
     /** Difference mode: the frame minus the reference view's projection. */
     void subtractReference();
     /** The first frame of a study sets the window from its image. */
@@ -245,6 +254,10 @@ private:
     std::optional<core::ProjectionImage> m_cpuImage; // CPU path / difference mode
     std::shared_ptr<const PolychromaticSource> m_poly;
     std::unique_ptr<core::PolychromaticRenderer> m_polyRenderer;
+    std::vector<std::unique_ptr<gpu::GpuFourierRenderer>> m_polyGpu; ///< one per material
+    std::vector<std::shared_ptr<const core::Spectrum>> m_polyGpuSpectra;
+    bool m_polyOnGpu = false; ///< the shown frame is the GPU's spectral sum (no read-back)
+    bool m_polySumOnGpu = false; ///< the last frame's spectral sum ran on the GPU
     QString m_notice; ///< backend notice (CPU fallback)
     bool m_allowSoftwareGpu = false;
     bool m_softwareGl = false;

@@ -122,6 +122,18 @@ public:
     static constexpr int kTableSize = 256;
     double tableExtent(int axis) const { return m_extent[axis]; }
 
+    /** The table as apply() reads it (a GPU pass evaluates the same): tableRows() rows of
+     *  kTableSize nodes (x fastest), tableStride() floats per node: -ln(I/I0), then deltabar of
+     *  each other material. x = rhoL[axisX()] + sum_o otherScales()[o] rhoL[otherMaterials()[o]],
+     *  y = rhoL[axisY()] (-1: one row); each rhoL clamped at >= 0 first. */
+    const std::vector<float>& tableNodes() const { return m_nodes; }
+    int tableStride() const { return int(1 + m_others.size()); }
+    int tableRows() const { return m_ny; }
+    int axisX() const { return m_axisX; }
+    int axisY() const { return m_axisY; }
+    const std::vector<int>& otherMaterials() const { return m_others; }
+    const std::vector<double>& otherScales() const { return m_scale; }
+
 private:
     void setUp(const TubeSpectrum& spectrum, const DetectorModel& detector);
     void buildTables();
@@ -139,6 +151,10 @@ private:
     int m_ny = 1;
     /** Per grid node (x fastest): -ln(I/I0), then deltabar of each other material. */
     std::vector<float> m_nodes;
+    /** The same per cell (with a y axis), for the CPU's walk: per cell (x fastest) and value
+     *  the bilinear coefficients {a, b, c, d}, v = a + b tx + c ty + d tx ty: one cache line
+     *  per pixel instead of two rows. */
+    std::vector<float> m_cells;
     std::vector<int> m_others;
     std::vector<double> m_scale; ///< per other material: c in mu_m ~ c mu_x + residual
 };

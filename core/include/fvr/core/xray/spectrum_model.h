@@ -64,8 +64,15 @@ double airMassEnergyAbsorption(double keV);
 /** Air kerma (uGy per mAs at 1 m) of a spectrum: sum of fluence x E x (mu_en/rho)_air. */
 double airKerma(const TubeSpectrum& s);
 
-/** First half-value layer in mm of aluminium: the added Al that halves the air kerma
+/** The added aluminium (mm) that brings the air kerma down to `fraction` (0..1) of its value
  *  (bisection to 1e-6 mm). */
+double aluminiumForKermaFractionMm(const TubeSpectrum& s, double fraction);
+
+/** First half-value layer in mm of aluminium: the added Al that halves the air kerma. */
 double halfValueLayerAlMm(const TubeSpectrum& s);
+
+/** Second half-value layer (mm Al): the further Al from 1/2 to 1/4 of the air kerma. The
+ *  homogeneity coefficient of IEC 61267 is h = HVL1 / HVL2. */
+double secondHalfValueLayerAlMm(const TubeSpectrum& s);
 
 } // namespace fvr::core

@@ -1,0 +1,72 @@
+// ProjectionView's polychromatic frame on the GPU (issue 19): the material frames stay on the GPU
+// and one compute pass evaluates the spectral response into the frame the view shows.
+#include <QOpenGLContext>
+
+#include <cmath>
+
+#include <fvr/gpu/gpu_renderer.h>
+#include <fvr/ui/projection_view.h>
+
+namespace fvr::ui {
+
+bool ProjectionView::renderPolychromaticOnGpu(const core::RenderParams& params) {
+    if (m_poly->spectra.size() > 5) return false;
+    // Noise (on -ln(I/I0) only) is drawn on the CPU: then I/I0 is read back once.
+    const bool noisy = m_poly->noise.active() && m_poly->show < 0;
+    try {
+        if (m_polyGpuSpectra != m_poly->spectra) {
+            m_polyGpu.resize(m_poly->spectra.size());
+            for (std::size_t m = 0; m < m_polyGpu.size(); ++m) {
+                if (!m_polyGpu[m])
+                    m_polyGpu[m] =
+                        std::make_unique<gpu::GpuFourierRenderer>(context()->shareGroup());
+                m_polyGpu[m]->setSpectrum(m_poly->spectra[m]);
+            }
+            m_polyGpuSpectra = m_poly->spectra;
+        }
+        std::vector<const gpu::GpuFourierRenderer*> frames;
+        FrameStats sum;
+        for (auto& r : m_polyGpu) {
+            r->renderToGpu(params);
+            frames.push_back(r.get());
+        }
+        for (auto& r : m_polyGpu) { // waits for the GPU: the frame's cost, as on the CPU
+            const gpu::GpuStageTimes t = r->lastTimes();
+            sum.sliceMs += t.sliceMs;
+            sum.inverseMs += t.inverseMs;
+            sum.totalMs += t.totalMs;
+        }
+        using Output = gpu::GpuFourierRenderer::SpectralOutput;
+        const bool material = m_poly->show >= 0;
+        m_polyGpu.front()->spectralSum(frames, m_poly->response,
+                                       noisy ? Output::Transmission
+                                             : (material ? Output::Material : Output::NegativeLog),
+                                       std::max(0, m_poly->show));
+        m_cpuImage.reset();
+        if (noisy) {
+            core::ProjectionImage img = m_polyGpu.front()->readback();
+            core::NoiseModel n = m_poly->noise;
+            n.pixelAreaMm2 = params.image.pixelSize * params.image.pixelSize;
+            core::applyQuantumNoise(img.pixels, core::unattenuatedQuanta(*m_poly->response, n), n);
+            for (float& v : img.pixels) v = float(-std::log(std::max(1e-30, double(v))));
+            m_cpuImage = std::move(img); // shown through the CPU image's texture
+        }
+        m_stats.sliceMs = sum.sliceMs;
+        m_stats.inverseMs = sum.inverseMs;
+        m_stats.totalMs = sum.totalMs;
+        m_stats.fused = false;
+        m_stats.displayFused = false;
+    } catch (const std::exception& e) {
+        m_polyGpu.clear();
+        m_polyGpuSpectra.clear();
+        m_notice = tr("Polychromatic output on the GPU failed (%1): rendering it on the CPU")
+                       .arg(QString::fromUtf8(e.what()));
+        return false;
+    }
+    m_polyOnGpu = !noisy; // the shown frame is the GPU's (else the noisy read-back)
+    m_polySumOnGpu = true;
+    m_gpuTimesPending = false;
+    return true;
+}
+
+} // namespace fvr::ui
