@@ -150,6 +150,26 @@ TEST(PacsLocalStore, BadIndexAndBadUidsAreNamed) {
               std::string::npos);
 }
 
+// An index edited by hand: valid JSON of the wrong shape is named like unreadable JSON (it
+// was a bare json type_error without the file's name).
+TEST(PacsLocalStore, AnIndexOfTheWrongShapeIsNamed) {
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-shape";
+    for (const char* text :
+         {"", "{\"studies\": {\"1.2.3\": {\"patientName\": \"DOE^J", "[1, 2]", "{\"studies\": 5}",
+          "{\"studies\": {\"1.2.3\": 5}}", "{\"studies\": {\"1.2.3\": {\"patientName\": 5}}}",
+          "{\"studies\": {\"1.2.3\": {\"complete\": \"yes\"}}}",
+          "{\"studies\": {\"1.2.3\": {\"series\": {\"1.2.4\": []}}}}",
+          "{\"studies\": {\"1.2.3\": {\"series\": {\"1.2.4\": {\"modality\": 1}}}}}"}) {
+        fs::remove_all(root);
+        fs::create_directories(root);
+        std::ofstream(root / "index.json") << text;
+        LocalStore store(root);
+        const std::string msg = errorOf([&] { store.studies(); });
+        EXPECT_NE(msg.find((root / "index.json").string() + " cannot be read"), std::string::npos)
+            << text << " -> " << msg;
+    }
+}
+
 TEST(PacsEchoFailure, ClosedPortSaysConnectionRefused) {
     int port = 0;
     {

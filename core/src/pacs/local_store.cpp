@@ -149,6 +149,27 @@ StudyRecord recordFromJson(const std::string& uid, const json& j) {
     return s;
 }
 
+/** Throws PacsError (or json::type_error) when an index entry, edited by hand, does not have
+ *  the shape the store reads and writes: objects of strings and booleans. */
+void checkEntry(const std::string& uid, const json& entry) {
+    const auto object = [&](const json& j, const std::string& what) {
+        if (!j.is_object()) throw PacsError(what + " is not an object");
+    };
+    object(entry, "study " + uid);
+    recordFromJson(uid, entry);
+    (void)entry.value("complete", false);
+    (void)entry.value("retrievePending", false);
+    (void)entry.value("updated", "");
+    const json series = entry.value("series", json::object());
+    object(series, "the series of study " + uid);
+    for (const auto& [suid, s] : series.items()) {
+        object(s, "series " + suid);
+        (void)s.value("modality", "");
+        (void)s.value("description", "");
+        (void)s.value("complete", false);
+    }
+}
+
 } // namespace
 
 fs::path defaultLocalStoreRoot() {
@@ -180,7 +201,14 @@ LocalStore::Index LocalStore::load() const {
     if (!in) return index; // no index yet: an empty store
     try {
         const json j = json::parse(in);
-        for (const auto& [uid, entry] : j.at("studies").items()) index.studies[uid] = entry;
+        const json& studies = j.at("studies");
+        if (!studies.is_object()) throw PacsError("\"studies\" is not an object");
+        for (const auto& [uid, entry] : studies.items()) {
+            checkEntry(uid, entry);
+            index.studies[uid] = entry;
+        }
+    } catch (const PacsError& e) {
+        throw PacsError("local store index " + path.string() + " cannot be read: " + e.what());
     } catch (const json::exception& e) {
         throw PacsError("local store index " + path.string() + " cannot be read: " + e.what());
     }
