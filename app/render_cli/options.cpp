@@ -349,7 +349,8 @@ void declareBackend(CLI::App& app, Options& o) {
                  "JSON (no INPUT needed)")
         ->group(g);
     app.add_option("--threads", o.threads, "worker threads (default: all cores)")
-        ->check(CLI::NonNegativeNumber)
+        ->check(numberCheck([](double v) { return v >= 0 && v <= 4096 && v == std::floor(v); },
+                            "expected a whole number of threads in 0..4096 (0: all cores)"))
         ->option_text("N")
         ->group(g);
 }
@@ -491,7 +492,8 @@ void declareBenchmark(CLI::App& app, Options& o) {
     app.add_option("--bench", o.bench,
                    "render N frames over varying views, print per-stage timings as JSON,\n"
                    "and the same views by ray casting (spatial projector) with the speed-up")
-        ->check(CLI::NonNegativeNumber)
+        ->check(numberCheck([](double v) { return v >= 0 && v == std::floor(v); },
+                            "expected a whole number of frames"))
         ->option_text("N")
         ->group("Benchmark");
 }
