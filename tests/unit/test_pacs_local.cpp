@@ -210,3 +210,26 @@ TEST(PacsEchoFailure, BadSettingsAreNamed) {
     EXPECT_NE(errorOf([&] { echo(nodeAt(70000), LocalAe{}); }).find("the PACS port 70000"),
               std::string::npos);
 }
+
+// The study date rule of the dialog, fvr-render --query and findStudies: calendar days only
+// (20231301 went to the PACS as it was and matched nothing, without a word).
+TEST(PacsQuery, StudyDatesAreCalendarDays) {
+    const auto match = [](const std::string& from, const std::string& to) {
+        StudyQuery q;
+        q.dateFrom = from;
+        q.dateTo = to;
+        return studyDateMatch(q);
+    };
+    EXPECT_EQ(match("", ""), "");
+    EXPECT_EQ(match("20240229", "20240229"), "20240229"); // a leap day
+    EXPECT_EQ(match("20100101", ""), "20100101-");
+    EXPECT_EQ(match("", "20100101"), "-20100101");
+    EXPECT_EQ(match("20100101", "20101231"), "20100101-20101231");
+    for (const char* bad : {"20231301", "20230229", "20230431", "20230100", "2023-01-01", "2023"})
+        EXPECT_NE(
+            errorOf([&] { match(bad, ""); }).find(std::string("\"") + bad + "\" is not a date"),
+            std::string::npos)
+            << bad;
+    EXPECT_NE(errorOf([&] { match("20200102", "20200101"); }).find("ends before it begins"),
+              std::string::npos);
+}

@@ -64,6 +64,11 @@ struct StudyQuery {
     std::string modality; ///< e.g. "CT" (matched against ModalitiesInStudy)
 };
 
+/** The query's StudyDate matching value ("from-to", "from-", "-to", one day, or empty). Throws
+ *  PacsError for a date that is not a calendar day YYYYMMDD or a range that ends before it
+ *  begins (the one rule of the PACS dialog, fvr-render --query and findStudies). */
+std::string studyDateMatch(const StudyQuery& q);
+
 /** A study as the PACS describes it; strings in UTF-8 (SpecificCharacterSet converted).
  *  Person names in DICOM form ("DOE^JOHN"). -1: the PACS did not say. */
 struct StudyRecord {
