@@ -37,12 +37,6 @@ enum LocalColumn { kLocalPatient, kLocalDate, kLocalDescription, kLocalImages, k
 
 QString text(const std::string& s) { return QString::fromStdString(s); }
 
-/** "20150206" as "2015-02-06"; other strings as they are. */
-QString dicomDate(const std::string& d) {
-    const QDate date = QDate::fromString(text(d), QStringLiteral("yyyyMMdd"));
-    return date.isValid() ? date.toString(Qt::ISODate) : text(d);
-}
-
 QString count(int n) { return n >= 0 ? QString::number(n) : QString(); }
 
 enum DatePreset { kAnyDate, kToday, kYesterday, kLast7, kLast30, kLast365, kRange };
