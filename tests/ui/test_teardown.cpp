@@ -2,7 +2,8 @@
 // 140-image Philips series from a real Orthanc, destroyed after the first images came) and the
 // polychromatic output's material preprocessing. Neither may crash, hang or let a late result
 // land; the interrupted retrieve stays a partial study (never listed as complete) and holds no
-// half-written file.
+// half-written file. And a study opened while the previous one's materials are prepared gets
+// its own materials.
 #include <QComboBox>
 #include <QLabel>
 #include <QProgressBar>
@@ -115,4 +116,24 @@ TEST_F(WorkstationClosing, ClosedDuringThePolychromaticPreprocessingStopsCleanly
     ASSERT_TRUE(v->polychromatic()->spectra.empty());
     closeWindow(window, "the material preprocessing"); // cancels the job, waits for it
     QTest::qWait(200); // its result, or the poll timer, would land on the gone window here
+}
+
+// A study opened while the polychromatic output still prepares the previous study's materials:
+// the views must get the new study's materials, never the old job's result.
+TEST_F(WorkstationClosing, AnotherStudyDuringThePreprocessingGetsItsOwnMaterials) {
+    ASSERT_TRUE(test::openAndWait(*window, ui::StudySource::phantom(256)));
+    ui::ProjectionView* v = window->views()[0];
+    auto* x = window->xrayPanel();
+    x->outputCombo()->setCurrentIndex(
+        x->outputCombo()->findData(int(ui::XrayOutput::Polychromatic)));
+    ASSERT_TRUE(v->polychromatic() && v->polychromatic()->spectra.empty()); // the job runs
+    QSignalSpy ready(&window->study(), &ui::StudyController::spectrumReady);
+    window->openStudy(ui::StudySource::phantom(40));
+    ASSERT_TRUE(ready.wait(60000));
+    const core::Dims3 dims = window->study().volume()->dims;
+    ASSERT_EQ(dims, (core::Dims3{40, 40, 40}));
+    ASSERT_TRUE(QTest::qWaitFor(
+        [&] { return v->polychromatic() && !v->polychromatic()->spectra.empty(); }, 120000))
+        << window->messages()->toPlainText().toStdString();
+    for (const auto& s : v->polychromatic()->spectra) EXPECT_EQ(s->volumeDims, dims);
 }
