@@ -520,14 +520,16 @@ void declarePacs(CLI::App& app, Options& o) {
         ->check(CLI::Range(1, 65535))
         ->option_text("N")
         ->group(g);
-    app.add_option("--query", o.query,
-                   "print the studies on INPUT's PACS that match, as JSON (C-FIND); keys:\n"
-                   "PatientName, PatientID, AccessionNumber (wildcards * and ?), Modality,\n"
-                   "StudyDate=YYYYMMDD[-YYYYMMDD]; repeatable, or comma-separated")
-        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)
-        ->option_text("K=V")
-        ->group(g);
+    CLI::Option* query =
+        app.add_option("--query", o.query,
+                       "print the studies on INPUT's PACS that match, as JSON (C-FIND); keys:\n"
+                       "PatientName, PatientID, AccessionNumber (wildcards * and ?), Modality,\n"
+                       "StudyDate=YYYYMMDD[-YYYYMMDD]; repeatable, or comma-separated")
+            ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)
+            ->option_text("K=V")
+            ->group(g);
     app.add_flag("--query-series", o.querySeries, "with --query: each study's series too")
+        ->needs(query)
         ->group(g);
     app.add_option("--send", o.send,
                    "store every output view as DICOM Secondary Capture on this PACS\n"
