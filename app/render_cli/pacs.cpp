@@ -67,18 +67,11 @@ Json studyJson(const pacs::StudyRecord& s, const pacs::DicomUrl& url) {
     pacs::DicomUrl at = url;
     at.studyUid = s.studyUid;
     at.seriesUid.clear();
-    return Json{{"studyUid", s.studyUid},
-                {"url", pacs::toString(at)},
-                {"patientName", s.patientName},
-                {"patientId", s.patientId},
-                {"patientBirthDate", s.patientBirthDate},
-                {"studyDate", s.studyDate},
-                {"studyTime", s.studyTime},
-                {"accessionNumber", s.accessionNumber},
-                {"description", s.description},
-                {"modalities", s.modalities},
-                {"numberOfSeries", nullable(s.numberOfSeries)},
-                {"numberOfInstances", nullable(s.numberOfInstances)}};
+    Json j{{"studyUid", s.studyUid}, {"url", pacs::toString(at)}};
+    for (const pacs::StudyTextField& f : pacs::studyTextFields()) j[f.name] = s.*f.member;
+    j["numberOfSeries"] = nullable(s.numberOfSeries);
+    j["numberOfInstances"] = nullable(s.numberOfInstances);
+    return j;
 }
 
 Json seriesJson(const pacs::SeriesRecord& s) {

@@ -80,32 +80,18 @@ private:
 };
 
 json studyJson(const StudyRecord& s) {
-    return json{{"studyUid", s.studyUid},
-                {"patientName", s.patientName},
-                {"patientId", s.patientId},
-                {"patientBirthDate", s.patientBirthDate},
-                {"studyDate", s.studyDate},
-                {"studyTime", s.studyTime},
-                {"accessionNumber", s.accessionNumber},
-                {"description", s.description},
-                {"modalities", s.modalities},
-                {"complete", false},
-                {"series", json::object()}};
+    json j{{"studyUid", s.studyUid}};
+    for (const StudyTextField& f : studyTextFields()) j[f.name] = s.*f.member;
+    j["complete"] = false;
+    j["series"] = json::object();
+    return j;
 }
 
 /** Fills the fields the entry lacks from `s` (the first instance or query gives them). */
 void mergeStudy(json& entry, const StudyRecord& s) {
-    const std::pair<const char*, const std::string*> fields[] = {
-        {"patientName", &s.patientName},
-        {"patientId", &s.patientId},
-        {"patientBirthDate", &s.patientBirthDate},
-        {"studyDate", &s.studyDate},
-        {"studyTime", &s.studyTime},
-        {"accessionNumber", &s.accessionNumber},
-        {"description", &s.description},
-        {"modalities", &s.modalities}};
-    for (const auto& [key, value] : fields)
-        if (entry.value(key, std::string()).empty() && !value->empty()) entry[key] = *value;
+    for (const StudyTextField& f : studyTextFields())
+        if (entry.value(f.name, std::string()).empty() && !(s.*f.member).empty())
+            entry[f.name] = s.*f.member;
 }
 
 json& studyEntry(std::map<std::string, json>& studies, const StudyRecord& s) {
@@ -138,14 +124,7 @@ int countInstances(const fs::path& folder) {
 StudyRecord recordFromJson(const std::string& uid, const json& j) {
     StudyRecord s;
     s.studyUid = uid;
-    s.patientName = j.value("patientName", "");
-    s.patientId = j.value("patientId", "");
-    s.patientBirthDate = j.value("patientBirthDate", "");
-    s.studyDate = j.value("studyDate", "");
-    s.studyTime = j.value("studyTime", "");
-    s.accessionNumber = j.value("accessionNumber", "");
-    s.description = j.value("description", "");
-    s.modalities = j.value("modalities", "");
+    for (const StudyTextField& f : studyTextFields()) s.*f.member = j.value(f.name, "");
     return s;
 }
 
@@ -171,6 +150,19 @@ void checkEntry(const std::string& uid, const json& entry) {
 }
 
 } // namespace
+
+const std::vector<StudyTextField>& studyTextFields() {
+    static const std::vector<StudyTextField> fields{
+        {"patientName", &StudyRecord::patientName},
+        {"patientId", &StudyRecord::patientId},
+        {"patientBirthDate", &StudyRecord::patientBirthDate},
+        {"studyDate", &StudyRecord::studyDate},
+        {"studyTime", &StudyRecord::studyTime},
+        {"accessionNumber", &StudyRecord::accessionNumber},
+        {"description", &StudyRecord::description},
+        {"modalities", &StudyRecord::modalities}};
+    return fields;
+}
 
 fs::path defaultLocalStoreRoot() {
     const char* xdg = std::getenv("XDG_DATA_HOME");

@@ -77,6 +77,14 @@ struct StudyRecord {
     int numberOfSeries = -1, numberOfInstances = -1;
 };
 
+/** A text field of StudyRecord under the name that the local store's index and fvr-render
+ *  --query's JSON give it: one list for both (studyUid and the counts aside). */
+struct StudyTextField {
+    const char* name; ///< e.g. "patientName"
+    std::string StudyRecord::*member;
+};
+const std::vector<StudyTextField>& studyTextFields();
+
 struct SeriesRecord {
     std::string seriesUid, modality, description;
     int seriesNumber = -1, numberOfInstances = -1;
