@@ -118,6 +118,7 @@ def test_volume_from_numpy_renders_as_the_loaded_volume(body, renderer):
     (lambda v, r: r.render(dir=(0, 0, 0)), "view direction: expected a non-zero finite vector"),
     (lambda v, r: r.render(pixel_size=-1), "--pixel-size: expected a positive number of mm"),
     (lambda v, r: r.render_many(np.zeros((2, 3)), size=128), "(N, 2, 3)"),
+    (lambda v, r: r.render_many(["AP", 3], size=128), "views: expected view names only, found 3"),
     (lambda v, r: fvr.Renderer(v).transmission(np.zeros((4, 4)), energy_kev=70),
      "--beer-lambert: needs --values mu or mu-bone"),
     (lambda v, r: r.transmission(np.zeros((4, 4)), energy_kev=500), "--energy"),
