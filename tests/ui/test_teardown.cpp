@@ -10,6 +10,11 @@
 #include <QPushButton>
 #include <QTreeWidget>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <chrono>
 #include <filesystem>
 #include <iostream>
@@ -136,4 +141,30 @@ TEST_F(WorkstationClosing, AnotherStudyDuringThePreprocessingGetsItsOwnMaterials
         [&] { return v->polychromatic() && !v->polychromatic()->spectra.empty(); }, 120000))
         << window->messages()->toPlainText().toStdString();
     for (const auto& s : v->polychromatic()->spectra) EXPECT_EQ(s->volumeDims, dims);
+}
+
+// Closed while Test connection waits for a PACS that accepts the connection and never answers:
+// the window must not wait for the network timeout (it froze for all of it: 10 s by default;
+// here 300 s, so a close that waits runs into CTest's limit), and the late result, once the
+// peer goes, must not reach the gone dialog.
+TEST_F(WorkstationClosing, ClosedDuringAnEchoToASilentPacsDoesNotWaitForIt) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t len = sizeof addr;
+    ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+    ASSERT_EQ(::listen(fd, 4), 0); // connections queue; nobody answers
+    ASSERT_EQ(::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len), 0);
+    ui::PacsSettings s;
+    s.nodes = {pacs::Node{"Silent", "PACS", "127.0.0.1", int(ntohs(addr.sin_port))}};
+    s.local.timeoutSeconds = 300;
+    s.save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    d->echoButton()->click();
+    ASSERT_TRUE(d->busy());
+    closeWindow(window, "an echo to a silent PACS");
+    ::close(fd); // the peer goes: the echo ends now, its result has no dialog to go to
+    QTest::qWait(500);
 }
