@@ -8,7 +8,7 @@ JOBS ?= $(shell nproc)
 STUDY ?=
 SHARED_DATA ?= $(abspath $(CURDIR)/../shared/data)
 
-.PHONY: all deps test-deps configure build run test bench bench-gpu gpu-kit package sanitize format \
+.PHONY: all deps test-deps configure build run test bench bench-gpu gpu-kit package sanitize sanitize-ui format \
   format-check screenshots clean
 
 all: build
@@ -62,6 +62,15 @@ sanitize: deps test-deps
 	  -DFVR_BUILD_BENCH=OFF -DFVR_BUILD_GUI=OFF -DFVR_SHARED_DATA_DIR=$(SHARED_DATA) > /dev/null
 	@cmake --build build-asan --parallel $(JOBS)
 	@cd build-asan && ctest --output-on-failure --parallel $(JOBS) -L "unit|pacs"
+
+# The workstation's UI tests under the same sanitizers (sanitize builds no GUI): the same
+# build-asan with the GUI on. Leaks off: D-Bus and fontconfig keep allocations to the end.
+sanitize-ui: deps test-deps
+	@cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFVR_SANITIZE=ON \
+	  -DFVR_BUILD_BENCH=OFF -DFVR_BUILD_GUI=ON -DFVR_SHARED_DATA_DIR=$(SHARED_DATA) > /dev/null
+	@cmake --build build-asan --parallel $(JOBS) --target fvr_ui_tests
+	@cd build-asan && ASAN_OPTIONS=detect_leaks=0 xvfb-run -a -s "-screen 0 1280x1024x24" \
+	  ctest --output-on-failure -L ui --timeout 900
 
 # Formats the C++ sources in place with .clang-format (STYLE.md: 100 columns, 4 spaces);
 # format-check lists the files it would change and fails if there are any.

@@ -236,8 +236,13 @@ private:
         if (py::isinstance<py::sequence>(views) && py::len(views) > 0 &&
             py::isinstance<py::str>(views[py::int_(0)])) {
             std::vector<core::ViewFrame> frames;
-            for (const auto& name : views.cast<std::vector<std::string>>())
-                frames.push_back(core::patientViewFrame(vol, core::parsePatientView(name)));
+            for (const py::handle name : views) {
+                if (!py::isinstance<py::str>(name)) // was pybind11's "Unable to cast"
+                    throw core::SettingsError("views: expected view names only, found " +
+                                              py::repr(name).cast<std::string>() + " among them");
+                frames.push_back(
+                    core::patientViewFrame(vol, core::parsePatientView(name.cast<std::string>())));
+            }
             return frames;
         }
         return viewsFromArray(views);

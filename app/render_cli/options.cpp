@@ -349,7 +349,8 @@ void declareBackend(CLI::App& app, Options& o) {
                  "JSON (no INPUT needed)")
         ->group(g);
     app.add_option("--threads", o.threads, "worker threads (default: all cores)")
-        ->check(CLI::NonNegativeNumber)
+        ->check(numberCheck([](double v) { return v >= 0 && v <= 4096 && v == std::floor(v); },
+                            "expected a whole number of threads in 0..4096 (0: all cores)"))
         ->option_text("N")
         ->group(g);
 }
@@ -491,7 +492,8 @@ void declareBenchmark(CLI::App& app, Options& o) {
     app.add_option("--bench", o.bench,
                    "render N frames over varying views, print per-stage timings as JSON,\n"
                    "and the same views by ray casting (spatial projector) with the speed-up")
-        ->check(CLI::NonNegativeNumber)
+        ->check(numberCheck([](double v) { return v >= 0 && v == std::floor(v); },
+                            "expected a whole number of frames"))
         ->option_text("N")
         ->group("Benchmark");
 }
@@ -518,14 +520,16 @@ void declarePacs(CLI::App& app, Options& o) {
         ->check(CLI::Range(1, 65535))
         ->option_text("N")
         ->group(g);
-    app.add_option("--query", o.query,
-                   "print the studies on INPUT's PACS that match, as JSON (C-FIND); keys:\n"
-                   "PatientName, PatientID, AccessionNumber (wildcards * and ?), Modality,\n"
-                   "StudyDate=YYYYMMDD[-YYYYMMDD]; repeatable, or comma-separated")
-        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)
-        ->option_text("K=V")
-        ->group(g);
+    CLI::Option* query =
+        app.add_option("--query", o.query,
+                       "print the studies on INPUT's PACS that match, as JSON (C-FIND); keys:\n"
+                       "PatientName, PatientID, AccessionNumber (wildcards * and ?), Modality,\n"
+                       "StudyDate=YYYYMMDD[-YYYYMMDD]; repeatable, or comma-separated")
+            ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)
+            ->option_text("K=V")
+            ->group(g);
     app.add_flag("--query-series", o.querySeries, "with --query: each study's series too")
+        ->needs(query)
         ->group(g);
     app.add_option("--send", o.send,
                    "store every output view as DICOM Secondary Capture on this PACS\n"

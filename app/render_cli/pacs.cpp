@@ -23,11 +23,14 @@ void setDates(pacs::StudyQuery& q, const std::string& term, const std::string& v
     const auto dash = value.find('-');
     q.dateFrom = value.substr(0, dash);
     q.dateTo = dash == std::string::npos ? value : value.substr(dash + 1);
-    for (const auto* d : {&q.dateFrom, &q.dateTo})
-        if (!d->empty() && (d->size() != 8 || d->find_first_not_of("0123456789") != d->npos))
-            throw SettingsError("--query: '" + term +
-                                "': expected StudyDate=YYYYMMDD or YYYYMMDD-YYYYMMDD (either end "
-                                "may be left open)");
+    try {
+        pacs::studyDateMatch(q);
+    } catch (const pacs::PacsError& e) {
+        throw SettingsError("--query: '" + term +
+                            "': expected StudyDate=YYYYMMDD or YYYYMMDD-YYYYMMDD (either end may "
+                            "be left open): " +
+                            e.what());
+    }
 }
 
 void addTerm(pacs::StudyQuery& q, const std::string& term) {
@@ -64,18 +67,11 @@ Json studyJson(const pacs::StudyRecord& s, const pacs::DicomUrl& url) {
     pacs::DicomUrl at = url;
     at.studyUid = s.studyUid;
     at.seriesUid.clear();
-    return Json{{"studyUid", s.studyUid},
-                {"url", pacs::toString(at)},
-                {"patientName", s.patientName},
-                {"patientId", s.patientId},
-                {"patientBirthDate", s.patientBirthDate},
-                {"studyDate", s.studyDate},
-                {"studyTime", s.studyTime},
-                {"accessionNumber", s.accessionNumber},
-                {"description", s.description},
-                {"modalities", s.modalities},
-                {"numberOfSeries", nullable(s.numberOfSeries)},
-                {"numberOfInstances", nullable(s.numberOfInstances)}};
+    Json j{{"studyUid", s.studyUid}, {"url", pacs::toString(at)}};
+    for (const pacs::StudyTextField& f : pacs::studyTextFields()) j[f.name] = s.*f.member;
+    j["numberOfSeries"] = nullable(s.numberOfSeries);
+    j["numberOfInstances"] = nullable(s.numberOfInstances);
+    return j;
 }
 
 Json seriesJson(const pacs::SeriesRecord& s) {

@@ -195,6 +195,14 @@ TEST(FvrRender, BadInputExitsTwoWithAClearMessage) {
         {"phantom:cube --out " + tmp("x.npy"), "phantom"},
         {"phantom:shepp-logan:32 --frobnicate --out " + tmp("x.npy"), "--frobnicate"},
         {"phantom:shepp-logan:32 --backend vulkan --out " + tmp("x.npy"), "backend"},
+        {"phantom:shepp-logan:32 --threads -1 --out " + tmp("x.npy"),
+         "--threads: expected a whole number of threads"},
+        // Said before any network (nothing listens at port 1): a day that is not in the
+        // calendar went to the PACS, and --query-series without --query retrieved the study.
+        {"dicom://PACS@127.0.0.1:1 --query StudyDate=20231301", "\"20231301\" is not a date"},
+        {"dicom://PACS@127.0.0.1:1 --query StudyDate=20231231-20230101", "ends before it begins"},
+        {"dicom://PACS@127.0.0.1:1/1.2.3 --query-series --out " + tmp("x.npy"),
+         "--query-series requires --query"},
     };
     for (const Case& c : cases) {
         const Result r = run(c.args);

@@ -118,6 +118,8 @@ def test_zarr_output_holds_the_same_stack(rendered, tmp_path):
     ("id,sweep\na,3\n", "no 'path' column"),
     ("id,path,out\na,phantom:chest,x.npy\n", "column 'out'"),
     ("id,path\na,phantom:chest\na,phantom:chest\n", ":3: id 'a' repeated"),
+    # A cell beyond the header was dropped without a word (a shifted row renders wrongly).
+    ("id,path\na,phantom:chest\nb,phantom:chest,256\n", ":3: 3 cells, the header names 2"),
 ])
 def test_manifest_errors_name_the_file_and_line(tmp_path, text, message):
     (tmp_path / "m.csv").write_text(text)

@@ -111,11 +111,14 @@ def test_volume_from_numpy_renders_as_the_loaded_volume(body, renderer):
 @pytest.mark.parametrize("call, message", [
     (lambda v, r: fvr.Renderer(v, kernel="bogus"), "--kernel"),
     (lambda v, r: fvr.Renderer(v, oversampling=3), "expected a factor in [1, 2], found 3"),
+    # was CLI11's "Value -1 not in range 0.000000 to 1797693134862315708145...":
+    (lambda v, r: fvr.Renderer(v, threads=-1), "--threads: expected a whole number of threads"),
     (lambda v, r: r.render(size=100), "--size: expected a power of two in 128..2048, found 100"),
     (lambda v, r: r.render(view="SIDEWAYS"), "SIDEWAYS"),
     (lambda v, r: r.render(dir=(0, 0, 0)), "view direction: expected a non-zero finite vector"),
     (lambda v, r: r.render(pixel_size=-1), "--pixel-size: expected a positive number of mm"),
     (lambda v, r: r.render_many(np.zeros((2, 3)), size=128), "(N, 2, 3)"),
+    (lambda v, r: r.render_many(["AP", 3], size=128), "views: expected view names only, found 3"),
     (lambda v, r: fvr.Renderer(v).transmission(np.zeros((4, 4)), energy_kev=70),
      "--beer-lambert: needs --values mu or mu-bone"),
     (lambda v, r: r.transmission(np.zeros((4, 4)), energy_kev=500), "--energy"),

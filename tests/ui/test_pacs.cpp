@@ -141,3 +141,12 @@ TEST_F(Workstation, ProjectionExportsAsDicomSecondaryCaptureWithItsValues) {
     EXPECT_LE(worst, slope); // the float values back to within one stored step
     EXPECT_GT(slope, 0.0);
 }
+
+// One rule for showing a DICOM date (the Study panel and the PACS dialog had one each: the
+// panel's turned "20231301" into "2023-13-01").
+TEST(DicomDateShown, CalendarDaysAsIsoOthersAsTheyAre) {
+    EXPECT_EQ(ui::dicomDate("20150206"), "2015-02-06");
+    EXPECT_EQ(ui::dicomDate("20240229"), "2024-02-29");
+    for (const char* other : {"", "2015", "20231301", "20230229", "2015-02-06", "1.2.3.4."})
+        EXPECT_EQ(ui::dicomDate(other), QString::fromLatin1(other)) << other;
+}

@@ -150,6 +150,26 @@ TEST(PacsLocalStore, BadIndexAndBadUidsAreNamed) {
               std::string::npos);
 }
 
+// An index edited by hand: valid JSON of the wrong shape is named like unreadable JSON (it
+// was a bare json type_error without the file's name).
+TEST(PacsLocalStore, AnIndexOfTheWrongShapeIsNamed) {
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-shape";
+    for (const char* text :
+         {"", "{\"studies\": {\"1.2.3\": {\"patientName\": \"DOE^J", "[1, 2]", "{\"studies\": 5}",
+          "{\"studies\": {\"1.2.3\": 5}}", "{\"studies\": {\"1.2.3\": {\"patientName\": 5}}}",
+          "{\"studies\": {\"1.2.3\": {\"complete\": \"yes\"}}}",
+          "{\"studies\": {\"1.2.3\": {\"series\": {\"1.2.4\": []}}}}",
+          "{\"studies\": {\"1.2.3\": {\"series\": {\"1.2.4\": {\"modality\": 1}}}}}"}) {
+        fs::remove_all(root);
+        fs::create_directories(root);
+        std::ofstream(root / "index.json") << text;
+        LocalStore store(root);
+        const std::string msg = errorOf([&] { store.studies(); });
+        EXPECT_NE(msg.find((root / "index.json").string() + " cannot be read"), std::string::npos)
+            << text << " -> " << msg;
+    }
+}
+
 TEST(PacsEchoFailure, ClosedPortSaysConnectionRefused) {
     int port = 0;
     {
@@ -188,5 +208,28 @@ TEST(PacsEchoFailure, BadSettingsAreNamed) {
     local.aeTitle = "";
     EXPECT_NE(errorOf([&] { echo(nodeAt(104), local); }).find("our AE title"), std::string::npos);
     EXPECT_NE(errorOf([&] { echo(nodeAt(70000), LocalAe{}); }).find("the PACS port 70000"),
+              std::string::npos);
+}
+
+// The study date rule of the dialog, fvr-render --query and findStudies: calendar days only
+// (20231301 went to the PACS as it was and matched nothing, without a word).
+TEST(PacsQuery, StudyDatesAreCalendarDays) {
+    const auto match = [](const std::string& from, const std::string& to) {
+        StudyQuery q;
+        q.dateFrom = from;
+        q.dateTo = to;
+        return studyDateMatch(q);
+    };
+    EXPECT_EQ(match("", ""), "");
+    EXPECT_EQ(match("20240229", "20240229"), "20240229"); // a leap day
+    EXPECT_EQ(match("20100101", ""), "20100101-");
+    EXPECT_EQ(match("", "20100101"), "-20100101");
+    EXPECT_EQ(match("20100101", "20101231"), "20100101-20101231");
+    for (const char* bad : {"20231301", "20230229", "20230431", "20230100", "2023-01-01", "2023"})
+        EXPECT_NE(
+            errorOf([&] { match(bad, ""); }).find(std::string("\"") + bad + "\" is not a date"),
+            std::string::npos)
+            << bad;
+    EXPECT_NE(errorOf([&] { match("20200102", "20200101"); }).find("ends before it begins"),
               std::string::npos);
 }

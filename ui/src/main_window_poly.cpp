@@ -37,6 +37,7 @@ void MainWindow::applyPolychromatic() {
         return;
     }
     if (vol != m_polyVolume) { // a new study: its own materials
+        if (m_polyCancel) m_polyCancel->cancel(); // a running job's are the old study's
         m_polySpectra.clear();
         m_polySources.clear();
         m_polyVolume = vol;
@@ -75,17 +76,18 @@ void MainWindow::pollPolychromaticJob() {
         m_polyJob.wait_for(std::chrono::seconds(0)) != std::future_status::ready)
         return;
     m_polyTimer->stop();
+    const bool stale = m_polyCancel->cancelled(); // another study came while it ran
     std::map<int, MaterialSpectra> ready;
     try {
         ready = m_polyJob.get();
     } catch (const core::Cancelled&) {
-        return;
+        return applyPolychromatic(); // the new study's materials
     } catch (const std::exception& e) {
         message(tr("The material spectra failed: %1").arg(QString::fromUtf8(e.what())), true);
         m_xray->setMaterialMemory(tr("failed"));
         return;
     }
-    if (m_polyVolume != m_study->volume()) return applyPolychromatic(); // another study came
+    if (stale || m_polyVolume != m_study->volume()) return applyPolychromatic();
     m_polySpectra.insert(ready.begin(), ready.end());
     double bytes = 0.0;
     int count = 0;

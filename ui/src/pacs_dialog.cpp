@@ -2,6 +2,7 @@
 #include <fvr/ui/pacs_dialog.h>
 
 #include <QComboBox>
+#include <QCoreApplication>
 #include <QDate>
 #include <QDateEdit>
 #include <QDir>
@@ -36,12 +37,6 @@ enum ResultColumn { kPatient, kPatientId, kDate, kDescription, kModalities, kSer
 enum LocalColumn { kLocalPatient, kLocalDate, kLocalDescription, kLocalImages, kLocalState };
 
 QString text(const std::string& s) { return QString::fromStdString(s); }
-
-/** "20150206" as "2015-02-06"; other strings as they are. */
-QString dicomDate(const std::string& d) {
-    const QDate date = QDate::fromString(text(d), QStringLiteral("yyyyMMdd"));
-    return date.isValid() ? date.toString(Qt::ISODate) : text(d);
-}
 
 QString count(int n) { return n >= 0 ? QString::number(n) : QString(); }
 
@@ -101,6 +96,9 @@ PacsDialog::PacsDialog(std::shared_ptr<pacs::LocalStore> store, QWidget* parent)
 }
 
 PacsDialog::~PacsDialog() {
+    // Retrieves are cancelled and waited for (they write into the store); an echo or a query
+    // cannot be cancelled and may wait for the network timeout: it ends on its own, and its
+    // result, posted to the application, finds no dialog.
     for (const auto& t : m_tokens) t->cancel();
     for (const QPointer<QThread>& t : m_threads)
         if (t) t->wait();
@@ -226,7 +224,8 @@ const pacs::Node* PacsDialog::currentNode() const {
     return m_settings.node(m_node->currentData().toString());
 }
 
-void PacsDialog::run(std::function<void()> work, std::function<void(const QString&)> done) {
+void PacsDialog::run(std::function<void()> work, std::function<void(const QString&)> done,
+                     bool waitAtClose) {
     ++m_jobs;
     updateButtons();
     QPointer<PacsDialog> self(this);
@@ -239,20 +238,21 @@ void PacsDialog::run(std::function<void()> work, std::function<void(const QStrin
         } catch (const std::exception& e) {
             error = QString::fromUtf8(e.what());
         }
-        if (self)
-            QMetaObject::invokeMethod(
-                self.data(),
-                [self, done, error] {
-                    if (!self) return;
-                    --self->m_jobs;
-                    done(error);
-                    self->updateButtons();
-                },
-                Qt::QueuedConnection);
+        // To the application, which outlives the dialog: `self` is looked at on the GUI thread
+        // only, where the dialog is destroyed.
+        QMetaObject::invokeMethod(
+            qApp,
+            [self, done, error] {
+                if (!self) return;
+                --self->m_jobs;
+                done(error);
+                self->updateButtons();
+            },
+            Qt::QueuedConnection);
     });
     connect(t, &QThread::finished, t, &QObject::deleteLater);
     m_threads.erase(std::remove(m_threads.begin(), m_threads.end(), nullptr), m_threads.end());
-    m_threads.emplace_back(t);
+    if (waitAtClose) m_threads.emplace_back(t);
     t->start();
 }
 
@@ -398,7 +398,7 @@ void PacsDialog::retrieve(const pacs::Node& n, const std::string& studyUid,
     QPointer<PacsDialog> self(this);
     auto progress = [self](const pacs::RetrieveProgress& p) {
         QMetaObject::invokeMethod(
-            self.data(),
+            qApp,
             [self, p] {
                 if (self) self->onRetrieveProgress(p);
             },
@@ -427,7 +427,8 @@ void PacsDialog::retrieve(const pacs::Node& n, const std::string& studyUid,
             setStatus(tr("Retrieved %1 into %2").arg(label, QDir::toNativeSeparators(path)));
             emit message(tr("Retrieved %1 from the PACS into %2").arg(label, path), false);
             emit openRequested(path);
-        });
+        },
+        true); // cancelled and waited for at close: it writes into the store
 }
 
 void PacsDialog::onRetrieveProgress(const pacs::RetrieveProgress& p) {

@@ -48,6 +48,9 @@ ProjectionView::ProjectionView(QWidget* parent) : QOpenGLWidget(parent) {
 }
 
 ProjectionView::~ProjectionView() {
+    // ~QOpenGLWidget destroys the context after this body: its aboutToBeDestroyed must not call
+    // back into a ProjectionView that is gone (UBSan: member call on a QOpenGLWidget).
+    if (context()) disconnect(context(), &QOpenGLContext::aboutToBeDestroyed, this, nullptr);
     if (m_glReady) {
         makeCurrent();
         releaseGl();

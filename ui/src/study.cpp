@@ -2,6 +2,7 @@
 
 #include <fvr/core/xray/xray.h>
 
+#include <QDate>
 #include <QDir>
 #include <QFileInfo>
 
@@ -80,6 +81,12 @@ QString StudyController::title() const {
 
 QString personName(const std::string& dicomName) {
     return QString::fromStdString(dicomName).replace('^', ' ').simplified();
+}
+
+QString dicomDate(const std::string& date) {
+    const QString text = QString::fromStdString(date);
+    const QDate day = QDate::fromString(text, QStringLiteral("yyyyMMdd"));
+    return day.isValid() ? day.toString(Qt::ISODate) : text;
 }
 
 SpectrumSettings workstationSpectrumDefaults() {

@@ -55,7 +55,10 @@ def read_manifest(path) -> list:
                 raise ManifestError(f"{path}: column '{c}': the dataset decides it (not a setting)")
         jobs, ids = [], set()
         for line, row in enumerate(reader, start=2):
-            row = {k.strip(): (v or "").strip() for k, v in row.items() if k}
+            if None in row:  # csv's key for the cells beyond the header's columns
+                raise ManifestError(f"{path}:{line}: {len(columns) + len(row[None])} cells, "
+                                    f"the header names {len(columns)} columns")
+            row = {k.strip(): (v or "").strip() for k, v in row.items()}
             if not row["id"] or not row["path"]:
                 raise ManifestError(f"{path}:{line}: empty id or path")
             if row["id"] in ids or "/" in row["id"]:

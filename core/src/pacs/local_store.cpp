@@ -80,32 +80,18 @@ private:
 };
 
 json studyJson(const StudyRecord& s) {
-    return json{{"studyUid", s.studyUid},
-                {"patientName", s.patientName},
-                {"patientId", s.patientId},
-                {"patientBirthDate", s.patientBirthDate},
-                {"studyDate", s.studyDate},
-                {"studyTime", s.studyTime},
-                {"accessionNumber", s.accessionNumber},
-                {"description", s.description},
-                {"modalities", s.modalities},
-                {"complete", false},
-                {"series", json::object()}};
+    json j{{"studyUid", s.studyUid}};
+    for (const StudyTextField& f : studyTextFields()) j[f.name] = s.*f.member;
+    j["complete"] = false;
+    j["series"] = json::object();
+    return j;
 }
 
 /** Fills the fields the entry lacks from `s` (the first instance or query gives them). */
 void mergeStudy(json& entry, const StudyRecord& s) {
-    const std::pair<const char*, const std::string*> fields[] = {
-        {"patientName", &s.patientName},
-        {"patientId", &s.patientId},
-        {"patientBirthDate", &s.patientBirthDate},
-        {"studyDate", &s.studyDate},
-        {"studyTime", &s.studyTime},
-        {"accessionNumber", &s.accessionNumber},
-        {"description", &s.description},
-        {"modalities", &s.modalities}};
-    for (const auto& [key, value] : fields)
-        if (entry.value(key, std::string()).empty() && !value->empty()) entry[key] = *value;
+    for (const StudyTextField& f : studyTextFields())
+        if (entry.value(f.name, std::string()).empty() && !(s.*f.member).empty())
+            entry[f.name] = s.*f.member;
 }
 
 json& studyEntry(std::map<std::string, json>& studies, const StudyRecord& s) {
@@ -138,18 +124,45 @@ int countInstances(const fs::path& folder) {
 StudyRecord recordFromJson(const std::string& uid, const json& j) {
     StudyRecord s;
     s.studyUid = uid;
-    s.patientName = j.value("patientName", "");
-    s.patientId = j.value("patientId", "");
-    s.patientBirthDate = j.value("patientBirthDate", "");
-    s.studyDate = j.value("studyDate", "");
-    s.studyTime = j.value("studyTime", "");
-    s.accessionNumber = j.value("accessionNumber", "");
-    s.description = j.value("description", "");
-    s.modalities = j.value("modalities", "");
+    for (const StudyTextField& f : studyTextFields()) s.*f.member = j.value(f.name, "");
     return s;
 }
 
+/** Throws PacsError (or json::type_error) when an index entry, edited by hand, does not have
+ *  the shape the store reads and writes: objects of strings and booleans. */
+void checkEntry(const std::string& uid, const json& entry) {
+    const auto object = [&](const json& j, const std::string& what) {
+        if (!j.is_object()) throw PacsError(what + " is not an object");
+    };
+    object(entry, "study " + uid);
+    recordFromJson(uid, entry);
+    (void)entry.value("complete", false);
+    (void)entry.value("retrievePending", false);
+    (void)entry.value("updated", "");
+    const json series = entry.value("series", json::object());
+    object(series, "the series of study " + uid);
+    for (const auto& [suid, s] : series.items()) {
+        object(s, "series " + suid);
+        (void)s.value("modality", "");
+        (void)s.value("description", "");
+        (void)s.value("complete", false);
+    }
+}
+
 } // namespace
+
+const std::vector<StudyTextField>& studyTextFields() {
+    static const std::vector<StudyTextField> fields{
+        {"patientName", &StudyRecord::patientName},
+        {"patientId", &StudyRecord::patientId},
+        {"patientBirthDate", &StudyRecord::patientBirthDate},
+        {"studyDate", &StudyRecord::studyDate},
+        {"studyTime", &StudyRecord::studyTime},
+        {"accessionNumber", &StudyRecord::accessionNumber},
+        {"description", &StudyRecord::description},
+        {"modalities", &StudyRecord::modalities}};
+    return fields;
+}
 
 fs::path defaultLocalStoreRoot() {
     const char* xdg = std::getenv("XDG_DATA_HOME");
@@ -180,7 +193,14 @@ LocalStore::Index LocalStore::load() const {
     if (!in) return index; // no index yet: an empty store
     try {
         const json j = json::parse(in);
-        for (const auto& [uid, entry] : j.at("studies").items()) index.studies[uid] = entry;
+        const json& studies = j.at("studies");
+        if (!studies.is_object()) throw PacsError("\"studies\" is not an object");
+        for (const auto& [uid, entry] : studies.items()) {
+            checkEntry(uid, entry);
+            index.studies[uid] = entry;
+        }
+    } catch (const PacsError& e) {
+        throw PacsError("local store index " + path.string() + " cannot be read: " + e.what());
     } catch (const json::exception& e) {
         throw PacsError("local store index " + path.string() + " cannot be read: " + e.what());
     }

@@ -4,27 +4,21 @@
 #include <dcmtk/dcmnet/diutil.h>
 
 #include <algorithm>
+#include <chrono>
 #include <memory>
 
 namespace fvr::core::pacs {
 namespace {
 
+/** YYYYMMDD naming a day of the calendar (20231301 and 20230229 do not). */
 bool isDate(const std::string& s) {
-    return s.size() == 8 &&
-           std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
-}
-
-/** DICOM date range matching: "from-to", "from-", "-to". */
-std::string dateRange(const StudyQuery& q) {
-    for (const auto* d : {&q.dateFrom, &q.dateTo})
-        if (!d->empty() && !isDate(*d))
-            throw PacsError("the study date \"" + *d + "\" is not a date YYYYMMDD");
-    if (!q.dateFrom.empty() && !q.dateTo.empty() && q.dateFrom > q.dateTo)
-        throw PacsError("the study date range " + q.dateFrom + "-" + q.dateTo +
-                        " ends before it begins");
-    if (q.dateFrom.empty() && q.dateTo.empty()) return "";
-    if (q.dateFrom == q.dateTo) return q.dateFrom;
-    return q.dateFrom + "-" + q.dateTo;
+    if (s.size() != 8 ||
+        !std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; }))
+        return false;
+    const std::chrono::year_month_day day{std::chrono::year{std::stoi(s.substr(0, 4))},
+                                          std::chrono::month(unsigned(std::stoi(s.substr(4, 2)))),
+                                          std::chrono::day(unsigned(std::stoi(s.substr(6, 2))))};
+    return day.ok();
 }
 
 std::string get(DcmItem& item, const DcmTagKey& tag) {
@@ -112,6 +106,18 @@ SeriesRecord seriesRecordFrom(DcmItem& item) {
 
 } // namespace detail
 
+std::string studyDateMatch(const StudyQuery& q) {
+    for (const auto* d : {&q.dateFrom, &q.dateTo})
+        if (!d->empty() && !isDate(*d))
+            throw PacsError("the study date \"" + *d + "\" is not a date YYYYMMDD");
+    if (!q.dateFrom.empty() && !q.dateTo.empty() && q.dateFrom > q.dateTo)
+        throw PacsError("the study date range " + q.dateFrom + "-" + q.dateTo +
+                        " ends before it begins");
+    if (q.dateFrom.empty() && q.dateTo.empty()) return "";
+    if (q.dateFrom == q.dateTo) return q.dateFrom;
+    return q.dateFrom + "-" + q.dateTo;
+}
+
 std::vector<StudyRecord> findStudies(const Node& node, const LocalAe& local,
                                      const StudyQuery& query) {
     DcmDataset keys;
@@ -121,7 +127,7 @@ std::vector<StudyRecord> findStudies(const Node& node, const LocalAe& local,
     keys.putAndInsertString(DCM_PatientName, query.patientName.c_str());
     keys.putAndInsertString(DCM_PatientID, query.patientId.c_str());
     keys.putAndInsertString(DCM_AccessionNumber, query.accessionNumber.c_str());
-    keys.putAndInsertString(DCM_StudyDate, dateRange(query).c_str());
+    keys.putAndInsertString(DCM_StudyDate, studyDateMatch(query).c_str());
     keys.putAndInsertString(DCM_ModalitiesInStudy, query.modality.c_str());
     for (const DcmTagKey& tag : {DCM_PatientBirthDate, DCM_StudyTime, DCM_StudyDescription,
                                  DCM_NumberOfStudyRelatedSeries, DCM_NumberOfStudyRelatedInstances})

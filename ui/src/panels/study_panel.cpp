@@ -22,14 +22,6 @@ QString StudyPanel::text() const { return m_info->text(); }
 
 namespace {
 
-/** YYYYMMDD as YYYY-MM-DD (other forms as they are). */
-QString dicomDate(const std::string& d) {
-    const QString q = QString::fromStdString(d);
-    if (q.size() == 8 && q.toLongLong() > 0)
-        return q.left(4) + '-' + q.mid(4, 2) + '-' + q.mid(6, 2);
-    return q;
-}
-
 /** Patient, study and series of a DICOM study, one line each. */
 QString seriesLines(const core::DicomSeriesInfo& s) {
     auto esc = [](const std::string& v) { return QString::fromStdString(v).toHtmlEscaped(); };

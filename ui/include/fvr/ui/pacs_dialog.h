@@ -34,7 +34,7 @@ public:
     /** `store`: the local study store, shared with the storage listener (one object per
      *  process: it serialises their writes). */
     explicit PacsDialog(std::shared_ptr<core::pacs::LocalStore> store, QWidget* parent = nullptr);
-    ~PacsDialog() override; ///< cancels a retrieve and waits for every worker
+    ~PacsDialog() override; ///< cancels a retrieve and waits for it (see run())
 
     /** Reloads the nodes from the settings (after Edit nodes or elsewhere). */
     void reloadSettings();
@@ -71,8 +71,11 @@ private:
     QWidget* buildQueryForm();
     QWidget* buildLocalTab();
     /** Runs `work` on a worker thread; `done` runs on the GUI thread with the error message
-     *  (empty on success, "cancelled" when cancelled) unless the dialog is gone. */
-    void run(std::function<void()> work, std::function<void(const QString&)> done);
+     *  (empty on success, "cancelled" when cancelled) unless the dialog is gone. The dialog's
+     *  destructor waits for the jobs with `waitAtClose` (retrieves, cancelled first), not for
+     *  the others (an echo or a query may wait for the network timeout). */
+    void run(std::function<void()> work, std::function<void(const QString&)> done,
+             bool waitAtClose = false);
     const core::pacs::Node* currentNode() const;
     void testConnection();
     void search();

@@ -59,6 +59,9 @@ SpectrumSettings workstationSpectrumDefaults();
 /** A DICOM person name as the panels, the title and the PACS dialog show it: the components
  *  ("DOE^JOHN") separated by spaces ("DOE JOHN"). */
 QString personName(const std::string& dicomName);
+/** A DICOM date as the panels and the PACS dialog show it: "20150206" as "2015-02-06"; what is
+ *  not a calendar day YYYYMMDD (empty, "2015", "20231301") as it is. */
+QString dicomDate(const std::string& date);
 
 class StudyController : public QObject {
     Q_OBJECT

@@ -64,6 +64,11 @@ struct StudyQuery {
     std::string modality; ///< e.g. "CT" (matched against ModalitiesInStudy)
 };
 
+/** The query's StudyDate matching value ("from-to", "from-", "-to", one day, or empty). Throws
+ *  PacsError for a date that is not a calendar day YYYYMMDD or a range that ends before it
+ *  begins (the one rule of the PACS dialog, fvr-render --query and findStudies). */
+std::string studyDateMatch(const StudyQuery& q);
+
 /** A study as the PACS describes it; strings in UTF-8 (SpecificCharacterSet converted).
  *  Person names in DICOM form ("DOE^JOHN"). -1: the PACS did not say. */
 struct StudyRecord {
@@ -71,6 +76,14 @@ struct StudyRecord {
         accessionNumber, description, modalities; ///< modalities: "CT\\MR" as in the tag
     int numberOfSeries = -1, numberOfInstances = -1;
 };
+
+/** A text field of StudyRecord under the name that the local store's index and fvr-render
+ *  --query's JSON give it: one list for both (studyUid and the counts aside). */
+struct StudyTextField {
+    const char* name; ///< e.g. "patientName"
+    std::string StudyRecord::*member;
+};
+const std::vector<StudyTextField>& studyTextFields();
 
 struct SeriesRecord {
     std::string seriesUid, modality, description;
