@@ -71,7 +71,9 @@ PyVolume volumeFromArray(py::array_t<float, py::array::c_style | py::array::forc
         py::gil_scoped_release release;
         v->voxels.assign(data, data + v->voxelCount());
     }
-    return PyVolume{std::move(v), {}};
+    std::vector<std::string> warnings;
+    if (auto w = core::replaceNonFiniteVoxels(*v)) warnings.push_back(*w);
+    return PyVolume{std::move(v), std::move(warnings)};
 }
 
 /** fvr.load: the path by core's rule (core::openStudy through fvr-render's loadInput). */

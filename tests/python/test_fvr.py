@@ -108,6 +108,18 @@ def test_volume_from_numpy_renders_as_the_loaded_volume(body, renderer):
     np.testing.assert_array_equal(as64.array, body.array)
 
 
+def test_non_finite_voxels_are_said_and_replaced():
+    a = np.full((8, 8, 8), 100.0, np.float32)
+    a[0, 0, 1] = -50.0
+    a[2, 3, 4] = np.nan
+    a[5, 5, 5] = np.inf
+    v = fvr.Volume(a, spacing=(1.0, 1.0, 1.0))
+    assert any(w.startswith("2 of 512 voxels are not finite") for w in v.warnings), v.warnings
+    assert v.array[2, 3, 4] == -50.0 and v.array[5, 5, 5] == -50.0
+    img = fvr.Renderer(v).render(view="AP", size=128)
+    assert np.isfinite(img).all()  # one NaN voxel used to spread into about a third of it
+
+
 @pytest.mark.parametrize("call, message", [
     (lambda v, r: fvr.Renderer(v, kernel="bogus"), "--kernel"),
     (lambda v, r: fvr.Renderer(v, oversampling=3), "expected a factor in [1, 2], found 3"),

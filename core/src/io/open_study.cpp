@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include <fvr/core/errors.h>
@@ -109,6 +111,26 @@ InputSource classifyInput(const std::string& input) {
     return s;
 }
 
+std::optional<std::string> replaceNonFiniteVoxels(Volume& volume) {
+    std::size_t bad = 0;
+    float lowest = std::numeric_limits<float>::infinity();
+    for (float v : volume.voxels) {
+        if (!std::isfinite(v))
+            ++bad;
+        else
+            lowest = std::min(lowest, v);
+    }
+    if (bad == 0) return std::nullopt;
+    if (!std::isfinite(lowest)) lowest = 0.0f;
+    for (float& v : volume.voxels)
+        if (!std::isfinite(v)) v = lowest;
+    std::ostringstream w;
+    w << bad << " of " << volume.voxels.size()
+      << " voxels are not finite (NaN or infinite); they are rendered as " << lowest
+      << ", the lowest finite value";
+    return w.str();
+}
+
 std::optional<std::string> guessHounsfieldUnits(Volume& volume) {
     if (volume.units != ValueUnits::Unknown) return std::nullopt;
     const auto [lo, hi] = volume.valueRange();
@@ -149,6 +171,7 @@ OpenedStudy openStudy(const InputSource& source, const OpenOptions& options,
     case InputKind::DicomFolder: study = openDicomFolder(source, options, progress, cancel); break;
     }
     if (cancel) cancel->check();
+    if (auto w = replaceNonFiniteVoxels(study.volume)) study.warnings.push_back(*w);
     if (auto w = guessHounsfieldUnits(study.volume)) study.warnings.push_back(*w);
     if (!study.volume.orientationStated)
         study.warnings.push_back(

@@ -54,6 +54,14 @@ InputSource classifyInput(const std::string& input);
  */
 std::optional<std::string> guessHounsfieldUnits(Volume& volume);
 
+/**
+ * Voxels that are not finite (NaN, ±inf: masked regions of a NIfTI, a broken file) would spread
+ * through the 3D transform into a large part of every projection. They become the lowest finite
+ * value of the volume (air in a CT; 0 when none is finite), and the warning says how many.
+ * Returns nothing when every voxel is finite. openStudy and fvr.Volume call it.
+ */
+std::optional<std::string> replaceNonFiniteVoxels(Volume& volume);
+
 struct OpenOptions {
     std::string seriesKey; ///< DICOM folder: the series to open (empty: the default)
     std::optional<RawSpec> raw; ///< VolumeFile: read as headerless raw with this geometry
@@ -73,7 +81,8 @@ struct OpenedStudy {
 
 /**
  * Opens `source` by the rule above: the phantom, a volume file, a DICOM file or a folder's
- * series (OpenOptions::seriesKey, else defaultSeriesIndex), then guessHounsfieldUnits. Progress
+ * series (OpenOptions::seriesKey, else defaultSeriesIndex), then replaceNonFiniteVoxels and
+ * guessHounsfieldUnits. Progress
  * covers scan and load; throws LoadError/DicomError/SettingsError naming the file and the
  * problem, Cancelled when cancelled.
  */
