@@ -99,7 +99,7 @@ PacsDialog::~PacsDialog() {
     // Retrieves are cancelled and waited for (they write into the store); an echo or a query
     // cannot be cancelled and may wait for the network timeout: it ends on its own, and its
     // result, posted to the application, finds no dialog.
-    for (const auto& t : m_tokens) t->cancel();
+    if (m_retrieveCancel) m_retrieveCancel->cancel(); // one retrieve at a time
     for (const QPointer<QThread>& t : m_threads)
         if (t) t->wait();
 }
@@ -343,28 +343,39 @@ void PacsDialog::loadSeries(QTreeWidgetItem* study) {
     const pacs::LocalAe local = m_settings.local;
     const std::string uid = study->data(0, kStudyUid).toString().toStdString();
     auto found = std::make_shared<std::vector<pacs::SeriesRecord>>();
-    QPointer<QTreeWidget> tree(m_results);
     run([n, local, uid, found] { *found = pacs::findSeries(n, local, uid); },
-        [this, study, tree, found](const QString& error) {
-            // The item may be gone (a new search cleared the results).
-            if (!tree || tree->indexOfTopLevelItem(study) < 0) return;
-            if (!error.isEmpty()) {
-                study->setData(0, kSeriesLoaded, false);
-                setStatus(tr("Series query failed: %1").arg(error), true);
-                return;
+        [this, uid, found](const QString& error) {
+            // Found again by its UID: a new search may have replaced the results meanwhile.
+            QTreeWidgetItem* item = nullptr;
+            for (int i = 0; i < m_results->topLevelItemCount() && !item; ++i) {
+                QTreeWidgetItem* t = m_results->topLevelItem(i);
+                if (t->data(0, kStudyUid).toString().toStdString() == uid &&
+                    t->data(0, kSeriesLoaded).toBool() && t->childCount() == 0)
+                    item = t;
             }
-            for (const pacs::SeriesRecord& s : *found) {
-                auto* item = new QTreeWidgetItem(study);
-                item->setText(kPatient, tr("Series %1").arg(count(s.seriesNumber)));
-                item->setText(kDescription, text(s.description));
-                item->setText(kModalities, text(s.modality));
-                item->setText(kImages, count(s.numberOfInstances));
-                item->setData(0, kStudyUid, study->data(0, kStudyUid));
-                item->setData(0, kSeriesUid, text(s.seriesUid));
-                item->setToolTip(0, tr("Series Instance UID %1").arg(text(s.seriesUid)));
-            }
-            if (found->empty()) study->setChildIndicatorPolicy(QTreeWidgetItem::DontShowIndicator);
+            if (!item) return;
+            addSeries(item, error, *found);
         });
+}
+
+void PacsDialog::addSeries(QTreeWidgetItem* study, const QString& error,
+                           const std::vector<pacs::SeriesRecord>& found) {
+    if (!error.isEmpty()) {
+        study->setData(0, kSeriesLoaded, false);
+        setStatus(tr("Series query failed: %1").arg(error), true);
+        return;
+    }
+    for (const pacs::SeriesRecord& s : found) {
+        auto* item = new QTreeWidgetItem(study);
+        item->setText(kPatient, tr("Series %1").arg(count(s.seriesNumber)));
+        item->setText(kDescription, text(s.description));
+        item->setText(kModalities, text(s.modality));
+        item->setText(kImages, count(s.numberOfInstances));
+        item->setData(0, kStudyUid, study->data(0, kStudyUid));
+        item->setData(0, kSeriesUid, text(s.seriesUid));
+        item->setToolTip(0, tr("Series Instance UID %1").arg(text(s.seriesUid)));
+    }
+    if (found.empty()) study->setChildIndicatorPolicy(QTreeWidgetItem::DontShowIndicator);
 }
 
 void PacsDialog::retrieveSelected() {
@@ -384,7 +395,6 @@ void PacsDialog::retrieve(const pacs::Node& n, const std::string& studyUid,
                           const std::string& seriesUid, const QString& label) {
     m_retrieving = true;
     m_retrieveCancel = std::make_shared<core::CancelToken>();
-    m_tokens.push_back(m_retrieveCancel);
     m_progress->setRange(0, 0);
     m_progress->setVisible(true);
     m_cancel->setVisible(true);

@@ -81,6 +81,9 @@ private:
     void search();
     void showStudies(const std::vector<core::pacs::StudyRecord>& studies);
     void loadSeries(QTreeWidgetItem* study);
+    /** The series found for `study` (or the query's error) as its children. */
+    void addSeries(QTreeWidgetItem* study, const QString& error,
+                   const std::vector<core::pacs::SeriesRecord>& found);
     void retrieveSelected();
     void retrieve(const core::pacs::Node& node, const std::string& studyUid,
                   const std::string& seriesUid, const QString& label);
@@ -97,7 +100,6 @@ private:
     bool m_retrieving = false;
     std::shared_ptr<core::CancelToken> m_retrieveCancel;
     std::vector<QPointer<QThread>> m_threads;
-    std::vector<std::shared_ptr<core::CancelToken>> m_tokens;
 
     QTabWidget* m_tabs = nullptr;
     QComboBox* m_node = nullptr;
