@@ -198,56 +198,44 @@ TEST(PacsRetrieve, MoveGivesTheSameVolumeAsTheFolder) {
     expectSameVolume(folder);
 }
 
-TEST(PacsRetrieve, CancelLeavesAPartialStudyThatASecondRetrieveCompletes) {
-    FVR_REQUIRE_ORTHANC();
-    LocalStore store(storeRoot("cancel"));
+/** Retrieves the Philips study with `node`'s method, cancelled at 10 images: the study stays
+ *  partial with nothing half-written (whatever the PACS still sends to our listener after the
+ *  C-CANCEL), and a second retrieve completes it. */
+static void cancelThenComplete(const Node& node, const std::string& storeName) {
+    LocalStore store(storeRoot(storeName));
     CancelToken cancel;
     auto cancelAtTen = [&](const RetrieveProgress& p) {
         if (p.received >= 10) cancel.cancel();
     };
-    EXPECT_THROW(
-        retrieve(env().node(), env().local(), philipsStudy(), "", store, cancelAtTen, &cancel),
-        Cancelled);
+    EXPECT_THROW(retrieve(node, env().local(), philipsStudy(), "", store, cancelAtTen, &cancel),
+                 Cancelled);
     auto entry = store.find(philipsStudy());
     ASSERT_TRUE(entry);
     EXPECT_FALSE(entry->complete);
     for (const auto& s : entry->series) EXPECT_FALSE(s.complete);
     EXPECT_GE(entry->instances, 10);
-    EXPECT_LT(entry->instances, 140);
+    if (node.retrieve == RetrieveMethod::Get) { // it stopped
+        EXPECT_LT(entry->instances, 140);
+    }
     for (const auto& f : fs::recursive_directory_iterator(entry->folder))
         EXPECT_NE(f.path().extension(), ".part") << f.path(); // nothing half-written
-    retrieve(env().node(), env().local(), philipsStudy(), "", store);
+    retrieve(node, env().local(), philipsStudy(), "", store);
     entry = store.find(philipsStudy());
     ASSERT_TRUE(entry);
     EXPECT_TRUE(entry->complete);
     EXPECT_EQ(entry->instances, 140);
 }
 
+TEST(PacsRetrieve, CancelLeavesAPartialStudyThatASecondRetrieveCompletes) {
+    FVR_REQUIRE_ORTHANC();
+    cancelThenComplete(env().node(), "cancel");
+}
+
 TEST(PacsRetrieve, CancelledMoveStaysPartialWhateverArrivesAfter) {
     FVR_REQUIRE_ORTHANC();
-    LocalStore store(storeRoot("cancel-move"));
     Node node = env().node();
     node.retrieve = RetrieveMethod::Move;
-    CancelToken cancel;
-    EXPECT_THROW(retrieve(
-                     node, env().local(), philipsStudy(), "", store,
-                     [&](const RetrieveProgress& p) {
-                         if (p.received >= 10) cancel.cancel();
-                     },
-                     &cancel),
-                 Cancelled);
-    // The PACS may finish its sub-operations to our listener after the C-CANCEL; the study
-    // stays partial all the same (the listener's release does not complete it).
-    auto entry = store.find(philipsStudy());
-    ASSERT_TRUE(entry);
-    EXPECT_FALSE(entry->complete);
-    for (const auto& s : entry->series) EXPECT_FALSE(s.complete);
-    EXPECT_GE(entry->instances, 10);
-    retrieve(node, env().local(), philipsStudy(), "", store);
-    entry = store.find(philipsStudy());
-    ASSERT_TRUE(entry);
-    EXPECT_TRUE(entry->complete);
-    EXPECT_EQ(entry->instances, 140);
+    cancelThenComplete(node, "cancel-move");
 }
 
 TEST(PacsRetrieve, UnknownStudySaysSo) {
