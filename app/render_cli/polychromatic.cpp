@@ -58,9 +58,8 @@ std::string writeView(const Options& o, std::size_t i, std::size_t count,
     const std::string path = count > 1 ? numbered(o.out, i) : o.out;
     const int M = img.size;
     if (o.format == OutputFormat::Png) {
-        std::vector<float> logs(img.pixels.size());
-        for (std::size_t p = 0; p < logs.size(); ++p)
-            logs[p] = float(-std::log(std::max(1e-30, double(img.pixels[p]))));
+        std::vector<float> logs = img.pixels;
+        negativeLogInPlace(logs);
         writePng(path, logs.data(), M, M, autoWindow(logs), o.bitDepth);
     } else if (o.format == OutputFormat::Pfm) {
         writePfm(path, img.pixels.data(), M, M);

@@ -389,4 +389,21 @@ TEST(PolychromaticRender, BoneWaterPhantomAgainstPerRayPolychromaticReferences) 
     EXPECT_GT(sumPsnr, 50.0);
     // The polychromatic model adds no error of its own to the renderer's.
     EXPECT_GT(chainPsnr, monoPsnr - 1.0);
+
+    // 3. The display's -ln(I/I0) straight from the table (no exp and log per pixel) is -ln of
+    // I/I0, without noise and with it (the same seed: the same quanta drawn).
+    using Output = SpectralResponse::Output;
+    const auto logs = poly.render(params, {}, nullptr, Output::NegativeLog).transmission.pixels;
+    const auto fromI = minusLog(f.transmission.pixels);
+    double worst = 0.0;
+    for (std::size_t p = 0; p < logs.size(); ++p)
+        worst = std::max(worst, std::abs(logs[p] - fromI[p]) / std::max(1.0, fromI[p]));
+    EXPECT_LT(worst, 1e-6);
+    NoiseModel noise;
+    noise.mAs = 0.5;
+    noise.seed = 3;
+    auto noisyI = poly.render(params, noise).transmission.pixels;
+    const auto noisyLog = poly.render(params, noise, nullptr, Output::NegativeLog).transmission;
+    negativeLogInPlace(noisyI);
+    EXPECT_EQ(noisyLog.pixels, noisyI);
 }

@@ -127,11 +127,11 @@ core::ProjectionImage ProjectionView::renderPolychromatic(const core::RenderPara
     } else {
         m_polyRenderer->setResponse(m_poly->response);
     }
-    core::PolychromaticFrame f = m_polyRenderer->render(params, m_poly->noise, times);
+    core::PolychromaticFrame f = m_polyRenderer->render(
+        params, m_poly->noise, times, core::SpectralResponse::Output::NegativeLog);
     if (m_poly->show >= 0 && std::size_t(m_poly->show) < f.massThickness.size())
         return std::move(f.massThickness[std::size_t(m_poly->show)]);
-    for (float& v : f.transmission.pixels) v = float(-std::log(std::max(1e-30, double(v))));
-    return std::move(f.transmission);
+    return std::move(f.transmission); // -ln(I/I0), the quantity shown
 }
 
 void ProjectionView::setTargetFps(double fps) {

@@ -48,7 +48,7 @@ bool ProjectionView::renderPolychromaticOnGpu(const core::RenderParams& params) 
             core::NoiseModel n = m_poly->noise;
             n.pixelAreaMm2 = params.image.pixelSize * params.image.pixelSize;
             core::applyQuantumNoise(img.pixels, core::unattenuatedQuanta(*m_poly->response, n), n);
-            for (float& v : img.pixels) v = float(-std::log(std::max(1e-30, double(v))));
+            core::negativeLogInPlace(img.pixels);
             m_cpuImage = std::move(img); // shown through the CPU image's texture
         }
         m_stats.sliceMs = sum.sliceMs;

@@ -261,7 +261,7 @@ float SpectralResponse::lookup(const float* rhoL) const {
     std::vector<const float*> one;
     for (std::size_t m = 0; m < materials(); ++m) one.push_back(rhoL + m);
     float out = 0.0f;
-    applyRange(one, &out, 0, 1);
+    applyRange(one, &out, 0, 1, Output::Transmission);
     return out;
 }
 
@@ -314,7 +314,6 @@ void walkTable(const TableWalk& t, float* out, std::int64_t begin, std::int64_t 
         }
         out[p] = g;
     }
-    for (std::int64_t p = begin; p < end; ++p) out[p] = expNegative(out[p]); // vectorised
 }
 
 /** The walk over the cell layout (a y axis): per block of pixels first the cells and weights
@@ -356,13 +355,12 @@ void walkCells(const TableWalk& t, const float* cells, float* out, std::int64_t 
             out[b0 + q] = g;
         }
     }
-    for (std::int64_t p = begin; p < end; ++p) out[p] = expNegative(out[p]); // vectorised
 }
 
 } // namespace
 
 void SpectralResponse::applyRange(const std::vector<const float*>& rhoL, float* out,
-                                  std::int64_t begin, std::int64_t end) const {
+                                  std::int64_t begin, std::int64_t end, Output output) const {
     const int n = kTableSize;
     TableWalk t{m_nodes.data(),
                 n,
@@ -386,13 +384,17 @@ void SpectralResponse::applyRange(const std::vector<const float*>& rhoL, float* 
         walkCells<-1>(t, m_cells.data(), out, begin, end);
     else
         walkTable<-1, false>(t, out, begin, end);
+    if (output == Output::Transmission)
+        for (std::int64_t p = begin; p < end; ++p) out[p] = expNegative(out[p]); // vectorised
 }
 
 void SpectralResponse::apply(const std::vector<const float*>& rhoL, float* out, std::int64_t count,
-                             ThreadPool* pool) const {
+                             ThreadPool* pool, Output output) const {
     if (rhoL.size() != materials())
         throw SettingsError("spectral response: expected one image per material");
-    auto run = [&](std::int64_t begin, std::int64_t end) { applyRange(rhoL, out, begin, end); };
+    auto run = [&](std::int64_t begin, std::int64_t end) {
+        applyRange(rhoL, out, begin, end, output);
+    };
     if (pool)
         pool->parallelFor(count, 16384, run);
     else
@@ -420,6 +422,10 @@ void applyQuantumNoise(std::vector<float>& iOverI0, double quanta, const NoiseMo
         if (noise.electronicSigma > 0.0) n += electronic(rng);
         v = float(n / quanta);
     }
+}
+
+void negativeLogInPlace(std::vector<float>& iOverI0) {
+    for (float& v : iOverI0) v = -std::log(std::max(1e-30f, v));
 }
 
 } // namespace fvr::core

@@ -81,7 +81,9 @@ void PolychromaticRenderer::setResponse(std::shared_ptr<const SpectralResponse> 
 }
 
 PolychromaticFrame PolychromaticRenderer::render(const RenderParams& params,
-                                                 const NoiseModel& noise, StageTimes* times) {
+                                                 const NoiseModel& noise, StageTimes* times,
+                                                 SpectralResponse::Output output) {
+    using Output = SpectralResponse::Output;
     PolychromaticFrame frame;
     StageTimes sum;
     for (auto& r : m_renderers) {
@@ -98,14 +100,17 @@ PolychromaticFrame PolychromaticRenderer::render(const RenderParams& params,
     frame.transmission.mapping = ValueMapping::Raw;
     std::vector<const float*> rhoL;
     for (const auto& img : frame.massThickness) rhoL.push_back(img.pixels.data());
+    const bool noisy = noise.active();
     m_response->apply(rhoL, frame.transmission.pixels.data(),
-                      std::int64_t(frame.transmission.pixels.size()), &m_pool);
+                      std::int64_t(frame.transmission.pixels.size()), &m_pool,
+                      noisy ? Output::Transmission : output);
     frame.spectralSumMs =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    if (noise.active()) {
+    if (noisy) {
         NoiseModel n = noise;
         n.pixelAreaMm2 = params.image.pixelSize * params.image.pixelSize;
         applyQuantumNoise(frame.transmission.pixels, unattenuatedQuanta(*m_response, n), n);
+        if (output == Output::NegativeLog) negativeLogInPlace(frame.transmission.pixels);
     }
     sum.totalMs += frame.spectralSumMs;
     if (times) *times = sum;

@@ -113,10 +113,13 @@ public:
     double exact(const double* rhoL) const;
     /** I/I0 from the tables. */
     float lookup(const float* rhoL) const;
+    /** What apply() writes: I/I0, or -ln(I/I0) as the table holds it (the display's quantity:
+     *  no exp per pixel to take the log of again). */
+    enum class Output { Transmission, NegativeLog };
     /** out[p] = lookup of (rhoL[0][p], rhoL[1][p], ...) for p < count, in parallel on pool
      *  (null: the calling thread). */
     void apply(const std::vector<const float*>& rhoL, float* out, std::int64_t count,
-               ThreadPool* pool = nullptr) const;
+               ThreadPool* pool = nullptr, Output output = Output::Transmission) const;
 
     /** The table's size per axis and extent (g/cm^2) per axis. */
     static constexpr int kTableSize = 256;
@@ -139,7 +142,7 @@ private:
     void buildTables();
     /** out[p] for p in [begin, end) from rhoL[m][p]. */
     void applyRange(const std::vector<const float*>& rhoL, float* out, std::int64_t begin,
-                    std::int64_t end) const;
+                    std::int64_t end, Output output) const;
     double exactLog(double x, double y, std::vector<double>* muBar) const;
 
     std::vector<double> m_weight;
@@ -181,5 +184,9 @@ double unattenuatedQuanta(const SpectralResponse& response, const NoiseModel& no
 
 /** Replaces I/I0 by its noisy version, in place (deterministic for a seed). */
 void applyQuantumNoise(std::vector<float>& iOverI0, double quanta, const NoiseModel& noise);
+
+/** -ln(I/I0) in place (the display's quantity, bone white), I/I0 floored at 1e-30 (a pixel that
+ *  noise left at no photon is 69 attenuation lengths, not infinity). */
+void negativeLogInPlace(std::vector<float>& iOverI0);
 
 } // namespace fvr::core

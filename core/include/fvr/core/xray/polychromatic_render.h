@@ -29,7 +29,8 @@ std::vector<std::shared_ptr<const Spectrum>> preprocessMaterials(
 
 /** What the polychromatic frame returns besides I/I0. */
 struct PolychromaticFrame {
-    ProjectionImage transmission; ///< I/I0 (noisy when noise is on)
+    /** I/I0 (noisy when noise is on), or -ln of it when render() was asked for NegativeLog. */
+    ProjectionImage transmission;
     std::vector<ProjectionImage> massThickness; ///< rhoL_m in g/cm^2, per material
     double spectralSumMs = 0.0;
 };
@@ -44,9 +45,12 @@ public:
     const SpectralResponse& response() const { return *m_response; }
     std::size_t materials() const { return m_renderers.size(); }
 
-    /** The frame; times (if given) sum the materials' stages, and totalMs includes the sum. */
-    PolychromaticFrame render(const RenderParams& params, const NoiseModel& noise = {},
-                              StageTimes* times = nullptr);
+    /** The frame; times (if given) sum the materials' stages, and totalMs includes the sum.
+     *  `output` NegativeLog: the display's -ln(I/I0), read from the table without noise (no
+     *  exp and log per pixel), or taken of the noisy I/I0. */
+    PolychromaticFrame render(
+        const RenderParams& params, const NoiseModel& noise = {}, StageTimes* times = nullptr,
+        SpectralResponse::Output output = SpectralResponse::Output::Transmission);
 
 private:
     std::vector<std::unique_ptr<Renderer>> m_renderers;
