@@ -5,6 +5,8 @@
 #include <cmath>
 #include <complex>
 #include <cstring>
+#include <limits>
+#include <optional>
 #include <type_traits>
 
 #include <fvr/core/errors.h>
@@ -722,10 +724,258 @@ V nyquistMean(const Sample& sample, int m, int n, bool nyquistColumn, bool nyqui
     return sum / float(ms * ns);
 }
 
+/** Signed tap index -> stored row offset (floats) and period sign of the y or z axis, over the
+ *  indices [-reach, reach] that one frame's row walk reads: wrapAxis's wrap and antiperiodic sign
+ *  looked up once per tap row instead of computed per tap. */
+class AxisLookup {
+public:
+    AxisLookup(std::int64_t P, bool anti, std::int64_t stride, std::int64_t reach)
+        : m_reach(reach), m_offset(std::size_t(2 * reach + 1)), m_sign(std::size_t(2 * reach + 1)) {
+        const std::int64_t hi = P / 2;
+        for (std::int64_t i = -reach; i <= reach; ++i) {
+            const std::int64_t a = i - hi; // periods to remove: ceil(a / P), as intoPrincipalPeriod
+            const std::int64_t q = a > 0 ? (a + P - 1) / P : -((-a) / P);
+            m_offset[std::size_t(i + reach)] = storedIndex(i - q * P, P) * stride;
+            m_sign[std::size_t(i + reach)] = anti && (q & 1) ? -1.0f : 1.0f;
+        }
+    }
+    std::int64_t reach() const { return m_reach; }
+    /** Indexed by the signed tap index. */
+    const std::int64_t* offsets() const { return m_offset.data() + m_reach; }
+    const float* signs() const { return m_sign.data() + m_reach; }
+
+private:
+    std::int64_t m_reach;
+    std::vector<std::int64_t> m_offset;
+    std::vector<float> m_sign;
+};
+
+/** The y and z lookups of one frame, reaching the slice's largest |k| plus the taps (at most a
+ *  few periods: samples beyond take the general path). */
+struct FrameLookups {
+    AxisLookup y, z;
+    FrameLookups(const SliceContext& c, const FrameMapping& f, int M, int T)
+        : y(c.P1, c.anti[1], c.rs, reachFor(f, 1, M, T, c.P1)),
+          z(c.P2, c.anti[2], c.rs * c.P1, reachFor(f, 2, M, T, c.P2)) {}
+    static std::int64_t reachFor(const FrameMapping& f, int a, int M, int T, std::int64_t P) {
+        const double k = (M / 2 + 1) * (std::abs(f.A[a]) + std::abs(f.B[a]));
+        return std::min(std::int64_t(std::ceil(k)), 4 * P) + T + 2;
+    }
+};
+
+/** The columns [first, last] of one slice row whose samples take the fast path: the m where
+ *  every constraint lo <= a + b m <= hi holds, shrunk by one column on each side (the rounding
+ *  of the bounds never admits a sample the fast path cannot take). */
+class ColumnSpan {
+public:
+    ColumnSpan(int first, int last) : m_lo(first), m_hi(last) {}
+    void require(double a, double b, double lo, double hi) {
+        if (b == 0.0) {
+            if (!(a >= lo && a <= hi)) m_lo = 1.0, m_hi = 0.0;
+            return;
+        }
+        double m0 = (lo - a) / b, m1 = (hi - a) / b;
+        if (b < 0) std::swap(m0, m1);
+        m_lo = std::max(m_lo, m0);
+        m_hi = std::min(m_hi, m1);
+    }
+    int first() const { return int(std::ceil(std::clamp(m_lo, -1e9, 1e9))) + 1; }
+    int last() const { return int(std::floor(std::clamp(m_hi, -1e9, 1e9))) - 1; }
+
+private:
+    double m_lo, m_hi;
+};
+
+/** The fast columns of row n of the half slice that sample at s k(m) (s = +1: kx >= 0; s = -1:
+ *  kx < 0, the conjugate of the sample at -k): every tap along x in the stored half, along y and
+ *  z inside the lookups, k inside the band. */
+template <int T>
+ColumnSpan fastColumns(const SliceContext& c, const FrameMapping& f, const FrameLookups& l, int M,
+                       int n, double s) {
+    ColumnSpan span(0, M / 2 - 1);
+    const double first = T == 1 ? 0.0 : double(c.first);
+    const double xlo = std::max(-first, s < 0 ? 1e-9 : 0.0);
+    const double xhi = double(c.P0 / 2) - (T == 1 ? 0.0 : first + T - 1);
+    const double half[3] = {c.half0, c.half1, c.half2};
+    const double reach[3] = {std::numeric_limits<double>::infinity(), double(l.y.reach() - T - 1),
+                             double(l.z.reach() - T - 1)};
+    for (int a = 0; a < 3; ++a) {
+        const double ka = s * n * f.B[a], kb = s * f.A[a];
+        const double lim = std::min(half[a], reach[a]);
+        if (a == 0)
+            span.require(ka, kb, std::max(xlo, -lim), std::min(xhi, lim));
+        else
+            span.require(ka, kb, -lim, lim);
+    }
+    return span;
+}
+
+/** Two doubles, two int32 and two floats as SIMD values (SSE2 on the x86-64 baseline). */
+using Double2 = double __attribute__((vector_size(16)));
+using Int2 = std::int32_t __attribute__((vector_size(8)));
+using Float2 = float __attribute__((vector_size(8)));
+
+/** The floor indices and fractional parts of one axis for a chunk of fast columns: k = m a + b
+ *  at m = m0, m0 + 1, ..., two columns per SIMD operation. The same values as floorIndex and
+ *  k - floor(k) (|k| < 2^31 in the fast columns; the fraction stays in double for the tables,
+ *  in float for linear, as axisWeights rounds it). T = 1 rounds to nearest (floor(k + 1/2)). */
+template <int T, class Frac>
+inline void floorChunk(double a, double b, int m0, int count, std::int32_t* index, Frac* frac) {
+    for (int j = 0; j < count; j += 2) {
+        // k from m exactly as the general path computes it (m a + b), not accumulated.
+        const Double2 mm = {double(m0 + j), double(m0 + j + 1)};
+        const Double2 kk = T == 1 ? mm * a + b + 0.5 : mm * a + b;
+        const Double2 t = __builtin_convertvector(__builtin_convertvector(kk, Int2), Double2);
+        const Double2 fl = kk < t ? t - 1.0 : t;
+        const Int2 i = __builtin_convertvector(fl, Int2);
+        index[j] = i[0];
+        index[j + 1] = i[1];
+        if constexpr (T > 1) {
+            const Double2 fr = kk - fl;
+            if constexpr (std::is_same_v<Frac, float>) {
+                const Float2 f2 = __builtin_convertvector(fr, Float2);
+                frac[j] = f2[0];
+                frac[j + 1] = f2[1];
+            } else {
+                frac[j] = fr[0];
+                frac[j + 1] = fr[1];
+            }
+        }
+    }
+}
+
+/** What a fast column's sample reads, copied out of the frame's context into locals (the
+ *  compiler then keeps them in registers across the row's stores). */
+struct FastTaps {
+    const float* data;
+    const KernelTable* table;
+    std::int64_t first;
+    const std::int64_t *oy, *oz; // the lookups, indexed by signed tap index
+    const float *sy, *sz;
+
+    FastTaps(const SliceContext& c, const FrameLookups& l)
+        : data(c.data), table(c.table), first(c.first), oy(l.y.offsets()), oz(l.z.offsets()),
+          sy(l.y.signs()), sz(l.z.signs()) {}
+
+    /** The weights of one axis from the fraction (axisWeights), and its first tap. */
+    template <int T, class Frac>
+    [[gnu::always_inline]] std::int64_t weights(std::int32_t floor, Frac frac, float* w) const {
+        if constexpr (T == 1) {
+            w[0] = 1.0f;
+            return floor;
+        } else if constexpr (T == 2) {
+            w[1] = frac;
+            w[0] = 1.0f - w[1];
+            return floor;
+        } else {
+            table->weights<T>(frac, w);
+            return std::int64_t(floor) + first;
+        }
+    }
+
+    /** The half-spectrum sample at k (kx >= 0) from its floor indices and fractions:
+     *  interiorComplex's sum with the y and z rows and period signs from the lookups (the same
+     *  values where interiorComplex applies, and wrapAxis's per-tap signs where the taps straddle
+     *  a period's edge). */
+    template <int T, class Frac>
+    [[gnu::always_inline]] cfloat sample(const std::int32_t* i, const Frac* fr) const {
+        float wx[T], wy[T], wz[T];
+        const std::int64_t bx = weights<T>(i[0], fr[0], wx), by = weights<T>(i[1], fr[1], wy),
+                           bz = weights<T>(i[2], fr[2], wz);
+        const std::int64_t *ry = oy + by, *rz = oz + bz;
+        const float *ty = sy + by, *tz = sz + bz;
+        if constexpr (T == 1) {
+            const float* p = data + 2 * bx + ry[0] + rz[0];
+            return (ty[0] * tz[0]) * cfloat(p[0], p[1]);
+        } else {
+            constexpr int V = T / 2;
+            Float4 wxy[T][V];
+            for (int v = 0; v < V; ++v) {
+                const Float4 w = {wx[2 * v], wx[2 * v], wx[2 * v + 1], wx[2 * v + 1]};
+                for (int yc = 0; yc < T; ++yc) wxy[yc][v] = (ty[yc] * wy[yc]) * w;
+            }
+            const float* base = data + 2 * bx;
+            Float4 acc = {0, 0, 0, 0};
+            for (int zc = 0; zc < T; ++zc) {
+                const float* plane = base + rz[zc];
+                Float4 accZ = {0, 0, 0, 0};
+                for (int yc = 0; yc < T; ++yc) {
+                    const float* row = plane + ry[yc];
+                    for (int v = 0; v < V; ++v) accZ += wxy[yc][v] * load4(row + 4 * v);
+                }
+                acc += (tz[zc] * wz[zc]) * accZ;
+            }
+            return {acc[0] + acc[2], acc[1] + acc[3]};
+        }
+    }
+
+    /** Prefetches the tap rows of the sample with these floor indices. */
+    template <int T>
+    [[gnu::always_inline]] void prefetch(const std::int32_t* i) const {
+        const std::int64_t off = T >= 4 ? first : 0; // the first tap, as weights()
+        const float* base = data + 2 * (i[0] + off);
+        const std::int64_t *ry = oy + (i[1] + off), *rz = oz + (i[2] + off);
+        for (int zc = 0; zc < T; ++zc)
+            for (int yc = 0; yc < T; ++yc) __builtin_prefetch(base + rz[zc] + ry[yc]);
+    }
+};
+
+/** Columns [m0, m1] of row n (fast columns of side s): sliceHalfComplex's value, model and
+ *  filter, without the per-sample checks. The floors and fractions of a chunk of columns are
+ *  computed (and their rows prefetched) one chunk ahead of the sums. s k(m) = m (s A) + s (n B)
+ *  exactly (negation is exact). */
+template <int T>
+void fastRowComplex(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
+                    const SliceFilterTable& filter, const RowTransfer& model, int n, double s,
+                    int m0, int m1, cfloat* row) {
+    using Frac = std::conditional_t<T <= 2, float, double>;
+    constexpr int kChunk = 16;
+    const FastTaps taps(c, l);
+    const double a[3] = {s * f.A[0], s * f.A[1], s * f.A[2]};
+    const double b[3] = {s * (n * f.B[0]), s * (n * f.B[1]), s * (n * f.B[2])};
+    const float* transfer = c.model ? model.row.data() : nullptr;
+    const bool filtered = filter.on, conjugate = s < 0;
+    const float scale = f.scale;
+    // Per chunk (two, alternating): per column the x, y, z floors and fractions.
+    alignas(16) std::int32_t index[2][kChunk][3];
+    alignas(16) Frac frac[2][kChunk][3];
+    auto prepare = [&](int buf, int first) {
+        const int count = std::min(kChunk, m1 - first + 1);
+        alignas(16) std::int32_t ix[kChunk + 1];
+        alignas(16) Frac fx[kChunk + 1];
+        for (int axis = 0; axis < 3; ++axis) {
+            floorChunk<T>(a[axis], b[axis], first, count, ix, fx);
+            for (int j = 0; j < count; ++j) {
+                index[buf][j][axis] = ix[j];
+                frac[buf][j][axis] = fx[j];
+            }
+        }
+        for (int j = 0; j < count; ++j)
+            if (T <= 2 || j % 4 == 0) taps.prefetch<T>(index[buf][j]);
+    };
+    prepare(0, m0);
+    for (int first = m0, buf = 0; first <= m1; first += kChunk, buf ^= 1) {
+        if (first + kChunk <= m1) prepare(buf ^ 1, first + kChunk);
+        const int count = std::min(kChunk, m1 - first + 1);
+        for (int j = 0; j < count; ++j) {
+            const int m = first + j;
+            cfloat v = taps.sample<T>(index[buf][j], frac[buf][j]);
+            if (conjugate) v = std::conj(v);
+            if (transfer) v *= transfer[m];
+            const float sign = ((n + m) & 1) ? -scale : scale;
+            row[m] = v * (filtered ? sign * filter(m, n) : sign);
+        }
+    }
+}
+
 template <int T, bool Depth>
 void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter,
                       int M, cfloat* out, ThreadPool& pool) {
     const int H = M / 2 + 1;
+    // The fast row walk: T taps per axis without depth cueing (the tap counts 1, 2, 4, 6).
+    constexpr bool kFast = !Depth && T != 3;
+    std::optional<FrameLookups> lookups;
+    if constexpr (kFast) lookups.emplace(c, f, M, T);
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         RowTransfer model(c, f, M);
         auto sample = [&](double m, double n, int index) {
@@ -736,21 +986,44 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
             const bool nyqRow = (n == -M / 2);
             if (!Depth && !nyqRow) model.fill(0, 0, H, n);
             cfloat* row = out + r * H;
-            float sign = ((n & 1) ? -1.0f : 1.0f) * f.scale;
-            for (int m = 0; m < H; ++m, sign = -sign) {
-                cfloat v;
-                if (m == M / 2 || nyqRow) {
-                    v = nyquistMean<cfloat>(sample, m, n, m == M / 2, nyqRow);
-                } else {
-                    if (T <= 2 || m % 4 == 0) {
-                        const double ma = m + kPrefetchAhead;
-                        prefetchInterior<T>(c, ma * f.A[0] + n * f.B[0], ma * f.A[1] + n * f.B[1],
-                                            ma * f.A[2] + n * f.B[2]);
+            auto general = [&](int m0, int m1) { // columns [m0, m1)
+                for (int m = m0; m < m1; ++m) {
+                    const float sign = ((n + m) & 1) ? -f.scale : f.scale;
+                    cfloat v;
+                    if (m == M / 2 || nyqRow) {
+                        v = nyquistMean<cfloat>(sample, m, n, m == M / 2, nyqRow);
+                    } else if (outOfBand(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1],
+                                         m * f.A[2] + n * f.B[2])) {
+                        v = {}; // sampleComplex's value there, without the lookups
+                    } else {
+                        if (T <= 2 || m % 4 == 0) {
+                            const double ma = m + kPrefetchAhead;
+                            prefetchInterior<T>(c, ma * f.A[0] + n * f.B[0],
+                                                ma * f.A[1] + n * f.B[1], ma * f.A[2] + n * f.B[2]);
+                        }
+                        v = sample(m, n, m);
                     }
-                    v = sample(m, n, m);
+                    row[m] = v * (filter.on ? sign * filter(m, n) : sign);
                 }
-                row[m] = v * (filter.on ? sign * filter(m, n) : sign);
+            };
+            int m = 0;
+            if constexpr (kFast) {
+                if (!nyqRow) {
+                    ColumnSpan spans[2] = {fastColumns<T>(c, f, *lookups, M, n, 1.0),
+                                           fastColumns<T>(c, f, *lookups, M, n, -1.0)};
+                    const bool swap = spans[1].first() < spans[0].first();
+                    for (int i = 0; i < 2; ++i) {
+                        const ColumnSpan& sp = spans[swap ? 1 - i : i];
+                        const double s = (swap ? 1 - i : i) == 0 ? 1.0 : -1.0;
+                        if (sp.first() > sp.last()) continue;
+                        general(m, sp.first());
+                        fastRowComplex<T>(c, f, *lookups, filter, model, n, s, sp.first(),
+                                          sp.last(), row);
+                        m = sp.last() + 1;
+                    }
+                }
             }
+            general(m, H);
         }
     });
 }
