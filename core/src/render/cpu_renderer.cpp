@@ -753,9 +753,10 @@ private:
 /** The y and z lookups of one frame, reaching the slice's largest |k| plus the taps (at most a
  *  few periods: samples beyond take the general path). */
 struct FrameLookups {
-    AxisLookup y, z;
-    FrameLookups(const SliceContext& c, const FrameMapping& f, int M, int T)
-        : y(c.P1, c.anti[1], c.rs, reachFor(f, 1, M, T, c.P1)),
+    AxisLookup x, y, z; // x: the Hartley spectrum's (full along x); empty for the half spectrum
+    FrameLookups(const SliceContext& c, const FrameMapping& f, int M, int T, bool hartley)
+        : x(c.P0, c.anti[0], 1, hartley ? reachFor(f, 0, M, T, c.P0) : 0),
+          y(c.P1, c.anti[1], c.rs, reachFor(f, 1, M, T, c.P1)),
           z(c.P2, c.anti[2], c.rs * c.P1, reachFor(f, 2, M, T, c.P2)) {}
     static std::int64_t reachFor(const FrameMapping& f, int a, int M, int T, std::int64_t P) {
         const double k = (M / 2 + 1) * (std::abs(f.A[a]) + std::abs(f.B[a]));
@@ -850,12 +851,12 @@ struct FastTaps {
     const float* data;
     const KernelTable* table;
     std::int64_t first;
-    const std::int64_t *oy, *oz; // the lookups, indexed by signed tap index
-    const float *sy, *sz;
+    const std::int64_t *ox, *oy, *oz; // the lookups, indexed by signed tap index
+    const float *sx, *sy, *sz;
 
     FastTaps(const SliceContext& c, const FrameLookups& l)
-        : data(c.data), table(c.table), first(c.first), oy(l.y.offsets()), oz(l.z.offsets()),
-          sy(l.y.signs()), sz(l.z.signs()) {}
+        : data(c.data), table(c.table), first(c.first), ox(l.x.offsets()), oy(l.y.offsets()),
+          oz(l.z.offsets()), sx(l.x.signs()), sy(l.y.signs()), sz(l.z.signs()) {}
 
     /** The weights of one axis from the fraction (axisWeights), and its first tap. */
     template <int T, class Frac>
@@ -909,6 +910,51 @@ struct FastTaps {
         }
     }
 
+    /** The Hartley sample at k from its floor indices and fractions: interiorHartley's sum with
+     *  every axis's stored index and period sign from the lookups. */
+    template <int T, class Frac>
+    [[gnu::always_inline]] float hartley(const std::int32_t* i, const Frac* fr) const {
+        float wx[T], wy[T], wz[T];
+        const std::int64_t bx = weights<T>(i[0], fr[0], wx), by = weights<T>(i[1], fr[1], wy),
+                           bz = weights<T>(i[2], fr[2], wz);
+        const std::int64_t *rx = ox + bx, *ry = oy + by, *rz = oz + bz;
+        const float *tx = sx + bx, *ty = sy + by, *tz = sz + bz;
+        for (int t = 0; t < T; ++t) wx[t] *= tx[t];
+        // The x taps do not cross kx = 0 or a period's edge: one SIMD load (interiorHartley).
+        const bool contiguous = rx[T - 1] == rx[0] + T - 1;
+        float acc = 0.0f;
+        for (int zc = 0; zc < T; ++zc) {
+            const float* plane = data + rz[zc];
+            float accZ = 0.0f;
+            for (int yc = 0; yc < T; ++yc) {
+                const float* row = plane + ry[yc];
+                const float w = ty[yc] * wy[yc];
+                if constexpr (T == 4) {
+                    if (contiguous) {
+                        const Float4 p = Float4{wx[0], wx[1], wx[2], wx[3]} * load4(row + rx[0]);
+                        accZ += w * ((p[0] + p[1]) + (p[2] + p[3]));
+                        continue;
+                    }
+                }
+                float sum = 0.0f;
+                for (int xc = 0; xc < T; ++xc) sum += wx[xc] * row[rx[xc]];
+                accZ += w * sum;
+            }
+            acc += (tz[zc] * wz[zc]) * accZ;
+        }
+        return acc;
+    }
+
+    /** Prefetches the tap rows of the Hartley sample with these floor indices. */
+    template <int T>
+    [[gnu::always_inline]] void prefetchHartley(const std::int32_t* i) const {
+        const std::int64_t off = T >= 4 ? first : 0; // the first tap, as weights()
+        const float* base = data + ox[i[0] + off];
+        const std::int64_t *ry = oy + (i[1] + off), *rz = oz + (i[2] + off);
+        for (int zc = 0; zc < T; ++zc)
+            for (int yc = 0; yc < T; ++yc) __builtin_prefetch(base + rz[zc] + ry[yc]);
+    }
+
     /** Prefetches the tap rows of the sample with these floor indices. */
     template <int T>
     [[gnu::always_inline]] void prefetch(const std::int32_t* i) const {
@@ -920,22 +966,14 @@ struct FastTaps {
     }
 };
 
-/** Columns [m0, m1] of row n (fast columns of side s): sliceHalfComplex's value, model and
- *  filter, without the per-sample checks. The floors and fractions of a chunk of columns are
- *  computed (and their rows prefetched) one chunk ahead of the sums. s k(m) = m (s A) + s (n B)
- *  exactly (negation is exact). */
-template <int T>
-void fastRowComplex(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
-                    const SliceFilterTable& filter, const RowTransfer& model, int n, double s,
-                    int m0, int m1, cfloat* row) {
+/** Walks the columns m = m0 .. m1 of a row whose k(m) = m a + b (per axis): the floors and
+ *  fractions of a chunk of columns are computed, and their rows prefetched, one chunk ahead of
+ *  the sums; emit(m, floors, fractions) per column in order. */
+template <int T, bool Hartley, class Emit>
+[[gnu::always_inline]] inline void walkColumns(const FastTaps& taps, const double* a,
+                                               const double* b, int m0, int m1, Emit&& emit) {
     using Frac = std::conditional_t<T <= 2, float, double>;
     constexpr int kChunk = 16;
-    const FastTaps taps(c, l);
-    const double a[3] = {s * f.A[0], s * f.A[1], s * f.A[2]};
-    const double b[3] = {s * (n * f.B[0]), s * (n * f.B[1]), s * (n * f.B[2])};
-    const float* transfer = c.model ? model.row.data() : nullptr;
-    const bool filtered = filter.on, conjugate = s < 0;
-    const float scale = f.scale;
     // Per chunk (two, alternating): per column the x, y, z floors and fractions.
     alignas(16) std::int32_t index[2][kChunk][3];
     alignas(16) Frac frac[2][kChunk][3];
@@ -951,21 +989,61 @@ void fastRowComplex(const SliceContext& c, const FrameMapping& f, const FrameLoo
             }
         }
         for (int j = 0; j < count; ++j)
-            if (T <= 2 || j % 4 == 0) taps.prefetch<T>(index[buf][j]);
+            if (T <= 2 || j % 4 == 0) {
+                if constexpr (Hartley)
+                    taps.prefetchHartley<T>(index[buf][j]);
+                else
+                    taps.prefetch<T>(index[buf][j]);
+            }
     };
     prepare(0, m0);
     for (int first = m0, buf = 0; first <= m1; first += kChunk, buf ^= 1) {
         if (first + kChunk <= m1) prepare(buf ^ 1, first + kChunk);
         const int count = std::min(kChunk, m1 - first + 1);
-        for (int j = 0; j < count; ++j) {
-            const int m = first + j;
-            cfloat v = taps.sample<T>(index[buf][j], frac[buf][j]);
-            if (conjugate) v = std::conj(v);
-            if (transfer) v *= transfer[m];
-            const float sign = ((n + m) & 1) ? -scale : scale;
-            row[m] = v * (filtered ? sign * filter(m, n) : sign);
-        }
+        for (int j = 0; j < count; ++j) emit(first + j, index[buf][j], frac[buf][j]);
     }
+}
+
+/** Columns [m0, m1] of row n (fast columns of side s): sliceHalfComplex's value, model and
+ *  filter, without the per-sample checks. s k(m) = m (s A) + s (n B) exactly (negation is
+ *  exact). */
+template <int T>
+void fastRowComplex(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
+                    const SliceFilterTable& filter, const RowTransfer& model, int n, double s,
+                    int m0, int m1, cfloat* row) {
+    const FastTaps taps(c, l);
+    const double a[3] = {s * f.A[0], s * f.A[1], s * f.A[2]};
+    const double b[3] = {s * (n * f.B[0]), s * (n * f.B[1]), s * (n * f.B[2])};
+    const float* transfer = c.model ? model.row.data() : nullptr;
+    const bool filtered = filter.on, conjugate = s < 0;
+    const float scale = f.scale;
+    walkColumns<T, false>(taps, a, b, m0, m1, [&](int m, const std::int32_t* i, const auto* fr) {
+        cfloat v = taps.sample<T>(i, fr);
+        if (conjugate) v = std::conj(v);
+        if (transfer) v *= transfer[m];
+        const float sign = ((n + m) & 1) ? -scale : scale;
+        row[m] = v * (filtered ? sign * filter(m, n) : sign);
+    });
+}
+
+/** Columns [m0, m1] of row n of the Hartley slice (signed m, all fast; stored at column m or
+ *  m + M): sliceFullHartley's value, model and filter, without the per-sample checks. */
+template <int T>
+void fastRowHartley(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
+                    const SliceFilterTable& filter, const RowTransfer& model, int M, int n, int m0,
+                    int m1, float* row) {
+    const FastTaps taps(c, l);
+    const double b[3] = {n * f.B[0], n * f.B[1], n * f.B[2]};
+    const float* transfer = c.model ? model.row.data() : nullptr;
+    const bool filtered = filter.on;
+    const float scale = f.scale;
+    walkColumns<T, true>(taps, f.A, b, m0, m1, [&](int m, const std::int32_t* i, const auto* fr) {
+        const int col = m < 0 ? m + M : m;
+        float v = taps.hartley<T>(i, fr);
+        if (transfer) v = transfer[col] * v;
+        const float sign = ((m + n) & 1) ? -scale : scale;
+        row[col] = v * (filtered ? sign * filter(m, n) : sign);
+    });
 }
 
 template <int T, bool Depth>
@@ -975,7 +1053,7 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
     // The fast row walk: T taps per axis without depth cueing (the tap counts 1, 2, 4, 6).
     constexpr bool kFast = !Depth && T != 3;
     std::optional<FrameLookups> lookups;
-    if constexpr (kFast) lookups.emplace(c, f, M, T);
+    if constexpr (kFast) lookups.emplace(c, f, M, T, false);
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         RowTransfer model(c, f, M);
         auto sample = [&](double m, double n, int index) {
@@ -1028,9 +1106,28 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
     });
 }
 
+/** The fast columns among m = lo .. hi of row n of the Hartley slice: every tap inside the
+ *  lookups, k inside the band. */
+template <int T>
+ColumnSpan hartleyColumns(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
+                          int n, int lo, int hi) {
+    ColumnSpan span(lo, hi);
+    const double half[3] = {c.half0, c.half1, c.half2};
+    const std::int64_t reach[3] = {l.x.reach(), l.y.reach(), l.z.reach()};
+    for (int a = 0; a < 3; ++a) {
+        const double lim = std::min(half[a], double(reach[a] - T - 1));
+        span.require(n * f.B[a], f.A[a], -lim, lim);
+    }
+    return span;
+}
+
 template <int T, bool Depth>
 void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter,
                       int M, float* out, ThreadPool& pool) {
+    // The fast row walk: T taps per axis without depth cueing (the tap counts 1, 2, 4, 6).
+    constexpr bool kFast = !Depth && T != 3;
+    std::optional<FrameLookups> lookups;
+    if constexpr (kFast) lookups.emplace(c, f, M, T, true);
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         RowTransfer model(c, f, M);
         auto sample = [&](double m, double n, int index) {
@@ -1044,23 +1141,44 @@ void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const SliceF
                 model.fill(M / 2, -M / 2, M / 2, n); // columns M/2 .. M-1: m = col - M
             }
             float* row = out + r * M;
-            for (int col = 0; col < M; ++col) {
-                const int m = col < M / 2 ? col : col - M;
-                const float sign = (((m + n) & 1) ? -1.0f : 1.0f) * f.scale;
-                float v;
-                if (m == -M / 2 || nyqRow) {
-                    v = nyquistMean<float>(sample, m, n, m == -M / 2, nyqRow);
-                } else {
-                    if constexpr (T <= 2) {
-                        const double ma = m + kPrefetchAhead;
-                        prefetchHartleyInterior<T>(c, ma * f.A[0] + n * f.B[0],
-                                                   ma * f.A[1] + n * f.B[1],
-                                                   ma * f.A[2] + n * f.B[2]);
+            auto general = [&](int col0, int col1) { // columns [col0, col1)
+                for (int col = col0; col < col1; ++col) {
+                    const int m = col < M / 2 ? col : col - M;
+                    const float sign = (((m + n) & 1) ? -1.0f : 1.0f) * f.scale;
+                    float v;
+                    if (m == -M / 2 || nyqRow) {
+                        v = nyquistMean<float>(sample, m, n, m == -M / 2, nyqRow);
+                    } else if (outOfBand(c, m * f.A[0] + n * f.B[0], m * f.A[1] + n * f.B[1],
+                                         m * f.A[2] + n * f.B[2])) {
+                        v = 0.0f; // sampleHartley's value there, without the lookups
+                    } else {
+                        if constexpr (T <= 2) {
+                            const double ma = m + kPrefetchAhead;
+                            prefetchHartleyInterior<T>(c, ma * f.A[0] + n * f.B[0],
+                                                       ma * f.A[1] + n * f.B[1],
+                                                       ma * f.A[2] + n * f.B[2]);
+                        }
+                        v = sample(m, n, col);
                     }
-                    v = sample(m, n, col);
+                    row[col] = v * (filter.on ? sign * filter(m, n) : sign);
                 }
-                row[col] = v * (filter.on ? sign * filter(m, n) : sign);
+            };
+            int col = 0;
+            if constexpr (kFast) {
+                // m = 0 .. M/2-1 at columns m, m = -M/2+1 .. -1 at columns m + M (increasing).
+                for (int part = 0; part < 2 && !nyqRow; ++part) {
+                    const ColumnSpan sp =
+                        part == 0 ? hartleyColumns<T>(c, f, *lookups, n, 0, M / 2 - 1)
+                                  : hartleyColumns<T>(c, f, *lookups, n, -M / 2 + 1, -1);
+                    if (sp.first() > sp.last()) continue;
+                    const int offset = part == 0 ? 0 : M;
+                    general(col, sp.first() + offset);
+                    fastRowHartley<T>(c, f, *lookups, filter, model, M, n, sp.first(), sp.last(),
+                                      row);
+                    col = sp.last() + offset + 1;
+                }
             }
+            general(col, M);
         }
     });
 }
