@@ -790,16 +790,19 @@ private:
 /** The fast columns of row n of the half slice that sample at s k(m) (s = +1: kx >= 0; s = -1:
  *  kx < 0, the conjugate of the sample at -k): every tap along x in the stored half, along y and
  *  z inside the lookups, k inside the band. */
-template <int T>
+template <int T, bool Depth>
 ColumnSpan fastColumns(const SliceContext& c, const FrameMapping& f, const FrameLookups& l, int M,
                        int n, double s) {
     ColumnSpan span(0, M / 2 - 1);
-    const double first = T == 1 ? 0.0 : double(c.first);
+    // The first tap relative to floor(kx) and the taps loaded along x. Depth cueing's linear
+    // (T = 3) starts at round(k) - 1 on integers (floor(k) at most) and loads a fourth tap.
+    const double first = T == 1 ? 0.0 : T == 3 ? -1.0 : double(c.first);
+    const double lastX = Depth && T == 3 ? 3.0 : first + T - 1;
     const double xlo = std::max(-first, s < 0 ? 1e-9 : 0.0);
-    const double xhi = double(c.P0 / 2) - (T == 1 ? 0.0 : first + T - 1);
+    const double xhi = double(c.P0 / 2) - (T == 1 ? 0.0 : lastX);
     const double half[3] = {c.half0, c.half1, c.half2};
-    const double reach[3] = {std::numeric_limits<double>::infinity(), double(l.y.reach() - T - 1),
-                             double(l.z.reach() - T - 1)};
+    const double reach[3] = {std::numeric_limits<double>::infinity(), double(l.y.reach() - T - 2),
+                             double(l.z.reach() - T - 2)};
     for (int a = 0; a < 3; ++a) {
         const double ka = s * n * f.B[a], kb = s * f.A[a];
         const double lim = std::min(half[a], reach[a]);
@@ -872,6 +875,82 @@ struct FastTaps {
             table->weights<T>(frac, w);
             return std::int64_t(floor) + first;
         }
+    }
+
+    /** The weights and derivative weights of one axis from the fraction (axisDerivWeights), and
+     *  its first tap. */
+    template <int T>
+    [[gnu::always_inline]] std::int64_t derivWeights(std::int32_t floor, double frac, float* w,
+                                                     float* dw) const {
+        if constexpr (T == 3) {
+            // On integers (within 1e-6), the central difference about round(k).
+            const bool up = frac > 0.5; // round(k) = floor + 1 (frac = 1/2 is no integer)
+            if ((up ? 1.0 - frac : frac) < 1e-6) {
+                w[0] = 0.0f, w[1] = 1.0f, w[2] = 0.0f;
+                dw[0] = -0.5f, dw[1] = 0.0f, dw[2] = 0.5f;
+                return std::int64_t(floor) + (up ? 0 : -1);
+            }
+            w[0] = 0.0f;
+            w[2] = float(frac);
+            w[1] = 1.0f - w[2];
+            dw[0] = 0.0f, dw[1] = -1.0f, dw[2] = 1.0f;
+            return std::int64_t(floor) - 1;
+        } else {
+            table->weights(frac, w);
+            table->derivativeWeights(frac, dw);
+            return std::int64_t(floor) + first;
+        }
+    }
+
+    /** The depth-cued sample at k (kx >= 0): G and E.grad G from the same taps,
+     *  interiorComplexDepth's sums with the y and z rows and period signs from the lookups. */
+    template <int T>
+    [[gnu::always_inline]] Sampled<cfloat> depthSample(const std::int32_t* i, const double* fr,
+                                                       const float* E) const {
+        constexpr int TX = (T + 1) / 2 * 2; // taps loaded along x
+        constexpr int V = TX / 2;
+        float wx[TX] = {}, dx[TX] = {}, wy[T], dy[T], wz[T], dz[T];
+        const std::int64_t bx = derivWeights<T>(i[0], fr[0], wx, dx);
+        const std::int64_t by = derivWeights<T>(i[1], fr[1], wy, dy);
+        const std::int64_t bz = derivWeights<T>(i[2], fr[2], wz, dz);
+        const std::int64_t *ry = oy + by, *rz = oz + bz;
+        for (int t = 0; t < T; ++t) {
+            wy[t] *= sy[by + t], dy[t] *= sy[by + t];
+            wz[t] *= sz[bz + t], dz[t] *= sz[bz + t];
+        }
+        Float4 wv[V], dv[V];
+        for (int v = 0; v < V; ++v) {
+            wv[v] = Float4{wx[2 * v], wx[2 * v], wx[2 * v + 1], wx[2 * v + 1]};
+            dv[v] = Float4{dx[2 * v], dx[2 * v], dx[2 * v + 1], dx[2 * v + 1]};
+        }
+        const float* base = data + 2 * bx;
+        Float4 acc = {0, 0, 0, 0}, dacc = {0, 0, 0, 0};
+        for (int zc = 0; zc < T; ++zc) {
+            const float* plane = base + rz[zc];
+            for (int yc = 0; yc < T; ++yc) {
+                const float* row = plane + ry[yc];
+                Float4 sx = {0, 0, 0, 0}, dsx = {0, 0, 0, 0};
+                for (int v = 0; v < V; ++v) {
+                    const Float4 x = load4(row + 4 * v);
+                    sx += wv[v] * x;
+                    dsx += dv[v] * x;
+                }
+                acc += (wz[zc] * wy[yc]) * sx;
+                dacc += (wz[zc] * wy[yc] * E[0]) * dsx +
+                        (E[1] * dy[yc] * wz[zc] + E[2] * wy[yc] * dz[zc]) * sx;
+            }
+        }
+        return {{acc[0] + acc[2], acc[1] + acc[3]}, {dacc[0] + dacc[2], dacc[1] + dacc[3]}};
+    }
+
+    /** Prefetches the tap rows of the depth-cued sample with these floor indices. */
+    template <int T>
+    [[gnu::always_inline]] void prefetchDepth(const std::int32_t* i) const {
+        const std::int64_t off = T == 3 ? -1 : first; // the first tap, as derivWeights
+        const float* base = data + 2 * (i[0] + off);
+        const std::int64_t *ry = oy + (i[1] + off), *rz = oz + (i[2] + off);
+        for (int zc = 0; zc < T; ++zc)
+            for (int yc = 0; yc < T; ++yc) __builtin_prefetch(base + rz[zc] + ry[yc]);
     }
 
     /** The half-spectrum sample at k (kx >= 0) from its floor indices and fractions:
@@ -969,7 +1048,9 @@ struct FastTaps {
 /** Walks the columns m = m0 .. m1 of a row whose k(m) = m a + b (per axis): the floors and
  *  fractions of a chunk of columns are computed, and their rows prefetched, one chunk ahead of
  *  the sums; emit(m, floors, fractions) per column in order. */
-template <int T, bool Hartley, class Emit>
+enum class Walk { Complex, Hartley, Depth };
+
+template <int T, Walk W, class Emit>
 [[gnu::always_inline]] inline void walkColumns(const FastTaps& taps, const double* a,
                                                const double* b, int m0, int m1, Emit&& emit) {
     using Frac = std::conditional_t<T <= 2, float, double>;
@@ -990,8 +1071,10 @@ template <int T, bool Hartley, class Emit>
         }
         for (int j = 0; j < count; ++j)
             if (T <= 2 || j % 4 == 0) {
-                if constexpr (Hartley)
+                if constexpr (W == Walk::Hartley)
                     taps.prefetchHartley<T>(index[buf][j]);
+                else if constexpr (W == Walk::Depth)
+                    taps.prefetchDepth<T>(index[buf][j]);
                 else
                     taps.prefetch<T>(index[buf][j]);
             }
@@ -1017,13 +1100,43 @@ void fastRowComplex(const SliceContext& c, const FrameMapping& f, const FrameLoo
     const float* transfer = c.model ? model.row.data() : nullptr;
     const bool filtered = filter.on, conjugate = s < 0;
     const float scale = f.scale;
-    walkColumns<T, false>(taps, a, b, m0, m1, [&](int m, const std::int32_t* i, const auto* fr) {
-        cfloat v = taps.sample<T>(i, fr);
-        if (conjugate) v = std::conj(v);
-        if (transfer) v *= transfer[m];
-        const float sign = ((n + m) & 1) ? -scale : scale;
-        row[m] = v * (filtered ? sign * filter(m, n) : sign);
-    });
+    walkColumns<T, Walk::Complex>(taps, a, b, m0, m1,
+                                  [&](int m, const std::int32_t* i, const auto* fr) {
+                                      cfloat v = taps.sample<T>(i, fr);
+                                      if (conjugate) v = std::conj(v);
+                                      if (transfer) v *= transfer[m];
+                                      const float sign = ((n + m) & 1) ? -scale : scale;
+                                      row[m] = v * (filtered ? sign * filter(m, n) : sign);
+                                  });
+}
+
+/** fastRowComplex with depth cueing: sampleComplex's a G + i E.grad G of the model's spectrum
+ *  (the model's transfer function per sample, as RowTransfer::at). */
+template <int T>
+void fastRowComplexDepth(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
+                         const SliceFilterTable& filter, const RowTransfer& model, int n, double s,
+                         int m0, int m1, cfloat* row) {
+    const FastTaps taps(c, l);
+    const double a[3] = {s * f.A[0], s * f.A[1], s * f.A[2]};
+    const double b[3] = {s * (n * f.B[0]), s * (n * f.B[1]), s * (n * f.B[2])};
+    const float E[3] = {c.E[0], c.E[1], c.E[2]}, depthA = c.depthA;
+    const bool modelled = c.model != nullptr, filtered = filter.on, conjugate = s < 0;
+    const float scale = f.scale;
+    walkColumns<T, Walk::Depth>(
+        taps, a, b, m0, m1, [&](int m, const std::int32_t* i, const double* fr) {
+            Sampled<cfloat> g = taps.depthSample<T>(i, fr, E);
+            // G(k) = conj G(-k), and then grad G(k) = -conj grad G(-k).
+            if (conjugate) g = {std::conj(g.v), -std::conj(g.dv)};
+            if (modelled) {
+                float t, gt;
+                model.at<true>(m, n, m, t, gt);
+                g.dv = t * g.dv + gt * g.v; // E.grad (T G)
+                g.v *= t;
+            }
+            const cfloat v = {depthA * g.v.real() - g.dv.imag(), depthA * g.v.imag() + g.dv.real()};
+            const float sign = ((n + m) & 1) ? -scale : scale;
+            row[m] = v * (filtered ? sign * filter(m, n) : sign);
+        });
 }
 
 /** Columns [m0, m1] of row n of the Hartley slice (signed m, all fast; stored at column m or
@@ -1037,23 +1150,22 @@ void fastRowHartley(const SliceContext& c, const FrameMapping& f, const FrameLoo
     const float* transfer = c.model ? model.row.data() : nullptr;
     const bool filtered = filter.on;
     const float scale = f.scale;
-    walkColumns<T, true>(taps, f.A, b, m0, m1, [&](int m, const std::int32_t* i, const auto* fr) {
-        const int col = m < 0 ? m + M : m;
-        float v = taps.hartley<T>(i, fr);
-        if (transfer) v = transfer[col] * v;
-        const float sign = ((m + n) & 1) ? -scale : scale;
-        row[col] = v * (filtered ? sign * filter(m, n) : sign);
-    });
+    walkColumns<T, Walk::Hartley>(taps, f.A, b, m0, m1,
+                                  [&](int m, const std::int32_t* i, const auto* fr) {
+                                      const int col = m < 0 ? m + M : m;
+                                      float v = taps.hartley<T>(i, fr);
+                                      if (transfer) v = transfer[col] * v;
+                                      const float sign = ((m + n) & 1) ? -scale : scale;
+                                      row[col] = v * (filtered ? sign * filter(m, n) : sign);
+                                  });
 }
 
 template <int T, bool Depth>
 void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter,
                       int M, cfloat* out, ThreadPool& pool) {
     const int H = M / 2 + 1;
-    // The fast row walk: T taps per axis without depth cueing (the tap counts 1, 2, 4, 6).
-    constexpr bool kFast = !Depth && T != 3;
     std::optional<FrameLookups> lookups;
-    if constexpr (kFast) lookups.emplace(c, f, M, T, false);
+    lookups.emplace(c, f, M, T, false);
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         RowTransfer model(c, f, M);
         auto sample = [&](double m, double n, int index) {
@@ -1085,18 +1197,22 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
                 }
             };
             int m = 0;
-            if constexpr (kFast) {
+            {
                 if (!nyqRow) {
-                    ColumnSpan spans[2] = {fastColumns<T>(c, f, *lookups, M, n, 1.0),
-                                           fastColumns<T>(c, f, *lookups, M, n, -1.0)};
+                    ColumnSpan spans[2] = {fastColumns<T, Depth>(c, f, *lookups, M, n, 1.0),
+                                           fastColumns<T, Depth>(c, f, *lookups, M, n, -1.0)};
                     const bool swap = spans[1].first() < spans[0].first();
                     for (int i = 0; i < 2; ++i) {
                         const ColumnSpan& sp = spans[swap ? 1 - i : i];
                         const double s = (swap ? 1 - i : i) == 0 ? 1.0 : -1.0;
                         if (sp.first() > sp.last()) continue;
                         general(m, sp.first());
-                        fastRowComplex<T>(c, f, *lookups, filter, model, n, s, sp.first(),
-                                          sp.last(), row);
+                        if constexpr (Depth)
+                            fastRowComplexDepth<T>(c, f, *lookups, filter, model, n, s, sp.first(),
+                                                   sp.last(), row);
+                        else
+                            fastRowComplex<T>(c, f, *lookups, filter, model, n, s, sp.first(),
+                                              sp.last(), row);
                         m = sp.last() + 1;
                     }
                 }
