@@ -251,8 +251,9 @@ TEST(VoxelModel, BSplineCoefficientsInterpolateTheVoxelsAndTheZerosAround) {
 }
 
 // An axis view against the exact 2D oracle: every model, the FFT and the FHT path, an even and an
-// odd voxel count across the image (the period signs), pixels of s, s/2 and s/3 (the compact
-// models read the spectrum up to 1.5 cycles per voxel). With voxel-aligned pixels (d = s) the
+// odd voxel count across the image (the period signs), pixels of s, s/2, s/3 and s/9 (the compact
+// models read the spectrum up to 1.5 and 4.5 cycles per voxel: the CPU's fast row walk reaches 4
+// periods, the samples beyond take its general path). With voxel-aligned pixels (d = s) the
 // band-limited model gives the plain voxel sums; the trilinear model gives them bilinearly
 // interpolated and band-limited to the image (what a trilinear ray caster samples, less the
 // aliases beyond the image's Nyquist frequency, which FVR never sees).
@@ -272,7 +273,7 @@ TEST(VoxelModel, AxisViewEqualsTheExactProjectionOfEachModel) {
             o.deapodizeFor = Kernel::KaiserBessel6;
             CpuFourierRenderer r(preprocess(v, o));
             for (VoxelModel model : allVoxelModels())
-                for (int K : {1, 2, 3}) {
+                for (int K : {1, 2, 3, 9}) {
                     if (model == VoxelModel::BandLimited && K > 1)
                         continue; // its band edge falls on samples
                     const double d = 2.0 / K;
