@@ -1,4 +1,6 @@
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <numbers>
 #include <random>
 
@@ -7,6 +9,7 @@
 #include <fvr/core/errors.h>
 #include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/render/preprocess.h>
+#include <fvr/core/render/voxel_model.h>
 
 #include "image_metrics.h"
 
@@ -146,6 +149,44 @@ TEST(CpuRenderer, FftAndFhtGiveTheSameProjection) {
                 const auto m = fvr::test::compare(b.pixels, a.pixels);
                 EXPECT_LT(m.maxAbsError / m.peak, 2e-5) << kernelName(k) << " M " << M;
             }
+}
+
+// The 4- and 6-tap rows of the FFT slice run in x86-64-v3 code (AVX2, FMA) where the CPU has it,
+// in baseline SSE2 code elsewhere or with FVR_CPU_SIMD=baseline: the same sums, rounded once per
+// multiply-add, so the images agree to float rounding. On an AVX2 machine they must also differ
+// somewhere (the dispatch really runs the other code). Both against the independent checks: the
+// other tests run the default code; FftAndFhtGiveTheSameProjection holds it against the Hartley
+// path, which has no wide rows.
+TEST(CpuRenderer, WideSimdRowsAgreeWithTheBaselineRows) {
+    const Volume v = randomVolume({27, 22, 19}, 5, {1.0, 1.2, 1.7});
+    const auto s = spectrumOf(v, TransformKind::Fft, 1.25);
+    CpuFourierRenderer r(s, 2);
+    const ViewFrame views[] = {ViewFrame::fromDirUp({0.3, 0.5, 0.8}, {0, -1, 0}),
+                               ViewFrame::fromDirUp({-1, 0.2, -0.1}, {0, 0, 1})};
+    std::size_t differing = 0;
+    for (const auto& f : views)
+        for (Kernel k : {Kernel::KaiserBessel4, Kernel::KaiserBessel6, Kernel::CatmullRom})
+            for (VoxelModel model : {VoxelModel::BandLimited, VoxelModel::Trilinear})
+                for (double pixel : {1.0, 0.4}) {
+                    RenderParams p{f, {64, pixel}, k};
+                    p.voxelModel = model;
+                    p.filter.sharpenAmount = pixel < 1.0 ? 0.5 : 0.0;
+                    const auto wide = r.render(p);
+                    ::setenv("FVR_CPU_SIMD", "baseline", 1);
+                    const auto base = r.render(p);
+                    ::unsetenv("FVR_CPU_SIMD");
+                    const auto m = fvr::test::compare(wide.pixels, base.pixels);
+                    EXPECT_LT(m.maxAbsError / m.peak, 2e-6)
+                        << kernelName(k) << " " << voxelModelName(model) << " pixel " << pixel;
+                    for (std::size_t i = 0; i < wide.pixels.size(); ++i)
+                        differing += wide.pixels[i] != base.pixels[i];
+                }
+#if defined(__x86_64__)
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"))
+        EXPECT_GT(differing, 0u) << "the AVX2 rows never ran";
+#endif
+    std::printf("[simd] %zu pixels differ in the last bits between the wide and baseline rows\n",
+                differing);
 }
 
 TEST(CpuRenderer, TranslatedVolumeGivesTranslatedProjection) {

@@ -4,9 +4,11 @@
 #include <chrono>
 #include <cmath>
 #include <complex>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <optional>
+#include <string_view>
 #include <type_traits>
 
 #include <fvr/core/errors.h>
@@ -14,6 +16,10 @@
 #include <fvr/core/render/slice_params.h>
 
 #include "fftw_support.h"
+
+#ifdef __x86_64__
+#include <immintrin.h>
+#endif
 
 namespace fvr::core {
 
@@ -929,15 +935,15 @@ struct FastTaps {
             const float* plane = base + rz[zc];
             for (int yc = 0; yc < T; ++yc) {
                 const float* row = plane + ry[yc];
-                Float4 sx = {0, 0, 0, 0}, dsx = {0, 0, 0, 0};
+                Float4 rx = {0, 0, 0, 0}, drx = {0, 0, 0, 0}; // the row: sum and derivative along x
                 for (int v = 0; v < V; ++v) {
                     const Float4 x = load4(row + 4 * v);
-                    sx += wv[v] * x;
-                    dsx += dv[v] * x;
+                    rx += wv[v] * x;
+                    drx += dv[v] * x;
                 }
-                acc += (wz[zc] * wy[yc]) * sx;
-                dacc += (wz[zc] * wy[yc] * E[0]) * dsx +
-                        (E[1] * dy[yc] * wz[zc] + E[2] * wy[yc] * dz[zc]) * sx;
+                acc += (wz[zc] * wy[yc]) * rx;
+                dacc += (wz[zc] * wy[yc] * E[0]) * drx +
+                        (E[1] * dy[yc] * wz[zc] + E[2] * wy[yc] * dz[zc]) * rx;
             }
         }
         return {{acc[0] + acc[2], acc[1] + acc[3]}, {dacc[0] + dacc[2], dacc[1] + dacc[3]}};
@@ -1110,6 +1116,105 @@ void fastRowComplex(const SliceContext& c, const FrameMapping& f, const FrameLoo
                                   });
 }
 
+// GCC on x86-64 (its target pragma; clang and other CPUs keep the baseline rows).
+#if defined __x86_64__ && defined __GNUC__ && !defined __clang__
+#define FVR_SLICE_AVX2 1
+#pragma GCC push_options
+#pragma GCC target("avx2,fma")
+/** FastTaps::sample for 4 and 6 taps in x86-64-v3 code: a tap row's 4 complex values are one
+ *  256-bit register (the 5th and 6th one 128-bit), summed with fused multiply-adds. Compiled for
+ *  AVX2 and FMA here only (GCC's target pragma: no other code changes ISA) and run where the CPU
+ *  has both (sliceSimd). The same sums as FastTaps::sample, rounded once per multiply-add. */
+template <int T, class Frac>
+inline cfloat sampleAvx2(const FastTaps& taps, const std::int32_t* i, const Frac* fr) {
+    static_assert(T == 4 || T == 6);
+    float wx[T], wy[T], wz[T];
+    const std::int64_t bx = taps.weights<T>(i[0], fr[0], wx);
+    const std::int64_t by = taps.weights<T>(i[1], fr[1], wy);
+    const std::int64_t bz = taps.weights<T>(i[2], fr[2], wz);
+    const std::int64_t *ry = taps.oy + by, *rz = taps.oz + bz;
+    const float *ty = taps.sy + by, *tz = taps.sz + bz;
+    const __m256 wlo = _mm256_setr_ps(wx[0], wx[0], wx[1], wx[1], wx[2], wx[2], wx[3], wx[3]);
+    __m128 whi = _mm_setzero_ps();
+    if constexpr (T == 6) whi = _mm_setr_ps(wx[4], wx[4], wx[5], wx[5]);
+    const float* base = taps.data + 2 * bx;
+    __m256 acc = _mm256_setzero_ps();
+    __m128 accHi = _mm_setzero_ps();
+    for (int zc = 0; zc < T; ++zc) {
+        const float* plane = base + rz[zc];
+        __m256 accZ = _mm256_setzero_ps();
+        __m128 accZHi = _mm_setzero_ps();
+        for (int yc = 0; yc < T; ++yc) {
+            const float* row = plane + ry[yc];
+            const float w = ty[yc] * wy[yc];
+            accZ =
+                _mm256_fmadd_ps(_mm256_mul_ps(_mm256_set1_ps(w), wlo), _mm256_loadu_ps(row), accZ);
+            if constexpr (T == 6)
+                accZHi =
+                    _mm_fmadd_ps(_mm_mul_ps(_mm_set1_ps(w), whi), _mm_loadu_ps(row + 8), accZHi);
+        }
+        const float wzz = tz[zc] * wz[zc];
+        acc = _mm256_fmadd_ps(_mm256_set1_ps(wzz), accZ, acc);
+        if constexpr (T == 6) accHi = _mm_fmadd_ps(_mm_set1_ps(wzz), accZHi, accHi);
+    }
+    // (re, im) pairs: sum the four (six) complex lanes.
+    __m128 sum = _mm_add_ps(_mm256_castps256_ps128(acc), _mm256_extractf128_ps(acc, 1));
+    sum = _mm_add_ps(sum, accHi);
+    sum = _mm_add_ps(sum, _mm_movehl_ps(sum, sum));
+    return {_mm_cvtss_f32(sum), _mm_cvtss_f32(_mm_shuffle_ps(sum, sum, 1))};
+}
+
+/** fastRowComplex with sampleAvx2 (4 and 6 taps). */
+template <int T>
+void fastRowComplexAvx2(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
+                        const SliceFilterTable& filter, const RowTransfer& model, int n, double s,
+                        int m0, int m1, cfloat* row) {
+    const FastTaps taps(c, l);
+    const double a[3] = {s * f.A[0], s * f.A[1], s * f.A[2]};
+    const double b[3] = {s * (n * f.B[0]), s * (n * f.B[1]), s * (n * f.B[2])};
+    const float* transfer = c.model ? model.row.data() : nullptr;
+    const bool filtered = filter.on, conjugate = s < 0;
+    const float scale = f.scale;
+    walkColumns<T, Walk::Complex>(taps, a, b, m0, m1,
+                                  [&](int m, const std::int32_t* i, const double* fr) {
+                                      cfloat v = sampleAvx2<T>(taps, i, fr);
+                                      if (conjugate) v = {v.real(), -v.imag()};
+                                      if (transfer)
+                                          v = {v.real() * transfer[m], v.imag() * transfer[m]};
+                                      const float sign = ((n + m) & 1) ? -scale : scale;
+                                      const float g = filtered ? sign * filter(m, n) : sign;
+                                      row[m] = {v.real() * g, v.imag() * g};
+                                  });
+}
+#pragma GCC pop_options
+#endif
+
+/** Whether the CPU runs the slice's x86-64-v3 code (AVX2 and FMA), unless FVR_CPU_SIMD=baseline
+ *  (read per frame: tests compare both). */
+bool sliceAvx2() {
+#ifdef FVR_SLICE_AVX2
+    static const bool cpu = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    const char* env = std::getenv("FVR_CPU_SIMD");
+    return cpu && !(env && std::string_view(env) == "baseline");
+#else
+    return false;
+#endif
+}
+
+/** fastRowComplexAvx2 where it exists (4 and 6 taps on x86-64), fastRowComplex otherwise. */
+template <int T>
+void fastRowComplexWide(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
+                        const SliceFilterTable& filter, const RowTransfer& model, int n, double s,
+                        int m0, int m1, cfloat* row) {
+#ifdef FVR_SLICE_AVX2
+    if constexpr (T == 4 || T == 6) {
+        fastRowComplexAvx2<T>(c, f, l, filter, model, n, s, m0, m1, row);
+        return;
+    }
+#endif
+    fastRowComplex<T>(c, f, l, filter, model, n, s, m0, m1, row);
+}
+
 /** fastRowComplex with depth cueing: sampleComplex's a G + i E.grad G of the model's spectrum
  *  (the model's transfer function per sample, as RowTransfer::at). */
 template <int T>
@@ -1166,6 +1271,7 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
     const int H = M / 2 + 1;
     std::optional<FrameLookups> lookups;
     lookups.emplace(c, f, M, T, false);
+    const bool avx2 = (T == 4 || T == 6) && !Depth && sliceAvx2();
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         RowTransfer model(c, f, M);
         auto sample = [&](double m, double n, int index) {
@@ -1210,6 +1316,9 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
                         if constexpr (Depth)
                             fastRowComplexDepth<T>(c, f, *lookups, filter, model, n, s, sp.first(),
                                                    sp.last(), row);
+                        else if (avx2)
+                            fastRowComplexWide<T>(c, f, *lookups, filter, model, n, s, sp.first(),
+                                                  sp.last(), row);
                         else
                             fastRowComplex<T>(c, f, *lookups, filter, model, n, s, sp.first(),
                                               sp.last(), row);
