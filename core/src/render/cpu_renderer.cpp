@@ -1005,8 +1005,23 @@ struct FastTaps {
         const std::int64_t *rx = ox + bx, *ry = oy + by, *rz = oz + bz;
         const float *tx = sx + bx, *ty = sy + by, *tz = sz + bz;
         for (int t = 0; t < T; ++t) wx[t] *= tx[t];
-        // The x taps do not cross kx = 0 or a period's edge: one SIMD load (interiorHartley).
+        // The x taps do not cross kx = 0 or a period's edge: 4 taps are one SIMD load, the rows
+        // summed per lane and the lanes once at the end.
         const bool contiguous = rx[T - 1] == rx[0] + T - 1;
+        if constexpr (T == 4) {
+            if (contiguous) {
+                const Float4 w4 = {wx[0], wx[1], wx[2], wx[3]};
+                Float4 acc4 = {0, 0, 0, 0};
+                for (int zc = 0; zc < T; ++zc) {
+                    const float* plane = data + rz[zc] + rx[0];
+                    Float4 accZ = {0, 0, 0, 0};
+                    for (int yc = 0; yc < T; ++yc)
+                        accZ += ((ty[yc] * wy[yc]) * w4) * load4(plane + ry[yc]);
+                    acc4 += (tz[zc] * wz[zc]) * accZ;
+                }
+                return (acc4[0] + acc4[1]) + (acc4[2] + acc4[3]);
+            }
+        }
         float acc = 0.0f;
         for (int zc = 0; zc < T; ++zc) {
             const float* plane = data + rz[zc];
@@ -1014,13 +1029,6 @@ struct FastTaps {
             for (int yc = 0; yc < T; ++yc) {
                 const float* row = plane + ry[yc];
                 const float w = ty[yc] * wy[yc];
-                if constexpr (T == 4) {
-                    if (contiguous) {
-                        const Float4 p = Float4{wx[0], wx[1], wx[2], wx[3]} * load4(row + rx[0]);
-                        accZ += w * ((p[0] + p[1]) + (p[2] + p[3]));
-                        continue;
-                    }
-                }
                 float sum = 0.0f;
                 for (int xc = 0; xc < T; ++xc) sum += wx[xc] * row[rx[xc]];
                 accZ += w * sum;
