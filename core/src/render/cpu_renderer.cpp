@@ -1008,15 +1008,21 @@ struct FastTaps {
         // The x taps do not cross kx = 0 or a period's edge: 4 taps are one SIMD load, the rows
         // summed per lane and the lanes once at the end.
         const bool contiguous = rx[T - 1] == rx[0] + T - 1;
-        if constexpr (T == 4) {
+        if constexpr (T == 4 || T == 6) {
             if (contiguous) {
+                // Taps 0-3 in one register; for 6 taps, taps 2-5 in a second (2 and 3 weighted
+                // 0 there), so no load reaches past the last tap.
                 const Float4 w4 = {wx[0], wx[1], wx[2], wx[3]};
+                const Float4 w6 = {0.0f, 0.0f, wx[T - 2], wx[T - 1]};
                 Float4 acc4 = {0, 0, 0, 0};
                 for (int zc = 0; zc < T; ++zc) {
                     const float* plane = data + rz[zc] + rx[0];
                     Float4 accZ = {0, 0, 0, 0};
-                    for (int yc = 0; yc < T; ++yc)
-                        accZ += ((ty[yc] * wy[yc]) * w4) * load4(plane + ry[yc]);
+                    for (int yc = 0; yc < T; ++yc) {
+                        const float w = ty[yc] * wy[yc];
+                        accZ += (w * w4) * load4(plane + ry[yc]);
+                        if constexpr (T == 6) accZ += (w * w6) * load4(plane + ry[yc] + 2);
+                    }
                     acc4 += (tz[zc] * wz[zc]) * accZ;
                 }
                 return (acc4[0] + acc4[1]) + (acc4[2] + acc4[3]);
