@@ -129,6 +129,11 @@ inline float sinc2Float(float nu, float& sin2) {
 
 } // namespace
 
+// Also compiled for x86-64-v3 (8 floats per AVX register, multiply-adds fused: the values to float
+// rounding), chosen at load time (an ifunc) where the CPU has it.
+#if defined __x86_64__ && defined __GNUC__ && !defined __clang__
+__attribute__((target_clones("arch=x86-64-v3", "default")))
+#endif
 void voxelModelTransferRow(VoxelModel m, const float nu0[3], const float dnu[3], int count,
                            float* out) {
     const float a0 = nu0[0], a1 = nu0[1], a2 = nu0[2], d0 = dnu[0], d1 = dnu[1], d2 = dnu[2];
