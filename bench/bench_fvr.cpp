@@ -26,6 +26,7 @@
 #include <fftw3.h>
 
 #include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/render/fftw_planning.h>
 #include <fvr/core/render/kernels.h>
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/render/spatial_projector.h>
@@ -519,6 +520,11 @@ int main(int argc, char** argv) {
     const bool large =
         largeEnabled() || benchmark::GetBenchmarkFilter().find("N512") != std::string::npos;
     registerAll(large ? std::vector<int>{128, 256, 512} : std::vector<int>{128, 256});
+    // Plans measured at once (a warm workstation's plans), unless FVR_FFTW_PLANNING says
+    // otherwise: the background planner would otherwise measure FFTW plans on a thread of this
+    // process whenever it has been 2 s without a frame (between benchmarks, during BM_BareFft:
+    // it doubled the bare FFT's time in a run), which other_cores cannot see.
+    if (!std::getenv("FVR_FFTW_PLANNING")) setFftwPlanning(FftwPlanning::Foreground);
     benchmark::AddCustomContext("fvr_load_average_at_start", loadAverage());
     benchmark::AddCustomContext("fvr_counters",
                                 "slice_ms/inverse_ms/total_ms: means of StageTimes over the "
