@@ -1044,10 +1044,66 @@ struct FastTaps {
         return acc;
     }
 
+    /** The Hartley value and E.grad of it at k from the same taps with the derivative weights
+     *  (interpolateHartley<T, true>), every axis from the lookups. */
+    template <int T>
+    [[gnu::always_inline]] Sampled<float> hartleyDepth(const std::int32_t* i, const double* fr,
+                                                       const float* E) const {
+        float wx[T], dx[T], wy[T], dy[T], wz[T], dz[T];
+        const std::int64_t bx = derivWeights<T>(i[0], fr[0], wx, dx);
+        const std::int64_t by = derivWeights<T>(i[1], fr[1], wy, dy);
+        const std::int64_t bz = derivWeights<T>(i[2], fr[2], wz, dz);
+        const std::int64_t *rx = ox + bx, *ry = oy + by, *rz = oz + bz;
+        for (int t = 0; t < T; ++t) {
+            wx[t] *= sx[bx + t], dx[t] *= sx[bx + t];
+            wy[t] *= sy[by + t], dy[t] *= sy[by + t];
+            wz[t] *= sz[bz + t], dz[t] *= sz[bz + t];
+        }
+        if constexpr (T == 4 || T == 6) {
+            if (rx[T - 1] == rx[0] + T - 1) { // contiguous x taps: SIMD lanes, as hartley()
+                const Float4 w4 = {wx[0], wx[1], wx[2], wx[3]}, d4 = {dx[0], dx[1], dx[2], dx[3]};
+                const Float4 w6 = {0.0f, 0.0f, wx[T - 2], wx[T - 1]};
+                const Float4 d6 = {0.0f, 0.0f, dx[T - 2], dx[T - 1]};
+                Float4 acc = {0, 0, 0, 0}, dacc = {0, 0, 0, 0};
+                for (int zc = 0; zc < T; ++zc)
+                    for (int yc = 0; yc < T; ++yc) {
+                        const float* row = data + rz[zc] + ry[yc] + rx[0];
+                        const Float4 x = load4(row);
+                        Float4 sum = w4 * x, dsum = d4 * x;
+                        if constexpr (T == 6) {
+                            const Float4 x6 = load4(row + 2);
+                            sum += w6 * x6;
+                            dsum += d6 * x6;
+                        }
+                        acc += (wz[zc] * wy[yc]) * sum;
+                        dacc += (wz[zc] * wy[yc] * E[0]) * dsum +
+                                (E[1] * dy[yc] * wz[zc] + E[2] * wy[yc] * dz[zc]) * sum;
+                    }
+                return {(acc[0] + acc[1]) + (acc[2] + acc[3]),
+                        (dacc[0] + dacc[1]) + (dacc[2] + dacc[3])};
+            }
+        }
+        float acc = 0.0f, dacc = 0.0f;
+        for (int zc = 0; zc < T; ++zc)
+            for (int yc = 0; yc < T; ++yc) {
+                const float* row = data + rz[zc] + ry[yc];
+                float sum = 0.0f, dsum = 0.0f;
+                for (int xc = 0; xc < T; ++xc) {
+                    sum += wx[xc] * row[rx[xc]];
+                    dsum += dx[xc] * row[rx[xc]];
+                }
+                acc += (wz[zc] * wy[yc]) * sum;
+                dacc += (wz[zc] * wy[yc] * E[0]) * dsum +
+                        (E[1] * dy[yc] * wz[zc] + E[2] * wy[yc] * dz[zc]) * sum;
+            }
+        return {acc, dacc};
+    }
+
     /** Prefetches the tap rows of the Hartley sample with these floor indices. */
     template <int T>
     [[gnu::always_inline]] void prefetchHartley(const std::int32_t* i) const {
-        const std::int64_t off = T >= 4 ? first : 0; // the first tap, as weights()
+        // The first tap, as weights() (derivWeights for depth cueing's linear, T = 3).
+        const std::int64_t off = T >= 4 ? first : T == 3 ? -1 : 0;
         const float* base = data + ox[i[0] + off];
         const std::int64_t *ry = oy + (i[1] + off), *rz = oz + (i[2] + off);
         for (int zc = 0; zc < T; ++zc)
@@ -1279,6 +1335,67 @@ void fastRowHartley(const SliceContext& c, const FrameMapping& f, const FrameLoo
                                   });
 }
 
+/** fastRowHartley with depth cueing: sampleHartley's a H_m(k) + E.grad H_m(-k), the value at k
+ *  (linear's 2 taps for T = 3) and the derivative at -k = m (-A) + (-n B) from two walks of the
+ *  same columns, chunk by chunk. */
+template <int T>
+void fastRowHartleyDepth(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
+                         const SliceFilterTable& filter, const RowTransfer& model, int M, int n,
+                         int m0, int m1, float* row) {
+    constexpr int TV = T == 3 ? 2 : T; // the value's taps, as sampleHartley
+    using FracV = std::conditional_t<TV <= 2, float, double>;
+    constexpr int kChunk = 16;
+    const FastTaps taps(c, l);
+    const double b[3] = {n * f.B[0], n * f.B[1], n * f.B[2]};
+    const float E[3] = {c.E[0], c.E[1], c.E[2]}, depthA = c.depthA;
+    const bool modelled = c.model != nullptr, filtered = filter.on;
+    const float scale = f.scale;
+    // Two chunks' floors and fractions, alternating: the next chunk's are computed and its rows
+    // prefetched before the sums of this one (as walkColumns).
+    alignas(16) std::int32_t iv[2][3][kChunk + 1], im[2][3][kChunk + 1];
+    alignas(16) FracV fv[2][3][kChunk + 1];
+    alignas(16) double fm[2][3][kChunk + 1];
+    auto prepare = [&](int buf, int first) {
+        const int count = std::min(kChunk, m1 - first + 1);
+        for (int a = 0; a < 3; ++a) {
+            floorChunk<TV>(f.A[a], b[a], first, count, iv[buf][a], fv[buf][a]);
+            floorChunk<T>(-f.A[a], -b[a], first, count, im[buf][a], fm[buf][a]);
+        }
+        for (int j = 0; j < count; ++j) {
+            if (TV > 2 && j % 4 != 0) continue;
+            const std::int32_t pv[3] = {iv[buf][0][j], iv[buf][1][j], iv[buf][2][j]};
+            const std::int32_t pm[3] = {im[buf][0][j], im[buf][1][j], im[buf][2][j]};
+            taps.prefetchHartley<TV>(pv);
+            taps.prefetchHartley<T>(pm);
+        }
+    };
+    prepare(0, m0);
+    for (int first = m0, buf = 0; first <= m1; first += kChunk, buf ^= 1) {
+        if (first + kChunk <= m1) prepare(buf ^ 1, first + kChunk);
+        const int count = std::min(kChunk, m1 - first + 1);
+        for (int j = 0; j < count; ++j) {
+            const std::int32_t pv[3] = {iv[buf][0][j], iv[buf][1][j], iv[buf][2][j]};
+            const FracV qv[3] = {fv[buf][0][j], fv[buf][1][j], fv[buf][2][j]};
+            const std::int32_t pm[3] = {im[buf][0][j], im[buf][1][j], im[buf][2][j]};
+            const double qm[3] = {fm[buf][0][j], fm[buf][1][j], fm[buf][2][j]};
+            const int m = first + j, col = m < 0 ? m + M : m;
+            const float h = taps.hartley<TV>(pv, qv);
+            const Sampled<float> g = taps.hartleyDepth<T>(pm, qm, E); // H(-k), E.grad H(-k)
+            float v;
+            if (!modelled) {
+                v = depthA * h + g.dv;
+            } else {
+                // T is even, grad T odd: E.grad (T H)(-k) = T(k) E.grad H(-k) - H(-k) E.grad T(k).
+                float t, gt;
+                model.at<true>(m, n, col, t, gt);
+                v = depthA * t * h + t * g.dv - gt * g.v;
+            }
+            const float sign = ((m + n) & 1) ? -scale : scale;
+            row[col] = v * (filtered ? sign * filter(m, n) : sign);
+        }
+    }
+}
+
 template <int T, bool Depth>
 void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter,
                       int M, cfloat* out, ThreadPool& pool) {
@@ -1354,7 +1471,7 @@ ColumnSpan hartleyColumns(const SliceContext& c, const FrameMapping& f, const Fr
     const double half[3] = {c.half0, c.half1, c.half2};
     const std::int64_t reach[3] = {l.x.reach(), l.y.reach(), l.z.reach()};
     for (int a = 0; a < 3; ++a) {
-        const double lim = std::min(half[a], double(reach[a] - T - 1));
+        const double lim = std::min(half[a], double(reach[a] - T - 2));
         span.require(n * f.B[a], f.A[a], -lim, lim);
     }
     return span;
@@ -1364,9 +1481,8 @@ template <int T, bool Depth>
 void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter,
                       int M, float* out, ThreadPool& pool) {
     // The fast row walk: T taps per axis without depth cueing (the tap counts 1, 2, 4, 6).
-    constexpr bool kFast = !Depth && T != 3;
     std::optional<FrameLookups> lookups;
-    if constexpr (kFast) lookups.emplace(c, f, M, T, true);
+    lookups.emplace(c, f, M, T, true);
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         RowTransfer model(c, f, M);
         auto sample = [&](double m, double n, int index) {
@@ -1403,7 +1519,7 @@ void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const SliceF
                 }
             };
             int col = 0;
-            if constexpr (kFast) {
+            {
                 // m = 0 .. M/2-1 at columns m, m = -M/2+1 .. -1 at columns m + M (increasing).
                 for (int part = 0; part < 2 && !nyqRow; ++part) {
                     const ColumnSpan sp =
@@ -1412,8 +1528,12 @@ void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const SliceF
                     if (sp.first() > sp.last()) continue;
                     const int offset = part == 0 ? 0 : M;
                     general(col, sp.first() + offset);
-                    fastRowHartley<T>(c, f, *lookups, filter, model, M, n, sp.first(), sp.last(),
-                                      row);
+                    if constexpr (Depth)
+                        fastRowHartleyDepth<T>(c, f, *lookups, filter, model, M, n, sp.first(),
+                                               sp.last(), row);
+                    else
+                        fastRowHartley<T>(c, f, *lookups, filter, model, M, n, sp.first(),
+                                          sp.last(), row);
                     col = sp.last() + offset + 1;
                 }
             }
