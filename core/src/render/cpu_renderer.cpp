@@ -1163,26 +1163,46 @@ template <int T, Walk W, class Emit>
     }
 }
 
-/** Columns [m0, m1] of row n (fast columns of side s): sliceHalfComplex's value, model and
- *  filter, without the per-sample checks. s k(m) = m (s A) + s (n B) exactly (negation is
- *  exact). */
+/** What a fast row of the half slice needs besides the taps: k(m) = m a + b of side s (s k(m) =
+ *  m (s A) + s (n B) exactly: negation is exact), and the model, filter and sign each column's
+ *  value gets (store). */
+struct ComplexRow {
+    const FastTaps taps;
+    double a[3], b[3];
+    const float* transfer;
+    const SliceFilterTable& filter;
+    int n;
+    bool conjugate;
+    float scale;
+
+    ComplexRow(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
+               const SliceFilterTable& sliceFilter, const RowTransfer& model, int row, double s)
+        : taps(c, l), a{s * f.A[0], s * f.A[1], s * f.A[2]}, b{s * (row * f.B[0]),
+                                                               s * (row * f.B[1]),
+                                                               s * (row * f.B[2])},
+          transfer(c.model ? model.row.data() : nullptr), filter(sliceFilter), n(row),
+          conjugate(s < 0), scale(f.scale) {}
+
+    /** sliceHalfComplex's value at column m from the sample at s k(m). */
+    [[gnu::always_inline]] cfloat value(int m, cfloat v) const {
+        if (conjugate) v = {v.real(), -v.imag()};
+        if (transfer) v = {v.real() * transfer[m], v.imag() * transfer[m]};
+        const float sign = ((n + m) & 1) ? -scale : scale;
+        const float g = filter.on ? sign * filter(m, n) : sign;
+        return {v.real() * g, v.imag() * g};
+    }
+};
+
+/** Columns [m0, m1] of row n (fast columns of side s): sliceHalfComplex's values without the
+ *  per-sample checks. */
 template <int T>
 void fastRowComplex(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
                     const SliceFilterTable& filter, const RowTransfer& model, int n, double s,
                     int m0, int m1, cfloat* row) {
-    const FastTaps taps(c, l);
-    const double a[3] = {s * f.A[0], s * f.A[1], s * f.A[2]};
-    const double b[3] = {s * (n * f.B[0]), s * (n * f.B[1]), s * (n * f.B[2])};
-    const float* transfer = c.model ? model.row.data() : nullptr;
-    const bool filtered = filter.on, conjugate = s < 0;
-    const float scale = f.scale;
-    walkColumns<T, Walk::Complex>(taps, a, b, m0, m1,
+    const ComplexRow r(c, f, l, filter, model, n, s);
+    walkColumns<T, Walk::Complex>(r.taps, r.a, r.b, m0, m1,
                                   [&](int m, const std::int32_t* i, const auto* fr) {
-                                      cfloat v = taps.sample<T>(i, fr);
-                                      if (conjugate) v = std::conj(v);
-                                      if (transfer) v *= transfer[m];
-                                      const float sign = ((n + m) & 1) ? -scale : scale;
-                                      row[m] = v * (filtered ? sign * filter(m, n) : sign);
+                                      row[m] = r.value(m, r.taps.sample<T>(i, fr));
                                   });
 }
 
@@ -1194,7 +1214,7 @@ void fastRowComplex(const SliceContext& c, const FrameMapping& f, const FrameLoo
 /** FastTaps::sample for 4 and 6 taps in x86-64-v3 code: a tap row's 4 complex values are one
  *  256-bit register (the 5th and 6th one 128-bit), summed with fused multiply-adds. Compiled for
  *  AVX2 and FMA here only (GCC's target pragma: no other code changes ISA) and run where the CPU
- *  has both (sliceSimd). The same sums as FastTaps::sample, rounded once per multiply-add. */
+ *  has both (sliceAvx2). The same sums as FastTaps::sample, rounded once per multiply-add. */
 template <int T, class Frac>
 inline cfloat sampleAvx2(const FastTaps& taps, const std::int32_t* i, const Frac* fr) {
     static_assert(T == 4 || T == 6);
@@ -1239,21 +1259,10 @@ template <int T>
 void fastRowComplexAvx2(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
                         const SliceFilterTable& filter, const RowTransfer& model, int n, double s,
                         int m0, int m1, cfloat* row) {
-    const FastTaps taps(c, l);
-    const double a[3] = {s * f.A[0], s * f.A[1], s * f.A[2]};
-    const double b[3] = {s * (n * f.B[0]), s * (n * f.B[1]), s * (n * f.B[2])};
-    const float* transfer = c.model ? model.row.data() : nullptr;
-    const bool filtered = filter.on, conjugate = s < 0;
-    const float scale = f.scale;
-    walkColumns<T, Walk::Complex>(taps, a, b, m0, m1,
+    const ComplexRow r(c, f, l, filter, model, n, s);
+    walkColumns<T, Walk::Complex>(r.taps, r.a, r.b, m0, m1,
                                   [&](int m, const std::int32_t* i, const double* fr) {
-                                      cfloat v = sampleAvx2<T>(taps, i, fr);
-                                      if (conjugate) v = {v.real(), -v.imag()};
-                                      if (transfer)
-                                          v = {v.real() * transfer[m], v.imag() * transfer[m]};
-                                      const float sign = ((n + m) & 1) ? -scale : scale;
-                                      const float g = filtered ? sign * filter(m, n) : sign;
-                                      row[m] = {v.real() * g, v.imag() * g};
+                                      row[m] = r.value(m, sampleAvx2<T>(r.taps, i, fr));
                                   });
 }
 #pragma GCC pop_options
