@@ -793,13 +793,24 @@ private:
     double m_lo, m_hi;
 };
 
-/** The fast columns of row n of the half slice that sample at s k(m) (s = +1: kx >= 0; s = -1:
- *  kx < 0, the conjugate of the sample at -k): every tap along x in the stored half, along y and
- *  z inside the lookups, k inside the band. */
+/** Which copy of the half spectrum a fast span of the half slice reads, as the general path
+ *  does: the sample at k is read at k+ = s k (s = +1 where kx >= 0; s = -1, the conjugate of the
+ *  mirror, where kx < 0), moved by q >= 0 periods along x (k+ - q P0 e_x, times -1 for an odd q
+ *  along an antiperiodic x). q = 0 is the band; the trilinear and B-spline voxel models read
+ *  beyond it. Mirroring before the floor and moving after it (exact integers) keeps the general
+ *  path's taps where k+ falls on an integer (a truncated kernel's taps are not symmetric). */
+struct Side {
+    double s = 1.0;
+    int q = 0;
+};
+
+/** The fast columns of row n of the half slice for one side: every tap along x in the stored
+ *  half, along y and z inside the lookups, k inside the band. */
 template <int T, bool Depth>
 ColumnSpan fastColumns(const SliceContext& c, const FrameMapping& f, const FrameLookups& l, int M,
-                       int n, double s) {
+                       int n, Side side) {
     ColumnSpan span(0, M / 2 - 1);
+    const double s = side.s;
     // The first tap relative to floor(kx) and the taps loaded along x. Depth cueing's linear
     // (T = 3) starts at round(k) - 1 on integers (floor(k) at most) and loads a fourth tap.
     const double first = T == 1 ? 0.0 : T == 3 ? -1.0 : double(c.first);
@@ -812,10 +823,12 @@ ColumnSpan fastColumns(const SliceContext& c, const FrameMapping& f, const Frame
     for (int a = 0; a < 3; ++a) {
         const double ka = s * n * f.B[a], kb = s * f.A[a];
         const double lim = std::min(half[a], reach[a]);
-        if (a == 0)
-            span.require(ka, kb, std::max(xlo, -lim), std::min(xhi, lim));
-        else
+        if (a == 0) {
+            span.require(ka, kb, -lim, lim); // the band, on k itself
+            span.require(s * n * f.B[0] - side.q * double(c.P0), kb, xlo, xhi);
+        } else {
             span.require(ka, kb, -lim, lim);
+        }
     }
     return span;
 }
@@ -1163,9 +1176,9 @@ template <int T, Walk W, class Emit>
     }
 }
 
-/** What a fast row of the half slice needs besides the taps: k(m) = m a + b of side s (s k(m) =
- *  m (s A) + s (n B) exactly: negation is exact), and the model, filter and sign each column's
- *  value gets (store). */
+/** What a fast row of the half slice needs besides the taps: k(m) = m a + b of one side
+ *  (s k(m) - q P0 e_x = m (s A) + (s (n B) - q P0 e_x); for q = 0 exactly s k(m): negation is
+ *  exact), and the model, filter and signs each column's value gets. */
 struct ComplexRow {
     const FastTaps taps;
     double a[3], b[3];
@@ -1176,12 +1189,17 @@ struct ComplexRow {
     float scale;
 
     ComplexRow(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
-               const SliceFilterTable& sliceFilter, const RowTransfer& model, int row, double s)
-        : taps(c, l), a{s * f.A[0], s * f.A[1], s * f.A[2]}, b{s * (row * f.B[0]),
-                                                               s * (row * f.B[1]),
-                                                               s * (row * f.B[2])},
+               const SliceFilterTable& sliceFilter, const RowTransfer& model, int row, Side side)
+        : taps(c, l), a{side.s * f.A[0], side.s * f.A[1], side.s * f.A[2]},
+          b{side.s * (row * f.B[0]) - side.q * double(c.P0), side.s * (row * f.B[1]),
+            side.s * (row * f.B[2])},
           transfer(c.model ? model.row.data() : nullptr), filter(sliceFilter), n(row),
-          conjugate(s < 0), scale(f.scale) {}
+          conjugate(side.s < 0), scale(periodSign(c, side) * f.scale) {}
+
+    /** sign_q: -1 for an odd number of periods along an antiperiodic x. */
+    static float periodSign(const SliceContext& c, Side side) {
+        return c.anti[0] && (side.q & 1) ? -1.0f : 1.0f;
+    }
 
     /** sliceHalfComplex's value at column m from the sample at s k(m). */
     [[gnu::always_inline]] cfloat value(int m, cfloat v) const {
@@ -1197,9 +1215,9 @@ struct ComplexRow {
  *  per-sample checks. */
 template <int T>
 void fastRowComplex(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
-                    const SliceFilterTable& filter, const RowTransfer& model, int n, double s,
+                    const SliceFilterTable& filter, const RowTransfer& model, int n, Side side,
                     int m0, int m1, cfloat* row) {
-    const ComplexRow r(c, f, l, filter, model, n, s);
+    const ComplexRow r(c, f, l, filter, model, n, side);
     walkColumns<T, Walk::Complex>(r.taps, r.a, r.b, m0, m1,
                                   [&](int m, const std::int32_t* i, const auto* fr) {
                                       row[m] = r.value(m, r.taps.sample<T>(i, fr));
@@ -1257,9 +1275,9 @@ inline cfloat sampleAvx2(const FastTaps& taps, const std::int32_t* i, const Frac
 /** fastRowComplex with sampleAvx2 (4 and 6 taps). */
 template <int T>
 void fastRowComplexAvx2(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
-                        const SliceFilterTable& filter, const RowTransfer& model, int n, double s,
+                        const SliceFilterTable& filter, const RowTransfer& model, int n, Side side,
                         int m0, int m1, cfloat* row) {
-    const ComplexRow r(c, f, l, filter, model, n, s);
+    const ComplexRow r(c, f, l, filter, model, n, side);
     walkColumns<T, Walk::Complex>(r.taps, r.a, r.b, m0, m1,
                                   [&](int m, const std::int32_t* i, const double* fr) {
                                       row[m] = r.value(m, sampleAvx2<T>(r.taps, i, fr));
@@ -1283,29 +1301,29 @@ bool sliceAvx2() {
 /** fastRowComplexAvx2 where it exists (4 and 6 taps on x86-64), fastRowComplex otherwise. */
 template <int T>
 void fastRowComplexWide(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
-                        const SliceFilterTable& filter, const RowTransfer& model, int n, double s,
+                        const SliceFilterTable& filter, const RowTransfer& model, int n, Side side,
                         int m0, int m1, cfloat* row) {
 #ifdef FVR_SLICE_AVX2
     if constexpr (T == 4 || T == 6) {
-        fastRowComplexAvx2<T>(c, f, l, filter, model, n, s, m0, m1, row);
+        fastRowComplexAvx2<T>(c, f, l, filter, model, n, side, m0, m1, row);
         return;
     }
 #endif
-    fastRowComplex<T>(c, f, l, filter, model, n, s, m0, m1, row);
+    fastRowComplex<T>(c, f, l, filter, model, n, side, m0, m1, row);
 }
 
 /** fastRowComplex with depth cueing: sampleComplex's a G + i E.grad G of the model's spectrum
  *  (the model's transfer function per sample, as RowTransfer::at). */
 template <int T>
 void fastRowComplexDepth(const SliceContext& c, const FrameMapping& f, const FrameLookups& l,
-                         const SliceFilterTable& filter, const RowTransfer& model, int n, double s,
+                         const SliceFilterTable& filter, const RowTransfer& model, int n, Side side,
                          int m0, int m1, cfloat* row) {
-    const FastTaps taps(c, l);
-    const double a[3] = {s * f.A[0], s * f.A[1], s * f.A[2]};
-    const double b[3] = {s * (n * f.B[0]), s * (n * f.B[1]), s * (n * f.B[2])};
+    const ComplexRow r(c, f, l, filter, model, n, side); // its taps, k(m) and signs
+    const FastTaps& taps = r.taps;
+    const double *a = r.a, *b = r.b;
     const float E[3] = {c.E[0], c.E[1], c.E[2]}, depthA = c.depthA;
-    const bool modelled = c.model != nullptr, filtered = filter.on, conjugate = s < 0;
-    const float scale = f.scale;
+    const bool modelled = c.model != nullptr, filtered = filter.on, conjugate = r.conjugate;
+    const float scale = r.scale;
     walkColumns<T, Walk::Depth>(
         taps, a, b, m0, m1, [&](int m, const std::int32_t* i, const double* fr) {
             Sampled<cfloat> g = taps.depthSample<T>(i, fr, E);
@@ -1412,8 +1430,24 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
     std::optional<FrameLookups> lookups;
     lookups.emplace(c, f, M, T, false);
     const bool avx2 = (T == 4 || T == 6) && !Depth && sliceAvx2();
+    // The periods along x the slice reaches (beyond the band: the compact voxel models), at most
+    // the lookups' four.
+    const int periods = int(std::min(
+        4.0, std::ceil(((M / 2 + 1) * (std::abs(f.A[0]) + std::abs(f.B[0])) + T) / double(c.P0))));
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         RowTransfer model(c, f, M);
+        // Row n's fast spans, one per side (sign s, period q), in column order.
+        std::vector<std::pair<Side, ColumnSpan>> spans;
+        auto findSpans = [&](int n) {
+            for (int q = 0; q <= periods; ++q)
+                for (double s : {1.0, -1.0}) {
+                    const ColumnSpan sp = fastColumns<T, Depth>(c, f, *lookups, M, n, {s, q});
+                    if (sp.first() <= sp.last()) spans.push_back({{s, q}, sp});
+                }
+            std::sort(spans.begin(), spans.end(), [](const auto& x, const auto& y) {
+                return x.second.first() < y.second.first();
+            });
+        };
         auto sample = [&](double m, double n, int index) {
             return slicePoint<T, Depth, false>(c, f, model, m, n, index);
         };
@@ -1443,28 +1477,22 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
                 }
             };
             int m = 0;
-            {
-                if (!nyqRow) {
-                    ColumnSpan spans[2] = {fastColumns<T, Depth>(c, f, *lookups, M, n, 1.0),
-                                           fastColumns<T, Depth>(c, f, *lookups, M, n, -1.0)};
-                    const bool swap = spans[1].first() < spans[0].first();
-                    for (int i = 0; i < 2; ++i) {
-                        const ColumnSpan& sp = spans[swap ? 1 - i : i];
-                        const double s = (swap ? 1 - i : i) == 0 ? 1.0 : -1.0;
-                        if (sp.first() > sp.last()) continue;
-                        general(m, sp.first());
-                        if constexpr (Depth)
-                            fastRowComplexDepth<T>(c, f, *lookups, filter, model, n, s, sp.first(),
-                                                   sp.last(), row);
-                        else if (avx2)
-                            fastRowComplexWide<T>(c, f, *lookups, filter, model, n, s, sp.first(),
-                                                  sp.last(), row);
-                        else
-                            fastRowComplex<T>(c, f, *lookups, filter, model, n, s, sp.first(),
-                                              sp.last(), row);
-                        m = sp.last() + 1;
-                    }
-                }
+            spans.clear();
+            if (!nyqRow) findSpans(n);
+            for (const auto& [side, sp] : spans) {
+                const int first = std::max(sp.first(), m);
+                if (first > sp.last()) continue;
+                general(m, first);
+                if constexpr (Depth)
+                    fastRowComplexDepth<T>(c, f, *lookups, filter, model, n, side, first, sp.last(),
+                                           row);
+                else if (avx2)
+                    fastRowComplexWide<T>(c, f, *lookups, filter, model, n, side, first, sp.last(),
+                                          row);
+                else
+                    fastRowComplex<T>(c, f, *lookups, filter, model, n, side, first, sp.last(),
+                                      row);
+                m = sp.last() + 1;
             }
             general(m, H);
         }
