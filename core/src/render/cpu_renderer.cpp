@@ -802,6 +802,9 @@ private:
 struct Side {
     double s = 1.0;
     int q = 0;
+    /** The moved taps lie at negative x (k+ - q P0 in (-P0/2, 0]): each is read at its mirror
+     *  image, conjugated (the general path's per-tap mirror, for all taps at once). */
+    bool reflect = false;
 };
 
 /** The fast columns of row n of the half slice for one side: every tap along x in the stored
@@ -825,7 +828,11 @@ ColumnSpan fastColumns(const SliceContext& c, const FrameMapping& f, const Frame
         const double lim = std::min(half[a], reach[a]);
         if (a == 0) {
             span.require(ka, kb, -lim, lim); // the band, on k itself
-            span.require(s * n * f.B[0] - side.q * double(c.P0), kb, xlo, xhi);
+            // Reflected: the taps floor(v) + first + t in [-P0/2, 0] (nearest: round(v)).
+            const double rlo = -double(c.P0 / 2) - (T == 1 ? 0.0 : first);
+            const double rhi = T == 1 ? -0.5 : -(first + T - 1);
+            span.require(s * n * f.B[0] - side.q * double(c.P0), kb, side.reflect ? rlo : xlo,
+                         side.reflect ? rhi : xhi);
         } else {
             span.require(ka, kb, -lim, lim);
         }
@@ -972,15 +979,29 @@ struct FastTaps {
             for (int yc = 0; yc < T; ++yc) __builtin_prefetch(base + rz[zc] + ry[yc]);
     }
 
+    /** weights() with the taps reflected through 0 where Reflect: b .. b + T - 1 become
+     *  -(b + T - 1) .. -b, the weights in reverse order. */
+    template <int T, bool Reflect, class Frac>
+    [[gnu::always_inline]] std::int64_t tapsOf(std::int32_t floor, Frac frac, float* w) const {
+        const std::int64_t b = weights<T>(floor, frac, w);
+        if constexpr (!Reflect) {
+            return b;
+        } else {
+            for (int t = 0; t < T / 2; ++t) std::swap(w[t], w[T - 1 - t]);
+            return -b - (T - 1);
+        }
+    }
+
     /** The half-spectrum sample at k (kx >= 0) from its floor indices and fractions:
      *  interiorComplex's sum with the y and z rows and period signs from the lookups (the same
      *  values where interiorComplex applies, and wrapAxis's per-tap signs where the taps straddle
      *  a period's edge). */
-    template <int T, class Frac>
+    template <int T, bool Reflect = false, class Frac>
     [[gnu::always_inline]] cfloat sample(const std::int32_t* i, const Frac* fr) const {
         float wx[T], wy[T], wz[T];
-        const std::int64_t bx = weights<T>(i[0], fr[0], wx), by = weights<T>(i[1], fr[1], wy),
-                           bz = weights<T>(i[2], fr[2], wz);
+        const std::int64_t bx = tapsOf<T, Reflect>(i[0], fr[0], wx);
+        const std::int64_t by = tapsOf<T, Reflect>(i[1], fr[1], wy);
+        const std::int64_t bz = tapsOf<T, Reflect>(i[2], fr[2], wz);
         const std::int64_t *ry = oy + by, *rz = oz + bz;
         const float *ty = sy + by, *tz = sz + bz;
         if constexpr (T == 1) {
@@ -1124,11 +1145,12 @@ struct FastTaps {
     }
 
     /** Prefetches the tap rows of the sample with these floor indices. */
-    template <int T>
+    template <int T, bool Reflect = false>
     [[gnu::always_inline]] void prefetch(const std::int32_t* i) const {
         const std::int64_t off = T >= 4 ? first : 0; // the first tap, as weights()
-        const float* base = data + 2 * (i[0] + off);
-        const std::int64_t *ry = oy + (i[1] + off), *rz = oz + (i[2] + off);
+        auto b = [&](int a) { return Reflect ? -(i[a] + off) - (T - 1) : i[a] + off; };
+        const float* base = data + 2 * b(0);
+        const std::int64_t *ry = oy + b(1), *rz = oz + b(2);
         for (int zc = 0; zc < T; ++zc)
             for (int yc = 0; yc < T; ++yc) __builtin_prefetch(base + rz[zc] + ry[yc]);
     }
@@ -1137,7 +1159,7 @@ struct FastTaps {
 /** Walks the columns m = m0 .. m1 of a row whose k(m) = m a + b (per axis): the floors and
  *  fractions of a chunk of columns are computed, and their rows prefetched, one chunk ahead of
  *  the sums; emit(m, floors, fractions) per column in order. */
-enum class Walk { Complex, Hartley, Depth };
+enum class Walk { Complex, ComplexReflected, Hartley, Depth };
 
 template <int T, Walk W, class Emit>
 [[gnu::always_inline]] inline void walkColumns(const FastTaps& taps, const double* a,
@@ -1164,6 +1186,8 @@ template <int T, Walk W, class Emit>
                     taps.prefetchHartley<T>(index[buf][j]);
                 else if constexpr (W == Walk::Depth)
                     taps.prefetchDepth<T>(index[buf][j]);
+                else if constexpr (W == Walk::ComplexReflected)
+                    taps.prefetch<T, true>(index[buf][j]);
                 else
                     taps.prefetch<T>(index[buf][j]);
             }
@@ -1194,7 +1218,7 @@ struct ComplexRow {
           b{side.s * (row * f.B[0]) - side.q * double(c.P0), side.s * (row * f.B[1]),
             side.s * (row * f.B[2])},
           transfer(c.model ? model.row.data() : nullptr), filter(sliceFilter), n(row),
-          conjugate(side.s < 0), scale(periodSign(c, side) * f.scale) {}
+          conjugate((side.s < 0) != side.reflect), scale(periodSign(c, side) * f.scale) {}
 
     /** sign_q: -1 for an odd number of periods along an antiperiodic x. */
     static float periodSign(const SliceContext& c, Side side) {
@@ -1218,10 +1242,17 @@ void fastRowComplex(const SliceContext& c, const FrameMapping& f, const FrameLoo
                     const SliceFilterTable& filter, const RowTransfer& model, int n, Side side,
                     int m0, int m1, cfloat* row) {
     const ComplexRow r(c, f, l, filter, model, n, side);
-    walkColumns<T, Walk::Complex>(r.taps, r.a, r.b, m0, m1,
-                                  [&](int m, const std::int32_t* i, const auto* fr) {
-                                      row[m] = r.value(m, r.taps.sample<T>(i, fr));
-                                  });
+    auto walk = [&](auto reflect) {
+        constexpr bool R = decltype(reflect)::value;
+        walkColumns<T, R ? Walk::ComplexReflected : Walk::Complex>(
+            r.taps, r.a, r.b, m0, m1, [&](int m, const std::int32_t* i, const auto* fr) {
+                row[m] = r.value(m, r.taps.sample<T, R>(i, fr));
+            });
+    };
+    if (side.reflect)
+        walk(std::true_type{});
+    else
+        walk(std::false_type{});
 }
 
 // GCC on x86-64 (its target pragma; clang and other CPUs keep the baseline rows).
@@ -1233,13 +1264,13 @@ void fastRowComplex(const SliceContext& c, const FrameMapping& f, const FrameLoo
  *  256-bit register (the 5th and 6th one 128-bit), summed with fused multiply-adds. Compiled for
  *  AVX2 and FMA here only (GCC's target pragma: no other code changes ISA) and run where the CPU
  *  has both (sliceAvx2). The same sums as FastTaps::sample, rounded once per multiply-add. */
-template <int T, class Frac>
+template <int T, bool Reflect, class Frac>
 inline cfloat sampleAvx2(const FastTaps& taps, const std::int32_t* i, const Frac* fr) {
     static_assert(T == 4 || T == 6);
     float wx[T], wy[T], wz[T];
-    const std::int64_t bx = taps.weights<T>(i[0], fr[0], wx);
-    const std::int64_t by = taps.weights<T>(i[1], fr[1], wy);
-    const std::int64_t bz = taps.weights<T>(i[2], fr[2], wz);
+    const std::int64_t bx = taps.tapsOf<T, Reflect>(i[0], fr[0], wx);
+    const std::int64_t by = taps.tapsOf<T, Reflect>(i[1], fr[1], wy);
+    const std::int64_t bz = taps.tapsOf<T, Reflect>(i[2], fr[2], wz);
     const std::int64_t *ry = taps.oy + by, *rz = taps.oz + bz;
     const float *ty = taps.sy + by, *tz = taps.sz + bz;
     const __m256 wlo = _mm256_setr_ps(wx[0], wx[0], wx[1], wx[1], wx[2], wx[2], wx[3], wx[3]);
@@ -1278,10 +1309,17 @@ void fastRowComplexAvx2(const SliceContext& c, const FrameMapping& f, const Fram
                         const SliceFilterTable& filter, const RowTransfer& model, int n, Side side,
                         int m0, int m1, cfloat* row) {
     const ComplexRow r(c, f, l, filter, model, n, side);
-    walkColumns<T, Walk::Complex>(r.taps, r.a, r.b, m0, m1,
-                                  [&](int m, const std::int32_t* i, const double* fr) {
-                                      row[m] = r.value(m, sampleAvx2<T>(r.taps, i, fr));
-                                  });
+    auto walk = [&](auto reflect) {
+        constexpr bool R = decltype(reflect)::value;
+        walkColumns<T, R ? Walk::ComplexReflected : Walk::Complex>(
+            r.taps, r.a, r.b, m0, m1, [&](int m, const std::int32_t* i, const double* fr) {
+                row[m] = r.value(m, sampleAvx2<T, R>(r.taps, i, fr));
+            });
+    };
+    if (side.reflect)
+        walk(std::true_type{});
+    else
+        walk(std::false_type{});
 }
 #pragma GCC pop_options
 #endif
@@ -1440,10 +1478,13 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
         std::vector<std::pair<Side, ColumnSpan>> spans;
         auto findSpans = [&](int n) {
             for (int q = 0; q <= periods; ++q)
-                for (double s : {1.0, -1.0}) {
-                    const ColumnSpan sp = fastColumns<T, Depth>(c, f, *lookups, M, n, {s, q});
-                    if (sp.first() <= sp.last()) spans.push_back({{s, q}, sp});
-                }
+                for (double s : {1.0, -1.0})
+                    for (bool reflect : {false, true}) {
+                        if (reflect && (q == 0 || Depth)) continue; // (depth cueing: not yet)
+                        const Side side{s, q, reflect};
+                        const ColumnSpan sp = fastColumns<T, Depth>(c, f, *lookups, M, n, side);
+                        if (sp.first() <= sp.last()) spans.push_back({side, sp});
+                    }
             std::sort(spans.begin(), spans.end(), [](const auto& x, const auto& y) {
                 return x.second.first() < y.second.first();
             });
