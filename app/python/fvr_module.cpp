@@ -149,13 +149,7 @@ public:
 
     /** One view; `extra` adds view and image settings (--view, --dir, --size...). */
     py::array_t<float> render(const Args& extra) {
-        cli::Options o = options(extra);
-        // dir/up given to the call replace the renderer's own view (fvr-render's --view would
-        // win over them).
-        auto given = [&](const char* name) {
-            return std::find(extra.begin(), extra.end(), name) != extra.end();
-        };
-        if ((given("--dir") || given("--up")) && !given("--view")) o.view.reset();
+        const cli::Options o = options(extra); // the call's view replaces the renderer's
         const core::ImageGeometry g = cli::imageGeometry(o, *m_volume.volume);
         const core::RenderParams p = cli::renderParams(o, cli::baseView(o, *m_volume.volume), g);
         core::validateRenderParams(p);
@@ -220,8 +214,24 @@ public:
     const Args& args() const { return m_args; }
 
 private:
+    /** The renderer's settings with the call's: a view of the call replaces the renderer's own
+     *  (--dir or --up drop its --view; --view drops its --dir and --up: fvr-render refuses
+     *  --view with either). */
     cli::Options options(const Args& extra) const {
-        Args all = m_args;
+        auto given = [&](const char* name) {
+            return std::find(extra.begin(), extra.end(), name) != extra.end();
+        };
+        std::vector<std::string> dropped;
+        if (given("--dir") || given("--up")) dropped.push_back("--view");
+        if (given("--view")) dropped.insert(dropped.end(), {"--dir", "--up"});
+        Args all;
+        for (std::size_t i = 0; i < m_args.size(); ++i) {
+            if (std::find(dropped.begin(), dropped.end(), m_args[i]) != dropped.end()) {
+                ++i; // and its value
+                continue;
+            }
+            all.push_back(m_args[i]);
+        }
         all.insert(all.end(), extra.begin(), extra.end());
         return cli::parseSettings(all);
     }

@@ -227,14 +227,20 @@ void declareInput(CLI::App& app, Parsing& p) {
 
 void declareView(CLI::App& app, Options& o) {
     const std::string g = "View and image";
-    addVec3(app, "--dir", o.dir, "viewing direction in the volume frame (default 0,0,1)")->group(g);
-    addVec3(app, "--up", o.up, "up vector (default 0,-1,0: the plain sum of the slices, as stored)")
-        ->group(g);
+    CLI::Option* dir =
+        addVec3(app, "--dir", o.dir, "viewing direction in the volume frame (default 0,0,1)")
+            ->group(g);
+    CLI::Option* up = addVec3(app, "--up", o.up,
+                              "up vector (default 0,-1,0: the plain sum of the slices, as stored)")
+                          ->group(g);
+    // A patient view sets both: with --dir or --up as well, one of them would be ignored.
     addParsed(app, "--view", o.view, core::parsePatientView, "V",
               "patient view from the direction cosines (instead of --dir/--up):\n"
               "AP | PA | LEFT | RIGHT | HEAD | FEET (AP: from anterior, head up,\n"
               "patient's left on the image's right)")
-        ->group(g);
+        ->group(g)
+        ->excludes(dir)
+        ->excludes(up);
     app.add_option("--size", o.size, "slice/image size, power of two 128..2048 (default 512)")
         ->check(CLI::Validator(
             [](std::string& s) -> std::string {

@@ -781,14 +781,21 @@ TEST(FvrRender, ExclusiveOptionsAreRejectedNamingBoth) {
         f << "0 0 1 0 -1 0\n";
     }
     const std::string missing = "/no/such/volume.mhd ";
-    for (const std::string& args :
-         {"--sweep 3 --views " + tmp("one_view.txt"),
-          std::string("--values mu --beer-lambert --energy 60 --mu-water 0.02")}) {
+    struct Case {
+        std::string args, a, b;
+    };
+    for (const Case& c : {
+             Case{"--sweep 3 --views " + tmp("one_view.txt"), "--sweep", "--views"},
+             Case{"--values mu --beer-lambert --energy 60 --mu-water 0.02", "--energy",
+                  "--mu-water"},
+             // A patient view sets the direction and the up vector: neither may be given too.
+             Case{"--view AP --dir 1,0,0", "--view", "--dir"},
+             Case{"--up 0,0,1 --view LEFT", "--view", "--up"},
+         }) {
+        const std::string& args = c.args;
         const Result r = run(missing + args + " --out " + tmp("excl.npy"));
         EXPECT_EQ(r.status, 2) << args << "\n" << r.output;
-        const std::string first = args.substr(0, args.find(' '));
-        const std::string a = first == "--sweep" ? "--sweep" : "--energy";
-        const std::string b = first == "--sweep" ? "--views" : "--mu-water";
+        const std::string &a = c.a, &b = c.b;
         EXPECT_NE(r.output.find(a), std::string::npos) << r.output;
         EXPECT_NE(r.output.find(b), std::string::npos) << r.output;
         EXPECT_EQ(r.output.find("/no/such"), std::string::npos)
