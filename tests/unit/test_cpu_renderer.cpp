@@ -182,8 +182,9 @@ TEST(CpuRenderer, WideSimdRowsAgreeWithTheBaselineRows) {
                         differing += wide.pixels[i] != base.pixels[i];
                 }
 #if defined(__x86_64__)
-    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"))
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
         EXPECT_GT(differing, 0u) << "the AVX2 rows never ran";
+    }
 #endif
     std::printf("[simd] %zu pixels differ in the last bits between the wide and baseline rows\n",
                 differing);

@@ -7,7 +7,6 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
-#include <optional>
 #include <string_view>
 #include <type_traits>
 
@@ -47,10 +46,39 @@ struct CpuFourierRenderer::SizeResources {
     detail::Plan replaced;
 };
 
+namespace {
+/** Signed tap index -> stored row offset (floats) and period sign of one axis of the spectrum,
+ *  over the indices [-reach, reach]: wrapAxis's wrap and antiperiodic sign, looked up once per
+ *  tap row by the fast slice walk instead of computed per tap. */
+class AxisLookup {
+public:
+    AxisLookup(std::int64_t P, bool anti, std::int64_t stride, std::int64_t reach);
+    std::int64_t reach() const { return m_reach; }
+    /** Indexed by the signed tap index. */
+    const std::int64_t* offsets() const { return m_offset.data() + m_reach; }
+    const float* signs() const { return m_sign.data() + m_reach; }
+
+private:
+    std::int64_t m_reach;
+    std::vector<std::int64_t> m_offset;
+    std::vector<float> m_sign;
+};
+} // namespace
+
+/** The lookups of the renderer's spectrum, out to four periods and the widest kernel's taps
+ *  beyond them (samples further out take the general path): x for the Hartley spectrum only
+ *  (the half spectrum's x is read directly), y and z for both. They depend on the spectrum
+ *  alone, so every frame shares them. */
+struct detail::CpuSliceLookups {
+    AxisLookup x, y, z;
+    explicit CpuSliceLookups(const Spectrum& s);
+};
+
 CpuFourierRenderer::CpuFourierRenderer(std::shared_ptr<const Spectrum> spectrum, int threads)
     : m_spectrum(std::move(spectrum)), m_pool(threads),
       m_threads(threads > 0 ? threads : hardwareThreads()) {
     if (!m_spectrum || !m_spectrum->data) throw SettingsError("renderer: no spectrum");
+    m_lookups = std::make_unique<const detail::CpuSliceLookups>(*m_spectrum);
     const double sigma = kernelOversampling(m_spectrum->volumeDims, m_spectrum->padded);
     for (Kernel k : allKernels()) m_tables.emplace(k, std::make_unique<KernelTable>(k, sigma));
 }
@@ -140,6 +168,8 @@ struct SliceContext {
     // The voxel model's transfer function (null: band-limited), at nu_a = k_a / P_a.
     const TransferTable* model = nullptr;
     double invP[3] = {1, 1, 1};
+    /** The spectrum's lookups of the fast row walk (the renderer's). */
+    const detail::CpuSliceLookups* lookups = nullptr;
 };
 
 /** k(m, n) = m * A + n * B in spectrum index units, m and n signed image frequencies. */
@@ -730,45 +760,30 @@ V nyquistMean(const Sample& sample, int m, int n, bool nyquistColumn, bool nyqui
     return sum / float(ms * ns);
 }
 
-/** Signed tap index -> stored row offset (floats) and period sign of the y or z axis, over the
- *  indices [-reach, reach] that one frame's row walk reads: wrapAxis's wrap and antiperiodic sign
- *  looked up once per tap row instead of computed per tap. */
-class AxisLookup {
-public:
-    AxisLookup(std::int64_t P, bool anti, std::int64_t stride, std::int64_t reach)
-        : m_reach(reach), m_offset(std::size_t(2 * reach + 1)), m_sign(std::size_t(2 * reach + 1)) {
-        const std::int64_t hi = P / 2;
-        for (std::int64_t i = -reach; i <= reach; ++i) {
-            const std::int64_t a = i - hi; // periods to remove: ceil(a / P), as intoPrincipalPeriod
-            const std::int64_t q = a > 0 ? (a + P - 1) / P : -((-a) / P);
-            m_offset[std::size_t(i + reach)] = storedIndex(i - q * P, P) * stride;
-            m_sign[std::size_t(i + reach)] = anti && (q & 1) ? -1.0f : 1.0f;
-        }
+AxisLookup::AxisLookup(std::int64_t P, bool anti, std::int64_t stride, std::int64_t reach)
+    : m_reach(reach), m_offset(std::size_t(2 * reach + 1)), m_sign(std::size_t(2 * reach + 1)) {
+    const std::int64_t hi = P / 2;
+    for (std::int64_t i = -reach; i <= reach; ++i) {
+        const std::int64_t a = i - hi; // periods to remove: ceil(a / P), as intoPrincipalPeriod
+        const std::int64_t q = a > 0 ? (a + P - 1) / P : -((-a) / P);
+        m_offset[std::size_t(i + reach)] = storedIndex(i - q * P, P) * stride;
+        m_sign[std::size_t(i + reach)] = anti && (q & 1) ? -1.0f : 1.0f;
     }
-    std::int64_t reach() const { return m_reach; }
-    /** Indexed by the signed tap index. */
-    const std::int64_t* offsets() const { return m_offset.data() + m_reach; }
-    const float* signs() const { return m_sign.data() + m_reach; }
+}
 
-private:
-    std::int64_t m_reach;
-    std::vector<std::int64_t> m_offset;
-    std::vector<float> m_sign;
-};
+} // namespace
 
-/** The y and z lookups of one frame, reaching the slice's largest |k| plus the taps (at most a
- *  few periods: samples beyond take the general path). */
-struct FrameLookups {
-    AxisLookup x, y, z; // x: the Hartley spectrum's (full along x); empty for the half spectrum
-    FrameLookups(const SliceContext& c, const FrameMapping& f, int M, int T, bool hartley)
-        : x(c.P0, c.anti[0], 1, hartley ? reachFor(f, 0, M, T, c.P0) : 0),
-          y(c.P1, c.anti[1], c.rs, reachFor(f, 1, M, T, c.P1)),
-          z(c.P2, c.anti[2], c.rs * c.P1, reachFor(f, 2, M, T, c.P2)) {}
-    static std::int64_t reachFor(const FrameMapping& f, int a, int M, int T, std::int64_t P) {
-        const double k = (M / 2 + 1) * (std::abs(f.A[a]) + std::abs(f.B[a]));
-        return std::min(std::int64_t(std::ceil(k)), 4 * P) + T + 2;
-    }
-};
+detail::CpuSliceLookups::CpuSliceLookups(const Spectrum& s)
+    : x(s.padded[0], s.volumeDims[0] % 2 == 0, 1,
+        s.kind == TransformKind::Fht ? 4 * s.padded[0] + KernelTable::kMaxTaps + 2 : 0),
+      y(s.padded[1], s.volumeDims[1] % 2 == 0, s.rowStride(),
+        4 * s.padded[1] + KernelTable::kMaxTaps + 2),
+      z(s.padded[2], s.volumeDims[2] % 2 == 0, s.rowStride() * s.padded[1],
+        4 * s.padded[2] + KernelTable::kMaxTaps + 2) {}
+
+namespace {
+
+using FrameLookups = detail::CpuSliceLookups;
 
 /** The columns [first, last] of one slice row whose samples take the fast path: the m where
  *  every constraint lo <= a + b m <= hi holds, shrunk by one column on each side (the rounding
@@ -969,16 +984,6 @@ struct FastTaps {
         return {{acc[0] + acc[2], acc[1] + acc[3]}, {dacc[0] + dacc[2], dacc[1] + dacc[3]}};
     }
 
-    /** Prefetches the tap rows of the depth-cued sample with these floor indices. */
-    template <int T>
-    [[gnu::always_inline]] void prefetchDepth(const std::int32_t* i) const {
-        const std::int64_t off = T == 3 ? -1 : first; // the first tap, as derivWeights
-        const float* base = data + 2 * (i[0] + off);
-        const std::int64_t *ry = oy + (i[1] + off), *rz = oz + (i[2] + off);
-        for (int zc = 0; zc < T; ++zc)
-            for (int yc = 0; yc < T; ++yc) __builtin_prefetch(base + rz[zc] + ry[yc]);
-    }
-
     /** weights() with the taps reflected through 0 where Reflect: b .. b + T - 1 become
      *  -(b + T - 1) .. -b, the weights in reverse order. */
     template <int T, bool Reflect, class Frac>
@@ -1133,34 +1138,27 @@ struct FastTaps {
         return {acc, dacc};
     }
 
-    /** Prefetches the tap rows of the Hartley sample with these floor indices. */
-    template <int T>
-    [[gnu::always_inline]] void prefetchHartley(const std::int32_t* i) const {
-        // The first tap, as weights() (derivWeights for depth cueing's linear, T = 3).
-        const std::int64_t off = T >= 4 ? first : T == 3 ? -1 : 0;
-        const float* base = data + ox[i[0] + off];
-        const std::int64_t *ry = oy + (i[1] + off), *rz = oz + (i[2] + off);
-        for (int zc = 0; zc < T; ++zc)
-            for (int yc = 0; yc < T; ++yc) __builtin_prefetch(base + rz[zc] + ry[yc]);
-    }
-
-    /** Prefetches the tap rows of the sample with these floor indices. */
-    template <int T, bool Reflect = false>
+    /** Prefetches the T x T tap rows of the sample with these floor indices: the half
+     *  spectrum's (Hartley: the full one's, x from its lookup), the first tap as weights()
+     *  (derivWeights for depth cueing's linear, T = 3), reflected as tapsOf. */
+    template <int T, bool Hartley = false, bool Reflect = false>
     [[gnu::always_inline]] void prefetch(const std::int32_t* i) const {
-        const std::int64_t off = T >= 4 ? first : 0; // the first tap, as weights()
+        const std::int64_t off = T >= 4 ? first : T == 3 ? -1 : 0;
         auto b = [&](int a) { return Reflect ? -(i[a] + off) - (T - 1) : i[a] + off; };
-        const float* base = data + 2 * b(0);
+        const float* base = data + (Hartley ? ox[b(0)] : 2 * b(0));
         const std::int64_t *ry = oy + b(1), *rz = oz + b(2);
         for (int zc = 0; zc < T; ++zc)
             for (int yc = 0; yc < T; ++yc) __builtin_prefetch(base + rz[zc] + ry[yc]);
     }
 };
 
+/** What a row walk samples, for its prefetches: the half spectrum (plain, or with the taps
+ *  reflected: Side::reflect), the Hartley spectrum, or the half spectrum with depth cueing. */
+enum class Walk { Complex, ComplexReflected, Hartley, Depth };
+
 /** Walks the columns m = m0 .. m1 of a row whose k(m) = m a + b (per axis): the floors and
  *  fractions of a chunk of columns are computed, and their rows prefetched, one chunk ahead of
  *  the sums; emit(m, floors, fractions) per column in order. */
-enum class Walk { Complex, ComplexReflected, Hartley, Depth };
-
 template <int T, Walk W, class Emit>
 [[gnu::always_inline]] inline void walkColumns(const FastTaps& taps, const double* a,
                                                const double* b, int m0, int m1, Emit&& emit) {
@@ -1182,14 +1180,7 @@ template <int T, Walk W, class Emit>
         }
         for (int j = 0; j < count; ++j)
             if (T <= 2 || j % 4 == 0) {
-                if constexpr (W == Walk::Hartley)
-                    taps.prefetchHartley<T>(index[buf][j]);
-                else if constexpr (W == Walk::Depth)
-                    taps.prefetchDepth<T>(index[buf][j]);
-                else if constexpr (W == Walk::ComplexReflected)
-                    taps.prefetch<T, true>(index[buf][j]);
-                else
-                    taps.prefetch<T>(index[buf][j]);
+                taps.prefetch<T, W == Walk::Hartley, W == Walk::ComplexReflected>(index[buf][j]);
             }
     };
     prepare(0, m0);
@@ -1430,8 +1421,8 @@ void fastRowHartleyDepth(const SliceContext& c, const FrameMapping& f, const Fra
             if (TV > 2 && j % 4 != 0) continue;
             const std::int32_t pv[3] = {iv[buf][0][j], iv[buf][1][j], iv[buf][2][j]};
             const std::int32_t pm[3] = {im[buf][0][j], im[buf][1][j], im[buf][2][j]};
-            taps.prefetchHartley<TV>(pv);
-            taps.prefetchHartley<T>(pm);
+            taps.prefetch<TV, true>(pv);
+            taps.prefetch<T, true>(pm);
         }
     };
     prepare(0, m0);
@@ -1465,8 +1456,7 @@ template <int T, bool Depth>
 void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter,
                       int M, cfloat* out, ThreadPool& pool) {
     const int H = M / 2 + 1;
-    std::optional<FrameLookups> lookups;
-    lookups.emplace(c, f, M, T, false);
+    const FrameLookups& lookups = *c.lookups;
     const bool avx2 = (T == 4 || T == 6) && !Depth && sliceAvx2();
     // The periods along x the slice reaches (beyond the band: the compact voxel models), at most
     // the lookups' four.
@@ -1476,13 +1466,14 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
         RowTransfer model(c, f, M);
         // Row n's fast spans, one per side (sign s, period q), in column order.
         std::vector<std::pair<Side, ColumnSpan>> spans;
+        spans.reserve(std::size_t(4 * (periods + 1)));
         auto findSpans = [&](int n) {
             for (int q = 0; q <= periods; ++q)
                 for (double s : {1.0, -1.0})
                     for (bool reflect : {false, true}) {
                         if (reflect && (q == 0 || Depth)) continue; // (depth cueing: not yet)
                         const Side side{s, q, reflect};
-                        const ColumnSpan sp = fastColumns<T, Depth>(c, f, *lookups, M, n, side);
+                        const ColumnSpan sp = fastColumns<T, Depth>(c, f, lookups, M, n, side);
                         if (sp.first() <= sp.last()) spans.push_back({side, sp});
                     }
             std::sort(spans.begin(), spans.end(), [](const auto& x, const auto& y) {
@@ -1525,14 +1516,13 @@ void sliceHalfComplex(const SliceContext& c, const FrameMapping& f, const SliceF
                 if (first > sp.last()) continue;
                 general(m, first);
                 if constexpr (Depth)
-                    fastRowComplexDepth<T>(c, f, *lookups, filter, model, n, side, first, sp.last(),
+                    fastRowComplexDepth<T>(c, f, lookups, filter, model, n, side, first, sp.last(),
                                            row);
                 else if (avx2)
-                    fastRowComplexWide<T>(c, f, *lookups, filter, model, n, side, first, sp.last(),
+                    fastRowComplexWide<T>(c, f, lookups, filter, model, n, side, first, sp.last(),
                                           row);
                 else
-                    fastRowComplex<T>(c, f, *lookups, filter, model, n, side, first, sp.last(),
-                                      row);
+                    fastRowComplex<T>(c, f, lookups, filter, model, n, side, first, sp.last(), row);
                 m = sp.last() + 1;
             }
             general(m, H);
@@ -1558,9 +1548,7 @@ ColumnSpan hartleyColumns(const SliceContext& c, const FrameMapping& f, const Fr
 template <int T, bool Depth>
 void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const SliceFilterTable& filter,
                       int M, float* out, ThreadPool& pool) {
-    // The fast row walk: T taps per axis without depth cueing (the tap counts 1, 2, 4, 6).
-    std::optional<FrameLookups> lookups;
-    lookups.emplace(c, f, M, T, true);
+    const FrameLookups& lookups = *c.lookups;
     pool.parallelFor(M, 4, [&](std::int64_t r0, std::int64_t r1) {
         RowTransfer model(c, f, M);
         auto sample = [&](double m, double n, int index) {
@@ -1600,18 +1588,18 @@ void sliceFullHartley(const SliceContext& c, const FrameMapping& f, const SliceF
             {
                 // m = 0 .. M/2-1 at columns m, m = -M/2+1 .. -1 at columns m + M (increasing).
                 for (int part = 0; part < 2 && !nyqRow; ++part) {
-                    const ColumnSpan sp =
-                        part == 0 ? hartleyColumns<T>(c, f, *lookups, n, 0, M / 2 - 1)
-                                  : hartleyColumns<T>(c, f, *lookups, n, -M / 2 + 1, -1);
+                    const ColumnSpan sp = part == 0
+                                              ? hartleyColumns<T>(c, f, lookups, n, 0, M / 2 - 1)
+                                              : hartleyColumns<T>(c, f, lookups, n, -M / 2 + 1, -1);
                     if (sp.first() > sp.last()) continue;
                     const int offset = part == 0 ? 0 : M;
                     general(col, sp.first() + offset);
                     if constexpr (Depth)
-                        fastRowHartleyDepth<T>(c, f, *lookups, filter, model, M, n, sp.first(),
+                        fastRowHartleyDepth<T>(c, f, lookups, filter, model, M, n, sp.first(),
                                                sp.last(), row);
                     else
-                        fastRowHartley<T>(c, f, *lookups, filter, model, M, n, sp.first(),
-                                          sp.last(), row);
+                        fastRowHartley<T>(c, f, lookups, filter, model, M, n, sp.first(), sp.last(),
+                                          row);
                     col = sp.last() + offset + 1;
                 }
             }
@@ -1665,7 +1653,7 @@ namespace {
 
 /** The per-sample context of one frame from its slice parameters. */
 SliceContext makeSliceContext(const Spectrum& s, const SliceParams& sp, const KernelTable* table,
-                              const TransferTable* model) {
+                              const TransferTable* model, const detail::CpuSliceLookups* lookups) {
     SliceContext c{};
     c.data = s.data.get();
     c.P0 = sp.padded[0];
@@ -1685,6 +1673,7 @@ SliceContext makeSliceContext(const Spectrum& s, const SliceParams& sp, const Ke
         c.E[a] = float(sp.E[a]);
     }
     c.model = model;
+    c.lookups = lookups;
     return c;
 }
 
@@ -1788,8 +1777,9 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
     SizeResources& res = resources(M);
 
     const SliceParams sp = sliceParams(s, params);
-    const SliceContext c = makeSliceContext(s, sp, m_tables.at(params.kernel).get(),
-                                            transferTable(params.voxelModel, sp.maxCyclesPerVoxel));
+    const SliceContext c =
+        makeSliceContext(s, sp, m_tables.at(params.kernel).get(),
+                         transferTable(params.voxelModel, sp.maxCyclesPerVoxel), m_lookups.get());
     const SliceFilterTable filter(params.filter, params.pixelAperture, M, params.image.pixelSize);
     ProjectionImage img = emptyImage(params, s);
 

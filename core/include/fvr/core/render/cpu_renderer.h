@@ -9,6 +9,10 @@
 
 namespace fvr::core {
 
+namespace detail {
+struct CpuSliceLookups;
+} // namespace detail
+
 /**
  * Per frame: resample the central slice perpendicular to D from the spectrum (separable kernel
  * tables; Hermitian lookups into the half spectrum; the output centring (-1)^(m+n) and the
@@ -51,6 +55,8 @@ private:
     std::map<int, std::unique_ptr<SizeResources>> m_resources;
     std::map<Kernel, std::unique_ptr<KernelTable>> m_tables;
     std::map<VoxelModel, std::unique_ptr<TransferTable>> m_transfer;
+    /** The spectrum's signed-index lookups of the fast slice walk (built once per spectrum). */
+    std::unique_ptr<const detail::CpuSliceLookups> m_lookups;
 };
 
 } // namespace fvr::core
