@@ -448,10 +448,18 @@ TEST(PacsLocalStore, DifferentBytesUnderAStoredUidGoToQuarantine) {
     EXPECT_EQ(same.result, StoreResult::Identical);
     EXPECT_EQ(same.path, first.path);
     EXPECT_EQ(filesUnder(root), before);
-    // Tampered again: a second quarantine file, the first one kept.
-    const StoreOutcome third = store.storeInstance(a.study, a.series, a.sop, tampered);
+    // The same tampered bytes again: quarantined, no second copy; other bytes: a second file.
+    const StoreOutcome repeated = store.storeInstance(a.study, a.series, a.sop, tampered);
+    EXPECT_EQ(repeated.result, StoreResult::Quarantined);
+    EXPECT_EQ(repeated.path, again.path);
+    EXPECT_NE(repeated.message.find("the same bytes were quarantined before"), std::string::npos)
+        << repeated.message;
+    EXPECT_EQ(filesUnder(root), before);
+    const StoreOutcome third = store.storeInstance(a.study, a.series, a.sop, tampered + "x");
     EXPECT_EQ(third.result, StoreResult::Quarantined);
     EXPECT_NE(third.path, again.path);
+    EXPECT_EQ(readBytes(third.path), tampered + "x");
+    EXPECT_EQ(readBytes(again.path), tampered);
     EXPECT_EQ(store.quarantined().size(), 2u);
     // The study stays as it was: complete, one instance (quarantine files are not its own).
     EXPECT_TRUE(store.find("1.2.5")->complete);

@@ -230,6 +230,20 @@ std::string nowStamp() {
     return buf;
 }
 
+/** A file in quarantine `folder` for `sop` with the bytes of `tmp`, or empty: a peer that sends
+ *  the same changed instance again fills no more of the disk. */
+fs::path alreadyQuarantined(const fs::path& tmp, const fs::path& folder, const std::string& sop) {
+    std::error_code ec;
+    const std::string mark = "-" + sop + "-";
+    for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        if (name.find(mark) != std::string::npos && it->is_regular_file(ec) &&
+            sameBytes(tmp, it->path()))
+            return it->path();
+    }
+    return {};
+}
+
 /** Moves `tmp` to `<folder>/<stamp>-<sop>-<n>.dcm` with the first n free; the path. */
 fs::path moveToQuarantine(const fs::path& tmp, const fs::path& folder, const std::string& sop) {
     std::error_code ec;
@@ -438,11 +452,18 @@ StoreOutcome LocalStore::place(const fs::path& tmp, const fs::path& path,
             fs::remove(tmp, ec);
             return {StoreResult::Identical, path, ""};
         }
-        const fs::path kept = moveToQuarantine(tmp, quarantineFolder(), sopUid);
+        fs::path kept = alreadyQuarantined(tmp, quarantineFolder(), sopUid);
+        const bool again = !kept.empty();
+        std::error_code ec;
+        if (again)
+            fs::remove(tmp, ec);
+        else
+            kept = moveToQuarantine(tmp, quarantineFolder(), sopUid);
         return {StoreResult::Quarantined, kept,
                 "SOP instance " + sopUid + " of " + areaName(area) + "study " + studyUid +
                     " was received again with different bytes: the stored file " + path.string() +
-                    " is kept unchanged, the received one is in quarantine as " + kept.string()};
+                    " is kept unchanged, the received one is in quarantine as " + kept.string() +
+                    (again ? " (the same bytes were quarantined before)" : "")};
     } catch (...) {
         std::error_code ec;
         fs::remove(tmp, ec);
