@@ -735,3 +735,28 @@ TEST(PacsLocalStore, EightWritersAndThreeProcessesShareOneStore) {
                   e.study.studyUid == shared[0].study.studyUid ? int(shared.size()) : 24)
             << e.study.studyUid;
 }
+
+// A process killed mid-write (kill -9) leaves its temporary file; the next retrieve into the
+// study removes it, and keeps one whose writer still runs.
+TEST(PacsLocalStore, ARetrieveRemovesTheTemporariesOfADeadWriter) {
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-stale";
+    fs::remove_all(root);
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) ::_exit(0);
+    ASSERT_EQ(::waitpid(child, nullptr, 0), child); // its pid now names no process
+    const std::string dead = std::to_string(child), alive = std::to_string(::getpid());
+    const fs::path series = root / "1.2.3/1.2.3.1";
+    fs::create_directories(series);
+    const fs::path staleFile = series / (".1.2.3.1.1.dcm." + dead + ".0.part");
+    const fs::path staleIndex = root / (".index.json." + dead + ".4.part");
+    const fs::path live = series / (".1.2.3.1.2.dcm." + alive + ".0.part");
+    const fs::path notOurs = series / "notes.part";
+    for (const fs::path& p : {staleFile, staleIndex, live, notOurs}) std::ofstream(p) << "x";
+    LocalStore store(root);
+    store.beginRetrieve(study("1.2.3"), "");
+    EXPECT_FALSE(fs::exists(staleFile));
+    EXPECT_FALSE(fs::exists(staleIndex));
+    EXPECT_TRUE(fs::exists(live));
+    EXPECT_TRUE(fs::exists(notOurs));
+}

@@ -10,6 +10,7 @@
 #include <cctype>
 #include <cerrno>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -255,6 +256,29 @@ fs::path moveToQuarantine(const fs::path& tmp, const fs::path& folder, const std
         if (placeNoReplace(tmp, path)) return path;
     }
     throw WriteError(folder.string() + ": no free quarantine name for " + stem + "<n>.dcm");
+}
+
+/** Removes the temporary files (io/atomic_file.h names) in `folder` (and below it when
+ *  `recursive`) whose writer no longer runs: what a killed process left. A file whose pid is
+ *  alive (or reused) is kept: it may be a write in progress. */
+void removeStaleTemporaries(const fs::path& folder, bool recursive) {
+    const auto stale = [](const fs::directory_entry& e) {
+        std::error_code ec;
+        const std::optional<long> pid = temporaryWriterPid(e.path());
+        return pid && e.is_regular_file(ec) && ::kill(static_cast<pid_t>(*pid), 0) != 0 &&
+               errno == ESRCH;
+    };
+    std::error_code ec;
+    std::vector<fs::path> gone;
+    if (recursive) {
+        for (fs::recursive_directory_iterator it(folder, ec), end; !ec && it != end;
+             it.increment(ec))
+            if (stale(*it)) gone.push_back(it->path());
+    } else {
+        for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec))
+            if (stale(*it)) gone.push_back(it->path());
+    }
+    for (const fs::path& p : gone) fs::remove(p, ec);
 }
 
 const char* areaName(Area area) { return area == Area::Incoming ? "incoming " : ""; }
@@ -508,6 +532,9 @@ void LocalStore::beginRetrieve(const StudyRecord& study, const std::string& seri
     m_retrieving.insert(study.studyUid);
     const IndexLock fileLock(m_root);
     Index index = load();
+    // What a retrieve or an index write killed before left: gone before this one writes.
+    removeStaleTemporaries(m_root, false);
+    removeStaleTemporaries(studyFolder(study.studyUid), true);
     json& entry = studyEntry(index.studies, study);
     entry["retrievePending"] = true; // until a retrieve completes it (markReceived)
     if (seriesUid.empty())
