@@ -90,8 +90,8 @@ protected:
         Uint16 status = STATUS_STORE_Refused_OutOfResources;
         try {
             if (!owned) throw PacsError("a C-STORE request came without a dataset");
-            const auto [study, series] = detail::storeDataset(m_impl.store, *owned);
-            m_received[study].insert(series);
+            const auto stored = detail::storeDataset(m_impl.store, *owned);
+            m_received[stored.studyUid].insert(stored.seriesUid);
             status = STATUS_Success;
         } catch (const std::exception& e) {
             m_impl.setError(e.what());
