@@ -19,13 +19,12 @@
 #include <nlohmann/json.hpp>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/io/atomic_file.h>
 
 namespace fvr::cli {
 namespace fs = std::filesystem;
 
 namespace {
-
-std::atomic<unsigned long> g_temporaryCount{0};
 
 bool allDigits(const std::string& s) {
     return !s.empty() &&
@@ -104,8 +103,7 @@ void removeUnopened(const std::vector<fs::path>& candidates, std::vector<std::st
 } // namespace
 
 std::string temporaryName(const std::string& name) {
-    return "." + name + "." + std::to_string(::getpid()) + "." +
-           std::to_string(++g_temporaryCount) + ".part";
+    return core::temporaryPathFor(name).filename(); // the one form of fvr's temporaries
 }
 
 std::optional<std::pair<std::string, long>> parseTemporaryName(const std::string& filename) {
@@ -118,9 +116,9 @@ std::optional<std::pair<std::string, long>> parseTemporaryName(const std::string
     if (dot2 == std::string::npos || dot2 == 0) return std::nullopt;
     const auto dot1 = body.rfind('.', dot2 - 1);
     if (dot1 == std::string::npos || dot1 == 0) return std::nullopt;
-    const std::string pid = body.substr(dot1 + 1, dot2 - dot1 - 1);
-    if (!allDigits(body.substr(dot2 + 1)) || !allDigits(pid) || pid.size() > 9) return std::nullopt;
-    return std::make_pair(body.substr(0, dot1), std::stol(pid));
+    const auto pid = core::temporaryWriterPid(filename);
+    if (!pid) return std::nullopt;
+    return std::make_pair(body.substr(0, dot1), *pid);
 }
 
 bool processIsGone(long pid) {
@@ -150,8 +148,10 @@ std::vector<std::string> removeStaleTemporaries(const fs::path& dir, const std::
     for (const auto& entry : it) {
         const std::string name = entry.path().filename();
         if (const auto t = parseTemporaryName(name)) {
-            // fvr's form: the writer's pid in the name. Only where that process is gone.
-            if (isOutputName(t->first) && processIsGone(t->second)) {
+            // fvr's form: the writer's pid in the name. Only where that process is gone, and
+            // only outputs: staging folders (fvr's only temporary folders, with the Zarr
+            // conversion's) and files named as outputs.
+            if ((entry.is_directory() || isOutputName(t->first)) && processIsGone(t->second)) {
                 std::error_code rmEc;
                 if (fs::remove_all(entry.path(), rmEc) != static_cast<std::uintmax_t>(-1) && !rmEc)
                     removed.push_back(name);

@@ -27,7 +27,7 @@
 
 namespace fvr::cli {
 
-/** `name`'s temporary name in this process, `.NAME.PID.N.part` (N counts in the process). */
+/** `name`'s temporary name in this process, `.NAME.PID.N.part` (core::temporaryPathFor). */
 std::string temporaryName(const std::string& name);
 
 /** The NAME and PID of a temporary name `.NAME.PID.N.part`, or nothing. */

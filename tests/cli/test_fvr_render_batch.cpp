@@ -437,3 +437,46 @@ TEST(FvrRenderBatch, KilledRunsLeftoversAreRemovedByTheNextRun) {
         << r.output;
     fs::remove(log);
 }
+
+TEST(FvrRenderBatch, ARunBesideALiveOneLeavesItsFilesAlone) {
+    // The next run into a folder removes the temporaries of dead runs only: a sweep still being
+    // written there (its staging folder present) completes whole.
+    const fs::path dir = scratch("beside");
+    const fs::path log = fvr::test::tmpDir() / "batch_beside.log";
+    const pid_t pid = start({"phantom:shepp-logan:16", "--backend", "cpu", "--size", "128",
+                             "--sweep", "3000", "--out", (dir / "a.png").string()},
+                            log);
+    ASSERT_GT(pid, 0);
+    int status = 0;
+    ASSERT_TRUE(waitUntil(pid, status, [&] { return !partsIn(dir).empty(); })) << readBytes(log);
+    const Result r = run(kPhantom + "--out " + (dir / "b.npy").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_EQ(r.output.find("left by a run that died"), std::string::npos) << r.output;
+    // Still running when the other run cleaned the folder (else this test proves nothing).
+    EXPECT_EQ(waitpid(pid, &status, WNOHANG), 0) << "the sweep ended too soon";
+    ASSERT_EQ(waitpid(pid, &status, 0), pid);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << readBytes(log);
+    EXPECT_EQ(filesIn(dir).size(), 3000u + 3u); // its frames and sidecar, b.npy and its sidecar
+    EXPECT_EQ(partsIn(dir), std::vector<std::string>{});
+    fs::remove(log);
+}
+
+TEST(FvrRenderBatch, InterruptedPolychromaticSweepLeavesNothing) {
+    // --kvp runs its own loop: the same rule (SIGTERM here), all or nothing.
+    const fs::path dir = scratch("polyint");
+    const fs::path out = dir / "p.npy";
+    const fs::path log = fvr::test::tmpDir() / "batch_polyint.log";
+    const pid_t pid = start({"phantom:shepp-logan:16", "--backend", "cpu", "--size", "128", "--kvp",
+                             "80", "--sweep", "3000", "--out", out.string()},
+                            log);
+    ASSERT_GT(pid, 0);
+    int status = 0;
+    ASSERT_TRUE(waitUntil(pid, status, [&] { return !partsIn(dir).empty(); })) << readBytes(log);
+    kill(pid, SIGTERM);
+    ASSERT_EQ(waitpid(pid, &status, 0), pid);
+    const std::string err = readBytes(log);
+    EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM) << status << "\n" << err;
+    EXPECT_NE(err.find(out.string() + " not written"), std::string::npos) << err;
+    EXPECT_EQ(filesIn(dir), std::vector<std::string>{});
+    fs::remove(log);
+}

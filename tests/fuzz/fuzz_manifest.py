@@ -172,7 +172,14 @@ def run_mutation(seconds: float, seed: int, folder: Path) -> int:
     return tried
 
 
+def mutated(data: bytes, seed: int) -> bytes:
+    return mutate(data, random.Random(seed))
+
+
 def run_hypothesis(seconds: float, seed: int, folder: Path) -> int:
+    from hypothesis import configuration
+
+    configuration.set_hypothesis_home_dir(str(folder / ".hypothesis"))  # not in the checkout
     from hypothesis import HealthCheck, given, seed as hseed, settings, strategies as st
 
     rng = random.Random(seed)
@@ -197,8 +204,7 @@ def run_hypothesis(seconds: float, seed: int, folder: Path) -> int:
         return newline.join(",".join(cells) for cells in lines).encode("utf-8", "surrogatepass")
 
     inputs = (manifest() | manifest() | manifest() | st.binary(max_size=2048)
-              | st.builds(lambda s, r: mutate(s, random.Random(r)), st.sampled_from(SEEDS),
-                          st.integers()))
+              | st.builds(mutated, st.sampled_from(SEEDS), st.integers()))
     tried = 0
 
     @settings(max_examples=200, deadline=None, database=None, derandomize=False,
