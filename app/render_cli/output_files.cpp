@@ -52,30 +52,36 @@ bool isFileOrLink(const fs::path& p) {
     return !ec && (fs::is_regular_file(st) || fs::is_symlink(st));
 }
 
+/** The entries of `dir` (the working folder for ""), listed without throwing; `ok` false where
+ *  the folder cannot be read. Listed first, so that removing some does not disturb the listing.
+ */
+std::vector<fs::path> entriesOf(const fs::path& dir, bool& ok) {
+    std::vector<fs::path> entries;
+    std::error_code ec;
+    fs::directory_iterator it(dir.empty() ? fs::path(".") : dir, ec);
+    for (const fs::directory_iterator end; !ec && it != end; it.increment(ec))
+        entries.push_back(it->path());
+    ok = !ec;
+    return entries;
+}
+
 /** The (device, inode) of every file some process holds open, from /proc/<pid>/fd; nothing
  *  where a process's descriptors cannot be read (then `complete` is false: anything may be
  *  open). */
 std::set<std::pair<dev_t, ino_t>> openFiles(bool& complete) {
     std::set<std::pair<dev_t, ino_t>> open;
     complete = true;
-    std::error_code ec;
-    fs::directory_iterator procs("/proc", ec);
-    if (ec) {
-        complete = false;
-        return open;
-    }
-    for (const auto& proc : procs) {
-        const std::string pid = proc.path().filename();
-        if (!allDigits(pid)) continue;
-        std::error_code fdEc;
-        fs::directory_iterator fds(proc.path() / "fd", fdEc);
-        if (fdEc) {
-            if (fdEc != std::errc::no_such_file_or_directory) complete = false; // EACCES
-            continue;
-        }
-        for (const auto& fd : fds) {
+    bool ok = false;
+    const std::vector<fs::path> procs = entriesOf("/proc", ok);
+    if (!ok) complete = false;
+    for (const fs::path& proc : procs) {
+        if (!allDigits(proc.filename())) continue;
+        const std::vector<fs::path> fds = entriesOf(proc / "fd", ok);
+        // A process that cannot be read (EACCES) may hold the file; one that ended holds none.
+        if (!ok && fs::exists(proc)) complete = false;
+        for (const fs::path& fd : fds) {
             struct stat st {};
-            if (::stat(fd.path().c_str(), &st) == 0 && S_ISREG(st.st_mode))
+            if (::stat(fd.c_str(), &st) == 0 && S_ISREG(st.st_mode))
                 open.emplace(st.st_dev, st.st_ino);
         }
     }
@@ -142,24 +148,23 @@ std::vector<std::string> removeStaleTemporaries(const fs::path& dir, const std::
     std::vector<std::string> removed;
     std::vector<fs::path> oldForm;
     const std::string outName = fs::path(out).filename();
-    std::error_code ec;
-    fs::directory_iterator it(dir.empty() ? fs::path(".") : dir, ec);
-    if (ec) return removed;
-    for (const auto& entry : it) {
-        const std::string name = entry.path().filename();
+    bool ok = false;
+    for (const fs::path& entry : entriesOf(dir, ok)) {
+        const std::string name = entry.filename();
         if (const auto t = parseTemporaryName(name)) {
             // fvr's form: the writer's pid in the name. Only where that process is gone, and
             // only outputs: staging folders (fvr's only temporary folders, with the Zarr
             // conversion's) and files named as outputs.
-            if ((entry.is_directory() || isOutputName(t->first)) && processIsGone(t->second)) {
-                std::error_code rmEc;
-                if (fs::remove_all(entry.path(), rmEc) != static_cast<std::uintmax_t>(-1) && !rmEc)
+            std::error_code ec;
+            const bool folder = fs::is_directory(fs::symlink_status(entry, ec));
+            if ((folder || isOutputName(t->first)) && processIsGone(t->second)) {
+                if (fs::remove_all(entry, ec) != static_cast<std::uintmax_t>(-1) && !ec)
                     removed.push_back(name);
             }
         } else if (name.size() > 5 && name.compare(name.size() - 5, 5, ".part") == 0) {
             const std::string of = name.substr(0, name.size() - 5); // the name it was for
             if (of == outName || of == outName + ".json" || isNumberedFrame(of, out))
-                oldForm.push_back(entry.path());
+                oldForm.push_back(entry);
         }
     }
     removeUnopened(oldForm, removed);
