@@ -179,8 +179,9 @@ OutputFiles::OutputFiles(std::string out) : m_out(std::move(out)) {
                      (m_dir / r).c_str());
     const fs::path staging = m_dir / temporaryName(name);
     if (::mkdir(staging.c_str(), 0777) != 0)
-        throw core::WriteError(m_out + ": cannot write beside it (" + staging.string() +
-                               "): " + std::strerror(errno));
+        throw core::WriteError(m_out + ": cannot write into its folder " +
+                               (m_dir.empty() ? fs::path(".") : m_dir).string() + ": " +
+                               std::strerror(errno));
     m_staging = staging;
 }
 

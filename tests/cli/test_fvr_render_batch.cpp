@@ -480,3 +480,27 @@ TEST(FvrRenderBatch, InterruptedPolychromaticSweepLeavesNothing) {
     EXPECT_EQ(filesIn(dir), std::vector<std::string>{});
     fs::remove(log);
 }
+
+TEST(FvrRenderBatch, ImageWithoutRoomForItsSidecarIsNotLeft) {
+    // One view of an empty volume: a PNG of 95 bytes, a sidecar of over 1 KB. With a file size
+    // limit between the two, the sidecar cannot be written: the image must not stay alone under
+    // its final name (it did, with exit status 1).
+    const fs::path dir = scratch("single");
+    { std::ofstream(dir / "zero.raw", std::ios::binary) << std::string(16 * 16 * 16 * 2, '\0'); }
+    fs::create_directory(dir / "out");
+    const fs::path out = dir / "out" / "v.png";
+    const std::string args = (dir / "zero.raw").string() +
+                             " --raw-dims 16,16,16 --size 128 --backend cpu --out " + out.string();
+    // 1 block of 512 or 1024 bytes (the shell's ulimit unit).
+    Result r = run(args, "trap '' XFSZ; ulimit -f 1; exec");
+    EXPECT_EQ(r.status, 1) << r.output;
+    EXPECT_NE(r.output.find(out.string() + ".json: write failed: " + std::strerror(EFBIG)),
+              std::string::npos)
+        << r.output;
+    EXPECT_EQ(filesIn(dir / "out"), std::vector<std::string>{});
+    // Without the limit the same run writes both (the image is indeed the smaller file).
+    r = run(args);
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_LT(fs::file_size(out), 512u);
+    EXPECT_GT(fs::file_size(out.string() + ".json"), 1024u);
+}
