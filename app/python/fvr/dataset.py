@@ -73,7 +73,10 @@ REFUSED_COLUMNS = {
     "query-series": "it does not render",
     "send": "it sends data to a PACS", "store": "it writes into a study store",
     "retrieve": "it talks to a PACS", "ae-title": "it talks to a PACS",
-    "listen-port": "it talks to a PACS",
+    "listen-port": "it talks to a PACS", "pacs-timeout": "it talks to a PACS",
+    "tls": "it talks to a PACS", "tls-cert": "it talks to a PACS",
+    "tls-key": "it talks to a PACS", "tls-ca": "it talks to a PACS",
+    "tls-no-verify": "it talks to a PACS",
 }
 # What the dataset writes for a study <id> in --out (and fvr-render's own FILE.json and
 # temporaries): an id ending so would name another study's files.
