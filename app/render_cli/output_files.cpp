@@ -196,14 +196,23 @@ fs::path OutputFiles::staged(const std::string& finalPath) {
     return at;
 }
 
+namespace {
+
+/** `text` with every `from` replaced by `to` (left to right, never inside a replacement). */
+std::string replaceAll(std::string text, const std::string& from, const std::string& to) {
+    for (std::size_t k = 0; !from.empty() && (k = text.find(from, k)) != std::string::npos;
+         k += to.size())
+        text.replace(k, from.size(), to);
+    return text;
+}
+
+} // namespace
+
 std::string OutputFiles::finalNames(std::string message) const {
     for (const auto& [at, target] : m_files)
-        for (std::size_t k; (k = message.find(at.string())) != std::string::npos;)
-            message.replace(k, at.string().size(), target.string());
-    const std::string prefix = m_staging.string() + "/";
-    for (std::size_t k; (k = message.find(prefix)) != std::string::npos;)
-        message.replace(k, prefix.size(), m_dir.empty() ? "" : m_dir.string() + "/");
-    return message;
+        message = replaceAll(message, at.string(), target.string());
+    if (m_staging.empty()) return message; // committed or discarded: nothing staged
+    return replaceAll(message, m_staging.string() + "/", m_dir.empty() ? "" : m_dir.string() + "/");
 }
 
 namespace {
