@@ -28,8 +28,8 @@ from __future__ import annotations
 import argparse
 import csv
 import hashlib
-import itertools
 import io
+import itertools
 import json
 import os
 import sys
@@ -112,8 +112,9 @@ def _check_columns(path, columns: list) -> None:
             raise ManifestError(f"{path}:1: column '{c}': not a setting a manifest may give "
                                 f"({REFUSED_COLUMNS[name]})")
         if name not in ALLOWED_COLUMNS:
+            allowed = ", ".join(sorted(ALLOWED_COLUMNS))
             raise ManifestError(f"{path}:1: column '{c}': unknown (a column is id, path or one "
-                                f"of fvr-render's render options: {', '.join(sorted(ALLOWED_COLUMNS))})")
+                                f"of fvr-render's render options: {allowed})")
 
 
 def check_id(job_id: str) -> None:
