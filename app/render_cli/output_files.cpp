@@ -171,6 +171,15 @@ std::vector<std::string> removeStaleTemporaries(const fs::path& dir, const std::
     return removed;
 }
 
+void removeStaleTemporariesOf(const fs::path& dir, const std::string& name) {
+    bool ok = false;
+    for (const fs::path& entry : entriesOf(dir, ok)) {
+        const auto t = parseTemporaryName(entry.filename());
+        std::error_code ec;
+        if (t && t->first == name && processIsGone(t->second)) fs::remove_all(entry, ec);
+    }
+}
+
 OutputFiles::OutputFiles(std::string out) : m_out(std::move(out)) {
     m_dir = fs::path(m_out).parent_path();
     const std::string name = fs::path(m_out).filename();

@@ -43,6 +43,10 @@ bool processIsGone(long pid);
 std::vector<std::string> removeStaleTemporaries(const std::filesystem::path& dir,
                                                 const std::string& out);
 
+/** Removes from `dir` the temporaries `.NAME.PID.N.part` of `name` alone (files or folders)
+ *  whose process is gone; never throws. */
+void removeStaleTemporariesOf(const std::filesystem::path& dir, const std::string& name);
+
 /** Whether `name` (a file name) is one of the frames --out `out` writes: STEM_NNNN.ext. */
 bool isNumberedFrame(const std::string& name, const std::string& out);
 

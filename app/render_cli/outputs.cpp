@@ -122,6 +122,9 @@ std::string valuesText(const Session& s) {
                                  : projectionUnits(s.options.values, s.volume.units);
 }
 
+/** The name of --send's temporary folders (.fvr-render-send.PID.N.part in the temporary folder). */
+constexpr const char* kSendFolder = "fvr-render-send";
+
 /** Writes the views one by one, or streams them into one .npy stack (written as it is produced,
  *  header first), all into `files`' staging folder (committed with the sidecar, not here). */
 class ViewWriter {
@@ -194,8 +197,11 @@ public:
             return;
         }
         if (m_sendDir.empty()) {
-            m_sendDir = std::filesystem::temp_directory_path() /
-                        ("fvr-render-send-" + std::to_string(::getpid()));
+            // Its own temporary folder (several runs in one process, the Python module's, may
+            // send at once); those of runs that died are removed first.
+            const auto tmp = std::filesystem::temp_directory_path();
+            removeStaleTemporariesOf(tmp, kSendFolder);
+            m_sendDir = tmp / temporaryName(kSendFolder);
             std::filesystem::create_directories(m_sendDir);
         }
         m_toSend.push_back(m_sendDir / ("view_" + std::to_string(i) + ".dcm"));

@@ -504,3 +504,23 @@ TEST(FvrRenderBatch, ImageWithoutRoomForItsSidecarIsNotLeft) {
     EXPECT_LT(fs::file_size(out), 512u);
     EXPECT_GT(fs::file_size(out.string() + ".json"), 1024u);
 }
+
+TEST(FvrRenderBatch, SendFoldersOfDeadRunsAreRemoved) {
+    // --send of PNG views writes Secondary Captures into a temporary folder of its own; a run
+    // killed while sending leaves it. The next send removes those of dead runs, not a live
+    // one's, and its own when it ends (here the PACS does not answer: the send fails).
+    const fs::path dir = scratch("sendtmp");
+    const fs::path tmp = dir / "tmp";
+    const std::string dead = ".fvr-render-send." + std::to_string(deadPid()) + ".0.part";
+    const std::string live = ".fvr-render-send." + std::to_string(getpid()) + ".0.part";
+    fs::create_directories(tmp / dead);
+    { std::ofstream(tmp / dead / "view_0.dcm") << "a dead run's view\n"; }
+    fs::create_directories(tmp / live);
+    const Result r = run(kPhantom + "--sweep 2 --out " + (dir / "v.png").string() +
+                             " --send dicom://NOBODY@127.0.0.1:9",
+                         "TMPDIR=" + tmp.string() + " exec");
+    EXPECT_NE(r.status, 0) << r.output;
+    EXPECT_EQ(filesIn(tmp), std::vector<std::string>{live}) << r.output;
+    EXPECT_EQ(filesIn(dir),
+              (std::vector<std::string>{"tmp", "v.png.json", "v_0000.png", "v_0001.png"}));
+}
