@@ -393,7 +393,9 @@ void declareOutput(CLI::App& app, Options& o) {
            "views: one stacked (N, M, M) file), .pfm (float, rows bottom-to-top),\n"
            ".png (display-mapped, auto window), .dcm (DICOM secondary capture);\n"
            "several views and .pfm/.png/.dcm: FILE_0000.ext, FILE_0001.ext, ...\n"
-           "A JSON sidecar FILE.json records every parameter and view.")
+           "A JSON sidecar FILE.json records every parameter and view. The files land\n"
+           "together or not at all: an interrupted or failed run leaves an earlier run's\n"
+           "files as they were (a new run replaces all of them, frames it lacks removed).")
         ->check(coreCheck([](const std::string& s) { outputFormat(s); }))
         ->option_text("FILE")
         ->group(g);

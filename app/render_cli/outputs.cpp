@@ -1,9 +1,7 @@
 // fvr-render --out: the views, the image files and the JSON sidecar.
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <condition_variable>
-#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <deque>
@@ -19,7 +17,6 @@
 #include <thread>
 #include <utility>
 
-#include <signal.h>
 #include <unistd.h>
 
 #include <fvr/core/errors.h>
@@ -30,6 +27,7 @@
 #include <fvr/core/xray/display_window.h>
 #include <fvr/core/xray/patient_views.h>
 
+#include "output_files.h"
 #include "pacs.h"
 #include "session.h"
 
@@ -124,17 +122,35 @@ std::string valuesText(const Session& s) {
                                  : projectionUnits(s.options.values, s.volume.units);
 }
 
-/** Writes the views one by one, or streams them into one .npy stack (written as it is produced:
- *  header first, into FILE.npy.part, moved into place by finish()). */
+/** The name of --send's temporary folders (.fvr-render-send.PID.N.part in the temporary folder). */
+constexpr const char* kSendFolder = "fvr-render-send";
+
+/** Writes the views one by one, or streams them into one .npy stack (written as it is produced,
+ *  header first), all into `files`' staging folder (committed with the sidecar, not here). */
 class ViewWriter {
 public:
-    ViewWriter(const Session& s, std::size_t viewCount, DicomExportInfo exportInfo)
-        : m_o(s.options), m_count(viewCount), m_exportInfo(std::move(exportInfo)),
+    ViewWriter(const Session& s, OutputFiles& files, std::size_t viewCount,
+               DicomExportInfo exportInfo)
+        : m_o(s.options), m_files(files), m_count(viewCount), m_exportInfo(std::move(exportInfo)),
           m_stacked(viewCount > 1 && m_o.format == OutputFormat::Npy && !m_o.numbered) {
         // Opened before the first view is rendered: an unwritable path fails at once.
-        if (m_stacked)
-            m_stack = std::make_unique<NpyStackWriter>(m_o.out, m_o.size, m_o.size,
-                                                       std::int64_t(m_count));
+        if (m_stacked) {
+            const auto at = m_files.staged(m_o.out);
+            finalNamesOnError([&] {
+                m_stack =
+                    std::make_unique<NpyStackWriter>(at, m_o.size, m_o.size, std::int64_t(m_count));
+            });
+        }
+    }
+
+    /** Runs `write`; its WriteError says the final path, not the staged one. */
+    template <class Write>
+    void finalNamesOnError(Write&& write) {
+        try {
+            write();
+        } catch (const WriteError& e) {
+            throw WriteError(m_files.finalNames(e.what()));
+        }
     }
 
     bool stacked() const { return m_stacked; }
@@ -152,21 +168,24 @@ public:
         }
         if (m_o.beerLambert) applyTransmission(img.pixels, m_o.transmission);
         if (m_stacked) {
-            m_stack->add(img.pixels.data());
+            finalNamesOnError([&] { m_stack->add(img.pixels.data()); });
             addToSend(i, m_o.out, img);
             return;
         }
         const std::string path = m_count > 1 ? numberedPath(m_o.out, i) : m_o.out;
+        const std::filesystem::path at = m_files.staged(path);
         const int M = m_o.size;
-        if (m_o.format == OutputFormat::Png)
-            writePng(path, film ? m_lineIntegrals.data() : img.pixels.data(), M, M,
-                     film ? *film : autoWindow(img.pixels), m_o.bitDepth);
-        else if (m_o.format == OutputFormat::Dicom)
-            writeDicomProjection(path, img, m_exportInfo);
-        else
-            writeProjection(path, img);
+        finalNamesOnError([&] {
+            if (m_o.format == OutputFormat::Png)
+                writePng(at, film ? m_lineIntegrals.data() : img.pixels.data(), M, M,
+                         film ? *film : autoWindow(img.pixels), m_o.bitDepth);
+            else if (m_o.format == OutputFormat::Dicom)
+                writeDicomProjection(at, img, m_exportInfo);
+            else
+                writeProjection(at, img);
+        });
         m_written.push_back(path);
-        addToSend(i, path, img);
+        addToSend(i, path, img); // the final path: sent after the commit
     }
 
     /** --send: the DICOM outputs themselves, else a Secondary Capture of each view written
@@ -178,8 +197,11 @@ public:
             return;
         }
         if (m_sendDir.empty()) {
-            m_sendDir = std::filesystem::temp_directory_path() /
-                        ("fvr-render-send-" + std::to_string(::getpid()));
+            // Its own temporary folder (several runs in one process, the Python module's, may
+            // send at once); those of runs that died are removed first.
+            const auto tmp = std::filesystem::temp_directory_path();
+            removeStaleTemporariesOf(tmp, kSendFolder);
+            m_sendDir = tmp / temporaryName(kSendFolder);
             std::filesystem::create_directories(m_sendDir);
         }
         m_toSend.push_back(m_sendDir / ("view_" + std::to_string(i) + ".dcm"));
@@ -194,12 +216,13 @@ public:
 
     void finish() {
         if (!m_stacked) return;
-        m_stack->finish();
+        finalNamesOnError([&] { m_stack->finish(); });
         m_written.push_back(m_o.out);
     }
 
 private:
     const Options& m_o;
+    OutputFiles& m_files;
     std::size_t m_count;
     DicomExportInfo m_exportInfo;
     bool m_stacked;
@@ -289,65 +312,6 @@ private:
     std::thread m_thread; // last: started when the rest is ready
 };
 
-/** Thrown by the render loop when SIGINT or SIGTERM came: unwinds the writers (the stack's
- *  temporary file removed) before InterruptGuard dies of the signal. */
-struct Interrupted : std::runtime_error {
-    using std::runtime_error::runtime_error;
-};
-
-/**
- * SIGINT and SIGTERM while the views are rendered and written set a flag that the render loop
- * checks after each view, so that an interrupted run removes its unfinished files, then dies of
- * the signal as it would have (a shell or make sees the signal). Only where the signal had its
- * default action (a background job's ignored SIGINT stays ignored); one-shot (SA_RESETHAND), so
- * that a second signal ends the run at once.
- */
-class InterruptGuard {
-public:
-    InterruptGuard() {
-        s_signal = 0;
-        for (std::size_t k = 0; k < std::size(kSignals); ++k) {
-            struct sigaction old {};
-            m_installed[k] = sigaction(kSignals[k], nullptr, &old) == 0 &&
-                             !(old.sa_flags & SA_SIGINFO) && old.sa_handler == SIG_DFL;
-            if (!m_installed[k]) continue;
-            struct sigaction sa {};
-            sa.sa_handler = &InterruptGuard::onSignal;
-            sigemptyset(&sa.sa_mask);
-            sa.sa_flags = SA_RESTART | SA_RESETHAND;
-            sigaction(kSignals[k], &sa, nullptr);
-        }
-    }
-    ~InterruptGuard() { restore(); }
-    InterruptGuard(const InterruptGuard&) = delete;
-    InterruptGuard& operator=(const InterruptGuard&) = delete;
-
-    /** The signal that came, or 0. */
-    static int signal() { return s_signal; }
-
-    /** Where a signal came: says `what` and dies of the signal. */
-    void dieIfInterrupted(const std::string& what) {
-        const int sig = s_signal;
-        if (sig == 0) return;
-        std::fprintf(stderr, "fvr-render: %s\n", what.c_str());
-        restore();
-        std::raise(sig);
-        std::_Exit(128 + sig); // not reached: the default action ends the process
-    }
-
-private:
-    static void onSignal(int sig) { s_signal = sig; }
-    void restore() {
-        for (std::size_t k = 0; k < std::size(kSignals); ++k)
-            if (m_installed[k]) std::signal(kSignals[k], SIG_DFL);
-        m_installed[0] = m_installed[1] = false;
-    }
-
-    static constexpr int kSignals[2] = {SIGINT, SIGTERM};
-    static inline std::atomic<int> s_signal{0}; // lock-free: set by the handler on any thread
-    bool m_installed[2] = {};
-};
-
 /** The DICOM outputs' value description: the values, depth cue and slice filter. */
 DicomExportInfo dicomInfo(const Session& s, DicomExportInfo info) {
     info.valueDescription = valuesText(s);
@@ -379,13 +343,10 @@ double renderViews(const Session& s, const std::vector<ViewFrame>& views, ViewWr
             if (views.size() > 1 && isatty(2)) std::fprintf(stderr, "\n");
             std::string what = "interrupted after view " + std::to_string(i + 1) + " of " +
                                std::to_string(views.size());
-            if (writer.stacked()) {
-                what += ": the stack " + s.options.out + " not written";
-            } else { // the views rendered so far are written (the queue drained), and stay
-                writerThread.finish();
-                what += ": " + std::to_string(writer.written().size()) + " views written";
-            }
-            throw Interrupted(what);
+            // The staged files go (the writer thread stops first): all or nothing.
+            throw Interrupted(what + ": " + s.options.out +
+                              " not written (nothing of this run is kept; an earlier run's "
+                              "files stay as they were)");
         }
         const auto now = std::chrono::steady_clock::now();
         if (views.size() > 1 &&
@@ -422,13 +383,17 @@ void writeOutputs(const Session& s, const std::vector<ViewFrame>& views,
     InterruptGuard interrupt; // before the writer opens its files
     std::string interrupted = "interrupted after the last view"; // the files are complete
     try {
-        ViewWriter writer(s, views.size(), dicomInfo(s, exportInfo));
+        OutputFiles files(s.options.out);
+        ViewWriter writer(s, files, views.size(), dicomInfo(s, exportInfo));
         const double msPerView = renderViews(s, views, writer);
         // JSON sidecar: every parameter, so the output can be reproduced and registered.
         const WrittenOutput output{valuesText(s), writer.stacked(), writer.written(),
                                    s.preprocessMs, msPerView};
-        writeFileAtomic(s.options.out + ".json",
-                        jsonText(sidecarJson(s.facts(), s.volume, output, views)));
+        writer.finalNamesOnError([&] {
+            writeFileAtomic(files.staged(s.options.out + ".json"),
+                            jsonText(sidecarJson(s.facts(), s.volume, output, views)));
+        });
+        files.commit(); // the images and their sidecar land together
         printSummary(s, views.size(), writer.stacked(), msPerView);
         if (!s.options.send.empty()) sendViews(s.options, writer.toSend());
     } catch (const Interrupted& e) {

@@ -14,6 +14,7 @@
 
 #include "backend.h"
 #include "json_output.h"
+#include "output_files.h"
 
 namespace fvr::cli {
 namespace {
@@ -52,10 +53,12 @@ std::string numbered(const std::string& out, std::size_t i) {
     return (p.parent_path() / (p.stem().string() + num + p.extension().string())).string();
 }
 
-/** Writes view i's I/I0: .npy/.pfm as is, .png as -ln(I/I0) auto-windowed (bone white). */
-std::string writeView(const Options& o, std::size_t i, std::size_t count,
+/** Writes view i's I/I0 (staged in `files`): .npy/.pfm as is, .png as -ln(I/I0) auto-windowed
+ *  (bone white). Returns its final path. */
+std::string writeView(const Options& o, OutputFiles& files, std::size_t i, std::size_t count,
                       const ProjectionImage& img) {
-    const std::string path = count > 1 ? numbered(o.out, i) : o.out;
+    const std::string final = count > 1 ? numbered(o.out, i) : o.out;
+    const std::filesystem::path path = files.staged(final);
     const int M = img.size;
     if (o.format == OutputFormat::Png) {
         std::vector<float> logs = img.pixels;
@@ -66,15 +69,15 @@ std::string writeView(const Options& o, std::size_t i, std::size_t count,
     } else {
         writeNpy(path, img.pixels.data(), M, M);
     }
-    return path;
+    return final;
 }
 
-void writeMaterials(const Options& o, const PolychromaticFrame& f) {
+void writeMaterials(const Options& o, OutputFiles& files, const PolychromaticFrame& f) {
     const int M = f.transmission.size;
     std::vector<float> stack;
     for (const auto& img : f.massThickness)
         stack.insert(stack.end(), img.pixels.begin(), img.pixels.end());
-    writeNpy(o.materialOut, stack.data(), M, M, std::int64_t(f.massThickness.size()));
+    writeNpy(files.staged(o.materialOut), stack.data(), M, M, std::int64_t(f.massThickness.size()));
 }
 
 struct RenderedViews {
@@ -86,14 +89,15 @@ struct RenderedViews {
 
 /** Renders and writes every view (several .npy views: one (n, M, M) stack, as without --kvp,
  *  unless --numbered); each view has its own noise seed (seed + view index). */
-RenderedViews renderViews(const Options& o, const PolychromaticFrameFn& frame,
+RenderedViews renderViews(const Options& o, OutputFiles& files, const PolychromaticFrameFn& frame,
                           const std::vector<ViewFrame>& views, const ImageGeometry& geometry,
                           const NoiseModel& noise) {
     RenderedViews out;
     out.stacked = views.size() > 1 && o.format == OutputFormat::Npy && !o.numbered;
     std::unique_ptr<NpyStackWriter> stack;
     if (out.stacked)
-        stack = std::make_unique<NpyStackWriter>(o.out, o.size, o.size, std::int64_t(views.size()));
+        stack = std::make_unique<NpyStackWriter>(files.staged(o.out), o.size, o.size,
+                                                 std::int64_t(views.size()));
     const auto t0 = std::chrono::steady_clock::now();
     for (std::size_t i = 0; i < views.size(); ++i) {
         RenderParams p{views[i], geometry, o.kernel};
@@ -110,8 +114,13 @@ RenderedViews renderViews(const Options& o, const PolychromaticFrameFn& frame,
         if (stack)
             stack->add(f.transmission.pixels.data());
         else
-            out.files.push_back(writeView(o, i, views.size(), f.transmission));
-        if (!o.materialOut.empty()) writeMaterials(o, f);
+            out.files.push_back(writeView(o, files, i, views.size(), f.transmission));
+        if (!o.materialOut.empty()) writeMaterials(o, files, f);
+        if (InterruptGuard::signal() != 0) // the staged files go: all or nothing
+            throw Interrupted("interrupted after view " + std::to_string(i + 1) + " of " +
+                              std::to_string(views.size()) + ": " + o.out +
+                              " not written (nothing of this run is kept; an earlier run's "
+                              "files stay as they were)");
     }
     if (stack) {
         stack->finish();
@@ -119,6 +128,37 @@ RenderedViews renderViews(const Options& o, const PolychromaticFrameFn& frame,
     }
     out.msPerView = msSince(t0) / double(views.size());
     return out;
+}
+
+/** What the sidecar records of a run besides the options and the views. */
+struct RunRecord {
+    std::vector<std::shared_ptr<const Spectrum>> spectra;
+    double preprocessMs = 0.0, pixelSize = 0.0;
+    int threads = 0;
+    std::string backendName;
+    bool gpuSum = false;
+};
+
+/** The sidecar FILE.json of a rendered run. */
+Json sidecar(const Options& o, const Volume& volume, const std::vector<ViewFrame>& views,
+             const RunRecord& run, const RenderedViews& rendered, const TubeSpectrum& spectrum,
+             const SpectralResponse& response, const NoiseModel& noise) {
+    const WrittenOutput output{"I/I0 (polychromatic, relative to the unattenuated beam)",
+                               rendered.stacked, rendered.files, run.preprocessMs,
+                               rendered.msPerView};
+    Json j =
+        sidecarJson(RunFacts{o, *run.spectra.front(), run.pixelSize, run.threads, run.backendName},
+                    volume, output, views);
+    Json names = Json::array();
+    for (Material m : o.materials) names.push_back(materialNistName(m));
+    j["settings"]["values"] = "materials"; // one spectrum of densities (g/cm^3) per material
+    j["settings"]["materials"] = names;
+    j["settings"]["memory_spectra_mb"] =
+        double(run.spectra.front()->bytes()) * double(run.spectra.size()) / (1 << 20);
+    j["settings"]["polychromatic"] = polychromaticJson(o, spectrum, response, noise);
+    j["output"]["spectral_sum_ms_per_view"] = rendered.spectralSumMs;
+    j["output"]["spectral_sum_on"] = run.gpuSum ? "gpu" : "cpu";
+    return j;
 }
 
 } // namespace
@@ -140,42 +180,45 @@ int renderPolychromatic(const Options& o, const Volume& volume,
     po.oversampling = o.oversampling;
     po.threads = o.threads;
     if (o.deapodize.value_or(griddingCorrectionHelps(o.kernel))) po.deapodizeFor = o.kernel;
+    RunRecord run;
     const auto t0 = std::chrono::steady_clock::now();
-    const auto spectra = preprocessMaterials(volume, {o.materials, 70.0}, po);
-    const double preprocessMs = msSince(t0);
-    const int threads = o.threads > 0 ? o.threads : hardwareThreads();
-    std::string backendName;
-    auto renderers = makeMaterialRenderers(o, spectra, backendName);
+    run.spectra = preprocessMaterials(volume, {o.materials, 70.0}, po);
+    run.preprocessMs = msSince(t0);
+    run.threads = o.threads > 0 ? o.threads : hardwareThreads();
+    auto renderers = makeMaterialRenderers(o, run.spectra, run.backendName);
     // On the GPU the spectral sum runs there too (one read-back per view); else on the CPU.
     PolychromaticFrameFn frame = gpuPolychromaticFrames(renderers, response);
-    const bool gpuSum = bool(frame);
-    PolychromaticRenderer poly(std::move(renderers), response, threads);
+    run.gpuSum = bool(frame);
+    PolychromaticRenderer poly(std::move(renderers), response, run.threads);
     if (!frame)
         frame = [&poly](const RenderParams& p, const NoiseModel& n, bool) {
             return poly.render(p, n);
         };
-    const double d =
+    const double d = run.pixelSize =
         o.pixelSize ? *o.pixelSize : defaultPixelSize(volume.dims, volume.spacing, o.size);
     const NoiseModel noise{o.noiseMas, 1000.0, d * d, o.electronicNoise, o.seed};
-    const RenderedViews rendered = renderViews(o, frame, views, {o.size, d}, noise);
-    const WrittenOutput output{"I/I0 (polychromatic, relative to the unattenuated beam)",
-                               rendered.stacked, rendered.files, preprocessMs, rendered.msPerView};
-    Json j =
-        sidecarJson(RunFacts{o, *spectra.front(), d, threads, backendName}, volume, output, views);
-    Json names = Json::array();
-    for (Material m : o.materials) names.push_back(materialNistName(m));
-    j["settings"]["values"] = "materials"; // one spectrum of densities (g/cm^3) per material
-    j["settings"]["materials"] = names;
-    j["settings"]["memory_spectra_mb"] =
-        double(spectra.front()->bytes()) * double(spectra.size()) / (1 << 20);
-    j["settings"]["polychromatic"] = polychromaticJson(o, spectrum, *response, noise);
-    j["output"]["spectral_sum_ms_per_view"] = rendered.spectralSumMs;
-    j["output"]["spectral_sum_on"] = gpuSum ? "gpu" : "cpu";
-    writeFileAtomic(o.out + ".json", jsonText(j));
-    std::fprintf(stderr,
-                 "wrote %s (%zu view%s, %dx%d, %g kVp, %zu materials, I/I0; %.2f ms per view)\n",
-                 rendered.files.front().c_str(), views.size(), views.size() > 1 ? "s" : "", o.size,
-                 o.size, *o.kvp, o.materials.size(), rendered.msPerView);
+    InterruptGuard interrupt; // before the first file is staged
+    std::string interrupted = "interrupted after the last view"; // the files are complete
+    try {
+        OutputFiles files(o.out);
+        RenderedViews rendered;
+        try { // the messages name the final paths, not the staged ones
+            rendered = renderViews(o, files, frame, views, {o.size, d}, noise);
+            writeFileAtomic(
+                files.staged(o.out + ".json"),
+                jsonText(sidecar(o, volume, views, run, rendered, spectrum, *response, noise)));
+        } catch (const WriteError& e) {
+            throw WriteError(files.finalNames(e.what()));
+        }
+        files.commit(); // the images and their sidecar land together
+        std::fprintf(
+            stderr, "wrote %s (%zu view%s, %dx%d, %g kVp, %zu materials, I/I0; %.2f ms per view)\n",
+            rendered.files.front().c_str(), views.size(), views.size() > 1 ? "s" : "", o.size,
+            o.size, *o.kvp, o.materials.size(), rendered.msPerView);
+    } catch (const Interrupted& e) {
+        interrupted = e.what();
+    }
+    interrupt.dieIfInterrupted(interrupted);
     return 0;
 }
 

@@ -44,8 +44,10 @@ std::vector<core::ViewFrame> outputViews(const Options& o, const core::Volume& v
                                          const core::ViewFrame& base,
                                          const std::vector<core::ViewFrame>& fileViews);
 
-/** --out: renders `views` (outputViews), writes the images and the JSON sidecar FILE.json, and
- *  says what it wrote on stderr. */
+/** --out: renders `views` (outputViews), writes the images and the JSON sidecar FILE.json, all
+ *  or nothing (output_files.h: staged beside FILE, committed together once all are written; an
+ *  interruption or a write error leaves an earlier run's files as they were), and says what it
+ *  wrote on stderr. */
 void writeOutputs(const Session& s, const std::vector<core::ViewFrame>& views,
                   const core::DicomExportInfo& exportInfo);
 

@@ -2,8 +2,10 @@
 fvr-render run on each study): the same stacks bit for bit, the same sidecar facts; resumed
 after one output is deleted (only that study rendered again); a broken study reported without
 losing the others; Zarr output; manifest errors."""
+import hashlib
 import json
 import os
+import re
 import subprocess
 import sys
 
@@ -136,3 +138,134 @@ def test_the_command_line_reports_a_failure_in_its_exit_status(tmp_path):
     assert done.returncode == 1, done.stderr
     assert "missing: RuntimeError" in done.stderr and "1 studies done, 1 failed" in done.stderr
     assert np.load(tmp_path / "out" / "phantom.npy").shape == (128, 128)
+
+
+# Ids name a study's files in --out: `a` writes a.npy, a.json and, for a moment, fvr-render's
+# a.npy.json, which is row `a.npy`'s final sidecar. Each reason names the file and the line.
+@pytest.mark.parametrize("job_id, reason", [
+    ("a.npy", "ends with .npy"), ("A.NPY", "ends with .npy"), ("b.json", "ends with .json"),
+    ("c.zarr", "ends with .zarr"), ("d.part", "ends with .part"),
+    ("x/y", "path separator"), ("x\\y", "path separator"), ("..", "starts with '.'"),
+    (".", "starts with '.'"), (".hidden", "starts with '.'"),
+    ("tab\there", "control character U+0009"), ("nul\x00", "control character U+0000"),
+    ("del\x7f", "control character U+007F"), ("x" * 201, "201 bytes"),
+])
+def test_ids_that_would_name_other_files_are_refused(tmp_path, job_id, reason):
+    (tmp_path / "m.csv").write_text(f'id,path\nok,phantom:chest\n"{job_id}",phantom:chest\n')
+    with pytest.raises(dataset.ManifestError) as e:
+        dataset.read_manifest(tmp_path / "m.csv")
+    assert str(e.value).startswith(f"{tmp_path / 'm.csv'}:3: ") and reason in str(e.value)
+
+
+@pytest.mark.parametrize("first, second", [
+    ("a", "a"), ("Study", "study"),  # a case-folding disk holds one file for both
+    ("caf\u00e9", "cafe\u0301"),  # NFC: the same name, composed and decomposed
+    ("STRASSE", "stra\u00dfe"),  # case-folded, German sharp s
+])
+def test_ids_equal_after_normalisation_clash(tmp_path, first, second):
+    (tmp_path / "m.csv").write_text(f"id,path\n{first},phantom:chest\n{second},phantom:chest\n",
+                                    encoding="utf-8")
+    with pytest.raises(dataset.ManifestError, match=":3: id .* repeated \\(line 2"):
+        dataset.read_manifest(tmp_path / "m.csv")
+
+
+def test_ids_a_and_a_npy_are_refused_before_anything_is_written(tmp_path):
+    """The clash itself: rendering `a` leaves a.npy.json, row `a.npy`'s sidecar
+    name, in --out; the id check refuses `a.npy` before anything is written."""
+    (tmp_path / "m.csv").write_text("id,path,size\na,phantom:shepp-logan:32,128\n"
+                                    "a.npy,phantom:shepp-logan:32,128\n")
+    with pytest.raises(dataset.ManifestError, match="m.csv:3: id 'a.npy' ends with .npy"):
+        dataset.run(tmp_path / "m.csv", tmp_path / "out", workers=0)
+    assert not (tmp_path / "out").exists() or not list((tmp_path / "out").iterdir())
+
+
+@pytest.mark.parametrize("column, reason", [
+    ("material_out", "writes a file outside"), ("material-out", "writes a file outside"),
+    ("send", "sends data to a PACS"), ("store", "study store"), ("retrieve", "PACS"),
+    ("ae_title", "PACS"), ("listen_port", "PACS"), ("numbered", "output files"),
+    ("bench", "does not render"), ("query", "does not render"), ("bit_depth", "output files"),
+])
+def test_columns_that_write_or_send_are_refused(tmp_path, column, reason):
+    (tmp_path / "m.csv").write_text(f"id,path,{column}\na,phantom:chest,/tmp/elsewhere.npy\n")
+    with pytest.raises(dataset.ManifestError,
+                       match=f"m.csv:1: column '{column}': not a setting .*{reason}"):
+        dataset.read_manifest(tmp_path / "m.csv")
+
+
+@pytest.mark.parametrize("header, message", [
+    ("id,path,sizee", "column 'sizee': unknown"), ("id,path,Size", "column 'Size': unknown"),
+    ("id,path,size,size", "column 'size' given twice"),
+    ("id,path,pixel_size,pixel-size", "column 'pixel-size' given twice"),
+    ("id,path,", "column 3 has no name"), ("path", "no 'id' column"),
+])
+def test_unknown_and_repeated_columns_are_refused(tmp_path, header, message):
+    (tmp_path / "m.csv").write_text(header + "\n")
+    with pytest.raises(dataset.ManifestError, match=message):
+        dataset.read_manifest(tmp_path / "m.csv")
+
+
+def test_a_value_that_looks_like_an_option_stays_the_options_value(tmp_path):
+    """`--size --material-out=/x.npy` could have been read as two options; one argument
+    `--size=...` is one option's (bad) value. A path starting with '-' is refused."""
+    (tmp_path / "m.csv").write_text("id,path,view\na,phantom:chest,--material-out=/tmp/x.npy\n")
+    (job,) = dataset.read_manifest(tmp_path / "m.csv")
+    assert job["args"] == ["--view=--material-out=/tmp/x.npy"]
+    result = dataset.render_study(job, str(tmp_path / "out"))
+    assert not result["ok"] and "--view" in result["error"]
+    (tmp_path / "m.csv").write_text("id,path\na,--send=dicom://X@h:1\n")
+    with pytest.raises(dataset.ManifestError, match="m.csv:2: path '--send=.*' starts with '-'"):
+        dataset.read_manifest(tmp_path / "m.csv")
+
+
+def test_bad_text_is_a_manifest_error_naming_the_line(tmp_path):
+    (tmp_path / "m.csv").write_bytes(b"id,path\na,phantom:chest\nb\xff,phantom:chest\n")
+    with pytest.raises(dataset.ManifestError, match="m.csv:3: not UTF-8"):
+        dataset.read_manifest(tmp_path / "m.csv")
+
+
+def test_hashes_of_settings_are_those_of_earlier_versions():
+    """The arguments are now `--name=value`; the hash keeps the earlier `--name value` form, so
+    that a dataset rendered before is not rendered again."""
+    job = {"path": "p", "args": ["--size=128", "--keep-negative", "--threads=4"]}
+    old = {"path": "p", "args": ["--size", "128", "--keep-negative"], "format": "npy"}
+    assert dataset.settings_hash(job, "npy") == hashlib.sha256(
+        json.dumps(old, sort_keys=True).encode()).hexdigest()
+
+
+def _help_options(fvr_render) -> dict:
+    """fvr-render --help's options, each with its group's title."""
+    text = subprocess.run([fvr_render, "--help"], capture_output=True, text=True, check=True).stdout
+    options, group = {}, ""
+    for line in text.splitlines():
+        if line and not line.startswith(" ") and line.rstrip().endswith(":"):
+            group = line.rstrip()[:-1]
+        for name in re.findall(r"^\s+(?:-\w,\s*)?--([a-z0-9][a-z0-9-]*)", line):
+            options[name] = group
+    return options
+
+
+def test_the_allowed_columns_are_fvr_renders_render_options(fvr_render):
+    """The allow-list and fvr-render's options cannot drift apart: every allowed column is an
+    option of fvr-render, and every option of fvr-render is allowed or refused by name (an
+    option added to fvr-render fails here until it is put in one list), but for the PACS
+    options, which a manifest never sets (refused whatever they are)."""
+    options = _help_options(fvr_render)
+    assert len(options) > 40, options
+    assert not dataset.ALLOWED_COLUMNS - set(options), "allowed but not fvr-render's"
+    assert not dataset.ALLOWED_COLUMNS & set(dataset.REFUSED_COLUMNS)
+    unsorted = {o for o, g in options.items() if g != "PACS"} - dataset.ALLOWED_COLUMNS - set(
+        dataset.REFUSED_COLUMNS)
+    assert not unsorted, f"fvr-render options neither allowed nor refused: {sorted(unsorted)}"
+    pacs = {o for o, g in options.items() if g == "PACS"}
+    assert {"send", "store", "retrieve"} <= pacs and not pacs & dataset.ALLOWED_COLUMNS
+
+
+def test_every_allowed_column_is_accepted_by_fvr_render(tmp_path):
+    """Each allowed column reaches fvr-render as an option it knows (its value may be bad; the
+    input is missing, so that nothing renders: the options are read before the input)."""
+    unknown = "The following argument was not expected"
+    for column in sorted(dataset.ALLOWED_COLUMNS) + ["sizee"]:
+        job = {"id": "a", "path": str(tmp_path / "missing.mhd"), "args": [f"--{column}=1"]}
+        result = dataset.render_study(job, str(tmp_path / "out"))
+        assert not result["ok"]
+        assert (unknown in result["error"]) == (column == "sizee"), (column, result["error"])

@@ -1,10 +1,16 @@
 """Datasets of DRRs on a Dask cluster: ``python3 -m fvr.dataset MANIFEST.csv --out DIR``.
 
 The manifest is a CSV with a header: ``id`` and ``path`` (what fvr-render takes as INPUT) are
-required; any other column is an fvr-render option by its name (``sweep``, ``views``, ``size``,
-``pixel_size`` or ``pixel-size``, ``kernel``, ``oversampling``, ``values``, ``voxel_model``,
-``view``, ``axis``, ``deapodize``, ``beer_lambert``...); an empty cell or an absent column is
-fvr-render's default, ``true``/``yes`` gives a flag, ``false``/``no`` leaves it out.
+required; any other column is one of fvr-render's render options by its name (``sweep``,
+``views``, ``size``, ``pixel_size`` or ``pixel-size``, ``kernel``, ``oversampling``, ``values``,
+``voxel_model``, ``view``, ``axis``, ``deapodize``, ``beer_lambert``...: ALLOWED_COLUMNS); an
+empty cell or an absent column is fvr-render's default, ``true``/``yes`` gives a flag,
+``false``/``no`` leaves it out. Any other column is refused: the options that write files, send
+data or talk to a PACS (``out``, ``material_out``, ``send``, ``store``...), and unknown ones. An
+id names the study's files in DIR: no path separator, control character or leading dot, no
+ending .npy/.json/.zarr/.part, at most 200 bytes, and unique compared in NFC, case-folded
+(``A`` and ``a`` would be one file on a macOS or Windows disk). A bad manifest stops the run
+with an error naming the file, the line and the reason.
 
 Each row is one Dask task (load, preprocess once, all views) that runs fvr-render itself in
 the worker's process (fvr.run_cli): ``DIR/<id>.npy`` is the (N, M, M) float32 stack that
@@ -22,10 +28,13 @@ from __future__ import annotations
 import argparse
 import csv
 import hashlib
+import io
+import itertools
 import json
 import os
 import sys
 import time
+import unicodedata
 from pathlib import Path
 from typing import Optional
 
@@ -33,8 +42,46 @@ import numpy as np
 
 import fvr
 
-# Options the dataset decides itself (the output) or that do not render.
-_RESERVED = {"out", "info", "bench", "numbered", "gpu-info", "help"}
+# The manifest's columns besides id and path: fvr-render's render options (the settings of the
+# pixels), and no other. tests/python/test_dataset.py checks this list against `fvr-render --help`
+# so that the two cannot drift apart: every option there is either allowed here or refused.
+ALLOWED_COLUMNS = frozenset({
+    # Input
+    "series", "raw-dims", "raw-type", "raw-spacing", "raw-big-endian", "raw-header",
+    # View and image
+    "dir", "up", "view", "size", "pixel-size",
+    # Rendering
+    "kernel", "kernel-width", "deapodize", "transform", "oversampling", "values", "voxel-model",
+    "pixel-aperture", "no-clip", "keep-negative", "depth-cue", "sharpen", "sharpen-radius",
+    "band-limit", "backend", "fp16", "threads",
+    # Many views (a views file is read, as INPUT is)
+    "sweep", "axis", "views",
+    # X-ray and polychromatic X-ray
+    "beer-lambert", "mu-water", "energy", "exposure", "kvp", "filtration-al", "filtration-cu",
+    "detector", "csi-um", "materials", "noise-mas", "electronic-noise", "seed",
+})
+# fvr-render options a manifest may not set, and why: the dataset decides the outputs, and a row
+# never writes a file outside --out, sends data or talks to a PACS. Any option not allowed above
+# is refused too (these only get a more precise message).
+REFUSED_COLUMNS = {
+    "out": "the dataset decides the output files",
+    "numbered": "the dataset decides the output files",
+    "bit-depth": "the dataset decides the output files (.npy or Zarr)",
+    "material-out": "it writes a file outside the dataset's outputs",
+    "info": "it does not render", "bench": "it does not render", "gpu-info": "it does not render",
+    "help": "it does not render", "query": "it does not render",
+    "query-series": "it does not render",
+    "send": "it sends data to a PACS", "store": "it writes into a study store",
+    "retrieve": "it talks to a PACS", "ae-title": "it talks to a PACS",
+    "listen-port": "it talks to a PACS", "pacs-timeout": "it talks to a PACS",
+    "tls": "it talks to a PACS", "tls-cert": "it talks to a PACS",
+    "tls-key": "it talks to a PACS", "tls-ca": "it talks to a PACS",
+    "tls-no-verify": "it talks to a PACS",
+}
+# What the dataset writes for a study <id> in --out (and fvr-render's own FILE.json and
+# temporaries): an id ending so would name another study's files.
+RESERVED_SUFFIXES = (".npy", ".json", ".zarr", ".part")
+MAX_ID_BYTES = 200  # the longest name made from an id (temporaries) stays within 255 bytes
 _TRUE, _FALSE = {"true", "yes"}, {"false", "no"}
 
 
@@ -42,59 +89,167 @@ class ManifestError(ValueError):
     """A manifest that cannot be read: names the file, the line and the problem."""
 
 
+def _column_name(column: str) -> str:
+    """A column's fvr-render option name: ``pixel_size`` and ``pixel-size`` are --pixel-size."""
+    return column.replace("_", "-")
+
+
+def _check_columns(path, columns: list) -> None:
+    for need in ("id", "path"):
+        if need not in columns:
+            raise ManifestError(f"{path}:1: no '{need}' column (columns: {', '.join(columns)})")
+    seen = {}
+    for k, c in enumerate(columns, start=1):
+        name = _column_name(c)
+        if not c:
+            raise ManifestError(f"{path}:1: column {k} has no name")
+        if name in seen:
+            raise ManifestError(f"{path}:1: column '{c}' given twice (as '{seen[name]}' before)")
+        seen[name] = c
+        if c in ("id", "path"):
+            continue
+        if name in REFUSED_COLUMNS:
+            raise ManifestError(f"{path}:1: column '{c}': not a setting a manifest may give "
+                                f"({REFUSED_COLUMNS[name]})")
+        if name not in ALLOWED_COLUMNS:
+            allowed = ", ".join(sorted(ALLOWED_COLUMNS))
+            raise ManifestError(f"{path}:1: column '{c}': unknown (a column is id, path or one "
+                                f"of fvr-render's render options: {allowed})")
+
+
+def check_id(job_id: str) -> None:
+    """Raises ValueError saying why `job_id` cannot name a study's files in --out: empty, a
+    path (/ \\ . ..), hidden (a leading dot: the temporaries' names), a control character, a
+    reserved suffix (another study's file names) or too long."""
+    if not job_id:
+        raise ValueError("an empty id")
+    bad = next((c for c in job_id if unicodedata.category(c) in ("Cc", "Zl", "Zp")), None)
+    if bad is not None:
+        raise ValueError(f"id {job_id!r} holds the control character U+{ord(bad):04X}")
+    if "/" in job_id or "\\" in job_id:
+        raise ValueError(f"id {job_id!r} holds a path separator (/ or \\)")
+    if job_id.startswith("."):
+        raise ValueError(f"id {job_id!r} starts with '.' (., .. and hidden names are the "
+                         f"dataset's temporaries)")
+    for suffix in RESERVED_SUFFIXES:
+        if job_id.casefold().endswith(suffix):
+            raise ValueError(f"id {job_id!r} ends with {suffix} (the dataset's own file names "
+                             f"end so: {', '.join(RESERVED_SUFFIXES)})")
+    if len(job_id.encode("utf-8")) > MAX_ID_BYTES:
+        raise ValueError(f"id of {len(job_id.encode('utf-8'))} bytes (at most {MAX_ID_BYTES})")
+
+
+def id_key(job_id: str) -> str:
+    """What two ids must not share: NFC and case-folded (a macOS or Windows disk, or a copy of
+    the dataset there, holds one file for both)."""
+    return unicodedata.normalize("NFC", unicodedata.normalize("NFC", job_id).casefold())
+
+
+def _manifest_text(path) -> str:
+    data = Path(path).read_bytes()
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        line = data.count(b"\n", 0, e.start) + 1
+        raise ManifestError(f"{path}:{line}: not UTF-8 text (byte {e.start}: {e.reason})") from None
+
+
 def read_manifest(path) -> list:
-    """The manifest's rows as jobs: {"id", "path", "args" (fvr-render options), "line"}."""
-    with open(path, newline="") as f:
-        reader = csv.DictReader(f)
-        columns = [c.strip() for c in reader.fieldnames or []]
-        for need in ("id", "path"):
-            if need not in columns:
-                raise ManifestError(f"{path}: no '{need}' column (columns: {', '.join(columns)})")
-        for c in columns:
-            if c.replace("_", "-") in _RESERVED:
-                raise ManifestError(f"{path}: column '{c}': the dataset decides it (not a setting)")
-        jobs, ids = [], set()
-        for line, row in enumerate(reader, start=2):
-            if None in row:  # csv's key for the cells beyond the header's columns
-                raise ManifestError(f"{path}:{line}: {len(columns) + len(row[None])} cells, "
-                                    f"the header names {len(columns)} columns")
-            row = {k.strip(): (v or "").strip() for k, v in row.items()}
-            if not row["id"] or not row["path"]:
-                raise ManifestError(f"{path}:{line}: empty id or path")
-            if row["id"] in ids or "/" in row["id"]:
-                raise ManifestError(f"{path}:{line}: id '{row['id']}' repeated or holding '/'")
-            ids.add(row["id"])
-            jobs.append({"id": row["id"], "path": row["path"], "line": line,
-                         "args": _row_args(row)})
+    """The manifest's rows as jobs: {"id", "path", "args" (fvr-render options), "line"}.
+    Raises ManifestError naming the file, the line and the reason (OSError where it cannot be
+    read)."""
+    reader = csv.reader(io.StringIO(_manifest_text(path), newline=""))
+    jobs, ids = [], {}
+    try:
+        header = next(reader, None)
+        columns = [c.strip() for c in header or []]
+        _check_columns(path, columns)
+        for cells in reader:
+            line = reader.line_num
+            if not any(c.strip() for c in cells):
+                continue  # a blank line
+            if len(cells) > len(columns):
+                raise ManifestError(f"{path}:{line}: {len(cells)} cells, the header names "
+                                    f"{len(columns)} columns")
+            row = {c: v.strip() for c, v in zip(columns, cells)}
+            row.update({c: "" for c in columns[len(cells):]})
+            jobs.append(_job(path, line, row, ids))
+    except csv.Error as e:
+        raise ManifestError(f"{path}:{reader.line_num}: {e}") from None
     return jobs
 
 
+def _job(path, line: int, row: dict, ids: dict) -> dict:
+    if not row["id"] or not row["path"]:
+        raise ManifestError(f"{path}:{line}: empty id or path")
+    try:
+        check_id(row["id"])
+    except ValueError as e:
+        raise ManifestError(f"{path}:{line}: {e}") from None
+    key = id_key(row["id"])
+    if key in ids:
+        same = "" if ids[key][1] == row["id"] else f" as '{ids[key][1]}'"
+        raise ManifestError(f"{path}:{line}: id '{row['id']}' repeated (line {ids[key][0]}{same}; "
+                            f"ids are compared in NFC, case-folded)")
+    ids[key] = (line, row["id"])
+    if row["path"].startswith("-"):
+        raise ManifestError(f"{path}:{line}: path {row['path']!r} starts with '-' (it would be "
+                            f"read as an option)")
+    return {"id": row["id"], "path": row["path"], "line": line, "args": _row_args(row)}
+
+
 def _row_args(row: dict) -> list:
+    """fvr-render arguments: `--name` for a flag, else one `--name=value` argument (a value
+    that looks like an option stays the option's value)."""
     args = []
     for key, value in row.items():
         if key in ("id", "path") or value == "":
             continue
-        name = "--" + key.replace("_", "-")
+        name = "--" + _column_name(key)
         if value.lower() in _TRUE:
             args.append(name)
         elif value.lower() not in _FALSE:
-            args += [name, value]
+            args.append(f"{name}={value}")
     return args
+
+
+def output_paths(job: dict, out_dir, fmt: str) -> list:
+    """Every path a study's rendering names in --out: its output and sidecar, and the
+    temporaries (fvr-render's FILE.json, the Zarr conversion's .npy, the .part names)."""
+    out = Path(out_dir)
+    output, sidecar = _paths(out, job["id"], fmt)
+    npy = _npy_path(out, job["id"], fmt)
+    return [output, sidecar, npy, Path(str(npy) + ".json"), _part(sidecar), _part(output)]
 
 
 def settings_hash(job: dict, fmt: str) -> str:
     """What decides a study's output: its input, its settings (threads aside: they change the
     speed, not the pixels) and the format."""
-    args = list(job["args"])
-    if "--threads" in args:
-        i = args.index("--threads")
-        del args[i:i + 2]
+    args = []
+    for a in job["args"]:  # as separate words (--name value), the hash's form from the start
+        name, eq, value = a.partition("=")
+        if name != "--threads":
+            args += [name, value] if eq else [name]
     text = json.dumps({"path": job["path"], "args": args, "format": fmt}, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()
 
 
 def _paths(out_dir: Path, job_id: str, fmt: str):
     return out_dir / f"{job_id}.{fmt}", out_dir / f"{job_id}.json"
+
+
+def _npy_path(out_dir: Path, job_id: str, fmt: str) -> Path:
+    """The .npy fvr-render writes: the output itself, or the Zarr conversion's input."""
+    return out_dir / f"{job_id}.npy" if fmt == "npy" else out_dir / f".{job_id}.part.npy"
+
+
+_part_count = itertools.count(1)
+
+
+def _part(path: Path) -> Path:
+    """A temporary name for `path` in its folder, this process's own: .NAME.PID.N.part (the
+    form fvr-render's writers use, so that fvr-render removes it once this process is dead)."""
+    return path.with_name(f".{path.name}.{os.getpid()}.{next(_part_count)}.part")
 
 
 def is_done(job: dict, out_dir: Path, fmt: str) -> bool:
@@ -115,9 +270,12 @@ def _add_record(sidecar: Path, record: dict, replace: Optional[tuple] = None) ->
         text = text.replace(json.dumps(replace[0])[1:-1], json.dumps(replace[1])[1:-1])
     assert text.endswith("}"), f"{sidecar}: not a JSON object"
     text = text[:-1].rstrip() + ',\n  "dataset": ' + json.dumps(record) + "\n}\n"
-    tmp = sidecar.with_name(sidecar.name + ".part")
-    tmp.write_text(text)
-    os.replace(tmp, sidecar)
+    tmp = _part(sidecar)
+    try:
+        tmp.write_text(text)
+        os.replace(tmp, sidecar)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def _require(module: str, package: str, what: str):
@@ -136,14 +294,16 @@ def _to_zarr(npy: Path, target: Path) -> None:
     zarr = _require("zarr", "python3-zarr", "--format zarr")
 
     stack = np.load(npy, mmap_mode="r")
-    part = target.with_name(target.name + ".part")
-    shutil.rmtree(part, ignore_errors=True)
-    z = zarr.open(str(part), mode="w", shape=stack.shape, dtype="f4",
-                  chunks=(1,) + stack.shape[1:])
-    for i in range(stack.shape[0]):
-        z[i] = stack[i]
-    shutil.rmtree(target, ignore_errors=True)
-    os.replace(part, target)
+    part = _part(target)
+    try:
+        z = zarr.open(str(part), mode="w", shape=stack.shape, dtype="f4",
+                      chunks=(1,) + stack.shape[1:])
+        for i in range(stack.shape[0]):
+            z[i] = stack[i]
+        shutil.rmtree(target, ignore_errors=True)
+        os.replace(part, target)
+    finally:
+        shutil.rmtree(part, ignore_errors=True)
     npy.unlink()
 
 
@@ -153,11 +313,12 @@ def render_study(job: dict, out_dir: str, fmt: str = "npy", threads: int = 0) ->
     t0 = time.perf_counter()
     out = Path(out_dir)
     output, sidecar = _paths(out, job["id"], fmt)
-    npy = output if fmt == "npy" else out / f".{job['id']}.part.npy"
+    npy = _npy_path(out, job["id"], fmt)
     args = [job["path"], *job["args"]]
-    if threads > 0 and "--threads" not in args:
+    if threads > 0 and not any(a.split("=")[0] == "--threads" for a in args):
         args += ["--threads", str(threads)]
     try:
+        check_id(job["id"])  # a job made by hand, not read_manifest's: its files stay in out_dir
         fvr.run_cli(args + ["--out", str(npy)])
         os.replace(str(npy) + ".json", sidecar)  # fvr-render's FILE.npy.json
         if fmt == "zarr":
