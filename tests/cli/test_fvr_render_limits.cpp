@@ -39,8 +39,15 @@ fs::path caseDir(const std::string& name) {
 
 Result run(const std::string& args, const std::string& prefix = kBounded) {
     const fs::path err = fvr::test::tmpDir() / ("limits_stderr_" + std::to_string(getpid()));
-    const fvr::test::CommandOutput c = fvr::test::runCommand(prefix + " '" + FVR_RENDER_EXE + "' " +
-                                                             args + " 2>'" + err.string() + "'");
+    std::string cmd = prefix;
+    cmd += " '";
+    cmd += FVR_RENDER_EXE;
+    cmd += "' ";
+    cmd += args;
+    cmd += " 2>'";
+    cmd += err.string();
+    cmd += "'";
+    const fvr::test::CommandOutput c = fvr::test::runCommand(cmd);
     std::ifstream in(err);
     Result r{c.status, c.out + std::string(std::istreambuf_iterator<char>(in), {})};
     fs::remove(err);
@@ -171,7 +178,12 @@ TEST(FvrRenderLimits, ValuesThatOverflowFloatAreRefusedNotRenderedAsNaN) {
     const fs::path nii = dir / "huge_values.nii";
     std::ofstream(nii, std::ios::binary) << file;
     const std::string out = (dir / "x.npy").string();
-    const Result r = run("'" + nii.string() + "' --size 128 --out '" + out + "'");
+    std::string args = "'";
+    args += nii.string();
+    args += "' --size 128 --out '";
+    args += out;
+    args += "'";
+    const Result r = run(args);
     EXPECT_EQ(r.status, 2) << r.output;
     EXPECT_HAS(r.output, "huge_values: values too large for float: |value| up to 3e+38");
     EXPECT_HAS(r.output, "rescale the values");
