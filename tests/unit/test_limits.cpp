@@ -270,6 +270,23 @@ TEST(Limits, DicomSeriesAndPhantomsAreCheckedAgainstTheMemory) {
     EXPECT_THROW(makeSheppLoganVolume(128), LoadError);
 }
 
+TEST(Limits, TheSpectrumIsCheckedAgainstTheMemoryBeforeAllocating) {
+    Volume v;
+    v.dims = {32, 32, 32};
+    v.name = "cube";
+    v.voxels.assign(32 * 32 * 32, 1.0f);
+    const PreprocessOptions options;
+    const std::size_t bytes = spectrumBytes(paddedDimsFor(v.dims, options));
+    {
+        const ScopedEnv env(kMemoryLimitVariable, std::to_string(bytes / 2.0 / (1 << 20)));
+        const std::string m = messageOf<LoadError>([&] { preprocess(v, options); });
+        EXPECT_HAS(m, "cube: the spectrum of 32 x 32 x 32 voxels padded to ");
+        EXPECT_HAS(m, "needs " + std::to_string(bytes) + " bytes");
+    }
+    const ScopedEnv env(kMemoryLimitVariable, std::to_string(bytes * 2.0 / (1 << 20)));
+    EXPECT_NO_THROW(preprocess(v, options));
+}
+
 // ------------------------------------------------------------------------------------------------
 // Non-regular files
 

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/memory_budget.h>
 #include <fvr/core/thread_pool.h>
 #include <fvr/core/xray/xray.h>
 
@@ -619,6 +620,18 @@ void checkSpectrumRange(const Volume& v, ValueMapping mapping, ThreadPool& pool)
     throw SettingsError(msg);
 }
 
+/** The spectrum's buffer must fit in the memory this process may take (memory_budget.h):
+ *  refused with the sizes before allocating, instead of an allocation that the kernel's
+ *  overcommit lets through and its OOM killer ends. */
+void checkSpectrumMemory(const Spectrum& s) {
+    const auto dims = [](const Dims3& d) {
+        return std::to_string(d[0]) + " x " + std::to_string(d[1]) + " x " + std::to_string(d[2]);
+    };
+    checkMemoryFor(s.bytes(), s.name.empty() ? "volume" : s.name,
+                   "the spectrum of " + dims(s.volumeDims) + " voxels padded to " + dims(s.padded) +
+                       " (a smaller oversampling needs less)");
+}
+
 } // namespace
 
 std::shared_ptr<const Spectrum> preprocess(const Volume& volume, const PreprocessOptions& options,
@@ -644,6 +657,7 @@ std::shared_ptr<const Spectrum> preprocess(const Volume& volume, const Preproces
     s->name = volume.name;
     s->deapodizedFor = options.deapodizeFor;
     s->nonNegative = isAttenuation(options.mapping) || volume.valueRange().first >= 0.0f;
+    checkSpectrumMemory(*s);
     s->data = allocateFftw(s->floatCount());
 
     Transformer tr(*s, options, pool);
