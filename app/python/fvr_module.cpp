@@ -295,6 +295,7 @@ py::array_t<float> film(py::array_t<float, py::array::c_style | py::array::force
 
 /** fvr-render ARGS in this process (the dataset's tasks): its exit status; errors raise. */
 int runCli(const Args& args) {
+    cli::refuseNulArguments(args); // argv below are C strings
     std::vector<std::string> argv{"fvr-render"};
     argv.insert(argv.end(), args.begin(), args.end());
     std::vector<char*> ptrs;

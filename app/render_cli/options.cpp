@@ -633,7 +633,13 @@ std::optional<Options> parseOptions(int argc, char** argv) {
     return o;
 }
 
+void refuseNulArguments(const std::vector<std::string>& args) {
+    for (std::size_t i = 0; i < args.size(); ++i)
+        core::refuseNul(args[i], "argument " + std::to_string(i + 1));
+}
+
 Options parseSettings(std::vector<std::string> args) {
+    refuseNulArguments(args);
     CLI::App app("", "fvr-render");
     Parsing p;
     declareAll(app, p);

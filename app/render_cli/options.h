@@ -101,4 +101,9 @@ std::optional<Options> parseOptions(int argc, char** argv);
  *  naming the option. */
 Options parseSettings(std::vector<std::string> args);
 
+/** Throws core::SettingsError "argument N holds a NUL character: '...'" for the first argument
+ *  holding one: arguments from Python reach the parser and the files as C strings, which would
+ *  end at the NUL (a command line's arguments cannot hold one). */
+void refuseNulArguments(const std::vector<std::string>& args);
+
 } // namespace fvr::cli

@@ -50,7 +50,7 @@ core::ImageGeometry imageGeometry(const Options& o, const core::Volume& volume) 
     const double d =
         o.pixelSize ? *o.pixelSize : core::defaultPixelSize(volume.dims, volume.spacing, o.size);
     const core::ImageGeometry geometry{o.size, d};
-    core::validateImageGeometry(geometry);
+    core::validateImageGeometry(geometry, volume.dims, volume.spacing);
     return geometry;
 }
 

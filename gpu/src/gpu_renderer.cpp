@@ -512,8 +512,8 @@ void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* p
 void GpuFourierRenderer::renderToGpu(const core::RenderParams& p,
                                      const core::DisplayWindow* display) {
     const core::PlannerBusyScope busy; // the CPU's FFTW planner measures between frames only
-    core::validateRenderParams(p);
     if (!m_spectrum) throw GlError("GPU renderer: no spectrum uploaded");
+    core::validateRenderParams(p, *m_spectrum);
     core::checkKernelMatchesSpectrum(*m_spectrum, p.kernel);
     const int M = p.image.size;
     if (M > 4096) throw core::SettingsError("GPU slice size: at most 4096");
@@ -578,6 +578,7 @@ core::ProjectionImage GpuFourierRenderer::renderImage(const core::RenderParams& 
     renderToGpu(p);
     auto img = readback();
     if (times) *times = lastTimes();
+    core::checkFiniteImage(img);
     return img;
 }
 

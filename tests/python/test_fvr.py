@@ -1,6 +1,9 @@
 """The Python module fvr against independent oracles: the shared data's documented sizes, the
 built fvr-render's own .npy outputs (bit for bit), a loop of single renders, the CLI's messages,
 and two threads rendering at once."""
+import os
+import resource
+import subprocess
 import sys
 import threading
 import time
@@ -224,3 +227,57 @@ def test_two_threads_render_at_once(body):
                                then=lambda: stacks.append(renderers[1].render_many(views, size=256)))
     assert len(stacks) == 2
     np.testing.assert_array_equal(stacks[0], stacks[1])
+
+
+# --- Resource limits: bad values end in ValueError with the numbers, never in gigabytes or NaN.
+
+def run_bounded(code: str) -> subprocess.CompletedProcess:
+    """Runs Python `code` in a child limited to 4 GiB of address space and 120 s: a regression
+    (a render that grows without bound) fails there instead of taking the machine."""
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120, preexec_fn=limit, env=env)
+
+
+def test_tiny_pixel_sizes_raise_value_error_with_the_numbers():
+    # A pixel of 1e-6 mm once grew the process to 9 GB in the voxel model's table.
+    r = run_bounded(
+        "import fvr\n"
+        "r = fvr.Renderer(fvr.load('phantom:shepp-logan:32'), voxel_model='trilinear')\n"
+        "for d in (1e-6, 1e-300, 1e300):\n"
+        "    try:\n"
+        "        r.render(size=128, pixel_size=d)\n"
+        "        print('rendered', d)\n"
+        "    except ValueError as e:\n"
+        "        print('ValueError:', e)\n")
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert len(lines) == 3, r.stdout + r.stderr
+    assert all(line.startswith("ValueError: pixel size ") for line in lines), r.stdout
+    assert "pixel size 1e-06 mm: the 128-pixel image would span 0.000128 mm" in lines[0]
+    assert "expected a pixel size from" in lines[1]
+
+
+def test_values_that_overflow_float_raise_instead_of_rendering_nan():
+    # Float voxels of 3e38 once gave NaN pixels (6,561 of 16,384) and no error.
+    vol = fvr.Volume(np.full((16, 16, 16), 3e38, np.float32), name="huge")
+    with pytest.raises(ValueError) as e:
+        fvr.Renderer(vol).render(size=128)
+    assert "huge: values too large for float: |value| up to 3e+38" in str(e.value)
+    # Large values that fit still render, finite.
+    img = fvr.Renderer(fvr.Volume(np.full((16, 16, 16), 1e25, np.float32))).render(size=128)
+    assert np.isfinite(img).all() and img.max() > 0
+
+
+def test_paths_and_arguments_holding_nul_raise_value_error(tmp_path):
+    with pytest.raises(ValueError) as e:
+        fvr.load(str(tmp_path / "a\0b.nii"))
+    assert "path holds a NUL character" in str(e.value)
+    assert str(tmp_path / "a") + "\\0b.nii'" in str(e.value)  # the whole path, NUL escaped
+    with pytest.raises(ValueError) as e:
+        fvr.run_cli(["phantom:shepp-logan:32", "--size", "128", "--out",
+                     str(tmp_path / "x\0.npy")])
+    assert "argument 5 holds a NUL character" in str(e.value)
+    assert not (tmp_path / "x").exists()

@@ -8,6 +8,8 @@
 #include <QJsonDocument>
 #include <QJsonObject>
 
+#include <sys/stat.h>
+
 #include <cmath>
 #include <filesystem>
 #include <string>
@@ -25,14 +27,15 @@ namespace fs = std::filesystem;
 using fvr::test::CommandOutput;
 
 /** Runs the workstation with `args`, its settings in a fresh folder (no user's saved settings);
- *  `out` gets its stderr. */
-CommandOutput runWorkstation(const std::string& args, const fs::path& scratch) {
+ *  `out` gets its stderr. `guard` goes before the binary (e.g. a timeout). */
+CommandOutput runWorkstation(const std::string& args, const fs::path& scratch,
+                             const std::string& guard = {}) {
     const fs::path config = scratch / "config";
     fs::remove_all(config);
     fs::create_directories(config);
     std::string cmd = "XDG_CONFIG_HOME='";
     cmd += config.string();
-    cmd += "' QT_QPA_PLATFORM=xcb '";
+    cmd += "' QT_QPA_PLATFORM=xcb " + guard + " '";
     cmd += FVR_WORKSTATION_EXE;
     cmd += "' --script-timeout 120 "; // a hang ends with a message, before CTest's timeout
     cmd += args;
@@ -222,6 +225,28 @@ TEST(ScriptedRun, FailedStudyExitsNonZeroNamingThePath) {
     EXPECT_NE(r.status, 0);
     EXPECT_NE(r.out.find("fvr-workstation: "), std::string::npos) << r.out;
     EXPECT_NE(r.out.find(missing), std::string::npos) << r.out;
+    EXPECT_FALSE(fs::exists(dir / "out" / "views.json"));
+}
+
+// A FIFO as the study once hung the workstation for good, past its --script-timeout: the path
+// was classified on the GUI thread, by opening the FIFO, before the timeout's timer started.
+TEST(ScriptedRun, AFifoStudyFailsAtOnceNamingIt) {
+    const fs::path dir = fvr::test::tmpDir() / "scripted_run_fifo";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const fs::path fifo = dir / "study.nii.gz";
+    ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+    // The guard kills a regression (status 137) instead of hanging the suite.
+    std::string args = "'";
+    args += fifo.string();
+    args += "' --script-timeout 20 --export-views '";
+    args += (dir / "out").string();
+    args += "' --quit";
+    const CommandOutput r = runWorkstation(args, dir, "timeout -s KILL 90");
+    EXPECT_EQ(r.status, 1) << r.out;
+    EXPECT_NE(r.out.find(fifo.string() + ": a FIFO (named pipe), not a regular file"),
+              std::string::npos)
+        << r.out;
     EXPECT_FALSE(fs::exists(dir / "out" / "views.json"));
 }
 

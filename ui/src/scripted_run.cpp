@@ -8,7 +8,9 @@
 #include <QJsonDocument>
 #include <QJsonObject>
 
+#include <chrono>
 #include <cstdio>
+#include <cstdlib>
 
 #include <fvr/core/errors.h>
 #include <fvr/core/io/atomic_file.h>
@@ -81,6 +83,31 @@ ScriptedRun::ScriptedRun(MainWindow& window, ScriptedRunOptions options, QObject
                    .arg(m_options.timeoutSeconds));
     });
     m_timeout.start(m_options.timeoutSeconds * 1000);
+    if (m_options.quit)
+        m_watchdog =
+            std::thread([this, s = m_options.timeoutSeconds + kWatchdogGraceSeconds] { watch(s); });
+}
+
+ScriptedRun::~ScriptedRun() {
+    {
+        const std::lock_guard lock(m_watchMutex);
+        m_watchStop = true;
+    }
+    m_watchWake.notify_all();
+    if (m_watchdog.joinable()) m_watchdog.join();
+}
+
+void ScriptedRun::watch(int seconds) {
+    std::unique_lock lock(m_watchMutex);
+    if (m_watchWake.wait_for(lock, std::chrono::seconds(seconds), [this] { return m_watchStop; }))
+        return;
+    // The GUI thread did not get to its own timeout (it is blocked): end the process here.
+    std::fprintf(stderr,
+                 "fvr-workstation: the views were not ready within %d s (--script-timeout) and "
+                 "the application does not respond; nothing written\n",
+                 m_options.timeoutSeconds);
+    std::fflush(stderr);
+    std::_Exit(kScriptedTimeout);
 }
 
 void ScriptedRun::onSpectrumReady() {
@@ -180,8 +207,21 @@ void ScriptedRun::finish(int exitCode, const QString& message) {
     m_finished = true;
     m_poll.stop();
     m_timeout.stop();
+    {
+        const std::lock_guard lock(m_watchMutex);
+        m_watchStop = true;
+    }
+    m_watchWake.notify_all();
     if (!message.isEmpty()) std::fprintf(stderr, "fvr-workstation: %s\n", qPrintable(message));
     emit done(exitCode, message);
+    if (m_options.quit && exitCode == kScriptedTimeout) {
+        // A load may still run, blocked in a read that no cancel reaches; leaving through the
+        // event loop would wait for it (the study's worker is joined on the way out). Nothing
+        // was written, so the process ends here.
+        std::fflush(stdout);
+        std::fflush(stderr);
+        std::_Exit(exitCode);
+    }
     if (m_options.quit) QCoreApplication::exit(exitCode);
 }
 

@@ -21,6 +21,7 @@
 #include <dcmtk/dcmdata/dcpixel.h>
 #include <dcmtk/dcmdata/dcxfer.h>
 
+#include <fvr/core/memory_budget.h>
 #include <fvr/core/thread_pool.h>
 
 namespace fvr::core {
@@ -366,6 +367,23 @@ void validate(const Dims3& dims, const Vec3& spacing, const std::string& source)
     }
 }
 
+/** The decoded slices (and the resampled volume beside them) must fit in the memory this
+ *  process may take: rows x columns x frames come from the headers, and compressed pixel data
+ *  can declare far more than the files hold. */
+void checkSeriesMemory(std::int64_t stackVoxels, const GeometryPlan& plan,
+                       const std::string& source) {
+    const std::uint64_t voxels =
+        std::uint64_t(stackVoxels) +
+        (plan.resample ? std::uint64_t(plan.dims[0] * plan.dims[1] * plan.dims[2]) : 0);
+    try {
+        checkMemoryFor(voxels * sizeof(float), source,
+                       "the series' " + std::to_string(voxels) + " voxels as float" +
+                           (plan.resample ? " (slices and resampled volume)" : ""));
+    } catch (const LoadError& e) {
+        throw DicomError(e.what());
+    }
+}
+
 /** "DICOM series <key> in <folder>" for messages, or the file's path for a single file. */
 std::string seriesSource(const DicomSeriesInfo& series) {
     const std::string name = series.key.empty() ? series.seriesUid : series.key;
@@ -685,6 +703,7 @@ DicomVolume loadDicomSeries(const DicomSeriesInfo& series, const ProgressFn& pro
     validate({cols, rows, std::int64_t(frames.slices.size())}, {1, 1, 1}, source);
     const GeometryPlan plan = planGeometry(frames.slices, cols, rows, source);
     validate(plan.dims, plan.spacing, source);
+    checkSeriesMemory(cols * rows * std::int64_t(frames.slices.size()), plan, source);
 
     Warnings warnings = initialWarnings(series, hs, plan);
     const bool hu = decideUnits(hs, frames, source, warnings);

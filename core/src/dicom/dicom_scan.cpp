@@ -110,8 +110,11 @@ std::optional<std::vector<fs::path>> filesFromDicomdir(const fs::path& dicomdir,
             continue;
         }
         std::error_code ec;
-        if (!fs::is_regular_file(p, ec)) {
-            skipped.push_back(p.string() + ": listed in DICOMDIR but missing");
+        const fs::file_status st = fs::status(p, ec); // stat(2): never opens the file
+        if (!fs::is_regular_file(st)) {
+            skipped.push_back(p.string() + (fs::exists(st)
+                                                ? ": listed in DICOMDIR but not a regular file"
+                                                : ": listed in DICOMDIR but missing"));
             continue;
         }
         if (seen.insert(p).second) files.push_back(p);
@@ -530,9 +533,10 @@ std::optional<std::vector<fs::path>> filesListedInDicomdir(const fs::path& folde
     return refs;
 }
 
-/** Every regular file below `folder`. */
+/** Every regular file below `folder`. Others that are not folders (FIFOs, sockets, devices:
+ *  opening a FIFO blocks until a writer comes) are not opened: they go to `special`. */
 std::vector<fs::path> walkFolder(const fs::path& folder, std::vector<std::string>& skipped,
-                                 const CancelToken* cancel) {
+                                 std::vector<fs::path>& special, const CancelToken* cancel) {
     std::vector<fs::path> files;
     std::error_code ec;
     std::int64_t count = 0;
@@ -545,7 +549,11 @@ std::vector<fs::path> walkFolder(const fs::path& folder, std::vector<std::string
         }
         if ((++count & 255) == 0) checkCancel(cancel);
         std::error_code fec;
-        if (it->is_regular_file(fec)) files.push_back(it->path());
+        const fs::file_status st = it->status(fec); // stat(2), following links
+        if (fs::is_regular_file(st))
+            files.push_back(it->path());
+        else if (!fec && fs::exists(st) && !fs::is_directory(st))
+            special.push_back(it->path());
     }
     return files;
 }
@@ -553,7 +561,7 @@ std::vector<fs::path> walkFolder(const fs::path& folder, std::vector<std::string
 /** The files to scan, sorted: `folder` itself when it is a file, else those its DICOMDIR lists,
  *  else every file below it. */
 std::vector<fs::path> filesToScan(const fs::path& folder, std::vector<std::string>& skipped,
-                                  const CancelToken* cancel) {
+                                  std::vector<fs::path>& special, const CancelToken* cancel) {
     std::error_code ec;
     std::vector<fs::path> files;
     if (fs::is_regular_file(folder, ec)) {
@@ -562,7 +570,7 @@ std::vector<fs::path> filesToScan(const fs::path& folder, std::vector<std::strin
         if (auto listed = filesListedInDicomdir(folder, skipped))
             files = std::move(*listed);
         else
-            files = walkFolder(folder, skipped, cancel);
+            files = walkFolder(folder, skipped, special, cancel);
     } else {
         throw DicomError(folder.string() + ": not a folder or file");
     }
@@ -614,6 +622,21 @@ void reportFailures(const fs::path& folder, const std::vector<fs::path>& files,
     if (!noImage.empty())
         result.warnings.push_back(
             skipSummary(noImage, "DICOM file without an image", "DICOM files without an image"));
+}
+
+/** FIFOs, sockets and devices in the folder: each in `skipped`, and one warning naming them. */
+void reportSpecialFiles(const fs::path& folder, std::vector<fs::path>& special,
+                        DicomScanResult& result) {
+    if (special.empty()) return;
+    std::sort(special.begin(), special.end());
+    std::vector<std::string> names;
+    for (const fs::path& p : special) {
+        result.skipped.push_back(p.string() +
+                                 ": not a regular file (FIFO, socket or device), not read");
+        names.push_back(shortName(p, folder));
+    }
+    result.warnings.push_back(skipSummary(names, "file that is not a regular file (not read)",
+                                          "files that are not regular files (not read)"));
 }
 
 /** The headers of `files`, read in parallel; why the others are no DICOM images goes to the
@@ -672,7 +695,9 @@ DicomScanResult scanDicomFolder(const std::filesystem::path& folder, const Progr
     DicomScanResult result;
     std::error_code ec;
     if (!fs::exists(folder, ec)) throw DicomError(folder.string() + ": folder not found");
-    const std::vector<fs::path> files = filesToScan(folder, result.skipped, cancel);
+    std::vector<fs::path> special;
+    const std::vector<fs::path> files = filesToScan(folder, result.skipped, special, cancel);
+    reportSpecialFiles(folder, special, result);
     std::vector<DicomHeader> usable = readHeaders(folder, files, result, progress, cancel);
     checkCancel(cancel);
     result.series = groupIntoSeries(usable, result.skipped);

@@ -53,6 +53,17 @@ InputSource parsePhantom(const std::string& spec) {
     return s;
 }
 
+/** What a file that is neither regular nor a folder is, in words. */
+const char* specialFileKind(fs::file_type t) {
+    switch (t) {
+    case fs::file_type::fifo: return "a FIFO (named pipe)";
+    case fs::file_type::socket: return "a socket";
+    case fs::file_type::character: return "a character device";
+    case fs::file_type::block: return "a block device";
+    default: return "not a regular file";
+    }
+}
+
 bool hasDicomPreamble(const fs::path& file) {
     std::ifstream in(file, std::ios::binary);
     char magic[4] = {};
@@ -87,12 +98,22 @@ OpenedStudy openDicomFolder(const InputSource& source, const OpenOptions& option
 } // namespace
 
 InputSource classifyInput(const std::string& input) {
+    // A C string (every system call) would end at the NUL and open another file.
+    refuseNul(input, "INPUT: the path");
     if (input.rfind("phantom:", 0) == 0) return parsePhantom(input);
     InputSource s;
     s.path = fs::path(input);
     std::error_code ec;
-    if (!fs::exists(s.path, ec)) throw LoadError(input + ": no such file or folder");
-    if (fs::is_directory(s.path, ec)) {
+    // fs::status is stat(2): it follows links and never opens the file. Opening a FIFO blocks
+    // until a writer appears, and a device can stream forever: only regular files and folders
+    // are inputs.
+    const fs::file_status st = fs::status(s.path, ec);
+    if (ec || !fs::exists(st)) throw LoadError(input + ": no such file or folder");
+    if (!fs::is_directory(st) && !fs::is_regular_file(st))
+        throw LoadError(input + ": " + specialFileKind(st.type()) +
+                        ", not a regular file: the inputs are files, folders and phantoms, and "
+                        "this one is not read (it could block or never end)");
+    if (fs::is_directory(st)) {
         s.kind = InputKind::DicomFolder;
     } else if (lower(s.path.filename().string()) == "dicomdir") {
         s.kind = InputKind::DicomFolder;

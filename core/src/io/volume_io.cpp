@@ -30,6 +30,7 @@
 #include <zlib.h>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/memory_budget.h>
 
 namespace fvr::core {
 
@@ -466,7 +467,14 @@ std::uint64_t readElements(ByteSource& src, ElementType t, bool bigEndian, const
     return bytes;
 }
 
-std::vector<float> allocateVoxels(std::int64_t count, const fs::path& file) {
+/** Room for the float voxels of `dims`, after checking that this process may take it (a header's
+ *  dimensions are not trusted with the machine's memory). */
+std::vector<float> allocateVoxels(const Dims3& dims, const fs::path& file) {
+    const std::int64_t count = dims[0] * dims[1] * dims[2];
+    checkMemoryFor(std::uint64_t(count) * sizeof(float), file.string(),
+                   "voxels: the header declares " + std::to_string(dims[0]) + " x " +
+                       std::to_string(dims[1]) + " x " + std::to_string(dims[2]) +
+                       " voxels, which as float");
     try {
         return std::vector<float>(std::size_t(count));
     } catch (const std::bad_alloc&) {
@@ -602,14 +610,14 @@ ElementType parseElementType(const std::string& name) {
 /** A volume with its geometry and room for its voxels (allocated after every check passed). */
 static Volume emptyVolume(const Dims3& dims, const Vec3& spacing, const Vec3& origin,
                           const std::array<Vec3, 3>& direction, std::string name,
-                          std::int64_t voxelCount, const fs::path& file) {
+                          const fs::path& file) {
     Volume vol;
     vol.dims = dims;
     vol.spacing = spacing;
     vol.origin = origin;
     vol.direction = direction;
     vol.name = std::move(name);
-    vol.voxels = allocateVoxels(voxelCount, file);
+    vol.voxels = allocateVoxels(dims, file);
     return vol;
 }
 
@@ -1122,8 +1130,8 @@ Volume loadMetaImage(const fs::path& path) {
     validateGeometry(geo.dims, geo.spacing, path.string());
 
     const std::vector<DataPart> parts = locateMetaData(path, header, geo, enc, *in.rdbuf());
-    Volume vol = emptyVolume(geo.dims, geo.spacing, geo.origin, geo.direction, volumeName(path),
-                             geo.voxelCount, path);
+    Volume vol =
+        emptyVolume(geo.dims, geo.spacing, geo.origin, geo.direction, volumeName(path), path);
     vol.orientationStated = geo.directionStated;
     readMetaData(path, parts, enc, vol.voxels.data());
     return vol;
@@ -1518,7 +1526,7 @@ Volume loadNifti(const fs::path& path) {
     skipNiftiExtensions(path, in, data);
 
     Volume vol = emptyVolume(dims, spacing, orientation.origin, orientation.direction,
-                             volumeName(path), dims[0] * dims[1] * dims[2], path);
+                             volumeName(path), path);
     vol.orientationStated = orientation.stated;
     readNiftiVoxels(path, in, data, type, r.swap, vol);
     return vol;
@@ -1550,7 +1558,7 @@ Volume loadRaw(const fs::path& path, const RawSpec& spec) {
     FileSource src(path, spec.headerBytes);
     if (!src.ok()) fail(path, "file", "cannot open file");
     Volume vol = emptyVolume(spec.dims, spec.spacing, Vec3{0, 0, 0}, Volume{}.direction,
-                             path.stem().string(), voxelCount, path);
+                             path.stem().string(), path);
     vol.orientationStated = false; // raw data carry none
     const std::uint64_t read = readElements(src, spec.type, spec.bigEndian, Scaling{},
                                             std::size_t(voxelCount), vol.voxels.data());

@@ -1649,6 +1649,21 @@ void validateRenderParams(const RenderParams& params) {
     validateSliceFilter(params.filter);
 }
 
+void checkFiniteImage(const ProjectionImage& image) {
+    std::size_t bad = 0;
+    for (const float p : image.pixels) bad += std::isfinite(p) ? 0 : 1;
+    if (bad == 0) return;
+    throw RenderError("rendered image: " + std::to_string(bad) + " of " +
+                      std::to_string(image.pixels.size()) +
+                      " pixels are not finite (NaN or infinite): the projection overflowed float "
+                      "(voxel values or line integrals too large); nothing is output");
+}
+
+void validateRenderParams(const RenderParams& params, const Spectrum& spectrum) {
+    validateImageGeometry(params.image, spectrum.volumeDims, spectrum.spacing);
+    validateRenderParams(params);
+}
+
 namespace {
 
 /** The per-sample context of one frame from its slice parameters. */
@@ -1769,7 +1784,7 @@ void CpuFourierRenderer::clipAndClamp(const RenderParams& params, ProjectionImag
 
 ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTimes* times) {
     const PlannerBusyScope busy; // the background planner measures between frames, not during
-    validateRenderParams(params);
+    validateRenderParams(params, *m_spectrum);
     const auto t0 = Clock::now();
     const Spectrum& s = *m_spectrum;
     checkKernelMatchesSpectrum(s, params.kernel);
@@ -1798,6 +1813,7 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
         times->inverseMs = ms(t1, t2);
         times->totalMs = ms(t0, t2);
     }
+    checkFiniteImage(img);
     return img;
 }
 

@@ -2,12 +2,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <limits>
 #include <map>
+#include <mutex>
 #include <numbers>
 #include <vector>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/memory_budget.h>
 #include <fvr/core/thread_pool.h>
 #include <fvr/core/xray/xray.h>
 
@@ -580,6 +584,54 @@ void hartleyCorrection(Spectrum& s, const Dims3& N, ThreadPool& pool) {
     });
 }
 
+/** Float holds 3.4e38. The unnormalised 3D transform sums the mapped voxels (|G| <= sum |f|),
+ *  and the slice, its scale and the inverse 2D transform need room above that: a volume whose
+ *  sum comes within this factor of the float range is refused before the transform instead of
+ *  filling the spectrum, and then every image, with inf and NaN. */
+constexpr double kSpectrumHeadroom = double(1 << 24);
+
+/** Refuses values whose spectrum would overflow float (kSpectrumHeadroom), naming the numbers:
+ *  one parallel pass over the mapped voxels in double. */
+void checkSpectrumRange(const Volume& v, ValueMapping mapping, ThreadPool& pool) {
+    std::mutex m;
+    double sum = 0.0, largest = 0.0;
+    pool.parallelFor(std::int64_t(v.voxels.size()), 1 << 16, [&](std::int64_t b, std::int64_t e) {
+        double s = 0.0, l = 0.0;
+        for (std::int64_t i = b; i < e; ++i) {
+            const double a = std::abs(double(mapValue(mapping, v.voxels[std::size_t(i)])));
+            s += a;
+            l = std::max(l, a);
+        }
+        const std::lock_guard lock(m);
+        sum += s;
+        largest = std::max(largest, l);
+    });
+    const double limit = double(std::numeric_limits<float>::max()) / kSpectrumHeadroom;
+    if (sum <= limit) return; // also false for a sum that overflowed double to inf or is NaN
+    char msg[512];
+    std::snprintf(msg, sizeof msg,
+                  "%s: values too large for float: |value| up to %g (mapping %s) sums to %g over "
+                  "%zu voxels, and the 3D spectrum (sums of the values) with room for the "
+                  "projection must stay below %g (float's %g / 2^24); rescale the values (a mean "
+                  "|value| of at most %g fits)",
+                  v.name.empty() ? "volume" : v.name.c_str(), largest, valueMappingName(mapping),
+                  sum, v.voxels.size(), limit, double(std::numeric_limits<float>::max()),
+                  limit / double(v.voxels.size()));
+    throw SettingsError(msg);
+}
+
+/** The spectrum's buffer must fit in the memory this process may take (memory_budget.h):
+ *  refused with the sizes before allocating, instead of an allocation that the kernel's
+ *  overcommit lets through and its OOM killer ends. */
+void checkSpectrumMemory(const Spectrum& s) {
+    const auto dims = [](const Dims3& d) {
+        return std::to_string(d[0]) + " x " + std::to_string(d[1]) + " x " + std::to_string(d[2]);
+    };
+    checkMemoryFor(s.bytes(), s.name.empty() ? "volume" : s.name,
+                   "the spectrum of " + dims(s.volumeDims) + " voxels padded to " + dims(s.padded) +
+                       " (a smaller oversampling needs less)");
+}
+
 } // namespace
 
 std::shared_ptr<const Spectrum> preprocess(const Volume& volume, const PreprocessOptions& options,
@@ -589,6 +641,8 @@ std::shared_ptr<const Spectrum> preprocess(const Volume& volume, const Preproces
         throw SettingsError(volume.name + ": voxel buffer holds " +
                             std::to_string(volume.voxels.size()) + " values, dims need " +
                             std::to_string(volume.voxelCount()));
+    ThreadPool pool(options.threads);
+    checkSpectrumRange(volume, options.mapping, pool);
     const PlannerBusyScope busy; // no background measuring while the 3D transform runs
     ProgressReporter pr(progress, cancel);
     pr.stage("planning", 0.0, 0.02);
@@ -603,9 +657,9 @@ std::shared_ptr<const Spectrum> preprocess(const Volume& volume, const Preproces
     s->name = volume.name;
     s->deapodizedFor = options.deapodizeFor;
     s->nonNegative = isAttenuation(options.mapping) || volume.valueRange().first >= 0.0f;
+    checkSpectrumMemory(*s);
     s->data = allocateFftw(s->floatCount());
 
-    ThreadPool pool(options.threads);
     Transformer tr(*s, options, pool);
     tr.plan();
     pr.report(1.0);

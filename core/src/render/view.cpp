@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/render/voxel_model.h>
 
 namespace fvr::core {
 
@@ -57,6 +59,35 @@ void validateImageGeometry(const ImageGeometry& g) {
     if (!(g.pixelSize > 0.0) || !std::isfinite(g.pixelSize))
         throw SettingsError("pixel size: expected a positive number of mm, found " +
                             std::to_string(g.pixelSize));
+}
+
+PixelSizeRange pixelSizeRange(const Dims3& dims, const Vec3& spacing, int size) {
+    const double diagonal = defaultPixelSize(dims, spacing, 1);
+    const double largestSpacing = std::max({spacing[0], spacing[1], spacing[2]});
+    // The slice's highest frequency (slice_params.h) is at most
+    // (M/2 + 1) / (M d) * sqrt(2) * s_a cycles per voxel along axis a, whatever the view.
+    const double finest = (size / 2.0 + 1.0) / size * std::sqrt(2.0) * largestSpacing /
+                          TransferTable::kMaxCyclesPerVoxel;
+    return {std::max(diagonal / kFieldOfViewFactor / size, finest),
+            diagonal * kFieldOfViewFactor / size};
+}
+
+void validateImageGeometry(const ImageGeometry& g, const Dims3& dims, const Vec3& spacing) {
+    validateImageGeometry(g);
+    const PixelSizeRange r = pixelSizeRange(dims, spacing, g.size);
+    if (g.pixelSize >= r.min && g.pixelSize <= r.max) return;
+    const double diagonal = defaultPixelSize(dims, spacing, 1);
+    char msg[640];
+    std::snprintf(msg, sizeof msg,
+                  "pixel size %g mm: the %d-pixel image would span %g mm of a volume whose "
+                  "diagonal is %g mm; expected a pixel size from %g to %g mm at this size (the "
+                  "image spans 1/%g to %g times the volume's diagonal, and a pixel is at least "
+                  "1/%.0f of the largest voxel spacing, %g mm)",
+                  g.pixelSize, g.size, g.pixelSize * g.size, diagonal, r.min, r.max,
+                  kFieldOfViewFactor, kFieldOfViewFactor,
+                  TransferTable::kMaxCyclesPerVoxel / std::sqrt(2.0) * 2.0,
+                  std::max({spacing[0], spacing[1], spacing[2]}));
+    throw SettingsError(msg);
 }
 
 Vec3 supportHalfExtents(const Dims3& dims, const Vec3& spacing, double reach) {

@@ -1,6 +1,7 @@
 #include <fvr/core/render/voxel_model.h>
 
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 
 #include <fvr/core/errors.h>
@@ -168,6 +169,16 @@ TransferTable::TransferTable(VoxelModel m, double maxNu) : m_model(m) {
 }
 
 void TransferTable::cover(double maxNu) {
+    // The hard cap whatever the caller checked (validateImageGeometry keeps images within
+    // kMaxCyclesPerVoxel; the margin absorbs the slice parameters' rounding).
+    if (!(std::abs(maxNu) <= kMaxCyclesPerVoxel * 1.001)) {
+        char msg[256];
+        std::snprintf(msg, sizeof msg,
+                      "voxel model table: the slice reaches %g cycles per voxel, beyond the %g "
+                      "it covers (the pixel size is far smaller than the voxels)",
+                      maxNu, kMaxCyclesPerVoxel);
+        throw SettingsError(msg);
+    }
     const std::size_t n = std::size_t(std::ceil(std::abs(maxNu) * kPerUnit)) + 2;
     if (n <= m_value.size()) return;
     m_value.resize(n);

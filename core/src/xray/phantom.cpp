@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/memory_budget.h>
 #include <fvr/core/thread_pool.h>
 #include <fvr/core/xray/xray.h>
 
@@ -221,6 +222,9 @@ EllipsoidPhantom EllipsoidPhantom::sheppLogan3D(double fieldMm) {
 
 Volume EllipsoidPhantom::voxelize(const Dims3& dims, const Vec3& spacing, int supersample) const {
     validateGeometry(dims, spacing, "phantom");
+    checkMemoryFor(std::uint64_t(dims[0] * dims[1] * dims[2]) * sizeof(float), "phantom",
+                   std::to_string(dims[0]) + " x " + std::to_string(dims[1]) + " x " +
+                       std::to_string(dims[2]) + " voxels as float");
     Volume v;
     v.dims = dims;
     v.spacing = spacing;

@@ -9,6 +9,9 @@
 #include <QString>
 #include <QTimer>
 
+#include <condition_variable>
+#include <mutex>
+#include <thread>
 #include <vector>
 
 namespace fvr::ui {
@@ -31,8 +34,13 @@ enum ScriptedExit : int { kScriptedOk = 0, kScriptedFailed = 1, kScriptedTimeout
 class ScriptedRun : public QObject {
     Q_OBJECT
 public:
-    /** Watches `window` from now on: construct it before MainWindow::openStudy. */
+    /** Watches `window` from now on: construct it before MainWindow::openStudy. With `quit`,
+     *  the timeout holds whatever the application is doing: at the timeout the process ends
+     *  with kScriptedTimeout without waiting for a load that does not return, and a watchdog
+     *  thread ends it kWatchdogGraceSeconds later if the GUI thread itself is blocked. */
     ScriptedRun(MainWindow& window, ScriptedRunOptions options, QObject* parent = nullptr);
+    ~ScriptedRun() override;
+    static constexpr int kWatchdogGraceSeconds = 5;
 
     /** Writes the exports of the views as they are now (throws core::WriteError naming the
      *  file); what the run does once ready. */
@@ -53,6 +61,8 @@ private:
     bool ready();
     void writeViews(const QString& dir);
     void finish(int exitCode, const QString& message);
+    /** The watchdog thread's body: ends the process at the deadline unless the run finished. */
+    void watch(int seconds);
 
     MainWindow& m_window;
     ScriptedRunOptions m_options;
@@ -61,6 +71,10 @@ private:
     bool m_armed = false; ///< a spectrum arrived
     int m_readyTicks = 0;
     bool m_finished = false;
+    std::mutex m_watchMutex;
+    std::condition_variable m_watchWake;
+    bool m_watchStop = false;
+    std::thread m_watchdog;
 };
 
 } // namespace fvr::ui

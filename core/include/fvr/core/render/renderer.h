@@ -46,6 +46,13 @@ struct RenderParams {
 
 /** Checks geometry, depth cue and filter (SettingsError naming the problem). */
 void validateRenderParams(const RenderParams& params);
+/** The same, and the image against the spectrum's volume (validateImageGeometry with its
+ *  dimensions and spacing): what both renderers check before every frame. */
+void validateRenderParams(const RenderParams& params, const Spectrum& spectrum);
+
+/** Throws RenderError when the image holds pixels that are not finite (NaN, inf: the
+ *  projection overflowed float), giving their count: never a silent NaN in an output. */
+void checkFiniteImage(const ProjectionImage& image);
 
 /** A Fourier volume renderer holding one spectrum. */
 class Renderer {

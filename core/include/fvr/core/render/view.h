@@ -58,4 +58,25 @@ ColumnRange volumeShadowColumns(const ViewFrame& view, const Vec3& half, int M, 
  *  use smaller ones) and pixel size > 0; throws SettingsError. */
 void validateImageGeometry(const ImageGeometry& g);
 
+/** How far the image's span M d may stray from the volume's diagonal (the default pixel size
+ *  makes them equal): between 1/kFieldOfViewFactor and kFieldOfViewFactor times it. */
+inline constexpr double kFieldOfViewFactor = 64.0;
+
+/** The pixel sizes (mm) an M-pixel image of this volume may have: the span rule above, and
+ *  pixels coarse enough that the slice's highest frequency stays within
+ *  TransferTable::kMaxCyclesPerVoxel for every view (a pixel at least ~1/2900 of the largest
+ *  voxel spacing). */
+struct PixelSizeRange {
+    double min = 0.0;
+    double max = 0.0;
+};
+PixelSizeRange pixelSizeRange(const Dims3& dims, const Vec3& spacing, int size);
+
+/** validateImageGeometry, then the pixel size against pixelSizeRange: a SettingsError giving
+ *  the numbers ("pixel size 1e-06 mm: the 128-pixel image would span 0.000128 mm of a volume
+ *  whose diagonal is 55.4 mm; expected ..."). What keeps a tiny pixel size from making the
+ *  renderers' tables (and the memory) grow without bound; every front end goes through it
+ *  (validateRenderParams with the spectrum, fvr-render's and the Python module's geometry). */
+void validateImageGeometry(const ImageGeometry& g, const Dims3& dims, const Vec3& spacing);
+
 } // namespace fvr::core

@@ -61,10 +61,16 @@ double pixelApertureResponse(double cyclesPerPixel);
 class TransferTable {
 public:
     static constexpr int kPerUnit = 1024;
+    /** The highest frequency a table covers (16 MiB of tables): validateImageGeometry keeps
+     *  every image's slice within it, so that no pixel size can make the table grow without
+     *  bound (a pixel of 1e-6 mm once asked for 9 GB). */
+    static constexpr double kMaxCyclesPerVoxel = 2048.0;
     explicit TransferTable(VoxelModel m, double maxNu = 2.0);
 
     VoxelModel model() const { return m_model; }
-    /** Makes the table cover |nu| <= maxNu (not thread-safe: call before sampling). */
+    /** Makes the table cover |nu| <= maxNu (not thread-safe: call before sampling). Throws
+     *  SettingsError beyond kMaxCyclesPerVoxel (with a rounding margin) or for a non-finite
+     *  maxNu, before allocating. */
     void cover(double maxNu);
     float value(double nu) const { return lookup(m_value, nu, false); }
     float derivative(double nu) const { return lookup(m_derivative, nu, true); }
