@@ -96,8 +96,9 @@ std::string tlsText(const LinkReport& link, const Node& node, const LocalAe& loc
               has("record layer") || has("I/O error") || has("http request")))
         hint = " (is " + node.host + ":" + std::to_string(node.port) +
                " a DICOM TLS port? a plain DICOM port answers like this)";
+    const bool closed = has("I/O error") || has("unexpected eof");
     return (link.handshakeDone ? "TLS with " : "TLS handshake with ") + describe(node) +
-           " failed: " + e + hint;
+           " failed: " + (closed ? "the PACS closed the connection (" + e + ")" : e) + hint;
 }
 
 /** A connection that broke (read 0 bytes or an error) in words: at association, before the PACS

@@ -148,8 +148,10 @@ OFCondition WatchedConnection::handshake(bool server) {
         cond == DCMTLS_EC_TLSWriteOperationDidNotComplete || Clock::now() - start >= m_timeout) {
         m_report->silent = true;
     } else {
-        const std::string reason = lastOpenSslReason();
-        m_report->tlsError = reason.empty() ? cond.text() : reason;
+        std::string reason = lastOpenSslReason();
+        if (reason.empty()) reason = cond.text(); // DCMTK took it from the queue: its words
+        if (reason.rfind("TLS error: ", 0) == 0) reason.erase(0, 11);
+        m_report->tlsError = reason;
     }
     m_dead = true;
     return cond;
@@ -300,9 +302,12 @@ void loadIdentity(DcmTLSTransportLayer& layer, const TlsSettings& tls) {
     layer.setPrivateKeyPasswd(""); // an encrypted key fails here instead of asking on a console
     ERR_clear_error();
     cond = layer.setPrivateKeyFile(tls.privateKeyFile.c_str(), DCF_Filetype_PEM);
-    if (cond.bad())
+    const bool mismatch =
+        cond.bad() && (std::string(cond.text()).find("mismatch") != std::string::npos ||
+                       lastOpenSslReason().find("mismatch") != std::string::npos);
+    if (cond.bad() && !mismatch)
         refused("TLS private key file", tls.privateKeyFile, "an unencrypted PEM private key", cond);
-    if (!layer.checkPrivateKeyMatchesCertificate())
+    if (mismatch || !layer.checkPrivateKeyMatchesCertificate())
         throw PacsError("the TLS private key file " + tls.privateKeyFile +
                         " does not match the certificate " + tls.certificateFile);
 }
