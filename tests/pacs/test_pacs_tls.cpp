@@ -11,6 +11,8 @@
 
 #include <chrono>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 
 #include "pacs_environment.h"
 #include "test_support.h"
@@ -274,4 +276,35 @@ TEST_F(PacsTls, AFrozenTlsPacsStopsAnsweringWithinTheTimeout) {
     EXPECT_NE(msg.find("the PACS stopped answering (no reply within 2 s)"), std::string::npos)
         << msg;
     EXPECT_LE(s, 3.0);
+}
+
+TEST_F(PacsTls, FvrRenderQueryAndMoveOverTls) {
+    const std::string url = "dicom://ORTHANC@127.0.0.1:" + std::to_string(node().port);
+    const std::string tls = " --ae-title " + std::string(fvr::test::kOurAe) + " --tls --tls-cert " +
+                            file("ours.pem") + " --tls-key " + file("ours.key") + " --tls-ca " +
+                            file("ca.pem");
+    const fs::path err = dir() / "cli.err";
+    auto r = fvr::test::runCommand(std::string(FVR_RENDER_EXE) + " " + url +
+                                   " --query PatientName=*" + tls + " 2>" + err.string());
+    ASSERT_EQ(r.status, 0) << r.out;
+    const auto studies = nlohmann::json::parse(r.out);
+    ASSERT_EQ(studies.size(), 1u) << r.out;
+    EXPECT_EQ(studies[0]["studyUid"], slicerStudy());
+    // C-MOVE into fvr-render's own TLS listener, then --info on the retrieved study.
+    r = fvr::test::runCommand(std::string(FVR_RENDER_EXE) + " " + url + "/" + slicerStudy() + tls +
+                              " --retrieve move --listen-port " + std::to_string(s_listenPort) +
+                              " --store " + (dir() / "cli-store").string() + " --info 2>" +
+                              err.string());
+    ASSERT_EQ(r.status, 0) << r.out;
+    const auto info = nlohmann::json::parse(r.out);
+    ASSERT_EQ(info["series"].size(), 1u) << r.out;
+    EXPECT_EQ(info["series"][0]["dims"], nlohmann::json({64, 64, 93})) << r.out;
+    // Without our certificate's key: the option named, fvr-render fails before any network.
+    r = fvr::test::runCommand(std::string(FVR_RENDER_EXE) + " " + url + " --query PatientName=*" +
+                              " --tls --tls-cert " + file("ours.pem") + " --tls-ca " +
+                              file("ca.pem") + " 2>" + err.string());
+    EXPECT_NE(r.status, 0);
+    std::ifstream in(err);
+    const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    EXPECT_NE(text.find("set both or neither"), std::string::npos) << text;
 }
