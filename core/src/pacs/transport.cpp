@@ -346,3 +346,12 @@ std::unique_ptr<WatchedLayer> makeLayer(const LocalAe& local, bool tls, T_ASC_Ne
 }
 
 } // namespace fvr::core::pacs::detail
+
+namespace fvr::core::pacs {
+
+void checkTls(const LocalAe& local) {
+    detail::makeLayer(local, true, NET_REQUESTOR);
+    if (local.listenTls) detail::makeLayer(local, true, NET_ACCEPTOR);
+}
+
+} // namespace fvr::core::pacs

@@ -63,6 +63,10 @@ std::string describe(const Node& node);
  *  host (non-empty) and port (1..65535). Throws PacsError naming the field. */
 void validate(const Node& node);
 void validate(const LocalAe& local);
+/** Loads local.tls as a TLS connection would (and as the listener would, when listenTls): files
+ *  read and parsed, the key against its certificate, a CA when the peer is checked. Throws
+ *  PacsError naming the file and the problem (the settings dialog checks with it). */
+void checkTls(const LocalAe& local);
 
 /**
  * C-ECHO. Returns normally when the PACS answers; throws PacsError otherwise. Every operation
