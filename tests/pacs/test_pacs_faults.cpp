@@ -7,8 +7,16 @@
 #include <fvr/core/pacs/local_store.h>
 #include <fvr/core/pacs/pacs.h>
 
+#include <dcmtk/config/osconfig.h>
+#include <dcmtk/dcmdata/dctk.h>
+
+#include <nlohmann/json.hpp>
+
+#include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <thread>
+#include <vector>
 
 #include "pacs_environment.h"
 #include "test_support.h"
@@ -168,6 +176,65 @@ TEST(PacsFaults, StoreToAFrozenPacs) {
     Clock::time_point at;
     expectStoppedAnswering(timed("C-STORE, frozen before", at,
                                  [&] { sendFiles(env().node(), shortTimeout(), {file}); }));
+}
+
+/** Copies of `n` Philips images with new SOP instance UIDs (new to Orthanc: its instance count
+ *  tells how many arrived). */
+std::vector<fs::path> freshCopies(const fs::path& dir, int n) {
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    std::vector<fs::path> out;
+    for (const auto& f : fs::directory_iterator(fvr::test::sharedData() / fvr::test::kPhilips)) {
+        if (int(out.size()) == n) break;
+        DcmFileFormat file;
+        if (file.loadFile(f.path().c_str()).bad()) continue;
+        char uid[100];
+        dcmGenerateUniqueIdentifier(uid, SITE_INSTANCE_UID_ROOT);
+        file.getDataset()->putAndInsertString(DCM_SOPInstanceUID, uid);
+        file.getMetaInfo()->putAndInsertString(DCM_MediaStorageSOPInstanceUID, uid);
+        out.push_back(dir / f.path().filename());
+        file.saveFile(out.back().c_str());
+    }
+    return out;
+}
+
+int orthancInstances() {
+    const auto r = env().orthanc().get("/statistics");
+    return r.status == 200 ? nlohmann::json::parse(r.body)["CountInstances"].get<int>() : -1;
+}
+
+TEST(PacsFaults, StoreToAPacsFrozenMidTransfer) {
+    FVR_REQUIRE_ORTHANC();
+    ThawAfter thaw;
+    const auto files = freshCopies(env().dir / "fault-send-many", 40);
+    ASSERT_EQ(files.size(), 40u);
+    const int before = orthancInstances();
+    Clock::time_point at = Clock::now();
+    std::atomic<bool> frozen{false}, done{false};
+    std::thread watcher([&] { // freezes Orthanc once 5 of the 40 arrived
+        while (!done && orthancInstances() < before + 5)
+            std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        if (done) return;
+        env().orthanc().stop();
+        at = Clock::now();
+        frozen = true;
+    });
+    Outcome o;
+    try {
+        sendFiles(env().node(), shortTimeout(), files);
+    } catch (const PacsError& e) {
+        o.message = e.what();
+    }
+    const auto end = Clock::now();
+    done = true;
+    watcher.join();
+    ASSERT_TRUE(frozen) << "all 40 arrived before the freeze";
+    o.seconds = std::chrono::duration<double>(end - at).count();
+    std::printf("[ timing   ] C-STORE of 40, frozen at 5: %.2f s after the fault (timeout %d s): "
+                "%s\n",
+                o.seconds, kTimeout, o.message.c_str());
+    std::fflush(stdout);
+    expectStoppedAnswering(o);
 }
 
 /** A second Orthanc with 30 images of the Philips study, to be killed. */

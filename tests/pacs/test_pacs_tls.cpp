@@ -38,6 +38,11 @@ std::string pacsError(const std::function<void()>& f) {
     return "";
 }
 
+std::string readAll(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
 std::string slicerStudy() {
     return fvr::test::dicomTag(
         *fs::directory_iterator(fvr::test::sharedData() / fvr::test::kSlicer), "StudyInstanceUID");
@@ -285,8 +290,8 @@ TEST_F(PacsTls, FvrRenderQueryAndMoveOverTls) {
                             file("ca.pem");
     const fs::path err = dir() / "cli.err";
     auto r = fvr::test::runCommand(std::string(FVR_RENDER_EXE) + " " + url +
-                                   " --query PatientName=*" + tls + " 2>" + err.string());
-    ASSERT_EQ(r.status, 0) << r.out;
+                                   " --query PatientName=Austrialian" + tls + " 2>" + err.string());
+    ASSERT_EQ(r.status, 0) << r.out << readAll(err);
     const auto studies = nlohmann::json::parse(r.out);
     ASSERT_EQ(studies.size(), 1u) << r.out;
     EXPECT_EQ(studies[0]["studyUid"], slicerStudy());
@@ -295,7 +300,7 @@ TEST_F(PacsTls, FvrRenderQueryAndMoveOverTls) {
                               " --retrieve move --listen-port " + std::to_string(s_listenPort) +
                               " --store " + (dir() / "cli-store").string() + " --info 2>" +
                               err.string());
-    ASSERT_EQ(r.status, 0) << r.out;
+    ASSERT_EQ(r.status, 0) << r.out << readAll(err);
     const auto info = nlohmann::json::parse(r.out);
     ASSERT_EQ(info["series"].size(), 1u) << r.out;
     EXPECT_EQ(info["series"][0]["dims"], nlohmann::json({64, 64, 93})) << r.out;
@@ -304,7 +309,5 @@ TEST_F(PacsTls, FvrRenderQueryAndMoveOverTls) {
                               " --tls --tls-cert " + file("ours.pem") + " --tls-ca " +
                               file("ca.pem") + " 2>" + err.string());
     EXPECT_NE(r.status, 0);
-    std::ifstream in(err);
-    const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-    EXPECT_NE(text.find("set both or neither"), std::string::npos) << text;
+    EXPECT_NE(readAll(err).find("set both or neither"), std::string::npos) << readAll(err);
 }
