@@ -8,14 +8,12 @@
 
 #include <openssl/err.h>
 
-#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <fstream>
 #include <mutex>
 #include <optional>
-#include <set>
 
 #include <poll.h>
 #include <sys/socket.h>
@@ -52,7 +50,6 @@ class WatchedConnection;
 
 struct WatchedLayer::Shared {
     std::mutex mutex;
-    std::set<WatchedConnection*> open;
     std::shared_ptr<LinkReport> last;
 };
 
@@ -67,13 +64,9 @@ public:
         m_report->tls = tls;
         setSocketTimeouts(socket, kSliceMs); // after DCMTK's (60 s, set by the constructors)
         std::lock_guard lock(m_shared->mutex);
-        m_shared->open.insert(this);
         m_shared->last = m_report;
     }
-    ~WatchedConnection() override {
-        forget();
-        delete m_inner;
-    }
+    ~WatchedConnection() override { delete m_inner; }
 
     OFCondition serverSideHandshake() override { return handshake(true); }
     OFCondition clientSideHandshake() override { return handshake(false); }
@@ -104,22 +97,16 @@ public:
         return m_inner->dumpConnectionParameters(str);
     }
 
-    /** From another thread (WatchedLayer::cutAll, under the shared mutex). */
-    void cut() {
-        m_dead = true;
-        ::shutdown(m_socket, SHUT_RDWR);
-    }
-
 private:
     OFCondition handshake(bool server);
     bool waitFor(short events, int callerMs = -1);
     void died(int err);
     void received(const void* buf, ssize_t n);
 
-    /** Out of the layer's list before the socket closes (cut() must not reach a reused fd). */
+    /** The socket is closed by the inner connection: ours forgets it too (DCMTK's select on
+     *  transparent connections reads it). */
     void forget() {
-        std::lock_guard lock(m_shared->mutex);
-        m_shared->open.erase(this);
+        m_dead = true;
         setSocket(OFstatic_cast(DcmNativeSocketType, -1));
     }
 
@@ -129,7 +116,7 @@ private:
     std::chrono::milliseconds m_timeout;
     DcmNativeSocketType m_socket;
     std::optional<Clock::time_point> m_waitingSince; ///< since the last byte moved
-    std::atomic<bool> m_dead{false};
+    bool m_dead = false; ///< silent, lost or closed: every read and write fails at once
 };
 
 OFCondition WatchedConnection::handshake(bool server) {
@@ -190,7 +177,7 @@ void WatchedConnection::died(int err) {
         const std::string reason = lastOpenSslReason();
         if (!reason.empty() && m_report->tlsError.empty()) m_report->tlsError = reason;
     }
-    if (!m_dead) m_report->lost = true; // not cut or silent: the peer went
+    if (!m_dead) m_report->lost = true; // not silent before: the peer went
     m_dead = true;
     errno = err ? err : ECONNRESET;
 }
@@ -263,11 +250,6 @@ DcmTransportConnection* WatchedLayer::createConnection(DcmNativeSocketType socke
 LinkReport WatchedLayer::lastReport() const {
     std::lock_guard lock(m_shared->mutex);
     return m_shared->last ? *m_shared->last : LinkReport{};
-}
-
-void WatchedLayer::cutAll() {
-    std::lock_guard lock(m_shared->mutex);
-    for (WatchedConnection* c : m_shared->open) c->cut();
 }
 
 namespace {

@@ -51,9 +51,6 @@ public:
     bool tls() const { return m_tls != nullptr; }
     /** What the most recent connection saw (a default report when none was opened). */
     LinkReport lastReport() const;
-    /** Ends every open connection now (shutdown of its socket): a wait in another thread returns
-     *  at once and the association ends as if the peer had gone. */
-    void cutAll();
 
     struct Shared;
 
