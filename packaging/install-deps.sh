@@ -21,6 +21,7 @@ packages=(
 if [ "${1:-}" = "--tests" ]; then
   packages+=(
     orthanc # the real PACS the pacs tests start on their own ports (its service is not used)
+    openssl # the DICOM TLS tests make their CA and certificates with it
     python3-pytest python3-distributed python3-zarr
   )
 fi

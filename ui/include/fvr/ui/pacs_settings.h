@@ -8,6 +8,7 @@
 #include <fvr/core/pacs/pacs.h>
 
 class QCheckBox;
+class QFormLayout;
 class QLabel;
 class QLineEdit;
 class QSpinBox;
@@ -26,8 +27,9 @@ struct PacsSettings {
     const core::pacs::Node* node(const QString& name) const;
 };
 
-/** Settings ▸ PACS nodes: a table of nodes (name, called AE, host, port, retrieve method), our AE
- *  title, the listener port and whether the listener runs. */
+/** Settings ▸ PACS nodes: a table of nodes (name, called AE, host, port, TLS, retrieve method),
+ *  our AE title, the listener port and whether the listener runs, and DICOM TLS: our
+ *  certificate and key, the CAs we trust, the peer check, whether the listener speaks TLS. */
 class PacsNodesDialog : public QDialog {
     Q_OBJECT
 public:
@@ -36,6 +38,11 @@ public:
     PacsSettings settings() const;
     QTableWidget* table() const { return m_table; }
     QLineEdit* aeTitleEdit() const { return m_aeTitle; }
+    QLineEdit* tlsCertificateEdit() const { return m_tlsCert; }
+    QLineEdit* tlsPrivateKeyEdit() const { return m_tlsKey; }
+    QLineEdit* tlsTrustedCaEdit() const { return m_tlsCa; } ///< files separated by ';'
+    QCheckBox* tlsVerifyBox() const { return m_tlsVerify; }
+    QCheckBox* listenTlsBox() const { return m_listenTls; }
     /** Why OK did not close the dialog (invalid AE titles, a node without host). */
     QLabel* errorLabel() const { return m_error; }
 
@@ -44,12 +51,18 @@ public:
 
 private:
     void addRow(const core::pacs::Node& n);
+    void addTlsRows(QFormLayout* form, const core::pacs::LocalAe& local);
 
     QTableWidget* m_table = nullptr;
     QLineEdit* m_aeTitle = nullptr;
     QSpinBox* m_port = nullptr;
     QSpinBox* m_timeout = nullptr;
     QCheckBox* m_listen = nullptr;
+    QLineEdit* m_tlsCert = nullptr;
+    QLineEdit* m_tlsKey = nullptr;
+    QLineEdit* m_tlsCa = nullptr;
+    QCheckBox* m_tlsVerify = nullptr;
+    QCheckBox* m_listenTls = nullptr;
     QLabel* m_error = nullptr;
 };
 
