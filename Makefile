@@ -8,7 +8,7 @@ JOBS ?= $(shell nproc)
 STUDY ?=
 SHARED_DATA ?= $(abspath $(CURDIR)/../shared/data)
 
-.PHONY: all deps test-deps configure build run test bench bench-gpu gpu-kit package sanitize sanitize-ui format \
+.PHONY: all deps test-deps configure build run test bench bench-gpu gpu-kit package test-fuzz sanitize sanitize-ui format \
   format-check screenshots clean
 
 all: build
@@ -36,6 +36,13 @@ run: build
 test: test-deps build
 	@cd $(BUILD_DIR) && xvfb-run -a -s "-screen 0 1280x1024x24" \
 	  ctest --output-on-failure --parallel $(JOBS) --timeout 900
+
+# Every fuzz target for 60 s each (the DICOM reader, the store's C-STORE handling, the dataset
+# manifest; `make test` runs them for a few seconds only). FUZZ_TIME=N changes the time.
+FUZZ_TIME ?= 60
+test-fuzz: test-deps build
+	@bash tests/fuzz/run_all.sh --build-dir $(BUILD_DIR)/tests/fuzz --time $(FUZZ_TIME) \
+	  --data $(SHARED_DATA) --python /usr/bin/python3 --pythonpath $(BUILD_DIR)/python
 
 # Debian package (fvr-workstation_VERSION_ARCH.deb in the build folder).
 package: build

@@ -23,6 +23,7 @@ if [ "${1:-}" = "--tests" ]; then
     orthanc # the real PACS the pacs tests start on their own ports (its service is not used)
     openssl # the DICOM TLS tests make their CA and certificates with it
     python3-pytest python3-distributed python3-zarr
+    python3-hypothesis # the dataset manifest fuzz (tests/fuzz/fuzz_manifest.py)
   )
 fi
 
