@@ -18,6 +18,7 @@
 namespace fs = std::filesystem;
 using namespace fvr::core;
 using namespace fvr::core::pacs;
+using fvr::test::OrthancServer;
 using fvr::test::PacsEnvironment;
 
 namespace {
@@ -289,7 +290,9 @@ TEST(PacsSend, ANonDicomFileIsNamed) {
 TEST(PacsListener, ReceivesAStudyOrthancSends) {
     FVR_REQUIRE_ORTHANC();
     LocalStore store(storeRoot("listener"));
-    StorageListener listener(env().local(), store);
+    LocalAe local = env().local();
+    local.allowedPeers = {{OrthancServer::kAeTitle, "127.0.0.1"}}; // it may push to us
+    StorageListener listener(local, store);
     listener.start();
     ASSERT_TRUE(listener.running());
     EXPECT_EQ(StorageListener::runningOn(env().local().listenPort), &listener);
@@ -317,7 +320,9 @@ TEST(PacsListener, ReceivesAStudyOrthancSends) {
 TEST(PacsListener, RejectsAnotherCalledAe) {
     FVR_REQUIRE_ORTHANC();
     LocalStore store(storeRoot("listener-ae"));
-    StorageListener listener(env().local(), store);
+    LocalAe local = env().local();
+    local.allowedPeers = {{local.aeTitle, ""}}; // our echo() calls as FVRTEST
+    StorageListener listener(local, store);
     listener.start();
     Node us{"us", "SOMEONEELSE", "127.0.0.1", env().local().listenPort};
     const std::string msg = pacsError([&] { echo(us, env().local()); });

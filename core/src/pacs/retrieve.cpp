@@ -6,7 +6,9 @@
 
 #include <dcmtk/dcmnet/diutil.h>
 
+#include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 
 namespace fs = std::filesystem;
@@ -66,8 +68,7 @@ class RetrieveScu : public detail::Scu {
 public:
     RetrieveScu(const Node& node, const LocalAe& local, LocalStore& store,
                 const RetrieveProgressFn& progressFn, const CancelToken* cancel)
-        : Scu(node, local), m_store(store), m_progressFn(progressFn), m_cancel(cancel),
-          m_storedBefore(store.instancesStored()) {}
+        : Scu(node, local), m_store(store), m_progressFn(progressFn), m_cancel(cancel) {}
 
     OFCondition handleSTORERequest(const T_ASC_PresentationContextID, DcmDataset* incoming,
                                    OFBool& continueSession, Uint16& status) override {
@@ -79,6 +80,7 @@ public:
         try {
             detail::storeDataset(m_store, *owned);
             status = STATUS_Success;
+            ++m_gotten;
         } catch (const std::exception& e) {
             m_storeError = e.what();
             status = STATUS_STORE_Refused_OutOfResources;
@@ -103,6 +105,8 @@ public:
     }
 
     T_ASC_PresentationContextID pc = 0;
+    /** C-MOVE: the listener's count of what it took for this move (C-GET counts its own). */
+    const StorageListener::Expectation* expectation = nullptr;
     RetrieveProgress progress;
     std::optional<Uint16> finalStatus;
     std::string m_storeError;
@@ -130,14 +134,14 @@ private:
 
     void report(std::optional<int> expected) {
         if (expected) progress.expected = *expected;
-        progress.received = m_store.instancesStored() - m_storedBefore;
+        progress.received = expectation ? expectation->received() : m_gotten;
         if (m_progressFn) m_progressFn(progress);
     }
 
     LocalStore& m_store;
     RetrieveProgressFn m_progressFn;
     const CancelToken* m_cancel;
-    int m_storedBefore;
+    int m_gotten = 0; // instances C-GET brought and the store took
 };
 
 void addGetContexts(RetrieveScu& scu) {
@@ -149,19 +153,43 @@ void addGetContexts(RetrieveScu& scu) {
                                    ASC_SC_ROLE_SCP);
 }
 
-/** The listener C-MOVE sends to: the one running on our port, else one for this retrieve. */
-std::unique_ptr<StorageListener> ensureListener(const LocalAe& local, LocalStore& store) {
+// --- The listener a C-MOVE sends to ---
+/** The listeners started for retrieves, by port: shared by the retrieves that run at once, and
+ *  stopped when the last of them ends. */
+std::mutex g_moveListenersMutex;
+std::map<int, std::weak_ptr<StorageListener>> g_moveListeners;
+
+/** The listener of a C-MOVE: `owned` keeps one started for retrieves alive (null when it is one
+ *  the program runs on its own, the workstation's), `listener` is the one to use. */
+struct MoveListener {
+    std::shared_ptr<StorageListener> owned;
+    StorageListener* listener = nullptr;
+};
+
+/** The listener C-MOVE sends to: the one running on our port (the workstation's, or one
+ *  another retrieve started), else one for this retrieve. Either trusts the node for this move
+ *  only (StorageListener::expect): a listener started here allows no other peer than what
+ *  local.allowedPeers lists. */
+MoveListener ensureListener(const LocalAe& local, LocalStore& store) {
+    std::lock_guard lock(g_moveListenersMutex);
+    MoveListener use;
     if (StorageListener* running = StorageListener::runningOn(local.listenPort)) {
         if (&running->store() != &store)
             throw PacsError("the storage listener on port " + std::to_string(local.listenPort) +
                             " writes into " + running->store().root().string() + ", not into " +
                             store.root().string());
-        return nullptr;
+        use.listener = running;
+        if (auto ours = g_moveListeners[local.listenPort].lock(); ours.get() == running)
+            use.owned = std::move(ours);
+        return use;
     }
-    auto listener = std::make_unique<StorageListener>(local, store);
-    listener->start();
-    return listener;
+    use.owned = std::make_shared<StorageListener>(local, store);
+    use.owned->start();
+    use.listener = use.owned.get();
+    g_moveListeners[local.listenPort] = use.owned;
+    return use;
 }
+// --- end of the listener a C-MOVE sends to ---
 
 /** Runs the C-GET or C-MOVE; the SCU's state says how it ended. */
 void runRetrieve(RetrieveScu& scu, const Node& node, const LocalAe& local, DcmDataset& keys) {
@@ -191,11 +219,13 @@ void runRetrieve(RetrieveScu& scu, const Node& node, const LocalAe& local, DcmDa
                          bool move) {
     if (!scu.m_storeError.empty())
         throw PacsError("retrieve from " + describe(node) + " stopped: " + scu.m_storeError);
+    const std::string problem = scu.expectation ? scu.expectation->lastProblem() : "";
     const Uint16 status = scu.finalStatus.value_or(0xFFFF);
     std::string text = describe(node) + ": " + (move ? "C-MOVE" : "C-GET") + " of " + what;
     if (scu.progress.failed > 0)
         text += ": " + std::to_string(scu.progress.failed) + " of " +
-                std::to_string(scu.progress.expected) + " instances failed";
+                std::to_string(scu.progress.expected) + " instances failed" +
+                (problem.empty() ? "" : " (the last: " + problem + ")");
     else
         text += " ended with status " +
                 std::string(move ? DU_cmoveStatusString(status) : DU_cgetStatusString(status));
@@ -233,7 +263,14 @@ fs::path retrieve(const Node& node, const LocalAe& local, const std::string& stu
     if (!seriesUid.empty()) keys.putAndInsertString(DCM_SeriesInstanceUID, seriesUid.c_str());
     const bool move = node.retrieve == RetrieveMethod::Move;
     RetrieveScu scu(node, local, store, progress, cancel);
-    const auto listener = move ? ensureListener(local, store) : nullptr;
+    // C-MOVE: the listener takes the node's instances of this study (series) into the study
+    // until the move ends (the expectation's end), and nothing else into it.
+    const MoveListener listener = move ? ensureListener(local, store) : MoveListener{};
+    StorageListener::Expectation expectation;
+    if (move) {
+        expectation = listener.listener->expect(node, studyUid, seriesUid);
+        scu.expectation = &expectation;
+    }
     store.beginRetrieve(StudyRecord{studyUid}, seriesUid);
     try {
         runRetrieve(scu, node, local, keys);

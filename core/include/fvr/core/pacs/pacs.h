@@ -25,6 +25,16 @@ struct Node {
     RetrieveMethod retrieve = RetrieveMethod::Get;
 };
 
+// --- The storage listener's trust (StorageListener) ---
+/** A peer our storage listener accepts associations from: its calling AE title, and the host
+ *  it connects from (a name or an IPv4 address, compared by address; empty = any host). */
+struct Peer {
+    std::string aeTitle;
+    std::string host;
+    bool operator==(const Peer&) const = default;
+};
+// --- end of the listener's trust ---
+
 /** Us: our AE title (the "calling AE"), the port of our StorageListener (C-MOVE destination,
  *  the PACS must know us under aeTitle at this port), and the network timeout (connection,
  *  association and each DIMSE message). */
@@ -32,6 +42,15 @@ struct LocalAe {
     std::string aeTitle = "FVR";
     int listenPort = 11112;
     int timeoutSeconds = 10;
+    // --- The storage listener's trust (StorageListener) ---
+    /** The IPv4 address the listener binds: this machine only by default; "0.0.0.0" (or "")
+     *  = every interface, to be asked for explicitly. */
+    std::string listenAddress = "127.0.0.1";
+    /** Peers whose own stores (not asked for by a retrieve) the listener takes, into the
+     *  store's Incoming area. A PACS we C-MOVE from is accepted for that move only, whether
+     *  or not it is listed here. */
+    std::vector<Peer> allowedPeers;
+    // --- end of the listener's trust ---
 };
 
 /** A network operation failed; the message says why in plain words and names the peer. */
@@ -46,6 +65,20 @@ std::string describe(const Node& node);
  *  host (non-empty) and port (1..65535). Throws PacsError naming the field. */
 void validate(const Node& node);
 void validate(const LocalAe& local);
+
+// --- The storage listener's trust (StorageListener) ---
+/** "AE" or "AE@host" (fvr-render --allow-peer, the workstation's settings) as a Peer; throws
+ *  PacsError naming the text when the AE title is not valid or the host is empty after '@'. */
+Peer parsePeer(const std::string& text);
+/** "ORTHANC@10.0.0.5", or "ORTHANC" (any host). */
+std::string describe(const Peer& peer);
+/** validate(local) and the listener's own fields: listenAddress an IPv4 address (or empty),
+ *  every allowed peer's AE title valid. Throws PacsError naming the field. */
+void validateListener(const LocalAe& local);
+/** Whether `address` ("", "0.0.0.0", "127.0.0.1", ...) binds more than this machine's
+ *  loopback interface. */
+bool listensBeyondLoopback(const std::string& address);
+// --- end of the listener's trust ---
 
 /**
  * C-ECHO. Returns normally when the PACS answers; throws PacsError otherwise, e.g.

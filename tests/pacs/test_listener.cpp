@@ -1,0 +1,189 @@
+// The storage listener's trust, against DCMTK's echoscu/storescu and a real Orthanc: whom it
+// accepts (allowed peers, the PACS of a running C-MOVE), the address it binds, where what it
+// receives goes (the study a C-MOVE asked for, Incoming, refused, quarantined).
+#include <fvr/core/pacs/local_store.h>
+#include <fvr/core/pacs/pacs.h>
+#include <fvr/core/pacs/storage_listener.h>
+
+#include <dcmtk/config/osconfig.h>
+#include <dcmtk/dcmdata/dctk.h>
+
+#include <fstream>
+#include <iterator>
+#include <sstream>
+
+#include "pacs_environment.h"
+#include "test_support.h"
+
+namespace fs = std::filesystem;
+using namespace fvr::core;
+using namespace fvr::core::pacs;
+using fvr::test::PacsEnvironment;
+
+namespace {
+
+PacsEnvironment& env() { return PacsEnvironment::get(); }
+
+fs::path storeRoot(const std::string& name) {
+    const fs::path root = env().dir / "stores" / name;
+    fs::remove_all(root);
+    return root;
+}
+
+fs::path scratch(const std::string& name) {
+    const fs::path dir = env().dir / "listener" / name;
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    return dir;
+}
+
+/** Skips when DCMTK's command-line tools are missing (apt package dcmtk). */
+#define FVR_REQUIRE_DCMTK_TOOLS()                                                                  \
+    do {                                                                                           \
+        if (fvr::test::runCommand("command -v storescu echoscu >/dev/null 2>&1").status != 0)      \
+            GTEST_SKIP() << "DCMTK's storescu/echoscu are not installed (apt package dcmtk)";      \
+    } while (0)
+
+/** echoscu from `callingAe` to our listener; exit status and its output (stdout and stderr). */
+fvr::test::CommandOutput echoscu(const std::string& callingAe, int port) {
+    return fvr::test::runCommand("echoscu -ta 30 -aet " + callingAe + " -aec " + fvr::test::kOurAe +
+                                 " 127.0.0.1 " + std::to_string(port) + " 2>&1");
+}
+
+/** storescu of `files` from `callingAe` to our listener (-v: it prints each response's
+ *  status). */
+fvr::test::CommandOutput storescu(const std::string& callingAe, int port,
+                                  const std::vector<fs::path>& files) {
+    std::string cmd = "storescu -v -ta 120 -td 120 -aet " + callingAe + " -aec " +
+                      fvr::test::kOurAe + " 127.0.0.1 " + std::to_string(port);
+    for (const fs::path& f : files) cmd += " '" + f.string() + "'";
+    return fvr::test::runCommand(cmd + " 2>&1");
+}
+
+std::string readAll(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+/** The TCP sockets listening on `port` as /proc/net/tcp writes their local address
+ *  ("0100007F" = 127.0.0.1, "00000000" = every interface). */
+std::vector<std::string> listeningAddresses(int port) {
+    std::ifstream in("/proc/net/tcp");
+    std::vector<std::string> out;
+    char portHex[8];
+    std::snprintf(portHex, sizeof portHex, "%04X", port);
+    std::string line;
+    std::getline(in, line); // header
+    while (std::getline(in, line)) {
+        std::istringstream fields(line);
+        std::string sl, local, remote, state;
+        fields >> sl >> local >> remote >> state;
+        if (state == "0A" && local.substr(local.find(':') + 1) == portHex)
+            out.push_back(local.substr(0, local.find(':')));
+    }
+    return out;
+}
+
+/** The events of one kind, their texts joined (for messages). */
+std::string eventsOf(const StorageListener& l, StorageListener::Event::Kind kind) {
+    std::string out;
+    for (const auto& e : l.events())
+        if (e.kind == kind) out += e.text + "\n";
+    return out;
+}
+
+std::string philipsFile(int index = 0) {
+    std::vector<fs::path> files;
+    for (const auto& f : fs::directory_iterator(fvr::test::sharedData() / fvr::test::kPhilips))
+        files.push_back(f.path());
+    std::sort(files.begin(), files.end());
+    return files.at(static_cast<std::size_t>(index)).string();
+}
+
+/** A copy of `src` with a new SOP instance UID (and a new study when `newStudy`): an instance
+ *  the PACS does not have. */
+fs::path extraInstance(const fs::path& src, const fs::path& out, bool newStudy) {
+    DcmFileFormat file;
+    EXPECT_TRUE(file.loadFile(src.c_str()).good());
+    char uid[100];
+    DcmDataset* ds = file.getDataset();
+    ds->putAndInsertString(DCM_SOPInstanceUID,
+                           dcmGenerateUniqueIdentifier(uid, SITE_INSTANCE_UID_ROOT));
+    if (newStudy) {
+        ds->putAndInsertString(DCM_StudyInstanceUID,
+                               dcmGenerateUniqueIdentifier(uid, SITE_STUDY_UID_ROOT));
+        ds->putAndInsertString(DCM_SeriesInstanceUID,
+                               dcmGenerateUniqueIdentifier(uid, SITE_SERIES_UID_ROOT));
+    }
+    EXPECT_TRUE(file.saveFile(out.c_str(), EXS_LittleEndianExplicit).good());
+    return out;
+}
+
+LocalAe withPeers(std::vector<Peer> peers) {
+    LocalAe local = env().local();
+    local.allowedPeers = std::move(peers);
+    return local;
+}
+
+} // namespace
+
+TEST(PacsListenerTrust, BindsLoopbackUnlessToldOtherwise) {
+    FVR_REQUIRE_ORTHANC();
+    LocalStore store(storeRoot("bind"));
+    {
+        StorageListener listener(env().local(), store);
+        listener.start();
+        EXPECT_EQ(listeningAddresses(env().local().listenPort),
+                  std::vector<std::string>{"0100007F"}); // 127.0.0.1 only
+    }
+    EXPECT_TRUE(listeningAddresses(env().local().listenPort).empty()); // closed when stopped
+    LocalAe all = env().local();
+    all.listenAddress = "0.0.0.0"; // asked for explicitly
+    StorageListener listener(all, store);
+    listener.start();
+    EXPECT_EQ(listeningAddresses(all.listenPort), std::vector<std::string>{"00000000"});
+    listener.stop();
+    all.listenAddress = "localhost";
+    try {
+        StorageListener bad(all, store);
+        ADD_FAILURE() << "a listen address that is not an IPv4 address was taken";
+    } catch (const PacsError& e) {
+        EXPECT_NE(std::string(e.what()).find("\"localhost\" is not an IPv4 address"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
+TEST(PacsListenerTrust, UnknownCallingAeIsRejectedAndNamed) {
+    FVR_REQUIRE_ORTHANC();
+    FVR_REQUIRE_DCMTK_TOOLS();
+    LocalStore store(storeRoot("trust-ae"));
+    StorageListener listener(withPeers({{"SENDER", ""}, {"LABHOST", "10.255.255.1"}}), store);
+    listener.start();
+    const int port = env().local().listenPort;
+
+    const auto attacker = echoscu("ATTACKER", port);
+    EXPECT_NE(attacker.status, 0) << attacker.out;
+    EXPECT_NE(attacker.out.find("Calling AE Title Not Recognized"), std::string::npos)
+        << attacker.out;
+    const std::string refused = eventsOf(listener, StorageListener::Event::Kind::Refused);
+    EXPECT_NE(refused.find("refused an association from ATTACKER at 127.0.0.1: calling AE "
+                           "title not recognised"),
+              std::string::npos)
+        << refused;
+    EXPECT_NE(listener.lastError().find("ATTACKER at 127.0.0.1"), std::string::npos);
+
+    // An allowed AE title from another host than the one it is allowed from.
+    EXPECT_NE(echoscu("LABHOST", port).status, 0);
+    EXPECT_NE(
+        eventsOf(listener, StorageListener::Event::Kind::Refused).find("LABHOST at 127.0.0.1"),
+        std::string::npos);
+
+    const auto sender = echoscu("SENDER", port);
+    EXPECT_EQ(sender.status, 0) << sender.out;
+
+    // A C-STORE from the stranger stores nothing.
+    const auto stored = storescu("ATTACKER", port, {philipsFile()});
+    EXPECT_NE(stored.status, 0) << stored.out;
+    EXPECT_TRUE(store.studies().empty());
+}
