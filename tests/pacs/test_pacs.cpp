@@ -307,7 +307,8 @@ TEST(PacsListener, ReceivesAStudyOrthancSends) {
     listener.stop();
     EXPECT_FALSE(listener.running());
     EXPECT_EQ(listener.lastError(), "");
-    const auto entry = store.find(slicerStudy);
+    EXPECT_FALSE(store.find(slicerStudy)); // sent unasked: not a study of the Studies area
+    const auto entry = store.find(slicerStudy, Area::Incoming);
     ASSERT_TRUE(entry);
     EXPECT_EQ(entry->instances, 93);
     ASSERT_EQ(entry->series.size(), 1u);

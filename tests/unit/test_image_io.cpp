@@ -1,12 +1,17 @@
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <zlib.h>
 
+#include <unistd.h>
+
 #include <fvr/core/errors.h>
+#include <fvr/core/io/atomic_file.h>
 #include <fvr/core/io/image_io.h>
 
 #include "test_support.h"
@@ -23,6 +28,15 @@ std::vector<float> ramp(int rows, int cols) {
     for (int r = 0; r < rows; ++r)
         for (int c = 0; c < cols; ++c) v[std::size_t(r) * cols + c] = float(r * 100 + c);
     return v;
+}
+/** The temporary file this process writes for `dir/name` (`.<name>.<pid>.<n>.part`), or empty. */
+std::filesystem::path temporaryOf(const std::filesystem::path& dir, const std::string& name) {
+    for (const auto& f : std::filesystem::directory_iterator(dir)) {
+        const std::string file = f.path().filename().string();
+        if (file.rfind("." + name + ".", 0) == 0 && temporaryWriterPid(f.path()) == ::getpid())
+            return f.path();
+    }
+    return {};
 }
 } // namespace
 
@@ -58,7 +72,9 @@ TEST(ImageIo, NpyStackWriterStreamsTheSameBytesAsWriteNpy) {
             // Written as it comes: the header and the images so far, under the temporary name.
             w.add(v.data() + std::size_t(i) * 5 * 7);
             EXPECT_FALSE(std::filesystem::exists(dir / "streamed.npy"));
-            EXPECT_EQ(std::filesystem::file_size(dir / "streamed.npy.part"),
+            const std::filesystem::path part = temporaryOf(dir, "streamed.npy");
+            ASSERT_FALSE(part.empty()) << "no temporary file of streamed.npy in " << dir;
+            EXPECT_EQ(std::filesystem::file_size(part),
                       128u + std::size_t(i + 1) * 5 * 7 * sizeof(float));
         }
         w.finish();
@@ -151,4 +167,57 @@ TEST(ImageIo, UnknownExtensionAndUnwritablePath) {
     } catch (const WriteError& e) {
         EXPECT_NE(std::string(e.what()).find("/nonexistent-dir/x.npy"), std::string::npos);
     }
+}
+
+// Temporary names are unique per process and writer (concurrent writers of one name shared
+// `<name>.part` and failed: "cannot move the written file into place"), hidden, end in .part and
+// name their writer's pid for a cleaner; a long final name is shortened in the temporary name.
+TEST(AtomicFile, TemporaryNamesAreUniqueAndNameTheirWriter) {
+    const std::filesystem::path dir = "/out";
+    const auto a = temporaryPathFor(dir / "s.npy"), b = temporaryPathFor(dir / "s.npy");
+    EXPECT_NE(a, b);
+    EXPECT_EQ(a.parent_path(), dir);
+    EXPECT_EQ(a.filename().string().rfind(".s.npy." + std::to_string(::getpid()) + ".", 0), 0u)
+        << a;
+    EXPECT_EQ(a.extension(), ".part");
+    EXPECT_EQ(temporaryWriterPid(a), ::getpid());
+    for (const char* other : {"s.npy.part", ".s.npy.part", ".s.npy.12x.3.part", "s.npy",
+                              ".s.npy.12.3.part.npy", "..1.part"})
+        EXPECT_FALSE(temporaryWriterPid(dir / other)) << other;
+    EXPECT_EQ(temporaryWriterPid(dir / ".x.99.0.part"), 99);
+    const auto longName = temporaryPathFor(dir / std::string(255, 'n'));
+    EXPECT_LE(longName.filename().string().size(), 255u);
+    EXPECT_EQ(temporaryWriterPid(longName), ::getpid());
+}
+
+TEST(AtomicFile, ConcurrentWritersOfOneNameNeverCollide) {
+    const auto dir = fvr::test::tmpDir() / "atomic_concurrent";
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    const auto path = dir / "same.bin";
+    std::vector<std::string> contents;
+    for (int t = 0; t < 8; ++t) contents.push_back(std::string(100000 + t, char('a' + t)));
+    std::atomic<int> failures{0};
+    std::vector<std::thread> threads;
+    for (int t = 0; t < 8; ++t)
+        threads.emplace_back([&, t] {
+            for (int i = 0; i < 50; ++i) try {
+                    if (i % 2)
+                        writeFileAtomic(path, contents[t]);
+                    else
+                        writeAtomically(path, [&](const std::filesystem::path& tmp) {
+                            std::ofstream(tmp, std::ios::binary) << contents[t];
+                        });
+                } catch (const WriteError&) {
+                    ++failures;
+                }
+        });
+    for (auto& t : threads) t.join();
+    EXPECT_EQ(failures.load(), 0);
+    // One writer's whole content (the last rename), nothing else in the folder.
+    const std::string last = slurp(path);
+    EXPECT_NE(std::find(contents.begin(), contents.end(), last), contents.end());
+    EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir),
+                            std::filesystem::directory_iterator()),
+              1);
 }

@@ -462,7 +462,9 @@ void PacsDialog::refreshLocal() {
             item->setText(kLocalDate, dicomDate(e.study.studyDate));
             item->setText(kLocalDescription, text(e.study.description));
             item->setText(kLocalImages, QString::number(e.instances));
-            item->setText(kLocalState, e.complete ? tr("complete") : tr("partial"));
+            item->setText(kLocalState,
+                          (e.area == pacs::Area::Incoming ? tr("incoming, ") : QString()) +
+                              (e.complete ? tr("complete") : tr("partial")));
             item->setData(0, kStudyUid, text(e.study.studyUid));
             item->setData(0, kFolder, QString::fromStdString(e.folder.string()));
             item->setData(0, kComplete, e.complete);

@@ -1,6 +1,8 @@
 #include <fvr/core/io/atomic_file.h>
 
+#include <atomic>
 #include <cerrno>
+#include <charconv>
 #include <cstring>
 
 #include <fcntl.h>
@@ -11,9 +13,52 @@
 namespace fvr::core {
 namespace fs = std::filesystem;
 
+namespace {
+
+constexpr std::size_t kMaxNameBytes = 255; // NAME_MAX of the usual Linux file systems
+constexpr std::string_view kTempSuffix = ".part";
+
+/** Digits only, at least one. */
+bool allDigits(std::string_view s) {
+    return !s.empty() && s.find_first_not_of("0123456789") == std::string_view::npos;
+}
+
+} // namespace
+
+fs::path temporaryPathFor(const fs::path& path) {
+    static std::atomic<unsigned long long> counter{0};
+    std::string tail(1, '.'); // appended piece by piece (GCC 12 warns falsely on "." + string)
+    tail += std::to_string(static_cast<long>(::getpid()));
+    tail += '.';
+    tail += std::to_string(counter.fetch_add(1));
+    tail += kTempSuffix;
+    std::string name(1, '.');
+    name += path.filename().string();
+    const std::size_t room = kMaxNameBytes - tail.size();
+    if (name.size() > room) name.resize(room);
+    name += tail;
+    return path.parent_path() / name;
+}
+
+std::optional<long> temporaryWriterPid(const fs::path& tmp) {
+    const std::string file = tmp.filename().string();
+    std::string_view name = file;
+    if (name.size() < 2 || name.front() != '.' || !name.ends_with(kTempSuffix)) return std::nullopt;
+    name.remove_suffix(kTempSuffix.size());
+    const std::size_t counterDot = name.rfind('.');
+    if (counterDot == std::string_view::npos || counterDot == 0) return std::nullopt;
+    const std::size_t pidDot = name.rfind('.', counterDot - 1);
+    if (pidDot == std::string_view::npos || pidDot == 0) return std::nullopt;
+    const std::string_view pid = name.substr(pidDot + 1, counterDot - pidDot - 1);
+    if (!allDigits(name.substr(counterDot + 1)) || !allDigits(pid)) return std::nullopt;
+    long value = 0;
+    const auto [end, err] = std::from_chars(pid.data(), pid.data() + pid.size(), value);
+    if (err != std::errc() || end != pid.data() + pid.size() || value <= 0) return std::nullopt;
+    return value;
+}
+
 void writeAtomically(const fs::path& path, const std::function<void(const fs::path& tmp)>& write) {
-    fs::path tmp = path;
-    tmp += ".part";
+    const fs::path tmp = temporaryPathFor(path);
     std::error_code ec;
     try {
         write(tmp);
@@ -23,8 +68,9 @@ void writeAtomically(const fs::path& path, const std::function<void(const fs::pa
     }
     fs::rename(tmp, path, ec);
     if (ec) {
+        const std::string reason = ec.message();
         fs::remove(tmp, ec);
-        throw WriteError(path.string() + ": cannot move the written file into place");
+        throw WriteError(path.string() + ": cannot move the written file into place: " + reason);
     }
 }
 
@@ -35,8 +81,7 @@ void writeFileAtomic(const fs::path& path, const std::string& bytes) {
 }
 
 AtomicFileWriter::AtomicFileWriter(fs::path path) : m_path(std::move(path)) {
-    fs::path tmp = m_path;
-    tmp += ".part";
+    fs::path tmp = temporaryPathFor(m_path);
     m_fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
     if (m_fd < 0) fail("cannot open for writing", errno); // nothing of ours to remove
     m_tmp = std::move(tmp);
@@ -70,9 +115,10 @@ void AtomicFileWriter::commit() {
     std::error_code ec;
     fs::rename(m_tmp, m_path, ec);
     if (ec) {
+        const std::string reason = ec.message();
         fs::remove(m_tmp, ec);
         m_tmp.clear();
-        throw WriteError(m_path.string() + ": cannot move the written file into place");
+        throw WriteError(m_path.string() + ": cannot move the written file into place: " + reason);
     }
     m_tmp.clear();
 }

@@ -1,4 +1,5 @@
-// The local study store: files in a folder per study and series, index.json beside them.
+// The local study store: files in a folder per study and series (in two areas), index.json
+// beside them, received bytes that differ from a stored instance in quarantine/.
 #include <fvr/core/errors.h>
 #include <fvr/core/io/atomic_file.h>
 #include <fvr/core/pacs/local_store.h>
@@ -9,6 +10,7 @@
 #include <cctype>
 #include <cerrno>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
@@ -24,28 +26,56 @@ using nlohmann::json;
 
 namespace fvr::core::pacs {
 
-/** The index as read from index.json: entries by study UID, with their time of change. */
+/** The index as read from index.json: entries by study UID, with their time of change, one
+ *  map per area (an index of version 1 has no "incoming"). */
 struct LocalStore::Index {
-    std::map<std::string, json> studies;
+    std::map<std::string, json> studies, incoming;
+    std::map<std::string, json>& of(Area area) {
+        return area == Area::Incoming ? incoming : studies;
+    }
 };
 
 namespace {
 
 constexpr const char* kIndexName = "index.json";
 
-/** A UID as a file name: DICOM UIDs are digits and dots; some archives add letters. */
-std::string uidName(const std::string& uid, const char* what) {
-    const bool ok =
-        !uid.empty() && uid.size() <= 64 && uid.front() != '.' &&
-        std::all_of(uid.begin(), uid.end(), [](char c) {
-            return std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '-' || c == '_';
-        });
-    if (!ok)
-        throw PacsError(std::string("the ") + what + " UID \"" + uid +
-                        "\" cannot name a file in the local store");
-    return uid;
+constexpr const char* kIncomingName = "incoming";
+constexpr const char* kQuarantineName = "quarantine";
+constexpr std::size_t kMaxUidLength = 64;
+
+/** `text` quoted for a message: printable ASCII as it is, other bytes as \xNN, at most 80
+ *  characters shown (a peer's value can be anything). */
+std::string shownValue(std::string_view text) {
+    std::string out = "\"";
+    for (std::size_t i = 0; i < text.size() && i < 80; ++i) {
+        const unsigned char c = static_cast<unsigned char>(text[i]);
+        if (c == '"' || c == '\\') {
+            out += '\\';
+            out += static_cast<char>(c);
+        } else if (c >= 0x20 && c < 0x7f) {
+            out += static_cast<char>(c);
+        } else {
+            char hex[8];
+            std::snprintf(hex, sizeof hex, "\\x%02x", c);
+            out += hex;
+        }
+    }
+    out += '"';
+    if (text.size() > 80) out += "... (" + std::to_string(text.size()) + " characters)";
+    return out;
 }
 
+/** A peer's UID as a folder or file name of the store: throws PacsError naming the UID and
+ *  the rule when isValidUid() refuses it. */
+const std::string& checkedUid(const std::string& uid, const char* what) {
+    const std::string problem = uidProblem(uid);
+    if (!problem.empty())
+        throw PacsError(std::string("the ") + what + " UID " + shownValue(uid) +
+                        " cannot name a file in the local store: " + problem +
+                        " (a DICOM UID has 1 to 64 characters, digits and dots, with no empty "
+                        "component)");
+    return uid;
+}
 std::string nowIso() {
     const auto t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
     std::tm tm{};
@@ -149,6 +179,71 @@ void checkEntry(const std::string& uid, const json& entry) {
     }
 }
 
+/** Moves `from` to `to` unless `to` exists (then false, `from` untouched): renameat2's
+ *  RENAME_NOREPLACE, or link() and unlink() where the file system lacks it. Atomic either way:
+ *  of two writers of the same name, exactly one places its file. Throws WriteError. */
+bool placeNoReplace(const fs::path& from, const fs::path& to) {
+    if (::renameat2(AT_FDCWD, from.c_str(), AT_FDCWD, to.c_str(), RENAME_NOREPLACE) == 0)
+        return true;
+    int err = errno;
+    if (err == EINVAL || err == ENOSYS || err == ENOTSUP) {
+        if (::link(from.c_str(), to.c_str()) == 0) {
+            ::unlink(from.c_str());
+            return true;
+        }
+        err = errno;
+    }
+    if (err == EEXIST) return false;
+    throw WriteError(to.string() +
+                     ": cannot move the written file into place: " + std::strerror(err));
+}
+
+/** Whether two files hold the same bytes. Throws WriteError when one cannot be read. */
+bool sameBytes(const fs::path& a, const fs::path& b) {
+    std::error_code ec;
+    const auto sizeA = fs::file_size(a, ec);
+    if (ec) throw WriteError(a.string() + ": cannot be read: " + ec.message());
+    const auto sizeB = fs::file_size(b, ec);
+    if (ec) throw WriteError(b.string() + ": cannot be read: " + ec.message());
+    if (sizeA != sizeB) return false;
+    std::ifstream inA(a, std::ios::binary), inB(b, std::ios::binary);
+    if (!inA) throw WriteError(a.string() + ": cannot be read: " + std::strerror(errno));
+    if (!inB) throw WriteError(b.string() + ": cannot be read: " + std::strerror(errno));
+    std::vector<char> bufA(1 << 16), bufB(1 << 16);
+    while (inA && inB) {
+        inA.read(bufA.data(), static_cast<std::streamsize>(bufA.size()));
+        inB.read(bufB.data(), static_cast<std::streamsize>(bufB.size()));
+        if (inA.gcount() != inB.gcount() ||
+            !std::equal(bufA.begin(), bufA.begin() + inA.gcount(), bufB.begin()))
+            return false;
+    }
+    return inA.eof() && inB.eof();
+}
+
+/** UTC now as yyyymmddThhmmss (quarantine file names sort by time). */
+std::string nowStamp() {
+    const auto t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y%m%dT%H%M%S", &tm);
+    return buf;
+}
+
+/** Moves `tmp` to `<folder>/<stamp>-<sop>-<n>.dcm` with the first n free; the path. */
+fs::path moveToQuarantine(const fs::path& tmp, const fs::path& folder, const std::string& sop) {
+    std::error_code ec;
+    fs::create_directories(folder, ec);
+    if (ec) throw WriteError(folder.string() + ": cannot create the folder: " + ec.message());
+    const std::string stem = nowStamp() + "-" + sop + "-";
+    for (int n = 1; n < 100000; ++n) {
+        const fs::path path = folder / (stem + std::to_string(n) + ".dcm");
+        if (placeNoReplace(tmp, path)) return path;
+    }
+    throw WriteError(folder.string() + ": no free quarantine name for " + stem + "<n>.dcm");
+}
+
+const char* areaName(Area area) { return area == Area::Incoming ? "incoming " : ""; }
 } // namespace
 
 const std::vector<StudyTextField>& studyTextFields() {
@@ -176,14 +271,57 @@ fs::path defaultLocalStoreRoot() {
     return base / "fvr-workstation" / "studies";
 }
 
-LocalStore::LocalStore(fs::path root) : m_root(std::move(root)) {}
-
-fs::path LocalStore::studyFolder(const std::string& studyUid) const {
-    return m_root / uidName(studyUid, "study");
+std::string uidProblem(std::string_view uid) {
+    if (uid.empty()) return "it is empty";
+    if (uid.size() > kMaxUidLength)
+        return "it has " + std::to_string(uid.size()) + " characters, at most 64";
+    for (const char c : uid)
+        if (!(c >= '0' && c <= '9') && c != '.')
+            return "it contains " + shownValue(std::string_view(&c, 1)) + ", not a digit or a dot";
+    if (uid.front() == '.') return "it begins with a dot";
+    if (uid.back() == '.') return "it ends with a dot";
+    if (uid.find("..") != std::string_view::npos) return "it has an empty component (\"..\")";
+    return "";
 }
 
-fs::path LocalStore::seriesFolder(const std::string& studyUid, const std::string& seriesUid) const {
-    return studyFolder(studyUid) / uidName(seriesUid, "series");
+bool isValidUid(std::string_view uid) { return uidProblem(uid).empty(); }
+
+LocalStore::LocalStore(fs::path root) : m_root(std::move(root)) {}
+
+fs::path LocalStore::areaRoot(Area area) const {
+    return area == Area::Incoming ? m_root / kIncomingName : m_root;
+}
+
+fs::path LocalStore::studyFolder(const std::string& studyUid, Area area) const {
+    return areaRoot(area) / checkedUid(studyUid, "study");
+}
+
+fs::path LocalStore::seriesFolder(const std::string& studyUid, const std::string& seriesUid,
+                                  Area area) const {
+    return studyFolder(studyUid, area) / checkedUid(seriesUid, "series");
+}
+
+fs::path LocalStore::quarantineFolder() const { return m_root / kQuarantineName; }
+
+std::vector<fs::path> LocalStore::quarantined() const {
+    std::vector<fs::path> files;
+    std::error_code ec;
+    for (fs::directory_iterator it(quarantineFolder(), ec), end; !ec && it != end; it.increment(ec))
+        if (it->is_regular_file(ec) && it->path().extension() == ".dcm")
+            files.push_back(it->path());
+    std::sort(files.begin(), files.end());
+    return files;
+}
+
+/** Reads one area's section of the index into `out` (absent: empty). */
+static void loadSection(const json& j, const char* name, std::map<std::string, json>& out) {
+    if (!j.contains(name)) return;
+    const json& section = j.at(name);
+    if (!section.is_object()) throw PacsError(std::string("\"") + name + "\" is not an object");
+    for (const auto& [uid, entry] : section.items()) {
+        checkEntry(uid, entry);
+        out[uid] = entry;
+    }
 }
 
 LocalStore::Index LocalStore::load() const {
@@ -193,12 +331,10 @@ LocalStore::Index LocalStore::load() const {
     if (!in) return index; // no index yet: an empty store
     try {
         const json j = json::parse(in);
-        const json& studies = j.at("studies");
-        if (!studies.is_object()) throw PacsError("\"studies\" is not an object");
-        for (const auto& [uid, entry] : studies.items()) {
-            checkEntry(uid, entry);
-            index.studies[uid] = entry;
-        }
+        if (!j.is_object() || !j.contains("studies"))
+            throw PacsError("it has no \"studies\" object");
+        loadSection(j, "studies", index.studies);
+        loadSection(j, "incoming", index.incoming); // version 2 on
     } catch (const PacsError& e) {
         throw PacsError("local store index " + path.string() + " cannot be read: " + e.what());
     } catch (const json::exception& e) {
@@ -208,37 +344,50 @@ LocalStore::Index LocalStore::load() const {
 }
 
 void LocalStore::save(const Index& index) const {
-    json j{{"version", 1}, {"studies", json::object()}};
+    json j{{"version", 2}, {"studies", json::object()}, {"incoming", json::object()}};
     for (const auto& [uid, entry] : index.studies) j["studies"][uid] = entry;
+    for (const auto& [uid, entry] : index.incoming) j["incoming"][uid] = entry;
     writeFileAtomic(m_root / kIndexName, j.dump(2) + "\n");
+}
+
+/** The listing of one index entry (`uid` a valid UID). */
+static LocalStore::Entry entryFrom(const LocalStore& store, const std::string& uid, const json& j,
+                                   Area area) {
+    LocalStore::Entry e;
+    e.area = area;
+    e.study = recordFromJson(uid, j);
+    e.folder = store.studyFolder(uid, area);
+    e.complete = j.value("complete", false);
+    e.instances = countInstances(e.folder);
+    const json series = j.value("series", json::object());
+    for (const auto& [suid, sj] : series.items()) {
+        if (!isValidUid(suid)) continue; // see studies()
+        LocalStore::SeriesEntry s{suid,
+                                  sj.value("modality", ""),
+                                  sj.value("description", ""),
+                                  store.seriesFolder(uid, suid, area),
+                                  sj.value("complete", false),
+                                  0};
+        s.instances = countInstances(s.folder);
+        e.series.push_back(std::move(s));
+    }
+    e.study.numberOfSeries = static_cast<int>(e.series.size());
+    e.study.numberOfInstances = e.instances;
+    return e;
 }
 
 std::vector<LocalStore::Entry> LocalStore::studies() const {
     std::lock_guard lock(m_mutex);
     const IndexLock fileLock(m_root);
-    const Index index = load();
+    Index index = load();
     std::vector<std::pair<std::string, Entry>> sorted;
-    for (const auto& [uid, j] : index.studies) {
-        Entry e;
-        e.study = recordFromJson(uid, j);
-        e.folder = studyFolder(uid);
-        e.complete = j.value("complete", false);
-        e.instances = countInstances(e.folder);
-        const json series = j.value("series", json::object());
-        for (const auto& [suid, sj] : series.items()) {
-            SeriesEntry s{suid,
-                          sj.value("modality", ""),
-                          sj.value("description", ""),
-                          seriesFolder(uid, suid),
-                          sj.value("complete", false),
-                          0};
-            s.instances = countInstances(s.folder);
-            e.series.push_back(std::move(s));
+    for (const Area area : {Area::Studies, Area::Incoming})
+        for (const auto& [uid, j] : index.of(area)) {
+            // An entry written by an older version under a UID with letters is kept in the
+            // file but not listed: the strict rule gives it no folder.
+            if (!isValidUid(uid)) continue;
+            sorted.emplace_back(j.value("updated", ""), entryFrom(*this, uid, j, area));
         }
-        e.study.numberOfSeries = static_cast<int>(e.series.size());
-        e.study.numberOfInstances = e.instances;
-        sorted.emplace_back(j.value("updated", ""), std::move(e));
-    }
     std::stable_sort(sorted.begin(), sorted.end(),
                      [](const auto& a, const auto& b) { return a.first > b.first; });
     std::vector<Entry> out;
@@ -246,44 +395,84 @@ std::vector<LocalStore::Entry> LocalStore::studies() const {
     return out;
 }
 
-std::optional<LocalStore::Entry> LocalStore::find(const std::string& studyUid) const {
+std::optional<LocalStore::Entry> LocalStore::find(const std::string& studyUid, Area area) const {
     for (auto& e : studies())
-        if (e.study.studyUid == studyUid) return std::move(e);
+        if (e.area == area && e.study.studyUid == studyUid) return std::move(e);
     return std::nullopt;
 }
 
-fs::path LocalStore::storeInstance(const StudyRecord& study, const SeriesRecord& series,
-                                   const std::string& sopInstanceUid, const std::string& bytes) {
-    return storeInstance(study, series, sopInstanceUid, [&](const fs::path& tmp) {
-        std::ofstream out(tmp, std::ios::binary);
-        out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-        if (!out.flush()) throw WriteError(tmp.string() + ": write failed");
-    });
+StoreOutcome LocalStore::storeInstance(const StudyRecord& study, const SeriesRecord& series,
+                                       const std::string& sopInstanceUid, const std::string& bytes,
+                                       Area area) {
+    return storeInstance(
+        study, series, sopInstanceUid,
+        [&](const fs::path& tmp) {
+            std::ofstream out(tmp, std::ios::binary);
+            out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+            if (!out.flush()) throw WriteError(tmp.string() + ": write failed");
+        },
+        area);
 }
 
-fs::path LocalStore::storeInstance(const StudyRecord& study, const SeriesRecord& series,
-                                   const std::string& sopInstanceUid,
-                                   const std::function<void(const fs::path& tmp)>& write) {
-    const fs::path folder = seriesFolder(study.studyUid, series.seriesUid);
-    const fs::path path = folder / (uidName(sopInstanceUid, "SOP instance") + ".dcm");
+void LocalStore::listInstance(const StudyRecord& study, const SeriesRecord& series, Area area) {
     std::lock_guard lock(m_mutex);
-    {
-        // Listed (partial) before the first file lands, so no file is ever outside the index.
-        const IndexLock fileLock(m_root);
-        Index index = load();
-        const bool known = index.studies.count(study.studyUid) &&
-                           index.studies[study.studyUid]["series"].contains(series.seriesUid);
-        if (!known) {
-            seriesEntry(studyEntry(index.studies, study), series);
-            save(index);
-        }
+    const IndexLock fileLock(m_root);
+    Index index = load();
+    auto& section = index.of(area);
+    const auto it = section.find(study.studyUid);
+    const bool known = it != section.end() && it->second["series"].contains(series.seriesUid);
+    if (!known) {
+        seriesEntry(studyEntry(section, study), series);
+        save(index);
     }
+}
+
+StoreOutcome LocalStore::place(const fs::path& tmp, const fs::path& path,
+                               const std::string& studyUid, const std::string& sopUid, Area area) {
+    try {
+        if (placeNoReplace(tmp, path)) return {StoreResult::Stored, path, ""};
+        // A file is there already (stored before, or by a concurrent writer just now): it is
+        // never replaced.
+        if (sameBytes(tmp, path)) {
+            std::error_code ec;
+            fs::remove(tmp, ec);
+            return {StoreResult::Identical, path, ""};
+        }
+        const fs::path kept = moveToQuarantine(tmp, quarantineFolder(), sopUid);
+        return {StoreResult::Quarantined, kept,
+                "SOP instance " + sopUid + " of " + areaName(area) + "study " + studyUid +
+                    " was received again with different bytes: the stored file " + path.string() +
+                    " is kept unchanged, the received one is in quarantine as " + kept.string()};
+    } catch (...) {
+        std::error_code ec;
+        fs::remove(tmp, ec);
+        throw;
+    }
+}
+
+StoreOutcome LocalStore::storeInstance(const StudyRecord& study, const SeriesRecord& series,
+                                       const std::string& sopInstanceUid,
+                                       const std::function<void(const fs::path& tmp)>& write,
+                                       Area area) {
+    const fs::path folder = seriesFolder(study.studyUid, series.seriesUid, area);
+    const fs::path path = folder / (checkedUid(sopInstanceUid, "SOP instance") + ".dcm");
+    // Listed (partial) before the first file lands, so no file is ever outside the index.
+    listInstance(study, series, area);
     std::error_code ec;
     fs::create_directories(folder, ec);
     if (ec) throw WriteError(folder.string() + ": cannot create the folder: " + ec.message());
-    writeAtomically(path, write);
+    // Written under a name of this writer alone, then placed without replacing.
+    const fs::path tmp = temporaryPathFor(path);
+    try {
+        write(tmp);
+    } catch (...) {
+        fs::remove(tmp, ec);
+        throw;
+    }
+    StoreOutcome outcome = place(tmp, path, study.studyUid, sopInstanceUid, area);
+    std::lock_guard lock(m_mutex);
     ++m_stored;
-    return path;
+    return outcome;
 }
 
 int LocalStore::instancesStored() const {
@@ -292,7 +481,8 @@ int LocalStore::instancesStored() const {
 }
 
 void LocalStore::beginRetrieve(const StudyRecord& study, const std::string& seriesUid) {
-    uidName(study.studyUid, "study");
+    checkedUid(study.studyUid, "study");
+    if (!seriesUid.empty()) checkedUid(seriesUid, "series");
     std::lock_guard lock(m_mutex);
     m_retrieving.insert(study.studyUid);
     const IndexLock fileLock(m_root);
@@ -326,30 +516,32 @@ bool LocalStore::retrieving(const std::string& studyUid) const {
     return m_retrieving.count(studyUid) > 0;
 }
 
-void LocalStore::markReceived(const std::string& studyUid,
-                              const std::set<std::string>& seriesUids) {
+void LocalStore::markReceived(const std::string& studyUid, const std::set<std::string>& seriesUids,
+                              Area area) {
     std::lock_guard lock(m_mutex);
-    if (m_retrieving.count(studyUid)) return;
+    if (area == Area::Studies && m_retrieving.count(studyUid)) return;
     const IndexLock fileLock(m_root);
     Index index = load();
-    auto it = index.studies.find(studyUid);
+    auto& section = index.of(area);
+    auto it = section.find(studyUid);
     // A retrieve that did not finish (cancelled, failed) keeps its study partial: a late
     // sub-association of its C-MOVE may still end normally.
-    if (it == index.studies.end() || it->second.value("retrievePending", false)) return;
+    if (it == section.end() || it->second.value("retrievePending", false)) return;
     for (const auto& suid : seriesUids)
         if (it->second["series"].contains(suid)) it->second["series"][suid]["complete"] = true;
     it->second["updated"] = nowIso();
     save(index);
 }
 
-void LocalStore::remove(const std::string& studyUid) {
+void LocalStore::remove(const std::string& studyUid, Area area) {
+    const fs::path folder = studyFolder(studyUid, area); // refuses a UID that is not one
     std::lock_guard lock(m_mutex);
     const IndexLock fileLock(m_root);
     Index index = load();
-    index.studies.erase(studyUid);
+    index.of(area).erase(studyUid);
     save(index); // unlisted first: a half-removed folder is never listed
     std::error_code ec;
-    fs::remove_all(studyFolder(studyUid), ec);
+    fs::remove_all(folder, ec);
 }
 
 } // namespace fvr::core::pacs

@@ -55,9 +55,17 @@ void toUtf8(DcmItem& item);
 StudyRecord studyRecordFrom(DcmItem& item);
 SeriesRecord seriesRecordFrom(DcmItem& item);
 
-/** Writes a received dataset into the store (atomically, DICOM file with meta header in the
- *  dataset's transfer syntax). Returns its study and series UIDs. Throws WriteError/PacsError. */
-std::pair<std::string, std::string> storeDataset(LocalStore& store, DcmDataset& dataset);
+/** A received dataset as the store took it: its UIDs and what the store did. */
+struct StoredDataset {
+    std::string studyUid, seriesUid, sopInstanceUid;
+    StoreOutcome outcome;
+};
+
+/** Writes a received dataset into the store's `area` (LocalStore::storeInstance: DICOM file
+ *  with meta header in the dataset's transfer syntax, never replacing a stored instance).
+ *  Throws PacsError for missing UIDs or ones isValidUid() refuses (naming which and why), and
+ *  WriteError. A quarantined instance is no error: see the outcome. */
+StoredDataset storeDataset(LocalStore& store, DcmDataset& dataset, Area area = Area::Studies);
 
 /** The C-GET/C-STORE transfer syntaxes we take: explicit and implicit VR little endian. */
 OFList<OFString> uncompressedSyntaxes();

@@ -14,52 +14,6 @@
 namespace fs = std::filesystem;
 
 namespace fvr::core::pacs {
-namespace detail {
-
-namespace {
-
-const DcmTagKey kRecordTags[] = {
-    DCM_SpecificCharacterSet, DCM_StudyInstanceUID, DCM_PatientName,       DCM_PatientID,
-    DCM_PatientBirthDate,     DCM_StudyDate,        DCM_StudyTime,         DCM_AccessionNumber,
-    DCM_StudyDescription,     DCM_Modality,         DCM_SeriesInstanceUID, DCM_SeriesDescription,
-    DCM_SeriesNumber};
-
-std::string getString(DcmItem& item, const DcmTagKey& tag) {
-    OFString value;
-    item.findAndGetOFString(tag, value);
-    return value.c_str();
-}
-
-} // namespace
-
-std::pair<std::string, std::string> storeDataset(LocalStore& store, DcmDataset& dataset) {
-    // The records from a copy of the few elements they need, in UTF-8; the file keeps the
-    // dataset as it came.
-    DcmItem info;
-    for (const DcmTagKey& tag : kRecordTags) {
-        DcmElement* element = nullptr;
-        if (dataset.findAndGetElement(tag, element).good() && element)
-            info.insert(static_cast<DcmElement*>(element->clone()));
-    }
-    toUtf8(info);
-    const StudyRecord study = studyRecordFrom(info);
-    const SeriesRecord series = seriesRecordFrom(info);
-    const std::string sop = getString(dataset, DCM_SOPInstanceUID);
-    if (study.studyUid.empty() || series.seriesUid.empty() || sop.empty())
-        throw PacsError("a received instance lacks its study, series or SOP instance UID");
-    E_TransferSyntax xfer = dataset.getOriginalXfer();
-    if (xfer == EXS_Unknown) xfer = EXS_LittleEndianExplicit;
-    DcmFileFormat file(&dataset);
-    store.storeInstance(study, series, sop, [&](const fs::path& tmp) {
-        const OFCondition cond = file.saveFile(tmp.c_str(), xfer);
-        if (cond.bad())
-            throw WriteError(tmp.string() + ": cannot write the received instance: " + cond.text());
-    });
-    return {study.studyUid, series.seriesUid};
-}
-
-} // namespace detail
-
 namespace {
 
 /** The SCU of one retrieve: stores what C-GET brings, follows the responses' counts, sends
@@ -78,7 +32,8 @@ public:
             return EC_Normal;
         }
         try {
-            detail::storeDataset(m_store, *owned);
+            const auto stored = detail::storeDataset(m_store, *owned);
+            if (stored.outcome.result == StoreResult::Quarantined) ++quarantined;
             status = STATUS_Success;
             ++m_gotten;
         } catch (const std::exception& e) {
@@ -110,6 +65,7 @@ public:
     RetrieveProgress progress;
     std::optional<Uint16> finalStatus;
     std::string m_storeError;
+    int quarantined = 0; ///< instances whose bytes differed from the stored ones
     bool cancelSent = false;
 
 private:
@@ -278,12 +234,18 @@ fs::path retrieve(const Node& node, const LocalAe& local, const std::string& stu
         store.finishRetrieve(studyUid, seriesUid, false);
         throw;
     }
-    const bool ok = !scu.cancelSent && scu.m_storeError.empty() &&
+    const bool ok = !scu.cancelSent && scu.m_storeError.empty() && scu.quarantined == 0 &&
                     scu.finalStatus == STATUS_Success && scu.progress.failed == 0;
     store.finishRetrieve(studyUid, seriesUid, ok && scu.progress.received > 0);
     if (scu.cancelSent) throw Cancelled();
     if (scu.progress.received == 0 && scu.m_storeError.empty())
         nothingArrived(scu, store, node, studyUid, what, move);
+    if (scu.quarantined > 0)
+        throw PacsError("retrieve of " + what + " from " + describe(node) + ": " +
+                        std::to_string(scu.quarantined) +
+                        " instance(s) differed from the stored copies, which are kept; the "
+                        "received ones are in " +
+                        store.quarantineFolder().string() + "; the study stays partial");
     if (!ok) failed(scu, node, what, move);
     return folder;
 }

@@ -421,13 +421,22 @@ Uint16 ListenerScp::take(DcmDataset& dataset) {
 }
 
 // --- Storing into the store's areas ---
-/** Writes the instance (into Incoming when `incoming`). A stored one with other bytes is
- *  quarantined by the store: status 0x0111 (Duplicate SOP Instance). */
+/** PS3.7 Annex C's general failure "Duplicate SOP Instance" (DCMTK names it for the N-services
+ *  only: STATUS_N_DuplicateSOPInstance). */
+constexpr Uint16 kStatusDuplicateSopInstance = 0x0111;
+
+/** Writes the instance (into Incoming when `incoming`). Identical bytes again: success (the
+ *  sender's copy is ours). Other bytes under a stored SOP Instance UID: the store keeps its file
+ *  and quarantines these; the sender hears 0x0111 (Duplicate SOP Instance, PS3.7 C), a
+ *  failure, so that it does not count the instance as delivered. */
 Uint16 ListenerScp::store(DcmDataset& dataset, bool incoming, std::string& problem) {
-    (void)incoming;
     try {
-        detail::storeDataset(m_impl.store, dataset);
-        return STATUS_Success;
+        const detail::StoredDataset stored =
+            detail::storeDataset(m_impl.store, dataset, incoming ? Area::Incoming : Area::Studies);
+        if (stored.outcome.result != StoreResult::Quarantined) return STATUS_Success;
+        problem = stored.outcome.message;
+        m_impl.event(StorageListener::Event::Kind::Quarantined, peer() + ": " + problem);
+        return kStatusDuplicateSopInstance;
     } catch (const WriteError& e) {
         problem = e.what();
         m_impl.event(StorageListener::Event::Kind::Failed, peer() + ": " + problem);
@@ -440,7 +449,7 @@ Uint16 ListenerScp::store(DcmDataset& dataset, bool incoming, std::string& probl
 }
 
 void ListenerScp::markIncoming(const std::string& study, const std::set<std::string>& series) {
-    m_impl.store.markReceived(study, series);
+    m_impl.store.markReceived(study, series, Area::Incoming);
 }
 // --- end of storing into the store's areas ---
 

@@ -1,14 +1,24 @@
 #pragma once
 /** The local study store: what was retrieved from a PACS or received by the storage listener,
- *  so that a study opens again without the network. A folder per study under the root (a
- *  sub-folder per series, a file per instance named after its SOP Instance UID), and an index,
- *  `index.json` (nlohmann-json), of the studies with their series: complete or partial. */
+ *  so that a study opens again without the network. Two areas under the root:
+ *  - Studies: `<root>/<study>/<series>/<sop>.dcm`, what a retrieve asked for (and what the
+ *    listener takes as asked for);
+ *  - Incoming: `<root>/incoming/<study>/<series>/<sop>.dcm`, what a peer sent unasked; it never
+ *    mixes into a study of the Studies area, even under the same UIDs.
+ *  Every folder and file name taken from a peer is a UID checked by isValidUid() (digits and
+ *  dots), so it can never be one of the store's own names, which all contain a letter or begin
+ *  with a dot: `index.json` (nlohmann-json: the studies of both areas with their series,
+ *  complete or partial), `.index.lock`, the temporary files of writes in progress
+ *  (`.<name>.<pid>.<n>.part`, io/atomic_file.h), and the folders `incoming` and `quarantine`.
+ *  A stored instance is never overwritten: the same bytes again change nothing, other bytes under
+ *  the same SOP Instance UID go to `<root>/quarantine/` and the store says so (StoreOutcome). */
 #include <filesystem>
 #include <functional>
 #include <mutex>
 #include <optional>
 #include <set>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <fvr/core/pacs/pacs.h>
@@ -18,10 +28,36 @@ namespace fvr::core::pacs {
 /** $XDG_DATA_HOME/fvr-workstation/studies, or ~/.local/share/fvr-workstation/studies. */
 std::filesystem::path defaultLocalStoreRoot();
 
+/** A DICOM UID (PS3.5 9.1): 1 to 64 characters, digits and '.', no empty component (no leading
+ *  or trailing dot, no ".."). Leading zeros in a component are accepted (archives send them). */
+bool isValidUid(std::string_view uid);
+/** Why `uid` is not a DICOM UID in words ("it has 65 characters, at most 64"), or "" when it is
+ *  one. */
+std::string uidProblem(std::string_view uid);
+
+/** Where an instance goes: asked for (a retrieve, or the listener's known peers) or unasked. */
+enum class Area { Studies, Incoming };
+
+/** What storeInstance() did with an instance. */
+enum class StoreResult {
+    Stored, ///< written under its name
+    Identical, ///< a file of the same bytes was there already: nothing written
+    Quarantined ///< other bytes were there: the stored file is untouched, these went aside
+};
+struct StoreOutcome {
+    StoreResult result = StoreResult::Stored;
+    /** The file that holds the bytes given: the stored file, or the quarantine file. */
+    std::filesystem::path path;
+    /** Quarantined: in words, naming the SOP instance, its study and the quarantine file. */
+    std::string message;
+};
+
 /**
- * Thread-safe within a process (the listener's thread and a retrieve may write at once): use one
- * LocalStore object for both. The index is rewritten atomically after every change and read
- * again by studies(), so another process sees complete entries only.
+ * Thread-safe within a process (the listener's thread and a retrieve may write at once), and
+ * between processes and objects on the same root: the index is changed under an exclusive lock
+ * on `<root>/.index.lock`, rewritten atomically after every change and read again by studies(),
+ * so another process sees complete entries only; instance files are written under unique
+ * temporary names and placed without replacing.
  */
 class LocalStore {
 public:
@@ -41,36 +77,44 @@ public:
         bool complete = false; ///< a retrieve of the whole study finished
         int instances = 0; ///< files in the study's folders
         std::vector<SeriesEntry> series;
+        Area area = Area::Studies;
     };
 
     const std::filesystem::path& root() const { return m_root; }
-    /** Every study in the index, most recently changed first. Throws PacsError when the index
-     *  exists but cannot be read (naming the file). */
+    /** Every study in the index, of both areas (Entry::area), most recently changed first.
+     *  Throws PacsError when the index exists but cannot be read (naming the file). */
     std::vector<Entry> studies() const;
-    std::optional<Entry> find(const std::string& studyUid) const;
-    /** Where a study's / series' files go (whether or not they exist). */
-    std::filesystem::path studyFolder(const std::string& studyUid) const;
-    std::filesystem::path seriesFolder(const std::string& studyUid,
-                                       const std::string& seriesUid) const;
+    std::optional<Entry> find(const std::string& studyUid, Area area = Area::Studies) const;
+    /** Where a study's / series' files go (whether or not they exist). Throw PacsError for a
+     *  UID that isValidUid() refuses, naming it and the rule. */
+    std::filesystem::path studyFolder(const std::string& studyUid, Area area = Area::Studies) const;
+    std::filesystem::path seriesFolder(const std::string& studyUid, const std::string& seriesUid,
+                                       Area area = Area::Studies) const;
+    /** `<root>/quarantine`: received instances whose bytes differed from the stored ones. */
+    std::filesystem::path quarantineFolder() const;
+    /** The files in quarantineFolder(), sorted by name (the oldest first). */
+    std::vector<std::filesystem::path> quarantined() const;
 
-    /** Writes one instance (`bytes`: a DICOM file with meta header) atomically as
-     *  <study>/<series>/<sopInstanceUid>.dcm, and lists its study and series as partial unless
-     *  already complete. `study` fills the index's description fields the first time. Returns
-     *  the path. Throws WriteError, or PacsError for a UID that cannot name a file. */
-    std::filesystem::path storeInstance(const StudyRecord& study, const SeriesRecord& series,
-                                        const std::string& sopInstanceUid,
-                                        const std::string& bytes);
-    /** The same, the file written by `write` into the temporary path it is given (renamed into
-     *  place when it returns). */
-    std::filesystem::path storeInstance(
-        const StudyRecord& study, const SeriesRecord& series, const std::string& sopInstanceUid,
-        const std::function<void(const std::filesystem::path& tmp)>& write);
-    /** Instances written by storeInstance() in this process since the store was made. */
+    /** Writes one instance (`bytes`: a DICOM file with meta header) as
+     *  <area>/<study>/<series>/<sopInstanceUid>.dcm, and lists its study and series as partial
+     *  unless already complete. `study` fills the index's description fields the first time.
+     *  A file already under that name is never replaced: Identical when it holds the same
+     *  bytes, else the bytes go to quarantine (Quarantined, with a message; nothing thrown).
+     *  Throws WriteError, or PacsError for a UID that isValidUid() refuses (naming it). */
+    StoreOutcome storeInstance(const StudyRecord& study, const SeriesRecord& series,
+                               const std::string& sopInstanceUid, const std::string& bytes,
+                               Area area = Area::Studies);
+    /** The same, the file written by `write` into the temporary path it is given. */
+    StoreOutcome storeInstance(const StudyRecord& study, const SeriesRecord& series,
+                               const std::string& sopInstanceUid,
+                               const std::function<void(const std::filesystem::path& tmp)>& write,
+                               Area area = Area::Studies);
+    /** Instances taken by storeInstance() in this object (stored, identical or quarantined). */
     int instancesStored() const;
 
-    /** A retrieve starts: the study (and series, when not empty) is listed as partial until
-     *  finish(). The listener marks what it receives complete at the end of an association only
-     *  for studies no retrieve is running on. */
+    /** A retrieve starts (Studies area): the study (and series, when not empty) is listed as
+     *  partial until finish(). The listener marks what it receives complete at the end of an
+     *  association only for studies no retrieve is running on. */
     void beginRetrieve(const StudyRecord& study, const std::string& seriesUid);
     /** Ends the retrieve begun with the same UIDs; `complete` lists the study (or the series)
      *  complete and recounts its files; otherwise it stays partial. */
@@ -79,15 +123,20 @@ public:
     /** The listener's rule: series received over an association that ended normally are
      *  complete (the sender sent what it meant to), unless a retrieve runs on their study or
      *  the last one on it did not finish (the index keeps that until a retrieve completes). */
-    void markReceived(const std::string& studyUid, const std::set<std::string>& seriesUids);
+    void markReceived(const std::string& studyUid, const std::set<std::string>& seriesUids,
+                      Area area = Area::Studies);
 
     /** Removes the study's folder and its entry. */
-    void remove(const std::string& studyUid);
+    void remove(const std::string& studyUid, Area area = Area::Studies);
 
 private:
     struct Index;
     Index load() const;
     void save(const Index& index) const;
+    std::filesystem::path areaRoot(Area area) const;
+    void listInstance(const StudyRecord& study, const SeriesRecord& series, Area area);
+    StoreOutcome place(const std::filesystem::path& tmp, const std::filesystem::path& path,
+                       const std::string& studyUid, const std::string& sopUid, Area area);
 
     std::filesystem::path m_root;
     mutable std::mutex m_mutex;
