@@ -8,9 +8,12 @@
 #include <dcmtk/config/osconfig.h>
 #include <dcmtk/dcmdata/dctk.h>
 
+#include <chrono>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <sstream>
+#include <thread>
 
 #include "pacs_environment.h"
 #include "test_support.h"
@@ -304,4 +307,129 @@ TEST(PacsListenerTrust, NothingButTheMovedStudyEntersItDuringAMove) {
     EXPECT_NE(eventsOf(listener, StorageListener::Event::Kind::NotAuthorized)
                   .find("ORTHANC at 127.0.0.1 sent instance"),
               std::string::npos);
+}
+
+namespace {
+
+/** The pixel data of a DICOM file (its bytes as DCMTK reads them), "" when it has none. */
+std::string pixelBytes(const fs::path& file) {
+    DcmFileFormat ff;
+    if (ff.loadFile(file.c_str()).bad()) return "";
+    const Uint8* data = nullptr;
+    unsigned long count = 0;
+    if (ff.getDataset()->findAndGetUint8Array(DCM_PixelData, data, &count).bad() || !data)
+        return "";
+    return std::string(reinterpret_cast<const char*>(data), count);
+}
+
+/** The shared files of a folder by their SOP Instance UID. */
+std::map<std::string, fs::path> bySop(const fs::path& folder) {
+    std::map<std::string, fs::path> out;
+    for (const auto& f : fs::directory_iterator(folder))
+        out[fvr::test::dicomTag(f.path(), "SOPInstanceUID")] = f.path();
+    return out;
+}
+
+/** Every .dcm file under `folder`, relative to it. */
+std::vector<fs::path> dcmFiles(const fs::path& folder) {
+    std::vector<fs::path> out;
+    for (const auto& f : fs::recursive_directory_iterator(folder))
+        if (f.path().extension() == ".dcm") out.push_back(fs::relative(f.path(), folder));
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
+} // namespace
+
+// 8 C-MOVEs of the same 140-image CT into one store at once, while 4 peers push the 93-image
+// head to the same listener: each study complete, each file bit-equal to a retrieve done
+// alone (and its pixels to the shared data), the index readable, nothing half-written left.
+TEST(PacsListenerLoad, EightMovesAndFourSendersShareOneStore) {
+    FVR_REQUIRE_ORTHANC();
+    FVR_REQUIRE_DCMTK_TOOLS();
+    LocalStore reference(storeRoot("load-reference"));
+    const fs::path refFolder = moveRetrieve(reference);
+    LocalStore store(storeRoot("load"));
+    StorageListener listener(
+        withPeers({{"SENDER1", ""}, {"SENDER2", ""}, {"SENDER3", ""}, {"SENDER4", ""}}), store);
+    listener.start();
+    std::vector<fs::path> slicer;
+    for (const auto& f : fs::directory_iterator(fvr::test::sharedData() / fvr::test::kSlicer))
+        slicer.push_back(f.path());
+
+    const auto t0 = std::chrono::steady_clock::now();
+    std::vector<std::string> errors(8);
+    std::vector<fvr::test::CommandOutput> sent(4);
+    std::vector<std::thread> threads;
+    for (int i = 0; i < 8; ++i)
+        threads.emplace_back([&, i] {
+            try {
+                moveRetrieve(store);
+            } catch (const std::exception& e) {
+                errors[std::size_t(i)] = e.what();
+            }
+        });
+    for (int i = 0; i < 4; ++i)
+        threads.emplace_back([&, i] {
+            sent[std::size_t(i)] =
+                storescu("SENDER" + std::to_string(i + 1), env().local().listenPort, slicer);
+        });
+    for (auto& t : threads) t.join();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::printf("[ load     ] 8 C-MOVEs x 140 + 4 senders x 93 into one store: %.1f s\n", seconds);
+    for (const std::string& e : errors) EXPECT_EQ(e, "");
+    for (const auto& s : sent) EXPECT_EQ(s.status, 0) << s.out;
+
+    const auto studies = store.studies(); // the index reads back
+    const auto entry = store.find(philipsStudy());
+    ASSERT_TRUE(entry);
+    EXPECT_TRUE(entry->complete);
+    EXPECT_EQ(entry->instances, 140);
+    const std::string slicerStudy = fvr::test::dicomTag(slicer[0], "StudyInstanceUID");
+    const auto incoming = store.find(slicerStudy, Area::Incoming);
+    ASSERT_TRUE(incoming);
+    EXPECT_EQ(incoming->instances, 93);
+    EXPECT_TRUE(store.quarantined().empty());
+    const fs::path folder = store.studyFolder(philipsStudy());
+    ASSERT_EQ(dcmFiles(folder), dcmFiles(refFolder));
+    const auto philipsSources = bySop(fvr::test::sharedData() / fvr::test::kPhilips);
+    for (const fs::path& rel : dcmFiles(folder)) {
+        EXPECT_EQ(readAll(folder / rel), readAll(refFolder / rel)) << rel;
+        EXPECT_EQ(pixelBytes(folder / rel), pixelBytes(philipsSources.at(rel.stem().string())))
+            << rel;
+    }
+    const auto slicerSources = bySop(fvr::test::sharedData() / fvr::test::kSlicer);
+    for (const fs::path& rel : dcmFiles(incoming->folder))
+        EXPECT_EQ(pixelBytes(incoming->folder / rel),
+                  pixelBytes(slicerSources.at(rel.stem().string())))
+            << rel;
+    for (const auto& f : fs::recursive_directory_iterator(store.root()))
+        EXPECT_NE(f.path().extension(), ".part") << f.path();
+    EXPECT_EQ(listener.lastError(), "");
+}
+
+// With no listener running, concurrent C-MOVEs share the one the first of them starts (it
+// stays until the last ends): each ends complete.
+TEST(PacsListenerLoad, ConcurrentMovesShareTheListenerTheyStart) {
+    FVR_REQUIRE_ORTHANC();
+    LocalStore store(storeRoot("load-own"));
+    ASSERT_EQ(StorageListener::runningOn(env().local().listenPort), nullptr);
+    std::vector<std::string> errors(4);
+    std::vector<std::thread> threads;
+    for (int i = 0; i < 4; ++i)
+        threads.emplace_back([&, i] {
+            try {
+                moveRetrieve(store);
+            } catch (const std::exception& e) {
+                errors[std::size_t(i)] = e.what();
+            }
+        });
+    for (auto& t : threads) t.join();
+    for (const std::string& e : errors) EXPECT_EQ(e, "");
+    const auto entry = store.find(philipsStudy());
+    ASSERT_TRUE(entry);
+    EXPECT_TRUE(entry->complete);
+    EXPECT_EQ(entry->instances, 140);
+    EXPECT_EQ(StorageListener::runningOn(env().local().listenPort), nullptr); // stopped at the end
 }

@@ -110,41 +110,62 @@ void addGetContexts(RetrieveScu& scu) {
 }
 
 // --- The listener a C-MOVE sends to ---
-/** The listeners started for retrieves, by port: shared by the retrieves that run at once, and
- *  stopped when the last of them ends. */
-std::mutex g_moveListenersMutex;
-std::map<int, std::weak_ptr<StorageListener>> g_moveListeners;
-
-/** The listener of a C-MOVE: `owned` keeps one started for retrieves alive (null when it is one
- *  the program runs on its own, the workstation's), `listener` is the one to use. */
-struct MoveListener {
-    std::shared_ptr<StorageListener> owned;
-    StorageListener* listener = nullptr;
+/** The listeners started for retrieves, by port, with the number of retrieves using each:
+ *  shared by the retrieves that run at once, stopped when the last of them ends. */
+struct SharedListener {
+    std::unique_ptr<StorageListener> listener;
+    int users = 0;
 };
+std::mutex g_moveListenersMutex;
+std::map<int, SharedListener> g_moveListeners;
 
-/** The listener C-MOVE sends to: the one running on our port (the workstation's, or one
- *  another retrieve started), else one for this retrieve. Either trusts the node for this move
- *  only (StorageListener::expect): a listener started here allows no other peer than what
+/** The listener of one C-MOVE: the one running on our port (the workstation's, or one that
+ *  another retrieve started), else one started for it. Either trusts the node for this move
+ *  only (StorageListener::expect): one started here allows no other peer than what
  *  local.allowedPeers lists. */
-MoveListener ensureListener(const LocalAe& local, LocalStore& store) {
-    std::lock_guard lock(g_moveListenersMutex);
-    MoveListener use;
-    if (StorageListener* running = StorageListener::runningOn(local.listenPort)) {
-        if (&running->store() != &store)
-            throw PacsError("the storage listener on port " + std::to_string(local.listenPort) +
-                            " writes into " + running->store().root().string() + ", not into " +
+class MoveListener {
+public:
+    MoveListener(const LocalAe& local, LocalStore& store) : m_port(local.listenPort) {
+        std::lock_guard lock(g_moveListenersMutex);
+        if (auto it = g_moveListeners.find(m_port); it != g_moveListeners.end()) {
+            m_listener = it->second.listener.get();
+            ++it->second.users;
+            m_shared = true;
+        } else if (StorageListener* running = StorageListener::runningOn(m_port)) {
+            m_listener = running; // the program's own: it outlives the retrieve
+        } else {
+            auto listener = std::make_unique<StorageListener>(local, store);
+            listener->start();
+            m_listener = listener.get();
+            g_moveListeners[m_port] = {std::move(listener), 1};
+            m_shared = true;
+        }
+        if (&m_listener->store() != &store) {
+            release();
+            throw PacsError("the storage listener on port " + std::to_string(m_port) +
+                            " writes into " + m_listener->store().root().string() + ", not into " +
                             store.root().string());
-        use.listener = running;
-        if (auto ours = g_moveListeners[local.listenPort].lock(); ours.get() == running)
-            use.owned = std::move(ours);
-        return use;
+        }
     }
-    use.owned = std::make_shared<StorageListener>(local, store);
-    use.owned->start();
-    use.listener = use.owned.get();
-    g_moveListeners[local.listenPort] = use.owned;
-    return use;
-}
+    ~MoveListener() { release(); }
+    MoveListener(const MoveListener&) = delete;
+    MoveListener& operator=(const MoveListener&) = delete;
+    StorageListener& operator*() const { return *m_listener; }
+
+private:
+    void release() {
+        if (!m_shared) return;
+        m_shared = false;
+        std::lock_guard lock(g_moveListenersMutex);
+        auto it = g_moveListeners.find(m_port);
+        if (it != g_moveListeners.end() && --it->second.users == 0)
+            g_moveListeners.erase(it); // stops it
+    }
+
+    int m_port;
+    StorageListener* m_listener = nullptr;
+    bool m_shared = false;
+};
 // --- end of the listener a C-MOVE sends to ---
 
 /** Runs the C-GET or C-MOVE; the SCU's state says how it ended. */
@@ -221,10 +242,11 @@ fs::path retrieve(const Node& node, const LocalAe& local, const std::string& stu
     RetrieveScu scu(node, local, store, progress, cancel);
     // C-MOVE: the listener takes the node's instances of this study (series) into the study
     // until the move ends (the expectation's end), and nothing else into it.
-    const MoveListener listener = move ? ensureListener(local, store) : MoveListener{};
+    std::optional<MoveListener> listener;
     StorageListener::Expectation expectation;
     if (move) {
-        expectation = listener.listener->expect(node, studyUid, seriesUid);
+        listener.emplace(local, store);
+        expectation = (**listener).expect(node, studyUid, seriesUid);
         scu.expectation = &expectation;
     }
     store.beginRetrieve(StudyRecord{studyUid}, seriesUid);

@@ -146,7 +146,7 @@ struct StorageListener::Expectations {
         std::string ae;
         std::vector<std::string> ips; ///< the node's addresses
         std::string study, series; ///< series empty: the whole study
-        std::set<std::string> taken; ///< SOP instances taken into the study for this move
+        std::set<std::string> taken; ///< SOP instances taken into the study during this move
         std::string problem; ///< why the last instance was not taken
     };
 
@@ -160,21 +160,17 @@ struct StorageListener::Expectations {
             if (fromNode(r, ae, ip)) return true;
         return false;
     }
-    /** The move an instance belongs to: the first one from that node for its study (series)
-     *  that has not taken this SOP instance yet (concurrent moves of the same study each get
-     *  their copy), else the first that fits; 0 when none. */
-    std::uint64_t match(const std::string& ae, const std::string& ip, const std::string& study,
-                        const std::string& series, const std::string& sop) const {
+    /** The moves an instance belongs to: those from that node for its study (series). Moves of
+     *  the same study at once cannot be told apart (DIMSE does not say which C-MOVE a store
+     *  serves), so each of them counts it: it arrived while each of them ran. */
+    std::vector<std::uint64_t> match(const std::string& ae, const std::string& ip,
+                                     const std::string& study, const std::string& series) const {
         std::lock_guard lock(mutex);
-        std::uint64_t any = 0;
-        for (const auto& [id, r] : records) {
-            if (!fromNode(r, ae, ip) || r.study != study ||
-                (!r.series.empty() && r.series != series))
-                continue;
-            if (!r.taken.count(sop)) return id;
-            if (!any) any = id;
-        }
-        return any;
+        std::vector<std::uint64_t> out;
+        for (const auto& [id, r] : records)
+            if (fromNode(r, ae, ip) && r.study == study && (r.series.empty() || r.series == series))
+                out.push_back(id);
+        return out;
     }
     void taken(std::uint64_t id, const std::string& sop) {
         std::lock_guard lock(mutex);
@@ -397,9 +393,9 @@ Uint16 ListenerScp::take(DcmDataset& dataset) {
     dataset.findAndGetOFString(DCM_StudyInstanceUID, study);
     dataset.findAndGetOFString(DCM_SeriesInstanceUID, series);
     dataset.findAndGetOFString(DCM_SOPInstanceUID, sop);
-    const std::uint64_t move =
-        m_impl.expectations->match(m_ae, m_ip, study.c_str(), series.c_str(), sop.c_str());
-    if (move == 0 && !m_allowed) {
+    const std::vector<std::uint64_t> moves =
+        m_impl.expectations->match(m_ae, m_ip, study.c_str(), series.c_str());
+    if (moves.empty() && !m_allowed) {
         // A PACS accepted for a C-MOVE only, sending what the move did not ask for.
         m_impl.event(StorageListener::Event::Kind::NotAuthorized,
                      peer() + " sent instance " + sop.c_str() + " of study " + study.c_str() +
@@ -407,13 +403,14 @@ Uint16 ListenerScp::take(DcmDataset& dataset) {
         return STATUS_STORE_Refused_NotAuthorized;
     }
     std::string problem;
-    const Uint16 status = store(dataset, move == 0, problem);
-    if (move != 0) {
+    const Uint16 status = store(dataset, moves.empty(), problem);
+    for (const std::uint64_t move : moves) {
         if (status == STATUS_Success)
             m_impl.expectations->taken(move, sop.c_str());
         else
             m_impl.expectations->problem(move, problem);
-    } else if (status == STATUS_Success) {
+    }
+    if (moves.empty() && status == STATUS_Success) {
         m_incoming[study.c_str()].insert(series.c_str());
         ++m_incomingCount[study.c_str()];
     }

@@ -60,7 +60,8 @@ public:
         Expectation(Expectation&& other) noexcept;
         Expectation& operator=(Expectation&& other) noexcept;
         ~Expectation(); ///< end()
-        /** Distinct instances taken into the study for this move so far. */
+        /** Distinct instances of the study (series) taken into it from the node while this
+         *  move ran (moves of the same study at once each count what arrives). */
         int received() const;
         /** Why the last instance of this move was not taken (quarantined, not written), empty
          *  if none. */
