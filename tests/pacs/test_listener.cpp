@@ -433,3 +433,32 @@ TEST(PacsListenerLoad, ConcurrentMovesShareTheListenerTheyStart) {
     EXPECT_EQ(entry->instances, 140);
     EXPECT_EQ(StorageListener::runningOn(env().local().listenPort), nullptr); // stopped at the end
 }
+
+// The listener a C-MOVE starts for itself (fvr-render --retrieve move's) allows the node it
+// retrieves from, while the move runs, and no one else.
+TEST(PacsListenerTrust, TheListenerOfAMoveAllowsOnlyItsNode) {
+    FVR_REQUIRE_ORTHANC();
+    FVR_REQUIRE_DCMTK_TOOLS();
+    LocalStore store(storeRoot("move-own"));
+    ASSERT_EQ(StorageListener::runningOn(env().local().listenPort), nullptr);
+    const int port = env().local().listenPort;
+    std::vector<fvr::test::CommandOutput> tries;
+    std::string refused;
+    moveRetrieve(store, [&](const RetrieveProgress&) {
+        if (!tries.empty()) return;
+        tries.push_back(echoscu("ATTACKER", port));
+        tries.push_back(echoscu(OrthancServer::kAeTitle, port)); // the node, as its move runs
+        if (StorageListener* l = StorageListener::runningOn(port))
+            refused = eventsOf(*l, StorageListener::Event::Kind::Refused);
+    });
+    ASSERT_EQ(tries.size(), 2u);
+    EXPECT_NE(tries[0].status, 0) << tries[0].out;
+    EXPECT_EQ(tries[1].status, 0) << tries[1].out;
+    EXPECT_NE(refused.find("ATTACKER at 127.0.0.1"), std::string::npos) << refused;
+    EXPECT_NE(refused.find("allowed peers: none"), std::string::npos) << refused;
+    // After the move, not even the node.
+    LocalStore other(storeRoot("move-own-after"));
+    StorageListener after(env().local(), other);
+    after.start();
+    EXPECT_NE(echoscu(OrthancServer::kAeTitle, port).status, 0);
+}
