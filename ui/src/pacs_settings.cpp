@@ -27,6 +27,27 @@ enum Column { kName, kCalledAe, kHost, kPort, kRetrieve, kColumns };
 
 QString text(const std::string& s) { return QString::fromStdString(s); }
 
+/** The allowed peers as the dialog shows them: "AE, AE@host". */
+QString peersText(const std::vector<core::pacs::Peer>& peers) {
+    QStringList out;
+    for (const core::pacs::Peer& p : peers) out << text(core::pacs::describe(p));
+    return out.join(QStringLiteral(", "));
+}
+
+/** The dialog's "AE, AE@host" as peers; `problems` gets the ones parsePeer() refuses. */
+std::vector<core::pacs::Peer> parsePeers(const QString& list, QStringList* problems) {
+    std::vector<core::pacs::Peer> out;
+    for (const QString& item : list.split(QLatin1Char(','), Qt::SkipEmptyParts)) {
+        if (item.trimmed().isEmpty()) continue;
+        try {
+            out.push_back(core::pacs::parsePeer(item.trimmed().toStdString()));
+        } catch (const std::exception& e) {
+            if (problems) *problems << QString::fromUtf8(e.what());
+        }
+    }
+    return out;
+}
+
 } // namespace
 
 PacsSettings PacsSettings::load() {
@@ -50,6 +71,15 @@ PacsSettings PacsSettings::load() {
     p.local.listenPort = s.value(keys::kPacsListenPort, p.local.listenPort).toInt();
     p.local.timeoutSeconds = s.value(keys::kPacsTimeout, p.local.timeoutSeconds).toInt();
     p.listen = s.value(keys::kPacsListen, false).toBool();
+    p.local.listenAddress =
+        s.value(keys::kPacsListenAddress, text(p.local.listenAddress)).toString().toStdString();
+    for (const QString& peer : s.value(keys::kPacsAllowedPeers).toStringList()) {
+        try {
+            p.local.allowedPeers.push_back(core::pacs::parsePeer(peer.toStdString()));
+        } catch (const std::exception&) {
+            // Edited by hand into something invalid: not trusted (the dialog shows the rest).
+        }
+    }
     return p;
 }
 
@@ -70,6 +100,10 @@ void PacsSettings::save() const {
     s.setValue(keys::kPacsListenPort, local.listenPort);
     s.setValue(keys::kPacsTimeout, local.timeoutSeconds);
     s.setValue(keys::kPacsListen, listen);
+    s.setValue(keys::kPacsListenAddress, text(local.listenAddress));
+    QStringList peers;
+    for (const core::pacs::Peer& p : local.allowedPeers) peers << text(core::pacs::describe(p));
+    s.setValue(keys::kPacsAllowedPeers, peers);
 }
 
 const Node* PacsSettings::node(const QString& name) const {
@@ -113,6 +147,17 @@ PacsNodesDialog::PacsNodesDialog(const PacsSettings& settings, QWidget* parent) 
     m_port->setRange(1, 65535);
     m_port->setValue(settings.local.listenPort);
     form->addRow(tr("Listener port"), m_port);
+    m_listenAddress = new QLineEdit(text(settings.local.listenAddress), this);
+    m_listenAddress->setToolTip(tr("The address the listener binds: 127.0.0.1 takes connections "
+                                   "from this machine only; 0.0.0.0 from every interface (a PACS "
+                                   "on another machine)"));
+    form->addRow(tr("Listener address"), m_listenAddress);
+    m_allowedPeers = new QLineEdit(peersText(settings.local.allowedPeers), this);
+    m_allowedPeers->setPlaceholderText(tr("none (AE or AE@host, comma-separated)"));
+    m_allowedPeers->setToolTip(tr("Who may send us studies unasked (they go to the store's "
+                                  "Incoming area). The nodes above need not be listed: each is "
+                                  "trusted for the C-MOVEs we ask it for, and for nothing else"));
+    form->addRow(tr("Accept studies sent by"), m_allowedPeers);
     m_timeout = new QSpinBox(this);
     m_timeout->setRange(1, 600);
     m_timeout->setSuffix(tr(" s"));
@@ -171,6 +216,8 @@ PacsSettings PacsNodesDialog::settings() const {
     p.local.listenPort = m_port->value();
     p.local.timeoutSeconds = m_timeout->value();
     p.listen = m_listen->isChecked();
+    p.local.listenAddress = m_listenAddress->text().trimmed().toStdString();
+    p.local.allowedPeers = parsePeers(m_allowedPeers->text(), nullptr);
     return p;
 }
 
@@ -184,7 +231,8 @@ void PacsNodesDialog::accept() {
             problems << QString::fromUtf8(e.what());
         }
     };
-    check([&] { core::pacs::validate(p.local); });
+    check([&] { core::pacs::validateListener(p.local); });
+    parsePeers(m_allowedPeers->text(), &problems);
     for (const Node& n : p.nodes) {
         if (n.name.empty()) problems << tr("A node has no name.");
         check([&] { core::pacs::validate(n); });

@@ -27,7 +27,8 @@ struct PacsSettings {
 };
 
 /** Settings ▸ PACS nodes: a table of nodes (name, called AE, host, port, retrieve method), our AE
- *  title, the listener port and whether the listener runs. */
+ *  title, the listener port, its address, the peers whose own stores it takes (into the store's
+ *  Incoming area; the nodes are trusted for their C-MOVEs only) and whether it runs. */
 class PacsNodesDialog : public QDialog {
     Q_OBJECT
 public:
@@ -36,6 +37,9 @@ public:
     PacsSettings settings() const;
     QTableWidget* table() const { return m_table; }
     QLineEdit* aeTitleEdit() const { return m_aeTitle; }
+    QLineEdit* listenAddressEdit() const { return m_listenAddress; }
+    /** The allowed peers, comma-separated "AE" or "AE@host". */
+    QLineEdit* allowedPeersEdit() const { return m_allowedPeers; }
     /** Why OK did not close the dialog (invalid AE titles, a node without host). */
     QLabel* errorLabel() const { return m_error; }
 
@@ -48,6 +52,8 @@ private:
     QTableWidget* m_table = nullptr;
     QLineEdit* m_aeTitle = nullptr;
     QSpinBox* m_port = nullptr;
+    QLineEdit* m_listenAddress = nullptr;
+    QLineEdit* m_allowedPeers = nullptr;
     QSpinBox* m_timeout = nullptr;
     QCheckBox* m_listen = nullptr;
     QLabel* m_error = nullptr;

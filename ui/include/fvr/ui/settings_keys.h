@@ -49,6 +49,8 @@ inline constexpr char kPacsNodes[] = "pacs/nodes"; ///< array: name, calledAe, h
 inline constexpr char kPacsAeTitle[] = "pacs/aeTitle";
 inline constexpr char kPacsListenPort[] = "pacs/listenPort";
 inline constexpr char kPacsListen[] = "pacs/listen";
+inline constexpr char kPacsListenAddress[] = "pacs/listenAddress"; ///< the listener binds it
+inline constexpr char kPacsAllowedPeers[] = "pacs/allowedPeers"; ///< "AE" or "AE@host" each
 inline constexpr char kPacsTimeout[] = "pacs/timeoutSeconds";
 inline constexpr char kPacsLastNode[] = "pacs/lastNode"; ///< the node the PACS dialog used last
 
