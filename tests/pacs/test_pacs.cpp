@@ -239,6 +239,38 @@ TEST(PacsRetrieve, CancelledMoveStaysPartialWhateverArrivesAfter) {
     cancelThenComplete(node, "cancel-move");
 }
 
+// A retrieve that brings other bytes than the store holds under a SOP Instance UID (here: a
+// stored file changed on disk after a first C-GET) keeps the stored file, puts the received one
+// in quarantine, and ends with an error that says so; the study stays partial.
+TEST(PacsRetrieve, GetOfInstancesThatDifferFromTheStoredOnesQuarantinesThem) {
+    FVR_REQUIRE_ORTHANC();
+    LocalStore store(storeRoot("get-differs"));
+    retrieve(env().node(), env().local(), philipsStudy(), philipsSeries(), store);
+    const fs::path folder = store.seriesFolder(philipsStudy(), philipsSeries());
+    const fs::path changed = *fs::directory_iterator(folder);
+    std::string original;
+    {
+        std::ifstream in(changed, std::ios::binary);
+        original.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    std::ofstream(changed, std::ios::binary | std::ios::app) << "changed";
+    const std::string msg = pacsError(
+        [&] { retrieve(env().node(), env().local(), philipsStudy(), philipsSeries(), store); });
+    EXPECT_NE(msg.find("1 instance(s) differed from the stored copies"), std::string::npos) << msg;
+    EXPECT_NE(msg.find(store.quarantineFolder().string()), std::string::npos) << msg;
+    const auto entry = store.find(philipsStudy());
+    ASSERT_TRUE(entry);
+    ASSERT_EQ(entry->series.size(), 1u);
+    EXPECT_FALSE(entry->series[0].complete);
+    EXPECT_EQ(entry->series[0].instances, 140);
+    std::ifstream in(changed, std::ios::binary);
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), original + "changed");
+    const auto kept = store.quarantined();
+    ASSERT_EQ(kept.size(), 1u);
+    std::ifstream q(kept[0], std::ios::binary);
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(q), {}), original);
+}
+
 TEST(PacsRetrieve, UnknownStudySaysSo) {
     FVR_REQUIRE_ORTHANC();
     LocalStore store(storeRoot("unknown"));

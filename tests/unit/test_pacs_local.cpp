@@ -448,10 +448,18 @@ TEST(PacsLocalStore, DifferentBytesUnderAStoredUidGoToQuarantine) {
     EXPECT_EQ(same.result, StoreResult::Identical);
     EXPECT_EQ(same.path, first.path);
     EXPECT_EQ(filesUnder(root), before);
-    // Tampered again: a second quarantine file, the first one kept.
-    const StoreOutcome third = store.storeInstance(a.study, a.series, a.sop, tampered);
+    // The same tampered bytes again: quarantined, no second copy; other bytes: a second file.
+    const StoreOutcome repeated = store.storeInstance(a.study, a.series, a.sop, tampered);
+    EXPECT_EQ(repeated.result, StoreResult::Quarantined);
+    EXPECT_EQ(repeated.path, again.path);
+    EXPECT_NE(repeated.message.find("the same bytes were quarantined before"), std::string::npos)
+        << repeated.message;
+    EXPECT_EQ(filesUnder(root), before);
+    const StoreOutcome third = store.storeInstance(a.study, a.series, a.sop, tampered + "x");
     EXPECT_EQ(third.result, StoreResult::Quarantined);
     EXPECT_NE(third.path, again.path);
+    EXPECT_EQ(readBytes(third.path), tampered + "x");
+    EXPECT_EQ(readBytes(again.path), tampered);
     EXPECT_EQ(store.quarantined().size(), 2u);
     // The study stays as it was: complete, one instance (quarantine files are not its own).
     EXPECT_TRUE(store.find("1.2.5")->complete);
@@ -726,4 +734,29 @@ TEST(PacsLocalStore, EightWritersAndThreeProcessesShareOneStore) {
         EXPECT_EQ(e.instances,
                   e.study.studyUid == shared[0].study.studyUid ? int(shared.size()) : 24)
             << e.study.studyUid;
+}
+
+// A process killed mid-write (kill -9) leaves its temporary file; the next retrieve into the
+// study removes it, and keeps one whose writer still runs.
+TEST(PacsLocalStore, ARetrieveRemovesTheTemporariesOfADeadWriter) {
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-stale";
+    fs::remove_all(root);
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) ::_exit(0);
+    ASSERT_EQ(::waitpid(child, nullptr, 0), child); // its pid now names no process
+    const std::string dead = std::to_string(child), alive = std::to_string(::getpid());
+    const fs::path series = root / "1.2.3/1.2.3.1";
+    fs::create_directories(series);
+    const fs::path staleFile = series / (".1.2.3.1.1.dcm." + dead + ".0.part");
+    const fs::path staleIndex = root / (".index.json." + dead + ".4.part");
+    const fs::path live = series / (".1.2.3.1.2.dcm." + alive + ".0.part");
+    const fs::path notOurs = series / "notes.part";
+    for (const fs::path& p : {staleFile, staleIndex, live, notOurs}) std::ofstream(p) << "x";
+    LocalStore store(root);
+    store.beginRetrieve(study("1.2.3"), "");
+    EXPECT_FALSE(fs::exists(staleFile));
+    EXPECT_FALSE(fs::exists(staleIndex));
+    EXPECT_TRUE(fs::exists(live));
+    EXPECT_TRUE(fs::exists(notOurs));
 }

@@ -10,6 +10,7 @@
 #include <cctype>
 #include <cerrno>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -230,6 +231,20 @@ std::string nowStamp() {
     return buf;
 }
 
+/** A file in quarantine `folder` for `sop` with the bytes of `tmp`, or empty: a peer that sends
+ *  the same changed instance again fills no more of the disk. */
+fs::path alreadyQuarantined(const fs::path& tmp, const fs::path& folder, const std::string& sop) {
+    std::error_code ec;
+    const std::string mark = "-" + sop + "-";
+    for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        if (name.find(mark) != std::string::npos && it->is_regular_file(ec) &&
+            sameBytes(tmp, it->path()))
+            return it->path();
+    }
+    return {};
+}
+
 /** Moves `tmp` to `<folder>/<stamp>-<sop>-<n>.dcm` with the first n free; the path. */
 fs::path moveToQuarantine(const fs::path& tmp, const fs::path& folder, const std::string& sop) {
     std::error_code ec;
@@ -241,6 +256,29 @@ fs::path moveToQuarantine(const fs::path& tmp, const fs::path& folder, const std
         if (placeNoReplace(tmp, path)) return path;
     }
     throw WriteError(folder.string() + ": no free quarantine name for " + stem + "<n>.dcm");
+}
+
+/** Removes the temporary files (io/atomic_file.h names) in `folder` (and below it when
+ *  `recursive`) whose writer no longer runs: what a killed process left. A file whose pid is
+ *  alive (or reused) is kept: it may be a write in progress. */
+void removeStaleTemporaries(const fs::path& folder, bool recursive) {
+    const auto stale = [](const fs::directory_entry& e) {
+        std::error_code ec;
+        const std::optional<long> pid = temporaryWriterPid(e.path());
+        return pid && e.is_regular_file(ec) && ::kill(static_cast<pid_t>(*pid), 0) != 0 &&
+               errno == ESRCH;
+    };
+    std::error_code ec;
+    std::vector<fs::path> gone;
+    if (recursive) {
+        for (fs::recursive_directory_iterator it(folder, ec), end; !ec && it != end;
+             it.increment(ec))
+            if (stale(*it)) gone.push_back(it->path());
+    } else {
+        for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec))
+            if (stale(*it)) gone.push_back(it->path());
+    }
+    for (const fs::path& p : gone) fs::remove(p, ec);
 }
 
 const char* areaName(Area area) { return area == Area::Incoming ? "incoming " : ""; }
@@ -438,11 +476,18 @@ StoreOutcome LocalStore::place(const fs::path& tmp, const fs::path& path,
             fs::remove(tmp, ec);
             return {StoreResult::Identical, path, ""};
         }
-        const fs::path kept = moveToQuarantine(tmp, quarantineFolder(), sopUid);
+        fs::path kept = alreadyQuarantined(tmp, quarantineFolder(), sopUid);
+        const bool again = !kept.empty();
+        std::error_code ec;
+        if (again)
+            fs::remove(tmp, ec);
+        else
+            kept = moveToQuarantine(tmp, quarantineFolder(), sopUid);
         return {StoreResult::Quarantined, kept,
                 "SOP instance " + sopUid + " of " + areaName(area) + "study " + studyUid +
                     " was received again with different bytes: the stored file " + path.string() +
-                    " is kept unchanged, the received one is in quarantine as " + kept.string()};
+                    " is kept unchanged, the received one is in quarantine as " + kept.string() +
+                    (again ? " (the same bytes were quarantined before)" : "")};
     } catch (...) {
         std::error_code ec;
         fs::remove(tmp, ec);
@@ -487,6 +532,9 @@ void LocalStore::beginRetrieve(const StudyRecord& study, const std::string& seri
     m_retrieving.insert(study.studyUid);
     const IndexLock fileLock(m_root);
     Index index = load();
+    // What a retrieve or an index write killed before left: gone before this one writes.
+    removeStaleTemporaries(m_root, false);
+    removeStaleTemporaries(studyFolder(study.studyUid), true);
     json& entry = studyEntry(index.studies, study);
     entry["retrievePending"] = true; // until a retrieve completes it (markReceived)
     if (seriesUid.empty())

@@ -114,7 +114,9 @@ public:
 
     /** A retrieve starts (Studies area): the study (and series, when not empty) is listed as
      *  partial until finish(). The listener marks what it receives complete at the end of an
-     *  association only for studies no retrieve is running on. */
+     *  association only for studies no retrieve is running on. Temporary files that a process
+     *  killed mid-write left in the root or the study's folder are removed first (those whose
+     *  writer's pid no longer runs). */
     void beginRetrieve(const StudyRecord& study, const std::string& seriesUid);
     /** Ends the retrieve begun with the same UIDs; `complete` lists the study (or the series)
      *  complete and recounts its files; otherwise it stays partial. */
