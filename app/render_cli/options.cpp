@@ -504,6 +504,35 @@ void declareBenchmark(CLI::App& app, Options& o) {
         ->group("Benchmark");
 }
 
+void declareTls(CLI::App& app, Options& o) {
+    const std::string g = "PACS";
+    CLI::Option* tls =
+        app.add_flag("--tls", o.tls,
+                     "DICOM TLS to the PACS (INPUT, --send) and for --retrieve move's\n"
+                     "listener, which then speaks TLS only; the certificates below")
+            ->group(g);
+    app.add_option("--tls-cert", o.tlsCert, "our certificate (PEM; with --tls-key)")
+        ->option_text("FILE")
+        ->needs(tls)
+        ->group(g);
+    app.add_option("--tls-key", o.tlsKey, "our certificate's private key (PEM, not encrypted)")
+        ->option_text("FILE")
+        ->needs(tls)
+        ->group(g);
+    app.add_option("--tls-ca", o.tlsCa,
+                   "a CA certificate we trust (PEM; repeatable): the peer's\n"
+                   "certificate must be signed by one")
+        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)
+        ->option_text("FILE")
+        ->needs(tls)
+        ->group(g);
+    app.add_flag("--tls-no-verify", o.tlsNoVerify,
+                 "take any certificate the peer shows (no --tls-ca needed; not\n"
+                 "recommended: anyone could pose as the PACS)")
+        ->needs(tls)
+        ->group(g);
+}
+
 void declarePacs(CLI::App& app, Options& o) {
     const std::string g = "PACS";
     app.add_option("--ae-title", o.aeTitle, "our AE title (the calling AE; default FVR)")
@@ -549,6 +578,13 @@ void declarePacs(CLI::App& app, Options& o) {
                    "(C-STORE), e.g. dicom://ORTHANC@pacs:4242")
         ->option_text("URL")
         ->group(g);
+    app.add_option("--pacs-timeout", o.pacsTimeout,
+                   "seconds a PACS may stay silent before a call fails (default 10;\n"
+                   "the call then ends within this + 1 s)")
+        ->check(CLI::Range(1, 600))
+        ->option_text("S")
+        ->group(g);
+    declareTls(app, o);
     app.add_option("--store", o.store,
                    "the local study store for dicom:// INPUT (default\n"
                    "$XDG_DATA_HOME/fvr-workstation/studies, the workstation's); a study\n"

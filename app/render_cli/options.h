@@ -74,6 +74,12 @@ struct Options {
     bool querySeries = false; ///< --query-series: each study's series too
     std::string send; ///< --send dicom://AE@host:port
     std::string store; ///< --store DIR: the local study store (default: the user's)
+    int pacsTimeout = 10; ///< --pacs-timeout S: seconds without a reply before a PACS call fails
+    // DICOM TLS (--tls): to the PACS of INPUT and --send, and for --retrieve move's listener.
+    bool tls = false;
+    std::string tlsCert, tlsKey; ///< --tls-cert, --tls-key: ours (PEM)
+    std::vector<std::string> tlsCa; ///< --tls-ca FILE (repeatable): the CAs we trust (PEM)
+    bool tlsNoVerify = false; ///< --tls-no-verify: take any certificate the peer shows
 
     /** Polychromatic X-ray (issue 19), on with --kvp: the output holds I/I0. */
     std::optional<double> kvp;

@@ -109,7 +109,20 @@ pacs::LocalAe localAe(const Options& o) {
     // The listener of --retrieve move: bound where asked, allowing no peer but the node it
     // retrieves from, for that move only (no allowedPeers: nothing else is received).
     local.listenAddress = o.listenAddress;
+    local.timeoutSeconds = o.pacsTimeout;
+    local.tls.certificateFile = o.tlsCert;
+    local.tls.privateKeyFile = o.tlsKey;
+    local.tls.trustedCaFiles = o.tlsCa;
+    local.tls.verifyPeer = !o.tlsNoVerify;
+    local.listenTls = o.tls;
     return local;
+}
+
+pacs::DicomUrl parseNode(const Options& o, const std::string& text) {
+    pacs::DicomUrl url = pacs::parseDicomUrl(text);
+    url.node.retrieve = o.retrieve;
+    url.node.tls = o.tls;
+    return url;
 }
 
 pacs::StudyQuery parseStudyQuery(const std::vector<std::string>& terms) {
@@ -127,7 +140,8 @@ void checkPacsOptions(const Options& o) {
     try {
         pacs::validateListener(localAe(o));
     } catch (const pacs::PacsError& e) {
-        throw SettingsError(std::string("--ae-title/--listen-port/--listen-address: ") + e.what());
+        throw SettingsError(
+            std::string("--ae-title/--listen-port/--listen-address/--pacs-timeout: ") + e.what());
     }
     if (o.queryGiven) {
         if (!url) throw SettingsError("--query: INPUT must be a PACS, dicom://AE@host:port");
@@ -151,8 +165,7 @@ void checkPacsOptions(const Options& o) {
 }
 
 std::filesystem::path retrieveInput(const Options& o) {
-    pacs::DicomUrl url = pacs::parseDicomUrl(o.input);
-    url.node.retrieve = o.retrieve;
+    const pacs::DicomUrl url = parseNode(o, o.input);
     pacs::LocalStore store(o.store.empty() ? pacs::defaultLocalStoreRoot()
                                            : std::filesystem::path(o.store));
     const std::string what =
@@ -182,7 +195,7 @@ std::filesystem::path retrieveInput(const Options& o) {
 }
 
 int runQuery(const Options& o) {
-    const pacs::DicomUrl url = pacs::parseDicomUrl(o.input);
+    const pacs::DicomUrl url = parseNode(o, o.input);
     const auto studies = pacs::findStudies(url.node, localAe(o), parseStudyQuery(o.query));
     Json out = Json::array();
     for (const auto& s : studies) {
@@ -199,7 +212,7 @@ int runQuery(const Options& o) {
 }
 
 void sendViews(const Options& o, const std::vector<std::filesystem::path>& files) {
-    const pacs::DicomUrl url = pacs::parseDicomUrl(o.send);
+    const pacs::DicomUrl url = parseNode(o, o.send);
     pacs::sendFiles(url.node, localAe(o), files);
     std::fprintf(stderr, "sent %zu view%s to %s (Secondary Capture, C-STORE)\n", files.size(),
                  files.size() == 1 ? "" : "s", pacs::describe(url.node).c_str());

@@ -5,14 +5,18 @@
 #include <string>
 #include <vector>
 
+#include <fvr/core/pacs/dicom_url.h>
 #include <fvr/core/pacs/pacs.h>
 
 #include "options.h"
 
 namespace fvr::cli {
 
-/** Us, from --ae-title, --listen-port (and the default timeout). */
+/** Us, from --ae-title, --listen-port, --pacs-timeout and the --tls options. */
 core::pacs::LocalAe localAe(const Options& o);
+
+/** A dicom:// URL (INPUT or --send) with the node's --retrieve method and --tls. */
+core::pacs::DicomUrl parseNode(const Options& o, const std::string& text);
 
 /** --query's KEY=VALUE terms (each option may hold several, comma-separated): PatientName,
  *  PatientID, AccessionNumber, StudyDate (YYYYMMDD, YYYYMMDD-YYYYMMDD, -YYYYMMDD, YYYYMMDD-),

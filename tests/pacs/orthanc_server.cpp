@@ -2,6 +2,7 @@
 
 #include <arpa/inet.h>
 #include <csignal>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <netinet/in.h>
@@ -75,11 +76,12 @@ fs::path OrthancServer::executable() {
     return {};
 }
 
-OrthancServer::OrthancServer(const fs::path& dir, const std::string& ourAe, int ourPort)
+OrthancServer::OrthancServer(const fs::path& dir, const std::string& ourAe, int ourPort,
+                             const nlohmann::json& extra)
     : m_dir(dir), m_dicomPort(freeLoopbackPort()), m_httpPort(freeLoopbackPort()) {
     fs::remove_all(dir);
     fs::create_directories(dir / "storage");
-    const nlohmann::json config = {
+    nlohmann::json config = {
         {"Name", "fvr-test"},
         {"StorageDirectory", (dir / "storage").string()},
         {"IndexDirectory", (dir / "storage").string()},
@@ -102,17 +104,23 @@ OrthancServer::OrthancServer(const fs::path& dir, const std::string& ourAe, int 
         {"SaveJobs", false},
         {"HttpDescribeErrors", true},
     };
+    config.merge_patch(extra);
     std::ofstream(dir / "config.json") << config.dump(2);
+    launch();
+}
+
+void OrthancServer::launch() {
     const fs::path exe = executable();
-    const std::string logPath = (dir / "orthanc.log").string();
+    const std::string logPath = (m_dir / "orthanc.log").string();
+    std::fflush(nullptr); // the child's freopen would flush our buffered output a second time
     m_pid = ::fork();
     if (m_pid == 0) {
-        std::freopen(logPath.c_str(), "w", stdout);
+        std::freopen(logPath.c_str(), "a", stdout); // a restart appends
         std::freopen(logPath.c_str(), "a", stderr);
         // Orthanc's DCMTK as ours (core/src/pacs): Nagle's algorithm off, or each C-STORE it
         // sends waits for a delayed ACK.
         ::setenv("TCP_NODELAY", "1", 1);
-        ::execl(exe.c_str(), exe.c_str(), (dir / "config.json").c_str(), nullptr);
+        ::execl(exe.c_str(), exe.c_str(), (m_dir / "config.json").c_str(), nullptr);
         std::_Exit(127);
     }
     if (m_pid < 0) throw std::runtime_error("cannot fork to start Orthanc");
@@ -131,12 +139,34 @@ OrthancServer::OrthancServer(const fs::path& dir, const std::string& ourAe, int 
 
 OrthancServer::~OrthancServer() {
     if (m_pid > 0) {
+        ::kill(m_pid, SIGCONT); // a frozen one would not see SIGTERM
         ::kill(m_pid, SIGTERM);
         int st = 0;
         ::waitpid(m_pid, &st, 0);
     }
     std::error_code ec;
     fs::remove_all(m_dir / "storage", ec);
+}
+
+void OrthancServer::stop() const {
+    if (m_pid > 0) ::kill(m_pid, SIGSTOP);
+}
+
+void OrthancServer::cont() const {
+    if (m_pid > 0) ::kill(m_pid, SIGCONT);
+}
+
+void OrthancServer::kill() {
+    if (m_pid <= 0) return;
+    ::kill(m_pid, SIGKILL);
+    int st = 0;
+    ::waitpid(m_pid, &st, 0);
+    m_pid = -1;
+}
+
+void OrthancServer::restart() {
+    kill();
+    launch();
 }
 
 std::string OrthancServer::log() const { return readFile(m_dir / "orthanc.log"); }

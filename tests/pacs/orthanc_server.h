@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 namespace fvr::test {
 
 /** One free TCP port on 127.0.0.1 (bound to port 0, read back, closed). */
@@ -25,8 +27,10 @@ public:
     /** Writes the configuration into `dir` (storage and index below it): DICOM and HTTP ports
      *  free on 127.0.0.1, AE title ORTHANC, called AE checked, only known modalities allowed,
      *  and one modality: `ourAe` at 127.0.0.1:`ourPort` (our listener). Starts Orthanc and
-     *  waits until GET /system answers. Throws std::runtime_error with Orthanc's log. */
-    OrthancServer(const std::filesystem::path& dir, const std::string& ourAe, int ourPort);
+     *  waits until GET /system answers. Throws std::runtime_error with Orthanc's log. `extra`:
+     *  settings merged over these (DICOM TLS, a modality entry with "UseDicomTls"). */
+    OrthancServer(const std::filesystem::path& dir, const std::string& ourAe, int ourPort,
+                  const nlohmann::json& extra = nlohmann::json::object());
     ~OrthancServer(); ///< SIGTERM, wait
     OrthancServer(const OrthancServer&) = delete;
     OrthancServer& operator=(const OrthancServer&) = delete;
@@ -35,12 +39,21 @@ public:
     int httpPort() const { return m_httpPort; }
     std::string log() const;
 
+    // Faults for the timeout tests: the process frozen (SIGSTOP: its sockets stay open, nothing
+    // answers), thawed (SIGCONT), killed (SIGKILL: the kernel closes its connections), started
+    // again on the same ports and storage (restart(), after kill()).
+    void stop() const;
+    void cont() const;
+    void kill();
+    void restart();
+
     HttpResponse get(const std::string& path) const;
     HttpResponse post(const std::string& path, const std::string& body) const;
     /** POST /instances for each file; returns how many Orthanc stored. */
     int upload(const std::filesystem::path& folder) const;
 
 private:
+    void launch();
     HttpResponse request(const std::string& method, const std::string& path,
                          const std::string& body) const;
 

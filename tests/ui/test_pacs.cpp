@@ -13,6 +13,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <vector>
 
 #include <fvr/ui/pacs_dialog.h>
 #include <fvr/ui/pacs_service.h>
@@ -105,6 +106,44 @@ TEST_F(Workstation, PacsListenerTrustPersistsAndBadPeersAreRefused) {
     EXPECT_EQ(d.result(), QDialog::Accepted);
     EXPECT_EQ(d.settings().local.allowedPeers,
               (std::vector<pacs::Peer>{{"GOOD", ""}, {"LAB", "10.0.0.8"}}));
+}
+
+// DICOM TLS: a node's TLS box and our certificate, key, CAs, peer check and listener mode are
+// kept in the settings; OK with a TLS node names a certificate file that cannot be read.
+TEST_F(Workstation, PacsTlsSettingsPersistAndAnUnreadableCertificateIsNamed) {
+    ui::PacsSettings s;
+    s.nodes = {node("Secure", "ORTHANC", 2762, pacs::RetrieveMethod::Get),
+               node("Plain", "LABPACS", 4242, pacs::RetrieveMethod::Get)};
+    s.nodes[0].tls = true;
+    s.local.tls.certificateFile = "/certs/ours.pem";
+    s.local.tls.privateKeyFile = "/certs/ours.key";
+    s.local.tls.trustedCaFiles = {"/certs/ca1.pem", "/certs/ca2.pem"};
+    s.local.tls.verifyPeer = false;
+    s.local.listenTls = true;
+    s.save();
+    const ui::PacsSettings back = ui::PacsSettings::load();
+    ASSERT_EQ(back.nodes.size(), 2u);
+    EXPECT_TRUE(back.nodes[0].tls);
+    EXPECT_FALSE(back.nodes[1].tls);
+    EXPECT_EQ(back.local.tls.certificateFile, "/certs/ours.pem");
+    EXPECT_EQ(back.local.tls.privateKeyFile, "/certs/ours.key");
+    EXPECT_EQ(back.local.tls.trustedCaFiles,
+              (std::vector<std::string>{"/certs/ca1.pem", "/certs/ca2.pem"}));
+    EXPECT_FALSE(back.local.tls.verifyPeer);
+    EXPECT_TRUE(back.local.listenTls);
+
+    ui::PacsNodesDialog d(back);
+    EXPECT_EQ(d.tlsTrustedCaEdit()->text(), "/certs/ca1.pem;/certs/ca2.pem");
+    const ui::PacsSettings shown = d.settings(); // the dialog gives back what it was given
+    EXPECT_TRUE(shown.nodes[0].tls);
+    EXPECT_FALSE(shown.nodes[1].tls);
+    EXPECT_EQ(shown.local.tls.trustedCaFiles, back.local.tls.trustedCaFiles);
+    EXPECT_FALSE(shown.local.tls.verifyPeer);
+    EXPECT_TRUE(shown.local.listenTls);
+    d.accept(); // the files do not exist: OK names the first one read
+    EXPECT_NE(d.result(), QDialog::Accepted);
+    const QString why = d.errorLabel()->text();
+    EXPECT_TRUE(why.contains("/certs/ours.pem cannot be read")) << why.toStdString();
 }
 
 TEST_F(Workstation, PacsQueryFormGivesTheDicomQuery) {

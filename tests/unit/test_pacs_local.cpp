@@ -1,6 +1,7 @@
 // core/pacs without a PACS: the dicom:// URL, the local store and its index (strict UIDs,
 // quarantine, the Incoming area, concurrent writers), and echo's failure messages against
-// sockets that misbehave on purpose (closed port, a peer that never answers, one that hangs up).
+// sockets that misbehave on purpose (closed port, a peer that never answers, one that hangs up,
+// aborts, rejects or speaks TLS), and TLS settings that name bad files.
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -13,6 +14,7 @@
 #include <map>
 #include <regex>
 #include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -193,23 +195,105 @@ TEST(PacsEchoFailure, ClosedPortSaysConnectionRefused) {
         << msg;
 }
 
-TEST(PacsEchoFailure, SilentPeerSaysNoAnswer) {
+TEST(PacsEchoFailure, SilentPeerSaysItStoppedAnswering) {
     Listening l; // the connection is queued, the association request never answered
     LocalAe local;
     local.timeoutSeconds = 1;
+    const auto t0 = std::chrono::steady_clock::now();
     const std::string msg = errorOf([&] { echo(nodeAt(l.port), local); });
-    EXPECT_NE(msg.find("no answer within 1 s"), std::string::npos) << msg;
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_NE(msg.find("PACS@127.0.0.1:" + std::to_string(l.port) +
+                       ": the PACS stopped answering (no reply within 1 s)"),
+              std::string::npos)
+        << msg;
+    EXPECT_LE(s, 2.0); // the timeout + 1 s
 }
 
-TEST(PacsEchoFailure, PeerThatHangsUpSaysSo) {
+/** Echo against a peer that accepts, reads the association request, sends `reply` (raw PDU
+ *  bytes, maybe none) and closes: the message. */
+std::string echoAgainst(const std::vector<unsigned char>& reply) {
     Listening l;
-    std::thread peer([&] { // accepts, then closes without a word
+    std::thread peer([&] {
         const int c = ::accept(l.fd, nullptr, nullptr);
-        if (c >= 0) ::close(c);
+        if (c < 0) return;
+        char buf[4096];
+        (void)::recv(c, buf, sizeof buf, 0);
+        if (!reply.empty()) (void)::send(c, reply.data(), reply.size(), MSG_NOSIGNAL);
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        ::close(c);
     });
     const std::string msg = errorOf([&] { echo(nodeAt(l.port), LocalAe{}); });
     peer.join();
-    EXPECT_NE(msg.find("aborted the association"), std::string::npos) << msg;
+    return msg;
+}
+
+TEST(PacsEchoFailure, PeerThatHangsUpSaysSo) {
+    const std::string msg = echoAgainst({});
+    EXPECT_NE(msg.find("the PACS closed the connection without answering the association "
+                       "request (if 127.0.0.1:"),
+              std::string::npos)
+        << msg;
+    EXPECT_NE(msg.find("is a DICOM TLS port, turn TLS on for this node)"), std::string::npos)
+        << msg;
+    EXPECT_EQ(msg.find("AE title"), std::string::npos) << msg;
+}
+
+TEST(PacsEchoFailure, AbortAtAssociationAsksAboutOurAeTitle) {
+    // A-ABORT (type 7, length 4, source 0: the service user)
+    const std::string msg = echoAgainst({0x07, 0, 0, 0, 0, 4, 0, 0, 0, 0});
+    EXPECT_NE(msg.find("the PACS aborted the association (is our AE title FVR known to it?)"),
+              std::string::npos)
+        << msg;
+}
+
+TEST(PacsEchoFailure, RejectionSaysTheReason) {
+    // A-ASSOCIATE-RJ: permanent (1), by the service user (1), calling AE not recognised (3)
+    std::string msg = echoAgainst({0x03, 0, 0, 0, 0, 4, 0, 1, 1, 3});
+    EXPECT_NE(msg.find(": the association was rejected by the PACS: calling AE title not "
+                       "recognised (permanent)"),
+              std::string::npos)
+        << msg;
+    // transient (2), by the service provider's presentation layer (3), congestion (1)
+    msg = echoAgainst({0x03, 0, 0, 0, 0, 4, 0, 2, 3, 1});
+    EXPECT_NE(msg.find("rejected by the PACS: temporary congestion (transient: try again later)"),
+              std::string::npos)
+        << msg;
+}
+
+TEST(PacsEchoFailure, ATlsPortSaysSo) {
+    // What a TLS server says to a plain association request: an alert record.
+    const std::string msg = echoAgainst({0x15, 0x03, 0x03, 0x00, 0x02, 0x02, 0x32});
+    EXPECT_NE(msg.find("the PACS answered in TLS: 127.0.0.1:"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("is a DICOM TLS port (turn TLS on for this node)"), std::string::npos)
+        << msg;
+}
+
+TEST(PacsEchoFailure, UnreadableTlsFilesAreNamed) {
+    Node node = nodeAt(104);
+    node.tls = true;
+    LocalAe local;
+    local.tls.trustedCaFiles = {"/nonexistent/ca.pem"};
+    EXPECT_NE(errorOf([&] { echo(node, local); })
+                  .find("the trusted CA certificate file /nonexistent/ca.pem cannot be read: No "
+                        "such file or directory"),
+              std::string::npos);
+    const fs::path notPem = fvr::test::tmpDir() / "not-a-certificate.pem";
+    std::ofstream(notPem) << "hello";
+    local.tls.trustedCaFiles = {notPem.string()};
+    EXPECT_NE(errorOf([&] { echo(node, local); })
+                  .find("the trusted CA certificate file " + notPem.string() +
+                        " is not a PEM certificate ("),
+              std::string::npos);
+    local.tls.certificateFile = "/nonexistent/our.pem";
+    EXPECT_NE(errorOf([&] { echo(node, local); }).find("set both or neither"), std::string::npos);
+    local.tls.privateKeyFile = "/nonexistent/our.key";
+    EXPECT_NE(errorOf([&] { echo(node, local); })
+                  .find("the TLS certificate file /nonexistent/our.pem cannot be read: No such "
+                        "file or directory"),
+              std::string::npos);
+    local.tls = {};
+    EXPECT_NE(errorOf([&] { echo(node, local); }).find("needs a trusted CA certificate file"),
+              std::string::npos);
 }
 
 TEST(PacsEchoFailure, BadSettingsAreNamed) {

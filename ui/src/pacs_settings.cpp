@@ -4,7 +4,9 @@
 #include <QCheckBox>
 #include <QComboBox>
 #include <QDialogButtonBox>
+#include <QFileDialog>
 #include <QFormLayout>
+#include <QHBoxLayout>
 #include <QHeaderView>
 #include <QLabel>
 #include <QLineEdit>
@@ -12,6 +14,7 @@
 #include <QSettings>
 #include <QSpinBox>
 #include <QTableWidget>
+#include <QToolButton>
 #include <QVBoxLayout>
 
 #include <fvr/ui/settings_keys.h>
@@ -23,7 +26,7 @@ namespace {
 using core::pacs::Node;
 using core::pacs::RetrieveMethod;
 
-enum Column { kName, kCalledAe, kHost, kPort, kRetrieve, kColumns };
+enum Column { kName, kCalledAe, kHost, kPort, kTls, kRetrieve, kColumns };
 
 QString text(const std::string& s) { return QString::fromStdString(s); }
 
@@ -48,6 +51,46 @@ std::vector<core::pacs::Peer> parsePeers(const QString& list, QStringList* probl
     return out;
 }
 
+/** The TLS settings (ours for every node with TLS on, and for the listener). */
+void loadTls(QSettings& s, core::pacs::LocalAe& local) {
+    local.tls.certificateFile = s.value(keys::kPacsTlsCertificate).toString().toStdString();
+    local.tls.privateKeyFile = s.value(keys::kPacsTlsPrivateKey).toString().toStdString();
+    local.tls.trustedCaFiles.clear();
+    for (const QString& f : s.value(keys::kPacsTlsTrustedCa).toStringList())
+        local.tls.trustedCaFiles.push_back(f.toStdString());
+    local.tls.verifyPeer = s.value(keys::kPacsTlsVerifyPeer, true).toBool();
+    local.listenTls = s.value(keys::kPacsListenTls, false).toBool();
+}
+
+void saveTls(QSettings& s, const core::pacs::LocalAe& local) {
+    s.setValue(keys::kPacsTlsCertificate, text(local.tls.certificateFile));
+    s.setValue(keys::kPacsTlsPrivateKey, text(local.tls.privateKeyFile));
+    QStringList ca;
+    for (const std::string& f : local.tls.trustedCaFiles) ca << text(f);
+    s.setValue(keys::kPacsTlsTrustedCa, ca);
+    s.setValue(keys::kPacsTlsVerifyPeer, local.tls.verifyPeer);
+    s.setValue(keys::kPacsListenTls, local.listenTls);
+}
+
+/** A path field with a "…" button that picks a PEM file. */
+QWidget* fileField(QLineEdit* edit, const QString& title, QWidget* parent) {
+    auto* box = new QWidget(parent);
+    auto* row = new QHBoxLayout(box);
+    row->setContentsMargins(0, 0, 0, 0);
+    row->addWidget(edit);
+    auto* browse = new QToolButton(box);
+    browse->setText(QStringLiteral("…"));
+    QObject::connect(browse, &QToolButton::clicked, box, [edit, title, box] {
+        const QString f = QFileDialog::getOpenFileName(
+            box, title, QString(), QObject::tr("PEM files (*.pem *.crt *.key);;All files (*)"));
+        if (f.isEmpty()) return;
+        const bool list = edit->property("list").toBool(); // several files, ';'-separated
+        edit->setText(list && !edit->text().trimmed().isEmpty() ? edit->text() + ";" + f : f);
+    });
+    row->addWidget(browse);
+    return box;
+}
+
 } // namespace
 
 PacsSettings PacsSettings::load() {
@@ -64,6 +107,7 @@ PacsSettings PacsSettings::load() {
         node.retrieve = s.value("retrieve").toString() == QLatin1String("move")
                             ? RetrieveMethod::Move
                             : RetrieveMethod::Get;
+        node.tls = s.value("tls", false).toBool();
         p.nodes.push_back(node);
     }
     s.endArray();
@@ -80,6 +124,7 @@ PacsSettings PacsSettings::load() {
             // Edited by hand into something invalid: not trusted (the dialog shows the rest).
         }
     }
+    loadTls(s, p.local);
     return p;
 }
 
@@ -94,6 +139,7 @@ void PacsSettings::save() const {
         s.setValue("host", text(n.host));
         s.setValue("port", n.port);
         s.setValue("retrieve", n.retrieve == RetrieveMethod::Move ? "move" : "get");
+        s.setValue("tls", n.tls);
     }
     s.endArray();
     s.setValue(keys::kPacsAeTitle, text(local.aeTitle));
@@ -104,6 +150,7 @@ void PacsSettings::save() const {
     QStringList peers;
     for (const core::pacs::Peer& p : local.allowedPeers) peers << text(core::pacs::describe(p));
     s.setValue(keys::kPacsAllowedPeers, peers);
+    saveTls(s, local);
 }
 
 const Node* PacsSettings::node(const QString& name) const {
@@ -116,8 +163,8 @@ PacsNodesDialog::PacsNodesDialog(const PacsSettings& settings, QWidget* parent) 
     setWindowTitle(tr("PACS nodes"));
     auto* layout = new QVBoxLayout(this);
     m_table = new QTableWidget(0, kColumns, this);
-    m_table->setHorizontalHeaderLabels(
-        {tr("Name"), tr("Called AE title"), tr("Host"), tr("Port"), tr("Retrieve with")});
+    m_table->setHorizontalHeaderLabels({tr("Name"), tr("Called AE title"), tr("Host"), tr("Port"),
+                                        tr("TLS"), tr("Retrieve with")});
     m_table->horizontalHeader()->setStretchLastSection(true);
     m_table->setToolTip(tr("C-GET needs no listener; C-MOVE sends the images to our storage "
                            "listener, which the PACS must know by our AE title, host and port"));
@@ -166,6 +213,7 @@ PacsNodesDialog::PacsNodesDialog(const PacsSettings& settings, QWidget* parent) 
     m_listen = new QCheckBox(tr("Run the storage listener (receives C-MOVE and sent studies)"));
     m_listen->setChecked(settings.listen);
     form->addRow(QString(), m_listen);
+    addTlsRows(form, settings.local);
     layout->addLayout(form);
     m_error = new QLabel(this);
     m_error->setStyleSheet(QStringLiteral("color: #c0392b"));
@@ -176,7 +224,28 @@ PacsNodesDialog::PacsNodesDialog(const PacsSettings& settings, QWidget* parent) 
     connect(buttons, &QDialogButtonBox::accepted, this, &PacsNodesDialog::accept);
     connect(buttons, &QDialogButtonBox::rejected, this, &QDialog::reject);
     layout->addWidget(buttons);
-    resize(720, 360);
+    resize(760, 480);
+}
+
+void PacsNodesDialog::addTlsRows(QFormLayout* form, const core::pacs::LocalAe& local) {
+    m_tlsCert = new QLineEdit(text(local.tls.certificateFile), this);
+    m_tlsCert->setPlaceholderText(tr("PEM file: shown to the PACS and by a TLS listener"));
+    form->addRow(tr("TLS certificate"), fileField(m_tlsCert, tr("Our TLS certificate"), this));
+    m_tlsKey = new QLineEdit(text(local.tls.privateKeyFile), this);
+    m_tlsKey->setPlaceholderText(tr("PEM file, not encrypted"));
+    form->addRow(tr("TLS private key"), fileField(m_tlsKey, tr("Its private key"), this));
+    QStringList ca;
+    for (const std::string& f : local.tls.trustedCaFiles) ca << text(f);
+    m_tlsCa = new QLineEdit(ca.join(QLatin1Char(';')), this);
+    m_tlsCa->setProperty("list", true);
+    m_tlsCa->setPlaceholderText(tr("PEM files, separated by ;"));
+    form->addRow(tr("Trusted CAs"), fileField(m_tlsCa, tr("A CA certificate we trust"), this));
+    m_tlsVerify = new QCheckBox(tr("Refuse a peer whose certificate these CAs did not sign"));
+    m_tlsVerify->setChecked(local.tls.verifyPeer);
+    form->addRow(QString(), m_tlsVerify);
+    m_listenTls = new QCheckBox(tr("The listener speaks DICOM TLS (only)"));
+    m_listenTls->setChecked(local.listenTls);
+    form->addRow(QString(), m_listenTls);
 }
 
 void PacsNodesDialog::addRow(const Node& n) {
@@ -189,6 +258,11 @@ void PacsNodesDialog::addRow(const Node& n) {
     port->setRange(1, 65535);
     port->setValue(n.port);
     m_table->setCellWidget(row, kPort, port);
+    auto* tls = new QTableWidgetItem;
+    tls->setFlags(Qt::ItemIsUserCheckable | Qt::ItemIsEnabled | Qt::ItemIsSelectable);
+    tls->setCheckState(n.tls ? Qt::Checked : Qt::Unchecked);
+    tls->setToolTip(tr("DICOM TLS to this node, with our certificate and trusted CAs below"));
+    m_table->setItem(row, kTls, tls);
     auto* retrieve = new QComboBox(m_table);
     retrieve->addItems({tr("C-GET"), tr("C-MOVE")});
     retrieve->setCurrentIndex(n.retrieve == RetrieveMethod::Move ? 1 : 0);
@@ -210,6 +284,8 @@ PacsSettings PacsNodesDialog::settings() const {
         n.retrieve = static_cast<QComboBox*>(m_table->cellWidget(row, kRetrieve))->currentIndex()
                          ? RetrieveMethod::Move
                          : RetrieveMethod::Get;
+        const QTableWidgetItem* tls = m_table->item(row, kTls);
+        n.tls = tls && tls->checkState() == Qt::Checked;
         p.nodes.push_back(n);
     }
     p.local.aeTitle = m_aeTitle->text().trimmed().toStdString();
@@ -218,6 +294,12 @@ PacsSettings PacsNodesDialog::settings() const {
     p.listen = m_listen->isChecked();
     p.local.listenAddress = m_listenAddress->text().trimmed().toStdString();
     p.local.allowedPeers = parsePeers(m_allowedPeers->text(), nullptr);
+    p.local.tls.certificateFile = m_tlsCert->text().trimmed().toStdString();
+    p.local.tls.privateKeyFile = m_tlsKey->text().trimmed().toStdString();
+    for (const QString& f : m_tlsCa->text().split(QLatin1Char(';'), Qt::SkipEmptyParts))
+        if (!f.trimmed().isEmpty()) p.local.tls.trustedCaFiles.push_back(f.trimmed().toStdString());
+    p.local.tls.verifyPeer = m_tlsVerify->isChecked();
+    p.local.listenTls = m_listenTls->isChecked();
     return p;
 }
 
@@ -231,12 +313,15 @@ void PacsNodesDialog::accept() {
             problems << QString::fromUtf8(e.what());
         }
     };
-    check([&] { core::pacs::validateListener(p.local); });
+    check([&] { core::pacs::validateListener(p.local); }); // validate(p.local) and more
     parsePeers(m_allowedPeers->text(), &problems);
+    bool tls = p.local.listenTls;
     for (const Node& n : p.nodes) {
         if (n.name.empty()) problems << tr("A node has no name.");
         check([&] { core::pacs::validate(n); });
+        tls = tls || n.tls;
     }
+    if (tls) check([&] { core::pacs::checkTls(p.local); }); // the files, as a connection reads them
     m_error->setText(problems.join(QLatin1Char('\n')));
     m_error->setVisible(!problems.isEmpty());
     if (!problems.isEmpty()) return;

@@ -4,11 +4,15 @@
 #include <fvr/core/pacs/local_store.h>
 #include <fvr/core/pacs/pacs.h>
 
+#include "transport.h"
+
 #include <dcmtk/config/osconfig.h> // first DCMTK include
 #include <dcmtk/dcmdata/dctk.h>
 #include <dcmtk/dcmnet/scu.h>
 
+#include <memory>
 #include <string>
+#include <vector>
 
 namespace fvr::core::pacs::detail {
 
@@ -16,8 +20,9 @@ namespace fvr::core::pacs::detail {
  *  (TCP_NODELAY=1 unless set). */
 void prepareNetwork();
 
-/** DcmSCU set up for a node: our AE title, the timeouts, non-blocking DIMSE (so that a silent
- *  peer ends in a timeout, not a hang). */
+/** DcmSCU set up for a node: our AE title, our transport layer (plain or TLS, every wait for
+ *  the peer bounded: see WatchedLayer), non-blocking DIMSE. Throws PacsError for unusable TLS
+ *  settings. */
 class Scu : public DcmSCU {
 public:
     Scu(const Node& node, const LocalAe& local);
@@ -32,6 +37,9 @@ public:
     void check(const OFCondition& cond, const std::string& what) const;
     /** Releases the association (or aborts it when `abort`); never throws. */
     void close(bool abort);
+    /** The connection's failure in words ("ORTHANC@h:p: the PACS stopped answering ..."): it went
+     *  silent, was lost, or TLS failed; "" when it saw none of these. */
+    std::string linkFailure() const;
 
     const Node& node() const { return m_node; }
     const LocalAe& local() const { return m_local; }
@@ -39,13 +47,17 @@ public:
 private:
     Node m_node;
     LocalAe m_local;
+    std::unique_ptr<WatchedLayer> m_layer; // DcmSCU points to it: closed in ~Scu, before it goes
 };
 
-/** The failure of a network operation in words, prefixed with the node ("ORTHANC@h:p: ..."). */
-std::string failureText(const OFCondition& cond, const Node& node, const LocalAe& local);
-/** A-ASSOCIATE-RJ's result, source and reason in words: "rejected (permanent) by the service
- *  user: called AE title not recognised". */
-std::string rejectionText(const T_ASC_RejectParameters& rej);
+/** The failure of a network operation in words, prefixed with the node ("ORTHANC@h:p: ..."),
+ *  from what the connection saw first (silent, TLS, lost) and DCMTK's condition. The AE title
+ *  is suggested only for an abort at association (`atAssociation`), never after a crash. */
+std::string failureText(const OFCondition& cond, const Node& node, const LocalAe& local,
+                        const LinkReport& link, bool atAssociation);
+/** An A-ASSOCIATE-RJ PDU's reason and result in words: "called AE title not recognised
+ *  (permanent)". */
+std::string rejectionText(const std::vector<unsigned char>& pdu);
 
 /** Converts the item's strings to UTF-8 per its SpecificCharacterSet (kept as they are when the
  *  converter does not know it). */

@@ -197,8 +197,16 @@ void runRetrieve(RetrieveScu& scu, const Node& node, const LocalAe& local, DcmDa
     if (!scu.m_storeError.empty())
         throw PacsError("retrieve from " + describe(node) + " stopped: " + scu.m_storeError);
     const std::string problem = scu.expectation ? scu.expectation->lastProblem() : "";
-    const Uint16 status = scu.finalStatus.value_or(0xFFFF);
-    std::string text = describe(node) + ": " + (move ? "C-MOVE" : "C-GET") + " of " + what;
+    const char* op = move ? "C-MOVE" : "C-GET";
+    const std::string partial = "; what arrived is kept as partial: retrieve again to complete it";
+    // No final status: the PACS went silent or away (a status that never came is not one).
+    if (const std::string link = scu.linkFailure(); !link.empty())
+        throw PacsError(link + " (during " + op + " of " + what + ")" + partial);
+    if (!scu.finalStatus)
+        throw PacsError(describe(node) + ": " + op + " of " + what +
+                        " ended without the PACS's final response" + partial);
+    const Uint16 status = *scu.finalStatus;
+    std::string text = describe(node) + ": " + op + " of " + what;
     if (scu.progress.failed > 0)
         text += ": " + std::to_string(scu.progress.failed) + " of " +
                 std::to_string(scu.progress.expected) + " instances failed" +
@@ -208,7 +216,7 @@ void runRetrieve(RetrieveScu& scu, const Node& node, const LocalAe& local, DcmDa
                 std::string(move ? DU_cmoveStatusString(status) : DU_cgetStatusString(status));
     if (move && status == STATUS_MOVE_Failed_MoveDestinationUnknown)
         text += " (the PACS does not know our AE title as a destination)";
-    throw PacsError(text + "; what arrived is kept as partial: retrieve again to complete it");
+    throw PacsError(text + partial);
 }
 
 /** Nothing came: an unknown UID (Orthanc then fails the C-GET) or an empty study. The empty
@@ -217,6 +225,8 @@ void runRetrieve(RetrieveScu& scu, const Node& node, const LocalAe& local, DcmDa
                                  const std::string& studyUid, const std::string& what, bool move) {
     if (const auto entry = store.find(studyUid); entry && entry->instances == 0)
         store.remove(studyUid);
+    if (const std::string link = scu.linkFailure(); !link.empty())
+        throw PacsError(link + " (during " + (move ? "C-MOVE" : "C-GET") + " of " + what + ")");
     std::string text = describe(node) + ": the PACS has no instances of " + what;
     if (scu.finalStatus && *scu.finalStatus != STATUS_Success)
         text += " (" +

@@ -280,6 +280,7 @@ struct ListenerState {
     LocalStore& store;
     StorageListener::EventFn onEvent;
     std::shared_ptr<StorageListener::Expectations> expectations;
+    std::unique_ptr<detail::WatchedLayer> layer; // plain or TLS; outlives the SCP that uses it
     std::unique_ptr<DcmSCP> scp;
     std::thread thread;
     std::atomic<bool> stop{false}, running{false};
@@ -477,6 +478,9 @@ void StorageListener::start() {
     scp->setACSETimeout(static_cast<Uint32>(m_impl->local.timeoutSeconds));
     scp->setMaxReceivePDULength(ASC_MAXIMUMPDUSIZE);
     scp->setHostLookupEnabled(OFFalse);
+    // Our transport: TLS only when local.listenTls (else plain only), every wait bounded.
+    m_impl->layer = detail::makeLayer(m_impl->local, m_impl->local.listenTls, NET_ACCEPTOR);
+    scp->getConfig().setTransportLayer(m_impl->layer.get());
     const OFList<OFString> syntaxes = acceptedSyntaxes();
     scp->addPresentationContext(UID_VerificationSOPClass, detail::uncompressedSyntaxes());
     for (int i = 0; i < numberOfDcmLongSCUStorageSOPClassUIDs; ++i)

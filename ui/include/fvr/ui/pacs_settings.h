@@ -8,6 +8,7 @@
 #include <fvr/core/pacs/pacs.h>
 
 class QCheckBox;
+class QFormLayout;
 class QLabel;
 class QLineEdit;
 class QSpinBox;
@@ -26,9 +27,11 @@ struct PacsSettings {
     const core::pacs::Node* node(const QString& name) const;
 };
 
-/** Settings ▸ PACS nodes: a table of nodes (name, called AE, host, port, retrieve method), our AE
- *  title, the listener port, its address, the peers whose own stores it takes (into the store's
- *  Incoming area; the nodes are trusted for their C-MOVEs only) and whether it runs. */
+/** Settings ▸ PACS nodes: a table of nodes (name, called AE, host, port, TLS, retrieve method),
+ *  our AE title, the listener port, its address, the peers whose own stores it takes (into the
+ *  store's Incoming area; the nodes are trusted for their C-MOVEs only) and whether it runs,
+ *  and DICOM TLS: our certificate and key, the CAs we trust, the peer check, whether the
+ *  listener speaks TLS. */
 class PacsNodesDialog : public QDialog {
     Q_OBJECT
 public:
@@ -40,6 +43,11 @@ public:
     QLineEdit* listenAddressEdit() const { return m_listenAddress; }
     /** The allowed peers, comma-separated "AE" or "AE@host". */
     QLineEdit* allowedPeersEdit() const { return m_allowedPeers; }
+    QLineEdit* tlsCertificateEdit() const { return m_tlsCert; }
+    QLineEdit* tlsPrivateKeyEdit() const { return m_tlsKey; }
+    QLineEdit* tlsTrustedCaEdit() const { return m_tlsCa; } ///< files separated by ';'
+    QCheckBox* tlsVerifyBox() const { return m_tlsVerify; }
+    QCheckBox* listenTlsBox() const { return m_listenTls; }
     /** Why OK did not close the dialog (invalid AE titles, a node without host). */
     QLabel* errorLabel() const { return m_error; }
 
@@ -48,6 +56,7 @@ public:
 
 private:
     void addRow(const core::pacs::Node& n);
+    void addTlsRows(QFormLayout* form, const core::pacs::LocalAe& local);
 
     QTableWidget* m_table = nullptr;
     QLineEdit* m_aeTitle = nullptr;
@@ -56,6 +65,11 @@ private:
     QLineEdit* m_allowedPeers = nullptr;
     QSpinBox* m_timeout = nullptr;
     QCheckBox* m_listen = nullptr;
+    QLineEdit* m_tlsCert = nullptr;
+    QLineEdit* m_tlsKey = nullptr;
+    QLineEdit* m_tlsCa = nullptr;
+    QCheckBox* m_tlsVerify = nullptr;
+    QCheckBox* m_listenTls = nullptr;
     QLabel* m_error = nullptr;
 };
 

@@ -45,13 +45,19 @@ inline constexpr char kLastFolder[] = "lastFolder"; ///< the last study's folder
 inline constexpr char kLastExportFolder[] = "export/lastFolder"; ///< where exports went last
 
 // PACS (pacs_settings.cpp)
-inline constexpr char kPacsNodes[] = "pacs/nodes"; ///< array: name, calledAe, host, port, retrieve
+inline constexpr char kPacsNodes[] =
+    "pacs/nodes"; ///< array: name, calledAe, host, port, retrieve, tls
 inline constexpr char kPacsAeTitle[] = "pacs/aeTitle";
 inline constexpr char kPacsListenPort[] = "pacs/listenPort";
 inline constexpr char kPacsListen[] = "pacs/listen";
 inline constexpr char kPacsListenAddress[] = "pacs/listenAddress"; ///< the listener binds it
 inline constexpr char kPacsAllowedPeers[] = "pacs/allowedPeers"; ///< "AE" or "AE@host" each
 inline constexpr char kPacsTimeout[] = "pacs/timeoutSeconds";
+inline constexpr char kPacsTlsCertificate[] = "pacs/tlsCertificate"; ///< our certificate (PEM)
+inline constexpr char kPacsTlsPrivateKey[] = "pacs/tlsPrivateKey";
+inline constexpr char kPacsTlsTrustedCa[] = "pacs/tlsTrustedCa"; ///< list of PEM files
+inline constexpr char kPacsTlsVerifyPeer[] = "pacs/tlsVerifyPeer";
+inline constexpr char kPacsListenTls[] = "pacs/listenTls";
 inline constexpr char kPacsLastNode[] = "pacs/lastNode"; ///< the node the PACS dialog used last
 
 } // namespace fvr::ui::keys

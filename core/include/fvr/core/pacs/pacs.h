@@ -23,6 +23,18 @@ struct Node {
     std::string host;
     int port = 104;
     RetrieveMethod retrieve = RetrieveMethod::Get;
+    bool tls = false; ///< DICOM TLS to this node, with LocalAe::tls (else plain TCP)
+};
+
+/** DICOM TLS (DCMTK's TLS layer over OpenSSL, the BCP 195 profile: TLS 1.2 or 1.3): the
+ *  certificate we show and its private key (PEM files, the key not encrypted), the CA
+ *  certificates we trust (PEM), and whether a peer must show a certificate that one of them
+ *  signed. A PACS's certificate is checked against the CAs, not against its host name. A client
+ *  may go without a certificate (when the PACS does not ask for one); the listener may not. */
+struct TlsSettings {
+    std::string certificateFile, privateKeyFile;
+    std::vector<std::string> trustedCaFiles;
+    bool verifyPeer = true; ///< refuse a peer without a certificate signed by a trusted CA
 };
 
 // --- The storage listener's trust (StorageListener) ---
@@ -36,8 +48,9 @@ struct Peer {
 // --- end of the listener's trust ---
 
 /** Us: our AE title (the "calling AE"), the port of our StorageListener (C-MOVE destination,
- *  the PACS must know us under aeTitle at this port), and the network timeout (connection,
- *  association and each DIMSE message). */
+ *  the PACS must know us under aeTitle at this port), and the network timeout: every wait for
+ *  the peer (connection, TLS handshake, association, each message, release) ends after
+ *  timeoutSeconds without a byte from it, the whole operation then within timeout + 1 s. */
 struct LocalAe {
     std::string aeTitle = "FVR";
     int listenPort = 11112;
@@ -51,6 +64,10 @@ struct LocalAe {
      *  or not it is listed here. */
     std::vector<Peer> allowedPeers;
     // --- end of the listener's trust ---
+    // DICOM TLS: our certificate and the CAs we trust, for nodes with tls set and for the
+    // listener when listenTls is set (a listener speaks TLS only, or plain DICOM only).
+    TlsSettings tls;
+    bool listenTls = false;
 };
 
 /** A network operation failed; the message says why in plain words and names the peer. */
@@ -65,6 +82,10 @@ std::string describe(const Node& node);
  *  host (non-empty) and port (1..65535). Throws PacsError naming the field. */
 void validate(const Node& node);
 void validate(const LocalAe& local);
+/** Loads local.tls as a TLS connection would (and as the listener would, when listenTls): files
+ *  read and parsed, the key against its certificate, a CA when the peer is checked. Throws
+ *  PacsError naming the file and the problem (the settings dialog checks with it). */
+void checkTls(const LocalAe& local);
 
 // --- The storage listener's trust (StorageListener) ---
 /** "AE" or "AE@host" (fvr-render --allow-peer, the workstation's settings) as a Peer; throws
@@ -81,11 +102,15 @@ bool listensBeyondLoopback(const std::string& address);
 // --- end of the listener's trust ---
 
 /**
- * C-ECHO. Returns normally when the PACS answers; throws PacsError otherwise, e.g.
+ * C-ECHO. Returns normally when the PACS answers; throws PacsError otherwise. Every operation
+ * names its failure the same way, e.g.
  * "ORTHANC@127.0.0.1:4242: connection refused (nothing listens at 127.0.0.1:4242)",
- * "... association rejected (permanent) by the service user: called AE title not recognised",
- * "... the peer aborted the association (is our AE title FVR known to the PACS?)",
- * "... no answer within 10 s".
+ * "... the association was rejected by the PACS: called AE title not recognised (permanent)",
+ * "... the PACS aborted the association" (at association: "is our AE title FVR known to it?"),
+ * "... the PACS stopped answering (no reply within 10 s)",
+ * "... the connection was lost (the PACS closed it or died)",
+ * "... TLS handshake failed: certificate verify failed (...)",
+ * "the TLS certificate file /x/our.pem cannot be read: No such file or directory".
  */
 void echo(const Node& node, const LocalAe& local);
 

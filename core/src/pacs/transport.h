@@ -1,0 +1,72 @@
+#pragma once
+// The transport layer of every association we make or accept (private to core): plain TCP or
+// DICOM TLS, with every wait for the peer bounded by one deadline, and a report of what the
+// connection saw, from which failures are named ("stopped answering", "connection lost", the
+// TLS error, the rejection's reason).
+#include <fvr/core/pacs/pacs.h>
+
+#include <dcmtk/config/osconfig.h> // first DCMTK include
+#include <dcmtk/dcmnet/assoc.h>
+#include <dcmtk/dcmnet/dcmlayer.h>
+
+#include <cstddef>
+#include <memory>
+#include <string>
+#include <vector>
+
+class DcmTLSTransportLayer;
+
+namespace fvr::core::pacs::detail {
+
+/** What one connection saw, kept after DCMTK has deleted it. */
+struct LinkReport {
+    bool made = false; ///< a connection was opened (the TCP connect succeeded)
+    bool tls = false;
+    bool handshakeDone = false; ///< TLS: the handshake succeeded (plain: no handshake)
+    bool silent = false; ///< we waited `timeout` seconds and the peer sent nothing
+    bool lost = false; ///< the peer closed the connection or it broke while we used it
+    std::string tlsError; ///< the handshake's failure, or a TLS error after it (OpenSSL's words)
+    std::vector<unsigned char> firstBytes; ///< the first 10 bytes the peer sent after the handshake
+    std::size_t received = 0; ///< bytes from the peer after the handshake
+};
+
+/**
+ * DCMTK's transport layer (DcmTransportLayer), plain or TLS, whose connections bound the waits
+ * for the peer: a wait for a byte to read or for room to write ends `timeoutSeconds` after it
+ * began, counting every wait since the last byte that moved (one deadline, however DCMTK splits
+ * its waits into polls, reads and the release that follows a failure). The connection is then
+ * dead: every later read or write fails at once, so the whole operation ends within the
+ * timeout. DCMTK's own timeouts stay a little longer, as a backstop.
+ */
+class WatchedLayer : public DcmTransportLayer {
+public:
+    /** `tls`: the TLS layer to wrap (its connections), null for plain TCP. */
+    WatchedLayer(int timeoutSeconds, std::unique_ptr<DcmTLSTransportLayer> tls);
+    ~WatchedLayer() override;
+    WatchedLayer(const WatchedLayer&) = delete;
+    WatchedLayer& operator=(const WatchedLayer&) = delete;
+
+    DcmTransportConnection* createConnection(DcmNativeSocketType socket,
+                                             OFBool useSecureLayer) override;
+    bool tls() const { return m_tls != nullptr; }
+    /** What the most recent connection saw (a default report when none was opened). */
+    LinkReport lastReport() const;
+    /** Ends every open connection now (shutdown of its socket): a wait in another thread returns
+     *  at once and the association ends as if the peer had gone. */
+    void cutAll();
+
+    struct Shared;
+
+private:
+    std::shared_ptr<Shared> m_shared;
+    std::unique_ptr<DcmTLSTransportLayer> m_tls;
+    int m_timeoutMs;
+};
+
+/** The layer of our associations with `node` (TLS when node.tls) or of the listener (role
+ *  NET_ACCEPTOR, TLS when local.listenTls). Throws PacsError naming the file and the problem
+ *  for unusable TLS settings: a file that cannot be read, that is not PEM, a key that does not
+ *  match its certificate, verification asked for without a trusted CA. */
+std::unique_ptr<WatchedLayer> makeLayer(const LocalAe& local, bool tls, T_ASC_NetworkRole role);
+
+} // namespace fvr::core::pacs::detail
