@@ -21,6 +21,7 @@ packages=(
 if [ "${1:-}" = "--tests" ]; then
   packages+=(
     orthanc # the real PACS the pacs tests start on their own ports (its service is not used)
+    dcmtk # storescu/echoscu: the pacs tests' other peers of our storage listener
     openssl # the DICOM TLS tests make their CA and certificates with it
     python3-pytest python3-distributed python3-zarr
     python3-hypothesis # the dataset manifest fuzz (tests/fuzz/fuzz_manifest.py)

@@ -557,6 +557,13 @@ void declarePacs(CLI::App& app, Options& o) {
         ->check(CLI::Range(1, 65535))
         ->option_text("N")
         ->group(g);
+    app.add_option("--listen-address", o.listenAddress,
+                   "the IPv4 address our storage listener binds for --retrieve move (default\n"
+                   "127.0.0.1: this machine only; 0.0.0.0: every interface, for a PACS on\n"
+                   "another machine). It takes only the retrieved node's C-MOVE, whatever the "
+                   "address")
+        ->option_text("A")
+        ->group(g);
     CLI::Option* query =
         app.add_option("--query", o.query,
                        "print the studies on INPUT's PACS that match, as JSON (C-FIND); keys:\n"

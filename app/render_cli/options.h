@@ -68,6 +68,7 @@ struct Options {
     std::string aeTitle = "FVR"; ///< --ae-title: ours (the calling AE)
     core::pacs::RetrieveMethod retrieve = core::pacs::RetrieveMethod::Get; ///< --retrieve
     int listenPort = 11112; ///< --listen-port: our storage listener, for --retrieve move
+    std::string listenAddress = "127.0.0.1"; ///< --listen-address: the address it binds
     std::vector<std::string> query; ///< --query KEY=VALUE[,KEY=VALUE] (repeatable)
     bool queryGiven = false;
     bool querySeries = false; ///< --query-series: each study's series too

@@ -106,6 +106,9 @@ pacs::LocalAe localAe(const Options& o) {
     pacs::LocalAe local;
     local.aeTitle = o.aeTitle;
     local.listenPort = o.listenPort;
+    // The listener of --retrieve move: bound where asked, allowing no peer but the node it
+    // retrieves from, for that move only (no allowedPeers: nothing else is received).
+    local.listenAddress = o.listenAddress;
     local.timeoutSeconds = o.pacsTimeout;
     local.tls.certificateFile = o.tlsCert;
     local.tls.privateKeyFile = o.tlsKey;
@@ -135,9 +138,10 @@ pacs::StudyQuery parseStudyQuery(const std::vector<std::string>& terms) {
 void checkPacsOptions(const Options& o) {
     const bool url = pacs::isDicomUrl(o.input);
     try {
-        pacs::validate(localAe(o));
+        pacs::validateListener(localAe(o));
     } catch (const pacs::PacsError& e) {
-        throw SettingsError(std::string("--ae-title/--listen-port/--pacs-timeout: ") + e.what());
+        throw SettingsError(
+            std::string("--ae-title/--listen-port/--listen-address/--pacs-timeout: ") + e.what());
     }
     if (o.queryGiven) {
         if (!url) throw SettingsError("--query: INPUT must be a PACS, dicom://AE@host:port");

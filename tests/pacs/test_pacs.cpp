@@ -18,6 +18,7 @@
 namespace fs = std::filesystem;
 using namespace fvr::core;
 using namespace fvr::core::pacs;
+using fvr::test::OrthancServer;
 using fvr::test::PacsEnvironment;
 
 namespace {
@@ -321,7 +322,9 @@ TEST(PacsSend, ANonDicomFileIsNamed) {
 TEST(PacsListener, ReceivesAStudyOrthancSends) {
     FVR_REQUIRE_ORTHANC();
     LocalStore store(storeRoot("listener"));
-    StorageListener listener(env().local(), store);
+    LocalAe local = env().local();
+    local.allowedPeers = {{OrthancServer::kAeTitle, "127.0.0.1"}}; // it may push to us
+    StorageListener listener(local, store);
     listener.start();
     ASSERT_TRUE(listener.running());
     EXPECT_EQ(StorageListener::runningOn(env().local().listenPort), &listener);
@@ -336,7 +339,8 @@ TEST(PacsListener, ReceivesAStudyOrthancSends) {
     listener.stop();
     EXPECT_FALSE(listener.running());
     EXPECT_EQ(listener.lastError(), "");
-    const auto entry = store.find(slicerStudy);
+    EXPECT_FALSE(store.find(slicerStudy)); // sent unasked: not a study of the Studies area
+    const auto entry = store.find(slicerStudy, Area::Incoming);
     ASSERT_TRUE(entry);
     EXPECT_EQ(entry->instances, 93);
     ASSERT_EQ(entry->series.size(), 1u);
@@ -349,7 +353,9 @@ TEST(PacsListener, ReceivesAStudyOrthancSends) {
 TEST(PacsListener, RejectsAnotherCalledAe) {
     FVR_REQUIRE_ORTHANC();
     LocalStore store(storeRoot("listener-ae"));
-    StorageListener listener(env().local(), store);
+    LocalAe local = env().local();
+    local.allowedPeers = {{local.aeTitle, ""}}; // our echo() calls as FVRTEST
+    StorageListener listener(local, store);
     listener.start();
     Node us{"us", "SOMEONEELSE", "127.0.0.1", env().local().listenPort};
     const std::string msg = pacsError([&] { echo(us, env().local()); });

@@ -84,6 +84,17 @@ TEST(PacsCli, MoveOfASeries) {
         << readAll(dir / "err");
 }
 
+TEST(PacsCli, ListenAddressMustBeAnIpv4Address) {
+    FVR_REQUIRE_ORTHANC();
+    const fs::path err = env().dir / "listen-address.err";
+    const std::string url = nodeUrl() + "/" + slicerTag("StudyInstanceUID");
+    const auto r = render(url + " --retrieve move --listen-address 10.0.0.300 --info", err);
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(readAll(err).find("the listen address \"10.0.0.300\" is not an IPv4 address"),
+              std::string::npos)
+        << readAll(err);
+}
+
 TEST(PacsCli, QueryPrintsTheMatchingStudiesAsJson) {
     FVR_REQUIRE_ORTHANC();
     const fs::path err = env().dir / "query.err";

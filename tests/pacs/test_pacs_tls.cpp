@@ -193,6 +193,7 @@ TEST_F(PacsTls, MoveIntoOurTlsListener) {
 TEST_F(PacsTls, OurListenerRefusesPlainDicom) {
     LocalAe l = local();
     l.listenTls = true;
+    l.allowedPeers = {{l.aeTitle, ""}}; // our echo() below calls as our own AE title
     LocalStore store(dir() / "store-listener");
     StorageListener listener(l, store);
     listener.start();

@@ -79,6 +79,35 @@ TEST_F(Workstation, PacsNodesPersistAndInvalidOnesAreRefusedWithTheReason) {
     EXPECT_EQ(d.settings().local.aeTitle, "FVR");
 }
 
+TEST_F(Workstation, PacsListenerTrustPersistsAndBadPeersAreRefused) {
+    ui::PacsSettings s = ui::PacsSettings::load();
+    EXPECT_EQ(s.local.listenAddress, "127.0.0.1"); // this machine only unless told otherwise
+    EXPECT_TRUE(s.local.allowedPeers.empty()); // the nodes: for their C-MOVEs only
+    s.local.listenAddress = "0.0.0.0";
+    s.local.allowedPeers = {{"MODALITY", "10.0.0.7"}, {"ORTHANC", ""}};
+    s.save();
+    const ui::PacsSettings back = ui::PacsSettings::load();
+    EXPECT_EQ(back.local.listenAddress, "0.0.0.0");
+    EXPECT_EQ(back.local.allowedPeers, s.local.allowedPeers);
+
+    ui::PacsNodesDialog d(back);
+    EXPECT_EQ(d.allowedPeersEdit()->text(), "MODALITY@10.0.0.7, ORTHANC");
+    d.allowedPeersEdit()->setText("GOOD, BAD\\AE@host, X@");
+    d.listenAddressEdit()->setText("everywhere");
+    d.accept();
+    EXPECT_NE(d.result(), QDialog::Accepted);
+    const QString why = d.errorLabel()->text();
+    EXPECT_TRUE(why.contains("\"everywhere\" is not an IPv4 address")) << why.toStdString();
+    EXPECT_TRUE(why.contains("BAD\\AE@host")) << why.toStdString();
+    EXPECT_TRUE(why.contains("no host after '@'")) << why.toStdString();
+    d.allowedPeersEdit()->setText("GOOD, LAB@10.0.0.8");
+    d.listenAddressEdit()->setText("127.0.0.1");
+    d.accept();
+    EXPECT_EQ(d.result(), QDialog::Accepted);
+    EXPECT_EQ(d.settings().local.allowedPeers,
+              (std::vector<pacs::Peer>{{"GOOD", ""}, {"LAB", "10.0.0.8"}}));
+}
+
 // DICOM TLS: a node's TLS box and our certificate, key, CAs, peer check and listener mode are
 // kept in the settings; OK with a TLS node names a certificate file that cannot be read.
 TEST_F(Workstation, PacsTlsSettingsPersistAndAnUnreadableCertificateIsNamed) {

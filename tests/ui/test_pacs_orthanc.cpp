@@ -162,6 +162,17 @@ TEST_F(PacsWorkstation, MoveToOurListenerAndAWrongCalledAeSaidInWords) {
     EXPECT_EQ(window->study().volume()->dims, (core::Dims3{64, 64, 93}));
     EXPECT_EQ(d->progress()->maximum(), 93); // images expected, as the C-MOVE said
 
+    // A peer the listener does not know is refused, and the Messages panel names it.
+    if (test::runCommand("command -v echoscu >/dev/null 2>&1").status == 0) {
+        const auto r = test::runCommand("echoscu -aet ATTACKER -aec " + std::string(kOurAe) +
+                                        " 127.0.0.1 " + std::to_string(listenPort) + " 2>&1");
+        EXPECT_NE(r.status, 0) << r.out;
+        EXPECT_TRUE(QTest::qWaitFor(
+            [&] { return window->messages()->toPlainText().contains("ATTACKER at 127.0.0.1"); },
+            30000))
+            << window->messages()->toPlainText().toStdString();
+    }
+
     settings(pacs::RetrieveMethod::Get, "NOSUCHAE").save();
     d->reloadSettings();
     ASSERT_TRUE(clickAndWait(*d, d->echoButton()));

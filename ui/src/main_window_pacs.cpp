@@ -19,6 +19,8 @@ void MainWindow::buildPacsMenu(QMenu* file) {
     m_pacs = std::make_unique<PacsService>();
     connect(m_pacs.get(), &PacsService::sent, this,
             [this](bool ok, const QString& text) { message(text, !ok); });
+    connect(m_pacs.get(), &PacsService::listenerEvent, this,
+            [this](bool problem, const QString& text) { message(text, problem); });
     QAction* open = file->addAction(tr("&PACS: search and retrieve…"), this, [this] {
         PacsDialog* d = pacsDialog();
         d->show();

@@ -25,7 +25,9 @@ PacsService::~PacsService() {
 QString PacsService::applyListener(const PacsSettings& s, bool* ok) {
     if (ok) *ok = true;
     const bool same = m_listener && m_listener->local().aeTitle == s.local.aeTitle &&
-                      m_listener->local().listenPort == s.local.listenPort;
+                      m_listener->local().listenPort == s.local.listenPort &&
+                      m_listener->local().listenAddress == s.local.listenAddress &&
+                      m_listener->local().allowedPeers == s.local.allowedPeers;
     if (!s.listen || !same) {
         const bool was = listening();
         m_listener.reset(); // stops it
@@ -33,17 +35,36 @@ QString PacsService::applyListener(const PacsSettings& s, bool* ok) {
     }
     if (listening()) return QString();
     try {
-        m_listener = std::make_unique<pacs::StorageListener>(s.local, *m_store);
+        // Events come on the listener's thread: to the UI thread, if we still exist.
+        QPointer<PacsService> self(this);
+        auto onEvent = [self](const pacs::StorageListener::Event& e) {
+            const bool problem = e.kind != pacs::StorageListener::Event::Kind::Incoming;
+            const QString text = QString::fromStdString(e.text);
+            QMetaObject::invokeMethod(
+                self.data(),
+                [self, problem, text] {
+                    if (self) emit self->listenerEvent(problem, text);
+                },
+                Qt::QueuedConnection);
+        };
+        m_listener = std::make_unique<pacs::StorageListener>(s.local, *m_store, onEvent);
         m_listener->start();
     } catch (const std::exception& e) {
         m_listener.reset();
         if (ok) *ok = false;
         return tr("Storage listener not started: %1").arg(QString::fromUtf8(e.what()));
     }
-    return tr("Storage listener: %1 on port %2, into %3")
-        .arg(QString::fromStdString(s.local.aeTitle))
+    QString peers;
+    for (const pacs::Peer& p : s.local.allowedPeers)
+        peers += (peers.isEmpty() ? "" : ", ") + QString::fromStdString(pacs::describe(p));
+    return tr("Storage listener: %1 on %2:%3, into %4; takes C-MOVEs we ask for, and studies "
+              "sent by: %5")
+        .arg(QString::fromStdString(s.local.aeTitle),
+             QString::fromStdString(s.local.listenAddress.empty() ? "0.0.0.0"
+                                                                  : s.local.listenAddress))
         .arg(s.local.listenPort)
-        .arg(QString::fromStdString(m_store->root().string()));
+        .arg(QString::fromStdString(m_store->root().string()),
+             peers.isEmpty() ? tr("no one") : peers);
 }
 
 void PacsService::send(const pacs::Node& node, const pacs::LocalAe& local,

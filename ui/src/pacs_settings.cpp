@@ -30,6 +30,27 @@ enum Column { kName, kCalledAe, kHost, kPort, kTls, kRetrieve, kColumns };
 
 QString text(const std::string& s) { return QString::fromStdString(s); }
 
+/** The allowed peers as the dialog shows them: "AE, AE@host". */
+QString peersText(const std::vector<core::pacs::Peer>& peers) {
+    QStringList out;
+    for (const core::pacs::Peer& p : peers) out << text(core::pacs::describe(p));
+    return out.join(QStringLiteral(", "));
+}
+
+/** The dialog's "AE, AE@host" as peers; `problems` gets the ones parsePeer() refuses. */
+std::vector<core::pacs::Peer> parsePeers(const QString& list, QStringList* problems) {
+    std::vector<core::pacs::Peer> out;
+    for (const QString& item : list.split(QLatin1Char(','), Qt::SkipEmptyParts)) {
+        if (item.trimmed().isEmpty()) continue;
+        try {
+            out.push_back(core::pacs::parsePeer(item.trimmed().toStdString()));
+        } catch (const std::exception& e) {
+            if (problems) *problems << QString::fromUtf8(e.what());
+        }
+    }
+    return out;
+}
+
 /** The TLS settings (ours for every node with TLS on, and for the listener). */
 void loadTls(QSettings& s, core::pacs::LocalAe& local) {
     local.tls.certificateFile = s.value(keys::kPacsTlsCertificate).toString().toStdString();
@@ -94,6 +115,15 @@ PacsSettings PacsSettings::load() {
     p.local.listenPort = s.value(keys::kPacsListenPort, p.local.listenPort).toInt();
     p.local.timeoutSeconds = s.value(keys::kPacsTimeout, p.local.timeoutSeconds).toInt();
     p.listen = s.value(keys::kPacsListen, false).toBool();
+    p.local.listenAddress =
+        s.value(keys::kPacsListenAddress, text(p.local.listenAddress)).toString().toStdString();
+    for (const QString& peer : s.value(keys::kPacsAllowedPeers).toStringList()) {
+        try {
+            p.local.allowedPeers.push_back(core::pacs::parsePeer(peer.toStdString()));
+        } catch (const std::exception&) {
+            // Edited by hand into something invalid: not trusted (the dialog shows the rest).
+        }
+    }
     loadTls(s, p.local);
     return p;
 }
@@ -116,6 +146,10 @@ void PacsSettings::save() const {
     s.setValue(keys::kPacsListenPort, local.listenPort);
     s.setValue(keys::kPacsTimeout, local.timeoutSeconds);
     s.setValue(keys::kPacsListen, listen);
+    s.setValue(keys::kPacsListenAddress, text(local.listenAddress));
+    QStringList peers;
+    for (const core::pacs::Peer& p : local.allowedPeers) peers << text(core::pacs::describe(p));
+    s.setValue(keys::kPacsAllowedPeers, peers);
     saveTls(s, local);
 }
 
@@ -160,6 +194,17 @@ PacsNodesDialog::PacsNodesDialog(const PacsSettings& settings, QWidget* parent) 
     m_port->setRange(1, 65535);
     m_port->setValue(settings.local.listenPort);
     form->addRow(tr("Listener port"), m_port);
+    m_listenAddress = new QLineEdit(text(settings.local.listenAddress), this);
+    m_listenAddress->setToolTip(tr("The address the listener binds: 127.0.0.1 takes connections "
+                                   "from this machine only; 0.0.0.0 from every interface (a PACS "
+                                   "on another machine)"));
+    form->addRow(tr("Listener address"), m_listenAddress);
+    m_allowedPeers = new QLineEdit(peersText(settings.local.allowedPeers), this);
+    m_allowedPeers->setPlaceholderText(tr("none (AE or AE@host, comma-separated)"));
+    m_allowedPeers->setToolTip(tr("Who may send us studies unasked (they go to the store's "
+                                  "Incoming area). The nodes above need not be listed: each is "
+                                  "trusted for the C-MOVEs we ask it for, and for nothing else"));
+    form->addRow(tr("Accept studies sent by"), m_allowedPeers);
     m_timeout = new QSpinBox(this);
     m_timeout->setRange(1, 600);
     m_timeout->setSuffix(tr(" s"));
@@ -247,6 +292,8 @@ PacsSettings PacsNodesDialog::settings() const {
     p.local.listenPort = m_port->value();
     p.local.timeoutSeconds = m_timeout->value();
     p.listen = m_listen->isChecked();
+    p.local.listenAddress = m_listenAddress->text().trimmed().toStdString();
+    p.local.allowedPeers = parsePeers(m_allowedPeers->text(), nullptr);
     p.local.tls.certificateFile = m_tlsCert->text().trimmed().toStdString();
     p.local.tls.privateKeyFile = m_tlsKey->text().trimmed().toStdString();
     for (const QString& f : m_tlsCa->text().split(QLatin1Char(';'), Qt::SkipEmptyParts))
@@ -266,7 +313,8 @@ void PacsNodesDialog::accept() {
             problems << QString::fromUtf8(e.what());
         }
     };
-    check([&] { core::pacs::validate(p.local); });
+    check([&] { core::pacs::validateListener(p.local); }); // validate(p.local) and more
+    parsePeers(m_allowedPeers->text(), &problems);
     bool tls = p.local.listenTls;
     for (const Node& n : p.nodes) {
         if (n.name.empty()) problems << tr("A node has no name.");

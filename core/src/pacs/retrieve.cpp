@@ -6,7 +6,9 @@
 
 #include <dcmtk/dcmnet/diutil.h>
 
+#include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 
 namespace fs = std::filesystem;
@@ -20,8 +22,7 @@ class RetrieveScu : public detail::Scu {
 public:
     RetrieveScu(const Node& node, const LocalAe& local, LocalStore& store,
                 const RetrieveProgressFn& progressFn, const CancelToken* cancel)
-        : Scu(node, local), m_store(store), m_progressFn(progressFn), m_cancel(cancel),
-          m_storedBefore(store.instancesStored()) {}
+        : Scu(node, local), m_store(store), m_progressFn(progressFn), m_cancel(cancel) {}
 
     OFCondition handleSTORERequest(const T_ASC_PresentationContextID, DcmDataset* incoming,
                                    OFBool& continueSession, Uint16& status) override {
@@ -34,6 +35,7 @@ public:
             const auto stored = detail::storeDataset(m_store, *owned);
             if (stored.outcome.result == StoreResult::Quarantined) ++quarantined;
             status = STATUS_Success;
+            ++m_gotten;
         } catch (const std::exception& e) {
             m_storeError = e.what();
             status = STATUS_STORE_Refused_OutOfResources;
@@ -58,6 +60,8 @@ public:
     }
 
     T_ASC_PresentationContextID pc = 0;
+    /** C-MOVE: the listener's count of what it took for this move (C-GET counts its own). */
+    const StorageListener::Expectation* expectation = nullptr;
     RetrieveProgress progress;
     std::optional<Uint16> finalStatus;
     std::string m_storeError;
@@ -86,14 +90,14 @@ private:
 
     void report(std::optional<int> expected) {
         if (expected) progress.expected = *expected;
-        progress.received = m_store.instancesStored() - m_storedBefore;
+        progress.received = expectation ? expectation->received() : m_gotten;
         if (m_progressFn) m_progressFn(progress);
     }
 
     LocalStore& m_store;
     RetrieveProgressFn m_progressFn;
     const CancelToken* m_cancel;
-    int m_storedBefore;
+    int m_gotten = 0; // instances C-GET brought and the store took
 };
 
 void addGetContexts(RetrieveScu& scu) {
@@ -105,19 +109,64 @@ void addGetContexts(RetrieveScu& scu) {
                                    ASC_SC_ROLE_SCP);
 }
 
-/** The listener C-MOVE sends to: the one running on our port, else one for this retrieve. */
-std::unique_ptr<StorageListener> ensureListener(const LocalAe& local, LocalStore& store) {
-    if (StorageListener* running = StorageListener::runningOn(local.listenPort)) {
-        if (&running->store() != &store)
-            throw PacsError("the storage listener on port " + std::to_string(local.listenPort) +
-                            " writes into " + running->store().root().string() + ", not into " +
+// --- The listener a C-MOVE sends to ---
+/** The listeners started for retrieves, by port, with the number of retrieves using each:
+ *  shared by the retrieves that run at once, stopped when the last of them ends. */
+struct SharedListener {
+    std::unique_ptr<StorageListener> listener;
+    int users = 0;
+};
+std::mutex g_moveListenersMutex;
+std::map<int, SharedListener> g_moveListeners;
+
+/** The listener of one C-MOVE: the one running on our port (the workstation's, or one that
+ *  another retrieve started), else one started for it. Either trusts the node for this move
+ *  only (StorageListener::expect): one started here allows no other peer than what
+ *  local.allowedPeers lists. */
+class MoveListener {
+public:
+    MoveListener(const LocalAe& local, LocalStore& store) : m_port(local.listenPort) {
+        std::lock_guard lock(g_moveListenersMutex);
+        if (auto it = g_moveListeners.find(m_port); it != g_moveListeners.end()) {
+            m_listener = it->second.listener.get();
+            ++it->second.users;
+            m_shared = true;
+        } else if (StorageListener* running = StorageListener::runningOn(m_port)) {
+            m_listener = running; // the program's own: it outlives the retrieve
+        } else {
+            auto listener = std::make_unique<StorageListener>(local, store);
+            listener->start();
+            m_listener = listener.get();
+            g_moveListeners[m_port] = {std::move(listener), 1};
+            m_shared = true;
+        }
+        if (&m_listener->store() != &store) {
+            release();
+            throw PacsError("the storage listener on port " + std::to_string(m_port) +
+                            " writes into " + m_listener->store().root().string() + ", not into " +
                             store.root().string());
-        return nullptr;
+        }
     }
-    auto listener = std::make_unique<StorageListener>(local, store);
-    listener->start();
-    return listener;
-}
+    ~MoveListener() { release(); }
+    MoveListener(const MoveListener&) = delete;
+    MoveListener& operator=(const MoveListener&) = delete;
+    StorageListener& operator*() const { return *m_listener; }
+
+private:
+    void release() {
+        if (!m_shared) return;
+        m_shared = false;
+        std::lock_guard lock(g_moveListenersMutex);
+        auto it = g_moveListeners.find(m_port);
+        if (it != g_moveListeners.end() && --it->second.users == 0)
+            g_moveListeners.erase(it); // stops it
+    }
+
+    int m_port;
+    StorageListener* m_listener = nullptr;
+    bool m_shared = false;
+};
+// --- end of the listener a C-MOVE sends to ---
 
 /** Runs the C-GET or C-MOVE; the SCU's state says how it ended. */
 void runRetrieve(RetrieveScu& scu, const Node& node, const LocalAe& local, DcmDataset& keys) {
@@ -147,6 +196,7 @@ void runRetrieve(RetrieveScu& scu, const Node& node, const LocalAe& local, DcmDa
                          bool move) {
     if (!scu.m_storeError.empty())
         throw PacsError("retrieve from " + describe(node) + " stopped: " + scu.m_storeError);
+    const std::string problem = scu.expectation ? scu.expectation->lastProblem() : "";
     const char* op = move ? "C-MOVE" : "C-GET";
     const std::string partial = "; what arrived is kept as partial: retrieve again to complete it";
     // No final status: the PACS went silent or away (a status that never came is not one).
@@ -159,7 +209,8 @@ void runRetrieve(RetrieveScu& scu, const Node& node, const LocalAe& local, DcmDa
     std::string text = describe(node) + ": " + op + " of " + what;
     if (scu.progress.failed > 0)
         text += ": " + std::to_string(scu.progress.failed) + " of " +
-                std::to_string(scu.progress.expected) + " instances failed";
+                std::to_string(scu.progress.expected) + " instances failed" +
+                (problem.empty() ? "" : " (the last: " + problem + ")");
     else
         text += " ended with status " +
                 std::string(move ? DU_cmoveStatusString(status) : DU_cgetStatusString(status));
@@ -199,7 +250,15 @@ fs::path retrieve(const Node& node, const LocalAe& local, const std::string& stu
     if (!seriesUid.empty()) keys.putAndInsertString(DCM_SeriesInstanceUID, seriesUid.c_str());
     const bool move = node.retrieve == RetrieveMethod::Move;
     RetrieveScu scu(node, local, store, progress, cancel);
-    const auto listener = move ? ensureListener(local, store) : nullptr;
+    // C-MOVE: the listener takes the node's instances of this study (series) into the study
+    // until the move ends (the expectation's end), and nothing else into it.
+    std::optional<MoveListener> listener;
+    StorageListener::Expectation expectation;
+    if (move) {
+        listener.emplace(local, store);
+        expectation = (**listener).expect(node, studyUid, seriesUid);
+        scu.expectation = &expectation;
+    }
     store.beginRetrieve(StudyRecord{studyUid}, seriesUid);
     try {
         runRetrieve(scu, node, local, keys);

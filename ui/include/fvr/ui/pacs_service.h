@@ -26,8 +26,9 @@ public:
     ~PacsService() override; ///< stops the listener, waits for sends
 
     const std::shared_ptr<core::pacs::LocalStore>& store() const { return m_store; }
-    /** Starts or stops the listener as `s` says (restarted when its AE title or port changed).
-     *  Returns what happened, for the Messages panel; `ok` false when it could not start. */
+    /** Starts or stops the listener as `s` says (restarted when its AE title, port, address or
+     *  allowed peers changed). Returns what happened, for the Messages panel; `ok` false when it
+     *  could not start. What it refuses or quarantines comes as listenerEvent(). */
     QString applyListener(const PacsSettings& s, bool* ok = nullptr);
     bool listening() const { return m_listener && m_listener->running(); }
     /** Sends `files` to `node` on a worker thread, then removes `cleanup` (a temporary folder, if
@@ -38,6 +39,9 @@ public:
 
 signals:
     void sent(bool ok, const QString& message);
+    /** The listener refused a peer or an instance, quarantined one, or received a study into
+     *  Incoming (`problem` false), in words that name the peer. */
+    void listenerEvent(bool problem, const QString& message);
 
 private:
     std::shared_ptr<core::pacs::LocalStore> m_store;

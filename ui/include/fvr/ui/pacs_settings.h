@@ -28,8 +28,10 @@ struct PacsSettings {
 };
 
 /** Settings ▸ PACS nodes: a table of nodes (name, called AE, host, port, TLS, retrieve method),
- *  our AE title, the listener port and whether the listener runs, and DICOM TLS: our
- *  certificate and key, the CAs we trust, the peer check, whether the listener speaks TLS. */
+ *  our AE title, the listener port, its address, the peers whose own stores it takes (into the
+ *  store's Incoming area; the nodes are trusted for their C-MOVEs only) and whether it runs,
+ *  and DICOM TLS: our certificate and key, the CAs we trust, the peer check, whether the
+ *  listener speaks TLS. */
 class PacsNodesDialog : public QDialog {
     Q_OBJECT
 public:
@@ -38,6 +40,9 @@ public:
     PacsSettings settings() const;
     QTableWidget* table() const { return m_table; }
     QLineEdit* aeTitleEdit() const { return m_aeTitle; }
+    QLineEdit* listenAddressEdit() const { return m_listenAddress; }
+    /** The allowed peers, comma-separated "AE" or "AE@host". */
+    QLineEdit* allowedPeersEdit() const { return m_allowedPeers; }
     QLineEdit* tlsCertificateEdit() const { return m_tlsCert; }
     QLineEdit* tlsPrivateKeyEdit() const { return m_tlsKey; }
     QLineEdit* tlsTrustedCaEdit() const { return m_tlsCa; } ///< files separated by ';'
@@ -56,6 +61,8 @@ private:
     QTableWidget* m_table = nullptr;
     QLineEdit* m_aeTitle = nullptr;
     QSpinBox* m_port = nullptr;
+    QLineEdit* m_listenAddress = nullptr;
+    QLineEdit* m_allowedPeers = nullptr;
     QSpinBox* m_timeout = nullptr;
     QCheckBox* m_listen = nullptr;
     QLineEdit* m_tlsCert = nullptr;

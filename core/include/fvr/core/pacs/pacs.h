@@ -37,6 +37,16 @@ struct TlsSettings {
     bool verifyPeer = true; ///< refuse a peer without a certificate signed by a trusted CA
 };
 
+// --- The storage listener's trust (StorageListener) ---
+/** A peer our storage listener accepts associations from: its calling AE title, and the host
+ *  it connects from (a name or an IPv4 address, compared by address; empty = any host). */
+struct Peer {
+    std::string aeTitle;
+    std::string host;
+    bool operator==(const Peer&) const = default;
+};
+// --- end of the listener's trust ---
+
 /** Us: our AE title (the "calling AE"), the port of our StorageListener (C-MOVE destination,
  *  the PACS must know us under aeTitle at this port), and the network timeout: every wait for
  *  the peer (connection, TLS handshake, association, each message, release) ends after
@@ -45,6 +55,15 @@ struct LocalAe {
     std::string aeTitle = "FVR";
     int listenPort = 11112;
     int timeoutSeconds = 10;
+    // --- The storage listener's trust (StorageListener) ---
+    /** The IPv4 address the listener binds: this machine only by default; "0.0.0.0" (or "")
+     *  = every interface, to be asked for explicitly. */
+    std::string listenAddress = "127.0.0.1";
+    /** Peers whose own stores (not asked for by a retrieve) the listener takes, into the
+     *  store's Incoming area. A PACS we C-MOVE from is accepted for that move only, whether
+     *  or not it is listed here. */
+    std::vector<Peer> allowedPeers;
+    // --- end of the listener's trust ---
     // DICOM TLS: our certificate and the CAs we trust, for nodes with tls set and for the
     // listener when listenTls is set (a listener speaks TLS only, or plain DICOM only).
     TlsSettings tls;
@@ -67,6 +86,20 @@ void validate(const LocalAe& local);
  *  read and parsed, the key against its certificate, a CA when the peer is checked. Throws
  *  PacsError naming the file and the problem (the settings dialog checks with it). */
 void checkTls(const LocalAe& local);
+
+// --- The storage listener's trust (StorageListener) ---
+/** "AE" or "AE@host" (fvr-render --allow-peer, the workstation's settings) as a Peer; throws
+ *  PacsError naming the text when the AE title is not valid or the host is empty after '@'. */
+Peer parsePeer(const std::string& text);
+/** "ORTHANC@10.0.0.5", or "ORTHANC" (any host). */
+std::string describe(const Peer& peer);
+/** validate(local) and the listener's own fields: listenAddress an IPv4 address (or empty),
+ *  every allowed peer's AE title valid. Throws PacsError naming the field. */
+void validateListener(const LocalAe& local);
+/** Whether `address` ("", "0.0.0.0", "127.0.0.1", ...) binds more than this machine's
+ *  loopback interface. */
+bool listensBeyondLoopback(const std::string& address);
+// --- end of the listener's trust ---
 
 /**
  * C-ECHO. Returns normally when the PACS answers; throws PacsError otherwise. Every operation
