@@ -560,8 +560,7 @@ void declarePacs(CLI::App& app, Options& o) {
     app.add_option("--listen-address", o.listenAddress,
                    "the IPv4 address our storage listener binds for --retrieve move (default\n"
                    "127.0.0.1: this machine only; 0.0.0.0: every interface, for a PACS on\n"
-                   "another machine). It takes only the retrieved node's C-MOVE, whatever the "
-                   "address")
+                   "another machine); it takes only the C-MOVE of the node retrieved from")
         ->option_text("A")
         ->group(g);
     CLI::Option* query =

@@ -57,14 +57,17 @@ QString PacsService::applyListener(const PacsSettings& s, bool* ok) {
     QString peers;
     for (const pacs::Peer& p : s.local.allowedPeers)
         peers += (peers.isEmpty() ? "" : ", ") + QString::fromStdString(pacs::describe(p));
-    return tr("Storage listener: %1 on %2:%3, into %4; takes C-MOVEs we ask for, and studies "
+    const QString reach = pacs::listensBeyondLoopback(s.local.listenAddress)
+                              ? tr(" (reachable from other machines)")
+                              : tr(" (this machine only)");
+    return tr("Storage listener: %1 on %2:%3%6, into %4; takes C-MOVEs we ask for, and studies "
               "sent by: %5")
         .arg(QString::fromStdString(s.local.aeTitle),
              QString::fromStdString(s.local.listenAddress.empty() ? "0.0.0.0"
                                                                   : s.local.listenAddress))
         .arg(s.local.listenPort)
         .arg(QString::fromStdString(m_store->root().string()),
-             peers.isEmpty() ? tr("no one") : peers);
+             peers.isEmpty() ? tr("no one") : peers, reach);
 }
 
 void PacsService::send(const pacs::Node& node, const pacs::LocalAe& local,
