@@ -15,6 +15,7 @@
 
 #include <gtest/gtest.h>
 
+#include "stored_deflate.h"
 #include "test_support.h"
 
 namespace {
@@ -76,34 +77,7 @@ std::string niftiHeader(int nx, int ny, int nz, std::int16_t datatype, std::int1
     return h;
 }
 
-/** The gzip CRC-32 of `data`. */
-std::uint32_t crc32(const std::string& data) {
-    std::uint32_t crc = 0xffffffffu;
-    for (const unsigned char c : data) {
-        crc ^= c;
-        for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
-    }
-    return ~crc;
-}
-
-/** `data` as a gzip stream of stored (uncompressed) deflate blocks: as large as the data, a
- *  valid stream (zlib checks the trailer when it reads to the end). */
-std::string gzipStored(const std::string& data) {
-    std::string out("\x1f\x8b\x08\x00\x00\x00\x00\x00\x00\xff", 10);
-    std::size_t pos = 0;
-    do {
-        const std::size_t n = std::min<std::size_t>(65535, data.size() - pos);
-        out += char(pos + n == data.size() ? 1 : 0);
-        const std::uint16_t len = std::uint16_t(n), nlen = std::uint16_t(~n);
-        out.append(reinterpret_cast<const char*>(&len), 2);
-        out.append(reinterpret_cast<const char*>(&nlen), 2);
-        out.append(data, pos, n);
-        pos += n;
-    } while (pos < data.size());
-    const std::uint32_t trailer[2] = {crc32(data), std::uint32_t(data.size())};
-    out.append(reinterpret_cast<const char*>(trailer), 8);
-    return out;
-}
+using fvr::test::gzipStored;
 
 // A pixel size of 1e-6 mm once grew fvr-render to 9.2 GB in the voxel model's table.
 TEST(FvrRenderLimits, TinyOrHugePixelSizesAreRefusedWithTheNumbers) {

@@ -53,6 +53,13 @@ private:
             GTEST_FAIL() << ::fvr::test::PacsEnvironment::get().setupError();                      \
     } while (0)
 
+/** A fresh (emptied) local store folder for one test, under the environment's folder. */
+inline std::filesystem::path storeRoot(const std::string& name) {
+    const std::filesystem::path root = PacsEnvironment::get().dir / "stores" / name;
+    std::filesystem::remove_all(root);
+    return root;
+}
+
 /** A DICOM file's string tag (DCMTK), "" when absent. */
 std::string dicomTag(const std::filesystem::path& file, const std::string& tagName);
 

@@ -28,11 +28,7 @@ namespace {
 
 PacsEnvironment& env() { return PacsEnvironment::get(); }
 
-fs::path storeRoot(const std::string& name) {
-    const fs::path root = env().dir / "stores" / name;
-    fs::remove_all(root);
-    return root;
-}
+using fvr::test::storeRoot;
 
 fs::path scratch(const std::string& name) {
     const fs::path dir = env().dir / "listener" / name;

@@ -25,12 +25,7 @@ namespace {
 
 PacsEnvironment& env() { return PacsEnvironment::get(); }
 
-/** A fresh local store for one test. */
-fs::path storeRoot(const std::string& name) {
-    const fs::path root = env().dir / "stores" / name;
-    fs::remove_all(root);
-    return root;
-}
+using fvr::test::storeRoot;
 
 std::string philipsStudy() {
     return fvr::test::dicomTag(

@@ -33,6 +33,7 @@
 #include <fvr/core/render/voxel_model.h>
 #include <fvr/core/xray/phantom.h>
 
+#include "stored_deflate.h"
 #include "test_support.h"
 
 namespace {
@@ -205,34 +206,7 @@ std::string niftiHeader(int nx, int ny, int nz) {
     return h;
 }
 
-/** The gzip CRC-32 of `data`. */
-std::uint32_t crc32(const std::string& data) {
-    std::uint32_t crc = 0xffffffffu;
-    for (const unsigned char c : data) {
-        crc ^= c;
-        for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
-    }
-    return ~crc;
-}
-
-/** `data` as a gzip stream of stored (uncompressed) deflate blocks: as large as the data, a
- *  valid stream (zlib checks the trailer when it reads to the end). */
-std::string gzipStored(const std::string& data) {
-    std::string out("\x1f\x8b\x08\x00\x00\x00\x00\x00\x00\xff", 10);
-    std::size_t pos = 0;
-    do {
-        const std::size_t n = std::min<std::size_t>(65535, data.size() - pos);
-        out += char(pos + n == data.size() ? 1 : 0);
-        const std::uint16_t len = std::uint16_t(n), nlen = std::uint16_t(~n);
-        out.append(reinterpret_cast<const char*>(&len), 2);
-        out.append(reinterpret_cast<const char*>(&nlen), 2);
-        out.append(data, pos, n);
-        pos += n;
-    } while (pos < data.size());
-    const std::uint32_t trailer[2] = {crc32(data), std::uint32_t(data.size())};
-    out.append(reinterpret_cast<const char*>(trailer), 8);
-    return out;
-}
+using fvr::test::gzipStored;
 
 TEST(Limits, DeclaredVoxelsAreCheckedAgainstTheMemoryBeforeAllocating) {
     // 256^3 int16 voxels (32 MiB of data, 64 MiB as float) declared by a 40 KiB gzip file: the

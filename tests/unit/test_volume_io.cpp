@@ -23,6 +23,7 @@
 
 #include <gtest/gtest.h>
 
+#include "stored_deflate.h"
 #include "test_support.h"
 
 namespace {
@@ -72,55 +73,8 @@ void putValue(std::string& buf, std::size_t offset, T v, bool bigEndian) {
     buf.replace(offset, sizeof(T), tmp);
 }
 
-// Minimal deflate encoders with "stored" (uncompressed) blocks, so that the tests can write
-// gzip and zlib streams without linking zlib themselves.
-std::uint32_t crc32(const std::string& data) {
-    std::uint32_t crc = 0xffffffffu;
-    for (const unsigned char c : data) {
-        crc ^= c;
-        for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
-    }
-    return ~crc;
-}
-
-std::uint32_t adler32(const std::string& data) {
-    std::uint32_t a = 1, b = 0;
-    for (const unsigned char c : data) {
-        a = (a + c) % 65521u;
-        b = (b + a) % 65521u;
-    }
-    return (b << 16) | a;
-}
-
-std::string deflateStored(const std::string& data) {
-    std::string out;
-    std::size_t pos = 0;
-    do {
-        const std::size_t n = std::min<std::size_t>(65535, data.size() - pos);
-        const bool last = pos + n == data.size();
-        out += char(last ? 1 : 0);
-        appendValue<std::uint16_t>(out, std::uint16_t(n), false);
-        appendValue<std::uint16_t>(out, std::uint16_t(~n), false);
-        out.append(data, pos, n);
-        pos += n;
-    } while (pos < data.size());
-    return out;
-}
-
-std::string gzipStored(const std::string& data) {
-    std::string out("\x1f\x8b\x08\x00\x00\x00\x00\x00\x00\xff", 10);
-    out += deflateStored(data);
-    appendValue<std::uint32_t>(out, crc32(data), false);
-    appendValue<std::uint32_t>(out, std::uint32_t(data.size()), false);
-    return out;
-}
-
-std::string zlibStored(const std::string& data) {
-    std::string out("\x78\x01", 2);
-    out += deflateStored(data);
-    appendValue<std::uint32_t>(out, adler32(data), true);
-    return out;
-}
+using fvr::test::gzipStored;
+using fvr::test::zlibStored;
 
 bool contains(const std::string& s, const std::string& part) {
     return s.find(part) != std::string::npos;
