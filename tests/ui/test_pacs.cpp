@@ -19,6 +19,7 @@
 #include <fvr/ui/pacs_service.h>
 #include <fvr/ui/pacs_settings.h>
 
+#include "pacs/orthanc_server.h"
 #include "ui/ui_support.h"
 
 using namespace fvr;
@@ -144,6 +145,31 @@ TEST_F(Workstation, PacsTlsSettingsPersistAndAnUnreadableCertificateIsNamed) {
     EXPECT_NE(d.result(), QDialog::Accepted);
     const QString why = d.errorLabel()->text();
     EXPECT_TRUE(why.contains("/certs/ours.pem cannot be read")) << why.toStdString();
+}
+
+// The running listener follows every setting it is made from: turned to TLS (or given other
+// certificates, or another timeout) it is restarted with them, not left speaking plain DICOM.
+TEST_F(Workstation, PacsListenerRestartsWhenItsTlsSettingsChange) {
+    const std::filesystem::path dir =
+        std::filesystem::temp_directory_path() / "fvr-ui-listener-tls";
+    std::filesystem::remove_all(dir);
+    ui::PacsService service(dir / "store");
+    ui::PacsSettings s;
+    s.listen = true;
+    s.local.listenPort = test::freeLoopbackPort();
+    bool ok = false;
+    const QString started = service.applyListener(s, &ok);
+    ASSERT_TRUE(ok) << started.toStdString();
+    EXPECT_TRUE(service.listening());
+    EXPECT_TRUE(service.applyListener(s, &ok).isEmpty()); // nothing changed: left running
+    s.local.listenTls = true;
+    s.local.tls.certificateFile = (dir / "missing.pem").string();
+    s.local.tls.privateKeyFile = (dir / "missing.key").string();
+    const QString why = service.applyListener(s, &ok);
+    EXPECT_FALSE(ok) << why.toStdString();
+    EXPECT_FALSE(service.listening()); // not the plain listener of before
+    EXPECT_TRUE(why.contains("not started: TLS")) << why.toStdString();
+    std::filesystem::remove_all(dir);
 }
 
 TEST_F(Workstation, PacsQueryFormGivesTheDicomQuery) {

@@ -27,7 +27,10 @@ QString PacsService::applyListener(const PacsSettings& s, bool* ok) {
     const bool same = m_listener && m_listener->local().aeTitle == s.local.aeTitle &&
                       m_listener->local().listenPort == s.local.listenPort &&
                       m_listener->local().listenAddress == s.local.listenAddress &&
-                      m_listener->local().allowedPeers == s.local.allowedPeers;
+                      m_listener->local().allowedPeers == s.local.allowedPeers &&
+                      m_listener->local().listenTls == s.local.listenTls &&
+                      m_listener->local().tls == s.local.tls &&
+                      m_listener->local().timeoutSeconds == s.local.timeoutSeconds;
     if (!s.listen || !same) {
         const bool was = listening();
         m_listener.reset(); // stops it

@@ -26,9 +26,10 @@ public:
     ~PacsService() override; ///< stops the listener, waits for sends
 
     const std::shared_ptr<core::pacs::LocalStore>& store() const { return m_store; }
-    /** Starts or stops the listener as `s` says (restarted when its AE title, port, address or
-     *  allowed peers changed). Returns what happened, for the Messages panel; `ok` false when it
-     *  could not start. What it refuses or quarantines comes as listenerEvent(). */
+    /** Starts or stops the listener as `s` says (restarted when any of what it is made from
+     *  changed: AE title, port, address, allowed peers, TLS, timeout). Returns what happened, for
+     * the Messages panel; `ok` false when it could not start. What it refuses or quarantines comes
+     * as listenerEvent(). */
     QString applyListener(const PacsSettings& s, bool* ok = nullptr);
     bool listening() const { return m_listener && m_listener->running(); }
     /** Sends `files` to `node` on a worker thread, then removes `cleanup` (a temporary folder, if

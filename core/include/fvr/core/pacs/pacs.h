@@ -35,6 +35,7 @@ struct TlsSettings {
     std::string certificateFile, privateKeyFile;
     std::vector<std::string> trustedCaFiles;
     bool verifyPeer = true; ///< refuse a peer without a certificate signed by a trusted CA
+    bool operator==(const TlsSettings&) const = default;
 };
 
 // --- The storage listener's trust (StorageListener) ---
