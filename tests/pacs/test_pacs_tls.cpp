@@ -204,6 +204,36 @@ TEST_F(PacsTls, OurListenerRefusesPlainDicom) {
     EXPECT_NO_THROW(echo(us, l)); // the same listener over TLS
 }
 
+// Our TLS listener checks its peers' certificates (the default): a client whose certificate no
+// trusted CA signed, or that shows none, gets no association; with the check turned off both do.
+TEST_F(PacsTls, OurTlsListenerRefusesAStrangerAndAClientWithoutCertificate) {
+    LocalAe l = local();
+    l.listenTls = true;
+    l.allowedPeers = {{l.aeTitle, ""}}; // the clients below call as our own AE title
+    const Node us{"us", l.aeTitle, "127.0.0.1", l.listenPort, RetrieveMethod::Get, true};
+    LocalAe stranger = local();
+    stranger.tls.certificateFile = file("stranger.pem");
+    stranger.tls.privateKeyFile = file("stranger.key");
+    LocalAe anonymous = local();
+    anonymous.tls.certificateFile.clear();
+    anonymous.tls.privateKeyFile.clear();
+    for (const bool verify : {true, false}) {
+        SCOPED_TRACE(verify ? "peer check on" : "peer check off");
+        l.tls.verifyPeer = verify;
+        LocalStore store(dir() / "store-listener-check");
+        StorageListener listener(l, store);
+        listener.start();
+        EXPECT_NO_THROW(echo(us, local())); // signed by the CA: always in
+        if (verify) {
+            EXPECT_NE(pacsError([&] { echo(us, stranger); }).find("TLS"), std::string::npos);
+            EXPECT_NE(pacsError([&] { echo(us, anonymous); }).find("TLS"), std::string::npos);
+        } else {
+            EXPECT_NO_THROW(echo(us, stranger));
+            EXPECT_NO_THROW(echo(us, anonymous));
+        }
+    }
+}
+
 TEST_F(PacsTls, AStrangersCertificateIsRefused) {
     LocalAe l = local();
     l.tls.certificateFile = file("stranger.pem");
