@@ -286,7 +286,7 @@ def test_temporaries_name_their_host_as_fvr_render_reads_it(fvr_render, tmp_path
     foreign = tmp_path / f".a.npy.{dead}-{other}.1.part"
     for p in (mine, foreign):
         p.write_text("x")
-    run_fvr_render(fvr_render, ["phantom:shepp-logan:16", "--backend", "cpu", "--size", "32"],
+    run_fvr_render(fvr_render, ["phantom:shepp-logan:16", "--backend", "cpu", "--size", "128"],
                    tmp_path / "b.npy")
     assert not mine.exists()
     assert foreign.exists()
