@@ -152,12 +152,13 @@ std::vector<std::string> removeStaleTemporaries(const fs::path& dir, const std::
     for (const fs::path& entry : entriesOf(dir, ok)) {
         const std::string name = entry.filename();
         if (const auto t = parseTemporaryName(name)) {
-            // fvr's form: the writer's pid in the name. Only where that process is gone, and
-            // only outputs: staging folders (fvr's only temporary folders, with the Zarr
-            // conversion's) and files named as outputs.
+            // fvr's form: the writer's pid in the name, of this host's pid space (a temporary
+            // of another host or container is never parsed: kept). Only where that process is
+            // gone, and only temporaries of outputs: staging folders and the Zarr conversion's
+            // folders are named after an output (`.b.png.PID-ID.N.part`), like the files; a
+            // folder of any other name (`.mydir.1.2.part`) is the user's.
             std::error_code ec;
-            const bool folder = fs::is_directory(fs::symlink_status(entry, ec));
-            if ((folder || isOutputName(t->first)) && processIsGone(t->second)) {
+            if (isOutputName(t->first) && processIsGone(t->second)) {
                 if (fs::remove_all(entry, ec) != static_cast<std::uintmax_t>(-1) && !ec)
                     removed.push_back(name);
             }

@@ -2,9 +2,10 @@
 /**
  * fvr-render's outputs land all together or not at all. Every file of a run (the image or the
  * stack, a sweep's numbered frames, the sidecar FILE.json, --material-out) is written into a
- * staging folder beside FILE, `.NAME.PID.N.part`, and moved under its final name only when all
- * of them are complete: an interrupted run, a write error or a full disk leaves the earlier
- * run's files as they were, never a mix of two runs, never an image without its sidecar.
+ * staging folder beside FILE, `.NAME.PID-ID.N.part` (core::temporaryPathFor), and moved under its
+ * final name only when all of them are complete: an interrupted run, a write error or a full disk
+ * leaves the earlier run's files as they were, never a mix of two runs, never an image without its
+ * sidecar.
  *
  * The commit first removes what the earlier run into FILE wrote and this one does not (its
  * sidecar FILE.json, then the files it lists that are FILE or FILE_NNNN.ext: a 200-view sweep
@@ -12,9 +13,11 @@
  * last: a sidecar beside the frames always describes them.
  *
  * The leftovers of a run that died (kill -9, a crash, power loss) are removed by the next run
- * into the same folder: temporaries `.NAME.PID.N.part` (files or folders, fvr's own form) whose
- * process is gone, and the older form `FILE.part` of this FILE's own names when no process has
- * it open.
+ * into the same folder: temporaries `.NAME.PID-ID.N.part` of outputs NAME (files or folders,
+ * fvr's own form; the older `.NAME.PID.N.part` too) whose process is gone. ID is the writer's
+ * host and pid namespace (core::writerIdentity): a temporary of another host or container
+ * sharing the folder is never removed, its pid says nothing here. And the older form `FILE.part` of
+ * this FILE's own names when no process has it open.
  */
 #include <atomic>
 #include <csignal>
@@ -27,10 +30,11 @@
 
 namespace fvr::cli {
 
-/** `name`'s temporary name in this process, `.NAME.PID.N.part` (core::temporaryPathFor). */
+/** `name`'s temporary name in this process, `.NAME.PID-ID.N.part` (core::temporaryPathFor). */
 std::string temporaryName(const std::string& name);
 
-/** The NAME and PID of a temporary name `.NAME.PID.N.part`, or nothing. */
+/** The NAME and PID of a temporary name `.NAME.PID-ID.N.part` of this pid space (ID ours) or
+ *  `.NAME.PID.N.part`, or nothing (another host's or container's temporary among them). */
 std::optional<std::pair<std::string, long>> parseTemporaryName(const std::string& filename);
 
 /** Whether no process `pid` exists (kill(pid, 0) gives ESRCH); false where it may be alive. */
@@ -43,8 +47,8 @@ bool processIsGone(long pid);
 std::vector<std::string> removeStaleTemporaries(const std::filesystem::path& dir,
                                                 const std::string& out);
 
-/** Removes from `dir` the temporaries `.NAME.PID.N.part` of `name` alone (files or folders)
- *  whose process is gone; never throws. */
+/** Removes from `dir` the temporaries `.NAME.PID-ID.N.part` of `name` alone (files or folders)
+ *  whose process is gone (ID ours, or none); never throws. */
 void removeStaleTemporariesOf(const std::filesystem::path& dir, const std::string& name);
 
 /** Whether `name` (a file name) is one of the frames --out `out` writes: STEM_NNNN.ext. */

@@ -122,7 +122,8 @@ std::string valuesText(const Session& s) {
                                  : projectionUnits(s.options.values, s.volume.units);
 }
 
-/** The name of --send's temporary folders (.fvr-render-send.PID.N.part in the temporary folder). */
+/** The name of --send's temporary folders (.fvr-render-send.PID-ID.N.part in the temporary folder).
+ */
 constexpr const char* kSendFolder = "fvr-render-send";
 
 /** Writes the views one by one, or streams them into one .npy stack (written as it is produced,

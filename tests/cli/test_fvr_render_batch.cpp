@@ -20,6 +20,7 @@
 
 #include <gtest/gtest.h>
 
+#include <fvr/core/io/atomic_file.h>
 #include <fvr/core/io/image_io.h>
 
 #include "image_metrics.h"
@@ -436,6 +437,37 @@ TEST(FvrRenderBatch, KilledRunsLeftoversAreRemovedByTheNextRun) {
     EXPECT_EQ(filesIn(dir), (std::vector<std::string>{live, "s.npy", "s.npy.json", "s.npy.part"}))
         << r.output;
     fs::remove(log);
+}
+
+TEST(FvrRenderBatch, TheNextRunRemovesOnlyItsHostsOutputTemporaries) {
+    // A folder shared by hosts or containers (a dataset run's workers on several machines, NFS):
+    // a temporary of another pid space names a pid that means nothing here, so it stays even
+    // when that pid is gone here; one of this host with a dead pid goes. And a hidden folder of
+    // the user's whose name looks like a temporary but is no output's (`.mydir.N.N.part`) stays
+    // with its contents: the next run removes staging folders of outputs only.
+    const fs::path dir = scratch("hosts");
+    const std::string pid = std::to_string(deadPid()), ours = fvr::core::writerIdentity();
+    const std::string other = ours == "00000000" ? "00000001" : "00000000";
+    const std::string foreignFile = ".t.npy." + pid + "-" + other + ".3.part";
+    const std::string foreignFolder = ".b.png." + pid + "-" + other + ".4.part";
+    const std::string oursFolder = ".b.png." + pid + "-" + ours + ".5.part";
+    const std::string userFolder = ".mydir." + pid + ".1.part";
+    const std::string userFolderOurs = ".mydir." + pid + "-" + ours + ".2.part";
+    { std::ofstream(dir / foreignFile) << "another host's write in progress\n"; }
+    for (const std::string& d : {foreignFolder, oursFolder, userFolder, userFolderOurs}) {
+        fs::create_directory(dir / d);
+        std::ofstream(dir / d / "precious") << d << "\n";
+    }
+    const Result r = run(kPhantom + "--out " + (dir / "b.png").string());
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::vector<std::string> kept{foreignFile,    foreignFolder, userFolder,
+                                  userFolderOurs, "b.png",       "b.png.json"};
+    std::sort(kept.begin(), kept.end());
+    EXPECT_EQ(filesIn(dir), kept) << r.output;
+    for (const std::string& d : {foreignFolder, userFolder, userFolderOurs})
+        EXPECT_EQ(readBytes(dir / d / "precious"), d + "\n");
+    EXPECT_NE(r.output.find("removed " + (dir / oursFolder).string()), std::string::npos)
+        << r.output;
 }
 
 TEST(FvrRenderBatch, ARunBesideALiveOneLeavesItsFilesAlone) {

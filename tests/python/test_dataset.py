@@ -269,3 +269,24 @@ def test_every_allowed_column_is_accepted_by_fvr_render(tmp_path):
         result = dataset.render_study(job, str(tmp_path / "out"))
         assert not result["ok"]
         assert (unknown in result["error"]) == (column == "sizee"), (column, result["error"])
+
+
+def test_temporaries_name_their_host_as_fvr_render_reads_it(fvr_render, tmp_path):
+    """Workers on other machines write into one shared --out: the tool's temporaries name their
+    pid space as fvr-render's writers do, so fvr-render on this host removes one whose writer
+    died here and keeps another host's (whose pid means nothing here)."""
+    child = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                           capture_output=True, text=True, check=True)
+    dead = int(child.stdout)  # exited: its pid names no process (or a reused one: kept)
+    ours = dataset._part(tmp_path / "a.npy").name
+    assert re.fullmatch(r"\.a\.npy\.%d-[0-9a-f]{8}\.\d+\.part" % os.getpid(), ours), ours
+    identity = ours.split(".")[3].split("-")[1]
+    other = "00000000" if identity != "00000000" else "00000001"
+    mine = tmp_path / f".a.npy.{dead}-{identity}.1.part"
+    foreign = tmp_path / f".a.npy.{dead}-{other}.1.part"
+    for p in (mine, foreign):
+        p.write_text("x")
+    run_fvr_render(fvr_render, ["phantom:shepp-logan:16", "--backend", "cpu", "--size", "128"],
+                   tmp_path / "b.npy")
+    assert not mine.exists()
+    assert foreign.exists()

@@ -29,7 +29,8 @@ std::vector<float> ramp(int rows, int cols) {
         for (int c = 0; c < cols; ++c) v[std::size_t(r) * cols + c] = float(r * 100 + c);
     return v;
 }
-/** The temporary file this process writes for `dir/name` (`.<name>.<pid>.<n>.part`), or empty. */
+/** The temporary file this process writes for `dir/name` (`.<name>.<pid>-<id>.<n>.part`), or
+ *  empty. */
 std::filesystem::path temporaryOf(const std::filesystem::path& dir, const std::string& name) {
     for (const auto& f : std::filesystem::directory_iterator(dir)) {
         const std::string file = f.path().filename().string();
@@ -177,14 +178,24 @@ TEST(AtomicFile, TemporaryNamesAreUniqueAndNameTheirWriter) {
     const auto a = temporaryPathFor(dir / "s.npy"), b = temporaryPathFor(dir / "s.npy");
     EXPECT_NE(a, b);
     EXPECT_EQ(a.parent_path(), dir);
-    EXPECT_EQ(a.filename().string().rfind(".s.npy." + std::to_string(::getpid()) + ".", 0), 0u)
-        << a;
     EXPECT_EQ(a.extension(), ".part");
     EXPECT_EQ(temporaryWriterPid(a), ::getpid());
     for (const char* other : {"s.npy.part", ".s.npy.part", ".s.npy.12x.3.part", "s.npy",
                               ".s.npy.12.3.part.npy", "..1.part"})
         EXPECT_FALSE(temporaryWriterPid(dir / other)) << other;
-    EXPECT_EQ(temporaryWriterPid(dir / ".x.99.0.part"), 99);
+    EXPECT_EQ(temporaryWriterPid(dir / ".x.99.0.part"), 99); // the older form, no identity
+    // The writer's pid space in the name: a pid of this one is read back, one of another host
+    // or container (another identity) is not (a cleaner must keep its file).
+    const std::string ours = writerIdentity(), other = ours == "00000000" ? "00000001" : "00000000";
+    EXPECT_EQ(
+        a.filename().string().rfind(".s.npy." + std::to_string(::getpid()) + "-" + ours + ".", 0),
+        0u)
+        << a;
+    EXPECT_EQ(temporaryWriterPid(dir / (".x.99-" + ours + ".0.part")), 99);
+    for (const std::string& foreign : {".x.99-" + other + ".0.part", ".x.99-" + ours + "0.0.part",
+                                       ".x.99-" + ours.substr(1) + ".0.part",
+                                       std::string(".x.99-.0.part"), ".x.-" + ours + ".0.part"})
+        EXPECT_FALSE(temporaryWriterPid(dir / foreign)) << foreign;
     const auto longName = temporaryPathFor(dir / std::string(255, 'n'));
     EXPECT_LE(longName.filename().string().size(), 255u);
     EXPECT_EQ(temporaryWriterPid(longName), ::getpid());

@@ -10,6 +10,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <regex>
@@ -503,8 +504,9 @@ TEST(PacsLocalStore, DifferentBytesUnderAStoredUidGoToQuarantine) {
     LocalStore store(root);
     const std::vector<Source> two = syntheticStudy("1.2.5", 1);
     const Source& a = two[0];
-    const std::string tampered =
-        syntheticStudy("1.2.5", 1)[0].bytes.substr(0, 8) + "tampered" + a.bytes.substr(16);
+    // The last bytes of the file are pixels: another dataset under the same UIDs.
+    const std::string head = a.bytes.substr(0, a.bytes.size() - 8);
+    const std::string tampered = head + "tampered";
     ASSERT_NE(tampered, a.bytes);
     const StoreOutcome first = store.storeInstance(a.study, a.series, a.sop, a.bytes);
     EXPECT_EQ(first.result, StoreResult::Stored);
@@ -539,10 +541,10 @@ TEST(PacsLocalStore, DifferentBytesUnderAStoredUidGoToQuarantine) {
     EXPECT_NE(repeated.message.find("the same bytes were quarantined before"), std::string::npos)
         << repeated.message;
     EXPECT_EQ(filesUnder(root), before);
-    const StoreOutcome third = store.storeInstance(a.study, a.series, a.sop, tampered + "x");
+    const StoreOutcome third = store.storeInstance(a.study, a.series, a.sop, head + "tamperd2");
     EXPECT_EQ(third.result, StoreResult::Quarantined);
     EXPECT_NE(third.path, again.path);
-    EXPECT_EQ(readBytes(third.path), tampered + "x");
+    EXPECT_EQ(readBytes(third.path), head + "tamperd2");
     EXPECT_EQ(readBytes(again.path), tampered);
     EXPECT_EQ(store.quarantined().size(), 2u);
     // The study stays as it was: complete, one instance (quarantine files are not its own).
@@ -836,11 +838,164 @@ TEST(PacsLocalStore, ARetrieveRemovesTheTemporariesOfADeadWriter) {
     const fs::path staleIndex = root / (".index.json." + dead + ".4.part");
     const fs::path live = series / (".1.2.3.1.2.dcm." + alive + ".0.part");
     const fs::path notOurs = series / "notes.part";
-    for (const fs::path& p : {staleFile, staleIndex, live, notOurs}) std::ofstream(p) << "x";
+    // The form with the writer's pid space: ours with a dead pid goes; another host's or
+    // container's (a store on NFS, shared with a container) stays, its pid means nothing here.
+    const std::string ours = fvr::core::writerIdentity();
+    const std::string other = ours == "00000000" ? "00000001" : "00000000";
+    const fs::path staleOurs = series / (".1.2.3.1.3.dcm." + dead + "-" + ours + ".0.part");
+    const fs::path indexOurs = root / (".index.json." + dead + "-" + ours + ".5.part");
+    const fs::path foreign = series / (".1.2.3.1.4.dcm." + dead + "-" + other + ".0.part");
+    const fs::path foreignIndex = root / (".index.json." + dead + "-" + other + ".5.part");
+    for (const fs::path& p :
+         {staleFile, staleIndex, live, notOurs, staleOurs, indexOurs, foreign, foreignIndex})
+        std::ofstream(p) << "x";
     LocalStore store(root);
     store.beginRetrieve(study("1.2.3"), "");
     EXPECT_FALSE(fs::exists(staleFile));
     EXPECT_FALSE(fs::exists(staleIndex));
+    EXPECT_FALSE(fs::exists(staleOurs));
+    EXPECT_FALSE(fs::exists(indexOurs));
     EXPECT_TRUE(fs::exists(live));
     EXPECT_TRUE(fs::exists(notOurs));
+    EXPECT_TRUE(fs::exists(foreign));
+    EXPECT_TRUE(fs::exists(foreignIndex));
+}
+
+// The listener's Incoming area is never touched by a retrieve: a writer killed there left its
+// temporary for good. The first store into a study folder removes the dead writers' ones (of
+// this pid space), and keeps a live writer's and another host's.
+TEST(PacsLocalStore, AStoreIntoIncomingRemovesTheTemporariesOfADeadWriter) {
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-stale-incoming";
+    fs::remove_all(root);
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) ::_exit(0);
+    ASSERT_EQ(::waitpid(child, nullptr, 0), child);
+    const std::string dead = std::to_string(child), alive = std::to_string(::getpid());
+    const std::string ours = fvr::core::writerIdentity();
+    const std::string other = ours == "00000000" ? "00000001" : "00000000";
+    const fs::path series = root / "incoming/1.2.7/1.2.7.9";
+    fs::create_directories(series);
+    const fs::path stale = series / (".1.2.7.9.1.dcm." + dead + "-" + ours + ".0.part");
+    const fs::path staleOld = series / (".1.2.7.9.2.dcm." + dead + ".0.part");
+    const fs::path live = series / (".1.2.7.9.3.dcm." + alive + "-" + ours + ".0.part");
+    const fs::path foreign = series / (".1.2.7.9.4.dcm." + dead + "-" + other + ".0.part");
+    for (const fs::path& p : {stale, staleOld, live, foreign}) std::ofstream(p) << "x";
+    LocalStore store(root);
+    const auto ds = makeDataset("1.2.7", "1.2.7.1", "1.2.7.1.1");
+    EXPECT_EQ(detail::storeDataset(store, *ds, Area::Incoming).outcome.result, StoreResult::Stored);
+    EXPECT_FALSE(fs::exists(stale));
+    EXPECT_FALSE(fs::exists(staleOld));
+    EXPECT_TRUE(fs::exists(live));
+    EXPECT_TRUE(fs::exists(foreign));
+    EXPECT_EQ(store.find("1.2.7", Area::Incoming)->instances, 1);
+}
+
+// "The same instance" is the same dataset in the same transfer syntax, not the same file bytes:
+// the meta header (group 0002) names the DCMTK that wrote the file, so after a DCMTK upgrade
+// every resumed instance was quarantined and a study could never complete again.
+TEST(PacsLocalStore, TheSameDatasetUnderAnotherMetaHeaderIsIdentical) {
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-meta";
+    fs::remove_all(root);
+    LocalStore store(root);
+    const auto ds = makeDataset("1.2.8", "1.2.8.1", "1.2.8.1.1");
+    const auto stored = detail::storeDataset(store, *ds);
+    ASSERT_EQ(stored.outcome.result, StoreResult::Stored);
+    // As an older DCMTK would have written it: another implementation class UID and version
+    // name, of the same lengths (the meta header's group length stays right).
+    std::string bytes = readBytes(stored.outcome.path);
+    const auto replace = [&](const std::string& from, const std::string& to) {
+        const std::size_t at = bytes.find(from);
+        ASSERT_NE(at, std::string::npos) << from;
+        ASSERT_LT(at, 132u + 200u) << from; // in the meta header, not the dataset
+        bytes.replace(at, from.size(), to);
+    };
+    replace(OFFIS_DTK_IMPLEMENTATION_VERSION_NAME,
+            std::string(std::strlen(OFFIS_DTK_IMPLEMENTATION_VERSION_NAME), 'Z'));
+    replace(OFFIS_IMPLEMENTATION_CLASS_UID,
+            std::string(OFFIS_IMPLEMENTATION_CLASS_UID).substr(0, 18) +
+                std::string(std::strlen(OFFIS_IMPLEMENTATION_CLASS_UID) - 18, '9'));
+    { std::ofstream(stored.outcome.path, std::ios::binary) << bytes; }
+    const auto again = detail::storeDataset(store, *ds);
+    EXPECT_EQ(again.outcome.result, StoreResult::Identical) << again.outcome.message;
+    EXPECT_EQ(readBytes(stored.outcome.path), bytes); // the stored file untouched
+    EXPECT_TRUE(store.quarantined().empty());
+    // One pixel changed: another dataset, quarantined as before.
+    const std::vector<Uint16> pixels = [] {
+        std::vector<Uint16> p(16, 100);
+        p[5] = 101;
+        return p;
+    }();
+    ds->putAndInsertUint16Array(DCM_PixelData, pixels.data(), pixels.size());
+    const auto changed = detail::storeDataset(store, *ds);
+    EXPECT_EQ(changed.outcome.result, StoreResult::Quarantined);
+    EXPECT_EQ(readBytes(stored.outcome.path), bytes);
+    EXPECT_EQ(store.quarantined().size(), 1u);
+}
+
+// A permitted sender could send endless variants of one SOP instance: the quarantine takes at
+// most 3 files of one instance and a byte budget in all (1 GiB unless FVR_QUARANTINE_MAX_BYTES
+// says otherwise); beyond, the instance is refused with WriteError (the listener answers
+// 0xA700, Refused: Out of resources) naming the limit, and nothing is written.
+TEST(PacsLocalStore, TheQuarantineIsCapped) {
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-quarantine-cap";
+    fs::remove_all(root);
+    ::unsetenv("FVR_QUARANTINE_MAX_BYTES");
+    ::unsetenv("FVR_QUARANTINE_MAX_PER_INSTANCE");
+    LocalStore store(root);
+    const std::vector<Source> one = syntheticStudy("1.2.9", 2);
+    for (const Source& s : one)
+        ASSERT_EQ(store.storeInstance(s.study, s.series, s.sop, s.bytes).result,
+                  StoreResult::Stored);
+    const Source& a = one[0];
+    const auto variant = [](const Source& s, int n) {
+        return s.bytes.substr(0, s.bytes.size() - 8) + "variant" + std::to_string(n);
+    };
+    const auto refusal = [&](const Source& s, int n) {
+        try {
+            store.storeInstance(s.study, s.series, s.sop, variant(s, n));
+        } catch (const fvr::core::WriteError& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    for (int n = 1; n <= 3; ++n)
+        EXPECT_EQ(store.storeInstance(a.study, a.series, a.sop, variant(a, n)).result,
+                  StoreResult::Quarantined);
+    const auto before = filesUnder(root);
+    std::string msg = refusal(a, 4);
+    for (const std::string& part :
+         {"SOP instance " + a.sop, store.quarantineFolder().string() + " is full",
+          std::string("it holds 3 files of this instance, at most 3"),
+          std::string("FVR_QUARANTINE_MAX_PER_INSTANCE"), std::string("refused")})
+        EXPECT_NE(msg.find(part), std::string::npos) << msg;
+    EXPECT_EQ(filesUnder(root), before); // nothing written, no temporary left
+    // A quarantined variant sent again still answers as before (it takes no more room).
+    EXPECT_EQ(store.storeInstance(a.study, a.series, a.sop, variant(a, 2)).result,
+              StoreResult::Quarantined);
+
+    // The byte budget: room for one more file of the other instance, not two.
+    const std::uintmax_t size = a.bytes.size();
+    ::setenv("FVR_QUARANTINE_MAX_BYTES", std::to_string(4 * size + size / 2).c_str(), 1);
+    const Source& b = one[1];
+    EXPECT_EQ(store.storeInstance(b.study, b.series, b.sop, variant(b, 1)).result,
+              StoreResult::Quarantined);
+    msg = refusal(b, 2);
+    for (const std::string& part : {"it holds " + std::to_string(4 * size) + " bytes",
+                                    "budget of " + std::to_string(4 * size + size / 2) + " bytes",
+                                    std::string("FVR_QUARANTINE_MAX_BYTES")})
+        EXPECT_NE(msg.find(part), std::string::npos) << msg;
+    ::setenv("FVR_QUARANTINE_MAX_BYTES", "lots", 1);
+    msg = refusal(b, 3);
+    EXPECT_NE(msg.find("FVR_QUARANTINE_MAX_BYTES=\"lots\" is not a count"), std::string::npos)
+        << msg;
+    ::unsetenv("FVR_QUARANTINE_MAX_BYTES");
+    ::setenv("FVR_QUARANTINE_MAX_PER_INSTANCE", "4", 1);
+    EXPECT_EQ(store.storeInstance(a.study, a.series, a.sop, variant(a, 4)).result,
+              StoreResult::Quarantined);
+    ::unsetenv("FVR_QUARANTINE_MAX_PER_INSTANCE");
+    EXPECT_EQ(store.quarantined().size(), 5u);
+    for (const Source& s : one)
+        EXPECT_EQ(readBytes(store.find("1.2.9")->folder / s.series.seriesUid / (s.sop + ".dcm")),
+                  s.bytes);
 }

@@ -246,10 +246,30 @@ def _npy_path(out_dir: Path, job_id: str, fmt: str) -> Path:
 _part_count = itertools.count(1)
 
 
+def _writer_identity() -> str:
+    """This process's pid space as fvr's writers name it (core::writerIdentity): FNV-1a (32
+    bits) of the host name, a newline and the pid namespace link /proc/self/ns/pid, in 8 hex
+    digits. A cleaner on another host or in another container sees another identity and keeps
+    the file (its pid cannot be checked there)."""
+    import socket
+
+    text = socket.gethostname().encode() + b"\n"
+    try:
+        text += os.readlink("/proc/self/ns/pid").encode()
+    except OSError:
+        pass
+    h = 2166136261
+    for c in text:
+        h = ((h ^ c) * 16777619) & 0xFFFFFFFF
+    return f"{h:08x}"
+
+
 def _part(path: Path) -> Path:
-    """A temporary name for `path` in its folder, this process's own: .NAME.PID.N.part (the
-    form fvr-render's writers use, so that fvr-render removes it once this process is dead)."""
-    return path.with_name(f".{path.name}.{os.getpid()}.{next(_part_count)}.part")
+    """A temporary name for `path` in its folder, this process's own: .NAME.PID-ID.N.part (the
+    form fvr-render's writers use, so that fvr-render on this host removes it once this process
+    is dead, and one on another host sharing --out never does)."""
+    return path.with_name(
+        f".{path.name}.{os.getpid()}-{_writer_identity()}.{next(_part_count)}.part")
 
 
 def is_done(job: dict, out_dir: Path, fmt: str) -> bool:

@@ -3,6 +3,8 @@
 #include <atomic>
 #include <cerrno>
 #include <charconv>
+#include <cstdint>
+#include <cstdio>
 #include <cstring>
 
 #include <fcntl.h>
@@ -23,12 +25,44 @@ bool allDigits(std::string_view s) {
     return !s.empty() && s.find_first_not_of("0123456789") == std::string_view::npos;
 }
 
+/** Lower-case hexadecimal digits only, exactly `n` of them. */
+bool hexDigits(std::string_view s, std::size_t n) {
+    return s.size() == n && s.find_first_not_of("0123456789abcdef") == std::string_view::npos;
+}
+
+/** The text that tells this process's pid space apart: the host name and the pid namespace
+ *  (/proc/self/ns/pid reads "pid:[<inode>]": the same for every process of one kernel's pid
+ *  space, another for a container with its own). */
+std::string pidSpaceText() {
+    char host[256] = {};
+    if (::gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
+    std::string text = host;
+    text += '\n';
+    char ns[128] = {};
+    const ssize_t n = ::readlink("/proc/self/ns/pid", ns, sizeof ns - 1);
+    if (n > 0) text.append(ns, static_cast<std::size_t>(n));
+    return text;
+}
+
 } // namespace
+
+std::string writerIdentity() {
+    static const std::string identity = [] {
+        std::uint32_t hash = 2166136261u; // FNV-1a, 32 bits
+        for (const unsigned char c : pidSpaceText()) hash = (hash ^ c) * 16777619u;
+        char hex[9];
+        std::snprintf(hex, sizeof hex, "%08x", static_cast<unsigned>(hash));
+        return std::string(hex);
+    }();
+    return identity;
+}
 
 fs::path temporaryPathFor(const fs::path& path) {
     static std::atomic<unsigned long long> counter{0};
     std::string tail(1, '.'); // appended piece by piece (GCC 12 warns falsely on "." + string)
     tail += std::to_string(static_cast<long>(::getpid()));
+    tail += '-';
+    tail += writerIdentity();
     tail += '.';
     tail += std::to_string(counter.fetch_add(1));
     tail += kTempSuffix;
@@ -49,8 +83,16 @@ std::optional<long> temporaryWriterPid(const fs::path& tmp) {
     if (counterDot == std::string_view::npos || counterDot == 0) return std::nullopt;
     const std::size_t pidDot = name.rfind('.', counterDot - 1);
     if (pidDot == std::string_view::npos || pidDot == 0) return std::nullopt;
-    const std::string_view pid = name.substr(pidDot + 1, counterDot - pidDot - 1);
-    if (!allDigits(name.substr(counterDot + 1)) || !allDigits(pid)) return std::nullopt;
+    std::string_view pid = name.substr(pidDot + 1, counterDot - pidDot - 1);
+    if (!allDigits(name.substr(counterDot + 1))) return std::nullopt;
+    // PID-IDENTITY (this form) or PID alone (the form before it): a pid of another pid space
+    // (another host, a container) says nothing about the processes here.
+    if (const std::size_t dash = pid.find('-'); dash != std::string_view::npos) {
+        if (!hexDigits(pid.substr(dash + 1), 8) || pid.substr(dash + 1) != writerIdentity())
+            return std::nullopt;
+        pid = pid.substr(0, dash);
+    }
+    if (!allDigits(pid)) return std::nullopt;
     long value = 0;
     const auto [end, err] = std::from_chars(pid.data(), pid.data() + pid.size(), value);
     if (err != std::errc() || end != pid.data() + pid.size() || value <= 0) return std::nullopt;

@@ -6,6 +6,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include <dcmtk/config/osconfig.h> // first DCMTK include
+#include <dcmtk/dcmdata/dcostrmb.h>
+#include <dcmtk/dcmdata/dctk.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -43,6 +47,9 @@ constexpr const char* kIndexName = "index.json";
 constexpr const char* kIncomingName = "incoming";
 constexpr const char* kQuarantineName = "quarantine";
 constexpr std::size_t kMaxUidLength = 64;
+/** The quarantine's limits (checkQuarantineRoom): files per SOP instance, bytes in all. */
+constexpr std::uintmax_t kQuarantinePerInstance = 3;
+constexpr std::uintmax_t kQuarantineBytes = std::uintmax_t(1) << 30; // 1 GiB
 
 /** `text` quoted for a message: printable ASCII as it is, other bytes as \xNN, at most 80
  *  characters shown (a peer's value can be anything). */
@@ -221,6 +228,96 @@ bool sameBytes(const fs::path& a, const fs::path& b) {
     return inA.eof() && inB.eof();
 }
 
+/** `dataset` encoded in `xfer` (explicit lengths), as the current DCMTK writes it; nullopt
+ *  where it cannot be. */
+std::optional<std::string> encoded(DcmDataset& dataset, E_TransferSyntax xfer) {
+    std::string bytes;
+    std::vector<char> chunk(1 << 16);
+    DcmOutputBufferStream out(chunk.data(), static_cast<offile_off_t>(chunk.size()));
+    dataset.transferInit();
+    OFCondition cond = EC_StreamNotifyClient;
+    while (cond == EC_StreamNotifyClient) {
+        cond = dataset.write(out, xfer, EET_ExplicitLength, nullptr);
+        void* data = nullptr;
+        offile_off_t length = 0;
+        out.flushBuffer(data, length);
+        bytes.append(static_cast<const char*>(data), static_cast<std::size_t>(length));
+    }
+    dataset.transferEnd();
+    if (cond.bad()) return std::nullopt;
+    return bytes;
+}
+
+/** The dataset of DICOM file `path` encoded by encoded() in its own transfer syntax, with that
+ *  syntax's UID; nullopt where DCMTK cannot read it. */
+std::optional<std::pair<std::string, std::string>> datasetOf(const fs::path& path) {
+    DcmFileFormat file;
+    if (file.loadFile(path.c_str()).bad()) return std::nullopt;
+    OFString syntax;
+    file.getMetaInfo()->findAndGetOFString(DCM_TransferSyntaxUID, syntax);
+    DcmDataset& dataset = *file.getDataset();
+    E_TransferSyntax xfer = dataset.getOriginalXfer();
+    if (xfer == EXS_Unknown) xfer = EXS_LittleEndianExplicit;
+    auto bytes = encoded(dataset, xfer);
+    if (!bytes) return std::nullopt;
+    return std::make_pair(std::string(syntax.c_str()), std::move(*bytes));
+}
+
+/** Whether DICOM files `a` and `b` hold the same instance: the same transfer syntax and the same
+ *  dataset, encoded by this DCMTK. The meta header (group 0002: the writer's implementation
+ *  UID and version, the source AE) is not compared, so that a file written by an older DCMTK
+ *  is the same instance as the one received again. A file DCMTK cannot read: false. */
+bool sameDataset(const fs::path& a, const fs::path& b) {
+    const auto da = datasetOf(a);
+    if (!da) return false;
+    const auto db = datasetOf(b);
+    return db && *da == *db;
+}
+
+/** A limit from the environment variable `name` (a decimal count), `fallback` where unset;
+ *  WriteError naming the variable and its value when that is not a count. */
+std::uintmax_t limitFromEnv(const char* name, std::uintmax_t fallback) {
+    const char* text = std::getenv(name);
+    if (!text || !*text) return fallback;
+    const std::string value = text;
+    if (value.size() > 19 || value.find_first_not_of("0123456789") != std::string::npos)
+        throw WriteError(std::string("the environment variable ") + name + "=" + shownValue(value) +
+                         " is not a count (digits only)");
+    return std::stoull(value);
+}
+
+/** Throws WriteError (the callers answer C-STORE 0xA700, Refused: Out of resources) when the
+ *  quarantine `folder` may take no more of `sop`: it holds kQuarantinePerInstance files of it
+ *  already, or `size` more bytes would pass its budget. Both limits can be changed from the
+ *  environment (FVR_QUARANTINE_MAX_PER_INSTANCE, FVR_QUARANTINE_MAX_BYTES). */
+void checkQuarantineRoom(const fs::path& folder, const std::string& sop, std::uintmax_t size,
+                         const std::string& what) {
+    const std::uintmax_t perInstance =
+        limitFromEnv("FVR_QUARANTINE_MAX_PER_INSTANCE", kQuarantinePerInstance);
+    const std::uintmax_t budget = limitFromEnv("FVR_QUARANTINE_MAX_BYTES", kQuarantineBytes);
+    std::uintmax_t total = 0, ofThis = 0;
+    std::error_code ec;
+    const std::string mark = "-" + sop + "-";
+    for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+        std::error_code sizeEc;
+        const std::uintmax_t bytes = it->is_regular_file(sizeEc) ? it->file_size(sizeEc) : 0;
+        if (!sizeEc) total += bytes;
+        if (it->path().filename().string().find(mark) != std::string::npos) ++ofThis;
+    }
+    const std::string refused = what + ", but the quarantine " + folder.string() + " is full: ";
+    if (ofThis >= perInstance)
+        throw WriteError(refused + "it holds " + std::to_string(ofThis) +
+                         " files of this instance, at most " + std::to_string(perInstance) +
+                         " (FVR_QUARANTINE_MAX_PER_INSTANCE). The instance is refused; the "
+                         "stored file is kept unchanged");
+    if (total + size > budget)
+        throw WriteError(refused + "it holds " + std::to_string(total) + " bytes, and these " +
+                         std::to_string(size) + " would pass its budget of " +
+                         std::to_string(budget) +
+                         " bytes (FVR_QUARANTINE_MAX_BYTES). The instance is refused; the stored "
+                         "file is kept unchanged");
+}
+
 /** UTC now as yyyymmddThhmmss (quarantine file names sort by time). */
 std::string nowStamp() {
     const auto t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
@@ -260,7 +357,9 @@ fs::path moveToQuarantine(const fs::path& tmp, const fs::path& folder, const std
 
 /** Removes the temporary files (io/atomic_file.h names) in `folder` (and below it when
  *  `recursive`) whose writer no longer runs: what a killed process left. A file whose pid is
- *  alive (or reused) is kept: it may be a write in progress. */
+ *  alive (or reused) is kept: it may be a write in progress; so is one of another host or
+ *  container (a store on NFS, shared with a container): temporaryWriterPid() gives no pid for
+ *  it, its writer cannot be checked here. */
 void removeStaleTemporaries(const fs::path& folder, bool recursive) {
     const auto stale = [](const fs::directory_entry& e) {
         std::error_code ec;
@@ -471,21 +570,27 @@ StoreOutcome LocalStore::place(const fs::path& tmp, const fs::path& path,
         if (placeNoReplace(tmp, path)) return {StoreResult::Stored, path, ""};
         // A file is there already (stored before, or by a concurrent writer just now): it is
         // never replaced.
-        if (sameBytes(tmp, path)) {
+        // The same instance: the same bytes, or the same dataset under another meta header
+        // (written by another DCMTK version, another source AE).
+        if (sameBytes(tmp, path) || sameDataset(tmp, path)) {
             std::error_code ec;
             fs::remove(tmp, ec);
             return {StoreResult::Identical, path, ""};
         }
+        const std::string what = "SOP instance " + sopUid + " of " + areaName(area) + "study " +
+                                 studyUid + " was received again with different bytes";
+        const IndexLock quarantineLock(m_root); // one writer at a time counts and adds
         fs::path kept = alreadyQuarantined(tmp, quarantineFolder(), sopUid);
         const bool again = !kept.empty();
         std::error_code ec;
-        if (again)
+        if (again) {
             fs::remove(tmp, ec);
-        else
+        } else {
+            checkQuarantineRoom(quarantineFolder(), sopUid, fs::file_size(tmp), what);
             kept = moveToQuarantine(tmp, quarantineFolder(), sopUid);
+        }
         return {StoreResult::Quarantined, kept,
-                "SOP instance " + sopUid + " of " + areaName(area) + "study " + studyUid +
-                    " was received again with different bytes: the stored file " + path.string() +
+                what + ": the stored file " + path.string() +
                     " is kept unchanged, the received one is in quarantine as " + kept.string() +
                     (again ? " (the same bytes were quarantined before)" : "")};
     } catch (...) {
@@ -506,6 +611,15 @@ StoreOutcome LocalStore::storeInstance(const StudyRecord& study, const SeriesRec
     std::error_code ec;
     fs::create_directories(folder, ec);
     if (ec) throw WriteError(folder.string() + ": cannot create the folder: " + ec.message());
+    // What a writer killed mid-write left in this study (the listener's Incoming area is
+    // never cleaned by a retrieve): removed once per study and object, before this one writes.
+    const fs::path studyDir = studyFolder(study.studyUid, area);
+    bool clean = false;
+    {
+        std::lock_guard lock(m_mutex);
+        clean = m_cleaned.insert(studyDir).second;
+    }
+    if (clean) removeStaleTemporaries(studyDir, true);
     // Written under a name of this writer alone, then placed without replacing.
     const fs::path tmp = temporaryPathFor(path);
     try {

@@ -2,13 +2,17 @@
 /** How every output file is written: through a temporary file in the same folder, renamed into
  *  place when complete, so that no reader ever sees a half-written file under the final name.
  *
- *  The temporary name is unique per process and writer: `.<name>.<pid>.<n>.part` beside
- *  `<name>` (hidden, the writer's process id, a counter of the process). Concurrent writers of
- *  the same final name never share a temporary file; the last rename wins, atomically. A
- *  temporary file left behind by a process that died (kill -9, power loss) ends in `.part` and
- *  names its writer's pid: temporaryWriterPid() reads it back, so a cleaner can tell whether the
- *  writer still runs. When `<name>` is too long for the file system's 255-byte names with the
- *  additions, it is shortened in the temporary name (the final name is never changed). */
+ *  The temporary name is unique per process and writer: `.<name>.<pid>-<id>.<n>.part` beside
+ *  `<name>` (hidden, the writer's process id, writerIdentity(), a counter of the process).
+ *  Concurrent writers of the same final name never share a temporary file; the last rename
+ *  wins, atomically. A temporary file left behind by a process that died (kill -9, power loss)
+ *  ends in `.part` and names its writer: temporaryWriterPid() reads the pid back when the
+ *  writer ran in this pid space, so a cleaner can tell whether it still runs. A temporary of
+ *  another host or container (a folder shared over NFS, a dataset run's workers on several
+ *  machines) has another identity: its pid means nothing here, and cleaners never remove it.
+ *  The older form `.<name>.<pid>.<n>.part` (no identity) is still read as this pid space's.
+ *  When `<name>` is too long for the file system's 255-byte names with the additions, it is
+ *  shortened in the temporary name (the final name is never changed). */
 #include <cstddef>
 #include <filesystem>
 #include <functional>
@@ -17,11 +21,20 @@
 
 namespace fvr::core {
 
+/** This process's pid space in 8 lower-case hex digits: FNV-1a of the host name and the pid
+ *  namespace (/proc/self/ns/pid). Processes of one host share it (pids there can be checked
+ *  with kill(pid, 0)); another host, or a container with its own pid namespace, has another
+ *  (the same only by a 1 in 2^32 chance, or for two hosts of the same name outside
+ *  containers). */
+std::string writerIdentity();
+
 /** A fresh temporary path for `path` as described above (nothing is created). */
 std::filesystem::path temporaryPathFor(const std::filesystem::path& path);
 
 /** The writer's process id when `tmp`'s file name has the form of temporaryPathFor()'s names
- *  (`.<name>.<pid>.<n>.part`); nullopt for any other name. */
+ *  with this process's writerIdentity() (`.<name>.<pid>-<id>.<n>.part`), or the older form
+ *  without one (`.<name>.<pid>.<n>.part`); nullopt for any other name, and for a temporary of
+ *  another identity (its writer's pid cannot be checked here: it must be kept). */
 std::optional<long> temporaryWriterPid(const std::filesystem::path& tmp);
 
 /**

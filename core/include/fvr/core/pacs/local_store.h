@@ -9,7 +9,7 @@
  *  dots), so it can never be one of the store's own names, which all contain a letter or begin
  *  with a dot: `index.json` (nlohmann-json: the studies of both areas with their series,
  *  complete or partial), `.index.lock`, the temporary files of writes in progress
- *  (`.<name>.<pid>.<n>.part`, io/atomic_file.h), and the folders `incoming` and `quarantine`.
+ *  (`.<name>.<pid>-<id>.<n>.part`, io/atomic_file.h), and the folders `incoming` and `quarantine`.
  *  A stored instance is never overwritten: the same bytes again change nothing, other bytes under
  *  the same SOP Instance UID go to `<root>/quarantine/` and the store says so (StoreOutcome). */
 #include <filesystem>
@@ -41,8 +41,9 @@ enum class Area { Studies, Incoming };
 /** What storeInstance() did with an instance. */
 enum class StoreResult {
     Stored, ///< written under its name
-    Identical, ///< a file of the same bytes was there already: nothing written
-    Quarantined ///< other bytes were there: the stored file is untouched, these went aside
+    Identical, ///< the same instance was there already (the same transfer syntax and dataset;
+               ///< the meta header may differ): nothing written
+    Quarantined ///< another dataset was there: the stored file is untouched, this went aside
 };
 struct StoreOutcome {
     StoreResult result = StoreResult::Stored;
@@ -99,8 +100,15 @@ public:
      *  <area>/<study>/<series>/<sopInstanceUid>.dcm, and lists its study and series as partial
      *  unless already complete. `study` fills the index's description fields the first time.
      *  A file already under that name is never replaced: Identical when it holds the same
-     *  bytes, else the bytes go to quarantine (Quarantined, with a message; nothing thrown).
-     *  Throws WriteError, or PacsError for a UID that isValidUid() refuses (naming it). */
+     *  bytes, or the same dataset in the same transfer syntax under another meta header (group
+     *  0002, e.g. written by another DCMTK version); else the bytes go to quarantine
+     *  (Quarantined, with a message; nothing thrown). The same instance in another transfer
+     *  syntax is quarantined too. The quarantine takes at most 3 files per SOP instance and
+     *  1 GiB in all (FVR_QUARANTINE_MAX_PER_INSTANCE, FVR_QUARANTINE_MAX_BYTES change them);
+     *  beyond, the instance is refused: WriteError saying the quarantine is full, naming the
+     *  limit. The first write into a study folder (per object) removes the temporaries that
+     *  dead writers left in it (see beginRetrieve). Throws WriteError, or PacsError for a UID
+     *  that isValidUid() refuses (naming it). */
     StoreOutcome storeInstance(const StudyRecord& study, const SeriesRecord& series,
                                const std::string& sopInstanceUid, const std::string& bytes,
                                Area area = Area::Studies);
@@ -143,6 +151,7 @@ private:
     std::filesystem::path m_root;
     mutable std::mutex m_mutex;
     std::set<std::string> m_retrieving;
+    std::set<std::filesystem::path> m_cleaned; ///< study folders rid of dead writers' temporaries
     int m_stored = 0;
 };
 
