@@ -89,8 +89,10 @@ void validate(const LocalAe& local);
 void checkTls(const LocalAe& local);
 
 // --- The storage listener's trust (StorageListener) ---
-/** "AE" or "AE@host" (fvr-render --allow-peer, the workstation's settings) as a Peer; throws
- *  PacsError naming the text when the AE title is not valid or the host is empty after '@'. */
+/** "AE" or "AE@host" (the workstation's settings: the dialog's "Accept studies sent by" list
+ *  and the saved allowed peers; fvr-render has none: its --retrieve move listener trusts only
+ *  the node, while the move runs) as a Peer; throws PacsError naming the text when the AE
+ *  title is not valid or the host is empty after '@'. */
 Peer parsePeer(const std::string& text);
 /** "ORTHANC@10.0.0.5", or "ORTHANC" (any host). */
 std::string describe(const Peer& peer);
