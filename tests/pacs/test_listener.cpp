@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "pacs_environment.h"
+#include "slow_peer.h"
 #include "test_support.h"
 
 namespace fs = std::filesystem;
@@ -495,3 +496,27 @@ TEST(PacsListenerTrust, TheWorkstationsListenerTrustsTheNodeOnlyWhileItsMoveRuns
     EXPECT_FALSE(store.find(philipsStudy(), Area::Incoming));
 }
 
+// The listener takes one association at a time. A peer that only reaches the port (no AE title
+// checked yet) sends the head of an A-ASSOCIATE-RQ and then one byte of it a second, each well
+// within the timeout: the whole request must arrive within the timeout of the connection, so
+// the listener drops it then (not when the peer stops), and serves the next peer.
+TEST(PacsListenerTrust, ADrippedAssociationRequestIsDroppedAtTheTimeout) {
+    FVR_REQUIRE_ORTHANC();
+    FVR_REQUIRE_DCMTK_TOOLS();
+    constexpr int kTimeout = 3; // s
+    LocalStore store(storeRoot("drip"));
+    LocalAe local = withPeers({{"SENDER", ""}});
+    local.timeoutSeconds = kTimeout;
+    StorageListener listener(local, store);
+    listener.start();
+    // A-ASSOCIATE-RQ (type 1) with 200 bytes to follow, which come one a second.
+    const double droppedAfter =
+        fvr::test::dripUntilDropped(local.listenPort, {0x01, 0x00, 0x00, 0x00, 0x00, 0xc8});
+    std::printf("[ timing   ] dripped association request dropped after %.2f s (timeout %d s)\n",
+                droppedAfter, kTimeout);
+    ASSERT_GE(droppedAfter, 0) << "the listener still held the dripping peer after 30 s";
+    EXPECT_LE(droppedAfter, kTimeout + 1.0);
+    const auto echo = echoscu("SENDER", local.listenPort);
+    EXPECT_EQ(echo.status, 0) << echo.out;
+    EXPECT_TRUE(listener.running());
+}
