@@ -217,7 +217,10 @@ TEST(PacsFakeGetScp, InstancesOfAnotherStudyAreRefusedNotStored) {
     }
     std::printf("[ message  ] %s\n", message.c_str());
     EXPECT_NE(message.find("1 instance(s) of another study"), std::string::npos) << message;
-    EXPECT_NE(message.find("refused"), std::string::npos) << message;
+    EXPECT_NE(message.find("refused (not stored); the 3 instance(s) of study " + study +
+                           " it sent are kept as partial"),
+              std::string::npos)
+        << message;
     EXPECT_NE(message.find(kFakeAe), std::string::npos) << message;
     // The SCU answered the foreign one 0x0124 and the study's three success.
     ASSERT_EQ(pacs.scp().storeStatuses.size(), 4u);
@@ -272,4 +275,35 @@ TEST(PacsFakeGetScp, InstancesOfAnotherSeriesAreRefusedNotStored) {
     EXPECT_EQ(entry->instances, 2);
     ASSERT_EQ(entry->series.size(), 1u);
     EXPECT_FALSE(entry->series[0].complete);
+}
+
+// The PACS sends nothing but another study's instance: refused, and no entry is left for the
+// study asked for (nothing of it came).
+TEST(PacsFakeGetScp, OnlyAnotherStudysInstanceLeavesNothing) {
+    FVR_REQUIRE_DATA(fvr::test::kSlicer);
+    const fs::path file = *fs::directory_iterator(fvr::test::sharedData() / fvr::test::kSlicer);
+    FakePacs pacs;
+    pacs.scp().datasets.push_back(loadDataset(file));
+    const std::string study = tagOf(*pacs.scp().datasets.front(), DCM_StudyInstanceUID);
+    ASSERT_TRUE(
+        pacs.scp().datasets.front()->putAndInsertString(DCM_StudyInstanceUID, kOtherStudy).good());
+    pacs.start();
+
+    LocalStore store(freshRoot("only-foreign"));
+    LocalAe local;
+    local.aeTitle = fvr::test::kOurAe;
+    std::string message;
+    try {
+        retrieve(pacs.node(), local, study, "", store);
+    } catch (const PacsError& e) {
+        message = e.what();
+    }
+    EXPECT_NE(message.find("1 instance(s) of another study, which were refused (not stored); it "
+                           "sent nothing of study " +
+                           study),
+              std::string::npos)
+        << message;
+    ASSERT_EQ(pacs.scp().storeStatuses.size(), 1u);
+    EXPECT_EQ(pacs.scp().storeStatuses[0], STATUS_STORE_Refused_NotAuthorized);
+    EXPECT_TRUE(store.studies().empty());
 }

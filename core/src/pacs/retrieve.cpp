@@ -246,17 +246,26 @@ void runRetrieve(RetrieveScu& scu, const Node& node, const LocalAe& local, DcmDa
     throw PacsError(text + partial);
 }
 
-/** The C-GET brought instances it did not ask for (refused, not stored): says how many. */
-[[noreturn]] void unasked(const RetrieveScu& scu, const Node& node, const std::string& what) {
-    std::string others;
+/** The C-GET brought instances it did not ask for (refused, not stored): says how many. What
+ *  it asked for stays partial; an entry begun for it that got nothing goes. */
+[[noreturn]] void unasked(const RetrieveScu& scu, LocalStore& store, const Node& node,
+                          const std::string& studyUid, const std::string& what) {
+    std::string text = describe(node) + ": C-GET of " + what + ": the PACS sent ";
     if (scu.otherStudy > 0)
-        others = std::to_string(scu.otherStudy) + " instance(s) of another study";
+        text += std::to_string(scu.otherStudy) + " instance(s) of another study";
+    if (scu.otherStudy > 0 && scu.otherSeries > 0) text += " and ";
     if (scu.otherSeries > 0)
-        others += (others.empty() ? "" : " and ") + std::to_string(scu.otherSeries) +
-                  " instance(s) of another series";
-    throw PacsError(describe(node) + ": C-GET of " + what + ": the PACS also sent " + others +
-                    ", which were refused (not stored); " + std::to_string(scu.progress.received) +
-                    " instance(s) of " + what + " are kept as partial");
+        text += std::to_string(scu.otherSeries) + " instance(s) of another series";
+    text += ", which were refused (not stored)";
+    if (scu.progress.received > 0) {
+        text += "; the " + std::to_string(scu.progress.received) + " instance(s) of " + what +
+                " it sent are kept as partial";
+    } else {
+        if (const auto entry = store.find(studyUid); entry && entry->instances == 0)
+            store.remove(studyUid);
+        text += "; it sent nothing of " + what;
+    }
+    throw PacsError(text);
 }
 
 /** Nothing came: an unknown UID (Orthanc then fails the C-GET) or an empty study. The empty
@@ -313,7 +322,7 @@ fs::path retrieve(const Node& node, const LocalAe& local, const std::string& stu
                     !unaskedCame && scu.finalStatus == STATUS_Success && scu.progress.failed == 0;
     store.finishRetrieve(studyUid, seriesUid, ok && scu.progress.received > 0);
     if (scu.cancelSent) throw Cancelled();
-    if (unaskedCame && scu.m_storeError.empty()) unasked(scu, node, what);
+    if (unaskedCame && scu.m_storeError.empty()) unasked(scu, store, node, studyUid, what);
     if (scu.progress.received == 0 && scu.m_storeError.empty())
         nothingArrived(scu, store, node, studyUid, what, move);
     if (scu.quarantined > 0)

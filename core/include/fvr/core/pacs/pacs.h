@@ -176,7 +176,9 @@ class LocalStore;
  * retrieve completes it) or core::Cancelled when `cancel` fires (looked at on each response and
  * each instance received; C-CANCEL sent, the association aborted, the entry stays partial).
  * `progress` is called on the calling thread after each of them. Files are written atomically;
- * nothing half-written is listed as complete.
+ * nothing half-written is listed as complete. Only what was asked for is taken: an instance of
+ * another study (or series) is refused (C-GET: status 0x0124, Not Authorized; C-MOVE: by the
+ * listener), never stored, and a C-GET that brought any fails saying how many.
  */
 std::filesystem::path retrieve(const Node& node, const LocalAe& local, const std::string& studyUid,
                                const std::string& seriesUid, LocalStore& store,
