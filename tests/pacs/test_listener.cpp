@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "pacs_environment.h"
+#include "slow_peer.h"
 #include "test_support.h"
 
 namespace fs = std::filesystem;
@@ -452,9 +453,70 @@ TEST(PacsListenerTrust, TheListenerOfAMoveAllowsOnlyItsNode) {
     EXPECT_EQ(tries[1].status, 0) << tries[1].out;
     EXPECT_NE(refused.find("ATTACKER at 127.0.0.1"), std::string::npos) << refused;
     EXPECT_NE(refused.find("allowed peers: none"), std::string::npos) << refused;
-    // After the move, not even the node.
-    LocalStore other(storeRoot("move-own-after"));
-    StorageListener after(env().local(), other);
-    after.start();
-    EXPECT_NE(echoscu(OrthancServer::kAeTitle, port).status, 0);
+    // After the move, the listener it started is gone (the node's trust after a move, on a
+    // listener that stays: TheWorkstationsListenerTrustsTheNodeOnlyWhileItsMoveRuns).
+    EXPECT_EQ(StorageListener::runningOn(port), nullptr);
+}
+
+// The workstation's listener keeps running after a C-MOVE through it: the PACS it trusted for
+// the move (ORTHANC at 127.0.0.1) is a stranger again once the move has ended, for echo and
+// for store, and what it then sends stays out of the store.
+TEST(PacsListenerTrust, TheWorkstationsListenerTrustsTheNodeOnlyWhileItsMoveRuns) {
+    FVR_REQUIRE_ORTHANC();
+    FVR_REQUIRE_DCMTK_TOOLS();
+    LocalStore store(storeRoot("move-then-stranger"));
+    const fs::path dir = scratch("move-then-stranger");
+    const fs::path extra = extraInstance(philipsFile(5), dir / "extra.dcm", false);
+    const int port = env().local().listenPort;
+    StorageListener listener(env().local(), store); // no allowed peers
+    listener.start();
+    std::vector<fvr::test::CommandOutput> during;
+    moveRetrieve(store, [&](const RetrieveProgress&) {
+        if (during.empty()) during.push_back(echoscu(OrthancServer::kAeTitle, port));
+    });
+    ASSERT_EQ(during.size(), 1u);
+    EXPECT_EQ(during[0].status, 0) << during[0].out; // trusted while its move ran
+    ASSERT_EQ(StorageListener::runningOn(port), &listener); // the same listener, still running
+    ASSERT_TRUE(listener.running());
+
+    const auto echo = echoscu(OrthancServer::kAeTitle, port);
+    EXPECT_NE(echo.status, 0) << echo.out;
+    EXPECT_NE(echo.out.find("Calling AE Title Not Recognized"), std::string::npos) << echo.out;
+    const auto stored = storescu(OrthancServer::kAeTitle, port, {extra});
+    EXPECT_NE(stored.status, 0) << stored.out;
+    EXPECT_NE(stored.out.find("Calling AE Title Not Recognized"), std::string::npos) << stored.out;
+    const std::string refused = eventsOf(listener, StorageListener::Event::Kind::Refused);
+    EXPECT_NE(refused.find("refused an association from ORTHANC at 127.0.0.1"), std::string::npos)
+        << refused;
+    EXPECT_NE(refused.find("expected for a C-MOVE: none"), std::string::npos) << refused;
+    const auto entry = store.find(philipsStudy());
+    ASSERT_TRUE(entry);
+    EXPECT_TRUE(entry->complete);
+    EXPECT_EQ(entry->instances, 140); // the extra instance did not get in
+    EXPECT_FALSE(store.find(philipsStudy(), Area::Incoming));
+}
+
+// The listener takes one association at a time. A peer that only reaches the port (no AE title
+// checked yet) sends the head of an A-ASSOCIATE-RQ and then one byte of it a second, each well
+// within the timeout: the whole request must arrive within the timeout of the connection, so
+// the listener drops it then (not when the peer stops), and serves the next peer.
+TEST(PacsListenerTrust, ADrippedAssociationRequestIsDroppedAtTheTimeout) {
+    FVR_REQUIRE_ORTHANC();
+    FVR_REQUIRE_DCMTK_TOOLS();
+    constexpr int kTimeout = 3; // s
+    LocalStore store(storeRoot("drip"));
+    LocalAe local = withPeers({{"SENDER", ""}});
+    local.timeoutSeconds = kTimeout;
+    StorageListener listener(local, store);
+    listener.start();
+    // A-ASSOCIATE-RQ (type 1) with 200 bytes to follow, which come one a second.
+    const double droppedAfter =
+        fvr::test::dripUntilDropped(local.listenPort, {0x01, 0x00, 0x00, 0x00, 0x00, 0xc8});
+    std::printf("[ timing   ] dripped association request dropped after %.2f s (timeout %d s)\n",
+                droppedAfter, kTimeout);
+    ASSERT_GE(droppedAfter, 0) << "the listener still held the dripping peer after 30 s";
+    EXPECT_LE(droppedAfter, kTimeout + 1.0);
+    const auto echo = echoscu("SENDER", local.listenPort);
+    EXPECT_EQ(echo.status, 0) << echo.out;
+    EXPECT_TRUE(listener.running());
 }

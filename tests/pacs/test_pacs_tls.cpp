@@ -15,6 +15,7 @@
 #include <iterator>
 
 #include "pacs_environment.h"
+#include "slow_peer.h"
 #include "test_support.h"
 
 namespace fs = std::filesystem;
@@ -232,6 +233,29 @@ TEST_F(PacsTls, OurTlsListenerRefusesAStrangerAndAClientWithoutCertificate) {
             EXPECT_NO_THROW(echo(us, anonymous));
         }
     }
+}
+
+// The TLS listener: a peer that reaches the port and sends its TLS handshake one byte a second
+// (each within the timeout, so OpenSSL's every read succeeds) is dropped at the timeout of the
+// connection, and the listener serves the next peer.
+TEST_F(PacsTls, ADrippedTlsHandshakeIsDroppedAtTheTimeout) {
+    LocalAe l = local();
+    l.listenTls = true;
+    l.timeoutSeconds = 3;
+    l.allowedPeers = {{l.aeTitle, ""}};
+    LocalStore store(dir() / "store-drip");
+    StorageListener listener(l, store);
+    listener.start();
+    // A TLS record (handshake, TLS 1.0 record version) with 200 bytes to follow.
+    const double droppedAfter =
+        fvr::test::dripUntilDropped(l.listenPort, {0x16, 0x03, 0x01, 0x00, 0xc8}, 0x01);
+    std::printf("[ timing   ] dripped TLS handshake dropped after %.2f s (timeout %d s)\n",
+                droppedAfter, l.timeoutSeconds);
+    ASSERT_GE(droppedAfter, 0) << "the TLS listener still held the dripping peer after 30 s";
+    EXPECT_LE(droppedAfter, l.timeoutSeconds + 1.0);
+    Node us{"us", l.aeTitle, "127.0.0.1", l.listenPort};
+    us.tls = true;
+    EXPECT_NO_THROW(echo(us, l));
 }
 
 TEST_F(PacsTls, AStrangersCertificateIsRefused) {

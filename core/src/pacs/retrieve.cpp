@@ -31,6 +31,13 @@ public:
             status = STATUS_STORE_Refused_OutOfResources;
             return EC_Normal;
         }
+        if (!asked(*owned)) {
+            // Not what this C-GET asked for: refused as the listener refuses what no retrieve
+            // asked for (0x0124, Not Authorized), never stored, counted for the message.
+            status = STATUS_STORE_Refused_NotAuthorized;
+            report(std::nullopt);
+            return EC_Normal;
+        }
         try {
             const auto stored = detail::storeDataset(m_store, *owned);
             if (stored.outcome.result == StoreResult::Quarantined) ++quarantined;
@@ -60,6 +67,9 @@ public:
     }
 
     T_ASC_PresentationContextID pc = 0;
+    /** What the C-GET asks for: instances of other studies (series) are refused. */
+    std::string studyUid, seriesUid;
+    int otherStudy = 0, otherSeries = 0; ///< instances C-GET brought that it did not ask for
     /** C-MOVE: the listener's count of what it took for this move (C-GET counts its own). */
     const StorageListener::Expectation* expectation = nullptr;
     RetrieveProgress progress;
@@ -69,6 +79,23 @@ public:
     bool cancelSent = false;
 
 private:
+    /** Whether the instance is of the requested study (and series, when one was asked for);
+     *  counts it in otherStudy / otherSeries when not. */
+    bool asked(DcmDataset& dataset) {
+        OFString study, series;
+        dataset.findAndGetOFString(DCM_StudyInstanceUID, study);
+        dataset.findAndGetOFString(DCM_SeriesInstanceUID, series);
+        if (study.c_str() != studyUid) {
+            ++otherStudy;
+            return false;
+        }
+        if (!seriesUid.empty() && series.c_str() != seriesUid) {
+            ++otherSeries;
+            return false;
+        }
+        return true;
+    }
+
     bool cancelRequested(OFBool& cont) {
         if (!m_cancel || !m_cancel->cancelled()) return false;
         if (!cancelSent) {
@@ -219,6 +246,28 @@ void runRetrieve(RetrieveScu& scu, const Node& node, const LocalAe& local, DcmDa
     throw PacsError(text + partial);
 }
 
+/** The C-GET brought instances it did not ask for (refused, not stored): says how many. What
+ *  it asked for stays partial; an entry begun for it that got nothing goes. */
+[[noreturn]] void unasked(const RetrieveScu& scu, LocalStore& store, const Node& node,
+                          const std::string& studyUid, const std::string& what) {
+    std::string text = describe(node) + ": C-GET of " + what + ": the PACS sent ";
+    if (scu.otherStudy > 0)
+        text += std::to_string(scu.otherStudy) + " instance(s) of another study";
+    if (scu.otherStudy > 0 && scu.otherSeries > 0) text += " and ";
+    if (scu.otherSeries > 0)
+        text += std::to_string(scu.otherSeries) + " instance(s) of another series";
+    text += ", which were refused (not stored)";
+    if (scu.progress.received > 0) {
+        text += "; the " + std::to_string(scu.progress.received) + " instance(s) of " + what +
+                " it sent are kept as partial";
+    } else {
+        if (const auto entry = store.find(studyUid); entry && entry->instances == 0)
+            store.remove(studyUid);
+        text += "; it sent nothing of " + what;
+    }
+    throw PacsError(text);
+}
+
 /** Nothing came: an unknown UID (Orthanc then fails the C-GET) or an empty study. The empty
  *  entry begun for it goes. */
 [[noreturn]] void nothingArrived(const RetrieveScu& scu, LocalStore& store, const Node& node,
@@ -250,6 +299,8 @@ fs::path retrieve(const Node& node, const LocalAe& local, const std::string& stu
     if (!seriesUid.empty()) keys.putAndInsertString(DCM_SeriesInstanceUID, seriesUid.c_str());
     const bool move = node.retrieve == RetrieveMethod::Move;
     RetrieveScu scu(node, local, store, progress, cancel);
+    scu.studyUid = studyUid;
+    scu.seriesUid = seriesUid;
     // C-MOVE: the listener takes the node's instances of this study (series) into the study
     // until the move ends (the expectation's end), and nothing else into it.
     std::optional<MoveListener> listener;
@@ -266,10 +317,12 @@ fs::path retrieve(const Node& node, const LocalAe& local, const std::string& stu
         store.finishRetrieve(studyUid, seriesUid, false);
         throw;
     }
+    const bool unaskedCame = scu.otherStudy + scu.otherSeries > 0;
     const bool ok = !scu.cancelSent && scu.m_storeError.empty() && scu.quarantined == 0 &&
-                    scu.finalStatus == STATUS_Success && scu.progress.failed == 0;
+                    !unaskedCame && scu.finalStatus == STATUS_Success && scu.progress.failed == 0;
     store.finishRetrieve(studyUid, seriesUid, ok && scu.progress.received > 0);
     if (scu.cancelSent) throw Cancelled();
+    if (unaskedCame && scu.m_storeError.empty()) unasked(scu, store, node, studyUid, what);
     if (scu.progress.received == 0 && scu.m_storeError.empty())
         nothingArrived(scu, store, node, studyUid, what, move);
     if (scu.quarantined > 0)

@@ -8,12 +8,15 @@
 
 #include <openssl/err.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <condition_variable>
 #include <cstring>
 #include <fstream>
 #include <mutex>
 #include <optional>
+#include <thread>
 
 #include <poll.h>
 #include <sys/socket.h>
@@ -57,9 +60,11 @@ struct WatchedLayer::Shared {
 class WatchedConnection : public DcmTransportConnection {
 public:
     WatchedConnection(DcmNativeSocketType socket, DcmTransportConnection* inner,
-                      std::shared_ptr<WatchedLayer::Shared> shared, int timeoutMs, bool tls)
+                      std::shared_ptr<WatchedLayer::Shared> shared, int timeoutMs, bool tls,
+                      bool acceptor)
         : DcmTransportConnection(socket), m_inner(inner), m_shared(std::move(shared)),
           m_report(std::make_shared<LinkReport>()), m_timeout(timeoutMs), m_socket(socket) {
+        if (acceptor) m_requestDeadline = Clock::now() + m_timeout;
         m_report->made = true;
         m_report->tls = tls;
         setSocketTimeouts(socket, kSliceMs); // after DCMTK's (60 s, set by the constructors)
@@ -99,6 +104,7 @@ public:
 
 private:
     OFCondition handshake(bool server);
+    OFCondition boundedHandshake(bool server);
     bool waitFor(short events, int callerMs = -1);
     void died(int err);
     void received(const void* buf, ssize_t n);
@@ -116,6 +122,9 @@ private:
     std::chrono::milliseconds m_timeout;
     DcmNativeSocketType m_socket;
     std::optional<Clock::time_point> m_waitingSince; ///< since the last byte moved
+    /** Accepted connections: when the A-ASSOCIATE-RQ must have arrived whole (bytes do not
+     *  move it); cleared once it has. */
+    std::optional<Clock::time_point> m_requestDeadline;
     bool m_dead = false; ///< silent, lost or closed: every read and write fails at once
 };
 
@@ -124,8 +133,9 @@ OFCondition WatchedConnection::handshake(bool server) {
     setSocketTimeouts(m_socket, int(m_timeout.count()));
     ERR_clear_error();
     const auto start = Clock::now();
-    const OFCondition cond =
-        server ? m_inner->serverSideHandshake() : m_inner->clientSideHandshake();
+    const OFCondition cond = m_requestDeadline ? boundedHandshake(server)
+                             : server          ? m_inner->serverSideHandshake()
+                                               : m_inner->clientSideHandshake();
     setSocketTimeouts(m_socket, kSliceMs);
     if (cond.good() || !m_report->tls) {
         m_report->handshakeDone = cond.good();
@@ -144,15 +154,43 @@ OFCondition WatchedConnection::handshake(bool server) {
     return cond;
 }
 
+/** An accepted connection's handshake, ended by the association request's deadline however
+ *  slowly the peer sends it (OpenSSL's reads each wait the socket's timeout afresh): at the
+ *  deadline a watchdog shuts the socket down, and OpenSSL's read fails at once. */
+OFCondition WatchedConnection::boundedHandshake(bool server) {
+    std::mutex mutex;
+    std::condition_variable cv;
+    bool done = false;
+    std::thread watchdog([&, deadline = *m_requestDeadline] {
+        std::unique_lock lock(mutex);
+        if (!cv.wait_until(lock, deadline, [&] { return done; })) ::shutdown(m_socket, SHUT_RDWR);
+    });
+    const OFCondition cond =
+        server ? m_inner->serverSideHandshake() : m_inner->clientSideHandshake();
+    {
+        std::lock_guard lock(mutex);
+        done = true;
+    }
+    cv.notify_one();
+    watchdog.join();
+    return cond;
+}
+
 /** Waits until the socket is ready for `events`, within what is left of the deadline (and
  *  within callerMs when DCMTK asks for less). False when the time is up: at the deadline, the
  *  peer is silent and the connection dead. */
 bool WatchedConnection::waitFor(short events, int callerMs) {
     if (m_dead) return false;
+    if (m_requestDeadline && Clock::now() >= *m_requestDeadline) { // bytes came, too slowly
+        m_report->silent = true;
+        m_dead = true;
+        return false;
+    }
     if (events == POLLIN && m_inner->networkDataAvailable(0)) return true; // TLS: buffered
     const auto now = Clock::now();
     if (!m_waitingSince) m_waitingSince = now;
-    const auto deadline = *m_waitingSince + m_timeout;
+    auto deadline = *m_waitingSince + m_timeout;
+    if (m_requestDeadline) deadline = std::min(deadline, *m_requestDeadline);
     auto until = deadline;
     const bool callers = callerMs >= 0 && now + std::chrono::milliseconds(callerMs) < deadline;
     if (callers) until = now + std::chrono::milliseconds(callerMs);
@@ -188,6 +226,13 @@ void WatchedConnection::received(const void* buf, ssize_t n) {
     for (ssize_t i = 0; i < n && m_report->firstBytes.size() < 10; ++i)
         m_report->firstBytes.push_back(b[i]);
     m_report->received += std::size_t(n);
+    // The first PDU (the A-ASSOCIATE-RQ) is whole: 6 bytes of head, then the length they give.
+    if (m_requestDeadline && m_report->firstBytes.size() >= 6) {
+        const auto& h = m_report->firstBytes;
+        const std::size_t length = (std::size_t(h[2]) << 24) | (std::size_t(h[3]) << 16) |
+                                   (std::size_t(h[4]) << 8) | std::size_t(h[5]);
+        if (m_report->received >= 6 + length) m_requestDeadline.reset();
+    }
 }
 
 ssize_t WatchedConnection::read(void* buf, size_t nbyte) {
@@ -234,9 +279,10 @@ ssize_t WatchedConnection::write(void* buf, size_t nbyte) {
     return ssize_t(nbyte);
 }
 
-WatchedLayer::WatchedLayer(int timeoutSeconds, std::unique_ptr<DcmTLSTransportLayer> tls)
+WatchedLayer::WatchedLayer(int timeoutSeconds, std::unique_ptr<DcmTLSTransportLayer> tls,
+                           bool acceptor)
     : m_shared(std::make_shared<Shared>()), m_tls(std::move(tls)),
-      m_timeoutMs(timeoutSeconds * 1000) {}
+      m_timeoutMs(timeoutSeconds * 1000), m_acceptor(acceptor) {}
 
 WatchedLayer::~WatchedLayer() = default;
 
@@ -244,7 +290,8 @@ DcmTransportConnection* WatchedLayer::createConnection(DcmNativeSocketType socke
     DcmTransportConnection* inner = m_tls ? m_tls->createConnection(socket, OFTrue)
                                           : DcmTransportLayer::createConnection(socket, OFFalse);
     if (!inner) return nullptr;
-    return new WatchedConnection(socket, inner, m_shared, m_timeoutMs, m_tls != nullptr);
+    return new WatchedConnection(socket, inner, m_shared, m_timeoutMs, m_tls != nullptr,
+                                 m_acceptor);
 }
 
 LinkReport WatchedLayer::lastReport() const {
@@ -297,9 +344,9 @@ void loadIdentity(DcmTLSTransportLayer& layer, const TlsSettings& tls) {
 } // namespace
 
 std::unique_ptr<WatchedLayer> makeLayer(const LocalAe& local, bool tls, T_ASC_NetworkRole role) {
-    if (!tls) return std::make_unique<WatchedLayer>(local.timeoutSeconds, nullptr);
-    const TlsSettings& s = local.tls;
     const bool listener = role == NET_ACCEPTOR;
+    if (!tls) return std::make_unique<WatchedLayer>(local.timeoutSeconds, nullptr, listener);
+    const TlsSettings& s = local.tls;
     if (listener && s.certificateFile.empty())
         throw PacsError("the TLS listener needs our certificate and private key (PEM files)");
     if (s.certificateFile.empty() != s.privateKeyFile.empty())
@@ -324,7 +371,7 @@ std::unique_ptr<WatchedLayer> makeLayer(const LocalAe& local, bool tls, T_ASC_Ne
     if (cond.bad()) throw PacsError(std::string("TLS: the cipher suites: ") + cond.text());
     layer->setCertificateVerification(s.verifyPeer ? DCV_requireCertificate
                                                    : DCV_ignoreCertificate);
-    return std::make_unique<WatchedLayer>(local.timeoutSeconds, std::move(layer));
+    return std::make_unique<WatchedLayer>(local.timeoutSeconds, std::move(layer), listener);
 }
 
 } // namespace fvr::core::pacs::detail

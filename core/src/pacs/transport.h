@@ -37,11 +37,17 @@ struct LinkReport {
  * its waits into polls, reads and the release that follows a failure). The connection is then
  * dead: every later read or write fails at once, so the whole operation ends within the
  * timeout. DCMTK's own timeouts stay a little longer, as a backstop.
+ * A connection we accept (the listener) has one more deadline, which no byte moves: its whole
+ * A-ASSOCIATE-RQ must arrive within the timeout of the connection's start, so that a peer that
+ * reaches the port cannot hold the listener (one association at a time) by sending the request
+ * a byte at a time.
  */
 class WatchedLayer : public DcmTransportLayer {
 public:
-    /** `tls`: the TLS layer to wrap (its connections), null for plain TCP. */
-    WatchedLayer(int timeoutSeconds, std::unique_ptr<DcmTLSTransportLayer> tls);
+    /** `tls`: the TLS layer to wrap (its connections), null for plain TCP; `acceptor`: the
+     *  listener's (the association request's own deadline). */
+    WatchedLayer(int timeoutSeconds, std::unique_ptr<DcmTLSTransportLayer> tls,
+                 bool acceptor = false);
     ~WatchedLayer() override;
     WatchedLayer(const WatchedLayer&) = delete;
     WatchedLayer& operator=(const WatchedLayer&) = delete;
@@ -58,6 +64,7 @@ private:
     std::shared_ptr<Shared> m_shared;
     std::unique_ptr<DcmTLSTransportLayer> m_tls;
     int m_timeoutMs;
+    bool m_acceptor;
 };
 
 /** The layer of our associations with `node` (TLS when node.tls) or of the listener (role

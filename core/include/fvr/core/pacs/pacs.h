@@ -89,8 +89,10 @@ void validate(const LocalAe& local);
 void checkTls(const LocalAe& local);
 
 // --- The storage listener's trust (StorageListener) ---
-/** "AE" or "AE@host" (fvr-render --allow-peer, the workstation's settings) as a Peer; throws
- *  PacsError naming the text when the AE title is not valid or the host is empty after '@'. */
+/** "AE" or "AE@host" (the workstation's settings: the dialog's "Accept studies sent by" list
+ *  and the saved allowed peers; fvr-render has none: its --retrieve move listener trusts only
+ *  the node, while the move runs) as a Peer; throws PacsError naming the text when the AE
+ *  title is not valid or the host is empty after '@'. */
 Peer parsePeer(const std::string& text);
 /** "ORTHANC@10.0.0.5", or "ORTHANC" (any host). */
 std::string describe(const Peer& peer);
@@ -174,7 +176,9 @@ class LocalStore;
  * retrieve completes it) or core::Cancelled when `cancel` fires (looked at on each response and
  * each instance received; C-CANCEL sent, the association aborted, the entry stays partial).
  * `progress` is called on the calling thread after each of them. Files are written atomically;
- * nothing half-written is listed as complete.
+ * nothing half-written is listed as complete. Only what was asked for is taken: an instance of
+ * another study (or series) is refused (C-GET: status 0x0124, Not Authorized; C-MOVE: by the
+ * listener), never stored, and a C-GET that brought any fails saying how many.
  */
 std::filesystem::path retrieve(const Node& node, const LocalAe& local, const std::string& studyUid,
                                const std::string& seriesUid, LocalStore& store,
