@@ -148,8 +148,34 @@ OrthancServer::~OrthancServer() {
     fs::remove_all(m_dir / "storage", ec);
 }
 
+namespace {
+
+/** Whether every thread of `pid` is stopped ('T' in /proc/PID/task/TID/stat). */
+bool allThreadsStopped(int pid) {
+    std::error_code ec;
+    const fs::path tasks = fs::path("/proc") / std::to_string(pid) / "task";
+    bool any = false;
+    for (fs::directory_iterator it(tasks, ec), end; !ec && it != end; it.increment(ec)) {
+        std::ifstream in(it->path() / "stat");
+        std::string stat((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        const auto paren = stat.rfind(')'); // the name may hold spaces; the state follows it
+        if (paren == std::string::npos || paren + 2 >= stat.size()) continue;
+        const char state = stat[paren + 2];
+        if (state != 'T' && state != 't') return false;
+        any = true;
+    }
+    return any;
+}
+
+} // namespace
+
 void OrthancServer::stop() const {
-    if (m_pid > 0) ::kill(m_pid, SIGSTOP);
+    if (m_pid <= 0) return;
+    // SIGSTOP takes effect as each thread next enters the kernel: until then a thread running on
+    // another core may still answer. Return only once all of them are stopped.
+    ::kill(m_pid, SIGSTOP);
+    for (int i = 0; i < 2000 && !allThreadsStopped(m_pid); ++i)
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
 }
 
 void OrthancServer::cont() const {

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cstring>
 #include <memory>
 #include <string>
@@ -55,6 +56,7 @@ protected:
 
     OFCondition handleIncomingCommand(T_DIMSE_Message* msg,
                                       const DcmPresentationContextInfo& info) override {
+        if (msg->CommandField == DIMSE_C_FIND_RQ) return findWithoutFinalResponse(*msg, info);
         if (msg->CommandField != DIMSE_C_GET_RQ) return DcmSCP::handleIncomingCommand(msg, info);
         const T_DIMSE_C_GetRQ req = msg->msg.CGetRQ;
         T_ASC_PresentationContextID id = info.presentationContextID;
@@ -88,7 +90,40 @@ protected:
     OFBool stopAfterConnectionTimeout() override { return stop.load(); }
     OFBool stopAfterCurrentAssociation() override { return stop.load(); }
 
+public:
+    /** What a C-FIND gets after its one pending match: silence (false) or an A-ABORT. */
+    bool abortAfterMatch = false;
+
 private:
+    /** A C-FIND answered with one pending match and then never finished: the PACS goes silent
+     *  until the test ends, or aborts the association. */
+    OFCondition findWithoutFinalResponse(const T_DIMSE_Message& msg,
+                                         const DcmPresentationContextInfo& info) {
+        const T_DIMSE_C_FindRQ req = msg.msg.CFindRQ;
+        T_ASC_PresentationContextID id = info.presentationContextID;
+        DcmDataset* keys = nullptr;
+        OFCondition cond = receiveDIMSEDataset(&id, &keys);
+        delete keys;
+        if (cond.bad()) return cond;
+        DcmDataset match;
+        match.putAndInsertString(DCM_QueryRetrieveLevel, "STUDY");
+        match.putAndInsertString(DCM_StudyInstanceUID, kOtherStudy);
+        T_DIMSE_Message rsp{};
+        rsp.CommandField = DIMSE_C_FIND_RSP;
+        T_DIMSE_C_FindRSP& r = rsp.msg.CFindRSP;
+        r.MessageIDBeingRespondedTo = req.MessageID;
+        r.DimseStatus = STATUS_Pending;
+        OFStandard::strlcpy(r.AffectedSOPClassUID, req.AffectedSOPClassUID,
+                            sizeof r.AffectedSOPClassUID);
+        r.DataSetType = DIMSE_DATASET_PRESENT;
+        r.opts = O_FIND_AFFECTEDSOPCLASSUID;
+        cond = sendDIMSEMessage(info.presentationContextID, &rsp, &match);
+        if (cond.bad()) return cond;
+        if (abortAfterMatch) return DIMSE_ILLEGALASSOCIATION; // DcmSCP then aborts it
+        while (!stop.load()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        return DUL_PEERABORTEDASSOCIATION;
+    }
+
     /** One C-STORE sub-operation; its response's status goes to storeStatuses. */
     OFCondition sendStore(DcmDataset& ds) {
         OFString sopClass, sop;
@@ -136,6 +171,7 @@ public:
         syntaxes.push_back(UID_LittleEndianImplicitTransferSyntax);
         m_scp.addPresentationContext(UID_VerificationSOPClass, syntaxes);
         m_scp.addPresentationContext(UID_GETStudyRootQueryRetrieveInformationModel, syntaxes);
+        m_scp.addPresentationContext(UID_FINDStudyRootQueryRetrieveInformationModel, syntaxes);
         // C-GET: the SCU takes the storage SCP role, so we take the SCU role of storage.
         m_scp.addPresentationContext(UID_CTImageStorage, syntaxes, ASC_SC_ROLE_SCP);
     }
@@ -306,4 +342,32 @@ TEST(PacsFakeGetScp, OnlyAnotherStudysInstanceLeavesNothing) {
     ASSERT_EQ(pacs.scp().storeStatuses.size(), 1u);
     EXPECT_EQ(pacs.scp().storeStatuses[0], STATUS_STORE_Refused_NotAuthorized);
     EXPECT_TRUE(store.studies().empty());
+}
+
+// A C-FIND that the PACS never finishes (one pending match, then silence, or then an abort) is
+// a failure, not an answer: the matches sent so far are not all there are.
+TEST(PacsFakeGetScp, AFindWithoutItsFinalResponseFails) {
+    for (const bool abort : {false, true}) {
+        SCOPED_TRACE(abort ? "then aborted" : "then silent");
+        FakePacs pacs;
+        pacs.scp().abortAfterMatch = abort;
+        pacs.start();
+        LocalAe local;
+        local.aeTitle = fvr::test::kOurAe;
+        local.timeoutSeconds = 2;
+        std::string message;
+        std::size_t found = 0;
+        try {
+            found = findStudies(pacs.node(), local, {}).size();
+        } catch (const PacsError& e) {
+            message = e.what();
+        }
+        std::printf("[ message  ] %s\n", message.c_str());
+        EXPECT_EQ(found, 0u) << "a partial answer was taken for the whole";
+        EXPECT_NE(message.find(kFakeAe), std::string::npos) << message;
+        if (!abort)
+            EXPECT_NE(message.find("stopped answering (no reply within 2 s)"), std::string::npos)
+                << message;
+        pacs.scp().stop = true;
+    }
 }

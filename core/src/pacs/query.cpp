@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <memory>
+#include <optional>
 
 namespace fvr::core::pacs {
 namespace {
@@ -48,20 +49,28 @@ std::vector<std::unique_ptr<DcmDataset>> find(const Node& node, const LocalAe& l
     OFList<QRResponse*> responses;
     const OFCondition cond = scu.sendFINDRequest(pc, &keys, &responses);
     std::vector<std::unique_ptr<DcmDataset>> out;
-    Uint16 status = 0;
+    std::optional<Uint16> final; // the response that ends the C-FIND, if it came
     for (QRResponse* r : responses) {
         std::unique_ptr<QRResponse> owned(r);
-        status = r->m_status;
+        if (!DICOM_PENDING_STATUS(r->m_status)) final = r->m_status;
         if (r->m_dataset && DICOM_PENDING_STATUS(r->m_status)) {
             out.emplace_back(r->m_dataset);
             r->m_dataset = nullptr;
             detail::toUtf8(*out.back());
         }
     }
-    scu.check(cond, std::string("C-FIND at ") + level + " level");
-    if (status != STATUS_Success && !DICOM_PENDING_STATUS(status))
-        throw PacsError(describe(node) + ": C-FIND at " + level +
-                        " level failed: " + DU_cfindStatusString(status));
+    const std::string what = std::string("C-FIND at ") + level + " level";
+    scu.check(cond, what);
+    // Matches without the final response are not the answer: the PACS went silent or away
+    // before it said it had sent them all.
+    if (!final) {
+        const std::string link = scu.linkFailure();
+        throw PacsError(link.empty() ? describe(node) + ": " + what +
+                                           " ended without the PACS's final response"
+                                     : link + " (during " + what + ")");
+    }
+    if (*final != STATUS_Success)
+        throw PacsError(describe(node) + ": " + what + " failed: " + DU_cfindStatusString(*final));
     scu.close(false);
     return out;
 }
