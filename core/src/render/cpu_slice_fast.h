@@ -22,6 +22,9 @@ namespace fvr::core::detail {
 
 using FrameLookups = CpuSliceLookups;
 
+// Internal linkage, as in one file: each translation unit inlines these as it sees fit.
+namespace {
+
 /** The columns [first, last] of one slice row whose samples take the fast path: the m where
  *  every constraint lo <= a + b m <= hi holds, shrunk by one column on each side (the rounding
  *  of the bounds never admits a sample the fast path cannot take). */
@@ -45,6 +48,8 @@ private:
     double m_lo, m_hi;
 };
 
+} // namespace
+
 /** Which copy of the half spectrum a fast span of the half slice reads, as the general path
  *  does: the sample at k is read at k+ = s k (s = +1 where kx >= 0; s = -1, the conjugate of the
  *  mirror, where kx < 0), moved by q >= 0 periods along x (k+ - q P0 e_x, times -1 for an odd q
@@ -58,6 +63,9 @@ struct Side {
      *  image, conjugated (the general path's per-tap mirror, for all taps at once). */
     bool reflect = false;
 };
+
+// Internal linkage, as in one file: each translation unit inlines these as it sees fit.
+namespace {
 
 /** The fast columns of row n of the half slice for one side: every tap along x in the stored
  *  half, along y and z inside the lookups, k inside the band. */
@@ -462,6 +470,8 @@ struct ComplexRow {
         return {v.real() * g, v.imag() * g};
     }
 };
+
+} // namespace
 
 #ifdef FVR_SLICE_AVX2
 /** fastRowComplex with sampleAvx2 (4 and 6 taps; cpu_slice_rows_avx2.cpp). */

@@ -73,6 +73,9 @@ struct FrameMapping {
     float scale;
 };
 
+// Internal linkage, as in one file: each translation unit inlines these as it sees fit.
+namespace {
+
 /** Signed index in (-P/2, P/2] of the T taps base, base + 1, ... of one axis; where the axis is
  *  antiperiodic, the taps of odd periods negate their weights (and derivative weights): the
  *  interpolation then runs over the spectrum's true continuation (Spectrum, voxel_model.h). */
@@ -591,6 +594,8 @@ inline float sampleHartley(const SliceContext& c, double kx, double ky, double k
     }
 }
 
+} // namespace
+
 /** The model's transfer function along the slice: a row's products at once (vectorised), single
  *  samples (Nyquist aliases, depth cueing) from the tables. */
 struct RowTransfer {
@@ -626,6 +631,9 @@ struct RowTransfer {
     }
 };
 
+// Internal linkage, as in one file: each translation unit inlines these as it sees fit.
+namespace {
+
 /** The slice value at image frequency (m, n): the complex or the Hartley sample, with the voxel
  *  model's transfer value from the row's (index) or computed on its own (index < 0: the
  *  Nyquist aliases, depth cueing). */
@@ -654,6 +662,8 @@ V nyquistMean(const Sample& sample, int m, int n, bool nyquistColumn, bool nyqui
         for (int b = 0; b < ns; ++b) sum += sample(a ? -m : m, b ? -n : n, -1);
     return sum / float(ms * ns);
 }
+
+} // namespace
 
 /** Samples the slice into `out`: the half complex slice (FFT, M x (M/2+1)) or the full
  *  Hartley slice (FHT, M x M), with the frame's tap count and depth cueing. */

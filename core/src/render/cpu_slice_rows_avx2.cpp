@@ -6,6 +6,8 @@ namespace fvr::core::detail {
 
 #pragma GCC push_options
 #pragma GCC target("avx2,fma")
+namespace {
+
 /** FastTaps::sample for 4 and 6 taps in x86-64-v3 code: a tap row's 4 complex values are one
  *  256-bit register (the 5th and 6th one 128-bit), summed with fused multiply-adds. Compiled for
  *  AVX2 and FMA here only (GCC's target pragma: no other code changes ISA) and run where the CPU
@@ -48,6 +50,7 @@ inline cfloat sampleAvx2(const FastTaps& taps, const std::int32_t* i, const Frac
     sum = _mm_add_ps(sum, _mm_movehl_ps(sum, sum));
     return {_mm_cvtss_f32(sum), _mm_cvtss_f32(_mm_shuffle_ps(sum, sum, 1))};
 }
+} // namespace
 
 /** fastRowComplex with sampleAvx2 (4 and 6 taps). */
 template <int T>
