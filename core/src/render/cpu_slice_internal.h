@@ -458,7 +458,10 @@ inline Sampled<cfloat> interpolateComplex(const SliceContext& c, double kx, doub
     return {acc, dacc};
 }
 
-/** The voxel model's transfer function T(k) = prod_a t(k_a / P_a) and, with Depth, E.grad T. */
+} // namespace
+
+/** The voxel model's transfer function T(k) = prod_a t(k_a / P_a) and, with Depth, E.grad T.
+ *  Outside the unnamed namespace: RowTransfer, shared by the translation units, calls it. */
 template <bool Depth>
 inline void modelTransfer(const SliceContext& c, double kx, double ky, double kz, float& t,
                           float& gt) {
@@ -472,6 +475,9 @@ inline void modelTransfer(const SliceContext& c, double kx, double ky, double kz
              c.E[2] * float(c.invP[2]) * tx * ty * c.model->derivative(nu[2]);
     }
 }
+
+// Internal linkage, as in one file (above).
+namespace {
 
 /** The slice value at continuous signed frequency k: the model's spectrum (band cut or transfer
  *  function), with Depth the depth-cued a G + i E.grad G of it. */
