@@ -159,6 +159,7 @@ public:
 
     /** Post-processes and writes view i (the writer thread calls it, in view order). */
     void add(std::size_t i, ProjectionImage& img) {
+        core::checkFiniteImage(img); // never a NaN in a file
         // Line integrals in the image; transmission where --beer-lambert asks for it.
         std::optional<DisplayWindow> film;
         if (m_o.beerLambert && m_o.format == OutputFormat::Png) {

@@ -57,6 +57,7 @@ std::string numbered(const std::string& out, std::size_t i) {
  *  (bone white). Returns its final path. */
 std::string writeView(const Options& o, OutputFiles& files, std::size_t i, std::size_t count,
                       const ProjectionImage& img) {
+    core::checkFiniteImage(img); // never a NaN in a file
     const std::string final = count > 1 ? numbered(o.out, i) : o.out;
     const std::filesystem::path path = files.staged(final);
     const int M = img.size;

@@ -290,7 +290,6 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
         times->inverseMs = ms(t1, t2);
         times->totalMs = ms(t0, t2);
     }
-    checkFiniteImage(img);
     return img;
 }
 

@@ -51,7 +51,10 @@ void validateRenderParams(const RenderParams& params);
 void validateRenderParams(const RenderParams& params, const Spectrum& spectrum);
 
 /** Throws RenderError when the image holds pixels that are not finite (NaN, inf: the
- *  projection overflowed float), giving their count: never a silent NaN in an output. */
+ *  projection overflowed float), giving their count: never a silent NaN in an output. fvr-render
+ *  calls it on every image it writes. Not per frame in the renderers: preprocessing refuses
+ *  values whose spectrum could overflow, so a frame cannot (the scan cost ~6 % of a 512^2 frame).
+ */
 void checkFiniteImage(const ProjectionImage& image);
 
 /** A Fourier volume renderer holding one spectrum. */
