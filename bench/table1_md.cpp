@@ -157,7 +157,8 @@ std::string markdown(const Table& t, const Json& context) {
            std::to_string(context.value("num_cpus", 0)) + " CPUs, run " +
            context.value("date", std::string("?")) + "\n";
     out += "- 3D Shepp-Logan phantom N³, mu values, no oversampling; 64 views about a tilted "
-           "axis.\n- Stages: slice pass unfused and the inverse 2D transform, GPU timer queries. "
+           "axis; 8 untimed frames first, then the median of the timed ones.\n- Stages: slice pass "
+           "unfused and the inverse 2D transform, GPU timer queries. "
            "Frame: slice fused into the row pass, display mapping to an 8-bit texture; GPU timer "
            "fps / wall-clock fps of 16 frames issued back to back.\n";
     for (const auto& [n, transform] : t.sections) {

@@ -53,8 +53,11 @@ Fn proc(const char* name) {
 
 std::vector<EGLDeviceEXT> queryDevices() {
     const auto query = proc<PFNEGLQUERYDEVICESEXTPROC>("eglQueryDevicesEXT");
-    if (!hasExtension(eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS),
-                      "EGL_EXT_device_enumeration") ||
+    // EGL_EXT_device_base is device_enumeration and device_query in one; NVIDIA's libEGL
+    // (580) lists only it, so looking for device_enumeration alone found no devices there.
+    const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
+    if ((!hasExtension(client, "EGL_EXT_device_enumeration") &&
+         !hasExtension(client, "EGL_EXT_device_base")) ||
         !query)
         return {};
     EGLint n = 0;
@@ -122,7 +125,7 @@ EGLDisplay openDisplay(int device, std::string& description) {
     if (!hasExtension(client, "EGL_MESA_platform_surfaceless"))
         throw GlError("EGL: no hardware EGL device and no EGL_MESA_platform_surfaceless "
                       "(install Mesa's libegl-mesa0 for software rendering, or a GPU driver)");
-    description = "EGL surfaceless (Mesa)";
+    description = "EGL surfaceless platform";
     return getDisplay(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
 }
 

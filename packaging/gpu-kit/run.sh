@@ -7,7 +7,7 @@
 #                                             -> results/correctness.json, results/correctness.md
 # Needs no X server, no Python: a headless EGL context on the first hardware EGL device (NVIDIA:
 # EGL_NV_device_cuda), else Mesa's surfaceless llvmpipe (a software renderer: its timings are no
-# GPU's). Exit status 0 when every part ran and every PSNR is >= 140 dB.
+# GPU's). Exit status 0 when every part ran and every PSNR is >= 90 dB.
 #
 # usage: ./run.sh [--quick] [--device N] [--out DIR] [-- FVR_BENCH_GPU_ARGS...]
 #   --quick      a small subset to check the kit (N = 128, M = 256, two kernels)
@@ -19,7 +19,11 @@ kit=$(cd "$(dirname "$0")" && pwd)
 bin=$kit/bin
 out=$kit/results
 quick=0
-min_psnr=140
+# GPU = CPU within float rounding. The two round differently (FMA contraction, the order of
+# sums): Mesa's llvmpipe agrees with the CPU renderer to >= 140 dB, an H100 to 107-118 dB
+# (2026-11-26). 90 dB is the bound the GPU tests use: 30 dB and more below the differences
+# between kernels that the Table 1 compares, and 50 dB above anything a display shows.
+min_psnr=90
 unset FVR_EGL_DEVICE
 while [ $# -gt 0 ]; do
     case $1 in

@@ -248,17 +248,23 @@ TEST_F(GlTest, HalfPrecisionSpectrumCostIsMeasured) {
 }
 
 TEST_F(GlTest, TooLargeSpectrumIsRefusedWithSizes) {
+    // Twice the context's 3D texture limit along x (llvmpipe: 2048, an H100: 16384), so the
+    // refusal does not depend on the device; a few hundred KiB of host memory.
+    GLint max3d = 0;
+    glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
+    ASSERT_GT(max3d, 0);
+    const std::int64_t n = 2 * std::int64_t(max3d);
     auto s = std::make_shared<Spectrum>();
     s->kind = TransformKind::Fht;
-    s->padded = {8192, 2, 2};
-    s->volumeDims = {8192, 2, 2};
+    s->padded = {n, 2, 2};
+    s->volumeDims = {n, 2, 2};
     s->data = allocateFftw(s->floatCount());
     GpuFourierRenderer gpu;
     try {
         gpu.setSpectrum(s);
         FAIL() << "expected GpuMemoryError";
     } catch (const GpuMemoryError& e) {
-        EXPECT_NE(std::string(e.what()).find("8192"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find(std::to_string(n)), std::string::npos) << e.what();
     }
     EXPECT_FALSE(gpu.hasSpectrum());
 }

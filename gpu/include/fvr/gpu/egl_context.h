@@ -39,7 +39,7 @@ public:
 
     /** The device index the context runs on, -1 for Mesa's surfaceless platform. */
     int deviceIndex() const { return m_device; }
-    /** "EGL device 0 (NVIDIA ...)" or "EGL surfaceless (Mesa)". */
+    /** "EGL device 0 (NVIDIA ...)" or "EGL surfaceless platform". */
     const std::string& description() const { return m_description; }
     /** The display's EGL_VENDOR and EGL_VERSION. */
     const std::string& eglVersion() const { return m_eglVersion; }
