@@ -1,5 +1,5 @@
 #version 430
-// The polychromatic spectral sum (issue 19), fvr::core::SpectralResponse::lookup on the GPU: per
+// The polychromatic spectral sum, fvr::core::SpectralResponse::lookup on the GPU: per
 // pixel the material mass thicknesses rhoL_m (the material frames' line integrals in rho x mm,
 // times uUnit = 0.1 -> g/cm^2, clamped at >= 0) index the response's table (same layout and
 // bilinear interpolation, linear beyond its end): g = -ln(I/I0). Writes I/I0 (uOutput 0),

@@ -80,7 +80,7 @@ public:
     unsigned displayTexture(const core::DisplayWindow& window);
     /** What spectralSum() writes per pixel. */
     enum class SpectralOutput { Transmission, NegativeLog, Material };
-    /** The polychromatic spectral sum (issue 19) on the GPU, as this renderer's frame: reads the
+    /** The polychromatic spectral sum on the GPU, as this renderer's frame: reads the
      *  last frames of `materials` (one renderer per material of `response`, same size; this one
      *  may be among them) where they lie, evaluates the response's table in one compute pass
      *  (SpectralResponse::lookup: same layout and interpolation) and writes I/I0, -ln(I/I0) or
