@@ -16,6 +16,7 @@
 #include <fvr/gpu/errors.h>
 #include <fvr/gpu/fft_plan.h>
 #include <fvr/gpu/gl_info.h>
+#include <fvr/gpu/shader_program.h>
 #include <fvr/gpu/shader_source.h>
 
 namespace fvr::gpu {
@@ -120,34 +121,8 @@ unsigned GpuFourierRenderer::program(
     std::string key = path;
     for (const auto& [n, v] : defines) key += "|" + n + "=" + v;
     if (auto it = m_programs.find(key); it != m_programs.end()) return it->second;
-    const ShaderSource src = ShaderSource::assemble(path, defines, ShaderSource::defaultReader());
-    const GLuint sh = glCreateShader(GL_COMPUTE_SHADER);
-    const char* text = src.text().c_str();
-    glShaderSource(sh, 1, &text, nullptr);
-    glCompileShader(sh);
-    GLint ok = 0;
-    glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
-    if (!ok) {
-        GLint len = 0;
-        glGetShaderiv(sh, GL_INFO_LOG_LENGTH, &len);
-        std::string log(std::size_t(std::max(len, 1)), '\0');
-        glGetShaderInfoLog(sh, len, nullptr, log.data());
-        glDeleteShader(sh);
-        throw ShaderError("shader " + key + " failed to compile:\n" + src.mapLog(log.c_str()));
-    }
-    const GLuint prog = glCreateProgram();
-    glAttachShader(prog, sh);
-    glLinkProgram(prog);
-    glDeleteShader(sh);
-    glGetProgramiv(prog, GL_LINK_STATUS, &ok);
-    if (!ok) {
-        GLint len = 0;
-        glGetProgramiv(prog, GL_INFO_LOG_LENGTH, &len);
-        std::string log(std::size_t(std::max(len, 1)), '\0');
-        glGetProgramInfoLog(prog, len, nullptr, log.data());
-        glDeleteProgram(prog);
-        throw ShaderError("shader " + key + " failed to link:\n" + src.mapLog(log.c_str()));
-    }
+    const GLuint prog = compileComputeProgram(
+        ShaderSource::assemble(path, defines, ShaderSource::defaultReader()), key);
     m_programs.emplace(key, prog);
     return prog;
 }

@@ -15,6 +15,7 @@
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/xray/phantom.h>
 #include <fvr/gpu/gpu_renderer.h>
+#include <fvr/gpu/shader_program.h>
 #include <fvr/gpu/shader_source.h>
 
 #include "gl_fixture.h"
@@ -70,17 +71,14 @@ TEST_F(GlTest, CompileErrorsNameTheShaderFileAndLine) {
         return it == files.end() ? std::nullopt : std::optional<std::string>(it->second);
     };
     const auto src = ShaderSource::assemble("bad.comp", {}, reader);
-    const GLuint sh = glCreateShader(GL_COMPUTE_SHADER);
-    const char* text = src.text().c_str();
-    glShaderSource(sh, 1, &text, nullptr);
-    glCompileShader(sh);
-    GLint ok = 1;
-    glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
-    ASSERT_EQ(ok, 0);
-    char log[4096] = {0};
-    glGetShaderInfoLog(sh, sizeof log, nullptr, log);
-    glDeleteShader(sh);
-    EXPECT_NE(src.mapLog(log).find("inc.glsl:2"), std::string::npos) << src.mapLog(log);
+    try {
+        glDeleteProgram(compileComputeProgram(src, "bad.comp"));
+        FAIL() << "bad.comp compiled";
+    } catch (const ShaderError& e) {
+        const std::string what = e.what();
+        EXPECT_NE(what.find("shader bad.comp failed to compile"), std::string::npos) << what;
+        EXPECT_NE(what.find("inc.glsl:2"), std::string::npos) << what;
+    }
 }
 
 TEST_F(GlTest, InverseFftMatchesFftwDouble) {
