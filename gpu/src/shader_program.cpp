@@ -51,4 +51,8 @@ unsigned compileComputeProgram(const ShaderSource& source, const std::string& na
     return prog;
 }
 
+void bindStorage(Binding binding, unsigned buffer) {
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, point(binding), buffer);
+}
+
 } // namespace fvr::gpu

@@ -113,8 +113,8 @@ private:
     void ensureSize(int size);
     void bindKernel(unsigned prog, core::Kernel kernel, bool derivative);
     void setSliceUniforms(unsigned prog, const core::RenderParams& params);
-    /** The slice filter's uniforms and its per-axis table (binding 5), from core::SliceFilterTable.
-     */
+    /** The slice filter's uniforms and its per-axis table (Binding::FilterAxis), from
+     *  core::SliceFilterTable. */
     void setFilterUniforms(unsigned prog, const core::RenderParams& params);
     void runRows(int M, bool fused, bool hartley, core::Kernel kernel,
                  const core::RenderParams* params);
