@@ -13,9 +13,11 @@
 #include <fvr/core/render/fftw_planning.h>
 #include <fvr/core/render/slice_filter.h>
 #include <fvr/core/render/slice_params.h>
+#include <fvr/gpu/bindings.h>
 #include <fvr/gpu/errors.h>
 #include <fvr/gpu/fft_plan.h>
 #include <fvr/gpu/gl_info.h>
+#include <fvr/gpu/shader_program.h>
 #include <fvr/gpu/shader_source.h>
 
 namespace fvr::gpu {
@@ -120,34 +122,8 @@ unsigned GpuFourierRenderer::program(
     std::string key = path;
     for (const auto& [n, v] : defines) key += "|" + n + "=" + v;
     if (auto it = m_programs.find(key); it != m_programs.end()) return it->second;
-    const ShaderSource src = ShaderSource::assemble(path, defines, ShaderSource::defaultReader());
-    const GLuint sh = glCreateShader(GL_COMPUTE_SHADER);
-    const char* text = src.text().c_str();
-    glShaderSource(sh, 1, &text, nullptr);
-    glCompileShader(sh);
-    GLint ok = 0;
-    glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
-    if (!ok) {
-        GLint len = 0;
-        glGetShaderiv(sh, GL_INFO_LOG_LENGTH, &len);
-        std::string log(std::size_t(std::max(len, 1)), '\0');
-        glGetShaderInfoLog(sh, len, nullptr, log.data());
-        glDeleteShader(sh);
-        throw ShaderError("shader " + key + " failed to compile:\n" + src.mapLog(log.c_str()));
-    }
-    const GLuint prog = glCreateProgram();
-    glAttachShader(prog, sh);
-    glLinkProgram(prog);
-    glDeleteShader(sh);
-    glGetProgramiv(prog, GL_LINK_STATUS, &ok);
-    if (!ok) {
-        GLint len = 0;
-        glGetProgramiv(prog, GL_INFO_LOG_LENGTH, &len);
-        std::string log(std::size_t(std::max(len, 1)), '\0');
-        glGetProgramInfoLog(prog, len, nullptr, log.data());
-        glDeleteProgram(prog);
-        throw ShaderError("shader " + key + " failed to link:\n" + src.mapLog(log.c_str()));
-    }
+    const GLuint prog = compileComputeProgram(
+        ShaderSource::assemble(path, defines, ShaderSource::defaultReader()), key);
     m_programs.emplace(key, prog);
     return prog;
 }
@@ -356,14 +332,14 @@ void GpuFourierRenderer::bindKernel(unsigned prog, Kernel kernel, bool derivativ
     };
     if (it == m_kernelBuffers.end())
         it = m_kernelBuffers.emplace(kernel, upload(m_tables.at(kernel)->table())).first;
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, it->second);
+    bindStorage(Binding::KernelTable, it->second);
     if (derivative) {
         auto d = m_kernelDerivativeBuffers.find(kernel);
         if (d == m_kernelDerivativeBuffers.end())
             d = m_kernelDerivativeBuffers
                     .emplace(kernel, upload(m_tables.at(kernel)->derivativeTable()))
                     .first;
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, d->second);
+        bindStorage(Binding::KernelDerivative, d->second);
     }
     glUniform1i(glGetUniformLocation(prog, "uKernelRes"), core::KernelTable::kResolution);
     glUniform1i(glGetUniformLocation(prog, "uKernelFirst"), m_tables.at(kernel)->firstTapOffset());
@@ -389,9 +365,8 @@ void GpuFourierRenderer::setSliceUniforms(unsigned prog, const core::RenderParam
     vec3("uA", sp.A);
     vec3("uB", sp.B);
     glUniform1f(loc("uScale"), float(sp.scale));
-    glActiveTexture(GL_TEXTURE0);
+    glActiveTexture(GL_TEXTURE0 + point(TextureUnit::Spectrum)); // uSpectrum's layout binding
     glBindTexture(GL_TEXTURE_3D, m_texture);
-    glUniform1i(loc("uSpectrum"), 0);
     if (sp.depth) {
         glUniform1f(loc("uDepthA"), float(sp.depthA));
         vec3("uDepthE", sp.E);
@@ -413,7 +388,7 @@ void GpuFourierRenderer::setFilterUniforms(unsigned prog, const core::RenderPara
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_filterAxis);
     glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(filter.axis.size() * sizeof(float)),
                  filter.axis.data(), GL_DYNAMIC_DRAW);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, m_filterAxis);
+    bindStorage(Binding::FilterAxis, m_filterAxis);
 }
 
 void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel,
@@ -431,9 +406,9 @@ void GpuFourierRenderer::runRows(int M, bool fused, bool hartley, Kernel kernel,
     glUseProgram(prog);
     glUniform1i(glGetUniformLocation(prog, "uM"), M);
     if (fused) setSliceUniforms(prog, *params);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_bufA); // input (unfused)
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_bufB); // transposed output
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, m_twiddles);
+    bindStorage(Binding::PassInput, m_bufA); // read unless fused: the slice, or inverseFft2D's data
+    bindStorage(Binding::PassOutput, m_bufB); // transposed
+    bindStorage(Binding::Twiddles, m_twiddles);
     glDispatchCompute(GLuint(M), 1, 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 }
@@ -453,12 +428,11 @@ void GpuFourierRenderer::runCols(int M, const char* outputMode, const core::Rend
     glUniform1i(glGetUniformLocation(prog, "uM"), M);
     if (real) setClipUniforms(prog, params);
     if (display) setDisplayUniforms(prog, *display);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_bufB);
+    bindStorage(Binding::PassInput, m_bufB);
     const bool complexOut = std::strcmp(outputMode, "OUTPUT_COMPLEX") == 0;
     const bool hartleyOut = std::strcmp(outputMode, "OUTPUT_HARTLEY") == 0;
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0,
-                     complexOut ? m_bufA : (hartleyOut ? m_hartleyT : m_image));
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, m_twiddles);
+    bindStorage(Binding::PassOutput, complexOut ? m_bufA : (hartleyOut ? m_hartleyT : m_image));
+    bindStorage(Binding::Twiddles, m_twiddles);
     glDispatchCompute(GLuint(M), 1, 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 }
@@ -488,7 +462,8 @@ void GpuFourierRenderer::setDisplayUniforms(unsigned prog, const core::DisplayWi
     glUniform1f(loc("uMuWater"),
                 float(w.transmission.active() ? w.transmission.muWaterPerMm : 0.0));
     glUniform1f(loc("uExposure"), float(w.transmission.exposure));
-    glBindImageTexture(0, m_display, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA8);
+    glBindImageTexture(point(ImageUnit::Display), m_display, 0, GL_FALSE, 0, GL_WRITE_ONLY,
+                       GL_RGBA8);
 }
 
 void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* params,
@@ -501,8 +476,8 @@ void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* p
     glUniform1i(glGetUniformLocation(prog, "uM"), M);
     setClipUniforms(prog, params);
     if (display) setDisplayUniforms(prog, *display);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_hartleyT);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_image);
+    bindStorage(Binding::PassInput, m_hartleyT);
+    bindStorage(Binding::PassOutput, m_image);
     glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
     glMemoryBarrier(
         GL_SHADER_STORAGE_BARRIER_BIT |
@@ -529,7 +504,7 @@ void GpuFourierRenderer::renderToGpu(const core::RenderParams& p,
         glUseProgram(prog);
         glUniform1i(glGetUniformLocation(prog, "uM"), M);
         setSliceUniforms(prog, p);
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_bufA);
+        bindStorage(Binding::PassOutput, m_bufA);
         glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
         glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     }
@@ -599,7 +574,7 @@ unsigned GpuFourierRenderer::displayTexture(const core::DisplayWindow& w) {
     glUseProgram(prog);
     glUniform1i(glGetUniformLocation(prog, "uM"), M);
     setDisplayUniforms(prog, w);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m_image);
+    bindStorage(Binding::PassInput, m_image);
     glDispatchCompute(GLuint((M + 15) / 16), GLuint((M + 15) / 16), 1);
     glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
     glQueryCounter(m_queries[3], GL_TIMESTAMP);

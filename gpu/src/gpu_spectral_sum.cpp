@@ -7,7 +7,9 @@
 #include <utility>
 
 #include <fvr/core/errors.h>
+#include <fvr/gpu/bindings.h>
 #include <fvr/gpu/errors.h>
+#include <fvr/gpu/shader_program.h>
 
 namespace fvr::gpu {
 
@@ -61,9 +63,9 @@ void GpuFourierRenderer::spectralSum(const std::vector<const GpuFourierRenderer*
     glUniform1i(loc("uOutput"), int(output));
     glUniform1i(loc("uShow"), show);
     for (std::size_t m = 0; m < materials.size(); ++m)
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, GLuint(1 + m), materials[m]->m_image);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, m_table);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m_hartleyT); // scratch of M x M floats
+        bindStorage(materialBinding(unsigned(m)), materials[m]->m_image);
+    bindStorage(Binding::SpectralTable, m_table);
+    bindStorage(Binding::PassOutput, m_hartleyT); // scratch of M x M floats
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     glDispatchCompute(GLuint((M * M + 255) / 256), 1, 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);

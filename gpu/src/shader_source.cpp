@@ -6,6 +6,7 @@
 #include <set>
 #include <sstream>
 
+#include <fvr/gpu/bindings.h>
 #include <fvr/gpu/errors.h>
 
 #include "embedded_shaders.h"
@@ -71,6 +72,8 @@ ShaderSource ShaderSource::assemble(const std::string& path, const Defines& defi
 
 ShaderSource::Reader ShaderSource::defaultReader() {
     return [](const std::string& path) -> std::optional<std::string> {
+        // Generated from the host's binding points, also under FVR_SHADER_DIR: one home.
+        if (path == kBindingsInclude) return bindingsGlsl();
         if (const char* dir = std::getenv("FVR_SHADER_DIR"); dir && *dir) {
             std::ifstream in(std::string(dir) + "/" + path);
             if (!in) return std::nullopt;
@@ -83,6 +86,13 @@ ShaderSource::Reader ShaderSource::defaultReader() {
                 return std::string(detail::kEmbeddedShaders[i].text);
         return std::nullopt;
     };
+}
+
+std::vector<std::string> ShaderSource::embeddedPaths() {
+    std::vector<std::string> paths;
+    for (std::size_t i = 0; i < detail::kEmbeddedShaderCount; ++i)
+        paths.emplace_back(detail::kEmbeddedShaders[i].path);
+    return paths;
 }
 
 std::string ShaderSource::locate(int line) const {

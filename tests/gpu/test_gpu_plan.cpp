@@ -1,12 +1,17 @@
-// GPU planning without GL: the FFT plan against FFTW in double, the shader include resolver.
+// GPU planning without GL: the FFT plan against FFTW in double, the shader include resolver, the
+// binding points the shaders and the host share.
 #include <complex>
 #include <map>
 #include <optional>
 #include <random>
+#include <regex>
+#include <set>
+#include <sstream>
 
 #include <fftw3.h>
 #include <gtest/gtest.h>
 
+#include <fvr/gpu/bindings.h>
 #include <fvr/gpu/errors.h>
 #include <fvr/gpu/fft_plan.h>
 #include <fvr/gpu/shader_source.h>
@@ -122,4 +127,70 @@ TEST(ShaderSource, EmbeddedShadersAreThere) {
          {"fft/rows.comp", "fft/cols.comp", "fft/hartley_correct.comp", "slice/slice.comp",
           "display/display.comp", "common/slice.glsl", "common/kernel.glsl", "common/fft.glsl"})
         EXPECT_TRUE(reader(p).has_value()) << p;
+}
+
+namespace {
+/** The `#define NAME VALUE` lines of a GLSL text. */
+std::map<std::string, std::string> glslDefines(const std::string& text) {
+    static const std::regex def(R"(^#define\s+(\w+)\s+(\S+)\s*$)");
+    std::map<std::string, std::string> defs;
+    std::istringstream in(text);
+    for (std::string line; std::getline(in, line);)
+        if (std::smatch m; std::regex_match(line, m, def)) defs[m[1].str()] = m[2].str();
+    return defs;
+}
+} // namespace
+
+TEST(Bindings, GlslDefinesEveryHostBindingPointOnce) {
+    const auto reader = ShaderSource::defaultReader();
+    const auto text = reader(kBindingsInclude);
+    ASSERT_TRUE(text.has_value()) << kBindingsInclude << " is not served";
+    EXPECT_EQ(*text, bindingsGlsl());
+    const auto defs = glslDefines(*text);
+    EXPECT_EQ(defs.size(), std::size(kGlslBindings)) << *text; // no name twice
+    for (const auto& b : kGlslBindings) {
+        const std::string name = std::string("FVR_") + b.glsl;
+        ASSERT_TRUE(defs.count(name)) << name << " missing from\n" << *text;
+        EXPECT_EQ(defs.at(name), std::to_string(b.point)) << name;
+        // OpenGL 4.3 guarantees 8 storage blocks, image units and texture units per compute shader.
+        EXPECT_LT(b.point, 8u) << name;
+    }
+    // Spot checks against the enum itself, written out.
+    EXPECT_EQ(defs.at("FVR_BINDING_PASS_OUTPUT"), std::to_string(point(Binding::PassOutput)));
+    EXPECT_EQ(defs.at("FVR_BINDING_FILTER_AXIS"), std::to_string(point(Binding::FilterAxis)));
+    EXPECT_EQ(defs.at("FVR_BINDING_MATERIAL_4"), std::to_string(point(materialBinding(4))));
+    EXPECT_EQ(defs.at("FVR_IMAGE_DISPLAY"), std::to_string(point(ImageUnit::Display)));
+}
+
+TEST(Bindings, EveryEmbeddedShaderNamesItsBindingsBeforeAnyConditional) {
+    const auto reader = ShaderSource::defaultReader();
+    const auto paths = ShaderSource::embeddedPaths();
+    static const std::regex bareNumber(R"(binding\s*=\s*[0-9])");
+    static const std::regex named(R"(binding\s*=\s*(\w+))");
+    int comps = 0, namedUses = 0;
+    for (const auto& path : paths) {
+        const auto text = reader(path);
+        ASSERT_TRUE(text.has_value()) << path;
+        EXPECT_FALSE(std::regex_search(*text, bareNumber))
+            << path << ": a binding point as a bare number; name it (fvr/gpu/bindings.h)";
+        if (path.size() < 5 || path.substr(path.size() - 5) != ".comp") continue;
+        ++comps;
+        // Assembled as the renderer does: every name used is defined, and defined before the
+        // first #if (an include inside a skipped #ifdef would leave the names undefined).
+        const auto src = ShaderSource::assemble(path, {}, reader);
+        const auto defs = glslDefines(src.text());
+        for (auto it = std::sregex_iterator(src.text().begin(), src.text().end(), named);
+             it != std::sregex_iterator(); ++it, ++namedUses)
+            EXPECT_TRUE(defs.count((*it)[1].str())) << path << ": " << (*it)[1].str();
+        const auto firstIf = src.text().find("\n#if");
+        const auto lastDefine = src.text().rfind("\n#define FVR_");
+        ASSERT_NE(lastDefine, std::string::npos)
+            << path << " does not include " << kBindingsInclude;
+        if (firstIf != std::string::npos) {
+            EXPECT_LT(lastDefine, firstIf)
+                << path << ": include " << kBindingsInclude << " before the first #if";
+        }
+    }
+    EXPECT_EQ(comps, 6) << "the compute shaders of gpu/CMakeLists.txt";
+    EXPECT_GE(namedUses, 20);
 }

@@ -1,4 +1,4 @@
-// The polychromatic spectral sum on the GPU (issue 19): material frames rendered on the GPU stay
+// The polychromatic spectral sum on the GPU: material frames rendered on the GPU stay
 // there and one compute pass evaluates the response's table. Oracle: the CPU's
 // SpectralResponse::apply on the same material frames read back (same table, same
 // interpolation), and the exact double sum over the bins.

@@ -14,7 +14,9 @@
 #include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/xray/phantom.h>
+#include <fvr/gpu/bindings.h>
 #include <fvr/gpu/gpu_renderer.h>
+#include <fvr/gpu/shader_program.h>
 #include <fvr/gpu/shader_source.h>
 
 #include "gl_fixture.h"
@@ -70,17 +72,82 @@ TEST_F(GlTest, CompileErrorsNameTheShaderFileAndLine) {
         return it == files.end() ? std::nullopt : std::optional<std::string>(it->second);
     };
     const auto src = ShaderSource::assemble("bad.comp", {}, reader);
-    const GLuint sh = glCreateShader(GL_COMPUTE_SHADER);
-    const char* text = src.text().c_str();
-    glShaderSource(sh, 1, &text, nullptr);
-    glCompileShader(sh);
-    GLint ok = 1;
-    glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
-    ASSERT_EQ(ok, 0);
-    char log[4096] = {0};
-    glGetShaderInfoLog(sh, sizeof log, nullptr, log);
-    glDeleteShader(sh);
-    EXPECT_NE(src.mapLog(log).find("inc.glsl:2"), std::string::npos) << src.mapLog(log);
+    try {
+        glDeleteProgram(compileComputeProgram(src, "bad.comp"));
+        FAIL() << "bad.comp compiled";
+    } catch (const ShaderError& e) {
+        const std::string what = e.what();
+        EXPECT_NE(what.find("shader bad.comp failed to compile"), std::string::npos) << what;
+        EXPECT_NE(what.find("inc.glsl:2"), std::string::npos) << what;
+    }
+}
+
+// The compiler's own view of each program's interface: every storage block, the display image and
+// the spectrum's sampler sit at the binding point the host binds them to (fvr/gpu/bindings.h).
+TEST_F(GlTest, CompiledProgramsBindWhereTheHostBinds) {
+    const std::map<std::string, Binding> blocks{
+        {"SliceOut", Binding::PassOutput},
+        {"RowsIn", Binding::PassInput},
+        {"RowsOut", Binding::PassOutput},
+        {"ColsIn", Binding::PassInput},
+        {"ColsOut", Binding::PassOutput},
+        {"TIn", Binding::PassInput},
+        {"HOut", Binding::PassOutput},
+        {"ImageIn", Binding::PassInput},
+        {"Out", Binding::PassOutput},
+        {"Table", Binding::SpectralTable},
+        {"TwiddleBuffer", Binding::Twiddles},
+        {"KernelTableBuffer", Binding::KernelTable},
+        {"KernelDerivativeBuffer", Binding::KernelDerivative},
+        {"FilterAxisBuffer", Binding::FilterAxis},
+        {"M0", materialBinding(0)},
+        {"M1", materialBinding(1)},
+        {"M2", materialBinding(2)},
+        {"M3", materialBinding(3)},
+        {"M4", materialBinding(4)}};
+    const std::vector<std::pair<std::string, ShaderSource::Defines>> programs{
+        {"slice/slice.comp", {{"TAPS", "4"}, {"DEPTH_CUE", "1"}}},
+        {"fft/rows.comp", {{"MAX_M", "64"}, {"WG_SIZE", "32"}}},
+        {"fft/rows.comp",
+         {{"MAX_M", "64"}, {"WG_SIZE", "32"}, {"TAPS", "2"}, {"FUSED_SLICE", "1"}}},
+        {"fft/cols.comp",
+         {{"MAX_M", "64"}, {"WG_SIZE", "32"}, {"OUTPUT_REAL", "1"}, {"FUSED_DISPLAY", "1"}}},
+        {"fft/hartley_correct.comp", {{"FUSED_DISPLAY", "1"}}},
+        {"display/display.comp", {}},
+        {"xray/spectral_sum.comp", {{"MATERIALS", "5"}}}};
+    std::set<std::string> seen;
+    int images = 0, samplers = 0;
+    for (const auto& [path, defines] : programs) {
+        const auto src = ShaderSource::assemble(path, defines, ShaderSource::defaultReader());
+        const GLuint prog = compileComputeProgram(src, path);
+        GLint count = 0;
+        glGetProgramInterfaceiv(prog, GL_SHADER_STORAGE_BLOCK, GL_ACTIVE_RESOURCES, &count);
+        for (GLint i = 0; i < count; ++i) {
+            char name[64] = {0};
+            glGetProgramResourceName(prog, GL_SHADER_STORAGE_BLOCK, GLuint(i), sizeof name, nullptr,
+                                     name);
+            const GLenum prop = GL_BUFFER_BINDING;
+            GLint bound = -1;
+            glGetProgramResourceiv(prog, GL_SHADER_STORAGE_BLOCK, GLuint(i), 1, &prop, 1, nullptr,
+                                   &bound);
+            ASSERT_TRUE(blocks.count(name)) << path << ": storage block " << name;
+            EXPECT_EQ(bound, GLint(point(blocks.at(name)))) << path << ": " << name;
+            seen.insert(name);
+        }
+        for (const auto& [uniform, unit] : {std::pair{"displayOut", point(ImageUnit::Display)},
+                                            std::pair{"uSpectrum", point(TextureUnit::Spectrum)}}) {
+            const GLint loc = glGetUniformLocation(prog, uniform);
+            if (loc < 0) continue;
+            GLint value = -1;
+            glGetUniformiv(prog, loc, &value);
+            EXPECT_EQ(value, GLint(unit)) << path << ": " << uniform;
+            ++(std::string(uniform) == "displayOut" ? images : samplers);
+        }
+        glDeleteProgram(prog);
+    }
+    EXPECT_EQ(seen.size(), blocks.size()) << "a storage block above is in no program";
+    EXPECT_EQ(images, 3);
+    EXPECT_EQ(samplers, 2);
 }
 
 TEST_F(GlTest, InverseFftMatchesFftwDouble) {

@@ -7,7 +7,8 @@ uniform float uHigh;
 uniform int uInvert;
 uniform float uMuWater;
 uniform float uExposure;
-layout(rgba8, binding = 0) writeonly uniform image2D displayOut;
+#include "common/bindings.glsl"
+layout(rgba8, binding = FVR_IMAGE_DISPLAY) writeonly uniform image2D displayOut;
 
 // Image row `row` (0 at the top) goes to texel row `row`.
 void storeDisplay(int col, int row, float lineIntegral) {

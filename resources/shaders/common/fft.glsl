@@ -4,7 +4,8 @@
 // does the R-point DFT in registers and writes output r to (j - j mod Ns) R + j mod Ns + r Ns.
 // Every thread reads all its inputs before a barrier and writes after it, so the stages run in
 // place in one shared array. twiddles[k] = exp(s 2 pi i k / M), k < M (s = +1 for the inverse).
-layout(std430, binding = 3) readonly buffer TwiddleBuffer { vec2 twiddles[]; };
+#include "common/bindings.glsl"
+layout(std430, binding = FVR_BINDING_TWIDDLES) readonly buffer TwiddleBuffer { vec2 twiddles[]; };
 
 shared vec2 row[MAX_M];
 

@@ -3,7 +3,8 @@
 // rows). TAPS (1, 2, 3 = linear with depth cueing, 4 or 6) is defined by the host when it compiles a kernel variant; the
 // general branch serves any even TAPS >= 4 (first tap at floor(k) + uKernelFirst, uKernelFirst =
 // -(TAPS/2 - 1)).
-layout(std430, binding = 2) readonly buffer KernelTableBuffer { float kernelTable[]; };
+#include "common/bindings.glsl"
+layout(std430, binding = FVR_BINDING_KERNEL_TABLE) readonly buffer KernelTableBuffer { float kernelTable[]; };
 uniform int uKernelRes;
 uniform int uKernelFirst;
 
@@ -50,7 +51,7 @@ int wrapSigned(int i, int p, bool anti, out float sgn) {
 #ifdef DEPTH_CUE
 // Derivative weights d w_j / d frac (fvr::core::KernelTable::derivativeTable, same layout) for
 // depth cueing: the derivative of the interpolated spectrum along each axis.
-layout(std430, binding = 4) readonly buffer KernelDerivativeBuffer { float kernelDerivative[]; };
+layout(std430, binding = FVR_BINDING_KERNEL_DERIVATIVE) readonly buffer KernelDerivativeBuffer { float kernelDerivative[]; };
 
 void axisWeightsD(float k, out int base, out float w[TAPS], out float dw[TAPS]) {
 #if TAPS == 3

@@ -10,9 +10,10 @@
 // (unsharp mask, Butterworth band limit, pixel aperture) multiplies every value when uFilterOn is
 // set. The host computes every uniform from fvr::core::SliceParams (slice_params.h) and
 // fvr::core::SliceFilterTable (slice_filter.h).
+#include "common/bindings.glsl"
 #include "common/kernel.glsl"
 
-uniform sampler3D uSpectrum;
+layout(binding = FVR_TEXTURE_SPECTRUM) uniform sampler3D uSpectrum;
 uniform ivec3 uPadded;
 uniform vec3 uHalf;
 uniform vec3 uA;
@@ -26,7 +27,7 @@ uniform float uSharpenAmount;  // 0: no unsharp mask
 uniform float uBandInv2;       // 1 / (nu_c M d)^2; 0: no band limit
 uniform int uAperture;         // 1: pixels integrate over their area (sinc(m/M) sinc(n/M))
 // fvr::core::SliceFilterTable::axis, |j| = 0..M/2: (the blur's factor, the pixel aperture).
-layout(std430, binding = 5) readonly buffer FilterAxisBuffer { vec2 filterAxis[]; };
+layout(std430, binding = FVR_BINDING_FILTER_AXIS) readonly buffer FilterAxisBuffer { vec2 filterAxis[]; };
 uniform int uVoxelModel;       // 0 band-limited, 1 trilinear, 2 cubic B-spline
 uniform ivec3 uAnti;           // 1 on axes of an even voxel count
 uniform vec3 uInvP;            // 1 / P_a: spectrum index to cycles per voxel

@@ -4,6 +4,9 @@
 // separable 2D Hartley product T that the eq. 4 pass corrects. OUTPUT_COMPLEX: the complex
 // result (tests), row-major. FUSED_DISPLAY (with OUTPUT_REAL): also maps the projection through
 // the display window into the display texture, saving the display pass a read of the image.
+// Binding points (generated from fvr/gpu/bindings.h), outside any #ifdef: a file is included
+// once, so the includes below reuse these lines.
+#include "common/bindings.glsl"
 layout(local_size_x = WG_SIZE) in;
 #include "common/fft.glsl"
 uniform int uM;
@@ -13,11 +16,11 @@ uniform int uM;
 #include "common/display.glsl"
 #endif
 #endif
-layout(std430, binding = 1) readonly buffer ColsIn { vec2 colsIn[]; };
+layout(std430, binding = FVR_BINDING_PASS_INPUT) readonly buffer ColsIn { vec2 colsIn[]; };
 #ifdef OUTPUT_COMPLEX
-layout(std430, binding = 0) writeonly buffer ColsOut { vec2 colsOut[]; };
+layout(std430, binding = FVR_BINDING_PASS_OUTPUT) writeonly buffer ColsOut { vec2 colsOut[]; };
 #else
-layout(std430, binding = 0) writeonly buffer ColsOut { float colsOut[]; };
+layout(std430, binding = FVR_BINDING_PASS_OUTPUT) writeonly buffer ColsOut { float colsOut[]; };
 #endif
 
 void main() {

@@ -4,15 +4,18 @@
 // buffer. Output is written transposed so the column pass reads contiguous memory.
 // HARTLEY_ROWS: the input is real; the row's 1D Hartley transform Re + Im of its inverse FFT is
 // written as (t, 0).
+// Binding points (generated from fvr/gpu/bindings.h), outside any #ifdef: a file is included
+// once, so the includes below reuse these lines.
+#include "common/bindings.glsl"
 layout(local_size_x = WG_SIZE) in;
 #include "common/fft.glsl"
 #ifdef FUSED_SLICE
 #include "common/slice.glsl"
 #else
 uniform int uM;
-layout(std430, binding = 1) readonly buffer RowsIn { vec2 rowsIn[]; };
+layout(std430, binding = FVR_BINDING_PASS_INPUT) readonly buffer RowsIn { vec2 rowsIn[]; };
 #endif
-layout(std430, binding = 0) writeonly buffer RowsOut { vec2 rowsOut[]; };
+layout(std430, binding = FVR_BINDING_PASS_OUTPUT) writeonly buffer RowsOut { vec2 rowsOut[]; };
 
 void main() {
     int r = int(gl_WorkGroupID.x);

@@ -1,9 +1,13 @@
 #version 430
-// The polychromatic spectral sum (issue 19), fvr::core::SpectralResponse::lookup on the GPU: per
+// The polychromatic spectral sum, fvr::core::SpectralResponse::lookup on the GPU: per
 // pixel the material mass thicknesses rhoL_m (the material frames' line integrals in rho x mm,
 // times uUnit = 0.1 -> g/cm^2, clamped at >= 0) index the response's table (same layout and
 // bilinear interpolation, linear beyond its end): g = -ln(I/I0). Writes I/I0 (uOutput 0),
-// -ln(I/I0) (1) or material uShow's rhoL in g/cm^2 (2, not clamped). MATERIALS (1..5) frames at bindings 1..5.
+// -ln(I/I0) (1) or material uShow's rhoL in g/cm^2 (2, not clamped). MATERIALS (1..5) frames at
+// FVR_BINDING_MATERIAL_0.. (common/bindings.glsl).
+// Binding points (generated from fvr/gpu/bindings.h), outside any #ifdef: a file is included
+// once, so the includes below reuse these lines.
+#include "common/bindings.glsl"
 layout(local_size_x = 256) in;
 uniform int uCount;
 uniform int uN;
@@ -19,20 +23,20 @@ uniform int uOther[4];
 uniform float uScale[4];
 uniform int uOutput;
 uniform int uShow;
-layout(std430, binding = 0) writeonly buffer Out { float outValue[]; };
-layout(std430, binding = 6) readonly buffer Table { float nodes[]; };
-layout(std430, binding = 1) readonly buffer M0 { float m0[]; };
+layout(std430, binding = FVR_BINDING_PASS_OUTPUT) writeonly buffer Out { float outValue[]; };
+layout(std430, binding = FVR_BINDING_SPECTRAL_TABLE) readonly buffer Table { float nodes[]; };
+layout(std430, binding = FVR_BINDING_MATERIAL_0) readonly buffer M0 { float m0[]; };
 #if MATERIALS > 1
-layout(std430, binding = 2) readonly buffer M1 { float m1[]; };
+layout(std430, binding = FVR_BINDING_MATERIAL_1) readonly buffer M1 { float m1[]; };
 #endif
 #if MATERIALS > 2
-layout(std430, binding = 3) readonly buffer M2 { float m2[]; };
+layout(std430, binding = FVR_BINDING_MATERIAL_2) readonly buffer M2 { float m2[]; };
 #endif
 #if MATERIALS > 3
-layout(std430, binding = 4) readonly buffer M3 { float m3[]; };
+layout(std430, binding = FVR_BINDING_MATERIAL_3) readonly buffer M3 { float m3[]; };
 #endif
 #if MATERIALS > 4
-layout(std430, binding = 5) readonly buffer M4 { float m4[]; };
+layout(std430, binding = FVR_BINDING_MATERIAL_4) readonly buffer M4 { float m4[]; };
 #endif
 
 float raw(int m, int p) {

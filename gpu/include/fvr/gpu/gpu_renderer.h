@@ -80,7 +80,7 @@ public:
     unsigned displayTexture(const core::DisplayWindow& window);
     /** What spectralSum() writes per pixel. */
     enum class SpectralOutput { Transmission, NegativeLog, Material };
-    /** The polychromatic spectral sum (issue 19) on the GPU, as this renderer's frame: reads the
+    /** The polychromatic spectral sum on the GPU, as this renderer's frame: reads the
      *  last frames of `materials` (one renderer per material of `response`, same size; this one
      *  may be among them) where they lie, evaluates the response's table in one compute pass
      *  (SpectralResponse::lookup: same layout and interpolation) and writes I/I0, -ln(I/I0) or
@@ -113,8 +113,8 @@ private:
     void ensureSize(int size);
     void bindKernel(unsigned prog, core::Kernel kernel, bool derivative);
     void setSliceUniforms(unsigned prog, const core::RenderParams& params);
-    /** The slice filter's uniforms and its per-axis table (binding 5), from core::SliceFilterTable.
-     */
+    /** The slice filter's uniforms and its per-axis table (Binding::FilterAxis), from
+     *  core::SliceFilterTable. */
     void setFilterUniforms(unsigned prog, const core::RenderParams& params);
     void runRows(int M, bool fused, bool hartley, core::Kernel kernel,
                  const core::RenderParams* params);

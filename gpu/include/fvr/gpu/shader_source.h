@@ -21,8 +21,11 @@ public:
     static ShaderSource assemble(const std::string& path, const Defines& defines,
                                  const Reader& reader);
     /** Reader for the shaders embedded in fvr::gpu (resources/shaders at build time), or
-     *  FVR_SHADER_DIR when set (edit shaders without rebuilding). */
+     *  FVR_SHADER_DIR when set (edit shaders without rebuilding). Either way it serves
+     *  "common/bindings.glsl" from bindingsGlsl() (fvr/gpu/bindings.h). */
     static Reader defaultReader();
+    /** The paths of the embedded shaders (files of resources/shaders, e.g. "fft/rows.comp"). */
+    static std::vector<std::string> embeddedPaths();
 
     const std::string& text() const { return m_text; }
     const std::string& path() const { return m_path; }
