@@ -153,6 +153,8 @@ def main() -> int:
     ap.add_argument("--list", action="store_true", help="list the commands, run nothing")
     a = ap.parse_args()
     root = a.root.resolve()
+    a.fvr_render = str(Path(a.fvr_render).resolve())
+    a.tmp = a.tmp.resolve()
 
     examples = []
     for f in doc_files(root):
