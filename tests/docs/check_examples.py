@@ -11,6 +11,8 @@ and need nothing the user lacks, so they are also run: every output option (--ou
 and write its output. Commands that name files the reader must supply (a DICOM folder, a
 `--views FILE`), talk to a PACS (`dicom://`, --send) or benchmark (--bench) are only checked.
 
+The relative links of those files (to files and to #headings) must resolve too.
+
 Usage: check_examples.py --fvr-render PATH --root REPO --tmp DIR [--list]
 Exit status: 0 when every command passes, 1 otherwise (each failure names the file and line).
 """
@@ -83,6 +85,38 @@ def inline_examples(path: Path, lines: list) -> list:
         if re.match(r"(?:\S*/)?fvr-render\s", span):
             found.append(Example(path, text.count("\n", 0, m.start()) + 1, span, False))
     return found
+
+
+def anchors(path: Path) -> set:
+    """The heading anchors of a Markdown file, as GitHub makes them."""
+    found, inside = set(), False
+    for line in path.read_text(encoding="utf-8").splitlines():
+        if FENCE.match(line):
+            inside = not inside
+        elif not inside and line.startswith("#"):
+            title = line.lstrip("#").strip().lower()
+            found.add(re.sub(r"[^\w\- ]", "", title).replace(" ", "-"))
+    return found
+
+
+def broken_links(path: Path, root: Path) -> list:
+    """Relative links and images of a Markdown file whose file or #anchor does not exist."""
+    # Fenced blocks blanked line for line, so that the line numbers stay right.
+    text = re.sub(r"```.*?```", lambda m: "\n" * m.group(0).count("\n"),
+                  path.read_text(encoding="utf-8"), flags=re.S)
+    bad = []
+    for m in re.finditer(r"!?\[[^\]]*\]\(([^)\s]+)\)", text):
+        target = m.group(1)
+        if re.match(r"[a-z]+:", target):
+            continue
+        file, _, anchor = target.partition("#")
+        dest = (path.parent / file).resolve() if file else path
+        line = text.count("\n", 0, m.start()) + 1
+        if not dest.exists():
+            bad.append(f"{path.relative_to(root)}:{line}: link to {target}: no file {file}")
+        elif anchor and dest.suffix == ".md" and anchor not in anchors(dest):
+            bad.append(f"{path.relative_to(root)}:{line}: link to {target}: no heading #{anchor}")
+    return bad
 
 
 def help_options(fvr_render: str) -> set:
@@ -171,6 +205,8 @@ def main() -> int:
 
     known = help_options(a.fvr_render)
     failures, ran = [], 0
+    for f in doc_files(root):
+        failures += broken_links(f, root)
     for ex in examples:
         unknown = sorted(set(OPTION.findall(ex.text)) - known)
         if unknown:
