@@ -11,9 +11,13 @@ and need nothing the user lacks, so they are also run: every output option (--ou
 and write its output. Commands that name files the reader must supply (a DICOM folder, a
 `--views FILE`), talk to a PACS (`dicom://`, --send) or benchmark (--bench) are only checked.
 
+With --python, the ```python blocks of each file run too, one file's blocks in order as one
+script (a later block may use what an earlier one defined), in a temporary folder.
+
 The relative links of those files (to files and to #headings) must resolve too.
 
 Usage: check_examples.py --fvr-render PATH --root REPO --tmp DIR [--list]
+                         [--python EXE --pythonpath DIR]
 Exit status: 0 when every command passes, 1 otherwise (each failure names the file and line).
 """
 import argparse
@@ -179,12 +183,37 @@ def run_example(ex: Example, fvr_render: str, tmp: Path, index: int) -> str:
     return ""
 
 
+def python_scripts(files: list) -> list:
+    """(file, the file's ```python blocks joined) for each file that has some."""
+    scripts = []
+    for f in files:
+        blocks = re.findall(r"^```python\n(.*?)^```", f.read_text(encoding="utf-8"), re.S | re.M)
+        if blocks:
+            scripts.append((f, "\n".join(blocks)))
+    return scripts
+
+
+def run_python(path: Path, code: str, python: str, pythonpath: str, folder: Path) -> str:
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir(parents=True)
+    (folder / "example.py").write_text(code, encoding="utf-8")
+    env = dict(os.environ, PYTHONPATH=pythonpath, PYTHONDONTWRITEBYTECODE="1")
+    try:
+        out = subprocess.run([python, "example.py"], capture_output=True, text=True, timeout=600,
+                             cwd=folder, env=env)
+    except subprocess.TimeoutExpired:
+        return "did not finish within 600 s"
+    return "" if out.returncode == 0 else f"exit status {out.returncode}: {out.stderr.strip()[-800:]}"
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--fvr-render", required=True)
     ap.add_argument("--root", required=True, type=Path)
     ap.add_argument("--tmp", required=True, type=Path)
     ap.add_argument("--list", action="store_true", help="list the commands, run nothing")
+    ap.add_argument("--python", help="run the ```python blocks with this interpreter")
+    ap.add_argument("--pythonpath", default="", help="PYTHONPATH for them (the module fvr)")
     a = ap.parse_args()
     root = a.root.resolve()
     a.fvr_render = str(Path(a.fvr_render).resolve())
@@ -221,7 +250,14 @@ def main() -> int:
         print(f"{'FAILED' if why else 'ok    '} {ex.where(root)}: {ex.text}")
         if why:
             failures.append(f"{ex.where(root)}: {why} (in: {ex.text})")
-    print(f"{len(examples)} fvr-render commands checked against --help, {ran} run")
+    pythons = python_scripts(doc_files(root)) if a.python else []
+    for i, (f, code) in enumerate(pythons):
+        why = run_python(f, code, a.python, a.pythonpath, a.tmp / f"python_{i:02d}")
+        print(f"{'FAILED' if why else 'ok    '} {f.relative_to(root)}: its python blocks")
+        if why:
+            failures.append(f"{f.relative_to(root)}: python blocks: {why}")
+    print(f"{len(examples)} fvr-render commands checked against --help, {ran} run; "
+          f"{len(pythons)} files' python blocks run")
     for f in failures:
         print("FAIL " + f, file=sys.stderr)
     return 1 if failures else 0
