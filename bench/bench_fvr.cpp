@@ -1,5 +1,5 @@
 /**
- * FVR benchmarks (DESIGN.md, "Performance is benchmarked"), in the layout of Table 1 of
+ * FVR benchmarks (docs/dev/performance.md), in the layout of Table 1 of
  * Viola et al. 2004: per slice size M, per interpolation kernel, the slicing stage and the inverse
  * 2D transform, for the FFT and the FHT representation.
  *

@@ -1,4 +1,4 @@
-"""Views per second of the Python module fvr (README, Python): one process (fvr.Renderer,
+"""Views per second of the Python module fvr (docs/dev/performance.md): one process (fvr.Renderer,
 render_many of a sweep; preprocessing apart) and python3 -m fvr.dataset on a LocalCluster
 (end to end: load, preprocess and render every study, write the stacks), against the same
 manifest in one process (--workers 0). Median of REPEATS runs.

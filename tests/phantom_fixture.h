@@ -1,7 +1,7 @@
 #pragma once
 // The accuracy tests' common ground: the 3D Shepp-Logan phantom voxelised at 64^3 over 256 mm
 // (boundary voxels 4x supersampled), imaged at M = 128 with the default pixel size, so that
-// results of different test files compare (and the README's accuracy numbers stay one setting).
+// results of different test files compare (and docs/dev/accuracy.md's numbers stay one setting).
 #include <fvr/core/render/view.h>
 #include <fvr/core/xray/phantom.h>
 

@@ -1,5 +1,5 @@
 // Accuracy against exact analytic line integrals of the 3D Shepp-Logan phantom (mu values),
-// oblique views. Floors were measured (see README, "Accuracy") and sit a little below the
+// oblique views. Floors were measured (docs/dev/accuracy.md) and sit a little below the
 // measured values, so a regression in any kernel, the centring or the scaling fails here.
 #include <cstdio>
 #include <map>
@@ -82,7 +82,7 @@ TEST(Accuracy, SpatialProjectorAgainstAnalytic) {
 TEST(Accuracy, FourierKernelsAgainstAnalytic) {
     for (auto t : {TransformKind::Fft, TransformKind::Fht}) {
         const auto psnr = measureAll(t);
-        // Floors (dB), measured on this phantom: see README.
+        // Floors (dB), measured on this phantom: docs/dev/accuracy.md.
         const std::map<std::pair<Kernel, double>, double> floors = {
             {{Kernel::Nearest, 1.0}, 15.5},    {{Kernel::Linear, 1.0}, 20.8},
             {{Kernel::BSpline, 1.0}, 15.8},    {{Kernel::CatmullRom, 1.0}, 27.4},

@@ -315,7 +315,7 @@ TEST(VoxelModel, AxisViewOracleGivesThePlainVoxelSumsOnVoxelCentres) {
 // Real data: each compact model against the spatial projector (ray casting) with the same model,
 // the workstation's default kernel (Kaiser-Bessel 4, oversampling 1.25, deapodized), M = 256 at
 // the default pixel size, clip on; the band-limited model against trilinear ray casting for
-// contrast. Floors sit ~1.5 dB below the measured values (README, "Voxel models").
+// contrast. Floors sit ~1.5 dB below the measured values (docs/dev/accuracy.md, "Voxel models").
 namespace {
 
 struct RealCase {

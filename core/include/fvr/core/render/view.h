@@ -1,6 +1,6 @@
 #pragma once
 /** View geometry shared by the CPU renderer, the GPU renderer, the spatial projector and the
- *  analytic phantom projections (DESIGN.md, "View and pixels, exactly"). */
+ *  analytic phantom projections (docs/dev/algorithm.md, "Geometry"). */
 #include <fvr/core/vec3.h>
 #include <fvr/core/volume.h>
 

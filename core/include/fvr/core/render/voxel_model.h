@@ -1,7 +1,7 @@
 #pragma once
-/** The voxel model: what lies between the voxels (DESIGN.md, "Voxel model"). Every renderer and
- *  the spatial reference projector take one; each model is a separable 1D transfer function
- *  t(nu) per axis on the voxels' spectrum (nu in cycles per voxel):
+/** The voxel model: what lies between the voxels (docs/dev/algorithm.md, "Voxel models").
+ *  Every renderer and the spatial reference projector take one; each model is a separable 1D
+ *  transfer function t(nu) per axis on the voxels' spectrum (nu in cycles per voxel):
  *   - BandLimited: t = 1 for |nu| <= 1/2, 0 beyond (the sinc interpolant; plain FVR, sharpest,
  *     rings at truncation and between coarse slices and can go negative).
  *   - Trilinear: t = sinc^2(nu) over all frequencies (the triangle's transform): the projection
