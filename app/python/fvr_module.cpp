@@ -124,6 +124,8 @@ public:
     PyRenderer(PyVolume volume, Args args, py::object progress)
         : m_volume(std::move(volume)), m_args(std::move(args)),
           m_options(cli::parseSettings(m_args)) {
+        // As fvr-render: attenuation for Hounsfield data, raw values for any other.
+        m_options.settings = m_options.settings.forVolume(*m_volume.volume);
         const core::PreprocessOptions po = cli::preprocessOptions(m_options);
         std::string pyError;
         core::CancelToken cancel;

@@ -46,7 +46,7 @@ ViewFrame benchView(const Session& s, int i) {
 void addRayCasting(const Session& s, double fvrMs, Json& j) {
     const Options& o = s.options;
     const SpatialProjectorOptions spo =
-        matchingProjectorOptions(s.params(s.base), o.values, o.threads);
+        matchingProjectorOptions(s.params(s.base), o.settings.values, o.threads);
     SpatialProjector sp(s.volume, spo);
     std::vector<double> spatialMs;
     Json psnr = Json::array(), lowest = Json::array();
@@ -65,9 +65,9 @@ void addRayCasting(const Session& s, double fvrMs, Json& j) {
     const Stat st = stats(spatialMs);
     j["spatial_projector"] = {{"median_ms", st.median},
                               {"views", spatialViews},
-                              {"reference", describeProjector(spo, o.voxelModel)}};
+                              {"reference", describeProjector(spo, o.settings.voxelModel)}};
     j["speedup_per_view"] = st.median / fvrMs;
-    if (o.filter.active())
+    if (o.settings.filter.active())
         j["note"] =
             "the spatial projector cannot apply the slice filter (--sharpen, --band-limit): "
             "it ray-casts unfiltered images, so only the timings compare, not the images";

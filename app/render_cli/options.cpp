@@ -22,7 +22,16 @@ namespace {
 
 using core::SettingsError;
 
-constexpr double kDefaultMuWater = 0.0193; // per mm, about 70 keV
+/** The defaults, as the help states them. */
+const core::RenderSettings kDefaults;
+
+std::string defaultText(const std::string& value) { return "(default " + value + ")"; }
+
+std::string shortNumber(double v) {
+    std::ostringstream out;
+    out << v;
+    return out.str();
+}
 
 const char* kUsage = R"(usage: fvr-render INPUT [options] --out FILE
        fvr-render INPUT --info
@@ -188,6 +197,22 @@ struct Parsing {
     core::RawSpec raw;
 };
 
+/** --preset: applied as it is parsed (the other options' values are set once the whole line is
+ *  parsed), so that the options given with it win wherever they stand. */
+void declarePreset(CLI::App& app, Options& o) {
+    std::string names;
+    for (const auto& n : core::RenderSettings::presetNames())
+        names += (names.empty() ? "" : "|") + n;
+    addParsed(app, "--preset", o.settings, core::RenderSettings::preset, names,
+              "a set of rendering settings that the options given with it change:\n"
+              "default (the workstation's picture: AP view, mu for Hounsfield data,\n"
+              "kaiser-bessel4 with gridding correction at 1.25x, trilinear voxel\n"
+              "model, clipped, non-negative) | paper (the paper's Table 1: linear,\n"
+              "1x, raw values, band-limited, no correction, no clipping)")
+        ->trigger_on_parse()
+        ->group("Rendering");
+}
+
 void declareInput(CLI::App& app, Parsing& p) {
     const std::string g = "Input";
     app.add_option("INPUT", p.o.input, "DICOM folder or file, volume file, raw file or phantom")
@@ -228,32 +253,30 @@ void declareInput(CLI::App& app, Parsing& p) {
 void declareView(CLI::App& app, Options& o) {
     const std::string g = "View and image";
     CLI::Option* dir =
-        addVec3(app, "--dir", o.dir, "viewing direction in the volume frame (default 0,0,1)")
+        addVec3(app, "--dir", o.dir,
+                "viewing direction in the volume frame, instead of --view (with --up\n"
+                "0,-1,0 if not given: 0,0,1 is the plain sum of the slices, as stored)")
             ->group(g);
-    CLI::Option* up = addVec3(app, "--up", o.up,
-                              "up vector (default 0,-1,0: the plain sum of the slices, as stored)")
-                          ->group(g);
+    CLI::Option* up = addVec3(app, "--up", o.up, "up vector with --dir (default 0,-1,0)")->group(g);
     // A patient view sets both: with --dir or --up as well, one of them would be ignored.
-    addParsed(app, "--view", o.view, core::parsePatientView, "V",
+    addParsed(app, "--view", o.settings.view, core::parsePatientView, "V",
               "patient view from the direction cosines (instead of --dir/--up):\n"
               "AP | PA | LEFT | RIGHT | HEAD | FEET (AP: from anterior, head up,\n"
-              "patient's left on the image's right)")
+              "patient's left on the image's right) " +
+                  defaultText(core::patientViewName(kDefaults.view)))
         ->group(g)
         ->excludes(dir)
         ->excludes(up);
-    app.add_option("--size", o.size, "slice/image size, power of two 128..2048 (default 512)")
-        ->check(CLI::Validator(
-            [](std::string& s) -> std::string {
-                const int m = std::atoi(s.c_str());
-                return m >= 128 && m <= 2048 && (m & (m - 1)) == 0
-                           ? ""
-                           : "expected a power of two in 128..2048, found " + s;
-            },
-            ""))
+    app.add_option("--size", o.settings.size,
+                   "slice/image size, power of two " + std::to_string(kDefaults.kMinSize) + ".." +
+                       std::to_string(kDefaults.kMaxSize) + " " +
+                       defaultText(std::to_string(kDefaults.size)))
+        ->check(coreCheck(
+            [](const std::string& s) { core::validateSettingsSize(std::atoi(s.c_str())); }))
         ->option_text("M")
         ->group(g);
     addNumber(
-        app, "--pixel-size", o.pixelSize, "mm",
+        app, "--pixel-size", o.settings.pixelSize, "mm",
         "output pixel size (default: volume diagonal / M, no overlapping copies)",
         [](double v) { return v > 0; }, "expected a positive number of mm")
         ->group(g);
@@ -261,72 +284,79 @@ void declareView(CLI::App& app, Options& o) {
 
 void declareSpectrum(CLI::App& app, Options& o) {
     const std::string g = "Rendering";
-    addParsed(app, "--kernel", o.kernel, core::parseKernel, "K",
-              "nearest | linear | bspline | catmull-rom | sinc4 | kaiser-bessel\n"
-              "(default linear)")
+    addParsed(app, "--kernel", o.settings.kernel, core::parseKernel, "K",
+              "nearest | linear | bspline | catmull-rom | sinc4 | kaiser-bessel\n" +
+                  defaultText(core::kernelName(kDefaults.kernel)))
         ->group(g);
-    app.add_option("--kernel-width", o.kernelWidth, "kaiser-bessel width: 4 (default) or 6")
+    app.add_option("--kernel-width", o.kernelWidth, "kaiser-bessel width: 4 or 6")
         ->check(CLI::IsMember({4, 6}))
         ->option_text("W")
         ->group(g);
     app.add_option_function<std::string>(
-           "--deapodize", [&o](const std::string& s) { o.deapodize = s == "on"; },
+           "--deapodize", [&o](const std::string& s) { o.settings.deapodize = s == "on"; },
            "divide the volume by the kernel's Fourier transform before the 3D FFT\n"
-           "(gridding correction; default on for every kernel but linear, which does not\n"
-           "gain from it: the workstation's rule, core::griddingCorrectionHelps)")
+           "(gridding correction; default on for every kernel but linear, which does\n"
+           "not gain from it: core::griddingCorrectionHelps; off in --preset paper)")
         ->check(CLI::IsMember({"on", "off"}))
         ->option_text("on|off")
         ->group(g);
-    addParsed(app, "--transform", o.transform, core::parseTransform, "T", "fft | fht (default fft)")
+    addParsed(app, "--transform", o.settings.transform, core::parseTransform, "T",
+              "fft | fht " + defaultText(core::transformName(kDefaults.transform)))
         ->group(g);
     addNumber(
-        app, "--oversampling", o.oversampling, "f",
-        "zero-padding factor 1..2 (default 1, as in the paper)",
+        app, "--oversampling", o.settings.oversampling, "f",
+        "zero-padding factor 1..2 " + defaultText(shortNumber(kDefaults.oversampling)) +
+            "; 1 in the paper",
         [](double v) { return v >= 1 && v <= 2; }, "expected a factor in [1, 2]")
         ->group(g);
-    addParsed(app, "--values", o.values, core::parseValueMapping, "V",
+    addParsed(app, "--values", o.settings.values, core::parseValueMapping, "V",
               "raw (stored values) | mu (attenuation rel. water, max(0,1+HU/1000)) |\n"
-              "mu-bone (as mu up to +100 HU, twice as steep above: bone stands out)")
+              "mu-bone (as mu up to +100 HU, twice as steep above: bone stands out)\n" +
+                  defaultText(core::valueMappingName(kDefaults.values)) +
+                  " for Hounsfield data; data in other units integrate their\nraw values")
         ->group(g);
 }
 
 void declareModel(CLI::App& app, Options& o) {
     const std::string g = "Rendering";
-    addParsed(app, "--voxel-model", o.voxelModel, core::parseVoxelModel, "V",
-              "what lies between the voxels: trilinear (default: the projection a\n"
-              "trilinear DRR ray caster computes, no ringing) | bspline (the cubic\n"
-              "B-spline through the voxels) | bandlimited (the plain FVR image,\n"
-              "sharpest, rings at scan ends and between coarse slices)")
+    addParsed(app, "--voxel-model", o.settings.voxelModel, core::parseVoxelModel, "V",
+              "what lies between the voxels: trilinear (the projection a trilinear\n"
+              "DRR ray caster computes, no ringing) | bspline (the cubic B-spline\n"
+              "through the voxels) | bandlimited (the plain FVR image, sharpest,\n"
+              "rings at scan ends and between coarse slices) " +
+                  defaultText(core::voxelModelName(kDefaults.voxelModel)))
         ->group(g);
-    app.add_flag("--pixel-aperture", o.pixelAperture,
+    app.add_flag("--pixel-aperture", o.settings.pixelAperture,
                  "detector pixels integrate over their area (sinc per image axis)\n"
                  "instead of sampling the projection at their centres")
         ->group(g);
     app.add_flag_callback(
-           "--no-clip", [&o] { o.clip = false; },
+           "--no-clip", [&o] { o.settings.clip = false; },
            "keep what FVR puts outside the volume's shadow (ghost copies, ringing);\n"
            "by default pixels whose ray misses the voxel model's support are 0,\n"
            "as they truly are")
         ->group(g);
-    app.add_flag("--keep-negative", o.keepNegative,
-                 "keep negative line integrals of a volume without negative values\n"
-                 "(mu values, or raw data >= 0); by default they are 0, as they truly are")
+    app.add_flag_callback(
+           "--keep-negative", [&o] { o.settings.nonNegative = false; },
+           "keep negative line integrals of a volume without negative values\n"
+           "(mu values, or raw data >= 0); by default they are 0, as they truly are")
         ->group(g);
     addNumber(
-        app, "--depth-cue", o.depthCue, "S",
+        app, "--depth-cue", o.settings.depthCue, "S",
         "depth cueing strength 0..1 (default 0): weight 1 at the front of the\n"
         "volume's bounding sphere falling linearly to 1-S at its back (not with\n"
         "--kernel nearest)",
         [](double v) { return v >= 0 && v <= 1; }, "expected a strength in 0..1")
         ->group(g);
-    addFilterNumber(app, "--sharpen", o.filter, &core::SliceFilter::sharpenAmount, "A",
+    addFilterNumber(app, "--sharpen", o.settings.filter, &core::SliceFilter::sharpenAmount, "A",
                     "unsharp mask on the slice: image + A x (image - Gaussian blur),\n"
                     "A >= 0 (default 0, off)")
         ->group(g);
-    addFilterNumber(app, "--sharpen-radius", o.filter, &core::SliceFilter::sharpenSigmaMm, "mm",
-                    "sigma of the unsharp mask's Gaussian (default 1.0)")
+    addFilterNumber(app, "--sharpen-radius", o.settings.filter, &core::SliceFilter::sharpenSigmaMm,
+                    "mm", "sigma of the unsharp mask's Gaussian (default 1.0)")
         ->group(g);
-    addFilterNumber(app, "--band-limit", o.filter, &core::SliceFilter::bandLimitLpMm, "lp/mm",
+    addFilterNumber(app, "--band-limit", o.settings.filter, &core::SliceFilter::bandLimitLpMm,
+                    "lp/mm",
                     "order-8 Butterworth low-pass, -3 dB at this frequency (default 0, off)")
         ->group(g);
 }
@@ -608,12 +638,12 @@ void checkCombinations(Options& o) {
     if (o.kernelWidth != 0) {
         if (!o.kaiserBessel())
             throw SettingsError("--kernel-width: only for --kernel kaiser-bessel");
-        o.kernel = core::kaiserBesselKernel(o.kernelWidth);
+        o.settings.kernel = core::kaiserBesselKernel(o.kernelWidth);
     }
-    if (o.beerLambert && !core::isAttenuation(o.values))
+    if (o.beerLambert && !core::isAttenuation(o.settings.values))
         throw SettingsError("--beer-lambert: needs --values mu or mu-bone (transmission follows "
                             "from attenuation)");
-    if (o.depthCue > 0 && o.kernel == core::Kernel::Nearest)
+    if (o.settings.depthCue > 0 && o.settings.kernel == core::Kernel::Nearest)
         throw SettingsError("--depth-cue: needs the derivative of the interpolation kernel; "
                             "--kernel nearest has none (choose linear or better)");
     if (o.polychromatic() && o.format == OutputFormat::Dicom)
@@ -621,10 +651,15 @@ void checkCombinations(Options& o) {
     if (o.polychromatic() && o.bench > 0)
         throw SettingsError("--kvp: not with --bench (bench/ times the polychromatic frame)");
     // --dir and --up (unless --view replaces them): the message names the vector at fault.
-    if (!o.view) core::ViewFrame::fromDirUp(o.dir, o.up);
-    o.transmission.muWaterPerMm =
-        o.energy ? core::waterAttenuationPerMm(*o.energy) : o.muWater.value_or(kDefaultMuWater);
-    o.transmission.exposure = o.exposure.value_or(1.0);
+    if (o.dirUpGiven) core::ViewFrame::fromDirUp(o.dir, o.up);
+    o.transmission.muWaterPerMm = o.energy ? core::waterAttenuationPerMm(*o.energy)
+                                           : o.muWater.value_or(kDefaults.beam.muWaterPerMm);
+    o.transmission.exposure = o.exposure.value_or(kDefaults.beam.exposure);
+    if (o.beerLambert) {
+        o.settings.output = core::XrayOutput::Transmission;
+        o.settings.beam = o.transmission;
+    }
+    if (o.polychromatic()) o.settings.output = core::XrayOutput::Polychromatic;
 }
 
 void declareAll(CLI::App& app, Parsing& p) {
@@ -635,6 +670,7 @@ void declareAll(CLI::App& app, Parsing& p) {
     app.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
     declareInput(app, p);
     declareView(app, p.o);
+    declarePreset(app, p.o);
     declareSpectrum(app, p.o);
     declareModel(app, p.o);
     declareBackend(app, p.o);
@@ -649,7 +685,9 @@ void declareAll(CLI::App& app, Parsing& p) {
 /** The options of a parsed command line (the options counted by CLI11 resolved). */
 Options parsed(const CLI::App& app, Parsing& p) {
     if (app.count("--raw-dims") > 0) p.o.raw = p.raw;
-    p.o.viewGiven = p.o.view || app.count("--dir") > 0 || app.count("--up") > 0;
+    p.o.dirUpGiven = app.count("--dir") > 0 || app.count("--up") > 0;
+    p.o.viewGiven = p.o.dirUpGiven || app.count("--view") > 0;
+    p.o.valuesGiven = app.count("--values") > 0;
     p.o.queryGiven = app.count("--query") > 0;
     return p.o;
 }

@@ -9,6 +9,7 @@
 #include <fvr/core/io/volume_io.h>
 #include <fvr/core/pacs/pacs.h>
 #include <fvr/core/render/kernels.h>
+#include <fvr/core/render/render_settings.h>
 #include <fvr/core/render/spectrum.h>
 #include <fvr/core/render/voxel_model.h>
 #include <fvr/core/volume.h>
@@ -23,25 +24,21 @@ enum class OutputFormat { None, Npy, Pfm, Png, Dicom };
 
 struct Options {
     std::string input;
-    core::Vec3 dir{0, 0, 1};
-    /** --view, --dir or --up given (else the default view). */
-    bool viewGiven = false;
-    core::Vec3 up{0, -1, 0};
-    int size = 512;
-    std::optional<double> pixelSize;
-    core::Kernel kernel = core::Kernel::Linear;
-    int kernelWidth = 0;
-    std::optional<bool> deapodize;
-    core::TransformKind transform = core::TransformKind::Fft;
-    double oversampling = 1.0;
-    core::ValueMapping values = core::ValueMapping::Raw;
+    /** Every rendering choice (kernel, spectrum, voxel model, size, view, ...), the defaults
+     *  the workstation's; --preset and the rendering options write it. */
+    core::RenderSettings settings;
+    core::Vec3 dir{0, 0, 1}; ///< --dir (with dirUpGiven: instead of settings.view)
+    core::Vec3 up{0, -1, 0}; ///< --up
+    bool dirUpGiven = false; ///< --dir or --up given
+    bool viewGiven = false; ///< --view, --dir or --up given (else the default view)
+    bool valuesGiven = false; ///< --values given (not the default)
+    int kernelWidth = 0; ///< --kernel-width, resolved into settings.kernel
     int threads = 0;
     /** --backend: auto (the GPU when it is hardware, else the CPU, saying why), cpu or gpu
      *  (the GPU even when it is a software renderer). */
     enum class Backend { Auto, Cpu, Gpu } backend = Backend::Auto;
     bool fp16 = false;
     std::optional<core::RawSpec> raw;
-    std::optional<core::PatientView> view;
     std::string series;
     int sweep = 0;
     std::optional<core::Vec3> axis;
@@ -53,12 +50,6 @@ struct Options {
     std::optional<double> energy; ///< --energy, keV
     std::optional<double> exposure;
     core::Transmission transmission; ///< resolved from the three above; active with --beer-lambert
-    double depthCue = 0.0;
-    bool clip = true;
-    core::VoxelModel voxelModel = core::VoxelModel::Trilinear;
-    bool pixelAperture = false;
-    bool keepNegative = false;
-    core::SliceFilter filter;
     std::string out;
     OutputFormat format = OutputFormat::None; ///< from the extension of `out`
     bool info = false;
@@ -81,7 +72,7 @@ struct Options {
     std::vector<std::string> tlsCa; ///< --tls-ca FILE (repeatable): the CAs we trust (PEM)
     bool tlsNoVerify = false; ///< --tls-no-verify: take any certificate the peer shows
 
-    /** Polychromatic X-ray (issue 19), on with --kvp: the output holds I/I0. */
+    /** Polychromatic X-ray, on with --kvp: the output holds I/I0. */
     std::optional<double> kvp;
     double filtrationAlMm = 0.0;
     double filtrationCuMm = 0.0;
@@ -94,7 +85,8 @@ struct Options {
 
     bool polychromatic() const { return kvp.has_value(); }
     bool kaiserBessel() const {
-        return kernel == core::Kernel::KaiserBessel4 || kernel == core::Kernel::KaiserBessel6;
+        return settings.kernel == core::Kernel::KaiserBessel4 ||
+               settings.kernel == core::Kernel::KaiserBessel6;
     }
 };
 

@@ -119,7 +119,7 @@ std::string numberedPath(const std::string& out, std::size_t i) {
 /** What the output's pixels hold. */
 std::string valuesText(const Session& s) {
     return s.options.beerLambert ? "transmitted intensity exposure x exp(-mu_water x line integral)"
-                                 : projectionUnits(s.options.values, s.volume.units);
+                                 : projectionUnits(s.options.settings.values, s.volume.units);
 }
 
 /** The name of --send's temporary folders (.fvr-render-send.PID-ID.N.part in the temporary folder).
@@ -138,8 +138,8 @@ public:
         if (m_stacked) {
             const auto at = m_files.staged(m_o.out);
             finalNamesOnError([&] {
-                m_stack =
-                    std::make_unique<NpyStackWriter>(at, m_o.size, m_o.size, std::int64_t(m_count));
+                m_stack = std::make_unique<NpyStackWriter>(at, m_o.settings.size, m_o.settings.size,
+                                                           std::int64_t(m_count));
             });
         }
     }
@@ -176,7 +176,7 @@ public:
         }
         const std::string path = m_count > 1 ? numberedPath(m_o.out, i) : m_o.out;
         const std::filesystem::path at = m_files.staged(path);
-        const int M = m_o.size;
+        const int M = m_o.settings.size;
         finalNamesOnError([&] {
             if (m_o.format == OutputFormat::Png)
                 writePng(at, film ? m_lineIntegrals.data() : img.pixels.data(), M, M,
@@ -317,9 +317,9 @@ private:
 /** The DICOM outputs' value description: the values, depth cue and slice filter. */
 DicomExportInfo dicomInfo(const Session& s, DicomExportInfo info) {
     info.valueDescription = valuesText(s);
-    if (s.options.depthCue > 0)
-        info.valueDescription += "; depth cue " + numberText(s.options.depthCue);
-    if (s.options.filter.active())
+    if (s.options.settings.depthCue > 0)
+        info.valueDescription += "; depth cue " + numberText(s.options.settings.depthCue);
+    if (s.options.settings.filter.active())
         info.valueDescription += "; slice-filtered (sharpen, band limit)";
     return info;
 }
@@ -372,9 +372,9 @@ void printSummary(const Session& s, std::size_t viewCount, bool stacked, double 
     std::fprintf(
         stderr, "wrote %s%s (%zu view%s, %dx%d, pixel %.4g mm, %s, %s, %s, %s; %.2f ms per view)\n",
         one ? o.out.c_str() : numberedPath(o.out, 0).c_str(), one ? "" : " ...", viewCount,
-        viewCount > 1 ? "s" : "", o.size, o.size, s.geometry.pixelSize, kernelName(o.kernel),
-        transformName(o.transform),
-        o.beerLambert ? "transmission" : projectionUnits(o.values, s.volume.units).c_str(),
+        viewCount > 1 ? "s" : "", o.settings.size, o.settings.size, s.geometry.pixelSize,
+        kernelName(o.settings.kernel), transformName(o.settings.transform),
+        o.beerLambert ? "transmission" : projectionUnits(o.settings.values, s.volume.units).c_str(),
         s.backend.name().c_str(), msPerView);
 }
 

@@ -97,17 +97,11 @@ RenderedViews renderViews(const Options& o, OutputFiles& files, const Polychroma
     out.stacked = views.size() > 1 && o.format == OutputFormat::Npy && !o.numbered;
     std::unique_ptr<NpyStackWriter> stack;
     if (out.stacked)
-        stack = std::make_unique<NpyStackWriter>(files.staged(o.out), o.size, o.size,
-                                                 std::int64_t(views.size()));
+        stack = std::make_unique<NpyStackWriter>(files.staged(o.out), o.settings.size,
+                                                 o.settings.size, std::int64_t(views.size()));
     const auto t0 = std::chrono::steady_clock::now();
     for (std::size_t i = 0; i < views.size(); ++i) {
-        RenderParams p{views[i], geometry, o.kernel};
-        p.clipToVolume = o.clip;
-        p.voxelModel = o.voxelModel;
-        p.pixelAperture = o.pixelAperture;
-        p.nonNegative = !o.keepNegative;
-        p.depthCue = o.depthCue;
-        p.filter = o.filter;
+        const RenderParams p = o.settings.toRenderParams(views[i], geometry);
         NoiseModel n = noise;
         n.seed = o.seed + i;
         const PolychromaticFrame f = frame(p, n, !o.materialOut.empty());
@@ -176,11 +170,8 @@ int renderPolychromatic(const Options& o, const Volume& volume,
                             std::to_string(views.size()) + ")");
     const TubeSpectrum spectrum = tubeSpectrum(*o.kvp, o.filtrationAlMm, o.filtrationCuMm);
     auto response = std::make_shared<SpectralResponse>(spectrum, o.detector, o.materials);
-    PreprocessOptions po;
-    po.transform = o.transform;
-    po.oversampling = o.oversampling;
+    PreprocessOptions po = o.settings.toPreprocessOptions(); // preprocessMaterials maps raw
     po.threads = o.threads;
-    if (o.deapodize.value_or(griddingCorrectionHelps(o.kernel))) po.deapodizeFor = o.kernel;
     RunRecord run;
     const auto t0 = std::chrono::steady_clock::now();
     run.spectra = preprocessMaterials(volume, {o.materials, 70.0}, po);
@@ -195,8 +186,7 @@ int renderPolychromatic(const Options& o, const Volume& volume,
         frame = [&poly](const RenderParams& p, const NoiseModel& n, bool) {
             return poly.render(p, n);
         };
-    const double d = run.pixelSize =
-        o.pixelSize ? *o.pixelSize : defaultPixelSize(volume.dims, volume.spacing, o.size);
+    const double d = run.pixelSize = o.settings.imageGeometry(volume).pixelSize;
     const NoiseModel noise{o.noiseMas, 1000.0, d * d, o.electronicNoise, o.seed};
     InterruptGuard interrupt; // before the first file is staged
     std::string interrupted = "interrupted after the last view"; // the files are complete
@@ -204,7 +194,7 @@ int renderPolychromatic(const Options& o, const Volume& volume,
         OutputFiles files(o.out);
         RenderedViews rendered;
         try { // the messages name the final paths, not the staged ones
-            rendered = renderViews(o, files, frame, views, {o.size, d}, noise);
+            rendered = renderViews(o, files, frame, views, {o.settings.size, d}, noise);
             writeFileAtomic(
                 files.staged(o.out + ".json"),
                 jsonText(sidecar(o, volume, views, run, rendered, spectrum, *response, noise)));
@@ -214,8 +204,8 @@ int renderPolychromatic(const Options& o, const Volume& volume,
         files.commit(); // the images and their sidecar land together
         std::fprintf(
             stderr, "wrote %s (%zu view%s, %dx%d, %g kVp, %zu materials, I/I0; %.2f ms per view)\n",
-            rendered.files.front().c_str(), views.size(), views.size() > 1 ? "s" : "", o.size,
-            o.size, *o.kvp, o.materials.size(), rendered.msPerView);
+            rendered.files.front().c_str(), views.size(), views.size() > 1 ? "s" : "",
+            o.settings.size, o.settings.size, *o.kvp, o.materials.size(), rendered.msPerView);
     } catch (const Interrupted& e) {
         interrupted = e.what();
     }

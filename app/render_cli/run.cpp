@@ -20,38 +20,22 @@ namespace fvr::cli {
 
 core::RenderParams renderParams(const Options& o, const core::ViewFrame& view,
                                 const core::ImageGeometry& geometry) {
-    core::RenderParams p{view, geometry, o.kernel};
-    p.depthCue = o.depthCue;
-    p.filter = o.filter;
-    p.clipToVolume = o.clip;
-    p.voxelModel = o.voxelModel;
-    p.pixelAperture = o.pixelAperture;
-    p.nonNegative = !o.keepNegative;
-    return p;
+    return o.settings.toRenderParams(view, geometry);
 }
 
 core::PreprocessOptions preprocessOptions(const Options& o) {
-    core::PreprocessOptions po;
-    po.mapping = o.values;
-    po.transform = o.transform;
-    po.oversampling = o.oversampling;
+    core::PreprocessOptions po = o.settings.toPreprocessOptions();
     po.threads = o.threads;
-    // The workstation's rule: gridding correction for every kernel it helps (all but linear).
-    if (o.deapodize.value_or(core::griddingCorrectionHelps(o.kernel))) po.deapodizeFor = o.kernel;
     return po;
 }
 
 core::ViewFrame baseView(const Options& o, const core::Volume& volume) {
-    return o.view ? core::patientViewFrame(volume, *o.view)
-                  : core::ViewFrame::fromDirUp(o.dir, o.up);
+    return o.dirUpGiven ? core::ViewFrame::fromDirUp(o.dir, o.up)
+                        : core::patientViewFrame(volume, o.settings.view);
 }
 
 core::ImageGeometry imageGeometry(const Options& o, const core::Volume& volume) {
-    const double d =
-        o.pixelSize ? *o.pixelSize : core::defaultPixelSize(volume.dims, volume.spacing, o.size);
-    const core::ImageGeometry geometry{o.size, d};
-    core::validateImageGeometry(geometry, volume.dims, volume.spacing);
-    return geometry;
+    return o.settings.imageGeometry(volume);
 }
 
 core::RenderParams Session::params(const core::ViewFrame& view) const {
@@ -90,8 +74,18 @@ std::shared_ptr<const Spectrum> preprocessVolume(const Options& o, const Volume&
 }
 
 /** Renders what the options ask for from the loaded volume. */
-int renderVolume(const Options& o, const Volume& volume, const std::vector<ViewFrame>& fileViews,
-                 const DicomExportInfo& exportInfo) {
+int renderVolume(const Options& asked, const Volume& volume,
+                 const std::vector<ViewFrame>& fileViews, const DicomExportInfo& exportInfo) {
+    // Attenuation only for Hounsfield data: others integrate their raw values (said when the
+    // values were asked for; the sidecar records what was used).
+    Options o = asked;
+    std::string note;
+    o.settings = asked.settings.forVolume(volume, &note);
+    if (!note.empty() && o.beerLambert)
+        throw SettingsError("--beer-lambert: " + note + ", and a transmission needs attenuation");
+    if (!note.empty() && o.valuesGiven)
+        std::fprintf(stderr, "fvr-render: warning: --values %s: %s\n",
+                     valueMappingName(asked.settings.values), note.c_str());
     const ViewFrame base = baseView(o, volume);
     // The views first: their errors (a sweep along its axis) before the work.
     const std::vector<ViewFrame> views =

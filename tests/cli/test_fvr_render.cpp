@@ -370,12 +370,13 @@ TEST(FvrRender, DicomPatientViewsFollowTheDirectionCosines) {
 TEST(FvrRender, SweepStackEqualsSingleViewsAndSidecarRecordsThem) {
     const std::string common =
         "phantom:shepp-logan:40 --size 128 --kernel catmull-rom --values mu ";
-    Result r = run(common + "--sweep 4 --axis 0,1,0 --out " + tmp("sweep.npy"));
+    Result r =
+        run(common + "--dir 0,0,1 --up 0,-1,0 --sweep 4 --axis 0,1,0 --out " + tmp("sweep.npy"));
     ASSERT_EQ(r.status, 0) << r.output;
     std::vector<std::int64_t> shape;
     const auto stack = readNpy(tmp("sweep.npy"), shape);
     ASSERT_EQ(shape, (std::vector<std::int64_t>{4, 128, 128}));
-    // View 1 of the sweep is the default view turned by 90 degrees about y: D = (0,0,1) -> (1,0,0).
+    // View 1 of the sweep is the first view turned by 90 degrees about y: D = (0,0,1) -> (1,0,0).
     r = run(common + "--dir 1,0,0 --up 0,-1,0 --out " + tmp("view1.npy"));
     ASSERT_EQ(r.status, 0) << r.output;
     const auto single = readNpy(tmp("view1.npy"), shape);
@@ -412,7 +413,7 @@ TEST(FvrRender, ViewsFileNumberedOutputsAndErrors) {
     r = run("phantom:shepp-logan:32 --size 128 --sweep 3 --views " + tmp("views.txt") + " --out " +
             out);
     EXPECT_EQ(r.status, 2) << r.output;
-    r = run("phantom:shepp-logan:32 --size 128 --beer-lambert --out " + out);
+    r = run("phantom:shepp-logan:32 --size 128 --values raw --beer-lambert --out " + out);
     EXPECT_EQ(r.status, 2) << r.output;
     EXPECT_NE(r.output.find("--values mu"), std::string::npos) << r.output;
 }
@@ -542,7 +543,7 @@ TEST(FvrRender, SliceFilterEqualsTheFilterAppliedInDouble) {
     // axis, about 0.35 along an oblique slice, so the band limit at 0.3 lp/mm acts as well.
     const std::string common =
         "phantom:shepp-logan:128 --dir 0.35,0.2,0.92 --up 0,-1,0 --size 256 --pixel-size 1 "
-        "--values mu ";
+        "--values mu --kernel linear --oversampling 1 ";
     Result r = run(common + "--out " + tmp("unf.npy"));
     ASSERT_EQ(r.status, 0) << r.output;
     r = run(common + "--sharpen 1 --sharpen-radius 2 --band-limit 0.3 --out " + tmp("filt.npy"));
@@ -688,7 +689,8 @@ TEST(FvrRender, VoxelModelsRenderRecordAndCompareLikeWithLike) {
         const std::string out = tmp(std::string("vm_") + (*model ? model : "default") + ".npy");
         const Result r = run(
             std::string(
-                "phantom:shepp-logan:40 --values mu --size 128 --dir 0.3,0.5,0.8 --up 0,-1,0 ") +
+                "phantom:shepp-logan:40 --values mu --kernel linear --oversampling 1 --size 128 "
+                "--dir 0.3,0.5,0.8 --up 0,-1,0 ") +
             (*model ? std::string("--voxel-model ") + model + " " : std::string()) + "--out " +
             out);
         ASSERT_EQ(r.status, 0) << r.output;

@@ -51,7 +51,7 @@ ALLOWED_COLUMNS = frozenset({
     # View and image
     "dir", "up", "view", "size", "pixel-size",
     # Rendering
-    "kernel", "kernel-width", "deapodize", "transform", "oversampling", "values", "voxel-model",
+    "preset", "kernel", "kernel-width", "deapodize", "transform", "oversampling", "values", "voxel-model",
     "pixel-aperture", "no-clip", "keep-negative", "depth-cue", "sharpen", "sharpen-radius",
     "band-limit", "backend", "fp16", "threads",
     # Many views (a views file is read, as INPUT is)

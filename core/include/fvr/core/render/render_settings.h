@@ -1,0 +1,95 @@
+#pragma once
+/** Every rendering choice in one place, with one set of defaults: fvr-render's options, the
+ *  Python module, the workstation's panels and the dataset manifests read and write this, so
+ *  that the same study renders to the same image everywhere.
+ *
+ *  The defaults are the workstation's best picture: the patient's AP view, attenuation (mu) for
+ *  Hounsfield data, Kaiser-Bessel 4 with gridding correction at 1.25x oversampling, the
+ *  trilinear voxel model, clipped to the volume's shadow, never below zero. preset("paper")
+ *  gives the setting of the paper's Table 1 (linear, 1x, raw values, band-limited). */
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <fvr/core/render/kernels.h>
+#include <fvr/core/render/preprocess.h>
+#include <fvr/core/render/renderer.h>
+#include <fvr/core/render/spectrum.h>
+#include <fvr/core/render/view.h>
+#include <fvr/core/render/voxel_model.h>
+#include <fvr/core/volume.h>
+#include <fvr/core/xray/patient_views.h>
+#include <fvr/core/xray/xray.h>
+
+namespace fvr::core {
+
+/** What an image holds: line integrals, the Beer-Lambert transmission of a monochromatic beam,
+ *  or a polychromatic radiograph (TASMIP spectrum through the CT's materials). */
+enum class XrayOutput { LineIntegrals = 0, Transmission = 1, Polychromatic = 2 };
+const char* xrayOutputName(XrayOutput o); ///< "line-integrals", "transmission", "polychromatic"
+XrayOutput parseXrayOutput(const std::string& s); ///< throws SettingsError naming the choices
+
+struct RenderSettings {
+    // The spectrum (made once per study and per kernel with gridding correction).
+    Kernel kernel = Kernel::KaiserBessel4;
+    /** Gridding correction (deapodization for the kernel). Empty: where it helps the kernel
+     *  (griddingCorrectionHelps: every kernel but linear); true: always; false: never. */
+    std::optional<bool> deapodize;
+    TransformKind transform = TransformKind::Fft;
+    double oversampling = 1.25; ///< zero padding per axis, 1..2
+    /** Mu for Hounsfield data; forVolume() takes raw values for any other data. */
+    ValueMapping values = ValueMapping::Mu;
+
+    // Each frame.
+    VoxelModel voxelModel = VoxelModel::Trilinear;
+    bool clip = true; ///< RenderParams::clipToVolume
+    bool pixelAperture = false;
+    bool nonNegative = true; ///< RenderParams::nonNegative
+    double depthCue = 0.0;
+    SliceFilter filter;
+
+    // The image and the view.
+    int size = 512; ///< M: a power of two in kMinSize..kMaxSize
+    std::optional<double> pixelSize; ///< mm; empty: defaultPixelSize (the volume's diagonal / M)
+    PatientView view = PatientView::AP;
+
+    // The X-ray output: line integrals or the Beer-Lambert transmission of `beam`. The
+    // polychromatic output's tube, materials and detector are the X-ray physics' own settings.
+    XrayOutput output = XrayOutput::LineIntegrals;
+    Transmission beam{0.0193, 1.0}; ///< mu of water per mm (about 70 keV) and the exposure
+
+    /** The image sizes users choose from (the renderers also render the progressive levels'
+     *  smaller sizes, down to validateImageGeometry's 16). */
+    static constexpr int kMinSize = 128;
+    static constexpr int kMaxSize = 2048;
+
+    /** "default" (these defaults) or "paper" (the paper's Table 1: linear, no oversampling, raw
+     *  values, band-limited, no gridding correction, no clipping, negative values kept). Throws
+     *  SettingsError naming the presets. */
+    static RenderSettings preset(std::string_view name);
+    static std::vector<std::string> presetNames();
+
+    /** The settings a volume renders with, and why they differ from these: attenuation only
+     *  means something for Hounsfield units, so other data integrate their raw values (`note`
+     *  gets one sentence saying so; empty when nothing changed). */
+    RenderSettings forVolume(const Volume& volume, std::string* note = nullptr) const;
+
+    /** The spectrum these settings need (threads and planner effort as PreprocessOptions'). */
+    PreprocessOptions toPreprocessOptions() const;
+    /** One frame's parameters for a view and an image geometry. */
+    RenderParams toRenderParams(const ViewFrame& view, const ImageGeometry& image) const;
+    /** size and pixelSize (or the default for the volume), checked against the volume. */
+    ImageGeometry imageGeometry(const Volume& volume) const;
+    /** Whether the spectrum is deapodized for the kernel (deapodize, else the rule). */
+    bool griddingCorrected() const;
+
+    bool operator==(const RenderSettings&) const = default;
+};
+
+/** Throws SettingsError "slice size: expected a power of two in 128..2048, found N". */
+void validateSettingsSize(int size);
+/** The choices users see: 128, 256, ..., 2048. */
+std::vector<int> settingsSizes();
+
+} // namespace fvr::core

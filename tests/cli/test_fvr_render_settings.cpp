@@ -1,0 +1,152 @@
+// fvr-render's defaults and presets come from core::RenderSettings: the sidecar records what the
+// settings say, --preset paper gives the paper's Table 1 setting, options given with a preset
+// win wherever they stand, and a default render is the image core renders with RenderSettings{}.
+#include <unistd.h>
+
+#include <cstdint>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <fvr/core/io/image_io.h>
+#include <fvr/core/render/cpu_renderer.h>
+#include <fvr/core/render/render_settings.h>
+#include <fvr/core/xray/phantom.h>
+
+#include "image_metrics.h"
+#include "test_support.h"
+
+namespace {
+
+using Json = nlohmann::json;
+using namespace fvr::core;
+
+std::string tmp(const std::string& name) {
+    return (fvr::test::tmpDir() / ("settings_" + name)).string();
+}
+
+struct Result {
+    int status = -1;
+    std::string output; // stdout, then stderr
+};
+
+Result run(const std::string& args) {
+    const std::string err = tmp("stderr_" + std::to_string(getpid()) + ".txt");
+    const auto c = fvr::test::runCommand(std::string(FVR_RENDER_EXE) + " " + args + " 2>" + err);
+    std::ifstream in(err);
+    Result r{c.status, c.out + std::string(std::istreambuf_iterator<char>(in), {})};
+    std::remove(err.c_str());
+    return r;
+}
+
+Json settingsOf(const std::string& out) {
+    std::ifstream in(out + ".json");
+    return Json::parse(in)["settings"];
+}
+
+TEST(FvrRenderSettings, TheDefaultsAreRenderSettingsDefaults) {
+    const RenderSettings d;
+    const Result r = run("phantom:shepp-logan:32 --size 128 --out " + tmp("default.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    const Json s = settingsOf(tmp("default.npy"));
+    EXPECT_EQ(s["kernel"], kernelName(d.kernel)) << s;
+    EXPECT_EQ(s["kernel"], "kaiser-bessel4") << s;
+    EXPECT_EQ(s["oversampling"], 1.25) << s;
+    EXPECT_EQ(s["values"], "mu") << s; // the phantom holds Hounsfield units
+    EXPECT_EQ(s["deapodized"], true) << s;
+    EXPECT_EQ(s["voxel_model"], "trilinear") << s;
+    EXPECT_EQ(s["clip_to_volume"], true) << s;
+    EXPECT_EQ(s["non_negative"], true) << s;
+    EXPECT_EQ(s["transform"], "fft") << s;
+}
+
+TEST(FvrRenderSettings, PaperPresetIsTheTable1SettingAndOptionsWinWherever) {
+    Result r = run("phantom:shepp-logan:32 --size 128 --preset paper --out " + tmp("paper.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    Json s = settingsOf(tmp("paper.npy"));
+    EXPECT_EQ(s["kernel"], "linear") << s;
+    EXPECT_EQ(s["oversampling"], 1.0) << s;
+    EXPECT_EQ(s["values"], "raw") << s;
+    EXPECT_EQ(s["deapodized"], false) << s;
+    EXPECT_EQ(s["voxel_model"], "bandlimited") << s;
+    EXPECT_EQ(s["clip_to_volume"], false) << s;
+    EXPECT_EQ(s["non_negative"], false) << s;
+    // An option before the preset still wins: the preset is the base, never an override.
+    r = run("phantom:shepp-logan:32 --size 128 --kernel sinc4 --preset paper --out " +
+            tmp("paper_sinc.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    s = settingsOf(tmp("paper_sinc.npy"));
+    EXPECT_EQ(s["kernel"], "sinc4") << s;
+    EXPECT_EQ(s["deapodized"], false) << s; // the paper's: no correction
+    EXPECT_EQ(s["oversampling"], 1.0) << s;
+    r = run("phantom:shepp-logan:32 --preset journal --out " + tmp("bad.npy"));
+    EXPECT_EQ(r.status, 2) << r.output;
+    EXPECT_NE(r.output.find("--preset"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("default or paper"), std::string::npos) << r.output;
+}
+
+TEST(FvrRenderSettings, DefaultImageIsCoresDefaultRenderOfTheApView) {
+    // The oracle: core alone, RenderSettings{} for the phantom, the AP view of its LPS axes.
+    const Volume v = makeSheppLoganVolume(40);
+    const RenderSettings s = RenderSettings{}.forVolume(v);
+    PreprocessOptions po = s.toPreprocessOptions();
+    po.effort = PlannerEffort::Estimate;
+    CpuFourierRenderer cpu(preprocess(v, po), 1);
+    RenderSettings at128 = s;
+    at128.size = 128;
+    const auto truth = cpu.render(
+        at128.toRenderParams(patientViewFrame(v, PatientView::AP), at128.imageGeometry(v)));
+    const Result r = run("phantom:shepp-logan:40 --size 128 --backend cpu --out " + tmp("ap.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::vector<std::int64_t> shape;
+    const auto img = readNpy(tmp("ap.npy"), shape);
+    ASSERT_EQ(shape, (std::vector<std::int64_t>{128, 128}));
+    EXPECT_GT(fvr::test::compare(img, truth.pixels).psnr, 120.0);
+    // Not the old default (along the slices): the AP view differs from the axial one.
+    const auto axial = cpu.render(
+        at128.toRenderParams(ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0}), at128.imageGeometry(v)));
+    EXPECT_LT(fvr::test::compare(img, axial.pixels).psnr, 60.0);
+}
+
+TEST(FvrRenderSettings, DataInOtherUnitsIntegrateRawValues) {
+    // A headerless float32 volume of small positive values: not taken for Hounsfield units.
+    const std::string raw = tmp("vol.raw");
+    {
+        std::vector<float> vox(32 * 32 * 32, 0.0f);
+        for (int z = 8; z < 24; ++z)
+            for (int y = 8; y < 24; ++y)
+                for (int x = 8; x < 24; ++x) vox[std::size_t((z * 32 + y) * 32 + x)] = 1.0f;
+        std::ofstream out(raw, std::ios::binary);
+        out.write(reinterpret_cast<const char*>(vox.data()), std::streamsize(vox.size() * 4));
+    }
+    const std::string input = raw + " --raw-dims 32,32,32 --raw-type float32 --size 128 ";
+    Result r = run(input + "--out " + tmp("raw.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_EQ(settingsOf(tmp("raw.npy"))["values"], "raw");
+    // The default is no request: no warning about it.
+    EXPECT_EQ(r.output.find("not Hounsfield units"), std::string::npos) << r.output;
+    // Asked for by name, the change is said.
+    r = run(input + "--values mu --out " + tmp("raw_mu.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_EQ(settingsOf(tmp("raw_mu.npy"))["values"], "raw");
+    EXPECT_NE(r.output.find("not Hounsfield units"), std::string::npos) << r.output;
+    // A transmission needs attenuation.
+    r = run(input + "--beer-lambert --out " + tmp("raw_bl.npy"));
+    EXPECT_EQ(r.status, 2) << r.output;
+    EXPECT_NE(r.output.find("--beer-lambert"), std::string::npos) << r.output;
+}
+
+TEST(FvrRenderSettings, SizesAreTheSettingsSizes) {
+    for (int m : settingsSizes()) EXPECT_NO_THROW(validateSettingsSize(m)) << m;
+    EXPECT_EQ(settingsSizes().front(), RenderSettings::kMinSize);
+    EXPECT_EQ(settingsSizes().back(), RenderSettings::kMaxSize);
+    const Result r = run("phantom:shepp-logan:32 --size 200 --out " + tmp("s.npy"));
+    EXPECT_EQ(r.status, 2) << r.output;
+    EXPECT_NE(r.output.find("power of two in 128..2048, found 200"), std::string::npos) << r.output;
+}
+
+} // namespace
