@@ -1,8 +1,9 @@
 #include <fvr/core/pacs/dicom_url.h>
 
 #include <algorithm>
-#include <cctype>
 #include <charconv>
+
+#include <fvr/core/text.h>
 
 namespace fvr::core::pacs {
 namespace {
@@ -49,12 +50,7 @@ void parsePath(const std::string& url, const std::string& path, DicomUrl& out) {
 
 } // namespace
 
-bool isDicomUrl(const std::string& text) {
-    return text.size() >= kScheme.size() &&
-           std::equal(kScheme.begin(), kScheme.end(), text.begin(), [](char a, char b) {
-               return a == std::tolower(static_cast<unsigned char>(b));
-           });
-}
+bool isDicomUrl(const std::string& text) { return istartsWith(text, kScheme); }
 
 DicomUrl parseDicomUrl(const std::string& url) {
     if (!isDicomUrl(url)) fail(url, "not a dicom:// URL");
