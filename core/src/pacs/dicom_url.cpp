@@ -1,7 +1,7 @@
 #include <fvr/core/pacs/dicom_url.h>
 
 #include <algorithm>
-#include <charconv>
+#include <optional>
 
 #include <fvr/core/text.h>
 
@@ -22,12 +22,12 @@ bool isUid(const std::string& s) {
 }
 
 int parsePort(const std::string& url, const std::string& text) {
-    int port = 0;
-    auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), port);
-    if (text.empty() || ec != std::errc() || end != text.data() + text.size() || port < 1 ||
-        port > 65535)
+    // Digits only: no sign or spaces inside a URL.
+    const bool digits = text.find_first_not_of("0123456789") == std::string::npos;
+    const std::optional<int> port = digits ? parseNumber<int>(text) : std::nullopt;
+    if (!port || *port < 1 || *port > 65535)
         fail(url, "the port \"" + text + "\" is not a number from 1 to 65535");
-    return port;
+    return *port;
 }
 
 void parsePath(const std::string& url, const std::string& path, DicomUrl& out) {
