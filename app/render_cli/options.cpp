@@ -14,6 +14,7 @@
 
 #include <fvr/core/errors.h>
 #include <fvr/core/render/view.h>
+#include <fvr/core/text.h>
 
 #include "pacs.h"
 
@@ -180,9 +181,7 @@ CLI::Option* addFilterNumber(CLI::App& app, const std::string& name, core::Slice
 }
 
 OutputFormat outputFormat(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
+    const std::string ext = core::asciiLower(std::filesystem::path(path).extension().string());
     if (ext == ".npy") return OutputFormat::Npy;
     if (ext == ".pfm") return OutputFormat::Pfm;
     if (ext == ".png") return OutputFormat::Png;
@@ -464,7 +463,7 @@ void declareXray(CLI::App& app, Options& o) {
         ->group(g);
 }
 
-/** Polychromatic X-ray (issue 19): TASMIP spectrum, materials, detector and noise. */
+/** Polychromatic X-ray options: TASMIP spectrum, materials, detector and noise. */
 void declarePolychromatic(CLI::App& app, Options& o) {
     const std::string g = "Polychromatic X-ray";
     auto* kvp = addNumber(

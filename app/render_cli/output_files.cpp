@@ -20,6 +20,7 @@
 
 #include <fvr/core/errors.h>
 #include <fvr/core/io/atomic_file.h>
+#include <fvr/core/text.h>
 
 namespace fvr::cli {
 namespace fs = std::filesystem;
@@ -31,15 +32,9 @@ bool allDigits(const std::string& s) {
            std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::isdigit(c); });
 }
 
-std::string lower(std::string s) {
-    std::transform(s.begin(), s.end(), s.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
-    return s;
-}
-
 /** Whether `name` is the name of a file fvr writes as an output (or the dataset's Zarr). */
 bool isOutputName(const std::string& name) {
-    const std::string ext = lower(fs::path(name).extension().string());
+    const std::string ext = core::asciiLower(fs::path(name).extension().string());
     for (const char* e : {".npy", ".pfm", ".png", ".dcm", ".json", ".zarr"})
         if (ext == e) return true;
     return false;

@@ -2,7 +2,6 @@
 #include <fvr/core/memory_budget.h>
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -14,6 +13,7 @@
 #include <unistd.h>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/text.h>
 
 namespace fvr::core {
 
@@ -55,9 +55,7 @@ std::uint64_t readNumber(const std::string& file) {
     std::ifstream in(file);
     std::string s;
     if (!(in >> s) || s == "max") return kUnlimited;
-    std::uint64_t v = 0;
-    const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-    return ec == std::errc() && ptr == s.data() + s.size() ? v : kUnlimited;
+    return parseNumber<std::uint64_t>(s).value_or(kUnlimited);
 }
 
 /** What the cgroup's memory limit leaves (v2 memory.max, v1 memory.limit_in_bytes), read at
@@ -95,9 +93,9 @@ std::string mib(std::uint64_t bytes) {
 
 MemoryBudget memoryBudget() {
     if (const char* env = std::getenv(kMemoryLimitVariable); env && *env) {
-        char* end = nullptr;
-        const double mb = std::strtod(env, &end);
-        if (end == env || *end != '\0' || !(mb > 0.0) || !std::isfinite(mb) || mb > 1e12)
+        // Not strtod: the workstation runs in the user's locale, where "1.5" may not be a number.
+        const double mb = parseNumber<double>(env).value_or(0.0);
+        if (!(mb > 0.0) || !std::isfinite(mb) || mb > 1e12)
             throw SettingsError(std::string(kMemoryLimitVariable) +
                                 ": expected a positive number of MiB, found '" + env + "'");
         return {std::uint64_t(mb * 1024.0 * 1024.0), kMemoryLimitVariable};

@@ -4,7 +4,7 @@
 
 #include <dlfcn.h>
 
-#include <cctype>
+#include <fvr/core/text.h>
 
 namespace fvr::gpu {
 
@@ -28,8 +28,7 @@ const void* currentNativeContext() {
 }
 
 bool GlInfo::software() const {
-    std::string r = renderer;
-    for (char& c : r) c = char(std::tolower(static_cast<unsigned char>(c)));
+    const std::string r = core::asciiLower(renderer);
     for (const char* name :
          {"llvmpipe", "softpipe", "swrast", "swiftshader", "software rasterizer"})
         if (r.find(name) != std::string::npos) return true;

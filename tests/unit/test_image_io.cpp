@@ -61,6 +61,32 @@ TEST(ImageIo, NpyRoundTripAndHeader) {
     EXPECT_EQ(shape, (std::vector<std::int64_t>{3, 4, 4}));
 }
 
+// A shape tuple that is not sizes >= 0 is a LoadError naming the file and the shape, never a
+// std::invalid_argument from the number parser or a wrapped negative size.
+TEST(ImageIo, NpyBadShapeNamesFileAndField) {
+    const auto v = ramp(5, 7);
+    const auto good = fvr::test::tmpDir() / "shape_good.npy";
+    writeNpy(good, v.data(), 5, 7);
+    const std::string bytes = slurp(good);
+    const std::size_t at = bytes.find("(5, 7)");
+    ASSERT_NE(at, std::string::npos);
+    // Same length as "(5, 7)": the header length and data offset stay right.
+    for (const std::string shape : {"(x5,7)", "(5, x)", "(5,-7)", "(5, 7 "}) {
+        std::string bad = bytes;
+        bad.replace(at, shape.size(), shape);
+        const auto p = fvr::test::tmpDir() / "shape_bad.npy";
+        std::ofstream(p, std::ios::binary).write(bad.data(), std::streamsize(bad.size()));
+        std::vector<std::int64_t> out;
+        try {
+            readNpy(p, out);
+            FAIL() << "expected LoadError for shape " << shape;
+        } catch (const LoadError& e) {
+            const std::string what = e.what();
+            EXPECT_NE(what.find(p.string() + ": shape: "), std::string::npos) << what;
+        }
+    }
+}
+
 TEST(ImageIo, NpyStackWriterStreamsTheSameBytesAsWriteNpy) {
     const auto dir = fvr::test::tmpDir() / "npy_stack";
     std::filesystem::remove_all(dir);

@@ -12,7 +12,6 @@
 #include "dicom_internal.h"
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -24,6 +23,7 @@
 #include <dcmtk/dcmdata/dcfilefo.h>
 #include <dcmtk/dcmdata/dcsequen.h>
 
+#include <fvr/core/text.h>
 #include <fvr/core/thread_pool.h>
 
 namespace fvr::core {
@@ -39,20 +39,14 @@ struct Unit {
     int f = 0; // frame
 };
 
-std::string lower(std::string s) {
-    for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    return s;
-}
-
 /** `dir / name` matched case-insensitively (ISO 9660 names in a DICOMDIR are upper case, the
  *  files on disk may not be). */
 std::optional<fs::path> findCaseInsensitive(const fs::path& dir, const std::string& name) {
     std::error_code ec;
     if (fs::exists(dir / name, ec)) return dir / name;
-    const std::string want = lower(name);
     for (fs::directory_iterator it(dir, fs::directory_options::skip_permission_denied, ec), end;
          !ec && it != end; it.increment(ec)) {
-        if (lower(it->path().filename().string()) == want) return it->path();
+        if (iequals(it->path().filename().string(), name)) return it->path();
     }
     return std::nullopt;
 }

@@ -2,7 +2,6 @@
 
 #include <atomic>
 #include <cerrno>
-#include <charconv>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -11,6 +10,7 @@
 #include <unistd.h>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/text.h>
 
 namespace fvr::core {
 namespace fs = std::filesystem;
@@ -93,10 +93,9 @@ std::optional<long> temporaryWriterPid(const fs::path& tmp) {
         pid = pid.substr(0, dash);
     }
     if (!allDigits(pid)) return std::nullopt;
-    long value = 0;
-    const auto [end, err] = std::from_chars(pid.data(), pid.data() + pid.size(), value);
-    if (err != std::errc() || end != pid.data() + pid.size() || value <= 0) return std::nullopt;
-    return value;
+    const std::optional<long> value = parseNumber<long>(pid);
+    if (!value || *value <= 0) return std::nullopt;
+    return *value;
 }
 
 void writeAtomically(const fs::path& path, const std::function<void(const fs::path& tmp)>& write) {

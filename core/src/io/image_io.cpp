@@ -11,6 +11,7 @@
 #include <zlib.h>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/text.h>
 
 namespace fvr::core {
 
@@ -35,12 +36,6 @@ void appendChunk(std::string& png, const char* type, const std::string& payload)
     png += body;
     appendU32BE(png, std::uint32_t(
                          crc32(0, reinterpret_cast<const Bytef*>(body.data()), uInt(body.size()))));
-}
-
-std::string lower(std::string s) {
-    std::transform(s.begin(), s.end(), s.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
-    return s;
 }
 
 /** The .npy preamble and header: float32 little-endian, C order, shape (rows, cols), or
@@ -103,6 +98,33 @@ void NpyStackWriter::finish() {
     file->commit();
 }
 
+namespace {
+/** The shape tuple of a .npy header, "(n, ...)": non-negative integers whose product stays
+ *  within the largest file there can be (LoadError naming the file otherwise). */
+std::vector<std::int64_t> npyShape(const fs::path& path, const std::string& header) {
+    const auto open = header.find("'shape'"), close = header.find(')', open);
+    const auto paren = open == std::string::npos ? open : header.find('(', open);
+    if (paren == std::string::npos || close == std::string::npos || close < paren)
+        fail<LoadError>(path, "shape: expected a tuple '(n, ...)' in the header");
+    const std::string_view tuple = std::string_view(header).substr(paren + 1, close - paren - 1);
+    std::vector<std::int64_t> shape;
+    std::int64_t total = 1;
+    for (std::size_t at = 0; at <= tuple.size();) {
+        const std::size_t comma = std::min(tuple.find(',', at), tuple.size());
+        const std::string_view word = trimSpace(tuple.substr(at, comma - at));
+        at = comma + 1;
+        if (word.empty()) continue; // "(3,)": the one-element tuple's trailing comma
+        const auto n = parseNumber<std::int64_t>(word);
+        if (!n || *n < 0 || (*n > 0 && total > (std::int64_t(1) << 60) / *n))
+            fail<LoadError>(path, "shape: expected sizes >= 0 with a product below 2^60, found '" +
+                                      std::string(tuple) + "'");
+        shape.push_back(*n);
+        total *= *n;
+    }
+    return shape;
+}
+} // namespace
+
 std::vector<float> readNpy(const fs::path& path, std::vector<std::int64_t>& shape) {
     std::ifstream in(path, std::ios::binary);
     if (!in) fail<LoadError>(path, "cannot open");
@@ -113,19 +135,12 @@ std::vector<float> readNpy(const fs::path& path, std::vector<std::int64_t>& shap
     std::string h(hlen, '\0');
     in.read(h.data(), std::streamsize(hlen));
     if (h.find("'<f4'") == std::string::npos) fail<LoadError>(path, "descr: expected '<f4'");
-    shape.clear();
-    const auto open = h.find('('), close = h.find(')');
-    std::istringstream ss(h.substr(open + 1, close - open - 1));
-    std::string tok;
+    shape = npyShape(path, h);
     std::int64_t total = 1;
-    while (std::getline(ss, tok, ',')) {
-        if (tok.find_first_of("0123456789") == std::string::npos) continue;
-        shape.push_back(std::stoll(tok));
-        total *= shape.back();
-    }
+    for (const std::int64_t n : shape) total *= n;
     const auto dataStart = std::uint64_t(in.tellg());
     const auto fileSize = std::uint64_t(fs::file_size(path));
-    if (total < 0 || std::uint64_t(total) * sizeof(float) != fileSize - dataStart)
+    if (std::uint64_t(total) * sizeof(float) != fileSize - dataStart)
         fail<LoadError>(path, "shape: expected " + std::to_string(total) + " floats, found " +
                                   std::to_string((fileSize - dataStart) / sizeof(float)));
     std::vector<float> v(static_cast<std::size_t>(total));
@@ -180,7 +195,7 @@ void writePng(const fs::path& path, const float* data, int rows, int cols, const
 }
 
 void writeProjection(const fs::path& path, const ProjectionImage& image) {
-    const std::string ext = lower(path.extension().string());
+    const std::string ext = asciiLower(path.extension().string());
     const int M = image.size;
     if (ext == ".npy")
         writeNpy(path, image.pixels.data(), M, M);

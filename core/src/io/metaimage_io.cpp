@@ -2,7 +2,6 @@
 #include <fvr/core/io/volume_io.h>
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -123,19 +122,19 @@ MetaHeader readMetaHeader(const fs::path& path, std::streambuf& sb, std::uint64_
             fail(path, "header",
                  "expected 'Key = Value' text lines ending with ElementDataFile within the first "
                  "1 MiB, found a line or header longer than that (not a MetaImage file?)");
-        const std::string_view t = trim(line);
+        const std::string_view t = trimSpace(line);
         if (t.empty()) continue;
         const std::size_t eq = t.find('=');
-        if ((eq == std::string_view::npos || trim(t.substr(0, eq)).empty()) &&
+        if ((eq == std::string_view::npos || trimSpace(t.substr(0, eq)).empty()) &&
             header.fields.empty())
             throw LoadError(path.string() +
                             ": not a MetaImage file (its header is 'Key = Value' lines such as "
                             "'NDims = 3'; the first line is " +
                             quoteValue(t) + ")");
-        if (eq == std::string_view::npos || trim(t.substr(0, eq)).empty())
+        if (eq == std::string_view::npos || trimSpace(t.substr(0, eq)).empty())
             fail(path, "header", "expected 'Key = Value' lines, found " + quoteValue(t));
-        const std::string key(trim(t.substr(0, eq)));
-        header.fields[key] = std::string(trim(t.substr(eq + 1)));
+        const std::string key(trimSpace(t.substr(0, eq)));
+        header.fields[key] = std::string(trimSpace(t.substr(eq + 1)));
         if (key == "ElementDataFile") {
             sawDataFile = true;
             break;
@@ -164,16 +163,16 @@ struct MetaGeometry {
 void readMetaDims(const fs::path& path, const MetaHeader& header, MetaGeometry& g) {
     const std::string* ndimsText = header.get("NDims");
     if (!ndimsText) fail(path, "NDims", "expected 1, 2 or 3, found no NDims key");
-    std::int64_t nd = 0;
-    if (!parseInt(*ndimsText, nd) || nd < 1 || nd > 3)
+    const auto nd = parseNumber<std::int64_t>(*ndimsText);
+    if (!nd || *nd < 1 || *nd > 3)
         fail(path, "NDims", "expected 1, 2 or 3, found " + quoteValue(*ndimsText));
-    g.ndims = std::size_t(nd);
+    g.ndims = std::size_t(*nd);
 
     const std::string* dimText = header.get("DimSize");
     if (!dimText)
         fail(path, "DimSize",
              "expected " + std::to_string(g.ndims) + " sizes, found no DimSize key");
-    const auto dimSize = parseInts(*dimText, g.ndims);
+    const auto dimSize = parseNumbers<std::int64_t>(*dimText, g.ndims);
     if (!dimSize)
         fail(path, "DimSize",
              "expected " + std::to_string(g.ndims) + " integers (NDims = " +
@@ -197,7 +196,7 @@ void readMetaDims(const fs::path& path, const MetaHeader& header, MetaGeometry& 
 void readMetaSpacingOrigin(const fs::path& path, const MetaHeader& header, MetaGeometry& g) {
     const std::size_t ndims = g.ndims;
     if (const auto [key, text] = header.firstOf({"ElementSpacing", "ElementSize"}); text) {
-        const auto sp = parseDoubles(*text, ndims);
+        const auto sp = parseNumbers<double>(*text, ndims);
         bool ok = bool(sp);
         if (ok)
             for (const double s : *sp) ok = ok && s > 0.0;
@@ -208,7 +207,7 @@ void readMetaSpacingOrigin(const fs::path& path, const MetaHeader& header, MetaG
         for (std::size_t a = 0; a < ndims; ++a) g.spacing[a] = (*sp)[a];
     }
     if (const auto [key, text] = header.firstOf({"Offset", "Origin", "Position"}); text) {
-        const auto o = parseDoubles(*text, ndims);
+        const auto o = parseNumbers<double>(*text, ndims);
         if (!o)
             fail(path, key,
                  "expected " + std::to_string(ndims) + " finite numbers, found " +
@@ -224,7 +223,7 @@ void readMetaDirection(const fs::path& path, const MetaHeader& header, MetaGeome
     const auto [key, text] = header.firstOf({"TransformMatrix", "Rotation", "Orientation"});
     if (!text) return;
     g.directionStated = true;
-    const auto m = parseDoubles(*text, ndims * ndims);
+    const auto m = parseNumbers<double>(*text, ndims * ndims);
     if (!m)
         fail(path, key,
              "expected " + std::to_string(ndims * ndims) + " finite numbers, found " +
@@ -273,8 +272,8 @@ void readMetaElementType(const fs::path& path, const MetaHeader& header, MetaEnc
     e.typeText = *typeText;
     e.es = elementSize(e.type);
     if (const std::string* v = header.get("ElementNumberOfChannels")) {
-        std::int64_t ch = 0;
-        if (!parseInt(*v, ch) || ch != 1)
+        const auto ch = parseNumber<std::int64_t>(*v);
+        if (!ch || *ch != 1)
             fail(path, "ElementNumberOfChannels",
                  "expected 1 (scalar volumes only), found " + quoteValue(*v));
     }
@@ -300,16 +299,18 @@ void readMetaStorage(const fs::path& path, const MetaHeader& header, MetaEncodin
         e.compressed = *b;
     }
     if (const std::string* v = header.get("CompressedDataSize"); v && e.compressed) {
-        std::int64_t c = 0;
-        if (!parseInt(*v, c) || c < 1)
+        const auto c = parseNumber<std::int64_t>(*v);
+        if (!c || *c < 1)
             fail(path, "CompressedDataSize", "expected a byte count > 0, found " + quoteValue(*v));
-        e.compressedDataSize = std::uint64_t(c);
+        e.compressedDataSize = std::uint64_t(*c);
     }
     if (const std::string* v = header.get("HeaderSize")) {
-        if (!parseInt(*v, e.headerSize) || e.headerSize < -1)
+        const auto h = parseNumber<std::int64_t>(*v);
+        if (!h || *h < -1)
             fail(path, "HeaderSize",
                  "expected -1 (data at the end of the file) or a byte count >= 0, found " +
                      quoteValue(*v));
+        e.headerSize = *h;
     }
     if (e.compressed && e.headerSize == -1)
         fail(path, "HeaderSize", "expected a byte count >= 0 with CompressedData = True, found -1");
@@ -421,15 +422,14 @@ struct MetaDataLocator {
               std::streambuf& sb) {
         std::int64_t fileDim = std::int64_t(geo.ndims) - 1;
         if (words.size() > 1) {
-            std::int64_t d = 0;
-            const std::string_view w = words[1];
-            const auto [ptr, ec] = std::from_chars(w.data(), w.data() + w.size(), d);
-            if (ec != std::errc() ||
-                (ptr != w.data() + w.size() &&
-                 lower(std::string_view(ptr, w.data() + w.size() - ptr)) != "d"))
+            // "<n>D" or "<n>": the number with an optional D (either case) after it.
+            std::string_view w = words[1];
+            if (!w.empty() && (w.back() == 'd' || w.back() == 'D')) w.remove_suffix(1);
+            const auto d = parseNumber<std::int64_t>(w);
+            if (!d)
                 fail(path, "ElementDataFile",
                      "expected 'LIST' or 'LIST <n>D', found " + quoteValue(dataFile));
-            if (d >= 1 && d <= std::int64_t(geo.ndims)) fileDim = d;
+            if (*d >= 1 && *d <= std::int64_t(geo.ndims)) fileDim = *d;
         }
         std::int64_t perFile = 1;
         for (std::int64_t a = 0; a < fileDim; ++a) perFile *= geo.dimSize[std::size_t(a)];
@@ -439,7 +439,7 @@ struct MetaDataLocator {
         bool tooLong = false;
         while (found < nFiles) {
             if (!readHeaderLine(sb, line, kMaxHeaderLine, tooLong) || tooLong) break;
-            const std::string_view name = trim(line);
+            const std::string_view name = trimSpace(line);
             if (name.empty()) continue;
             external(fs::path(std::string(name)), std::uint64_t(perFile) * enc.es,
                      "LIST file " + std::to_string(found + 1) + " of " + std::to_string(nFiles) +
@@ -460,12 +460,15 @@ struct MetaDataLocator {
 void MetaDataLocator::pattern(const std::vector<std::string_view>& words,
                               const std::string& dataFile) {
     std::int64_t nums[3] = {1, 0, 1};
+    // Up to three numbers at the end (start, end, step), read from the last word backwards.
+    std::int64_t parsed[3] = {0, 0, 0};
     std::size_t nNums = 0;
     for (std::size_t k = words.size(); k > 1 && nNums < 3; --k) {
-        std::int64_t v = 0;
-        if (!parseInt(words[k - 1], v)) break;
-        ++nNums;
+        const auto v = parseNumber<std::int64_t>(words[k - 1]);
+        if (!v) break;
+        parsed[nNums++] = *v;
     }
+    std::reverse(parsed, parsed + nNums);
     if (words.size() - nNums < 1)
         fail(path, "ElementDataFile",
              "expected 'pattern start end step', found " + quoteValue(dataFile));
@@ -474,8 +477,6 @@ void MetaDataLocator::pattern(const std::vector<std::string_view>& words,
     const char* begin = words[0].data();
     const char* end = words[nameWords - 1].data() + words[nameWords - 1].size();
     const std::string_view pattern(begin, std::size_t(end - begin));
-    std::int64_t parsed[3] = {0, 0, 0};
-    for (std::size_t k = 0; k < nNums; ++k) parseInt(words[nameWords + k], parsed[k]);
     const std::int64_t nLast = geo.dimSize.back();
     if (nNums >= 1) nums[0] = parsed[0];
     nums[1] = nNums >= 2 ? parsed[1] : nums[0] + nLast - 1;
@@ -517,7 +518,7 @@ std::vector<DataPart> locateMetaData(const fs::path& path, const MetaHeader& hea
     if (dataFile.empty())
         fail(path, "ElementDataFile",
              "expected LOCAL, a file name, LIST or a pattern, found an empty value");
-    else if (lower(dataFile) == "local")
+    else if (iequals(dataFile, "local"))
         locate.local();
     else if (words[0] == "LIST")
         locate.list(words, dataFile, sb);

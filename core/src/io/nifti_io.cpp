@@ -108,7 +108,7 @@ std::string textStartNote(const unsigned char* bytes, std::size_t got) {
  *  file, plain data named .nii.gz, or no NIfTI at all. */
 [[noreturn]] void failNotNifti1(const fs::path& path, const NiftiStream& in, std::int32_t sizeofHdr,
                                 const unsigned char* h, std::size_t got) {
-    if (!in.gz && endsWith(lower(path.filename().string()), ".nii.gz"))
+    if (!in.gz && endsWith(asciiLower(path.filename().string()), ".nii.gz"))
         throw LoadError(path.string() + ": not gzip-compressed data (a .nii.gz file must be gzip)" +
                         textStartNote(h, got));
     if (got < 4)

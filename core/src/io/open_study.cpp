@@ -3,25 +3,19 @@
 #include <fvr/core/io/open_study.h>
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <fstream>
 #include <limits>
 #include <sstream>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/text.h>
 #include <fvr/core/xray/phantom.h>
 
 namespace fvr::core {
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string lower(std::string s) {
-    std::transform(s.begin(), s.end(), s.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
-    return s;
-}
 
 InputSource parsePhantom(const std::string& spec) {
     const std::string rest = spec.substr(std::string("phantom:").size());
@@ -41,14 +35,9 @@ InputSource parsePhantom(const std::string& spec) {
     }
     if (colon != std::string::npos) {
         const std::string n = rest.substr(colon + 1);
-        std::size_t used = 0;
-        try {
-            s.phantomSize = std::stoi(n, &used);
-        } catch (const std::exception&) {
-            used = 0;
-        }
-        if (used == 0 || used != n.size())
-            throw SettingsError("phantom size: expected an integer, found '" + n + "'");
+        const auto size = parseNumber<int>(n);
+        if (!size) throw SettingsError("phantom size: expected an integer, found '" + n + "'");
+        s.phantomSize = *size;
     }
     return s;
 }
@@ -115,7 +104,7 @@ InputSource classifyInput(const std::string& input) {
                         "this one is not read (it could block or never end)");
     if (fs::is_directory(st)) {
         s.kind = InputKind::DicomFolder;
-    } else if (lower(s.path.filename().string()) == "dicomdir") {
+    } else if (iequals(s.path.filename().string(), "dicomdir")) {
         s.kind = InputKind::DicomFolder;
         s.path = s.path.has_parent_path() ? s.path.parent_path() : fs::path(".");
     } else if (hasDicomPreamble(s.path)) {
@@ -125,7 +114,7 @@ InputSource classifyInput(const std::string& input) {
     } else {
         // DICOM by name (.dcm, .dicom, no extension: old files lack the preamble); anything
         // else is a volume file, and loadVolume says which formats it reads.
-        const std::string ext = lower(s.path.extension().string());
+        const std::string ext = asciiLower(s.path.extension().string());
         s.kind = ext == ".dcm" || ext == ".dicom" || ext.empty() ? InputKind::DicomFile
                                                                  : InputKind::VolumeFile;
     }

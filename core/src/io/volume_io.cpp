@@ -72,7 +72,7 @@ ElementType parseElementType(const std::string& name) {
         {"met_long_long", ElementType::Int64}, {"met_ulong_long", ElementType::UInt64},
         {"met_float", ElementType::Float32},   {"met_double", ElementType::Float64},
     };
-    const std::string l = lower(trim(name));
+    const std::string l = asciiLower(trimSpace(name));
     for (const Entry& e : kNames)
         if (l == e.name) return e.type;
     throw SettingsError(
@@ -83,13 +83,13 @@ ElementType parseElementType(const std::string& name) {
 }
 
 bool isVolumeFileName(const fs::path& path) {
-    const std::string l = lower(path.filename().string());
+    const std::string l = asciiLower(path.filename().string());
     return endsWith(l, ".mhd") || endsWith(l, ".mha") || endsWith(l, ".nii") ||
            endsWith(l, ".nii.gz");
 }
 
 Volume loadVolume(const fs::path& path) {
-    const std::string l = lower(path.filename().string());
+    const std::string l = asciiLower(path.filename().string());
     if (endsWith(l, ".mhd") || endsWith(l, ".mha")) return loadMetaImage(path);
     if (endsWith(l, ".nii") || endsWith(l, ".nii.gz")) return loadNifti(path);
     fail(path, "format",

@@ -3,9 +3,11 @@
 #pragma once
 
 #include <fvr/core/io/volume_io.h>
+#include <fvr/core/text.h>
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -42,13 +44,25 @@ const char* typeName(ElementType t);
 
 // Text helpers (volume_io_text.cpp)
 
-std::string_view trim(std::string_view s);
-std::string lower(std::string_view s);
 std::vector<std::string_view> splitWords(std::string_view s);
-bool parseInt(std::string_view s, std::int64_t& out);
-bool parseDouble(std::string_view s, double& out);
-std::optional<std::vector<std::int64_t>> parseInts(std::string_view s, std::size_t count);
-std::optional<std::vector<double>> parseDoubles(std::string_view s, std::size_t count);
+
+/** Exactly `count` whitespace-separated numbers (parseNumber each), or nullopt; floating-point
+ *  values must also be finite (spacing, origin and direction cosines). */
+template <class T>
+std::optional<std::vector<T>> parseNumbers(std::string_view s, std::size_t count) {
+    const auto words = splitWords(s);
+    if (words.size() != count) return std::nullopt;
+    std::vector<T> v(count);
+    for (std::size_t i = 0; i < count; ++i) {
+        const std::optional<T> x = parseNumber<T>(words[i]);
+        if (!x) return std::nullopt;
+        if constexpr (std::is_floating_point_v<T>)
+            if (!std::isfinite(*x)) return std::nullopt;
+        v[i] = *x;
+    }
+    return v;
+}
+
 std::optional<bool> parseBool(std::string_view s);
 bool endsWith(std::string_view s, std::string_view suffix);
 std::string volumeName(const fs::path& path);

@@ -2,13 +2,10 @@
 #include "volume_io_internal.h"
 
 #include <algorithm>
-#include <cctype>
-#include <charconv>
 #include <cstring>
 #include <optional>
 #include <string>
 #include <string_view>
-#include <system_error>
 #include <vector>
 
 #include <fvr/core/errors.h>
@@ -63,72 +60,23 @@ const char* typeName(ElementType t) {
 }
 
 // ------------------------------------------------------------------------------------------------
-// Text helpers (locale independent: std::from_chars, never strtod/atof)
-
-std::string_view trim(std::string_view s) {
-    const auto ws = [](char c) {
-        return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\f' || c == '\v';
-    };
-    while (!s.empty() && ws(s.front())) s.remove_prefix(1);
-    while (!s.empty() && ws(s.back())) s.remove_suffix(1);
-    return s;
-}
-
-std::string lower(std::string_view s) {
-    std::string out(s);
-    for (char& c : out) c = char(std::tolower(static_cast<unsigned char>(c)));
-    return out;
-}
+// Text helpers (locale independent: text.h's parseNumber and asciiLower, never strtod/tolower)
 
 std::vector<std::string_view> splitWords(std::string_view s) {
     std::vector<std::string_view> words;
     std::size_t i = 0;
     while (i < s.size()) {
-        while (i < s.size() && std::isspace(static_cast<unsigned char>(s[i]))) ++i;
+        while (i < s.size() && isAsciiSpace(s[i])) ++i;
         std::size_t j = i;
-        while (j < s.size() && !std::isspace(static_cast<unsigned char>(s[j]))) ++j;
+        while (j < s.size() && !isAsciiSpace(s[j])) ++j;
         if (j > i) words.push_back(s.substr(i, j - i));
         i = j;
     }
     return words;
 }
 
-bool parseInt(std::string_view s, std::int64_t& out) {
-    s = trim(s);
-    if (!s.empty() && s.front() == '+') s.remove_prefix(1);
-    if (s.empty()) return false;
-    const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
-    return ec == std::errc() && ptr == s.data() + s.size();
-}
-
-bool parseDouble(std::string_view s, double& out) {
-    s = trim(s);
-    if (!s.empty() && s.front() == '+') s.remove_prefix(1);
-    if (s.empty()) return false;
-    const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
-    return ec == std::errc() && ptr == s.data() + s.size();
-}
-
-std::optional<std::vector<std::int64_t>> parseInts(std::string_view s, std::size_t count) {
-    const auto words = splitWords(s);
-    if (words.size() != count) return std::nullopt;
-    std::vector<std::int64_t> v(count);
-    for (std::size_t i = 0; i < count; ++i)
-        if (!parseInt(words[i], v[i])) return std::nullopt;
-    return v;
-}
-
-std::optional<std::vector<double>> parseDoubles(std::string_view s, std::size_t count) {
-    const auto words = splitWords(s);
-    if (words.size() != count) return std::nullopt;
-    std::vector<double> v(count);
-    for (std::size_t i = 0; i < count; ++i)
-        if (!parseDouble(words[i], v[i]) || !std::isfinite(v[i])) return std::nullopt;
-    return v;
-}
-
 std::optional<bool> parseBool(std::string_view s) {
-    const std::string l = lower(trim(s));
+    const std::string l = asciiLower(trimSpace(s));
     if (l == "true" || l == "1" || l == "yes") return true;
     if (l == "false" || l == "0" || l == "no") return false;
     return std::nullopt;
@@ -141,7 +89,7 @@ bool endsWith(std::string_view s, std::string_view suffix) {
 /** The volume name: the file name without .gz and the format extension. */
 std::string volumeName(const fs::path& path) {
     std::string name = path.filename().string();
-    const std::string l = lower(name);
+    const std::string l = asciiLower(name);
     for (const char* ext : {".nii.gz", ".nii", ".mhd", ".mha"}) {
         if (endsWith(l, ext)) return name.substr(0, name.size() - std::strlen(ext));
     }

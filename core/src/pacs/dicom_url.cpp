@@ -1,8 +1,9 @@
 #include <fvr/core/pacs/dicom_url.h>
 
 #include <algorithm>
-#include <cctype>
-#include <charconv>
+#include <optional>
+
+#include <fvr/core/text.h>
 
 namespace fvr::core::pacs {
 namespace {
@@ -21,12 +22,12 @@ bool isUid(const std::string& s) {
 }
 
 int parsePort(const std::string& url, const std::string& text) {
-    int port = 0;
-    auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), port);
-    if (text.empty() || ec != std::errc() || end != text.data() + text.size() || port < 1 ||
-        port > 65535)
+    // Digits only: no sign or spaces inside a URL.
+    const bool digits = text.find_first_not_of("0123456789") == std::string::npos;
+    const std::optional<int> port = digits ? parseNumber<int>(text) : std::nullopt;
+    if (!port || *port < 1 || *port > 65535)
         fail(url, "the port \"" + text + "\" is not a number from 1 to 65535");
-    return port;
+    return *port;
 }
 
 void parsePath(const std::string& url, const std::string& path, DicomUrl& out) {
@@ -49,12 +50,7 @@ void parsePath(const std::string& url, const std::string& path, DicomUrl& out) {
 
 } // namespace
 
-bool isDicomUrl(const std::string& text) {
-    return text.size() >= kScheme.size() &&
-           std::equal(kScheme.begin(), kScheme.end(), text.begin(), [](char a, char b) {
-               return a == std::tolower(static_cast<unsigned char>(b));
-           });
-}
+bool isDicomUrl(const std::string& text) { return istartsWith(text, kScheme); }
 
 DicomUrl parseDicomUrl(const std::string& url) {
     if (!isDicomUrl(url)) fail(url, "not a dicom:// URL");

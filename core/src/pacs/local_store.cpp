@@ -3,6 +3,7 @@
 #include <fvr/core/errors.h>
 #include <fvr/core/io/atomic_file.h>
 #include <fvr/core/pacs/local_store.h>
+#include <fvr/core/text.h>
 
 #include <nlohmann/json.hpp>
 
@@ -283,7 +284,7 @@ std::uintmax_t limitFromEnv(const char* name, std::uintmax_t fallback) {
     if (value.size() > 19 || value.find_first_not_of("0123456789") != std::string::npos)
         throw WriteError(std::string("the environment variable ") + name + "=" + shownValue(value) +
                          " is not a count (digits only)");
-    return std::stoull(value);
+    return *parseNumber<std::uintmax_t>(value); // at most 19 digits: within uintmax_t
 }
 
 /** Throws WriteError (the callers answer C-STORE 0xA700, Refused: Out of resources) when the

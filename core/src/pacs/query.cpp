@@ -3,6 +3,8 @@
 
 #include <dcmtk/dcmnet/diutil.h>
 
+#include <fvr/core/text.h>
+
 #include <algorithm>
 #include <chrono>
 #include <memory>
@@ -16,9 +18,11 @@ bool isDate(const std::string& s) {
     if (s.size() != 8 ||
         !std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; }))
         return false;
-    const std::chrono::year_month_day day{std::chrono::year{std::stoi(s.substr(0, 4))},
-                                          std::chrono::month(unsigned(std::stoi(s.substr(4, 2)))),
-                                          std::chrono::day(unsigned(std::stoi(s.substr(6, 2))))};
+    const std::string_view v = s; // eight digits (checked above): every part parses
+    const std::chrono::year_month_day day{
+        std::chrono::year{*parseNumber<int>(v.substr(0, 4))},
+        std::chrono::month{*parseNumber<unsigned>(v.substr(4, 2))},
+        std::chrono::day{*parseNumber<unsigned>(v.substr(6, 2))}};
     return day.ok();
 }
 
@@ -28,13 +32,9 @@ std::string get(DcmItem& item, const DcmTagKey& tag) {
     return std::string(value.c_str());
 }
 
+/** An IS (integer string) value, -1 where it is absent or no integer. */
 int getInt(DcmItem& item, const DcmTagKey& tag) {
-    const std::string s = get(item, tag);
-    try {
-        return s.empty() ? -1 : std::stoi(s);
-    } catch (const std::exception&) {
-        return -1;
-    }
+    return parseNumber<int>(get(item, tag)).value_or(-1);
 }
 
 /** Sends one C-FIND with `keys`, returns the matches (each converted to UTF-8). */

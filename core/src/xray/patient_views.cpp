@@ -1,10 +1,11 @@
 #include <fvr/core/xray/patient_views.h>
 
 #include <algorithm>
-#include <cctype>
+
 #include <cmath>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/text.h>
 
 namespace fvr::core {
 
@@ -21,12 +22,9 @@ const char* patientViewName(PatientView v) {
 }
 
 PatientView parsePatientView(const std::string& s) {
-    std::string u = s;
-    std::transform(u.begin(), u.end(), u.begin(),
-                   [](unsigned char c) { return char(std::toupper(c)); });
     for (PatientView v : {PatientView::AP, PatientView::PA, PatientView::Left, PatientView::Right,
                           PatientView::Head, PatientView::Feet})
-        if (u == patientViewName(v)) return v;
+        if (iequals(s, patientViewName(v))) return v;
     throw SettingsError("view: expected AP|PA|LEFT|RIGHT|HEAD|FEET, found '" + s + "'");
 }
 
