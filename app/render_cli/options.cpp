@@ -70,14 +70,9 @@ public:
 
 /** A finite number, or nothing. */
 std::optional<double> toNumber(const std::string& s) {
-    try {
-        std::size_t pos = 0;
-        const double v = std::stod(s, &pos);
-        if (pos != s.size() || !std::isfinite(v)) return std::nullopt;
-        return v;
-    } catch (const std::exception&) {
-        return std::nullopt;
-    }
+    const auto v = core::parseNumber<double>(s);
+    if (!v || !std::isfinite(*v)) return std::nullopt;
+    return v;
 }
 
 /** "x,y,z" as three finite numbers, or nothing. */
@@ -270,8 +265,11 @@ void declareView(CLI::App& app, Options& o) {
                    "slice/image size, power of two " + std::to_string(kDefaults.kMinSize) + ".." +
                        std::to_string(kDefaults.kMaxSize) + " " +
                        defaultText(std::to_string(kDefaults.size)))
-        ->check(coreCheck(
-            [](const std::string& s) { core::validateSettingsSize(std::atoi(s.c_str())); }))
+        ->check(coreCheck([](const std::string& s) {
+            const auto m = core::parseNumber<int>(s);
+            if (!m) throw SettingsError("size: expected a whole number, found '" + s + "'");
+            core::validateSettingsSize(*m);
+        }))
         ->option_text("M")
         ->group(g);
     addNumber(

@@ -134,7 +134,7 @@ def test_non_finite_voxels_are_said_and_replaced():
     (lambda v, r: r.render(pixel_size=-1), "--pixel-size: expected a positive number of mm"),
     (lambda v, r: r.render_many(np.zeros((2, 3)), size=128), "(N, 2, 3)"),
     (lambda v, r: r.render_many(["AP", 3], size=128), "views: expected view names only, found 3"),
-    (lambda v, r: fvr.Renderer(v).transmission(np.zeros((4, 4)), energy_kev=70),
+    (lambda v, r: fvr.Renderer(v, values="raw").transmission(np.zeros((4, 4)), energy_kev=70),
      "--beer-lambert: needs --values mu or mu-bone"),
     (lambda v, r: r.transmission(np.zeros((4, 4)), energy_kev=500), "--energy"),
     (lambda v, r: fvr.Volume(np.zeros((4, 4), np.float32)), "expected 3 dimensions"),

@@ -114,12 +114,15 @@ def load(path: str, series: Optional[str] = None, **settings) -> Volume:
 class Renderer:
     """A volume's spectrum, made once, and its projections (DRRs) on the CPU.
 
-    Keyword settings are fvr-render's options: ``kernel`` (nearest, linear, bspline,
-    catmull-rom, sinc4, kaiser-bessel; default linear), ``oversampling`` (1..2), ``values``
-    (raw, mu, mu-bone), ``voxel_model`` (trilinear, bspline, bandlimited), ``threads``
-    (0: all cores), and any other (``deapodize="on"``, ``depth_cue=0.3``, ``sweep=12``,
-    ``axis=(0, 0, 1)``, ``view="AP"``, ``size=256``...). ``progress(fraction, stage)`` is
-    called while the spectrum is made (an exception there stops it).
+    Keyword settings are fvr-render's options, with fvr-render's defaults (core's
+    RenderSettings: the AP view, mu for Hounsfield data, kaiser-bessel with gridding correction
+    at 1.25x, the trilinear voxel model): ``preset`` ("default" or "paper": the paper's
+    Table 1 setting), ``kernel`` (nearest, linear, bspline, catmull-rom, sinc4, kaiser-bessel),
+    ``oversampling`` (1..2), ``values`` (raw, mu, mu-bone), ``voxel_model`` (trilinear, bspline,
+    bandlimited), ``threads`` (0: all cores), and any other (``deapodize="on"``,
+    ``depth_cue=0.3``, ``sweep=12``, ``axis=(0, 0, 1)``, ``view="AP"``, ``size=256``...).
+    ``progress(fraction, stage)`` is called while the spectrum is made (an exception there
+    stops it).
     """
 
     def __init__(self, volume: Volume, kernel: Optional[str] = None,
