@@ -9,18 +9,13 @@ namespace fvr::ui {
 
 AccuracyReadout::AccuracyReadout(QObject* parent) : QObject(parent) {}
 
-AccuracyReadout::~AccuracyReadout() {
-    if (m_worker.joinable()) m_worker.join();
-}
+AccuracyReadout::~AccuracyReadout() = default; // m_jobs waits for a running measurement
 
 void AccuracyReadout::measure(ProjectionView& view, const StudyController& study) {
     if (!study.volume() || !study.spectrum()) return;
-    if (m_worker.joinable()) {
-        if (!m_done.load()) {
-            emit message(tr("The accuracy measurement is still running"), false);
-            return;
-        }
-        m_worker.join();
+    if (m_jobs.running()) {
+        emit message(tr("The accuracy measurement is still running"), false);
+        return;
     }
     if (view.effects().filter.active()) {
         emit message(tr("The accuracy readout compares with ray casting, which has no slice "
@@ -42,39 +37,22 @@ void AccuracyReadout::measure(ProjectionView& view, const StudyController& study
     const core::ImageGeometry geom{fvr->size, fvr->pixelSize};
     emit message(tr("Measuring accuracy: %1 of the same view, in the background…").arg(reference),
                  false);
-    m_done.store(false);
-    m_worker = std::thread([this, volume, options, reference, frame, geom, fvr = *fvr] {
-        double psnr = 0, rel = 0;
-        try {
+    m_jobs.run(
+        [volume, options, frame, geom, fvr = *fvr](core::CancelToken&) {
             core::SpatialProjector sp(*volume, options);
-            const core::ImageComparison c =
-                core::compareImages(fvr.pixels, sp.project(frame, geom).pixels);
-            psnr = c.psnr;
-            rel = c.relRmse;
-        } catch (const std::exception& e) {
-            const QString what = QString::fromUtf8(e.what());
-            QMetaObject::invokeMethod(
-                this,
-                [this, what] {
-                    emit message(tr("Accuracy measurement failed: %1").arg(what), true);
-                },
-                Qt::QueuedConnection);
-            m_done.store(true);
-            return;
-        }
-        QMetaObject::invokeMethod(
-            this,
-            [this, psnr, rel, reference] {
-                emit message(tr("Accuracy of view 1 against %1: PSNR %2 dB, relative RMSE %3 %")
-                                 .arg(reference)
-                                 .arg(psnr, 0, 'f', 2)
-                                 .arg(rel * 100.0, 0, 'f', 2),
-                             false);
-                emit measured(psnr, rel);
-            },
-            Qt::QueuedConnection);
-        m_done.store(true);
-    });
+            return core::compareImages(fvr.pixels, sp.project(frame, geom).pixels);
+        },
+        [this, reference](const core::ImageComparison& c) {
+            emit message(tr("Accuracy of view 1 against %1: PSNR %2 dB, relative RMSE %3 %")
+                             .arg(reference)
+                             .arg(c.psnr, 0, 'f', 2)
+                             .arg(c.relRmse * 100.0, 0, 'f', 2),
+                         false);
+            emit measured(c.psnr, c.relRmse);
+        },
+        [this](const JobError& e) {
+            emit message(tr("Accuracy measurement failed: %1").arg(e.message), true);
+        });
 }
 
 } // namespace fvr::ui

@@ -16,7 +16,6 @@
 #include <QSettings>
 #include <QSignalBlocker>
 #include <QTabWidget>
-#include <QThread>
 #include <QTreeWidget>
 #include <QVBoxLayout>
 
@@ -95,14 +94,10 @@ PacsDialog::PacsDialog(std::shared_ptr<pacs::LocalStore> store, QWidget* parent)
     resize(980, 640);
 }
 
-PacsDialog::~PacsDialog() {
-    // Retrieves are cancelled and waited for (they write into the store); an echo or a query
-    // cannot be cancelled and may wait for the network timeout: it ends on its own, and its
-    // result, posted to the application, finds no dialog.
-    if (m_retrieveCancel) m_retrieveCancel->cancel(); // one retrieve at a time
-    for (const QPointer<QThread>& t : m_threads)
-        if (t) t->wait();
-}
+// m_jobs cancels retrieves and waits for them (they write into the store); an echo or a query
+// cannot be cancelled and may wait for the network timeout: it ends on its own, and its result
+// finds no dialog.
+PacsDialog::~PacsDialog() = default;
 
 QWidget* PacsDialog::buildQueryTab() {
     auto* tab = new QWidget(this);
@@ -224,36 +219,20 @@ const pacs::Node* PacsDialog::currentNode() const {
     return m_settings.node(m_node->currentData().toString());
 }
 
-void PacsDialog::run(std::function<void()> work, std::function<void(const QString&)> done,
-                     bool waitAtClose) {
-    ++m_jobs;
+std::shared_ptr<core::CancelToken> PacsDialog::run(
+    std::function<void(core::CancelToken&)> work,
+    std::function<void(const std::optional<JobError>&)> done, bool waitAtClose) {
+    ++m_pending;
     updateButtons();
-    QPointer<PacsDialog> self(this);
-    QThread* t = QThread::create([self, work = std::move(work), done = std::move(done)] {
-        QString error;
-        try {
-            work();
-        } catch (const core::Cancelled&) {
-            error = QStringLiteral("cancelled");
-        } catch (const std::exception& e) {
-            error = QString::fromUtf8(e.what());
-        }
-        // To the application, which outlives the dialog: `self` is looked at on the GUI thread
-        // only, where the dialog is destroyed.
-        QMetaObject::invokeMethod(
-            qApp,
-            [self, done, error] {
-                if (!self) return;
-                --self->m_jobs;
-                done(error);
-                self->updateButtons();
-            },
-            Qt::QueuedConnection);
-    });
-    connect(t, &QThread::finished, t, &QObject::deleteLater);
-    m_threads.erase(std::remove(m_threads.begin(), m_threads.end(), nullptr), m_threads.end());
-    if (waitAtClose) m_threads.emplace_back(t);
-    t->start();
+    auto finish = [this, done](const std::optional<JobError>& error) {
+        --m_pending;
+        done(error);
+        updateButtons();
+    };
+    return m_jobs.run(
+        std::move(work), [finish] { finish(std::nullopt); },
+        [finish](const JobError& e) { finish(e); },
+        waitAtClose ? BackgroundJobs::AtExit::Wait : BackgroundJobs::AtExit::Abandon);
 }
 
 void PacsDialog::testConnection() {
@@ -262,13 +241,13 @@ void PacsDialog::testConnection() {
     const pacs::Node n = *node;
     const pacs::LocalAe local = m_settings.local;
     setStatus(tr("Testing %1…").arg(text(n.name)));
-    run([n, local] { pacs::echo(n, local); },
-        [this, n](const QString& error) {
-            if (error.isEmpty())
+    run([n, local](core::CancelToken&) { pacs::echo(n, local); },
+        [this, n](const std::optional<JobError>& error) {
+            if (!error)
                 setStatus(tr("%1 answers (C-ECHO) and accepts %2 as our AE title.")
                               .arg(text(n.name), text(m_settings.local.aeTitle)));
             else
-                setStatus(tr("%1: %2").arg(text(n.name), error), true);
+                setStatus(tr("%1: %2").arg(text(n.name), error->message), true);
         });
 }
 
@@ -305,10 +284,10 @@ void PacsDialog::search() {
     auto found = std::make_shared<std::vector<pacs::StudyRecord>>();
     setStatus(tr("Searching %1…").arg(text(n.name)));
     m_results->clear();
-    run([n, local, q, found] { *found = pacs::findStudies(n, local, q); },
-        [this, n, found](const QString& error) {
-            if (!error.isEmpty()) {
-                setStatus(tr("Search on %1 failed: %2").arg(text(n.name), error), true);
+    run([n, local, q, found](core::CancelToken&) { *found = pacs::findStudies(n, local, q); },
+        [this, n, found](const std::optional<JobError>& error) {
+            if (error) {
+                setStatus(tr("Search on %1 failed: %2").arg(text(n.name), error->message), true);
                 return;
             }
             showStudies(*found);
@@ -343,8 +322,8 @@ void PacsDialog::loadSeries(QTreeWidgetItem* study) {
     const pacs::LocalAe local = m_settings.local;
     const std::string uid = study->data(0, kStudyUid).toString().toStdString();
     auto found = std::make_shared<std::vector<pacs::SeriesRecord>>();
-    run([n, local, uid, found] { *found = pacs::findSeries(n, local, uid); },
-        [this, uid, found](const QString& error) {
+    run([n, local, uid, found](core::CancelToken&) { *found = pacs::findSeries(n, local, uid); },
+        [this, uid, found](const std::optional<JobError>& error) {
             // Found again by its UID: a new search may have replaced the results meanwhile.
             QTreeWidgetItem* item = nullptr;
             for (int i = 0; i < m_results->topLevelItemCount() && !item; ++i) {
@@ -354,7 +333,7 @@ void PacsDialog::loadSeries(QTreeWidgetItem* study) {
                     item = t;
             }
             if (!item) return;
-            addSeries(item, error, *found);
+            addSeries(item, error ? error->message : QString(), *found);
         });
 }
 
@@ -394,7 +373,6 @@ void PacsDialog::retrieveSelected() {
 void PacsDialog::retrieve(const pacs::Node& n, const std::string& studyUid,
                           const std::string& seriesUid, const QString& label) {
     m_retrieving = true;
-    m_retrieveCancel = std::make_shared<core::CancelToken>();
     m_progress->setRange(0, 0);
     m_progress->setVisible(true);
     m_cancel->setVisible(true);
@@ -403,34 +381,28 @@ void PacsDialog::retrieve(const pacs::Node& n, const std::string& studyUid,
                        n.retrieve == pacs::RetrieveMethod::Move ? tr("C-MOVE") : tr("C-GET")));
     const pacs::LocalAe local = m_settings.local;
     auto store = m_store;
-    auto token = m_retrieveCancel;
     auto folder = std::make_shared<std::filesystem::path>();
     QPointer<PacsDialog> self(this);
     auto progress = [self](const pacs::RetrieveProgress& p) {
-        QMetaObject::invokeMethod(
-            qApp,
-            [self, p] {
-                if (self) self->onRetrieveProgress(p);
-            },
-            Qt::QueuedConnection);
+        postToGui(self, [self, p] { self->onRetrieveProgress(p); });
     };
-    run(
-        [=] {
-            *folder = pacs::retrieve(n, local, studyUid, seriesUid, *store, progress, token.get());
+    m_retrieveCancel = run(
+        [=](core::CancelToken& token) {
+            *folder = pacs::retrieve(n, local, studyUid, seriesUid, *store, progress, &token);
         },
-        [this, label, folder](const QString& error) {
+        [this, label, folder](const std::optional<JobError>& error) {
             m_retrieving = false;
             m_progress->setVisible(false);
             m_cancel->setVisible(false);
             refreshLocal();
-            if (error == QLatin1String("cancelled")) {
+            if (error && error->cancelled()) {
                 setStatus(tr("Retrieve of %1 cancelled: the images received are kept as a partial "
                              "study (Local studies ▸ Resume retrieve), never opened as complete.")
                               .arg(label));
                 return;
             }
-            if (!error.isEmpty()) {
-                setStatus(tr("Retrieve of %1 failed: %2").arg(label, error), true);
+            if (error) {
+                setStatus(tr("Retrieve of %1 failed: %2").arg(label, error->message), true);
                 return;
             }
             const QString path = QString::fromStdString(folder->string());

@@ -1,10 +1,6 @@
 // The local study store, the storage listener and sends on worker threads.
 #include <fvr/ui/pacs_service.h>
 
-#include <QThread>
-
-#include <algorithm>
-
 #include <fvr/ui/pacs_settings.h>
 
 namespace fvr::ui {
@@ -18,8 +14,7 @@ PacsService::PacsService(std::filesystem::path storeRoot, QObject* parent)
 
 PacsService::~PacsService() {
     if (m_listener) m_listener->stop();
-    for (const QPointer<QThread>& t : m_threads)
-        if (t) t->wait();
+    m_jobs.wait(); // sends cannot be cancelled; their files are removed when they end
 }
 
 QString PacsService::applyListener(const PacsSettings& s, bool* ok) {
@@ -43,12 +38,7 @@ QString PacsService::applyListener(const PacsSettings& s, bool* ok) {
         auto onEvent = [self](const pacs::StorageListener::Event& e) {
             const bool problem = e.kind != pacs::StorageListener::Event::Kind::Incoming;
             const QString text = QString::fromStdString(e.text);
-            QMetaObject::invokeMethod(
-                self.data(),
-                [self, problem, text] {
-                    if (self) emit self->listenerEvent(problem, text);
-                },
-                Qt::QueuedConnection);
+            postToGui(self, [self, problem, text] { emit self->listenerEvent(problem, text); });
         };
         m_listener = std::make_unique<pacs::StorageListener>(s.local, *m_store, onEvent);
         m_listener->start();
@@ -76,34 +66,30 @@ QString PacsService::applyListener(const PacsSettings& s, bool* ok) {
 void PacsService::send(const pacs::Node& node, const pacs::LocalAe& local,
                        std::vector<std::filesystem::path> files, std::filesystem::path cleanup) {
     ++m_sending;
-    QPointer<PacsService> self(this);
-    QThread* t = QThread::create([self, node, local, files = std::move(files), cleanup] {
-        bool ok = true;
-        QString text;
-        try {
-            pacs::sendFiles(node, local, files);
-            text = tr("Sent %n image(s) to %1", nullptr, int(files.size()))
-                       .arg(QString::fromStdString(pacs::describe(node)));
-        } catch (const std::exception& e) {
-            ok = false;
-            text = tr("Send failed: %1").arg(QString::fromUtf8(e.what()));
-        }
+    const int count = int(files.size());
+    const QString peer = QString::fromStdString(pacs::describe(node));
+    auto removeCleanup = [cleanup] {
         std::error_code ec;
         if (!cleanup.empty()) std::filesystem::remove_all(cleanup, ec);
-        if (self)
-            QMetaObject::invokeMethod(
-                self.data(),
-                [self, ok, text] {
-                    if (!self) return;
-                    --self->m_sending;
-                    emit self->sent(ok, text);
-                },
-                Qt::QueuedConnection);
-    });
-    connect(t, &QThread::finished, t, &QObject::deleteLater);
-    m_threads.erase(std::remove(m_threads.begin(), m_threads.end(), nullptr), m_threads.end());
-    m_threads.emplace_back(t);
-    t->start();
+    };
+    m_jobs.run(
+        [node, local, files = std::move(files), removeCleanup](core::CancelToken&) {
+            try {
+                pacs::sendFiles(node, local, files);
+            } catch (...) {
+                removeCleanup();
+                throw;
+            }
+            removeCleanup();
+        },
+        [this, count, peer] {
+            --m_sending;
+            emit sent(true, tr("Sent %n image(s) to %1", nullptr, count).arg(peer));
+        },
+        [this](const JobError& e) {
+            --m_sending;
+            emit sent(false, tr("Send failed: %1").arg(e.message));
+        });
 }
 
 } // namespace fvr::ui

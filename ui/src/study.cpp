@@ -100,8 +100,9 @@ StudyController::StudyController(QObject* parent) : QObject(parent) {
 }
 
 StudyController::~StudyController() {
-    if (m_cancel) m_cancel->cancel();
-    if (m_worker.joinable()) m_worker.join();
+    // Before the members the jobs use go (m_jobs would do the same as the last member).
+    m_jobs.cancelAll();
+    m_jobs.wait();
 }
 
 double StudyController::estimatedSpectrumMiB(const SpectrumSettings& s) const {
@@ -116,9 +117,9 @@ void StudyController::report(double fraction, std::string_view stage) {
 }
 
 void StudyController::poll() {
-    // The result (or error) is on its way, or already handled (the worker sets m_done after
-    // posting it): no stale progress after it.
-    if (m_done.load() || m_finishedJob >= m_jobsStarted) {
+    // The result (or error) is on its way, or already handled (a job counts as running until
+    // its outcome is posted): no stale progress after it.
+    if (!m_jobs.running() || m_finishedJob >= m_jobsStarted) {
         m_timer.stop();
         return;
     }
@@ -148,60 +149,49 @@ void StudyController::cancel() {
         m_compareJob.cancelledByUser = true;
 }
 
-void StudyController::waitIdle() {
-    if (m_worker.joinable()) m_worker.join();
-}
+void StudyController::waitIdle() { m_jobs.wait(); }
 
-void StudyController::startJob(std::function<void(core::CancelToken&, std::uint64_t)> job) {
-    if (m_cancel) m_cancel->cancel();
-    if (m_worker.joinable()) m_worker.join();
-    m_cancel = std::make_shared<core::CancelToken>();
-    m_done.store(false);
+void StudyController::startJob(JobWork work, JobFailed failed) {
+    // One job at a time: the running one stops at its next check.
+    m_jobs.cancelAll();
+    m_jobs.wait();
     m_fraction.store(0.0);
     report(0.0, "starting");
     const std::uint64_t id = ++m_jobsStarted;
-    m_worker = std::thread([this, job = std::move(job), token = m_cancel, id] {
-        try {
-            job(*token, id);
-        } catch (const core::Cancelled&) {
-            QMetaObject::invokeMethod(
-                this,
-                [this, token, id] {
-                    // A job cancelled because a newer one replaced it is not the user's cancel.
-                    if (token != m_cancel) return;
-                    markFinished(id);
-                    revertRequestToSettingsInEffect();
-                    declinePendingCompare(tr("cancelled")); // the user stopped the work
-                    emit cancelled();
-                },
-                Qt::QueuedConnection);
-        } catch (const std::bad_alloc&) {
-            QMetaObject::invokeMethod(
-                this,
-                [this, id] {
-                    markFinished(id);
-                    m_target = m_settings;
-                    declinePendingCompare(tr("out of memory"));
-                    emit failed(tr("Out of memory"),
-                                tr("The study or its spectrum does not fit in memory. "
-                                   "Try a smaller oversampling."));
-                },
-                Qt::QueuedConnection);
-        } catch (const std::exception& e) {
-            const QString what = QString::fromStdString(e.what());
-            QMetaObject::invokeMethod(
-                this,
-                [this, what, id] {
-                    markFinished(id);
-                    m_target = m_settings;
-                    prepareCompareSpectra(); // the study in use still wants them
-                    emit failed(tr("Could not open the study"), what);
-                },
-                Qt::QueuedConnection);
-        }
-        m_done.store(true);
-    });
+    if (!failed) failed = [this](const JobError& e, std::uint64_t job) { jobFailed(e, job); };
+    m_cancel = m_jobs.run(
+        [work = std::move(work), id](core::CancelToken& token) { return work(token, id); },
+        [](const GuiStep& step) {
+            if (step) step();
+        },
+        [failed = std::move(failed), id](const JobError& e) { failed(e, id); });
     m_timer.start();
+}
+
+void StudyController::jobFailed(const JobError& e, std::uint64_t id) {
+    switch (e.kind) {
+    case JobError::Kind::Cancelled:
+        // A job cancelled because a newer one replaced it is not the user's cancel.
+        if (id != m_jobsStarted) return;
+        markFinished(id);
+        revertRequestToSettingsInEffect();
+        declinePendingCompare(e.message); // the user stopped the work
+        emit cancelled();
+        return;
+    case JobError::Kind::OutOfMemory:
+        markFinished(id);
+        m_target = m_settings;
+        declinePendingCompare(e.message);
+        emit failed(tr("Out of memory"), tr("The study or its spectrum does not fit in memory. "
+                                            "Try a smaller oversampling."));
+        return;
+    case JobError::Kind::Failed:
+        markFinished(id);
+        m_target = m_settings;
+        prepareCompareSpectra(); // the study in use still wants them
+        emit failed(tr("Could not open the study"), e.message);
+        return;
+    }
 }
 
 void StudyController::open(const StudySource& source) {
@@ -215,11 +205,11 @@ void StudyController::open(const StudySource& source) {
         core::ProgressFn progress = [this](double f, std::string_view st) { report(0.5 * f, st); };
         if (source.kind == StudySource::Kind::DicomFolder) {
             options.scan = scanFolder(source, cached, token);
-            if (needsSeriesChoice(source, *options.scan, id)) return;
+            if (GuiStep choose = seriesChoice(source, *options.scan, id)) return choose;
             progress = [this](double f, std::string_view st) { report(0.2 + 0.3 * f, st); };
         }
-        finishOpen(source, settings, core::openStudy(source.toCore(), options, progress, &token),
-                   token, id);
+        return finishOpen(source, settings,
+                          core::openStudy(source.toCore(), options, progress, &token), token, id);
     });
 }
 
@@ -230,13 +220,10 @@ std::shared_ptr<const core::DicomScanResult> StudyController::scanFolder(
     auto scan = std::make_shared<const core::DicomScanResult>(core::scanDicomFolder(
         source.path.toStdString(), [this](double f, std::string_view st) { report(f * 0.2, st); },
         &token));
-    QMetaObject::invokeMethod(
-        this,
-        [this, scan, folder = source.path] {
-            m_scan = scan;
-            m_scanFolder = folder;
-        },
-        Qt::QueuedConnection);
+    m_jobs.post([this, scan, folder = source.path] {
+        m_scan = scan;
+        m_scanFolder = folder;
+    });
     return scan;
 }
 
@@ -251,9 +238,10 @@ QString seriesNote(bool isDefault, const core::DicomSeriesInfo& s) {
 }
 } // namespace
 
-bool StudyController::needsSeriesChoice(const StudySource& source,
-                                        const core::DicomScanResult& scan, std::uint64_t id) {
-    if (!source.seriesKey.isEmpty() || scan.series.size() <= 1) return false;
+StudyController::GuiStep StudyController::seriesChoice(const StudySource& source,
+                                                       const core::DicomScanResult& scan,
+                                                       std::uint64_t id) {
+    if (!source.seriesKey.isEmpty() || scan.series.size() <= 1) return {};
     const std::size_t first = core::defaultSeriesIndex(scan);
     QStringList keys, labels;
     for (std::size_t n = 0; n < scan.series.size(); ++n) {
@@ -269,20 +257,17 @@ bool StudyController::needsSeriesChoice(const StudySource& source,
                       .arg(s.dims[2])
                       .arg(seriesNote(n == 0, s));
     }
-    QMetaObject::invokeMethod(
-        this,
-        [this, source, keys, labels, id] {
-            markFinished(id);
-            prepareCompareSpectra(); // the study in use still wants them
-            emit seriesChoiceNeeded(source, keys, labels);
-        },
-        Qt::QueuedConnection);
-    return true;
+    return [this, source, keys, labels, id] {
+        markFinished(id);
+        prepareCompareSpectra(); // the study in use still wants them
+        emit seriesChoiceNeeded(source, keys, labels);
+    };
 }
 
-void StudyController::finishOpen(const StudySource& source, const SpectrumSettings& settings,
-                                 core::OpenedStudy opened, core::CancelToken& token,
-                                 std::uint64_t id) {
+StudyController::GuiStep StudyController::finishOpen(const StudySource& source,
+                                                     const SpectrumSettings& settings,
+                                                     core::OpenedStudy opened,
+                                                     core::CancelToken& token, std::uint64_t id) {
     token.check();
     auto vol = std::make_shared<core::Volume>(std::move(opened.volume));
     QStringList warnings;
@@ -291,26 +276,23 @@ void StudyController::finishOpen(const StudySource& source, const SpectrumSettin
     auto spectrum = core::preprocess(
         *vol, used, [this](double f, std::string_view st) { report(0.5 + 0.5 * f, st); }, &token);
     std::shared_ptr<const core::Volume> cvol = vol;
-    QMetaObject::invokeMethod(
-        this,
-        [this, source, cvol, spectrum, warnings, used, series = std::move(opened.series), id] {
-            m_resultJob = id;
-            markFinished(id);
-            if (id == m_jobsStarted) m_target = used;
-            m_source = source;
-            m_series = series;
-            m_volume = cvol;
-            m_spectrum = spectrum;
-            m_settings = used;
-            m_warnings = warnings;
-            m_compareDeclined.clear();
-            pruneCompareSpectra();
-            emit warningsChanged(m_warnings);
-            emit studyLoaded(title());
-            emit spectrumReady();
-            prepareCompareSpectra();
-        },
-        Qt::QueuedConnection);
+    return [this, source, cvol, spectrum, warnings, used, series = std::move(opened.series), id] {
+        m_resultJob = id;
+        markFinished(id);
+        if (id == m_jobsStarted) m_target = used;
+        m_source = source;
+        m_series = series;
+        m_volume = cvol;
+        m_spectrum = spectrum;
+        m_settings = used;
+        m_warnings = warnings;
+        m_compareDeclined.clear();
+        pruneCompareSpectra();
+        emit warningsChanged(m_warnings);
+        emit studyLoaded(title());
+        emit spectrumReady();
+        prepareCompareSpectra();
+    };
 }
 
 SpectrumSettings StudyController::settingsForStudy(const SpectrumSettings& requested,
@@ -357,20 +339,17 @@ void StudyController::setSpectrumSettings(const SpectrumSettings& asked) {
     startJob([this, vol, settings](core::CancelToken& token, std::uint64_t id) {
         auto spectrum = core::preprocess(
             *vol, settings, [this](double f, std::string_view st) { report(f, st); }, &token);
-        QMetaObject::invokeMethod(
-            this,
-            [this, spectrum, settings, vol, id] {
-                markFinished(id);
-                if (vol != m_volume) return; // a newer study replaced it meanwhile
-                m_resultJob = id;
-                m_spectrum = spectrum;
-                m_settings = settings;
-                m_compareDeclined.clear();
-                pruneCompareSpectra();
-                emit spectrumReady();
-                prepareCompareSpectra();
-            },
-            Qt::QueuedConnection);
+        return [this, spectrum, settings, vol, id] {
+            markFinished(id);
+            if (vol != m_volume) return; // a newer study replaced it meanwhile
+            m_resultJob = id;
+            m_spectrum = spectrum;
+            m_settings = settings;
+            m_compareDeclined.clear();
+            pruneCompareSpectra();
+            emit spectrumReady();
+            prepareCompareSpectra();
+        };
     });
 }
 
@@ -461,34 +440,26 @@ void StudyController::startCompareJob(core::Kernel k) {
     const SpectrumSettings settings = settingsFor(k);
     auto vol = m_volume;
     const QString stage = tr("spectrum for %1: ").arg(QString::fromUtf8(core::kernelName(k)));
-    startJob([this, vol, settings, k, stage](core::CancelToken& token, std::uint64_t id) {
-        std::shared_ptr<const core::Spectrum> spectrum;
-        QString failure;
-        try {
+    startJob(
+        [this, vol, settings, k, stage](core::CancelToken& token, std::uint64_t id) -> GuiStep {
             for (int waited = 0; waited < m_simulatedCompareDelayMs.load(); waited += 10) {
                 token.check();
                 std::this_thread::sleep_for(std::chrono::milliseconds(10));
             }
-            spectrum = core::preprocess(
+            auto spectrum = core::preprocess(
                 *vol, settings,
                 [this, stage](double f, std::string_view st) {
                     report(f, (stage + QString::fromUtf8(st.data(), int(st.size()))).toStdString());
                 },
                 &token);
-        } catch (const core::Cancelled&) {
-            failure = tr("cancelled");
-        } catch (const std::bad_alloc&) {
-            failure = tr("out of memory");
-        } catch (const std::exception& e) {
-            failure = QString::fromUtf8(e.what());
-        }
-        QMetaObject::invokeMethod(
-            this,
-            [this, id, k, vol, settings, spectrum, failure] {
-                compareJobDone(id, k, vol, settings, spectrum, failure);
-            },
-            Qt::QueuedConnection);
-    });
+            return [this, id, k, vol, settings, spectrum] {
+                compareJobDone(id, k, vol, settings, spectrum, QString());
+            };
+        },
+        // Cancelled, out of memory or an error: this kernel's spectrum alone is not prepared.
+        [this, vol, settings, k](const JobError& e, std::uint64_t id) {
+            compareJobDone(id, k, vol, settings, nullptr, e.message);
+        });
     m_compareJob = {m_jobsStarted, k, settings, false};
 }
 

@@ -3,8 +3,7 @@
  *  same voxels and view, computed on a worker thread; the results arrive on the GUI thread. */
 #include <QObject>
 
-#include <atomic>
-#include <thread>
+#include <fvr/ui/background_job.h>
 
 namespace fvr::ui {
 
@@ -27,8 +26,7 @@ signals:
     void measured(double psnr, double relRmse);
 
 private:
-    std::thread m_worker;
-    std::atomic<bool> m_done{true};
+    BackgroundJobs m_jobs{this}; ///< last: the measurement ends before the rest goes
 };
 
 } // namespace fvr::ui

@@ -5,7 +5,6 @@
  *  their values to the views and the study controller. */
 #include <QMainWindow>
 #include <QPointer>
-#include <future>
 #include <map>
 #include <optional>
 
@@ -25,6 +24,7 @@ class QToolBar;
 namespace fvr::ui {
 
 class AccuracyReadout;
+class MaterialsController;
 class PacsDialog;
 class PacsService;
 class DisplayPanel;
@@ -171,14 +171,14 @@ private:
     /** The X-ray panel shows another output (the caller applies it). */
     void showOutput(XrayOutput o);
     // The polychromatic output (main_window_poly.cpp).
-    /** On: the material spectra of the study's volume (preprocessed in the background once per
+    /** On: the material spectra of the study's volume (m_materials prepares them once per
      *  volume), then pushPolychromatic(); off: the views' own spectra again. */
     void applyPolychromatic();
     /** The views get the material spectra with the response of the X-ray values (no
      *  preprocessing: kVp, filtration, detector, noise, what is shown). */
     void pushPolychromatic();
-    /** The timer's check of the background job. */
-    void pollPolychromaticJob();
+    /** The materials controller's outcomes to the X-ray panel, the messages and the views. */
+    void connectMaterials();
 
     std::unique_ptr<StudyController> m_study;
     SettingsModel* m_model = nullptr; ///< child of the window
@@ -191,19 +191,13 @@ private:
     bool m_syncing = false;
     bool m_askForSeries = true;
     bool m_rewindow = false; ///< auto window once the next spectrum is ready (values changed)
-    /** The material spectra of m_polyVolume per gridding correction: -1 none, else the
-     *  kernel they are deapodized for (each view renders the ones of its kernel). */
-    using MaterialSpectra = std::vector<std::shared_ptr<const core::Spectrum>>;
-    std::map<int, MaterialSpectra> m_polySpectra;
-    std::shared_ptr<const core::Volume> m_polyVolume;
-    std::future<std::map<int, MaterialSpectra>> m_polyJob;
-    std::shared_ptr<core::CancelToken> m_polyCancel;
-    class QTimer* m_polyTimer = nullptr;
+    /** The material spectra of the study (its job ends before the views go). */
+    std::unique_ptr<MaterialsController> m_materials;
     bool m_polyRewindow = false;
     /** The sources the views get (per key), made for the X-ray values m_polyValues. */
     std::map<int, std::shared_ptr<const PolychromaticSource>> m_polySources;
     std::optional<XrayPanel::Values> m_polyValues;
-    /** The key of m_polySpectra a kernel renders from. */
+    /** The key of the material spectra a kernel renders from. */
     int polyKey(core::Kernel kernel) const;
 
     StudyPanel* m_studyPanel = nullptr;

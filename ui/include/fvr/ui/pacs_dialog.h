@@ -2,17 +2,18 @@
 /** File ▸ PACS…: find studies on a PACS node (C-FIND), retrieve a study or series into the local
  *  study store (C-GET or C-MOVE) with progress and cancel, and open it; the local studies (open
  *  again without the network, resume a partial retrieve). Network work runs on worker threads,
- *  never on the GUI thread; results and progress come back as queued calls. */
+ *  never on the GUI thread (BackgroundJobs); results and progress come back on the GUI thread. */
 #include <QDialog>
-#include <QPointer>
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <fvr/core/pacs/local_store.h>
 #include <fvr/core/pacs/pacs.h>
 #include <fvr/core/render/preprocess.h>
+#include <fvr/ui/background_job.h>
 #include <fvr/ui/pacs_settings.h>
 
 class QComboBox;
@@ -22,7 +23,6 @@ class QLineEdit;
 class QProgressBar;
 class QPushButton;
 class QTabWidget;
-class QThread;
 class QTreeWidget;
 class QTreeWidgetItem;
 
@@ -39,7 +39,7 @@ public:
     /** Reloads the nodes from the settings (after Edit nodes or elsewhere). */
     void reloadSettings();
     /** Whether a network job (echo, find, retrieve) runs. */
-    bool busy() const { return m_jobs > 0; }
+    bool busy() const { return m_pending > 0; }
 
     // For tests, which drive the dialog as a user does.
     QComboBox* nodeCombo() const { return m_node; }
@@ -70,12 +70,13 @@ private:
     QWidget* buildQueryTab();
     QWidget* buildQueryForm();
     QWidget* buildLocalTab();
-    /** Runs `work` on a worker thread; `done` runs on the GUI thread with the error message
-     *  (empty on success, "cancelled" when cancelled) unless the dialog is gone. The dialog's
-     *  destructor waits for the jobs with `waitAtClose` (retrieves, cancelled first), not for
-     *  the others (an echo or a query may wait for the network timeout). */
-    void run(std::function<void()> work, std::function<void(const QString&)> done,
-             bool waitAtClose = false);
+    /** Runs `work` on a worker thread; `done` runs on the GUI thread with its error (none on
+     *  success) unless the dialog is gone. The dialog's destructor waits for the jobs with
+     *  `waitAtClose` (retrieves, cancelled first), not for the others (an echo or a query may
+     *  wait for the network timeout). Returns the job's cancel token. */
+    std::shared_ptr<core::CancelToken> run(std::function<void(core::CancelToken&)> work,
+                                           std::function<void(const std::optional<JobError>&)> done,
+                                           bool waitAtClose = false);
     const core::pacs::Node* currentNode() const;
     void testConnection();
     void search();
@@ -96,10 +97,9 @@ private:
 
     std::shared_ptr<core::pacs::LocalStore> m_store;
     PacsSettings m_settings;
-    int m_jobs = 0;
+    int m_pending = 0; ///< jobs whose outcome has not been handled
     bool m_retrieving = false;
     std::shared_ptr<core::CancelToken> m_retrieveCancel;
-    std::vector<QPointer<QThread>> m_threads;
 
     QTabWidget* m_tabs = nullptr;
     QComboBox* m_node = nullptr;
@@ -120,6 +120,7 @@ private:
     QTreeWidget* m_local = nullptr;
     QPushButton* m_openLocal = nullptr;
     QPushButton* m_resumeLocal = nullptr;
+    BackgroundJobs m_jobs{this}; ///< last: retrieves end before the rest of the dialog goes
 };
 
 } // namespace fvr::ui

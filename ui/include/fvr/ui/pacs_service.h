@@ -3,7 +3,6 @@
  *  shared by retrieves and the listener), the storage listener that the settings start and stop,
  *  and sends (C-STORE) on worker threads. */
 #include <QObject>
-#include <QPointer>
 
 #include <filesystem>
 #include <memory>
@@ -11,8 +10,7 @@
 
 #include <fvr/core/pacs/local_store.h>
 #include <fvr/core/pacs/storage_listener.h>
-
-class QThread;
+#include <fvr/ui/background_job.h>
 
 namespace fvr::ui {
 
@@ -47,8 +45,8 @@ signals:
 private:
     std::shared_ptr<core::pacs::LocalStore> m_store;
     std::unique_ptr<core::pacs::StorageListener> m_listener;
-    std::vector<QPointer<QThread>> m_threads;
     int m_sending = 0;
+    BackgroundJobs m_jobs{this}; ///< sends; waited for before the store goes
 };
 
 } // namespace fvr::ui

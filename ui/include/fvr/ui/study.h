@@ -24,6 +24,7 @@
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/render/spectrum.h>
 #include <fvr/core/volume.h>
+#include <fvr/ui/background_job.h>
 
 namespace fvr::ui {
 
@@ -78,7 +79,7 @@ public:
     void setSpectrumSettings(const SpectrumSettings& settings);
     /** Cancels the running load or preprocessing; the previous study stays usable. */
     void cancel();
-    bool busy() const { return m_worker.joinable() && !m_done.load(); }
+    bool busy() const { return m_jobs.running(); }
     /** Cancel was asked of the running job, which has not stopped yet (FFTW's planner, for one,
      *  cannot be interrupted: it ends its plan first). */
     bool cancelling() const { return busy() && m_cancel && m_cancel->cancelled(); }
@@ -159,9 +160,17 @@ private:
                                              const core::Volume& volume, QStringList* warnings);
     /** After a cancel: the request goes back to what is in effect (GUI thread). */
     void revertRequestToSettingsInEffect();
-    /** Runs `job` (given its cancel token and its id) on the worker thread, cancelling the
-     *  running one. */
-    void startJob(std::function<void(core::CancelToken&, std::uint64_t)> job);
+    /** What a job hands to the GUI thread when it ends (run there; may be empty). */
+    using GuiStep = std::function<void()>;
+    /** A job's work on the worker thread, given its cancel token and its id. */
+    using JobWork = std::function<GuiStep(core::CancelToken&, std::uint64_t)>;
+    using JobFailed = std::function<void(const JobError&, std::uint64_t)>;
+    /** Runs `work` on the worker thread, after cancelling and waiting for the running job; its
+     *  GuiStep, or `failed` (jobFailed() when empty) with what it threw, on the GUI thread. */
+    void startJob(JobWork work, JobFailed failed = {});
+    /** A load's or preprocessing's error: cancelled by the user (the request goes back to what
+     *  is in effect), out of memory, or failed. */
+    void jobFailed(const JobError& e, std::uint64_t id);
     void poll();
     void preprocessAsync();
     void report(double fraction, std::string_view stage);
@@ -169,9 +178,10 @@ private:
     std::shared_ptr<const core::DicomScanResult> scanFolder(
         const StudySource& source, std::shared_ptr<const core::DicomScanResult> cached,
         core::CancelToken& token);
-    /** Worker: asks the GUI to choose a series (the default first); false when none is needed. */
-    bool needsSeriesChoice(const StudySource& source, const core::DicomScanResult& scan,
-                           std::uint64_t id);
+    /** Worker: the GUI step that asks to choose a series (the default first); empty when none
+     *  is needed. */
+    GuiStep seriesChoice(const StudySource& source, const core::DicomScanResult& scan,
+                         std::uint64_t id);
     /** Starts the next missing compare spectrum when no job runs. */
     void prepareCompareSpectra();
     void startCompareJob(core::Kernel k);
@@ -186,9 +196,9 @@ private:
     void pruneCompareSpectra();
     /** Every compare kernel without a spectrum is not prepared, for `reason`. */
     void declinePendingCompare(const QString& reason);
-    /** Worker: preprocesses the opened volume and hands volume and spectrum to the GUI thread. */
-    void finishOpen(const StudySource& source, const SpectrumSettings& settings,
-                    core::OpenedStudy opened, core::CancelToken& token, std::uint64_t id);
+    /** Worker: preprocesses the opened volume; the step hands volume and spectrum to the GUI. */
+    GuiStep finishOpen(const StudySource& source, const SpectrumSettings& settings,
+                       core::OpenedStudy opened, core::CancelToken& token, std::uint64_t id);
 
     StudySource m_source;
     SpectrumSettings m_settings = workstationSpectrumDefaults(); ///< in effect
@@ -198,8 +208,6 @@ private:
     std::shared_ptr<const core::Spectrum> m_spectrum;
     QStringList m_warnings;
     std::optional<core::DicomSeriesInfo> m_series;
-    std::thread m_worker;
-    std::atomic<bool> m_done{true};
     std::uint64_t m_jobsStarted = 0; ///< GUI thread
     std::uint64_t m_resultJob = 0; ///< the job whose result is in use (GUI thread)
     std::uint64_t m_finishedJob = 0; ///< the latest job whose end was handled (GUI thread)
@@ -230,6 +238,7 @@ private:
     } m_compareJob;
     std::shared_ptr<const core::DicomScanResult> m_scan; ///< last DICOM scan (series picking)
     QString m_scanFolder;
+    BackgroundJobs m_jobs{this}; ///< last: its jobs end before the members they use go
 };
 
 } // namespace fvr::ui
