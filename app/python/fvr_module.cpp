@@ -235,7 +235,9 @@ private:
             all.push_back(m_args[i]);
         }
         all.insert(all.end(), extra.begin(), extra.end());
-        return cli::parseSettings(all);
+        cli::Options o = cli::parseSettings(all);
+        o.settings = o.settings.forVolume(*m_volume.volume);
+        return o;
     }
 
     std::vector<core::ViewFrame> viewList(const cli::Options& o, const py::object& views) const {

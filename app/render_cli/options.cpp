@@ -442,13 +442,14 @@ void declareXray(CLI::App& app, Options& o) {
                      ->group(g);
     auto* muWater = addNumber(
                         app, "--mu-water", o.muWater, "1/mm",
-                        "linear attenuation of water for --beer-lambert (default 0.0193,\n"
-                        "about 70 keV)",
+                        "linear attenuation of water for --beer-lambert (default: that of\n"
+                        "--energy)",
                         [](double v) { return v > 0 && v < 10; }, "expected 0..10 per mm")
                         ->group(g);
     addNumber(app, "--energy", o.energy, "keV",
               "photon energy 20..150 for --beer-lambert: mu_water from the NIST XCOM\n"
-              "table (instead of --mu-water; 0.02059 per mm at 60 keV)")
+              "table (instead of --mu-water; 0.02059 per mm at 60 keV) " +
+                  defaultText(shortNumber(kDefaults.energyKeV)))
         ->check(coreCheck([](const std::string& s) { core::waterAttenuationPerMm(*toNumber(s)); }))
         ->excludes(muWater)
         ->needs(beer)
@@ -649,13 +650,11 @@ void checkCombinations(Options& o) {
         throw SettingsError("--kvp: not with --bench (bench/ times the polychromatic frame)");
     // --dir and --up (unless --view replaces them): the message names the vector at fault.
     if (o.dirUpGiven) core::ViewFrame::fromDirUp(o.dir, o.up);
-    o.transmission.muWaterPerMm = o.energy ? core::waterAttenuationPerMm(*o.energy)
-                                           : o.muWater.value_or(kDefaults.beam.muWaterPerMm);
-    o.transmission.exposure = o.exposure.value_or(kDefaults.beam.exposure);
-    if (o.beerLambert) {
-        o.settings.output = core::XrayOutput::Transmission;
-        o.settings.beam = o.transmission;
-    }
+    if (o.energy) o.settings.energyKeV = *o.energy;
+    if (o.muWater) o.settings.muWaterPerMm = *o.muWater;
+    if (o.exposure) o.settings.exposure = *o.exposure;
+    o.transmission = o.settings.beam();
+    if (o.beerLambert) o.settings.output = core::XrayOutput::Transmission;
     if (o.polychromatic()) o.settings.output = core::XrayOutput::Polychromatic;
 }
 

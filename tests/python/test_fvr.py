@@ -71,6 +71,19 @@ def test_render_is_bit_identical_to_fvr_render(body, renderer, fvr_render, tmp_p
         assert img.max() > 1.0  # a real projection, not an empty image
 
 
+def test_default_settings_render_what_fvr_render_renders(fvr_render, tmp_path):
+    # Nothing chosen on either side: one set of defaults (core's RenderSettings: the AP view,
+    # mu, kaiser-bessel4 deapodized at 1.25x, trilinear), so the same bytes.
+    cli = run_fvr_render(fvr_render, ["phantom:shepp-logan:64", "--size", 128, "--backend", "cpu"],
+                         tmp_path / "default.npy")
+    r = fvr.Renderer(fvr.load("phantom:shepp-logan:64"))
+    img = r.render(size=128)
+    assert cli.tobytes() == img.tobytes()
+    assert r.settings["kernel"] == "kaiser-bessel4" and r.settings["values"] == "mu"
+    paper = fvr.Renderer(fvr.load("phantom:shepp-logan:64"), preset="paper")
+    assert paper.settings["kernel"] == "linear" and paper.settings["values"] == "raw"
+
+
 def test_sweep_is_bit_identical_to_fvr_render(body, fvr_render, tmp_path):
     cli = run_fvr_render(fvr_render, [BODY_CT_MHD, *CLI_SETTINGS, "--sweep", 5, "--size", 128,
                                       "--pixel-size", 3.5], tmp_path / "sweep.npy")
@@ -153,10 +166,14 @@ def test_unreadable_input_raises_runtime_error(tmp_path):
 
 def test_transmission_is_beer_lambert(renderer):
     img = renderer.render(view="AP", size=128)
-    mu = 0.0193  # fvr-render's default mu_water (per mm)
+    mu = 0.0193  # per mm
     expected = 2.0 * np.exp(-mu * img.astype(np.float64))
-    got = renderer.transmission(img, exposure=2.0)
+    got = renderer.transmission(img, mu_water=mu, exposure=2.0)
     np.testing.assert_allclose(got, expected, rtol=1e-6)
+    # The default beam is water's attenuation at 70 keV (NIST XCOM, 0.01937 per mm).
+    default = renderer.transmission(img, exposure=2.0)
+    np.testing.assert_array_equal(default, renderer.transmission(img, energy_kev=70, exposure=2.0))
+    assert not np.array_equal(default, got)
     film = fvr.film(img, energy_kev=70)
     assert film.shape == img.shape and 0.0 <= film.min() and film.max() <= 1.0
     # Film look (inverted): more attenuation is brighter.

@@ -153,8 +153,37 @@ TEST(ScriptedRun, ExportsEveryViewAsShownAndQuits) {
     EXPECT_GT(green, 30);
 }
 
-// #15 item 11: the first image (no study named) is the built-in chest phantom, at a window that
-// shows its anatomy: the lung fields clearly darker than the mediastinum and spine between them.
+// The same study with nothing chosen renders to the same image in the workstation and fvr-render
+// (and, tests/python, the Python module): one set of defaults, core::RenderSettings.
+TEST(ScriptedRun, DefaultSettingsRenderWhatFvrRenderRenders) {
+    const fs::path dir = fvr::test::tmpDir() / "scripted_run_defaults";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const fs::path views = dir / "views";
+    const CommandOutput r = runWorkstation(
+        "phantom:shepp-logan:64 --size 128 --export-views '" + views.string() + "' --quit", dir);
+    ASSERT_EQ(r.status, 0) << r.out;
+    const QJsonObject info = readJson(views / "views.json");
+    EXPECT_EQ(info["views"].toArray()[0].toObject()["kernel"].toString(), "kaiser-bessel4");
+    const fs::path ref = dir / "render.npy";
+    const CommandOutput cli = fvr::test::runCommand(std::string(FVR_RENDER_EXE) +
+                                                    " phantom:shepp-logan:64 --size 128 --out '" +
+                                                    ref.string() + "' 2>&1");
+    ASSERT_EQ(cli.status, 0) << cli.out;
+    std::vector<std::int64_t> shape;
+    const std::vector<float> view1 = readImage(views / "view1.npy", shape);
+    const std::vector<float> expected = readImage(ref, shape);
+    ASSERT_EQ(view1.size(), 128u * 128u);
+    ASSERT_EQ(expected.size(), view1.size());
+    const auto cmp = fvr::test::compare(view1, expected);
+    std::printf("[scripted] defaults: workstation view 1 vs fvr-render PSNR %.1f dB (%s)\n",
+                cmp.psnr,
+                info["views"].toArray()[0].toObject()["backend"].toString().toStdString().c_str());
+    EXPECT_GT(cmp.psnr, 100.0); // GPU or CPU in either: float rounding apart, no more
+}
+
+// The first image (no study named) is the built-in chest phantom, at a window that shows its
+// anatomy: the lung fields clearly darker than the mediastinum and spine between them.
 TEST(ScriptedRun, FirstImageIsAChestRadiographShowingItsAnatomy) {
     const fs::path dir = fvr::test::tmpDir() / "scripted_run_first";
     fs::remove_all(dir);

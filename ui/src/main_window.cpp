@@ -43,10 +43,12 @@ MainWindow::MainWindow(QWidget* parent)
     setWindowTitle(QString::fromUtf8(applicationName()));
     setAcceptDrops(true);
     setDockNestingEnabled(true);
+    // View 1 takes the Rendering settings (restorePanels); views 2-4 of compare mode start
+    // with kernels to compare it with.
     m_viewSettings.assign(4, ViewSettings{});
-    const core::Kernel compareKernels[4] = {core::Kernel::Linear, core::Kernel::CatmullRom,
-                                            core::Kernel::Nearest, core::Kernel::Sinc4};
-    for (int i = 0; i < 4; ++i) m_viewSettings[i].kernel = compareKernels[i];
+    const core::Kernel compareKernels[3] = {core::Kernel::CatmullRom, core::Kernel::Nearest,
+                                            core::Kernel::Sinc4};
+    for (int i = 1; i < 4; ++i) m_viewSettings[i].kernel = compareKernels[i - 1];
     buildViews();
     buildDocks();
     buildMenus();

@@ -6,9 +6,19 @@ ViewSettings SettingsModel::viewSettings() const {
     return {m_rendering.kernel, m_rendering.size, m_rendering.voxelModel};
 }
 
+core::RenderSettings SettingsModel::renderSettings() const {
+    core::RenderSettings s = m_rendering.toRenderSettings();
+    s.depthCue = depthCue();
+    s.filter = sliceFilter();
+    s.output = m_xray.output;
+    s.energyKeV = m_xray.energyKeV;
+    s.exposure = m_xray.exposure;
+    return s;
+}
+
 core::Transmission SettingsModel::transmission() const {
     if (!isTransmission(m_xray.output)) return {};
-    return {core::waterAttenuationPerMm(m_xray.energyKeV), m_xray.exposure};
+    return renderSettings().beam();
 }
 
 core::SliceFilter SettingsModel::sliceFilter() const {

@@ -168,7 +168,7 @@ class Renderer:
     def transmission(self, image: np.ndarray, energy_kev: Optional[float] = None,
                      mu_water: Optional[float] = None, exposure: Optional[float] = None) -> np.ndarray:
         """Beer-Lambert: exposure x exp(-mu_water x line integral), mu_water from ``energy_kev``
-        (NIST XCOM, 20..150 keV) or ``mu_water`` (1/mm; default 0.0193, about 70 keV). Needs
+        (NIST XCOM, 20..150 keV) or ``mu_water`` (1/mm; default that of 70 keV, 0.01937). Needs
         ``values="mu"`` or ``"mu-bone"`` (ValueError otherwise), as fvr-render --beer-lambert."""
         return _fvr.transmission(image, self._r.args + _beer(energy_kev, mu_water, exposure))
 

@@ -55,6 +55,10 @@ RenderSettings RenderSettings::forVolume(const Volume& volume, std::string* note
     return s;
 }
 
+Transmission RenderSettings::beam() const {
+    return {muWaterPerMm ? *muWaterPerMm : waterAttenuationPerMm(energyKeV), exposure};
+}
+
 bool RenderSettings::griddingCorrected() const {
     return deapodize.value_or(griddingCorrectionHelps(kernel));
 }

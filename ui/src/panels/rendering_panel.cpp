@@ -1,5 +1,7 @@
 #include <fvr/ui/panels/rendering_panel.h>
 
+#include <algorithm>
+
 #include <QCheckBox>
 #include <QComboBox>
 #include <QFormLayout>
@@ -15,8 +17,24 @@
 namespace fvr::ui {
 
 namespace {
-const int kSizes[] = {128, 256, 512, 1024, 2048};
 const double kOversampling[] = {1.0, 1.25, 1.5, 2.0};
+
+/** A choice saved by name, or by the enum number earlier versions saved (0..count-1); anything
+ *  else: `fallback`. */
+template <class E, class Parse>
+E savedChoice(const QSettings& s, const char* key, E fallback, int count, Parse parse) {
+    const QVariant saved = s.value(key);
+    if (!saved.isValid()) return fallback;
+    const QString text = saved.toString();
+    bool isNumber = false;
+    const int number = text.toInt(&isNumber);
+    if (isNumber) return number >= 0 && number < count ? E(number) : fallback;
+    try {
+        return parse(text.toStdString());
+    } catch (const core::SettingsError&) {
+        return fallback; // a name this version does not know
+    }
+}
 
 /** Selects the item holding `data`; a value the combo does not offer leaves it as it is. */
 void selectData(QComboBox* c, const QVariant& data) {
@@ -43,7 +61,7 @@ void RenderingPanel::addViewRows(QFormLayout* rf) {
         m_kernel->addItem(QString::fromUtf8(core::kernelName(k)), int(k));
     rf->addRow(tr("Interpolation"), m_kernel);
     m_size = new QComboBox(this);
-    for (int s : kSizes) m_size->addItem(QStringLiteral("%1 × %1").arg(s), s);
+    for (int s : core::settingsSizes()) m_size->addItem(QStringLiteral("%1 × %1").arg(s), s);
     rf->addRow(tr("Slice resolution"), m_size);
     m_voxelModel = new QComboBox(this);
     m_voxelModel->addItem(tr("Trilinear (as a DRR ray caster)"), int(core::VoxelModel::Trilinear));
@@ -169,12 +187,15 @@ void RenderingPanel::setValues(const Values& v) {
 RenderingPanel::Values RenderingPanel::load(const QSettings& s) { return load(s, Values()); }
 
 RenderingPanel::Values RenderingPanel::load(const QSettings& s, Values v) {
-    v.kernel = core::Kernel(s.value(keys::kRenderKernel, int(v.kernel)).toInt());
-    v.size = s.value(keys::kRenderSize, v.size).toInt();
-    v.transform = core::TransformKind(s.value(keys::kRenderTransform, int(v.transform)).toInt());
+    v.kernel = savedChoice(s, keys::kRenderKernel, v.kernel, int(core::allKernels().size()),
+                           core::parseKernel);
+    const int size = s.value(keys::kRenderSize, v.size).toInt();
+    const auto sizes = core::settingsSizes();
+    if (std::find(sizes.begin(), sizes.end(), size) != sizes.end()) v.size = size;
+    v.transform = savedChoice(s, keys::kRenderTransform, v.transform, 2, core::parseTransform);
     v.oversampling = s.value(keys::kRenderOversampling, v.oversampling).toDouble();
     v.deapodize = s.value(keys::kRenderDeapodize, v.deapodize).toBool();
-    v.mapping = core::ValueMapping(s.value(keys::kRenderValues, int(v.mapping)).toInt());
+    v.mapping = savedChoice(s, keys::kRenderValues, v.mapping, 3, core::parseValueMapping);
     v.targetFps = s.value(keys::kRenderTargetFps, v.targetFps).toInt();
     v.clip = s.value(keys::kRenderClip, v.clip).toBool();
     v.nonNegative = s.value(keys::kRenderNonNegative, v.nonNegative).toBool();
@@ -191,12 +212,12 @@ RenderingPanel::Values RenderingPanel::load(const QSettings& s, Values v) {
 }
 
 void RenderingPanel::save(QSettings& s, const Values& v) {
-    s.setValue(keys::kRenderKernel, int(v.kernel));
+    s.setValue(keys::kRenderKernel, QString::fromUtf8(core::kernelName(v.kernel)));
     s.setValue(keys::kRenderSize, v.size);
     s.setValue(keys::kRenderVoxelModel, QString::fromUtf8(core::voxelModelName(v.voxelModel)));
-    s.setValue(keys::kRenderTransform, int(v.transform));
+    s.setValue(keys::kRenderTransform, QString::fromUtf8(core::transformName(v.transform)));
     s.setValue(keys::kRenderOversampling, v.oversampling);
-    s.setValue(keys::kRenderValues, int(v.mapping));
+    s.setValue(keys::kRenderValues, QString::fromUtf8(core::valueMappingName(v.mapping)));
     s.setValue(keys::kRenderDeapodize, v.deapodize);
     s.setValue(keys::kRenderTargetFps, v.targetFps);
     s.setValue(keys::kRenderPixelAperture, v.pixelAperture);
@@ -242,14 +263,38 @@ void RenderingPanel::setSpectrumMiB(double mib, int count, std::optional<double>
 }
 
 core::PreprocessOptions RenderingPanel::spectrumSettings(const Values& v, core::Kernel kernel) {
-    core::PreprocessOptions s;
-    s.mapping = v.mapping;
-    s.transform = v.transform;
-    s.oversampling = v.oversampling;
-    s.deapodizeFor = v.deapodize && core::griddingCorrectionHelps(kernel)
-                         ? std::optional<core::Kernel>(kernel)
-                         : std::nullopt;
+    core::RenderSettings s = v.toRenderSettings();
+    s.kernel = kernel;
+    return s.toPreprocessOptions();
+}
+
+core::RenderSettings RenderingPanel::Values::toRenderSettings(core::RenderSettings s) const {
+    s.kernel = kernel;
+    s.size = size;
+    s.voxelModel = voxelModel;
+    s.transform = transform;
+    s.oversampling = oversampling;
+    s.values = mapping;
+    s.deapodize = deapodize ? std::nullopt : std::optional<bool>(false);
+    s.pixelAperture = pixelAperture;
+    s.clip = clip;
+    s.nonNegative = nonNegative;
     return s;
+}
+
+RenderingPanel::Values RenderingPanel::Values::fromRenderSettings(const core::RenderSettings& s,
+                                                                  Values v) {
+    v.kernel = s.kernel;
+    v.size = s.size;
+    v.voxelModel = s.voxelModel;
+    v.transform = s.transform;
+    v.oversampling = s.oversampling;
+    v.mapping = s.values;
+    v.deapodize = s.deapodize.value_or(true);
+    v.pixelAperture = s.pixelAperture;
+    v.clip = s.clip;
+    v.nonNegative = s.nonNegative;
+    return v;
 }
 
 } // namespace fvr::ui

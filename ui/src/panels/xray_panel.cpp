@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <initializer_list>
 
+#include <fvr/core/errors.h>
 #include <fvr/ui/settings_keys.h>
 
 namespace fvr::ui {
@@ -208,10 +209,21 @@ void XrayPanel::setValues(const Values& v) {
 XrayPanel::Values XrayPanel::load(const QSettings& s) { return load(s, Values()); }
 
 XrayPanel::Values XrayPanel::load(const QSettings& s, Values v) {
-    const int output = s.value(keys::kXrayOutput, int(v.output)).toInt();
-    v.output = output == int(XrayOutput::Transmission)    ? XrayOutput::Transmission
-               : output == int(XrayOutput::Polychromatic) ? XrayOutput::Polychromatic
-                                                          : XrayOutput::LineIntegrals;
+    // A name; earlier versions saved 0, 1 or 2.
+    const QString output = s.value(keys::kXrayOutput).toString();
+    if (output == QLatin1String("1"))
+        v.output = XrayOutput::Transmission;
+    else if (output == QLatin1String("2"))
+        v.output = XrayOutput::Polychromatic;
+    else if (output == QLatin1String("0"))
+        v.output = XrayOutput::LineIntegrals;
+    else if (!output.isEmpty()) {
+        try {
+            v.output = core::parseXrayOutput(output.toStdString());
+        } catch (const core::SettingsError&) {
+            // a name this version does not know: `v`'s
+        }
+    }
     v.energyKeV = s.value(keys::kXrayEnergyKeV, v.energyKeV).toDouble();
     v.exposure = s.value(keys::kXrayExposure, v.exposure).toDouble();
     v.depthCuePercent = s.value(keys::kXrayDepthCue, v.depthCuePercent).toInt();
@@ -228,7 +240,7 @@ XrayPanel::Values XrayPanel::load(const QSettings& s, Values v) {
 }
 
 void XrayPanel::save(QSettings& s, const Values& v) {
-    s.setValue(keys::kXrayOutput, int(v.output));
+    s.setValue(keys::kXrayOutput, QString::fromUtf8(core::xrayOutputName(v.output)));
     s.setValue(keys::kXrayEnergyKeV, v.energyKeV);
     s.setValue(keys::kXrayExposure, v.exposure);
     s.setValue(keys::kXrayDepthCue, v.depthCuePercent);

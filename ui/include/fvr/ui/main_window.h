@@ -34,7 +34,6 @@ class SettingsModel;
 class StudyPanel;
 class XrayPanel;
 enum class WindowPreset;
-enum class XrayOutput;
 
 class MainWindow : public QMainWindow {
     Q_OBJECT

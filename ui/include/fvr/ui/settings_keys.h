@@ -4,6 +4,8 @@
 namespace fvr::ui::keys {
 
 // Rendering panel
+// Choices are saved by name (kernelName, transformName, valueMappingName, voxelModelName,
+// xrayOutputName); earlier versions saved the enum numbers, which still load.
 inline constexpr char kRenderKernel[] = "render/kernel";
 inline constexpr char kRenderSize[] = "render/size";
 inline constexpr char kRenderTransform[] = "render/transform";
@@ -21,14 +23,14 @@ inline constexpr char kRenderVoxelModel[] = "render/voxelModel"; ///< a name (vo
 inline constexpr char kDisplayInvert[] = "display/invert";
 
 // X-ray panel
-inline constexpr char kXrayOutput[] = "xray/output"; ///< 0 line integrals, 1 transmission
+inline constexpr char kXrayOutput[] = "xray/output";
 inline constexpr char kXrayEnergyKeV[] = "xray/energyKeV";
 inline constexpr char kXrayExposure[] = "xray/exposure";
 inline constexpr char kXrayDepthCue[] = "xray/depthCue";
 inline constexpr char kXraySharpen[] = "xray/sharpen";
 inline constexpr char kXraySharpenRadius[] = "xray/sharpenRadius";
 inline constexpr char kXrayBandLimit[] = "xray/bandLimit";
-// Polychromatic X-ray (issue 19).
+// Polychromatic X-ray.
 inline constexpr char kXrayKvp[] = "xray/kvp";
 inline constexpr char kXrayFiltrationAl[] = "xray/filtrationAlMm";
 inline constexpr char kXrayFiltrationCu[] = "xray/filtrationCuMm";

@@ -22,6 +22,9 @@ public:
     /** The kernel, size and voxel model of the Rendering values (the view "Applies to"
      *  names). */
     ViewSettings viewSettings() const;
+    /** Every rendering choice the panels hold (view 1's kernel, size and voxel model: the
+     *  Rendering values), as the CLI and the Python module take them. */
+    core::RenderSettings renderSettings() const;
     /** The transmission the X-ray values ask for (inactive for line integrals). */
     core::Transmission transmission() const;
     core::SliceFilter sliceFilter() const;

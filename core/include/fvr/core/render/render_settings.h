@@ -54,10 +54,12 @@ struct RenderSettings {
     std::optional<double> pixelSize; ///< mm; empty: defaultPixelSize (the volume's diagonal / M)
     PatientView view = PatientView::AP;
 
-    // The X-ray output: line integrals or the Beer-Lambert transmission of `beam`. The
+    // The X-ray output: line integrals or the Beer-Lambert transmission of beam(). The
     // polychromatic output's tube, materials and detector are the X-ray physics' own settings.
     XrayOutput output = XrayOutput::LineIntegrals;
-    Transmission beam{0.0193, 1.0}; ///< mu of water per mm (about 70 keV) and the exposure
+    double energyKeV = 70.0; ///< the beam's photon energy: mu of water from NIST XCOM
+    std::optional<double> muWaterPerMm; ///< instead of the energy's (fvr-render --mu-water)
+    double exposure = 1.0; ///< the unattenuated beam's intensity (1: full scale)
 
     /** The image sizes users choose from (the renderers also render the progressive levels'
      *  smaller sizes, down to validateImageGeometry's 16). */
@@ -81,6 +83,8 @@ struct RenderSettings {
     RenderParams toRenderParams(const ViewFrame& view, const ImageGeometry& image) const;
     /** size and pixelSize (or the default for the volume), checked against the volume. */
     ImageGeometry imageGeometry(const Volume& volume) const;
+    /** The monochromatic beam: mu of water (muWaterPerMm, else the energy's) and exposure. */
+    Transmission beam() const;
     /** Whether the spectrum is deapodized for the kernel (deapodize, else the rule). */
     bool griddingCorrected() const;
 

@@ -8,6 +8,7 @@
 
 #include <fvr/core/render/kernels.h>
 #include <fvr/core/render/preprocess.h>
+#include <fvr/core/render/render_settings.h>
 #include <fvr/core/render/spectrum.h>
 #include <fvr/ui/projection_view.h>
 
@@ -23,21 +24,29 @@ namespace fvr::ui {
 class RenderingPanel : public QWidget {
     Q_OBJECT
 public:
+    /** The panel's values; the defaults are core::RenderSettings' (the one home of them). */
     struct Values {
-        core::Kernel kernel = core::Kernel::KaiserBessel4;
-        int size = 512;
-        core::VoxelModel voxelModel = core::VoxelModel::Trilinear;
-        core::TransformKind transform = core::TransformKind::Fft;
-        double oversampling = 1.25;
-        core::ValueMapping mapping = core::ValueMapping::Mu;
-        bool deapodize = true;
+        core::Kernel kernel = core::RenderSettings{}.kernel;
+        int size = core::RenderSettings{}.size;
+        core::VoxelModel voxelModel = core::RenderSettings{}.voxelModel;
+        core::TransformKind transform = core::RenderSettings{}.transform;
+        double oversampling = core::RenderSettings{}.oversampling;
+        core::ValueMapping mapping = core::RenderSettings{}.values;
+        /** Gridding correction where it helps the kernel (RenderSettings::deapodize empty);
+         *  off: never. */
+        bool deapodize = core::RenderSettings{}.deapodize.value_or(true);
         int targetFps = 30;
-        bool pixelAperture = false;
-        bool clip = true;
-        bool nonNegative = true;
+        bool pixelAperture = core::RenderSettings{}.pixelAperture;
+        bool clip = core::RenderSettings{}.clip;
+        bool nonNegative = core::RenderSettings{}.nonNegative;
         /** Render on the GPU even when it is a software renderer (llvmpipe …: slower than the
          *  CPU renderer, so off by default). */
         bool softwareGpu = false;
+        /** These values as render settings (the view, filters and X-ray output left at `base`'s).
+         */
+        core::RenderSettings toRenderSettings(core::RenderSettings base = {}) const;
+        /** The values of `s` (targetFps and softwareGpu as `base`'s). */
+        static Values fromRenderSettings(const core::RenderSettings& s, Values base);
         bool operator==(const Values&) const = default;
     };
 
@@ -47,7 +56,8 @@ public:
     Values values() const;
     /** Shows `v` (a value a combo does not offer leaves that combo as it is); emits nothing. */
     void setValues(const Values& v);
-    /** The saved values (settings_keys.h); `v`'s where none is saved. */
+    /** The saved values (settings_keys.h); `v`'s where none is saved. Choices are saved by name
+     *  (kernelName, ...); the enum numbers that earlier versions saved still load. */
     static Values load(const QSettings& s, Values v);
     static Values load(const QSettings& s); ///< over the defaults
     static void save(QSettings& s, const Values& v);

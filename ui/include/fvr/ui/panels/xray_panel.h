@@ -3,6 +3,7 @@
  *  beam (energy, exposure), depth cueing and the slice filters (edge enhancement, band limit). */
 #include <QWidget>
 
+#include <fvr/core/render/render_settings.h>
 #include <fvr/core/xray/xray.h>
 
 class QComboBox;
@@ -14,9 +15,10 @@ class QSpinBox;
 
 namespace fvr::ui {
 
-/** What the projection shows: its line integrals, or the intensity a detector records. The values
- *  are the combo's item data and the saved setting. */
-enum class XrayOutput { LineIntegrals = 0, Transmission = 1, Polychromatic = 2 };
+/** What the projection shows (core::RenderSettings::output): its line integrals, or the
+ *  intensity a detector records. The values are the combo's item data; the setting is saved by
+ *  name (xrayOutputName). */
+using XrayOutput = core::XrayOutput;
 
 /** True for the Beer-Lambert output. */
 inline bool isTransmission(XrayOutput o) { return o == XrayOutput::Transmission; }
@@ -27,14 +29,15 @@ class XrayPanel : public QWidget {
     Q_OBJECT
 public:
     struct Values {
-        XrayOutput output = XrayOutput::LineIntegrals;
-        double energyKeV = 70.0;
-        double exposure = 1.0;
-        int depthCuePercent = 0;
-        double sharpen = 0.0; ///< SliceFilter::sharpenAmount
-        double sharpenRadius = 1.0; ///< SliceFilter::sharpenSigmaMm
-        double bandLimit = 0.0; ///< SliceFilter::bandLimitLpMm
-        // Polychromatic output (issue 19): the tube, the detector, the dose, what is shown.
+        // The defaults of these are core::RenderSettings' (the one home of them).
+        XrayOutput output = core::RenderSettings{}.output;
+        double energyKeV = core::RenderSettings{}.energyKeV;
+        double exposure = core::RenderSettings{}.exposure;
+        int depthCuePercent = int(100 * core::RenderSettings{}.depthCue);
+        double sharpen = core::SliceFilter{}.sharpenAmount;
+        double sharpenRadius = core::SliceFilter{}.sharpenSigmaMm;
+        double bandLimit = core::SliceFilter{}.bandLimitLpMm;
+        // Polychromatic output: the tube, the detector, the dose, what is shown.
         double kvp = 80.0;
         double filtrationAlMm = 2.5;
         double filtrationCuMm = 0.0;
