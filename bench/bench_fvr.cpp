@@ -7,10 +7,9 @@
  *   BM_Frame/N<n>/<fft|fht>/M<m>/<kernel>         one projection per iteration, rotating view
  *   BM_RayCast/N128/M<m>/step<0.25vox|1vox>       spatial ray casting (trilinear), same views
  *   BM_BareFft/M<m>                                one in-place M x M complex FFT (FFTW, MEASURE):
- *                                                  the yardstick of issue #17 (frame / bare FFT)
- *   BM_Effects/N256/<fft|fht>/M512/<kernel>/<effect> the per-frame cost of depth cueing and the
- *                                                  slice filters (plain, depth, filters, both) and
- *                                                  of the clip to the volume
+ *                                                  the yardstick a frame is measured in (frame /
+ * bare FFT) BM_Effects/N256/<fft|fht>/M512/<kernel>/<effect> the per-frame cost of depth cueing and
+ * the slice filters (plain, depth, filters, both) and of the clip to the volume
  *
  * Per-frame counters are real measurements (StageTimes of every iteration): slice_ms, inverse_ms,
  * total_ms are means over the iterations (frames), *_p50 the medians; fps = 1000 / total_ms,
@@ -376,7 +375,7 @@ SpatialProjector& projector(int n, double stepFraction) {
 // --- 2c. The yardstick: one bare 2D FFT ------------------------------------------------------
 
 /** One in-place M x M complex FFTW transform (forward, FFTW_MEASURE, the renderer's thread count
- *  for that M): the unit issue #17's targets measure a frame in (frame ms / bare FFT ms). */
+ *  for that M): the unit a frame's cost is measured in (frame ms / bare FFT ms). */
 void BM_BareFft(benchmark::State& state, int M) {
     static std::once_flag init;
     std::call_once(init, [] { fftwf_init_threads(); });

@@ -1,5 +1,5 @@
 /**
- * GPU benchmarks in the layout of Table 1 of Viola et al. 2004 (issue 4): per slice size M and
+ * GPU benchmarks in the layout of Table 1 of Viola et al. 2004: per slice size M and
  * kernel, the slicing pass and the inverse 2D transform measured separately with GL timer
  * queries (slice pass unfused), and the end-to-end frame as the workstation renders it (slice
  * fused into the row FFT pass, display mapping into the last pass: line integrals to an 8-bit

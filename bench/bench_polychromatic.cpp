@@ -1,5 +1,5 @@
 /**
- * Polychromatic X-ray frames (issue 19) on the CPU, on the chest phantom (160^3, 420 mm) at
+ * Polychromatic X-ray frames on the CPU, on the chest phantom (160^3, 420 mm) at
  * M = 512, AP view:
  *   BM_MonoFrame        one monochromatic frame (one spectrum, mu mapping), for comparison
  *   BM_PolyFrame/k      the polychromatic frame: k material frames + the spectral sum

@@ -8,7 +8,7 @@
 Per (N, transform, M): the slicing rate of every kernel (slice fps), the inverse 2D transform's
 rate (the median over the kernels: it does not depend on them), the whole frame in ms per kernel,
 and the frame in units of one bare M x M complex FFTW transform measured in the same run
-(BM_BareFft: issue #17's yardstick). A cell is the median over the repetitions whose other_cores
+(BM_BareFft: the yardstick a frame is measured in). A cell is the median over the repetitions whose other_cores
 (CPU used by other processes meanwhile) is below 0.25; if none is that quiet, the least
 disturbed one, marked *."""
 import collections

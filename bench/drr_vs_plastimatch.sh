@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# DRR batch benchmark (issue #17): a fvr-render --sweep of a CT against `plastimatch drr -i exact`
+# DRR batch benchmark: a fvr-render --sweep of a CT against `plastimatch drr -i exact`
 # on the same CT and detector, timed in the same run; prints a Markdown table.
 #
 # Usage: bench/drr_vs_plastimatch.sh [FVR_RENDER] [CT_DIR] [PLASTIMATCH_VIEWS]

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Peak memory per input voxel of one fvr-render job (issue #17): a built-in N^3 phantom rendered
+# Peak memory per input voxel of one fvr-render job: a built-in N^3 phantom rendered
 # to one SIZE x SIZE view, for each oversampling, transform and kernel; prints a Markdown table.
 #
 # Usage: bench/memory_per_voxel.sh [FVR_RENDER] [N]

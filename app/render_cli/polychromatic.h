@@ -1,5 +1,5 @@
 #pragma once
-/** fvr-render --kvp: the polychromatic run (issue 19). */
+/** fvr-render --kvp: the polychromatic run. */
 #include <vector>
 
 #include <fvr/core/render/view.h>

@@ -330,7 +330,7 @@ TEST(FvrRender, DicomFolderInfoListsSeriesWithWarnings) {
     EXPECT_NE(warnings.find("uneven slice spacing"), std::string::npos) << r.output;
 }
 
-// #15 item 10: --info says once what the scan skipped (here the folder's README.md).
+// --info says once what the scan skipped (here the folder's README.md).
 TEST(FvrRender, DicomFolderInfoSaysWhatWasSkipped) {
     FVR_REQUIRE_DATA("dicom_edge/enhanced_multiframe_mr");
     const auto dir = fvr::test::sharedData() / "dicom_edge/enhanced_multiframe_mr";

@@ -1,4 +1,4 @@
-// fvr-render --kvp (issue 19) end to end: I/I0 against the exact spectral sum of the written
+// fvr-render --kvp end to end: I/I0 against the exact spectral sum of the written
 // material line integrals, the materials against the monochromatic mu projection (they keep
 // the attenuation at 70 keV), kVp, noise, the sidecar and the option errors.
 #include <cmath>

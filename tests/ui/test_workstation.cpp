@@ -159,7 +159,7 @@ static bool waitAllViewsReady(MainWindow& w) {
         60000);
 }
 
-// #16: on a software OpenGL (llvmpipe, slower than the CPU renderer) the views render on the
+// On a software OpenGL (llvmpipe, slower than the CPU renderer) the views render on the
 // CPU and the status bar says why; View ▸ Use a software GPU takes it anyway. A hardware GPU is
 // always used.
 TEST_F(Workstation, SoftwareOpenGlRendersOnTheCpu) {
@@ -188,7 +188,7 @@ TEST_F(Workstation, SoftwareOpenGlRendersOnTheCpu) {
     }
 }
 
-// #15 item 2: compare mode is fair: gridding correction stays on, every kernel renders from its
+// Compare mode is fair: gridding correction stays on, every kernel renders from its
 // own corrected spectrum, every view's mean is that of the single view, the memory is shown,
 // and single view comes back as it was.
 TEST_F(Workstation, CompareViewRendersEachKernelAtItsBest) {
@@ -249,7 +249,7 @@ TEST_F(Workstation, CompareViewRendersEachKernelAtItsBest) {
     EXPECT_EQ(window->views()[0]->window().high, singleWindow.high);
 }
 
-// #15 item 3: the difference views show the difference (not an empty view), in 2 and 4 views.
+// The difference views show the difference (not an empty view), in 2 and 4 views.
 TEST_F(Workstation, DifferenceViewsShowTheDifference) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
     for (int n : {2, 4}) {
@@ -274,7 +274,7 @@ TEST_F(Workstation, DifferenceViewsShowTheDifference) {
     }
 }
 
-// #15 item 4: no progress bar is left behind once the jobs of quick setting changes end
+// No progress bar is left behind once the jobs of quick setting changes end
 // (the GUI asked busy(), which races with the worker's last instructions).
 TEST_F(Workstation, NoProgressBarLeftAfterQuickChanges) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(64)));
@@ -369,7 +369,7 @@ TEST_F(Workstation, CancelDuringPreprocessingKeepsTheStudy) {
     ASSERT_TRUE(QTest::qWaitFor([&] { return window->cancelButton()->isVisible(); }, 5000));
     ASSERT_TRUE(window->study().busy()); // 200³ takes seconds: the cancel lands mid-job
     QTest::mouseClick(window->cancelButton(), Qt::LeftButton);
-    // #15 item 12: the cancel shows at once, while the job winds down.
+    // The cancel shows at once, while the job winds down.
     EXPECT_TRUE(window->progressBar()->format().startsWith("cancelling"))
         << window->progressBar()->format().toStdString();
     EXPECT_FALSE(window->cancelButton()->isEnabled());
@@ -380,7 +380,7 @@ TEST_F(Workstation, CancelDuringPreprocessingKeepsTheStudy) {
     EXPECT_EQ(window->study().volume()->dims[0], 36);
 }
 
-// #15 item 6: after a cancelled change the panel shows the settings in effect, and the
+// After a cancelled change the panel shows the settings in effect, and the
 // next study opens with them.
 TEST_F(Workstation, CancelledChangeLeavesThePanelShowingWhatIsInEffect) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(256)));
@@ -407,8 +407,8 @@ TEST_F(Workstation, CancelledChangeLeavesThePanelShowingWhatIsInEffect) {
     EXPECT_FALSE(window->progressBar()->isVisible());
 }
 
-// #15 item 6: the preset combo says where the window came from.
-// #15 item 12: orientation labels never under the overlay box (compare views), the last frame's
+// The preset combo says where the window came from.
+// Orientation labels never under the overlay box (compare views), the last frame's
 // time at rest instead of "0 fps", and Shift+R resets the view like R.
 TEST_F(Workstation, LabelsClearTheOverlayRestShowsFrameTimeShiftRResets) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(32)));
@@ -439,7 +439,7 @@ TEST_F(Workstation, LabelsClearTheOverlayRestShowsFrameTimeShiftRResets) {
     EXPECT_EQ(v->zoom(), 1.0);
 }
 
-// #15 item 12: the Bone preset shows the skull vault (thin bone seen edge-on), not only the
+// The Bone preset shows the skull vault (thin bone seen edge-on), not only the
 // skull base: on the Philips head phantom's lateral view the vault projects to 42 % of the range.
 TEST_F(Workstation, BonePresetKeepsTheSkullVault) {
     FVR_REQUIRE_DATA("dicom/ct_phantom_philips_512x512x140");
@@ -508,7 +508,7 @@ TEST_F(Workstation, MalformedStudyShowsTheErrorAndStaysUsable) {
     EXPECT_TRUE(window->views()[0]->projection().has_value());
 }
 
-// #15 item 10: a path that does not exist says so, and only studies that opened are recent.
+// A path that does not exist says so, and only studies that opened are recent.
 TEST_F(Workstation, MissingPathSaysSoAndIsNotRecent) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(32)));
     const auto missing = test::tmpDir() / "no_such_study.nii.gz";
@@ -528,7 +528,7 @@ TEST_F(Workstation, MissingPathSaysSoAndIsNotRecent) {
               QString::fromStdString(real.string()));
 }
 
-// #15 item 9: export dialogs never start in the study's own folder.
+// Export dialogs never start in the study's own folder.
 TEST_F(Workstation, ExportDialogsStartOutsideTheStudyFolder) {
     FVR_REQUIRE_DATA("dicom/ct_head_slicer_64x64x93");
     const auto dir = test::sharedData() / "dicom/ct_head_slicer_64x64x93";
@@ -545,7 +545,7 @@ TEST_F(Workstation, ExportDialogsStartOutsideTheStudyFolder) {
     EXPECT_EQ(MainWindow::exportFolder(), QString::fromStdString(out.string()));
 }
 
-// #15 item 8: the Study panel and the title show the patient, study and series of DICOM data.
+// The Study panel and the title show the patient, study and series of DICOM data.
 TEST_F(Workstation, StudyPanelShowsPatientStudyAndSeries) {
     FVR_REQUIRE_DATA("dicom/ct_phantom_philips_512x512x140");
     const auto dir = test::sharedData() / "dicom/ct_phantom_philips_512x512x140";
@@ -570,7 +570,7 @@ TEST_F(Workstation, StudyPanelShowsPatientStudyAndSeries) {
     EXPECT_TRUE(window->windowTitle().contains("headsq.mhd"));
 }
 
-// #15 item 7: a file without orientation says which one is assumed: Study panel, Messages and
+// A file without orientation says which one is assumed: Study panel, Messages and
 // the orientation labels; a file with one does not.
 TEST_F(Workstation, AssumedOrientationIsSaid) {
     FVR_REQUIRE_DATA("volumes/body_ct_hu_3mm/example_ct.mhd");
@@ -599,7 +599,7 @@ TEST_F(Workstation, OpensRealVolumeFile) {
               90.0);
 }
 
-// #15 item 1: the values follow the user, not the previous study. An MR study integrates raw
+// The values follow the user, not the previous study. An MR study integrates raw
 // values (not HU); the CT opened next gets attenuation again, also after another panel change.
 TEST_F(Workstation, ValuesDoNotCarryOverFromOneStudyToTheNext) {
     FVR_REQUIRE_DATA("volumes/mr_head_mhd/HeadMRVolume.mhd");
@@ -848,7 +848,7 @@ TEST_F(Workstation, ProgressiveRefinementHoldsTheTargetWhileDragging) {
     QTest::mouseRelease(v, Qt::LeftButton, Qt::NoModifier, c + QPoint(10, 0));
 }
 
-// #15 item 5: the frame rate held is the one the user sees (the wall clock from a drag step to
+// The frame rate held is the one the user sees (the wall clock from a drag step to
 // the frame on screen, display and every synchronised view included), also with 4 views: all of
 // them follow the drag, at a lower level, within the budget.
 TEST_F(Workstation, ProgressiveRefinementHoldsTheWallClockTargetInFourViews) {
@@ -1120,7 +1120,7 @@ TEST_F(Workstation, PanelSettingsPersistForTheNextWindow) {
     EXPECT_EQ(fresh.views()[0]->effects().filter, (core::SliceFilter{1.25, 2.0, 0.5}));
 }
 
-// Issue 19: the polychromatic output renders the material spectra (prepared once, in the
+// The polychromatic output renders the material spectra (prepared once, in the
 // background) through the spectral response; kVp, detector and what is shown re-render without
 // preprocessing again.
 TEST_F(Workstation, PolychromaticOutputRendersTheMaterialsWithoutPreprocessingAgain) {

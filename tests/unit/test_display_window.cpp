@@ -1,4 +1,4 @@
-// The film window (issue 14): the one rule for the display window of a projection, with and
+// The film window: the one rule for the display window of a projection, with and
 // without Beer-Lambert transmission.
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-// Polychromatic X-ray physics (issue 19): TASMIP spectra (tungsten K lines, kVp cut-off, HVL of
+// Polychromatic X-ray physics: TASMIP spectra (tungsten K lines, kVp cut-off, HVL of
 // the IEC 61267 RQR qualities), the monoenergetic limit (= Beer-Lambert), beam hardening in water
 // against a per-ray double-precision sum, materials from CT numbers (fractions, attenuation
 // preserved at the reference energy), the linearity of the material line integrals, a bone/water

@@ -1,4 +1,4 @@
-// The rules both renderers share (issue 14): the slice parameters against a hand-worked case and
+// The rules both renderers share: the slice parameters against a hand-worked case and
 // the slice filter's per-frame table against the filter's definition in double.
 #include <cmath>
 #include <limits>

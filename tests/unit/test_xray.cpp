@@ -1,4 +1,4 @@
-// X-ray image formation (issue 8): attenuation mappings, Beer-Lambert transmission, depth cueing
+// X-ray image formation: attenuation mappings, Beer-Lambert transmission, depth cueing
 // in the frequency domain against exact depth-weighted line integrals and the depth-weighted
 // spatial projector, and the slice filters against their definitions applied to the unfiltered
 // CPU image (spatial Gaussian convolution; FFTW in double).
