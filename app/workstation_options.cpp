@@ -7,6 +7,8 @@
 #include <QRegularExpression>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/render/render_settings.h>
+#include <fvr/core/text.h>
 #include <fvr/ui/main_window.h>
 #include <fvr/ui/panels/rendering_panel.h>
 
@@ -89,9 +91,12 @@ WorkstationOptions parseWorkstationOptions(const QApplication& app) {
     if (int(o.kernels.size()) > o.compare || int(o.voxelModels.size()) > o.compare)
         throw core::SettingsError("--kernel, --voxel-model: at most one per view (--compare)");
     if (p.isSet("size")) {
-        o.size = positiveInt(p, "size");
-        if (*o.size < 128 || *o.size > 2048 || (*o.size & (*o.size - 1)) != 0)
-            throw core::SettingsError("--size: expected 128, 256, 512, 1024 or 2048");
+        o.size = parsed("size", p.value("size"), [](const std::string& s) {
+            const auto m = core::parseNumber<int>(s);
+            if (!m) throw core::SettingsError("expected a whole number, found '" + s + "'");
+            core::validateSettingsSize(*m);
+            return *m;
+        });
     }
     if (p.isSet("window-size")) {
         const auto m = QRegularExpression("^(\\d+)x(\\d+)$").match(p.value("window-size"));

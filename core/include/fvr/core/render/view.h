@@ -54,8 +54,9 @@ struct ColumnRange {
 };
 ColumnRange volumeShadowColumns(const ViewFrame& view, const Vec3& half, int M, double d, int row);
 
-/** Checks that M is a power of two in [16, 4096] (the renderers accept 128..2048 in the UI; tests
- *  use smaller ones) and pixel size > 0; throws SettingsError. */
+/** Checks that M is a power of two in [16, 4096] and pixel size > 0; throws SettingsError. The
+ *  renderers' own range: users choose from RenderSettings' sizes (render_settings.h), and the
+ *  progressive refinement's interactive levels render smaller ones. */
 void validateImageGeometry(const ImageGeometry& g);
 
 /** How far the image's span M d may stray from the volume's diagonal (the default pixel size
