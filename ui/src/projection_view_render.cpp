@@ -148,20 +148,21 @@ void ProjectionView::windowFromFrame() {
 std::optional<core::ProjectionImage> ProjectionView::projection() {
     if (!m_spectrum || !m_volume) return std::nullopt;
     const bool poly = m_poly && !m_poly->spectra.empty();
+    const auto full = [this] { return renderParams(m_settings.size, m_settings.kernel); };
     if (!m_glReady) {
-        if (poly) return renderPolychromatic(renderParams(m_settings.size, m_settings.kernel));
-        return floatRenderer().render(renderParams(m_settings.size, m_settings.kernel));
+        if (poly) return renderPolychromatic(full());
+        return floatRenderer().render(full());
     }
     makeCurrent();
     std::optional<core::ProjectionImage> img;
     try {
         renderIfNeeded(true); // exports and measurements always get the full-quality frame
         if (poly && m_reference)
-            img = renderPolychromatic(renderParams(m_settings.size, m_settings.kernel));
+            img = renderPolychromatic(full());
         else if (m_polyOnGpu || (m_gpu && !poly))
             img = shownGpu().readback(); // the view's own projection, also in difference mode
         else if (m_reference && m_cpuImage)
-            img = floatRenderer().render(renderParams(m_settings.size, m_settings.kernel));
+            img = floatRenderer().render(full());
         else
             img = m_cpuImage;
     } catch (const std::exception&) {
