@@ -8,6 +8,7 @@
 #include <fvr/core/render/cpu_batch.h>
 #include <fvr/core/thread_pool.h>
 #ifdef FVR_HAVE_GPU
+#include <fvr/gpu/choose_renderer.h>
 #include <fvr/gpu/egl_context.h>
 #include <fvr/gpu/gl_info.h>
 #include <fvr/gpu/gpu_renderer.h>
@@ -39,6 +40,12 @@ std::vector<core::ProjectionImage> RenderBackend::renderBatch(
 
 namespace {
 
+#ifndef FVR_HAVE_GPU
+void sayBuiltWithoutGpu() {
+    std::fprintf(stderr, "fvr-render: built without the GPU renderer; rendering on the CPU\n");
+}
+#endif
+
 class CpuBackend final : public RenderBackend {
 public:
     CpuBackend(std::shared_ptr<const core::Spectrum> spectrum, int threads)
@@ -56,19 +63,34 @@ private:
 };
 
 #ifdef FVR_HAVE_GPU
-/** A headless EGL OpenGL 4.3 context (no X server, no Qt) and the GPU renderer. */
+/** What gpu::chooseRenderer gets from the options: the GPU's use (--backend), a headless EGL
+ *  context made into `context`, the spectra and their precision (--fp16). */
+template <class ContextPtr>
+fvr::gpu::RendererRequest gpuRequest(const Options& o, ContextPtr& context,
+                                     std::vector<std::shared_ptr<const core::Spectrum>> spectra) {
+    fvr::gpu::RendererRequest r;
+    r.use = o.backend == Options::Backend::Gpu ? fvr::gpu::GpuUse::Any : fvr::gpu::GpuUse::Hardware;
+    r.makeContext = [&context] { context.reset(new fvr::gpu::EglContext); };
+    r.spectra = std::move(spectra);
+    r.precision =
+        o.fp16 ? fvr::gpu::SpectrumPrecision::Float16 : fvr::gpu::SpectrumPrecision::Float32;
+    return r;
+}
+
+/** Says on stderr why the CPU renders, where the GPU was allowed. */
+void sayWhyCpu(const fvr::gpu::RendererChoice& choice) {
+    if (choice.reason.empty()) return;
+    std::fprintf(stderr, "fvr-render: %s%s\n", choice.reason.c_str(),
+                 choice.why == fvr::gpu::CpuReason::SoftwareGl ? " (--backend gpu uses it anyway)"
+                                                               : "");
+}
+
+/** A headless EGL OpenGL 4.3 context (no X server, no Qt) and the GPU renderer on it. */
 class GpuBackend final : public RenderBackend {
 public:
-    explicit GpuBackend(bool fp16) : m_fp16(fp16) {
-        m_context = std::make_unique<fvr::gpu::EglContext>();
-        m_renderer = std::make_unique<fvr::gpu::GpuFourierRenderer>();
-    }
-    /** Uploads the spectrum (after construction: a failure here still releases the GL objects
-     *  with the context current). */
-    void setSpectrum(std::shared_ptr<const core::Spectrum> spectrum) {
-        m_renderer->setSpectrum(std::move(spectrum), m_fp16 ? fvr::gpu::SpectrumPrecision::Float16
-                                                            : fvr::gpu::SpectrumPrecision::Float32);
-    }
+    GpuBackend(std::unique_ptr<fvr::gpu::EglContext> context,
+               std::unique_ptr<fvr::gpu::GpuFourierRenderer> renderer, bool fp16)
+        : m_fp16(fp16), m_context(std::move(context)), m_renderer(std::move(renderer)) {}
     ~GpuBackend() override {
         if (m_renderer && m_context) {
             m_context->makeCurrent();
@@ -122,31 +144,18 @@ BenchFrames GpuBackend::timeFrames(const core::RenderParams& warmUp,
 
 std::unique_ptr<RenderBackend> makeRenderBackend(const Options& o,
                                                  std::shared_ptr<const core::Spectrum> spectrum) {
-    using Backend = Options::Backend;
+    if (o.backend != Options::Backend::Cpu) {
 #ifdef FVR_HAVE_GPU
-    if (o.backend != Backend::Cpu) {
-        try {
-            auto gpu = std::make_unique<GpuBackend>(o.fp16);
-            const fvr::gpu::GlInfo info = fvr::gpu::currentGlInfo();
-            if (o.backend == Backend::Auto && info.software()) {
-                // Software OpenGL is slower than the CPU renderer (README, GPU renderer).
-                std::fprintf(stderr,
-                             "fvr-render: the GPU is a software renderer (%s): rendering on the "
-                             "CPU, which is faster here (--backend gpu uses it anyway)\n",
-                             info.renderer.c_str());
-            } else {
-                gpu->setSpectrum(spectrum);
-                return gpu;
-            }
-        } catch (const std::exception& e) {
-            std::fprintf(stderr, "fvr-render: GPU backend unavailable (%s); rendering on the CPU\n",
-                         e.what());
-        }
-    }
+        std::unique_ptr<fvr::gpu::EglContext> context;
+        auto choice = fvr::gpu::chooseRenderer(gpuRequest(o, context, {spectrum}));
+        if (choice.onGpu())
+            return std::make_unique<GpuBackend>(std::move(context), std::move(choice.gpu.front()),
+                                                o.fp16);
+        sayWhyCpu(choice);
 #else
-    if (o.backend != Backend::Cpu)
-        std::fprintf(stderr, "fvr-render: built without the GPU renderer; rendering on the CPU\n");
+        sayBuiltWithoutGpu();
 #endif
+    }
     return std::make_unique<CpuBackend>(std::move(spectrum), o.threads);
 }
 
@@ -158,12 +167,8 @@ namespace {
 class SharedContextRenderer final : public core::Renderer {
 public:
     SharedContextRenderer(std::shared_ptr<fvr::gpu::EglContext> context,
-                          std::shared_ptr<const core::Spectrum> spectrum, bool fp16)
-        : m_context(std::move(context)),
-          m_renderer(std::make_unique<fvr::gpu::GpuFourierRenderer>()) {
-        m_renderer->setSpectrum(std::move(spectrum), fp16 ? fvr::gpu::SpectrumPrecision::Float16
-                                                          : fvr::gpu::SpectrumPrecision::Float32);
-    }
+                          std::unique_ptr<fvr::gpu::GpuFourierRenderer> renderer)
+        : m_context(std::move(context)), m_renderer(std::move(renderer)) {}
     ~SharedContextRenderer() override {
         m_context->makeCurrent();
         m_renderer.reset();
@@ -181,29 +186,20 @@ private:
     std::unique_ptr<fvr::gpu::GpuFourierRenderer> m_renderer;
 };
 
-/** The GPU renderers of the materials, or none (saying why) where the CPU is to be used. */
+/** The GPU renderers of the materials on one context, or none (saying why) where the CPU is to
+ *  be used. */
 std::vector<std::unique_ptr<core::Renderer>> gpuMaterialRenderers(
     const Options& o, const std::vector<std::shared_ptr<const core::Spectrum>>& spectra,
     std::string& name) {
+    std::shared_ptr<fvr::gpu::EglContext> context;
+    auto choice = fvr::gpu::chooseRenderer(gpuRequest(o, context, spectra));
     std::vector<std::unique_ptr<core::Renderer>> out;
-    try {
-        auto context = std::make_shared<fvr::gpu::EglContext>();
-        const fvr::gpu::GlInfo info = fvr::gpu::currentGlInfo();
-        if (o.backend == Options::Backend::Auto && info.software()) {
-            std::fprintf(stderr,
-                         "fvr-render: the GPU is a software renderer (%s): rendering on "
-                         "the CPU (--backend gpu uses it anyway)\n",
-                         info.renderer.c_str());
-            return out;
-        }
-        for (const auto& s : spectra)
-            out.push_back(std::make_unique<SharedContextRenderer>(context, s, o.fp16));
-        name = "gpu: " + info.renderer + (o.fp16 ? ", fp16" : "");
-    } catch (const std::exception& e) {
-        out.clear();
-        std::fprintf(stderr, "fvr-render: GPU backend unavailable (%s); rendering on the CPU\n",
-                     e.what());
-    }
+    for (auto& gpu : choice.gpu)
+        out.push_back(std::make_unique<SharedContextRenderer>(context, std::move(gpu)));
+    if (out.empty())
+        sayWhyCpu(choice);
+    else
+        name = "gpu: " + choice.gl.renderer + (o.fp16 ? ", fp16" : "");
     return out;
 }
 #endif
@@ -213,15 +209,14 @@ std::vector<std::unique_ptr<core::Renderer>> gpuMaterialRenderers(
 std::vector<std::unique_ptr<core::Renderer>> makeMaterialRenderers(
     const Options& o, const std::vector<std::shared_ptr<const core::Spectrum>>& spectra,
     std::string& name) {
+    if (o.backend != Options::Backend::Cpu && !spectra.empty()) {
 #ifdef FVR_HAVE_GPU
-    if (o.backend != Options::Backend::Cpu) {
         auto gpu = gpuMaterialRenderers(o, spectra, name);
         if (!gpu.empty()) return gpu;
-    }
 #else
-    if (o.backend != Options::Backend::Cpu)
-        std::fprintf(stderr, "fvr-render: built without the GPU renderer; rendering on the CPU\n");
+        sayBuiltWithoutGpu();
 #endif
+    }
     std::vector<std::unique_ptr<core::Renderer>> out;
     for (const auto& s : spectra)
         out.push_back(std::make_unique<core::CpuFourierRenderer>(s, o.threads));

@@ -45,13 +45,14 @@ public:
         const std::vector<core::RenderParams>& params);
 };
 
-/** The renderer of --backend holding `spectrum`. The GPU falls back to the CPU, saying why on
+/** The renderer of --backend holding `spectrum`, chosen by gpu::chooseRenderer's rule (auto: a
+ *  hardware GPU only; gpu: a software one too). The GPU falls back to the CPU, saying why on
  *  stderr, where no GPU is usable or the program is built without the GPU renderer. */
 std::unique_ptr<RenderBackend> makeRenderBackend(const Options& o,
                                                  std::shared_ptr<const core::Spectrum> spectrum);
 
 /** The renderers of --kvp, one per material spectrum: GPU renderers sharing one headless EGL
- *  context where --backend picks the GPU (the same rule and fallback as makeRenderBackend),
+ *  context where --backend picks the GPU (gpu::chooseRenderer, as makeRenderBackend),
  *  else single CPU renderers with o.threads. `name` gets the backend's name. */
 std::vector<std::unique_ptr<core::Renderer>> makeMaterialRenderers(
     const Options& o, const std::vector<std::shared_ptr<const core::Spectrum>>& spectra,

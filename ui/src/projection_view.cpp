@@ -14,9 +14,6 @@
 #include <numbers>
 
 #include <fvr/core/xray/display_window.h>
-#include <fvr/core/xray/patient_views.h>
-#include <fvr/gpu/errors.h>
-#include <fvr/gpu/gl_info.h>
 #include <fvr/gpu/gpu_renderer.h>
 
 namespace fvr::ui {
@@ -116,24 +113,6 @@ void ProjectionView::setPolychromatic(std::shared_ptr<const PolychromaticSource>
     update();
 }
 
-core::ProjectionImage ProjectionView::renderPolychromatic(const core::RenderParams& params,
-                                                          core::StageTimes* times) {
-    if (!m_polyRenderer) {
-        std::vector<std::unique_ptr<core::Renderer>> renderers;
-        for (const auto& s : m_poly->spectra)
-            renderers.push_back(std::make_unique<core::CpuFourierRenderer>(s));
-        m_polyRenderer =
-            std::make_unique<core::PolychromaticRenderer>(std::move(renderers), m_poly->response);
-    } else {
-        m_polyRenderer->setResponse(m_poly->response);
-    }
-    core::PolychromaticFrame f = m_polyRenderer->render(
-        params, m_poly->noise, times, core::SpectralResponse::Output::NegativeLog);
-    if (m_poly->show >= 0 && std::size_t(m_poly->show) < f.massThickness.size())
-        return std::move(f.massThickness[std::size_t(m_poly->show)]);
-    return std::move(f.transmission); // -ln(I/I0), the quantity shown
-}
-
 void ProjectionView::setTargetFps(double fps) {
     m_progressive.setTargetFps(fps);
     m_renderDirty = true;
@@ -224,7 +203,6 @@ void ProjectionView::initializeGL() {
         doneCurrent();
     });
     m_glReady = true;
-    m_softwareGl = gpu::currentGlInfo().software();
     chooseRenderer();
     m_quad = std::make_unique<QOpenGLShaderProgram>();
     m_quad->addShaderFromSourceCode(QOpenGLShader::Vertex, kQuadVertex);
@@ -233,25 +211,6 @@ void ProjectionView::initializeGL() {
     m_vao = std::make_unique<QOpenGLVertexArrayObject>();
     m_vao->create();
     emit backendChanged(m_gpu != nullptr, backendNotice());
-}
-
-void ProjectionView::chooseRenderer() {
-    m_gpu.reset();
-    m_polyGpu.clear();
-    m_polyGpuSpectra.clear();
-    m_polyOnGpu = false;
-    m_cpu.reset();
-    m_spectrumDirty = true;
-    m_renderDirty = true;
-    m_notice.clear();
-    if (m_softwareGl && !m_allowSoftwareGpu) return; // the CPU renderer: faster here
-    try {
-        m_gpu = std::make_unique<gpu::GpuFourierRenderer>(context()->shareGroup());
-    } catch (const std::exception& e) {
-        m_gpu.reset();
-        m_notice = tr("GPU renderer unavailable (%1): rendering on the CPU")
-                       .arg(QString::fromUtf8(e.what()));
-    }
 }
 
 void ProjectionView::setAllowSoftwareGpu(bool allow) {
@@ -267,113 +226,6 @@ void ProjectionView::setAllowSoftwareGpu(bool allow) {
 
 void ProjectionView::resizeGL(int, int) {}
 
-core::Renderer& ProjectionView::floatRenderer() {
-    if (m_gpu) return *m_gpu;
-    if (!m_cpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
-    return *m_cpu;
-}
-
-void ProjectionView::uploadSpectrumIfNeeded() {
-    if (!m_spectrumDirty) return;
-    m_spectrumDirty = false;
-    m_renderDirty = true;
-    if (m_gpu) {
-        try {
-            m_gpu->setSpectrum(m_spectrum);
-        } catch (const std::exception& e) {
-            m_gpu.reset();
-            m_notice = tr("GPU renderer unavailable (%1): rendering on the CPU")
-                           .arg(QString::fromUtf8(e.what()));
-            emit backendChanged(false, m_notice);
-        }
-    }
-    if (!m_gpu) m_cpu = std::make_unique<core::CpuFourierRenderer>(m_spectrum);
-}
-
-void ProjectionView::renderIfNeeded(bool fullQuality) {
-    if (!m_spectrum || !m_volume) return;
-    uploadSpectrumIfNeeded();
-    m_progressive.setLevels(core::progressiveLevels(m_settings.size, m_settings.kernel,
-                                                    m_spectrum->deapodizedFor.has_value(),
-                                                    std::min(64, m_settings.size)));
-    // Difference views compare full-quality frames (the reference renders full quality too).
-    const int level = (fullQuality || m_reference) ? 0 : m_progressive.level();
-    if (level != m_renderedLevel) m_renderDirty = true;
-    if (!m_renderDirty) return;
-    const core::QualityLevel q = m_progressive.levels()[std::size_t(level)];
-    renderFrame(renderParams(q.size, q.kernel),
-                level); // same field of view at every level: d = diagonal / M
-    m_renderedLevel = level;
-    m_renderedQuality = q;
-    if (m_reference && m_reference != this) subtractReference();
-    if (!m_windowSet) windowFromFrame();
-    m_renderDirty = false; // only after a frame really exists
-    ++m_frames;
-    emit rendered();
-}
-
-void ProjectionView::renderFrame(const core::RenderParams& params, int level) {
-    m_polyOnGpu = m_polySumOnGpu = false;
-    if (m_poly && !m_poly->spectra.empty()) {
-        if (m_gpu && renderPolychromaticOnGpu(params)) return;
-        core::StageTimes t;
-        m_cpuImage = renderPolychromatic(params, &t);
-        m_stats.sliceMs = t.sliceMs;
-        m_stats.inverseMs = t.inverseMs;
-        m_stats.totalMs = t.totalMs;
-        m_stats.fused = false;
-        m_stats.displayFused = false;
-        return;
-    }
-    m_polyGpu.clear(); // the material frames' GPU memory goes with the polychromatic output
-    m_polyGpuSpectra.clear();
-    if (m_gpu) {
-        // With a window already set (and no difference to map), the last pass of the inverse
-        // transform also writes the display texture; paintGL's displayTexture() then costs nothing.
-        // Stage times are read in paintGL.
-        const bool fuseDisplay = m_windowSet && !(m_reference && m_reference != this);
-        m_gpu->renderToGpu(params, fuseDisplay ? &m_window : nullptr);
-        m_gpuTimesPending = true;
-        m_cpuImage.reset();
-        return;
-    }
-    core::StageTimes t;
-    m_cpuImage = floatRenderer().render(params, &t);
-    m_stats.sliceMs = t.sliceMs;
-    m_stats.inverseMs = t.inverseMs;
-    m_stats.totalMs = t.totalMs;
-    m_stats.fused = false;
-    m_stats.displayFused = false;
-}
-
-void ProjectionView::subtractReference() {
-    auto own = (m_gpu && !m_poly) || m_polyOnGpu
-                   ? std::optional<core::ProjectionImage>(shownGpu().readback())
-                   : m_cpuImage;
-    auto ref = m_reference->projection();
-    // The reference made its own context current (and released it): this view's again, or the
-    // frame's texture goes to no context and the view stays empty.
-    makeCurrent();
-    if (!own || !ref || ref->size != own->size) return;
-    double maxAbs = 0;
-    for (std::size_t i = 0; i < own->pixels.size(); ++i) {
-        own->pixels[i] -= ref->pixels[i];
-        maxAbs = std::max(maxAbs, double(std::abs(own->pixels[i])));
-    }
-    m_cpuImage = own;
-    if (!m_windowSet) {
-        m_window = {-maxAbs, maxAbs > 0 ? maxAbs : 1.0, false};
-        m_windowSet = true;
-    }
-}
-
-void ProjectionView::windowFromFrame() {
-    auto img = m_cpuImage ? *m_cpuImage : shownGpu().readback();
-    m_window = core::filmWindow(img.pixels, m_window.transmission, m_window.invert);
-    m_windowSet = true;
-    emit windowChanged(m_window, false);
-}
-
 QRectF ProjectionView::imageRect() const {
     const double side = std::min(width(), height()) * m_zoom;
     return {width() / 2.0 - side / 2.0 + m_pan.x(), height() / 2.0 - side / 2.0 + m_pan.y(), side,
@@ -385,12 +237,7 @@ GLuint ProjectionView::frameTexture() {
         const GLuint tex = shownGpu().displayTexture(m_window);
         const auto t = shownGpu().lastTimes();
         if (m_gpuTimesPending) {
-            m_stats.sliceMs = t.sliceMs;
-            m_stats.inverseMs = t.inverseMs;
-            m_stats.totalMs = t.totalMs;
-            m_stats.fused = t.fused;
-            m_stats.displayFused = t.displayFused;
-            m_stats.displayMs = t.displayMs;
+            recordStageTimes(t, true);
             m_gpuTimesPending = false;
         }
         return tex;
@@ -487,237 +334,47 @@ void ProjectionView::paintGL() {
     drawOverlay();
 }
 
-namespace {
-/** Text with a dark halo stays readable on bright (bone) and dark (air) parts of the image. */
-void drawHaloText(QPainter& p, const QRectF& r, int flags, const QString& text,
-                  const QColor& color) {
-    p.setPen(QColor(0, 0, 0, 200));
-    for (const QPointF& o : {QPointF(-1, 0), QPointF(1, 0), QPointF(0, -1), QPointF(0, 1)})
-        p.drawText(r.translated(o), flags, text);
-    p.setPen(color);
-    p.drawText(r, flags, text);
+OverlayState ProjectionView::overlayState() const {
+    OverlayState s;
+    s.widget = size();
+    s.image = imageRect();
+    s.font = font();
+    s.hasImage = m_spectrum != nullptr;
+    s.pending = m_pending;
+    s.title = m_title;
+    s.performance = m_overlay;
+    if (m_reference) s.differenceTo = m_reference->m_title;
+    s.labels = orientationLabels();
+    s.notice = m_renderError.isEmpty() ? m_notice : m_renderError + '\n' + m_notice;
+    s.shown = m_renderedQuality;
+    s.gpu = m_gpu != nullptr;
+    s.voxelModel = m_settings.voxelModel;
+    s.effects = m_effects;
+    s.stats = m_stats;
+    s.interacting = m_progressive.interacting();
+    s.progressive = m_progressive.enabled();
+    s.targetFps = m_progressive.targetFps();
+    s.level = m_renderedLevel;
+    s.lastLevel = int(m_progressive.levels().size()) - 1;
+    s.window = m_window;
+    return s;
 }
-} // namespace
 
 void ProjectionView::drawOverlay() {
     QPainter p(this);
-    p.setRenderHint(QPainter::TextAntialiasing);
-    p.setFont(overlayFont());
-    if (!m_spectrum) {
-        p.setPen(QColor(180, 180, 180));
-        p.drawText(
-            rect().adjusted(12, 12, -12, -12), Qt::AlignCenter | Qt::TextWordWrap,
-            m_pending.isEmpty()
-                ? tr("No study loaded\nFile ▸ Open, or drop a DICOM folder or volume file here")
-                : m_pending);
-        if (!m_title.isEmpty())
-            drawHaloText(p, rect().adjusted(8, 6, -8, -6), Qt::AlignLeft | Qt::AlignTop, m_title,
-                         QColor(140, 240, 140));
-        return;
-    }
-    // The overlay's text, its box and the labels that keep clear of it: once per frame.
-    const QString text = overlayText();
-    const QRect box = overlayBox(text);
-    if (m_volume) drawOrientationLabels(p, box);
-    if (!text.isEmpty()) {
-        p.fillRect(box, QColor(0, 0, 0, 150));
-        p.setPen(QColor(140, 240, 140));
-        p.drawText(box.adjusted(4, 2, -4, -2), Qt::AlignLeft | Qt::AlignTop, text);
-    }
-    const QString notice = m_renderError.isEmpty() ? m_notice : m_renderError + '\n' + m_notice;
-    if (!notice.trimmed().isEmpty()) {
-        const QRect area(8, 6, width() - 16, height() - 12);
-        const QRect noticeBox = p.fontMetrics().boundingRect(
-            area, Qt::AlignLeft | Qt::AlignBottom | Qt::TextWordWrap, notice.trimmed());
-        p.fillRect(noticeBox.adjusted(-4, -2, 4, 2), QColor(0, 0, 0, 170));
-        p.setPen(QColor(255, 130, 110));
-        p.drawText(noticeBox, Qt::AlignLeft | Qt::AlignBottom | Qt::TextWordWrap, notice.trimmed());
-    }
+    overlay().paint(p);
 }
 
 QStringList ProjectionView::orientationLabels() const {
     if (!m_volume) return {};
-    // A file without orientation: the labels follow the assumed one and say so.
-    const QString assumed = m_volume->orientationStated ? QString() : tr(" (assumed)");
-    auto lbl = [&](const core::Vec3& v) {
-        return QString::fromStdString(core::patientDirectionLabel(*m_volume, v)) + assumed;
-    };
-    const core::Vec3 neg_r{-m_view.r[0], -m_view.r[1], -m_view.r[2]};
-    const core::Vec3 neg_u{-m_view.u[0], -m_view.u[1], -m_view.u[2]};
-    return {lbl(neg_r), lbl(m_view.r), lbl(m_view.u), lbl(neg_u)};
+    return ViewOverlay::orientationLabels(*m_volume, m_view);
 }
 
-QFont ProjectionView::overlayFont(bool bold) const {
-    QFont f = font();
-    f.setPointSizeF(std::max(8.0, f.pointSizeF()));
-    f.setBold(bold);
-    return f;
-}
+QString ProjectionView::overlayText() const { return overlay().text(); }
 
-QString ProjectionView::overlayText() const {
-    QStringList lines;
-    if (!m_title.isEmpty()) lines << m_title;
-    if (m_overlay) lines << overlayLines();
-    if (m_reference) lines << tr("difference to %1").arg(m_reference->m_title);
-    return lines.join('\n');
-}
+QRect ProjectionView::overlayBox() const { return overlay().box(); }
 
-QRect ProjectionView::overlayBox() const { return overlayBox(overlayText()); }
-
-QRect ProjectionView::overlayBox(const QString& text) const {
-    if (text.isEmpty() || !m_spectrum) return {};
-    const QRect box = QFontMetrics(overlayFont())
-                          .boundingRect(QRect(8, 6, width() - 16, height() - 12),
-                                        Qt::AlignLeft | Qt::AlignTop, text);
-    return box.adjusted(-4, -2, 4, 2);
-}
-
-QList<QRect> ProjectionView::orientationLabelRects() const {
-    return orientationLabelRects(orientationLabels(), overlayBox());
-}
-
-QList<QRect> ProjectionView::orientationLabelRects(const QStringList& labels,
-                                                   const QRect& avoid) const {
-    if (labels.size() != 4) return {}; // left, right, top, bottom
-    const QFontMetrics fm(overlayFont(true));
-    const QRect r = imageRect().intersected(QRectF(rect())).toAlignedRect();
-    const int pad = 6;
-    const QRect inner = r.adjusted(pad, pad, -pad, -pad);
-    const int flags[4] = {Qt::AlignLeft | Qt::AlignVCenter, Qt::AlignRight | Qt::AlignVCenter,
-                          Qt::AlignHCenter | Qt::AlignTop, Qt::AlignHCenter | Qt::AlignBottom};
-    QList<QRect> rects;
-    for (int i = 0; i < 4; ++i) {
-        QRect b = fm.boundingRect(inner, flags[i], labels[i]);
-        // Never under the overlay box (compare views: their image starts at the top): below it,
-        // or right of it where below would leave the image (a small view).
-        if (!avoid.isNull() && b.intersects(avoid)) {
-            const QRect below = b.translated(0, avoid.bottom() + 3 - b.top());
-            if (below.bottom() < inner.bottom() - 2 * b.height())
-                b = below;
-            else
-                b.moveLeft(std::max(b.left(), avoid.right() + 6));
-        }
-        rects << b;
-    }
-    return rects;
-}
-
-void ProjectionView::drawOrientationLabels(QPainter& p, const QRect& overlay) {
-    const QColor label(255, 210, 80);
-    const QFont font = p.font();
-    const QStringList labels = orientationLabels();
-    const QList<QRect> rects = orientationLabelRects(labels, overlay);
-    p.setFont(overlayFont(true));
-    for (int i = 0; i < int(rects.size()); ++i)
-        drawHaloText(p, rects[i], Qt::AlignLeft | Qt::AlignTop, labels[i], label);
-    p.setFont(font);
-}
-
-QStringList ProjectionView::overlayLines() const {
-    QStringList lines;
-    const core::QualityLevel shown = m_renderedQuality;
-    // While dragging the frame rate the user sees; at rest the last frame's time.
-    const QString speed =
-        m_stats.wallMs <= 0 ? QStringLiteral("–")
-        : m_progressive.interacting()
-            ? QStringLiteral("%1 fps").arg(1000.0 / std::max(1.0, m_stats.wallMs), 0, 'f', 0)
-            : tr("frame %1 ms").arg(m_stats.wallMs, 0, 'f', 0);
-    lines << QStringLiteral("%1  %2  %3×%3  %4  %5 voxels%6")
-                 .arg(speed)
-                 .arg(QString::fromUtf8(core::kernelName(shown.kernel)))
-                 .arg(shown.size)
-                 .arg(m_gpu ? QStringLiteral("GPU") : QStringLiteral("CPU"))
-                 .arg(QString::fromUtf8(core::voxelModelLabel(m_settings.voxelModel)))
-                 .arg(m_effects.pixelAperture ? tr(", area pixels") : QString());
-    if (m_progressive.enabled())
-        lines << (m_renderedLevel == 0 ? tr("full quality (interactive target %1 fps)")
-                                             .arg(m_progressive.targetFps(), 0, 'f', 0)
-                                       : tr("interactive level %1/%2 (target %3 fps)")
-                                             .arg(m_renderedLevel)
-                                             .arg(m_progressive.levels().size() - 1)
-                                             .arg(m_progressive.targetFps(), 0, 'f', 0));
-    const QStringList fx = effectsSummary();
-    if (!fx.isEmpty()) lines << fx.join(QStringLiteral("  "));
-    if (m_stats.fused && m_stats.displayFused)
-        lines << QStringLiteral("slice+inverse+display %1 ms (fused)")
-                     .arg(m_stats.inverseMs, 0, 'f', 2);
-    else if (m_stats.fused)
-        lines << QStringLiteral("slice+inverse %1 ms  display %2 ms")
-                     .arg(m_stats.inverseMs, 0, 'f', 2)
-                     .arg(m_stats.displayMs, 0, 'f', 2);
-    else if (m_gpu)
-        lines << QStringLiteral("slice %1  inverse %2  display %3 ms")
-                     .arg(m_stats.sliceMs, 0, 'f', 2)
-                     .arg(m_stats.inverseMs, 0, 'f', 2)
-                     .arg(m_stats.displayMs, 0, 'f', 2);
-    else // the CPU renderer's stages (the display is the upload, in the frame time)
-        lines << QStringLiteral("slice %1  inverse %2 ms")
-                     .arg(m_stats.sliceMs, 0, 'f', 2)
-                     .arg(m_stats.inverseMs, 0, 'f', 2);
-    lines << QStringLiteral("W %1  L %2")
-                 .arg(m_window.high - m_window.low, 0, 'g', 4)
-                 .arg((m_window.high + m_window.low) / 2, 0, 'g', 4);
-    return lines;
-}
-
-QStringList ProjectionView::effectsSummary() const {
-    QStringList fx;
-    if (m_effects.depthCue > 0) fx << tr("depth cue %1 %").arg(m_effects.depthCue * 100, 0, 'f', 0);
-    if (m_effects.filter.sharpenAmount > 0)
-        fx << tr("edges ×%1 (σ %2 mm)")
-                  .arg(m_effects.filter.sharpenAmount, 0, 'g', 3)
-                  .arg(m_effects.filter.sharpenSigmaMm, 0, 'g', 3);
-    if (m_effects.filter.bandLimitLpMm > 0)
-        fx << tr("band limit %1 lp/mm").arg(m_effects.filter.bandLimitLpMm, 0, 'g', 3);
-    if (m_window.transmission.active())
-        fx << tr("Beer-Lambert μw %1/mm ×%2")
-                  .arg(m_window.transmission.muWaterPerMm, 0, 'f', 4)
-                  .arg(m_window.transmission.exposure, 0, 'g', 3);
-    return fx;
-}
-
-std::optional<core::ProjectionImage> ProjectionView::projection() {
-    if (!m_spectrum || !m_volume) return std::nullopt;
-    if (m_glReady) {
-        makeCurrent();
-        try {
-            renderIfNeeded(true); // exports and measurements always get the full-quality frame
-        } catch (const std::exception&) {
-            doneCurrent();
-            return std::nullopt;
-        }
-        std::optional<core::ProjectionImage> img;
-        try {
-            if (m_poly && !m_poly->spectra.empty() && m_reference)
-                img = renderPolychromatic(renderParams(m_settings.size, m_settings.kernel));
-            else if (m_polyOnGpu || (m_gpu && !(m_poly && !m_poly->spectra.empty())))
-                img = shownGpu().readback(); // the view's own projection, also in difference mode
-            else if (m_reference && m_cpuImage)
-                img = floatRenderer().render(renderParams(m_settings.size, m_settings.kernel));
-            else
-                img = m_cpuImage;
-        } catch (const std::exception&) {
-            img.reset();
-        }
-        doneCurrent();
-        return img;
-    }
-    if (m_poly && !m_poly->spectra.empty())
-        return renderPolychromatic(renderParams(m_settings.size, m_settings.kernel));
-    return floatRenderer().render(renderParams(m_settings.size, m_settings.kernel));
-}
-
-core::RenderParams ProjectionView::renderParams(int M, core::Kernel kernel) const {
-    core::RenderParams p{
-        m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)}, kernel};
-    p.voxelModel = m_settings.voxelModel;
-    p.pixelAperture = m_effects.pixelAperture;
-    p.depthCue = m_effects.depthCue;
-    p.filter = m_effects.filter;
-    p.clipToVolume = m_effects.clip;
-    p.nonNegative = m_effects.nonNegative;
-    return p;
-}
+QList<QRect> ProjectionView::orientationLabelRects() const { return overlay().labelRects(); }
 
 QImage ProjectionView::screenshot() { return grabFramebuffer(); }
 

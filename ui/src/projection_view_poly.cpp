@@ -1,5 +1,6 @@
-// ProjectionView's polychromatic frame on the GPU (issue 19): the material frames stay on the GPU
-// and one compute pass evaluates the spectral response into the frame the view shows.
+// ProjectionView's polychromatic frame: on the CPU, one renderer per material and the spectral
+// response evaluated per pixel; on the GPU, the material frames stay on the GPU and one compute
+// pass evaluates the spectral response into the frame the view shows.
 #include <QOpenGLContext>
 
 #include <cmath>
@@ -8,6 +9,24 @@
 #include <fvr/ui/projection_view.h>
 
 namespace fvr::ui {
+
+core::ProjectionImage ProjectionView::renderPolychromatic(const core::RenderParams& params,
+                                                          core::StageTimes* times) {
+    if (!m_polyRenderer) {
+        std::vector<std::unique_ptr<core::Renderer>> renderers;
+        for (const auto& s : m_poly->spectra)
+            renderers.push_back(std::make_unique<core::CpuFourierRenderer>(s));
+        m_polyRenderer =
+            std::make_unique<core::PolychromaticRenderer>(std::move(renderers), m_poly->response);
+    } else {
+        m_polyRenderer->setResponse(m_poly->response);
+    }
+    core::PolychromaticFrame f = m_polyRenderer->render(
+        params, m_poly->noise, times, core::SpectralResponse::Output::NegativeLog);
+    if (m_poly->show >= 0 && std::size_t(m_poly->show) < f.massThickness.size())
+        return std::move(f.massThickness[std::size_t(m_poly->show)]);
+    return std::move(f.transmission); // -ln(I/I0), the quantity shown
+}
 
 bool ProjectionView::renderPolychromaticOnGpu(const core::RenderParams& params) {
     if (m_poly->spectra.size() > 5) return false;
@@ -25,7 +44,7 @@ bool ProjectionView::renderPolychromaticOnGpu(const core::RenderParams& params) 
             m_polyGpuSpectra = m_poly->spectra;
         }
         std::vector<const gpu::GpuFourierRenderer*> frames;
-        FrameStats sum;
+        gpu::GpuStageTimes sum; // the materials' stages, one after the other
         for (auto& r : m_polyGpu) {
             r->renderToGpu(params);
             frames.push_back(r.get());
@@ -51,11 +70,7 @@ bool ProjectionView::renderPolychromaticOnGpu(const core::RenderParams& params) 
             core::negativeLogInPlace(img.pixels);
             m_cpuImage = std::move(img); // shown through the CPU image's texture
         }
-        m_stats.sliceMs = sum.sliceMs;
-        m_stats.inverseMs = sum.inverseMs;
-        m_stats.totalMs = sum.totalMs;
-        m_stats.fused = false;
-        m_stats.displayFused = false;
+        recordStageTimes(sum, false);
     } catch (const std::exception& e) {
         m_polyGpu.clear();
         m_polyGpuSpectra.clear();

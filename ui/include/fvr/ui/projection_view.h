@@ -15,46 +15,19 @@
 #include <fvr/core/render/view.h>
 #include <fvr/core/volume.h>
 #include <fvr/core/xray/polychromatic_render.h>
+#include <fvr/ui/view_overlay.h>
+#include <fvr/ui/view_settings.h>
 
-class QPainter;
 class QOpenGLShaderProgram;
 class QOpenGLTexture;
 class QOpenGLVertexArrayObject;
 
 namespace fvr::gpu {
 class GpuFourierRenderer;
-}
+struct GpuStageTimes;
+} // namespace fvr::gpu
 
 namespace fvr::ui {
-
-/** Per-view render settings (the compare mode gives each view its own). */
-struct ViewSettings {
-    core::Kernel kernel = core::Kernel::CatmullRom;
-    int size = 512;
-    core::VoxelModel voxelModel = core::VoxelModel::Trilinear; ///< RenderParams::voxelModel
-    bool operator==(const ViewSettings&) const = default;
-};
-
-/** Per-frame image effects shared by all views: the pixel aperture, depth cueing, the slice
- *  filters (xray.h) and what the last pass removes. */
-struct FrameEffects {
-    bool pixelAperture = false; ///< RenderParams::pixelAperture
-    double depthCue = 0.0;
-    core::SliceFilter filter;
-    bool clip = true; ///< zero outside the volume's shadow (RenderParams::clipToVolume)
-    bool nonNegative =
-        true; ///< never below 0 for a non-negative volume (RenderParams::nonNegative)
-    bool operator==(const FrameEffects&) const = default;
-};
-
-/** What the polychromatic output renders (issue 19): the material spectra (shared by the views),
- *  the spectral response (kVp, filtration, detector), the noise and what the view shows. */
-struct PolychromaticSource {
-    std::vector<std::shared_ptr<const core::Spectrum>> spectra;
-    std::shared_ptr<const core::SpectralResponse> response;
-    core::NoiseModel noise;
-    int show = -1; ///< -1: -ln(I/I0); m: material m's mass thickness (g/cm^2)
-};
 
 class ProjectionView : public QOpenGLWidget {
     Q_OBJECT
@@ -140,14 +113,7 @@ public:
     /** The OpenGL of this view is a software renderer (known once the view is shown). */
     bool softwareGl() const { return m_softwareGl; }
     QString backendNotice() const { return m_notice; }
-    /** Stage times of the last frame (ms): slice, inverse, display, total; and what the user
-     *  saw: the wall-clock time from the change (a drag step) to the frame on screen. */
-    struct FrameStats {
-        double sliceMs = 0, inverseMs = 0, displayMs = 0, totalMs = 0;
-        double wallMs = 0; ///< change to frame on screen (what progressive refinement holds)
-        bool fused = false;
-        bool displayFused = false;
-    };
+    /** Stage times of the last frame and the wall-clock time the user saw (FrameStats). */
     FrameStats frameStats() const { return m_stats; }
     /** The frame on screen is the full-quality frame of the current study, spectrum, view and
      *  settings (nothing left to render, no drag). */
@@ -180,14 +146,15 @@ protected:
 
 private:
     void releaseGl();
-    /** With the context current: the GPU renderer, unless the GL is software and not allowed
-     *  (then the CPU renderer; the notice says why). */
+    /** With the context current: the renderer by gpu::chooseRenderer's rule (a software GL only
+     *  when allowed); the notice says why the CPU where the GPU failed. */
     void chooseRenderer();
     void renderIfNeeded(bool fullQuality = false);
     /** The renderer of float images: the GPU's when there is one, else the CPU's (made on demand).
      */
     core::Renderer& floatRenderer();
-    /** A new spectrum goes to the GPU (the CPU renderer when that fails or there is no GPU). */
+    /** A new spectrum goes to the GPU (the CPU renderer, made by floatRenderer(), when that
+     *  fails or there is no GPU). */
     void uploadSpectrumIfNeeded();
     /** One frame at a quality level: on the GPU into its buffers (and display texture), or the
      *  CPU's float image with its stage times. */
@@ -202,6 +169,10 @@ private:
     bool renderPolychromaticOnGpu(const core::RenderParams& params);
     /** The GPU renderer whose frame the view shows (the polychromatic sum's, or m_gpu). */
     gpu::GpuFourierRenderer& shownGpu() { return m_polyOnGpu ? *m_polyGpu.front() : *m_gpu; }
+    /** The stage times of the frame just rendered; the display time only with `display` (the
+     *  GPU's own frame: other frames keep the last one). The wall-clock time comes when the
+     *  frame is on screen (framePresented). */
+    void recordStageTimes(const gpu::GpuStageTimes& t, bool display);
     /** Difference mode: the frame minus the reference view's projection. */
     void subtractReference();
     /** The first frame of a study sets the window from its image. */
@@ -217,15 +188,10 @@ private:
      *  or the CPU image uploaded. */
     unsigned frameTexture();
     void uploadCpuTexture(const core::ProjectionImage& image);
+    /** What the overlay shows now (ViewOverlay lays it out and paints it). */
+    OverlayState overlayState() const;
+    ViewOverlay overlay() const { return ViewOverlay(overlayState()); }
     void drawOverlay();
-    /** The orientation labels, clear of the overlay box `overlay`. */
-    void drawOrientationLabels(QPainter& p, const QRect& overlay);
-    QRect overlayBox(const QString& text) const;
-    QList<QRect> orientationLabelRects(const QStringList& labels, const QRect& avoid) const;
-    QFont overlayFont(bool bold = false) const;
-    /** The performance overlay: fps, kernel, size, backend, level, effects, stage times, window. */
-    QStringList overlayLines() const;
-    QStringList effectsSummary() const;
     QRectF imageRect() const;
 
     std::shared_ptr<const core::Volume> m_volume;
