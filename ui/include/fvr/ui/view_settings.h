@@ -7,6 +7,7 @@
 #include <vector>
 
 #include <fvr/core/render/kernels.h>
+#include <fvr/core/render/render_settings.h>
 #include <fvr/core/render/slice_filter.h>
 #include <fvr/core/render/spectrum.h>
 #include <fvr/core/render/voxel_model.h>
@@ -14,23 +15,25 @@
 
 namespace fvr::ui {
 
-/** Per-view render settings (the compare mode gives each view its own). */
+/** Per-view render settings (the compare mode gives each view its own); the defaults are
+ *  core::RenderSettings'. */
 struct ViewSettings {
-    core::Kernel kernel = core::Kernel::CatmullRom;
-    int size = 512;
-    core::VoxelModel voxelModel = core::VoxelModel::Trilinear; ///< RenderParams::voxelModel
+    core::Kernel kernel = core::RenderSettings{}.kernel;
+    int size = core::RenderSettings{}.size;
+    core::VoxelModel voxelModel = core::RenderSettings{}.voxelModel; ///< RenderParams::voxelModel
     bool operator==(const ViewSettings&) const = default;
 };
 
 /** Per-frame image effects shared by all views: the pixel aperture, depth cueing, the slice
  *  filters (xray.h) and what the last pass removes. */
 struct FrameEffects {
-    bool pixelAperture = false; ///< RenderParams::pixelAperture
-    double depthCue = 0.0;
-    core::SliceFilter filter;
-    bool clip = true; ///< zero outside the volume's shadow (RenderParams::clipToVolume)
-    bool nonNegative =
-        true; ///< never below 0 for a non-negative volume (RenderParams::nonNegative)
+    bool pixelAperture = core::RenderSettings{}.pixelAperture; ///< RenderParams::pixelAperture
+    double depthCue = core::RenderSettings{}.depthCue;
+    core::SliceFilter filter = core::RenderSettings{}.filter;
+    /** Zero outside the volume's shadow (RenderParams::clipToVolume). */
+    bool clip = core::RenderSettings{}.clip;
+    /** Never below 0 for a non-negative volume (RenderParams::nonNegative). */
+    bool nonNegative = core::RenderSettings{}.nonNegative;
     bool operator==(const FrameEffects&) const = default;
 };
 

@@ -10,7 +10,7 @@
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/render/render_settings.h>
 #include <fvr/core/render/spectrum.h>
-#include <fvr/ui/projection_view.h>
+#include <fvr/ui/view_settings.h>
 
 class QCheckBox;
 class QComboBox;
