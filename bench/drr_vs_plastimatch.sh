@@ -18,14 +18,14 @@
 # Like with like: both render the same CT at SIZE x SIZE with the same pixel size at the rotation
 # axis (fvr-render's default, the volume diagonal / SIZE, read from its JSON sidecar), rotating
 # about the head-feet axis through the volume centre over 360 degrees: a gantry rotation.
-# fvr-render gets --view AP: its default view (--dir 0,0,1) looks along the head-feet axis of an
-# axial CT, and a --sweep about that axis would only spin one projection in the image plane.
+# fvr-render gets --view AP (its default view too): a view along the head-feet axis, about which
+# the sweep turns, would only spin one projection in the image plane.
 # What differs, on purpose:
 #   - projection: fvr-render is parallel; plastimatch is perspective, run here with a 100 m SAD
 #     (and the detector 0.5 m beyond the axis) so its rays diverge by <= 0.1 degree;
 #   - interpolation: plastimatch -i exact sums exact path lengths through voxel boxes (Siddon);
-#     fvr-render renders its default trilinear voxel model with the linear kernel (FVR_EXTRA
-#     picks another);
+#     fvr-render renders the trilinear voxel model with the linear kernel at 1x, as the published
+#     numbers were taken (FVR_EXTRA picks another);
 #   - values: fvr-render --values mu (1 + HU/1000, the line integral in mm); plastimatch's default
 #     HU conversion (its attenuation scale differs by a constant factor: reported, not compared);
 #   - plastimatch reads the CT as one MetaImage (converted once, not timed); fvr-render decodes the
@@ -86,7 +86,8 @@ read -r ISO_X ISO_Y ISO_Z < <(plastimatch header "$WORK/ct.mha" | awk '
 # 2. fvr-render: per repeat, a first run with a new (empty) FFTW wisdom file, then a warm run
 #    with the wisdom the first one saved.
 read -r -a FVR_EXTRA_ARGS <<< "${FVR_EXTRA:-}"
-FVR_ARGS=(--view AP --sweep "$SWEEP" --size "$SIZE" --values mu "${FVR_EXTRA_ARGS[@]}"
+FVR_ARGS=(--view AP --sweep "$SWEEP" --size "$SIZE" --values mu --kernel linear --oversampling 1
+    "${FVR_EXTRA_ARGS[@]}"
     --out "$WORK/fvr.npy")
 WISDOM="$WORK/wisdom"
 : > "$WORK/fvr_cold.txt"

@@ -327,16 +327,29 @@ void declareModel(CLI::App& app, Options& o) {
                  "detector pixels integrate over their area (sinc per image axis)\n"
                  "instead of sampling the projection at their centres")
         ->group(g);
+    CLI::Option* noClip =
+        app.add_flag_callback(
+               "--no-clip", [&o] { o.settings.clip = false; },
+               "keep what FVR puts outside the volume's shadow (ghost copies, ringing);\n"
+               "by default pixels whose ray misses the voxel model's support are 0,\n"
+               "as they truly are")
+            ->group(g);
     app.add_flag_callback(
-           "--no-clip", [&o] { o.settings.clip = false; },
-           "keep what FVR puts outside the volume's shadow (ghost copies, ringing);\n"
-           "by default pixels whose ray misses the voxel model's support are 0,\n"
-           "as they truly are")
+           "--clip", [&o] { o.settings.clip = true; },
+           "the default's clipping, with a --preset that has none (paper)")
+        ->excludes(noClip)
         ->group(g);
+    CLI::Option* keepNegative =
+        app.add_flag_callback(
+               "--keep-negative", [&o] { o.settings.nonNegative = false; },
+               "keep negative line integrals of a volume without negative values\n"
+               "(mu values, or raw data >= 0); by default they are 0, as they truly are")
+            ->group(g);
     app.add_flag_callback(
-           "--keep-negative", [&o] { o.settings.nonNegative = false; },
-           "keep negative line integrals of a volume without negative values\n"
-           "(mu values, or raw data >= 0); by default they are 0, as they truly are")
+           "--non-negative", [&o] { o.settings.nonNegative = true; },
+           "the default's non-negative line integrals, with a --preset that keeps\n"
+           "negative ones (paper)")
+        ->excludes(keepNegative)
         ->group(g);
     addNumber(
         app, "--depth-cue", o.settings.depthCue, "S",
@@ -392,8 +405,8 @@ void declareViews(CLI::App& app, Options& o) {
     const std::string g = "Many views (DRRs)";
     auto* sweep = app.add_option("--sweep", o.sweep,
                                  "N views rotating about --axis (default: the patient's\n"
-                                 "head-feet axis) from --view/--dir (AP where the default\n"
-                                 "view looks along the axis)")
+                                 "head-feet axis) from --view/--dir (without them: AP, or\n"
+                                 "LEFT, or HEAD, the first across the axis)")
                       ->check(CLI::Range(0, 100000))
                       ->option_text("N")
                       ->group(g);

@@ -41,12 +41,13 @@ std::vector<core::ViewFrame> sweepViews(const Options& o, const core::Volume& vo
     const auto& dir = volume.direction;
     const Vec3 axis = o.axis ? *o.axis : Vec3{dir[0][2], dir[1][2], dir[2][2]}; // head-feet
     // Views along the axis would all be one projection turned in the image plane: the default
-    // view (along the slices, usually the head-feet axis) gives way to AP.
+    // view gives way to the first of AP, LEFT and HEAD that looks across the axis.
     auto alongAxis = [&](const ViewFrame& v) {
         return std::abs(dot(v.d, axis)) > 0.999 * norm(v.d) * norm(axis);
     };
     ViewFrame start = base;
-    if (alongAxis(start) && !o.viewGiven) start = patientViewFrame(volume, PatientView::AP);
+    for (PatientView pv : {PatientView::AP, PatientView::Left, PatientView::Head})
+        if (alongAxis(start) && !o.viewGiven) start = patientViewFrame(volume, pv);
     if (alongAxis(start))
         throw SettingsError("--sweep: the view looks along the rotation axis, so every view would "
                             "be the same projection turned in the image plane; give a --view "

@@ -3,6 +3,7 @@
 // win wherever they stand, and a default render is the image core renders with RenderSettings{}.
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdint>
 #include <fstream>
 #include <iterator>
@@ -83,6 +84,15 @@ TEST(FvrRenderSettings, PaperPresetIsTheTable1SettingAndOptionsWinWherever) {
     EXPECT_EQ(s["kernel"], "sinc4") << s;
     EXPECT_EQ(s["deapodized"], false) << s; // the paper's: no correction
     EXPECT_EQ(s["oversampling"], 1.0) << s;
+    // What the paper preset turns off, turned back on.
+    r = run("phantom:shepp-logan:32 --size 128 --preset paper --clip --non-negative --out " +
+            tmp("paper_clip.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    s = settingsOf(tmp("paper_clip.npy"));
+    EXPECT_EQ(s["clip_to_volume"], true) << s;
+    EXPECT_EQ(s["non_negative"], false) << s; // raw HU can be negative: nothing to clamp
+    r = run("phantom:shepp-logan:32 --clip --no-clip --out " + tmp("both.npy"));
+    EXPECT_EQ(r.status, 2) << r.output;
     r = run("phantom:shepp-logan:32 --preset journal --out " + tmp("bad.npy"));
     EXPECT_EQ(r.status, 2) << r.output;
     EXPECT_NE(r.output.find("--preset"), std::string::npos) << r.output;
@@ -138,6 +148,26 @@ TEST(FvrRenderSettings, DataInOtherUnitsIntegrateRawValues) {
     r = run(input + "--beer-lambert --out " + tmp("raw_bl.npy"));
     EXPECT_EQ(r.status, 2) << r.output;
     EXPECT_NE(r.output.find("--beer-lambert"), std::string::npos) << r.output;
+}
+
+TEST(FvrRenderSettings, ASweepAboutTheDefaultViewsAxisStartsAcrossIt) {
+    // The default view (AP) looks along y; a sweep about y starts from LEFT instead of failing.
+    const Result r =
+        run("phantom:shepp-logan:32 --size 128 --sweep 2 --axis 0,1,0 --out " + tmp("sweep_y.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::ifstream in(tmp("sweep_y.npy") + ".json");
+    const Json dir = Json::parse(in)["views"][0]["dir"];
+    EXPECT_NEAR(std::abs(dir[0].get<double>()), 1.0, 1e-9) << dir; // along x: LEFT
+}
+
+TEST(FvrRenderSettings, TheDefaultBeamIsWaterAt70KeV) {
+    const Result r =
+        run("phantom:shepp-logan:32 --size 128 --beer-lambert --out " + tmp("beam.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::ifstream in(tmp("beam.npy") + ".json");
+    const Json out = Json::parse(in)["output"];
+    EXPECT_EQ(out["energy_kev"], 70.0) << out;
+    EXPECT_DOUBLE_EQ(out["mu_water_per_mm"].get<double>(), waterAttenuationPerMm(70.0)) << out;
 }
 
 TEST(FvrRenderSettings, SizesAreTheSettingsSizes) {

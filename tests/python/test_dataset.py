@@ -223,13 +223,17 @@ def test_bad_text_is_a_manifest_error_naming_the_line(tmp_path):
         dataset.read_manifest(tmp_path / "m.csv")
 
 
-def test_hashes_of_settings_are_those_of_earlier_versions():
-    """The arguments are now `--name=value`; the hash keeps the earlier `--name value` form, so
-    that a dataset rendered before is not rendered again."""
+def test_hashes_of_settings_follow_the_words_and_the_defaults():
+    """The arguments are `--name=value`; the hash takes them as separate words (`--name value`,
+    as earlier versions did), and the version of the defaults that fill in what a row leaves
+    out: a row rendered under the earlier defaults (linear, raw, axial) is rendered again."""
     job = {"path": "p", "args": ["--size=128", "--keep-negative", "--threads=4"]}
-    old = {"path": "p", "args": ["--size", "128", "--keep-negative"], "format": "npy"}
+    words = {"path": "p", "args": ["--size", "128", "--keep-negative"], "format": "npy"}
+    current = dict(words, defaults=dataset.DEFAULTS_VERSION)
     assert dataset.settings_hash(job, "npy") == hashlib.sha256(
-        json.dumps(old, sort_keys=True).encode()).hexdigest()
+        json.dumps(current, sort_keys=True).encode()).hexdigest()
+    assert dataset.settings_hash(job, "npy") != hashlib.sha256(
+        json.dumps(words, sort_keys=True).encode()).hexdigest()
 
 
 def _help_options(fvr_render) -> dict:

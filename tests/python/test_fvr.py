@@ -150,6 +150,8 @@ def test_non_finite_voxels_are_said_and_replaced():
     (lambda v, r: fvr.Renderer(v, values="raw").transmission(np.zeros((4, 4)), energy_kev=70),
      "--beer-lambert: needs --values mu or mu-bone"),
     (lambda v, r: r.transmission(np.zeros((4, 4)), energy_kev=500), "--energy"),
+    (lambda v, r: fvr.Renderer(fvr.Volume(np.ones((8, 8, 8), np.float32))).transmission(
+        np.zeros((4, 4))), "not Hounsfield units"),
     (lambda v, r: fvr.Volume(np.zeros((4, 4), np.float32)), "expected 3 dimensions"),
     (lambda v, r: fvr.Volume(np.zeros((4, 4, 4), np.float32), spacing=(1, 0, 1)), "spacing"),
 ])

@@ -74,7 +74,12 @@ TEST(RenderSettings, NumbersEarlierVersionsSavedStillLoad) {
     s.setValue(ui::keys::kRenderTransform, 1);
     s.setValue(ui::keys::kRenderValues, 2);
     s.setValue(ui::keys::kXrayOutput, 1);
-    ui::RenderingPanel::Values v = ui::RenderingPanel::load(s);
+    s.sync(); // and read back from the file, as the next start reads it (text, not ints)
+    const QSettings file(scratch.dir.filePath("s.ini"), QSettings::IniFormat);
+    ui::RenderingPanel::Values v = ui::RenderingPanel::load(file);
+    EXPECT_EQ(v.kernel, core::Kernel::CatmullRom);
+    EXPECT_EQ(ui::XrayPanel::load(file).output, ui::XrayOutput::Transmission);
+    v = ui::RenderingPanel::load(s);
     EXPECT_EQ(v.kernel, core::Kernel::CatmullRom);
     EXPECT_EQ(v.transform, core::TransformKind::Fht);
     EXPECT_EQ(v.mapping, core::ValueMapping::MuBone);

@@ -1097,15 +1097,17 @@ TEST_F(Workstation, PanelSettingsPersistForTheNextWindow) {
               (ui::XrayPanel::Values{ui::XrayOutput::Transmission, 90.0, 2.5, 40, 1.25, 2.0, 0.5}));
     window.reset();
 
-    // The keys users' saved settings already hold.
+    // The keys users' saved settings already hold; choices by name.
     const QSettings s;
-    EXPECT_EQ(s.value("render/kernel").toInt(), int(core::Kernel::Linear));
+    EXPECT_EQ(s.value("render/kernel").toString(), QString("linear"));
+    EXPECT_EQ(s.value("render/transform").toString(), QString("fht"));
+    EXPECT_EQ(s.value("render/values").toString(), QString("mu-bone"));
     EXPECT_EQ(s.value("render/size").toInt(), 256);
     EXPECT_EQ(s.value("render/voxelModel").toString(), QString("bspline"));
     EXPECT_EQ(s.value("render/oversampling").toDouble(), 1.5);
     EXPECT_FALSE(s.value("render/deapodize").toBool());
     EXPECT_EQ(s.value("render/targetFps").toInt(), 12);
-    EXPECT_EQ(s.value("xray/output").toInt(), 1);
+    EXPECT_EQ(s.value("xray/output").toString(), QString("transmission"));
     EXPECT_EQ(s.value("xray/energyKeV").toDouble(), 90.0);
     EXPECT_EQ(s.value("xray/sharpenRadius").toDouble(), 2.0);
     EXPECT_TRUE(s.value("display/invert").toBool());

@@ -235,7 +235,7 @@ void MainWindow::onStudyLoaded(const QString& name) {
     if (m_study->source().kind != StudySource::Kind::Phantom) addRecent(m_study->source().path);
     assignSpectra();
     for (auto* v : m_views)
-        v->setViewFrame(core::patientViewFrame(*m_study->volume(), core::PatientView::AP));
+        v->setViewFrame(core::patientViewFrame(*m_study->volume(), core::RenderSettings{}.view));
     updateStudyInfo();
 }
 

@@ -10,6 +10,7 @@
 
 #include <fvr/core/errors.h>
 #include <fvr/core/io/volume_io.h>
+#include <fvr/core/render/render_settings.h>
 #include <fvr/core/xray/phantom.h>
 #include <fvr/ui/panels/rendering_panel.h>
 
@@ -298,14 +299,16 @@ StudyController::GuiStep StudyController::finishOpen(const StudySource& source,
 SpectrumSettings StudyController::settingsForStudy(const SpectrumSettings& requested,
                                                    const core::Volume& volume,
                                                    QStringList* warnings) {
+    // core's rule: mu = 1 + HU/1000 only means something for Hounsfield units.
+    core::RenderSettings asked;
+    asked.values = requested.mapping;
+    std::string note;
     SpectrumSettings used = requested;
-    if (core::isAttenuation(used.mapping) && volume.units != core::ValueUnits::HounsfieldUnits) {
-        // mu = 1 + HU/1000 only means something for Hounsfield units.
-        used.mapping = core::ValueMapping::Raw;
-        if (warnings)
-            *warnings << tr("The values are not Hounsfield units (%1): integrating the raw values "
-                            "instead of attenuation.")
-                             .arg(QString::fromUtf8(core::unitsName(volume.units)));
+    used.mapping = asked.forVolume(volume, &note).values;
+    if (warnings && !note.empty()) {
+        QString text = QString::fromStdString(note) + QLatin1Char('.');
+        text[0] = text[0].toUpper();
+        *warnings << text;
     }
     return used;
 }

@@ -169,7 +169,12 @@ class Renderer:
                      mu_water: Optional[float] = None, exposure: Optional[float] = None) -> np.ndarray:
         """Beer-Lambert: exposure x exp(-mu_water x line integral), mu_water from ``energy_kev``
         (NIST XCOM, 20..150 keV) or ``mu_water`` (1/mm; default that of 70 keV, 0.01937). Needs
-        ``values="mu"`` or ``"mu-bone"`` (ValueError otherwise), as fvr-render --beer-lambert."""
+        ``values="mu"`` or ``"mu-bone"`` on Hounsfield data (ValueError otherwise: other data
+        render their raw values), as fvr-render --beer-lambert."""
+        if self.settings["values"] == "raw" and self.volume.units != "HU":
+            raise ValueError(f"--beer-lambert: the values are not Hounsfield units "
+                             f"({self.volume.units}): this renderer integrates the raw values, "
+                             f"and a transmission needs attenuation")
         return _fvr.transmission(image, self._r.args + _beer(energy_kev, mu_water, exposure))
 
 

@@ -51,9 +51,9 @@ ALLOWED_COLUMNS = frozenset({
     # View and image
     "dir", "up", "view", "size", "pixel-size",
     # Rendering
-    "preset", "kernel", "kernel-width", "deapodize", "transform", "oversampling", "values", "voxel-model",
-    "pixel-aperture", "no-clip", "keep-negative", "depth-cue", "sharpen", "sharpen-radius",
-    "band-limit", "backend", "fp16", "threads",
+    "preset", "kernel", "kernel-width", "deapodize", "transform", "oversampling", "values",
+    "voxel-model", "pixel-aperture", "no-clip", "clip", "keep-negative", "non-negative",
+    "depth-cue", "sharpen", "sharpen-radius", "band-limit", "backend", "fp16", "threads",
     # Many views (a views file is read, as INPUT is)
     "sweep", "axis", "views",
     # X-ray and polychromatic X-ray
@@ -222,15 +222,22 @@ def output_paths(job: dict, out_dir, fmt: str) -> list:
     return [output, sidecar, npy, Path(str(npy) + ".json"), _part(sidecar), _part(output)]
 
 
+# Which defaults fvr-render fills in for the options a row leaves out. 2: core's RenderSettings
+# (the AP view, mu, kaiser-bessel4 with gridding correction at 1.25x); before it (no key): the
+# axial view, raw values, linear at 1x. A row rendered under other defaults renders again.
+DEFAULTS_VERSION = 2
+
+
 def settings_hash(job: dict, fmt: str) -> str:
     """What decides a study's output: its input, its settings (threads aside: they change the
-    speed, not the pixels) and the format."""
+    speed, not the pixels), the defaults that fill in the rest, and the format."""
     args = []
     for a in job["args"]:  # as separate words (--name value), the hash's form from the start
         name, eq, value = a.partition("=")
         if name != "--threads":
             args += [name, value] if eq else [name]
-    text = json.dumps({"path": job["path"], "args": args, "format": fmt}, sort_keys=True)
+    text = json.dumps({"path": job["path"], "args": args, "format": fmt,
+                       "defaults": DEFAULTS_VERSION}, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()
 
 

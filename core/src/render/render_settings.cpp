@@ -95,8 +95,8 @@ void validateSettingsSize(int size) {
     if (size < RenderSettings::kMinSize || size > RenderSettings::kMaxSize ||
         (size & (size - 1)) != 0)
         throw SettingsError(
-            "slice size: expected a power of two in " + std::to_string(RenderSettings::kMinSize) +
-            ".." + std::to_string(RenderSettings::kMaxSize) + ", found " + std::to_string(size));
+            "size: expected a power of two in " + std::to_string(RenderSettings::kMinSize) + ".." +
+            std::to_string(RenderSettings::kMaxSize) + ", found " + std::to_string(size));
 }
 
 std::vector<int> settingsSizes() {

@@ -282,19 +282,4 @@ core::RenderSettings RenderingPanel::Values::toRenderSettings(core::RenderSettin
     return s;
 }
 
-RenderingPanel::Values RenderingPanel::Values::fromRenderSettings(const core::RenderSettings& s,
-                                                                  Values v) {
-    v.kernel = s.kernel;
-    v.size = s.size;
-    v.voxelModel = s.voxelModel;
-    v.transform = s.transform;
-    v.oversampling = s.oversampling;
-    v.mapping = s.values;
-    v.deapodize = s.deapodize.value_or(true);
-    v.pixelAperture = s.pixelAperture;
-    v.clip = s.clip;
-    v.nonNegative = s.nonNegative;
-    return v;
-}
-
 } // namespace fvr::ui

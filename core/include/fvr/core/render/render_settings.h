@@ -91,7 +91,7 @@ struct RenderSettings {
     bool operator==(const RenderSettings&) const = default;
 };
 
-/** Throws SettingsError "slice size: expected a power of two in 128..2048, found N". */
+/** Throws SettingsError "size: expected a power of two in 128..2048, found N". */
 void validateSettingsSize(int size);
 /** The choices users see: 128, 256, ..., 2048. */
 std::vector<int> settingsSizes();

@@ -45,8 +45,6 @@ public:
         /** These values as render settings (the view, filters and X-ray output left at `base`'s).
          */
         core::RenderSettings toRenderSettings(core::RenderSettings base = {}) const;
-        /** The values of `s` (targetFps and softwareGpu as `base`'s). */
-        static Values fromRenderSettings(const core::RenderSettings& s, Values base);
         bool operator==(const Values&) const = default;
     };
 
