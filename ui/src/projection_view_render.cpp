@@ -173,15 +173,18 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
 }
 
 core::RenderParams ProjectionView::renderParams(int M, core::Kernel kernel) const {
-    core::RenderParams p{
-        m_view, {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)}, kernel};
-    p.voxelModel = m_settings.voxelModel;
-    p.pixelAperture = m_effects.pixelAperture;
-    p.depthCue = m_effects.depthCue;
-    p.filter = m_effects.filter;
-    p.clipToVolume = m_effects.clip;
-    p.nonNegative = m_effects.nonNegative;
-    return p;
+    // The view's settings and the shared effects as render settings: RenderParams are made in
+    // one place (RenderSettings::toRenderParams), for the views as for fvr-render.
+    core::RenderSettings s;
+    s.kernel = kernel;
+    s.voxelModel = m_settings.voxelModel;
+    s.pixelAperture = m_effects.pixelAperture;
+    s.depthCue = m_effects.depthCue;
+    s.filter = m_effects.filter;
+    s.clip = m_effects.clip;
+    s.nonNegative = m_effects.nonNegative;
+    return s.toRenderParams(m_view,
+                            {M, core::defaultPixelSize(m_volume->dims, m_volume->spacing, M)});
 }
 
 } // namespace fvr::ui
