@@ -143,6 +143,14 @@ Jpeg2000Frames decodeJpeg2000(const DicomHeader& h, DcmDataset& ds, const std::v
  *  transfer syntax, colour, bit depth...). */
 std::string unsupportedReason(const DicomHeader& h);
 
+/** Every frame of one file in file order, as real values (rescale or Modality LUT, as the
+ *  loader does; MONOCHROME1 inverted when `invert`; padding set to 0): frame f at
+ *  f * rows * cols. For single images and X-ray frames, which no geometry plan reorders.
+ *  Counts non-finite float values (set to 0) and changed padding pixels. Throws DicomError. */
+std::vector<float> decodeAllFrames(const DicomHeader& h, DcmFileFormat& ff, bool invert,
+                                   std::int64_t* nonFinite = nullptr,
+                                   std::int64_t* padded = nullptr);
+
 /** The frames taken from one file for a series. */
 struct FrameRef {
     int file = 0; ///< index into the series' files

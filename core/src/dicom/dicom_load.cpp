@@ -737,4 +737,17 @@ DicomVolume loadDicomFile(const std::filesystem::path& file) {
     return v;
 }
 
+std::vector<float> dicom_detail::decodeAllFrames(const DicomHeader& h, DcmFileFormat& ff,
+                                                 bool invert, std::int64_t* nonFinite,
+                                                 std::int64_t* padded) {
+    const std::int64_t frameVox = h.rows * h.cols;
+    std::vector<float> out(static_cast<std::size_t>(frameVox * h.frames));
+    std::vector<std::pair<int, std::int64_t>> frames;
+    for (std::int64_t f = 0; f < h.frames; ++f) frames.emplace_back(int(f), f);
+    const DecodeCounts c = decodeFile(h, ff, frames, out.data(), frameVox, invert, false);
+    if (nonFinite) *nonFinite = c.nonFinite;
+    if (padded) *padded = c.padded;
+    return out;
+}
+
 } // namespace fvr::core

@@ -1,0 +1,191 @@
+// A cone-beam DRR as an X-Ray Angiographic image whose XA Positioner module holds its C-arm
+// (xray_geometry.h). Why XA: the camera is a C-arm's by DICOM's own positioner angles
+// (PS3.3 C.8.7.5), which readXrayGeometry reads from any X-ray; an RT Image would need the
+// IEC 61217 gantry and couch angles instead, which express a cranial tilt only through a couch
+// rotation.
+#include <fvr/core/dicom/xray_geometry.h>
+
+#include <fvr/core/io/atomic_file.h>
+
+#include <dcmtk/config/osconfig.h>
+#include <dcmtk/dcmdata/dctk.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <functional>
+
+#include <fvr/core/errors.h>
+
+namespace fvr::core {
+
+namespace {
+
+[[noreturn]] void failWrite(const std::filesystem::path& path, const std::string& detail) {
+    throw WriteError(path.string() + ": " + detail);
+}
+
+/** A decimal string (DS) of at most 16 characters holding as many digits of v as fit. */
+std::string ds(double v) {
+    char buf[64];
+    for (int precision = 16; precision > 1; --precision) {
+        std::snprintf(buf, sizeof buf, "%.*g", precision, v);
+        if (std::string(buf).size() <= 16) return buf;
+    }
+    return "0";
+}
+
+/** The patient-orientation letters of a direction (LPS), strongest first, up to three. */
+std::string orientationLetters(const glm::dvec3& w) {
+    const char pos[3] = {'L', 'P', 'H'}, neg[3] = {'R', 'A', 'F'};
+    int order[3] = {0, 1, 2};
+    std::sort(order, order + 3, [&](int a, int b) { return std::abs(w[a]) > std::abs(w[b]); });
+    std::string s;
+    for (int a : order)
+        if (std::abs(w[a]) > 1e-4) s += w[a] > 0 ? pos[a] : neg[a];
+    return s;
+}
+
+/** Stored 16-bit values and the rescale that maps them back: value = stored x slope + lo. */
+struct Quantized {
+    std::vector<Uint16> stored;
+    double slope = 1.0, lo = 0.0, hi = 0.0;
+};
+
+Quantized quantize(const std::vector<float>& pixels) {
+    Quantized q;
+    bool any = false;
+    for (float v : pixels)
+        if (std::isfinite(v)) {
+            q.lo = any ? std::min(q.lo, double(v)) : v;
+            q.hi = any ? std::max(q.hi, double(v)) : v;
+            any = true;
+        }
+    q.slope = q.hi > q.lo ? (q.hi - q.lo) / 65535.0 : 1.0;
+    q.stored.resize(pixels.size());
+    for (std::size_t i = 0; i < pixels.size(); ++i) {
+        const double v = std::isfinite(pixels[i]) ? pixels[i] : q.lo;
+        q.stored[i] = Uint16(std::clamp(std::lround((v - q.lo) / q.slope), 0L, 65535L));
+    }
+    return q;
+}
+
+/** Throws SettingsError unless the image's camera is the C-arm's. */
+void checkCamera(const DetectorImage& image, const CArm& arm) {
+    const ConeCamera& c = image.camera;
+    const ConeCamera e =
+        cArmCamera(arm, image.width, image.height, c.pitchU, c.pitchV, c.principalOffset);
+    const double tol = 1e-6 * std::max(1.0, arm.sid);
+    if (c.width != image.width || c.height != image.height ||
+        glm::length(e.source - c.source) > tol ||
+        glm::length(e.detectorCentre - c.detectorCentre) > tol || glm::length(e.u - c.u) > 1e-6 ||
+        glm::length(e.v - c.v) > 1e-6)
+        throw SettingsError("the DRR's camera is not the C-arm's (primary " + ds(arm.primaryDeg) +
+                            ", secondary " + ds(arm.secondaryDeg) + " deg, SID " + ds(arm.sid) +
+                            ", SOD " + ds(arm.sod) +
+                            " mm): an X-ray image can only carry a C-arm's geometry");
+}
+
+using Put = std::function<void(const DcmTagKey&, const std::string&)>;
+
+/** Patient, study, series, equipment and image identification (XA IOD's type 1 and 2). */
+void putIdentity(const Put& put, const DicomExportInfo& info) {
+    char uid[100];
+    char date[16], time[16];
+    const std::time_t now = std::time(nullptr);
+    std::tm tm{};
+    gmtime_r(&now, &tm);
+    std::strftime(date, sizeof date, "%Y%m%d", &tm);
+    std::strftime(time, sizeof time, "%H%M%S", &tm);
+    put(DCM_SOPClassUID, UID_XRayAngiographicImageStorage);
+    put(DCM_SOPInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_INSTANCE_UID_ROOT));
+    put(DCM_StudyInstanceUID, info.studyInstanceUid.empty()
+                                  ? dcmGenerateUniqueIdentifier(uid, SITE_STUDY_UID_ROOT)
+                                  : info.studyInstanceUid);
+    put(DCM_SeriesInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_SERIES_UID_ROOT));
+    put(DCM_PatientName, info.patientName);
+    put(DCM_PatientID, info.patientId);
+    for (const DcmTagKey& t : {DCM_PatientBirthDate, DCM_PatientSex, DCM_ReferringPhysicianName,
+                               DCM_StudyID, DCM_AccessionNumber, DCM_Laterality, DCM_KVP,
+                               DCM_XRayTubeCurrent, DCM_ExposureTime, DCM_Exposure})
+        put(t, "");
+    put(DCM_StudyDate, date);
+    put(DCM_StudyTime, time);
+    put(DCM_ContentDate, date);
+    put(DCM_ContentTime, time);
+    put(DCM_Modality, "XA");
+    put(DCM_Manufacturer, "FVR Workstation");
+    put(DCM_SeriesDescription, info.seriesDescription);
+    put(DCM_SeriesNumber, "1");
+    put(DCM_InstanceNumber, "1");
+    put(DCM_ImageType, "DERIVED\\SECONDARY\\SINGLE PLANE");
+    put(DCM_DerivationDescription,
+        "cone-beam DRR (digitally reconstructed radiograph); values: " + info.valueDescription);
+    put(DCM_RadiationSetting, "GR");
+}
+
+/** The XA Positioner module and the detector from the C-arm; the isocentre and the principal
+ *  offset, which no X-ray attribute holds, in private tags. */
+void putGeometry(const Put& put, DcmDataset* ds_, const DetectorImage& image, const CArm& arm,
+                 const std::filesystem::path& path) {
+    const ConeCamera& c = image.camera;
+    put(DCM_DistanceSourceToDetector, ds(arm.sid));
+    put(DCM_DistanceSourceToPatient, ds(arm.sod));
+    put(DCM_EstimatedRadiographicMagnificationFactor, ds(arm.sid / arm.sod));
+    put(DCM_PositionerPrimaryAngle, ds(arm.primaryDeg));
+    put(DCM_PositionerSecondaryAngle, ds(arm.secondaryDeg));
+    put(DCM_ImagerPixelSpacing, ds(c.pitchV) + "\\" + ds(c.pitchU)); // rows, then columns
+    put(DCM_PatientOrientation, orientationLetters(c.u) + "\\" + orientationLetters(c.v));
+    put(DcmTagKey(0x0009, 0x0010), "FVR Workstation");
+    auto putDoubles = [&](Uint16 element, const std::vector<double>& v) {
+        auto* e = new DcmFloatingPointDouble(DcmTag(0x0009, element, EVR_FD));
+        if (e->putFloat64Array(v.data(), v.size()).bad() || ds_->insert(e, true).bad())
+            failWrite(path, "cannot store the private geometry tags");
+    };
+    putDoubles(0x1001, {arm.isocentre.x, arm.isocentre.y, arm.isocentre.z});
+    putDoubles(0x1002, {c.principalOffset.x, c.principalOffset.y});
+}
+
+} // namespace
+
+void writeXrayDicom(const std::filesystem::path& path, const DetectorImage& image, const CArm& arm,
+                    const DicomExportInfo& info) {
+    if (image.width < 1 || image.height < 1 || image.width > 65535 || image.height > 65535 ||
+        image.pixels.size() != std::size_t(image.width) * std::size_t(image.height))
+        failWrite(path, "no image to export");
+    checkCamera(image, arm);
+    const Quantized q = quantize(image.pixels);
+
+    DcmFileFormat file;
+    DcmDataset* dset = file.getDataset();
+    const Put put = [&](const DcmTagKey& tag, const std::string& value) {
+        if (dset->putAndInsertString(tag, value.c_str()).bad())
+            failWrite(path, std::string("cannot set DICOM tag ") + DcmTag(tag).getTagName());
+    };
+    putIdentity(put, info);
+    putGeometry(put, dset, image, arm, path);
+    put(DCM_PhotometricInterpretation, "MONOCHROME2");
+    // Line integrals are the logarithm of the transmitted intensity.
+    put(DCM_PixelIntensityRelationship, "LOG");
+    dset->putAndInsertUint16(DCM_SamplesPerPixel, 1);
+    dset->putAndInsertUint16(DCM_Rows, Uint16(image.height));
+    dset->putAndInsertUint16(DCM_Columns, Uint16(image.width));
+    dset->putAndInsertUint16(DCM_BitsAllocated, 16);
+    dset->putAndInsertUint16(DCM_BitsStored, 16);
+    dset->putAndInsertUint16(DCM_HighBit, 15);
+    dset->putAndInsertUint16(DCM_PixelRepresentation, 0);
+    put(DCM_RescaleSlope, ds(q.slope));
+    put(DCM_RescaleIntercept, ds(q.lo));
+    put(DCM_RescaleType, "US");
+    put(DCM_WindowCenter, ds(0.5 * (q.lo + q.hi)));
+    put(DCM_WindowWidth, ds(std::max(1e-6, q.hi - q.lo)));
+    if (dset->putAndInsertUint16Array(DCM_PixelData, q.stored.data(), q.stored.size()).bad())
+        failWrite(path, "cannot store the pixel data");
+    writeAtomically(path, [&](const std::filesystem::path& tmp) {
+        const OFCondition st = file.saveFile(tmp.c_str(), EXS_LittleEndianExplicit);
+        if (st.bad()) failWrite(path, st.text());
+    });
+}
+
+} // namespace fvr::core
