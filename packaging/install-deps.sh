@@ -22,6 +22,7 @@ if [ "${1:-}" = "--tests" ]; then
   packages+=(
     orthanc # the real PACS the pacs tests start on their own ports (its service is not used)
     dcmtk # storescu/echoscu: the pacs tests' other peers of our storage listener
+    dicom3tools # dciodvfy: checks the X-ray DICOM objects we write against their IOD
     openssl # the DICOM TLS tests make their CA and certificates with it
     python3-pytest python3-distributed python3-zarr
     python3-hypothesis # the dataset manifest fuzz (tests/fuzz/fuzz_manifest.py)

@@ -321,6 +321,13 @@ TEST(XrayDicom, BadValuesAreRefusedNamingTheFileAndTag) {
     e = errorOf([&] { readXrayGeometry(mammo); });
     EXPECT_NE(e.find("MAMMOGRAPHIC"), std::string::npos) << e;
 
+    const fs::path ct =
+        writeImage("ct.dcm", UID_CTImageStorage, "CT", 16, 16, 1, [](DcmDataset*) {});
+    e = errorOf([&] { readXrayGeometry(ct); });
+    EXPECT_NE(e.find(ct.string()), std::string::npos) << e;
+    EXPECT_NE(e.find("'CT'"), std::string::npos) << e;
+    EXPECT_NE(e.find("not a projection X-ray"), std::string::npos) << e;
+
     const fs::path notDicom = fvr::test::tmpDir() / "not_an_xray.txt";
     { std::ofstream(notDicom) << "hello"; }
     e = errorOf([&] { readXrayGeometry(notDicom); });
@@ -345,6 +352,7 @@ TEST(XrayDicom, ApRadiographTakesItsAnglesFromViewPositionAndIsMirroredToTheCame
     EXPECT_DOUBLE_EQ(g.frames[0].primaryDeg, 180.0);
     EXPECT_TRUE(mentions(g.warnings, "ViewPosition (0018,5101) AP", "180")) << joined(g.warnings);
     EXPECT_TRUE(mentions(g.warnings, "PatientOrientation", "columns mirrored"));
+    EXPECT_TRUE(mentions(g.warnings, "(0018,1111) of a DX", "C.8.11.7"));
     // Row 2, column 0 now holds what column 15 held: 2 * 16 + 15.
     EXPECT_EQ(g.pixels[2 * 16 + 0], 47.0f);
     EXPECT_EQ(g.pixels[2 * 16 + 15], 32.0f);

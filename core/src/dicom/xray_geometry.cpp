@@ -165,11 +165,23 @@ std::optional<double> viewPositionAngle(const std::string& view) {
     return std::nullopt;
 }
 
+/** Radiographs, whose positioner is a DX Positioner (C.8.11.7), not a C-arm's. */
+bool isRadiograph(const std::string& modality) {
+    return modality == "DX" || modality == "CR" || modality == "MG" || modality == "IO" ||
+           modality == "PX" || modality == "RG";
+}
+
+/** Refuses images that are no projection X-ray (CT slices, MR, ...). */
+void checkModality(const XrayGeometry& g, const DicomHeader& h) {
+    if (h.modality == "XA" || h.modality == "RF" || isRadiograph(h.modality)) return;
+    fail(g.file, "Modality (0008,0060) '" + h.modality + "' (" + describeSopClass(h.sopClassUid) +
+                     ") is not a projection X-ray: expected XA, RF, DX, CR, RG, MG, IO or PX");
+}
+
 /** The angles every frame starts from, with the assumptions said. */
 void resolveFirstAngles(const FileStated& f, const std::string& modality, const fs::path& file,
                         double& primary, double& secondary, std::vector<std::string>& warnings) {
-    const bool projection = modality == "DX" || modality == "CR" || modality == "MG" ||
-                            modality == "IO" || modality == "PX";
+    const bool projection = isRadiograph(modality);
     if (f.positionerType == "MAMMOGRAPHIC")
         fail(file, "PositionerType (0018,1508) MAMMOGRAPHIC: its angles are a mammography "
                    "gantry's (PS3.3 C.8.11.7), not a C-arm's; not supported");
@@ -393,8 +405,14 @@ XrayGeometry readXrayGeometry(const std::filesystem::path& path, bool withPixels
                        std::to_string(h.rows) + " x " + std::to_string(h.cols));
     g.width = int(h.cols);
     g.height = int(h.rows);
+    checkModality(g, h);
     const FileStated f = fileLevel(ds, path);
     resolveFrames(g, ds, h, f);
+    if (f.first.sod && isRadiograph(h.modality))
+        g.warnings.push_back(
+            "DistanceSourceToPatient (0018,1111) of a " + h.modality +
+            " image is measured to the table or detector-side surface nearest the patient (PS3.3 "
+            "C.8.11.7), not to an isocentre: the isocentre is placed at that distance");
     readPrivate(g, ds);
     if (withPixels) readPixels(g, h, *ff);
     checkOrientation(g, f.patientOrientation);
