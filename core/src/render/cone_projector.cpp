@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 #include <glm/gtc/matrix_inverse.hpp>
 
@@ -51,6 +52,58 @@ double framingPitch(const Volume& v, double sid, double sod, int width, int heig
     const Vec3 e = v.extent();
     const double diagonal = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
     return diagonal * (sid / sod) / double(std::max(1, std::min(width, height)));
+}
+
+namespace {
+
+/** An LPS direction in the volume's index frame (components along the direction cosines). */
+Vec3 toIndexFrame(const Volume& v, const glm::dvec3& x) {
+    return {dot(v.direction[0], {x.x, x.y, x.z}), dot(v.direction[1], {x.x, x.y, x.z}),
+            dot(v.direction[2], {x.x, x.y, x.z})};
+}
+
+glm::dvec3 toPatient(const Volume& v, const Vec3& x) {
+    glm::dvec3 p(0.0);
+    for (int a = 0; a < 3; ++a)
+        p += x[a] * glm::dvec3(v.direction[a][0], v.direction[a][1], v.direction[a][2]);
+    return p;
+}
+
+} // namespace
+
+ViewFrame cArmViewFrame(const Volume& volume, double primaryDeg, double secondaryDeg) {
+    const ConeCamera c = cArmCamera({primaryDeg, secondaryDeg, 2.0, 1.0}, 16, 16, 1.0, 1.0);
+    const glm::dvec3 d = glm::normalize(c.detectorCentre - c.source);
+    ViewFrame f;
+    f.d = toIndexFrame(volume, -d);
+    f.u = toIndexFrame(volume, -c.v);
+    f.r = toIndexFrame(volume, c.u);
+    return f;
+}
+
+CArmAngles cArmAngles(const Volume& volume, const ViewFrame& frame) {
+    const glm::dvec3 d = -glm::normalize(toPatient(volume, frame.d));
+    CArmAngles a;
+    a.secondaryDeg = std::asin(std::clamp(d.z, -1.0, 1.0)) * 180.0 / std::numbers::pi;
+    const glm::dvec3 r = toPatient(volume, frame.r);
+    a.primaryDeg = std::hypot(d.x, d.y) > 1e-9 ? std::atan2(d.x, -d.y) * 180.0 / std::numbers::pi
+                                               : std::atan2(r.y, r.x) * 180.0 / std::numbers::pi;
+    if (a.primaryDeg <= -180.0) a.primaryDeg += 360.0;
+    return a;
+}
+
+std::string cArmLabel(double primaryDeg, double secondaryDeg) {
+    const long p = std::lround(primaryDeg), s = std::lround(secondaryDeg);
+    return std::string(p < 0 ? "RAO " : "LAO ") + std::to_string(std::labs(p)) + "\u00b0 " +
+           (s < 0 ? "CAUD " : "CRAN ") + std::to_string(std::labs(s)) + "\u00b0";
+}
+
+ConeCamera cArmCameraForView(const Volume& volume, const ViewFrame& frame, double sid, double sod,
+                             int size) {
+    const CArmAngles a = cArmAngles(volume, frame);
+    const double pitch = framingPitch(volume, sid, sod, size, size);
+    return cArmCamera({a.primaryDeg, a.secondaryDeg, sid, sod, volumeCentre(volume)}, size, size,
+                      pitch, pitch);
 }
 
 namespace {
