@@ -374,6 +374,7 @@ TEST(XrayDicom, ApRadiographTakesItsAnglesFromViewPositionAndIsMirroredToTheCame
         writeImage("dx_ap.dcm", UID_DigitalXRayImageStorageForPresentation, "DX", 16, 16, 1,
                    [](DcmDataset* ds) {
                        ds->putAndInsertString(DCM_ViewPosition, "AP");
+                       ds->putAndInsertString(DCM_ColumnAngulation, "5");
                        ds->putAndInsertString(DCM_PatientOrientation, "L\\F");
                        ds->putAndInsertString(DCM_DistanceSourceToDetector, "1800");
                        ds->putAndInsertString(DCM_DistanceSourceToPatient, "1650");
@@ -384,7 +385,8 @@ TEST(XrayDicom, ApRadiographTakesItsAnglesFromViewPositionAndIsMirroredToTheCame
     EXPECT_DOUBLE_EQ(g.frames[0].primaryDeg, 180.0);
     EXPECT_TRUE(mentions(g.warnings, "ViewPosition (0018,5101) AP", "180")) << joined(g.warnings);
     EXPECT_TRUE(mentions(g.warnings, "PatientOrientation", "columns mirrored"));
-    EXPECT_TRUE(mentions(g.warnings, "(0018,1111) of a DX", "C.8.11.7"));
+    EXPECT_TRUE(mentions(g.warnings, "(0018,1111) of a DX", "C.8.11.5"));
+    EXPECT_TRUE(mentions(g.warnings, "ColumnAngulation (0018,1450) 5 deg", "not modelled"));
     // Row 2, column 0 now holds what column 15 held: 2 * 16 + 15.
     EXPECT_EQ(g.pixels[2 * 16 + 0], 47.0f);
     EXPECT_EQ(g.pixels[2 * 16 + 15], 32.0f);

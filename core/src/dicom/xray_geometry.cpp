@@ -165,7 +165,7 @@ std::optional<double> viewPositionAngle(const std::string& view) {
     return std::nullopt;
 }
 
-/** Radiographs, whose positioner is a DX Positioner (C.8.11.7), not a C-arm's. */
+/** Radiographs, whose positioner the DX Positioning module describes (PS3.3 C.8.11.5). */
 bool isRadiograph(const std::string& modality) {
     return modality == "DX" || modality == "CR" || modality == "MG" || modality == "IO" ||
            modality == "PX" || modality == "RG";
@@ -184,12 +184,13 @@ void resolveFirstAngles(const FileStated& f, const std::string& modality, const 
     const bool projection = isRadiograph(modality);
     if (f.positionerType == "MAMMOGRAPHIC")
         fail(file, "PositionerType (0018,1508) MAMMOGRAPHIC: its angles are a mammography "
-                   "gantry's (PS3.3 C.8.11.7), not a C-arm's; not supported");
+                   "gantry's (PS3.3 C.8.11.7, Mammography Image module), not a C-arm's; not "
+                   "supported");
     if (projection && !f.positionerType.empty() && f.positionerType != "CARM" &&
         (f.first.primary || f.first.secondary))
         warnOnce(warnings, "PositionerType (0018,1508) " + f.positionerType +
                                ": the positioner angles are a C-arm's only for CARM (PS3.3 "
-                               "C.8.11.7); read as a C-arm's all the same");
+                               "C.8.11.5); read as a C-arm's all the same");
     const std::optional<double> fromView = viewPositionAngle(f.viewPosition);
     if (f.first.primary) {
         primary = *f.first.primary;
@@ -365,6 +366,19 @@ void checkOrientation(XrayGeometry& g, const std::string& orientation) {
     }
 }
 
+/** Tilts of the beam against the detector, which the camera does not model. */
+void warnUnmodelled(XrayGeometry& g, DcmDataset* ds) {
+    for (const DcmTagKey& t :
+         {DCM_DetectorPrimaryAngle, DCM_DetectorSecondaryAngle, DCM_ColumnAngulation}) {
+        const std::optional<double> v = numberOf(ds, t, g.file);
+        if (v && *v != 0.0)
+            g.warnings.push_back(tagText(t) + " " + num(*v) +
+                                 " deg ignored: a beam not square to the detector is not "
+                                 "modelled (the detector is taken perpendicular to the central "
+                                 "ray)");
+    }
+}
+
 void readPixels(XrayGeometry& g, const DicomHeader& h, DcmFileFormat& ff) {
     if (const std::string why = unsupportedReason(h); !why.empty()) fail(g.file, why);
     const bool invert = h.photometric == "MONOCHROME1";
@@ -412,8 +426,9 @@ XrayGeometry readXrayGeometry(const std::filesystem::path& path, bool withPixels
         g.warnings.push_back(
             "DistanceSourceToPatient (0018,1111) of a " + h.modality +
             " image is measured to the table or detector-side surface nearest the patient (PS3.3 "
-            "C.8.11.7), not to an isocentre: the isocentre is placed at that distance");
+            "C.8.11.5), not to an isocentre: the isocentre is placed at that distance");
     readPrivate(g, ds);
+    warnUnmodelled(g, ds);
     if (withPixels) readPixels(g, h, *ff);
     checkOrientation(g, f.patientOrientation);
     return g;

@@ -2,7 +2,7 @@
 /** X-ray geometry in and out of DICOM: the C-arm (or radiograph) that took an XA, RF, DX or CR
  *  image, per frame, and a DRR written as an X-Ray Angiographic image that carries its camera.
  *
- *  Read (PS3.3 C.8.7.5 XA Positioner, C.8.7.6 XRF Positioner, C.8.11.7 DX Positioner, C.8.19.6
+ *  Read (PS3.3 C.8.7.5 XA Positioner, C.8.7.6 XRF Positioner, C.8.11.5 DX Positioning, C.8.19.6
  *  Enhanced XA functional groups):
  *   - DistanceSourceToDetector (0018,1110): SID; DistanceSourceToPatient (0018,1111) or, in an
  *     Enhanced XA's X-Ray Geometry Sequence (0018,9476), DistanceSourceToIsocenter (0018,9402):
@@ -15,7 +15,9 @@
  *   - ImagerPixelSpacing (0018,1164) (the detector's pitch, rows then columns; Enhanced XA: in
  *     the Frame Pixel Data Properties Sequence (0028,9443)), Rows, Columns, NumberOfFrames.
  *   - DX and CR: the angles are a C-arm's only when PositionerType (0018,1508) is CARM (or
- *     absent); a MAMMOGRAPHIC positioner's angles mean something else and are refused. With no
+ *     absent); a MAMMOGRAPHIC positioner's angles mean something else (C.8.11.7) and are
+ *     refused. DetectorPrimary/SecondaryAngle (0018,1530/1531) and ColumnAngulation (0018,1450)
+ *     (a detector not square to the central ray) are not modelled: ignored with a warning. With no
  *     angles, ViewPosition (0018,5101) PA, AP, LL or RL gives them (0/0, 180/0, 90/0, -90/0).
  *   - PatientOrientation (0020,0020), when stated, is checked against the camera's columns and
  *     rows; an image mirrored relative to the camera (an AP radiograph displayed as read) has
