@@ -182,6 +182,39 @@ TEST(XrayDicom, WrittenXaPassesDciodvfyWithoutErrors) {
     EXPECT_EQ(r.out.find("Error"), std::string::npos) << r.out;
 }
 
+TEST(XrayDicom, OrbitRunWrittenAsMultiFrameXaReadsBackFrameByFrame) {
+    // A 7-view arc from LAO 40 to RAO 50 at CRAN 10 (not equal steps in the second angle
+    // either), as a rotational run: one file whose increments give every frame's angles.
+    std::vector<DetectorImage> views;
+    std::vector<CArm> arms;
+    for (int k = 0; k < 7; ++k) {
+        const CArm arm{40.0 - 15.0 * k, 10.0 + 0.5 * k * k, 1195.0, 785.0, glm::dvec3(3, -4, 5)};
+        arms.push_back(arm);
+        DetectorImage v = drrOf(arm, 48, 40, 0.6, 0.6, glm::dvec2(0.0));
+        for (float& p : v.pixels) p += float(k); // frames tell apart
+        views.push_back(v);
+    }
+    const fs::path path = fvr::test::tmpDir() / "drr_run.dcm";
+    writeXrayDicomRun(path, views, arms);
+    const XrayGeometry g = readXrayGeometry(path);
+    EXPECT_TRUE(g.warnings.empty()) << joined(g.warnings);
+    ASSERT_EQ(g.frames.size(), 7u);
+    for (std::size_t k = 0; k < 7; ++k) {
+        const auto a = normalisedP(views[k].camera), b = normalisedP(g.camera(k, {}));
+        for (std::size_t i = 0; i < 12; ++i) ASSERT_NEAR(a[i], b[i], 1e-6) << k << " " << i;
+        const std::size_t n = views[k].pixels.size();
+        EXPECT_NEAR(g.pixels[k * n + 5], views[k].pixels[5], 1e-3) << k;
+    }
+    if (fvr::test::runCommand("command -v dciodvfy").status == 0) {
+        const auto r = fvr::test::runCommand("dciodvfy -new '" + path.string() + "' 2>&1");
+        EXPECT_EQ(r.out.find("Error"), std::string::npos) << r.out;
+    }
+    // Frames must differ only in their angles.
+    arms[3].sid = 1000.0;
+    views[3].camera = cArmCamera(arms[3], 48, 40, 0.6, 0.6);
+    EXPECT_THROW(writeXrayDicomRun(path, views, arms), SettingsError);
+}
+
 TEST(XrayDicom, WriterRefusesACameraThatIsNotTheCArms) {
     const CArm arm{10.0, 5.0, 1000.0, 750.0, glm::dvec3(0.0)};
     DetectorImage img = drrOf(arm, 32, 32, 1.0, 1.0, glm::dvec2(0.0));

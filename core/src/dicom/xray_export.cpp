@@ -87,6 +87,55 @@ void checkCamera(const DetectorImage& image, const CArm& arm) {
                             " mm): an X-ray image can only carry a C-arm's geometry");
 }
 
+/** Throws unless the views make one run: images of one size, each the camera of its C-arm, the
+ *  C-arms differing only in their angles (an XA's increments hold nothing else). */
+void checkRun(const std::filesystem::path& path, const std::vector<DetectorImage>& views,
+              const std::vector<CArm>& arms) {
+    if (views.empty() || views.size() != arms.size())
+        failWrite(path, "expected one C-arm per view, found " + std::to_string(views.size()) +
+                            " views and " + std::to_string(arms.size()) + " C-arms");
+    const DetectorImage& a = views[0];
+    for (std::size_t k = 0; k < views.size(); ++k) {
+        const DetectorImage& v = views[k];
+        if (v.width < 1 || v.height < 1 || v.width > 65535 || v.height > 65535 ||
+            v.pixels.size() != std::size_t(v.width) * std::size_t(v.height))
+            failWrite(path, "view " + std::to_string(k + 1) + ": no image to export");
+        checkCamera(v, arms[k]);
+        if (v.width != a.width || v.height != a.height || v.camera.pitchU != a.camera.pitchU ||
+            v.camera.pitchV != a.camera.pitchV ||
+            v.camera.principalOffset != a.camera.principalOffset || arms[k].sid != arms[0].sid ||
+            arms[k].sod != arms[0].sod || arms[k].isocentre != arms[0].isocentre)
+            throw SettingsError("view " + std::to_string(k + 1) +
+                                " differs from the first in its detector, SID, SOD or isocentre: "
+                                "an X-ray run's frames differ only in their positioner angles");
+    }
+    if (views.size() > 16384)
+        throw SettingsError("a run of " + std::to_string(views.size()) +
+                            " views: at most 16384 frames");
+}
+
+/** A rotational run: the positioner moved (DYNAMIC), each frame's angles as offsets from the
+ *  first (PS3.3 C.8.7.5.1.3), and the Cine and Multi-frame modules. */
+void putRun(const std::function<void(const DcmTagKey&, const std::string&)>& put, DcmDataset* dset,
+            const std::vector<CArm>& arms, const std::filesystem::path& path) {
+    std::string primary, secondary;
+    for (std::size_t k = 0; k < arms.size(); ++k) {
+        if (k > 0) {
+            primary += '\\';
+            secondary += '\\';
+        }
+        primary += ds(arms[k].primaryDeg - arms[0].primaryDeg);
+        secondary += ds(arms[k].secondaryDeg - arms[0].secondaryDeg);
+    }
+    put(DCM_NumberOfFrames, std::to_string(arms.size()));
+    if (dset->putAndInsertTagKey(DCM_FrameIncrementPointer, DCM_FrameTime).bad())
+        failWrite(path, "cannot set FrameIncrementPointer");
+    put(DCM_FrameTime, "100"); // nominal: a DRR run has no time
+    put(DCM_PositionerMotion, "DYNAMIC");
+    put(DCM_PositionerPrimaryAngleIncrement, primary);
+    put(DCM_PositionerSecondaryAngleIncrement, secondary);
+}
+
 using Put = std::function<void(const DcmTagKey&, const std::string&)>;
 
 /** Patient, study, series, equipment and image identification (XA IOD's type 1 and 2). */
@@ -151,11 +200,19 @@ void putGeometry(const Put& put, DcmDataset* ds_, const DetectorImage& image, co
 
 void writeXrayDicom(const std::filesystem::path& path, const DetectorImage& image, const CArm& arm,
                     const DicomExportInfo& info) {
-    if (image.width < 1 || image.height < 1 || image.width > 65535 || image.height > 65535 ||
-        image.pixels.size() != std::size_t(image.width) * std::size_t(image.height))
-        failWrite(path, "no image to export");
-    checkCamera(image, arm);
-    const Quantized q = quantize(image.pixels);
+    writeXrayDicomRun(path, {image}, {arm}, info);
+}
+
+void writeXrayDicomRun(const std::filesystem::path& path, const std::vector<DetectorImage>& views,
+                       const std::vector<CArm>& arms, const DicomExportInfo& info) {
+    checkRun(path, views, arms);
+    const DetectorImage& first = views[0];
+    std::vector<float> all;
+    all.reserve(first.pixels.size() * views.size());
+    for (const DetectorImage& v : views) all.insert(all.end(), v.pixels.begin(), v.pixels.end());
+    const Quantized q = quantize(all);
+    all.clear();
+    all.shrink_to_fit();
 
     DcmFileFormat file;
     DcmDataset* dset = file.getDataset();
@@ -164,13 +221,14 @@ void writeXrayDicom(const std::filesystem::path& path, const DetectorImage& imag
             failWrite(path, std::string("cannot set DICOM tag ") + DcmTag(tag).getTagName());
     };
     putIdentity(put, info);
-    putGeometry(put, dset, image, arm, path);
+    putGeometry(put, dset, first, arms[0], path);
+    if (views.size() > 1) putRun(put, dset, arms, path);
     put(DCM_PhotometricInterpretation, "MONOCHROME2");
     // Line integrals are the logarithm of the transmitted intensity.
     put(DCM_PixelIntensityRelationship, "LOG");
     dset->putAndInsertUint16(DCM_SamplesPerPixel, 1);
-    dset->putAndInsertUint16(DCM_Rows, Uint16(image.height));
-    dset->putAndInsertUint16(DCM_Columns, Uint16(image.width));
+    dset->putAndInsertUint16(DCM_Rows, Uint16(first.height));
+    dset->putAndInsertUint16(DCM_Columns, Uint16(first.width));
     dset->putAndInsertUint16(DCM_BitsAllocated, 16);
     dset->putAndInsertUint16(DCM_BitsStored, 16);
     dset->putAndInsertUint16(DCM_HighBit, 15);

@@ -89,4 +89,12 @@ CArm cArmFromCamera(const ConeCamera& camera, const glm::dvec3& near);
 void writeXrayDicom(const std::filesystem::path& path, const DetectorImage& image, const CArm& arm,
                     const DicomExportInfo& info = {});
 
+/** A rotational run (an orbit sweep) as one multi-frame X-Ray Angiographic image, as a
+ *  rotational C-arm writes it: PositionerMotion DYNAMIC, the first view's angles and each
+ *  frame's offsets from them in PositionerPrimary/SecondaryAngleIncrement (PS3.3 C.8.7.5.1.3),
+ *  one rescale for all frames, FrameTime a nominal 100 ms. The views must share their detector,
+ *  SID, SOD and isocentre (SettingsError naming the first view that does not). */
+void writeXrayDicomRun(const std::filesystem::path& path, const std::vector<DetectorImage>& views,
+                       const std::vector<CArm>& arms, const DicomExportInfo& info = {});
+
 } // namespace fvr::core
