@@ -393,6 +393,15 @@ TEST(XrayDicom, BadValuesAreRefusedNamingTheFileAndTag) {
     EXPECT_NE(e.find("'CT'"), std::string::npos) << e;
     EXPECT_NE(e.find("not a projection X-ray"), std::string::npos) << e;
 
+    // Pixels that would not fit in memory are refused before they are allocated.
+    const fs::path run = writeXa("xa_run_memory.dcm", 4, [](DcmDataset*) {});
+    setenv("FVR_MEMORY_LIMIT_MB", "0.001", 1);
+    e = errorOf([&] { readXrayGeometry(run); });
+    unsetenv("FVR_MEMORY_LIMIT_MB");
+    EXPECT_NE(e.find(run.string()), std::string::npos) << e;
+    EXPECT_NE(e.find("FVR_MEMORY_LIMIT_MB"), std::string::npos) << e;
+    EXPECT_NO_THROW(readXrayGeometry(run, false)); // the geometry alone needs no pixels
+
     const fs::path notDicom = fvr::test::tmpDir() / "not_an_xray.txt";
     { std::ofstream(notDicom) << "hello"; }
     e = errorOf([&] { readXrayGeometry(notDicom); });

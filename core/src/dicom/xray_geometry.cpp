@@ -16,6 +16,7 @@
 #include <dcmtk/dcmdata/dcsequen.h>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/memory_budget.h>
 
 namespace fvr::core {
 
@@ -381,6 +382,13 @@ void warnUnmodelled(XrayGeometry& g, DcmDataset* ds) {
 
 void readPixels(XrayGeometry& g, const DicomHeader& h, DcmFileFormat& ff) {
     if (const std::string why = unsupportedReason(h); !why.empty()) fail(g.file, why);
+    const std::uint64_t values = std::uint64_t(h.rows * h.cols) * std::uint64_t(h.frames);
+    try {
+        checkMemoryFor(values * sizeof(float), g.file.string(),
+                       "the pixels of " + std::to_string(h.frames) + " frames as float");
+    } catch (const LoadError& e) {
+        throw DicomError(e.what());
+    }
     const bool invert = h.photometric == "MONOCHROME1";
     std::int64_t nonFinite = 0, padded = 0;
     g.pixels = decodeAllFrames(h, ff, invert, &nonFinite, &padded);
