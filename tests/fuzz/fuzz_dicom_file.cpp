@@ -1,8 +1,10 @@
-// libFuzzer target: the single-file DICOM reader (fvr::core::loadDicomFile) on arbitrary bytes.
+// libFuzzer target: the single-file DICOM reader (fvr::core::loadDicomFile) and the X-ray
+// geometry reader (fvr::core::readXrayGeometry) on arbitrary bytes.
 // The bytes go to a private temporary file (the reader takes paths: DCMTK reads pixel data
 // lazily from the file). Any DicomError is an expected outcome; every other exception, crash,
 // sanitizer report, leak, timeout or oversized allocation is a finding.
 #include <fvr/core/dicom/dicom.h>
+#include <fvr/core/dicom/xray_geometry.h>
 
 #include <cstdint>
 #include <cstdio>
@@ -45,6 +47,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (std::int64_t(v.volume.voxels.size()) != v.volume.voxelCount()) std::abort();
     } catch (const fvr::core::DicomError&) {
         // expected for malformed input
+    }
+    try {
+        const fvr::core::XrayGeometry g = fvr::core::readXrayGeometry(path);
+        const std::size_t frameValues = std::size_t(g.width) * std::size_t(g.height);
+        if (g.pixels.size() != frameValues * g.frames.size()) std::abort();
+        volatile float sink = g.pixels.empty() ? 0.0f : g.pixels.back();
+        (void)sink;
+    } catch (const fvr::core::DicomError&) {
+        // expected for malformed input and for images that are no X-ray
     }
     return 0;
 }

@@ -26,7 +26,7 @@ while [ $# -gt 0 ]; do
   esac
 done
 case "$TARGET" in
-  fuzz_dicom_file) WHAT="loadDicomFile"; CORPUS="$BUILD/corpus"; LOG="$BUILD/fuzz.log" ;;
+  fuzz_dicom_file) WHAT="loadDicomFile and readXrayGeometry"; CORPUS="$BUILD/corpus"; LOG="$BUILD/fuzz.log" ;;
   fuzz_store_instance) WHAT="the local store's C-STORE handling"
                        CORPUS="$BUILD/corpus-$TARGET"; LOG="$BUILD/fuzz-$TARGET.log" ;;
   *) echo "run_fuzz.sh: unknown target \"$TARGET\"" >&2; echo "$USAGE" >&2; exit 2 ;;
@@ -73,6 +73,7 @@ for f in \
   pydicom_data/liver_rle.dcm pydicom_data/liver_deflate.dcm pydicom_data/emri_small_RLE.dcm \
   pydicom_data/emri_small_jpeg_ls_lossless.dcm pydicom_data/emri_small_big_endian.dcm \
   pydicom_data/parametric_map_float.dcm pydicom_data/emri_small_jpeg_2k_lossless_too_short.dcm \
+  pylibjpeg_data/JPEGExtended_RG2_JPLY.dcm \
   pylibjpeg_data/JPEGBaseline_JPEGBaseline_1s_1f_u_08_08.dcm \
   pylibjpeg_data/JPEGExtended_JPEGExtended_1s_1f_u_16_12.dcm \
   nibabel_siemens/decimal_rescale.dcm \
@@ -83,6 +84,15 @@ for f in \
 done
 if [ -d "$DATA/dicom/ct_head_slicer_64x64x93" ]; then
   cp "$DATA/dicom/ct_head_slicer_64x64x93/CTHead1.dcm" "$SEEDS/ct_head_slicer_CTHead1.dcm"
+fi
+# An X-ray seed with the positioner attributes that readXrayGeometry reads (from the CR above).
+CR="$SEEDS/pylibjpeg_data_JPEGExtended_RG2_JPLY.dcm"
+if command -v dcmodify > /dev/null 2>&1 && [ -f "$CR" ]; then
+  cp "$CR" "$SEEDS/xray_positioner.dcm"
+  dcmodify -nb -q -m "(0008,0060)=XA" -i "(0018,1510)=-32" -i "(0018,1511)=12.5" \
+    -i "(0018,1520)=5" -i "(0018,1110)=1200" -i "(0018,1111)=800" -i "(0018,1164)=0.2\\0.2" \
+    -i "(0020,0020)=L\\F" "$SEEDS/xray_positioner.dcm" > /dev/null 2>&1 ||
+    rm -f "$SEEDS/xray_positioner.dcm"
 fi
 if [ -z "$(ls -A "$SEEDS")" ]; then
   printf 'DICM' > "$SEEDS/minimal"   # no shared data: start from almost nothing

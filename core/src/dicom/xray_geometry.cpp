@@ -346,7 +346,12 @@ void checkOrientation(XrayGeometry& g, const std::string& orientation) {
     for (const CArm& a : g.frames)
         if (a.primaryDeg != g.frames[0].primaryDeg || a.secondaryDeg != g.frames[0].secondaryDeg)
             return; // a rotational run: one orientation cannot hold for every frame
-    const ConeCamera c = cArmCamera(g.frames[0], 16, 16, 1.0, 1.0);
+    ConeCamera c;
+    try {
+        c = cArmCamera(g.frames[0], 16, 16, 1.0, 1.0);
+    } catch (const SettingsError& e) {
+        fail(g.file, e.what()); // angles no camera can take (e.g. 1e300 degrees)
+    }
     const char letters[2] = {orientation[0], orientation[sep + 1]};
     const glm::dvec3 axes[2] = {c.u, c.v};
     const char* what[2] = {"columns", "rows"};
