@@ -215,6 +215,17 @@ TEST(XrayDicom, OrbitRunWrittenAsMultiFrameXaReadsBackFrameByFrame) {
     EXPECT_THROW(writeXrayDicomRun(path, views, arms), SettingsError);
 }
 
+TEST(XrayDicom, PatientOrientationLettersStrongestFirst) {
+    EXPECT_EQ(patientOrientationLetters({1, 0, 0}), "L");
+    EXPECT_EQ(patientOrientationLetters({0, 0, -1}), "F");
+    EXPECT_EQ(patientOrientationLetters({0.6, -0.8, 0}), "AL");
+    EXPECT_EQ(patientOrientationLetters({-0.1, 0.2, 0.97}), "HPR");
+    // LAO 30 at CRAN 0: columns toward the patient's left and a little posterior.
+    const ConeCamera c = cArmCamera(CArm{30.0, 0.0, 1000.0, 750.0}, 16, 16, 1.0, 1.0);
+    EXPECT_EQ(patientOrientationLetters(c.u), "LP");
+    EXPECT_EQ(patientOrientationLetters(c.v), "F");
+}
+
 TEST(XrayDicom, WriterRefusesACameraThatIsNotTheCArms) {
     const CArm arm{10.0, 5.0, 1000.0, 750.0, glm::dvec3(0.0)};
     DetectorImage img = drrOf(arm, 32, 32, 1.0, 1.0, glm::dvec2(0.0));
@@ -346,6 +357,7 @@ TEST(XrayDicom, MissingTagsAreAssumedAndNamed) {
     EXPECT_TRUE(mentions(g.warnings, "(0018,1510) missing", "assumed 0 deg"));
     EXPECT_TRUE(mentions(g.warnings, "(0018,1511) missing", "assumed 0 deg"));
     EXPECT_TRUE(mentions(g.warnings, "(0018,1164)", "1 x 1 mm"));
+    EXPECT_TRUE(mentions(g.warnings, "PatientOrientation (0020,0020) missing", "'L\\F'"));
 
     // The magnification factor SID/SOD gives the one distance that is missing.
     const fs::path emf = writeXa("xa_emf.dcm", 1, [](DcmDataset* ds) {
@@ -354,6 +366,7 @@ TEST(XrayDicom, MissingTagsAreAssumedAndNamed) {
         ds->putAndInsertString(DCM_PositionerPrimaryAngle, "0");
         ds->putAndInsertString(DCM_PositionerSecondaryAngle, "0");
         ds->putAndInsertString(DCM_ImagerPixelSpacing, "0.2\\0.2");
+        ds->putAndInsertString(DCM_PatientOrientation, "L\\F");
     });
     const XrayGeometry m = readXrayGeometry(emf, false);
     EXPECT_DOUBLE_EQ(m.frames[0].sod, 800.0);

@@ -36,17 +36,6 @@ std::string ds(double v) {
     return "0";
 }
 
-/** The patient-orientation letters of a direction (LPS), strongest first, up to three. */
-std::string orientationLetters(const glm::dvec3& w) {
-    const char pos[3] = {'L', 'P', 'H'}, neg[3] = {'R', 'A', 'F'};
-    int order[3] = {0, 1, 2};
-    std::sort(order, order + 3, [&](int a, int b) { return std::abs(w[a]) > std::abs(w[b]); });
-    std::string s;
-    for (int a : order)
-        if (std::abs(w[a]) > 1e-4) s += w[a] > 0 ? pos[a] : neg[a];
-    return s;
-}
-
 /** Stored 16-bit values and the rescale that maps them back: value = stored x slope + lo. */
 struct Quantized {
     std::vector<Uint16> stored;
@@ -185,7 +174,8 @@ void putGeometry(const Put& put, DcmDataset* ds_, const DetectorImage& image, co
     put(DCM_PositionerPrimaryAngle, ds(arm.primaryDeg));
     put(DCM_PositionerSecondaryAngle, ds(arm.secondaryDeg));
     put(DCM_ImagerPixelSpacing, ds(c.pitchV) + "\\" + ds(c.pitchU)); // rows, then columns
-    put(DCM_PatientOrientation, orientationLetters(c.u) + "\\" + orientationLetters(c.v));
+    put(DCM_PatientOrientation,
+        patientOrientationLetters(c.u) + "\\" + patientOrientationLetters(c.v));
     put(DcmTagKey(0x0009, 0x0010), "FVR Workstation");
     auto putDoubles = [&](Uint16 element, const std::vector<double>& v) {
         auto* e = new DcmFloatingPointDouble(DcmTag(0x0009, element, EVR_FD));

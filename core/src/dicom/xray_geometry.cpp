@@ -340,12 +340,20 @@ void mirror(XrayGeometry& g, int axis) {
  *  whose frames all share one pose: a mirrored axis is flipped to match the camera. */
 void checkOrientation(XrayGeometry& g, const std::string& orientation) {
     const auto sep = orientation.find('\\');
-    if (orientation.empty() || sep == std::string::npos || sep == 0 ||
-        sep + 1 >= orientation.size() || g.frames.empty())
-        return;
+    if (g.frames.empty()) return;
     for (const CArm& a : g.frames)
         if (a.primaryDeg != g.frames[0].primaryDeg || a.secondaryDeg != g.frames[0].secondaryDeg)
             return; // a rotational run: one orientation cannot hold for every frame
+    if (orientation.empty() || sep == std::string::npos || sep == 0 ||
+        sep + 1 >= orientation.size()) {
+        const ConeCamera c = cArmCamera(g.frames[0], 16, 16, 1.0, 1.0);
+        g.warnings.push_back(
+            "PatientOrientation (0020,0020) " +
+            std::string(orientation.empty() ? "missing" : "'" + orientation + "' unusable") +
+            ": the pixels are taken as the camera sees them ('" + patientOrientationLetters(c.u) +
+            "\\" + patientOrientationLetters(c.v) + "' at these angles)");
+        return;
+    }
     ConeCamera c;
     try {
         c = cArmCamera(g.frames[0], 16, 16, 1.0, 1.0);
@@ -409,6 +417,17 @@ void readPixels(XrayGeometry& g, const DicomHeader& h, DcmFileFormat& ff) {
 }
 
 } // namespace
+
+std::string patientOrientationLetters(const glm::dvec3& direction) {
+    const char pos[3] = {'L', 'P', 'H'}, neg[3] = {'R', 'A', 'F'};
+    int order[3] = {0, 1, 2};
+    std::sort(order, order + 3,
+              [&](int a, int b) { return std::abs(direction[a]) > std::abs(direction[b]); });
+    std::string s;
+    for (int a : order)
+        if (std::abs(direction[a]) > 1e-4) s += direction[a] > 0 ? pos[a] : neg[a];
+    return s;
+}
 
 ConeCamera XrayGeometry::camera(std::size_t frame, const glm::dvec3& isocentre) const {
     if (frame >= frames.size())

@@ -21,7 +21,8 @@
  *     angles, ViewPosition (0018,5101) PA, AP, LL or RL gives them (0/0, 180/0, 90/0, -90/0).
  *   - PatientOrientation (0020,0020), when stated, is checked against the camera's columns and
  *     rows; an image mirrored relative to the camera (an AP radiograph displayed as read) has
- *     its columns (or rows) flipped to match the camera, with a warning.
+ *     its columns (or rows) flipped to match the camera, with a warning. When it is missing, the
+ *     pixels are taken as the camera sees them, and a warning gives the letters assumed.
  *  Every missing value is assumed and said in a warning that names the tag and the value. The
  *  isocentre is not in any X-ray IOD: it is left to the caller (the volume's centre by default),
  *  except in files that this project wrote, which carry it (and a principal-point offset) in
@@ -61,6 +62,10 @@ struct XrayGeometry {
      *  states one). */
     ConeCamera camera(std::size_t frame, const glm::dvec3& isocentre) const;
 };
+
+/** The PatientOrientation (0020,0020) letters of an LPS direction, strongest first, components
+ *  above 1e-4 only: (1, 0, 0) "L", (0.6, -0.8, 0) "AL", (0, 0, -1) "F". */
+std::string patientOrientationLetters(const glm::dvec3& direction);
 
 /** Reads the geometry (and, when `withPixels`, the pixel values) of a DICOM X-ray image.
  *  Throws DicomError (a LoadError) naming the file and the problem: unreadable, no image,
