@@ -740,8 +740,9 @@ void declareConeCamera(CLI::App& app, ConeOptions& c) {
                const auto p = *toPair(s);
                c.principalOffset = {p.first, p.second};
            },
-           "principal point's offset from the detector's centre in pixels\n"
-           "(columns, rows; default 0,0)")
+           "the principal-point offset in pixels (default 0,0): pixel (i, j) lies at\n"
+           "the detector centre + (i - (W-1)/2 + DU) pu u + (j - (H-1)/2 + DV) pv v,\n"
+           "so the isocentre images at pixel ((W-1)/2 - DU, (H-1)/2 - DV)")
         ->check(CLI::Validator(
             [](std::string& s) -> std::string {
                 return toPair(s) ? "" : "expected DU,DV in pixels, found '" + s + "'";
