@@ -542,4 +542,7 @@ PYBIND11_MODULE(_fvr, m) {
     m.def("transmission", &transmission, py::arg("image"), py::arg("args"));
     m.def("film", &film, py::arg("image"), py::arg("args"), py::arg("invert"));
     m.def("run_cli", &runCli, py::arg("args"));
+    m.def(
+        "check_settings", [](const Args& args) { cli::parseSettings(args); }, py::arg("args"),
+        "Reads fvr-render settings as fvr-render does: ValueError with its message, else None.");
 }
