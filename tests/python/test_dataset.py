@@ -360,7 +360,7 @@ def test_cone_rows_render_fvr_renders_cone_beam_or_are_refused_where_it_has_none
                                            "--primary-angle", "30", "--sid", "1000", "--sod",
                                            "750", "--detector-size", "64x48", "--ray-model",
                                            "box"], tmp_path / "cli.npy")
-    assert stack.shape == (1, 48, 64)
+    assert stack.shape[-2:] == (48, 64)  # W x H: 64 columns, 48 rows
     np.testing.assert_array_equal(stack, expected)
     record = json.loads((tmp_path / "out" / "c.json").read_text())["dataset"]
     assert record["geometry"] == "cone"
