@@ -1,14 +1,17 @@
 """fvr.Camera and the cone-beam renders against hand-worked geometry: where a ball left of the
 isocentre lands (the C-arm's formulas worked by hand), the magnification SID/SOD of a slab's
 width, chord lengths of a water cube in mm, P mapping the isocentre to the principal point,
-render_many against single renders, Beer-Lambert by numpy, and the checks' messages."""
+render_many against single renders, Beer-Lambert by numpy, the checks' messages, and
+fvr-render --geometry cone's .npy (where the built fvr-render has cone beam)."""
 import math
 import pickle
+import subprocess
 
 import numpy as np
 import pytest
 
 import fvr
+from conftest import run_fvr_render
 from test_fvr import released_gil_during
 
 SPACING = 2.0  # mm
@@ -199,3 +202,19 @@ def test_the_gil_is_released_while_cone_beam_renders(ball):
     cams = [ball.camera(primary=p, detector=256) for p in range(0, 360, 45)]
     ball.render(camera=cams[0])  # the ray caster made before the observed call
     assert released_gil_during(lambda: ball.render_many(cams))
+
+
+def test_render_equals_fvr_renders_cone_beam(fvr_render, tmp_path):
+    """The same C-arm through Python and through fvr-render --geometry cone (its defaults: the
+    volume's centre, the framing pitch, mu for Hounsfield data): the same image, bit for bit."""
+    if "--geometry" not in subprocess.run([fvr_render, "--help"], capture_output=True,
+                                          text=True).stdout:
+        pytest.skip("this fvr-render has no --geometry cone")
+    r = fvr.Renderer(fvr.load("phantom:chest:64"))
+    for model in ("trilinear", "box"):
+        cam = r.camera(primary=-40, secondary=25, sid=1100, sod=700, detector=(80, 56))
+        cli = run_fvr_render(fvr_render, ["phantom:chest:64", "--geometry", "cone",
+                                          "--primary-angle", "-40", "--secondary-angle", "25",
+                                          "--sid", "1100", "--sod", "700", "--detector-size",
+                                          "80x56", "--ray-model", model], tmp_path / "c.npy")
+        np.testing.assert_array_equal(r.render(camera=cam, model=model), cli.reshape(56, 80))
