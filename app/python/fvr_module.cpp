@@ -478,7 +478,14 @@ void bindCamera(py::module_& m) {
         .def("pixel_centre", [](const ConeCamera& c, double col,
                                 double row) { return fromGlm(c.pixelCentre(col, row)); })
         .def("matrix", &cameraMatrix)
-        .def("project", &cameraProject, py::arg("points"));
+        .def("project", &cameraProject, py::arg("points"))
+        .def("flat_field", [](const ConeCamera& c) {
+            c.validate();
+            const std::vector<float> f = core::detectorFlatField(c);
+            py::array_t<float> out({py::ssize_t(c.height), py::ssize_t(c.width)});
+            std::memcpy(out.mutable_data(), f.data(), f.size() * sizeof(float));
+            return out;
+        });
     m.def("volume_centre",
           [](const PyVolume& v) { return fromGlm(core::volumeCentre(*v.volume)); });
     m.def("framing_pitch", [](const PyVolume& v, double sid, double sod, int width, int height) {

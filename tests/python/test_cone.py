@@ -137,6 +137,18 @@ def test_renderer_camera_defaults_to_the_volume_centre_and_its_framing_pitch(bal
     assert cam.pitch[0] * 32 == pytest.approx(diagonal * 1200 / 800, rel=0.05)
 
 
+def test_the_flat_field_is_inverse_square_times_obliquity():
+    cam = fvr.Camera.carm(primary=20, isocenter=(0, 0, 0), detector=(40, 30), pitch=2.0,
+                          sid=1000, sod=600)
+    f = cam.flat_field()
+    assert f.shape == (30, 40) and f.dtype == np.float32
+    for col, row in [(0, 0), (39, 29), (7, 22), (20, 15)]:
+        r = np.linalg.norm(np.array(cam.pixel_centre(col, row)) - cam.source)
+        assert f[row, col] == pytest.approx((1000 / r) ** 3, rel=1e-6)
+    # The pixel centres nearest the principal point ((W-1)/2, (H-1)/2) respond most.
+    assert f.max() == f[14:16, 19:21].max() and f.max() < 1 < f.max() + 1e-5
+
+
 def test_a_camera_from_its_parts_and_through_pickle_is_the_same_camera():
     cam = fvr.Camera.carm(primary=25, secondary=-10, isocenter=(5, 6, 7), detector=64, pitch=0.8,
                           principal_point=(1.5, 0.5))

@@ -225,6 +225,14 @@ class Camera:
         """Where the centre of pixel (col, row) lies, LPS mm (fractional indices allowed)."""
         return tuple(self._c.pixel_centre(float(col), float(row)))
 
+    def flat_field(self) -> np.ndarray:
+        """(H, W) float32: a real flat panel's open-beam response relative to the pixel under
+        the source's foot, inverse square times obliquity, (SID / r)^3 with r the distance from
+        the source to the pixel's centre. It multiplies transmitted intensities
+        (``r.transmission(img) * cam.flat_field()``), never line integrals; no render applies
+        it by itself."""
+        return self._c.flat_field()
+
     def __reduce__(self):  # pickles (Dask) by its parts
         return (Camera, (self.source, self.detector_centre, self.u, self.v,
                          (self.width, self.height), self.pitch, self.principal_point))
