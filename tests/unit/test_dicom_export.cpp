@@ -42,3 +42,19 @@ TEST(DicomExport, UnwritablePathNamesIt) {
         EXPECT_NE(std::string(e.what()).find("/no/such/dir/x.dcm"), std::string::npos);
     }
 }
+
+TEST(DicomExport, SecondaryCapturePassesDciodvfyWithoutErrors) {
+    if (fvr::test::runCommand("command -v dciodvfy").status != 0)
+        GTEST_SKIP() << "dciodvfy (Debian package dicom3tools) is not installed";
+    ProjectionImage img;
+    img.size = 32;
+    img.pixelSize = 1.0;
+    img.view = ViewFrame::fromDirUp({0, 1, 0}, {0, 0, 1});
+    img.pixels.assign(32 * 32, 2.5f);
+    img.pixels[5] = 7.0f;
+    const auto path = fvr::test::tmpDir() / "projection_dciodvfy.dcm";
+    writeDicomProjection(path, img, {"Doe^Jane", "ID42", "", "FVR test", "mm"});
+    const auto r = fvr::test::runCommand("dciodvfy -new '" + path.string() + "' 2>&1");
+    EXPECT_NE(r.out.find("SCImage"), std::string::npos) << r.out; // the IOD it checked against
+    EXPECT_EQ(r.out.find("Error"), std::string::npos) << r.out;
+}

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <sstream>
 
 #include <fvr/core/errors.h>
@@ -17,6 +18,24 @@ namespace {
 /** Throws WriteError naming the file and the problem: "<path>: <detail>". */
 [[noreturn]] void failWrite(const std::filesystem::path& path, const std::string& detail) {
     throw WriteError(path.string() + ": " + detail);
+}
+
+/** Type 2 attributes of the Secondary Capture IOD: present, empty when unknown (dciodvfy), and
+ *  the study's date and time (now, UTC). */
+template <class Put>
+void putType2(const Put& put) {
+    for (const DcmTagKey& t :
+         {DCM_PatientBirthDate, DCM_PatientSex, DCM_ReferringPhysicianName, DCM_StudyID,
+          DCM_AccessionNumber, DCM_Laterality, DCM_PatientOrientation})
+        put(t, "");
+    char date[16], time[16];
+    const std::time_t now = std::time(nullptr);
+    std::tm tm{};
+    gmtime_r(&now, &tm);
+    std::strftime(date, sizeof date, "%Y%m%d", &tm);
+    std::strftime(time, sizeof time, "%H%M%S", &tm);
+    put(DCM_StudyDate, date);
+    put(DCM_StudyTime, time);
 }
 
 } // namespace
@@ -51,6 +70,7 @@ void writeDicomProjection(const std::filesystem::path& path, const ProjectionIma
     put(DCM_SeriesInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_SERIES_UID_ROOT));
     put(DCM_PatientName, info.patientName);
     put(DCM_PatientID, info.patientId);
+    putType2(put);
     put(DCM_Modality, "OT");
     put(DCM_ConversionType, "WSD"); // workstation
     put(DCM_SeriesDescription, info.seriesDescription);
