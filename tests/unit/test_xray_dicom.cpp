@@ -406,6 +406,11 @@ TEST(XrayDicom, BadValuesAreRefusedNamingTheFileAndTag) {
     EXPECT_NE(e.find("'CT'"), std::string::npos) << e;
     EXPECT_NE(e.find("not a projection X-ray"), std::string::npos) << e;
 
+    const fs::path rt =
+        writeImage("rtimage.dcm", UID_RTImageStorage, "RTIMAGE", 16, 16, 1, [](DcmDataset*) {});
+    e = errorOf([&] { readXrayGeometry(rt); });
+    EXPECT_NE(e.find("IEC 61217"), std::string::npos) << e;
+
     // Pixels that would not fit in memory are refused before they are allocated.
     const fs::path run = writeXa("xa_run_memory.dcm", 4, [](DcmDataset*) {});
     setenv("FVR_MEMORY_LIMIT_MB", "0.001", 1);

@@ -175,6 +175,10 @@ bool isRadiograph(const std::string& modality) {
 /** Refuses images that are no projection X-ray (CT slices, MR, ...). */
 void checkModality(const XrayGeometry& g, const DicomHeader& h) {
     if (h.modality == "XA" || h.modality == "RF" || isRadiograph(h.modality)) return;
+    if (h.modality == "RTIMAGE")
+        fail(g.file, "an RT Image's geometry is a treatment machine's (IEC 61217 GantryAngle "
+                     "(300A,011E), RTImageSID (3002,0026), RadiationMachineSAD (3002,0022)), not "
+                     "a C-arm's positioner angles: not read as an X-ray");
     fail(g.file, "Modality (0008,0060) '" + h.modality + "' (" + describeSopClass(h.sopClassUid) +
                      ") is not a projection X-ray: expected XA, RF, DX, CR, RG, MG, IO or PX");
 }
