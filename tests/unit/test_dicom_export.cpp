@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <dcmtk/config/osconfig.h>
+#include <dcmtk/dcmdata/dctk.h>
+
 #include <fvr/core/dicom/dicom.h>
 #include <fvr/core/dicom/dicom_export.h>
 #include <fvr/core/errors.h>
@@ -53,7 +56,15 @@ TEST(DicomExport, SecondaryCapturePassesDciodvfyWithoutErrors) {
     img.pixels.assign(32 * 32, 2.5f);
     img.pixels[5] = 7.0f;
     const auto path = fvr::test::tmpDir() / "projection_dciodvfy.dcm";
-    writeDicomProjection(path, img, {"Doe^Jane", "ID42", "", "FVR test", "mm"});
+    writeDicomProjection(path, img, {"Doe^Jane", "ID42", "1.2.3.4", "FVR test", "mm", "20240131"});
+    // The export joins its source's study: same UID, same date.
+    DcmFileFormat ff;
+    ASSERT_TRUE(ff.loadFile(path.c_str()).good());
+    OFString uid, date;
+    ff.getDataset()->findAndGetOFString(DCM_StudyInstanceUID, uid);
+    ff.getDataset()->findAndGetOFString(DCM_StudyDate, date);
+    EXPECT_EQ(std::string(uid.c_str()), "1.2.3.4");
+    EXPECT_EQ(std::string(date.c_str()), "20240131");
     const auto r = fvr::test::runCommand("dciodvfy -new '" + path.string() + "' 2>&1");
     EXPECT_NE(r.out.find("SCImage"), std::string::npos) << r.out; // the IOD it checked against
     EXPECT_EQ(r.out.find("Error"), std::string::npos) << r.out;

@@ -20,22 +20,23 @@ namespace {
     throw WriteError(path.string() + ": " + detail);
 }
 
-/** Type 2 attributes of the Secondary Capture IOD: present, empty when unknown (dciodvfy), and
- *  the study's date and time (now, UTC). */
+/** Type 2 attributes of the Secondary Capture IOD: present, empty when unknown (dciodvfy); the
+ *  study's date is the source's (a study has one date), the content's is now (UTC). */
 template <class Put>
-void putType2(const Put& put) {
+void putType2(const Put& put, const DicomExportInfo& info) {
     for (const DcmTagKey& t :
          {DCM_PatientBirthDate, DCM_PatientSex, DCM_ReferringPhysicianName, DCM_StudyID,
-          DCM_AccessionNumber, DCM_Laterality, DCM_PatientOrientation})
+          DCM_AccessionNumber, DCM_Laterality, DCM_PatientOrientation, DCM_StudyTime})
         put(t, "");
+    put(DCM_StudyDate, info.studyDate);
     char date[16], time[16];
     const std::time_t now = std::time(nullptr);
     std::tm tm{};
     gmtime_r(&now, &tm);
     std::strftime(date, sizeof date, "%Y%m%d", &tm);
     std::strftime(time, sizeof time, "%H%M%S", &tm);
-    put(DCM_StudyDate, date);
-    put(DCM_StudyTime, time);
+    put(DCM_ContentDate, date);
+    put(DCM_ContentTime, time);
 }
 
 } // namespace
@@ -70,7 +71,7 @@ void writeDicomProjection(const std::filesystem::path& path, const ProjectionIma
     put(DCM_SeriesInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_SERIES_UID_ROOT));
     put(DCM_PatientName, info.patientName);
     put(DCM_PatientID, info.patientId);
-    putType2(put);
+    putType2(put, info);
     put(DCM_Modality, "OT");
     put(DCM_ConversionType, "WSD"); // workstation
     put(DCM_SeriesDescription, info.seriesDescription);
@@ -120,6 +121,7 @@ DicomExportInfo exportInfoFor(const std::optional<DicomSeriesInfo>& series) {
         info.patientName = series->patientName;
         info.patientId = series->patientId;
         info.studyInstanceUid = series->studyUid;
+        info.studyDate = series->studyDate;
     }
     return info;
 }

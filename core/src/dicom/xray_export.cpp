@@ -146,10 +146,9 @@ void putIdentity(const Put& put, const DicomExportInfo& info) {
     put(DCM_PatientID, info.patientId);
     for (const DcmTagKey& t : {DCM_PatientBirthDate, DCM_PatientSex, DCM_ReferringPhysicianName,
                                DCM_StudyID, DCM_AccessionNumber, DCM_Laterality, DCM_KVP,
-                               DCM_XRayTubeCurrent, DCM_ExposureTime, DCM_Exposure})
+                               DCM_XRayTubeCurrent, DCM_ExposureTime, DCM_Exposure, DCM_StudyTime})
         put(t, "");
-    put(DCM_StudyDate, date);
-    put(DCM_StudyTime, time);
+    put(DCM_StudyDate, info.studyDate); // the source study's: a study has one date
     put(DCM_ContentDate, date);
     put(DCM_ContentTime, time);
     put(DCM_Modality, "XA");

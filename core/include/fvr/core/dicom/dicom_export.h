@@ -16,10 +16,13 @@ struct DicomExportInfo {
     std::string patientName, patientId, studyInstanceUid; ///< copied from the source when known
     std::string seriesDescription = "FVR projection";
     std::string valueDescription = "line integral"; ///< e.g. "mm (mu/mu_water x mm)"
+    /** The source study's StudyDate (YYYYMMDD), copied with its UID so that the export does not
+     *  contradict its study; empty when unknown (then written empty, as type 2 allows). */
+    std::string studyDate;
 };
 
-/** Patient, patient ID and study UID of the series a projection comes from (none for a phantom
- *  or a volume file): the export joins the source's study in a PACS. */
+/** Patient, patient ID, study UID and study date of the series a projection comes from (none for
+ *  a phantom or a volume file): the export joins the source's study in a PACS. */
 DicomExportInfo exportInfoFor(const std::optional<DicomSeriesInfo>& series);
 
 /**
