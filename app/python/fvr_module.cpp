@@ -17,6 +17,7 @@
 #include <fvr/core/errors.h>
 #include <fvr/core/geometry/camera.h>
 #include <fvr/core/io/open_study.h>
+#include <fvr/core/geometry/projection_matrix_file.h>
 #include <fvr/core/render/cone_projector.h>
 #include <fvr/core/render/cpu_batch.h>
 #include <fvr/core/xray/display_window.h>
@@ -461,6 +462,22 @@ void bindCamera(py::module_& m) {
         .def_static("carm", &cArm, py::arg("primary"), py::arg("secondary"), py::arg("sid"),
                     py::arg("sod"), py::arg("isocentre"), py::arg("width"), py::arg("height"),
                     py::arg("pitch_u"), py::arg("pitch_v"), py::arg("du"), py::arg("dv"))
+        .def_static(
+            "from_matrix",
+            [](py::array_t<double, py::array::c_style | py::array::forcecast> p, int width,
+               int height, double pitchU, double pitchV) {
+                if (p.ndim() != 2 || p.shape(0) != 3 || p.shape(1) != 4)
+                    throw core::SettingsError("matrix: expected a (3, 4) array");
+                auto r = p.unchecked<2>();
+                core::ProjectionMatrix m;
+                for (int i = 0; i < 3; ++i)
+                    m.rows[i] = glm::dvec4(r(i, 0), r(i, 1), r(i, 2), r(i, 3));
+                return core::cameraFromMatrix(m, width, height, pitchU, pitchV);
+            },
+            py::arg("matrix"), py::arg("width"), py::arg("height"), py::arg("pitch_u"),
+            py::arg("pitch_v"))
+        .def_static("read_matrix_file",
+                    [](const std::string& path) { return core::readProjectionMatrixFile(path); })
         .def_property_readonly("source", [](const ConeCamera& c) { return fromGlm(c.source); })
         .def_property_readonly("detector_centre",
                                [](const ConeCamera& c) { return fromGlm(c.detectorCentre); })

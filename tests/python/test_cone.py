@@ -158,6 +158,22 @@ def test_a_camera_from_its_parts_and_through_pickle_is_the_same_camera():
     np.testing.assert_array_equal(pickle.loads(pickle.dumps(cam)).matrix, cam.matrix)
 
 
+def test_a_camera_from_its_matrix_or_a_matrix_file_is_the_same_camera(tmp_path):
+    cam = fvr.Camera.carm(primary=-35, secondary=20, isocenter=(10, -5, 30), detector=(96, 64),
+                          pitch=(0.7, 0.9), principal_point=(2.5, -1.0))
+    back = fvr.Camera.from_matrix(cam.matrix * 3.0, (96, 64), (0.7, None))  # any scale of P
+    np.testing.assert_allclose(back.matrix, cam.matrix, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(back.source, cam.source, atol=1e-9)
+    assert back.pitch == pytest.approx((0.7, 0.9))
+    rows = "\n".join(" ".join(repr(x) for x in row) for row in cam.matrix)
+    path = tmp_path / "p.txt"
+    path.write_text(f"# a C-arm\ndetector 96 64\npitch 0.7 0.9\n{rows}\n")
+    (read,) = fvr.Camera.read_matrix_file(path)
+    np.testing.assert_allclose(read.matrix, cam.matrix, rtol=1e-9, atol=1e-9)
+    with pytest.raises(ValueError, match="expected a .3, 4. array"):
+        fvr.Camera.from_matrix(np.eye(3), 96, 1.0)
+
+
 @pytest.mark.parametrize("call, message", [
     (lambda r: fvr.Camera.carm(sid=1000, sod=1000, isocenter=(0, 0, 0), pitch=1),
      "expected 0 < SOD < SID, found SOD 1000 mm, SID 1000 mm"),

@@ -42,6 +42,7 @@ void MainWindow::applyGeometry() {
         m_views[std::size_t(i)]->setSettings(s);
         if (m_compareCount > 1) m_views[std::size_t(i)]->setTitle(viewTitle(i, s));
     }
+    assignSpectra(); // a cone-beam view takes the study's spectrum, whatever its kernel
     // The startup setting is view 1's.
     QSettings st;
     GeometryPanel::save(st, {m_viewSettings[0].projection, m_viewSettings[0].cone});

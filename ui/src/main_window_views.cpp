@@ -75,6 +75,9 @@ void MainWindow::assignSpectra() {
         auto spectrum = m_study->spectrumFor(s.kernel);
         const auto main = m_study->spectrum();
         if (i == 0 && (!main->deapodizedFor || *main->deapodizedFor == s.kernel)) spectrum = main;
+        // A cone-beam view ray casts the volume: any spectrum of the study's values will do
+        // (it only says which values), so it never waits for its kernel's.
+        if (s.projection == ProjectionKind::Cone && main) spectrum = main;
         if (spectrum) {
             v->setSettings(s);
             v->setStudy(volume, spectrum);

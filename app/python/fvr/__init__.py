@@ -20,6 +20,7 @@ failures (unreadable files...) raise RuntimeError. The GIL is released while C++
 from __future__ import annotations
 
 import json
+import os
 from typing import Any, Callable, Optional, Sequence, Union
 
 import numpy as np
@@ -184,6 +185,27 @@ class Camera:
         return cls._wrap(_fvr.Camera.carm(float(primary), float(secondary), float(sid),
                                           float(sod), _point(isocenter, "isocenter"), int(w),
                                           int(h), float(pu), float(pv), float(du), float(dv)))
+
+    @classmethod
+    def from_matrix(cls, matrix, detector, pitch) -> "Camera":
+        """The camera of a 3x4 projection matrix P ([w col, w row, w] = P [x, y, z, 1], LPS mm,
+        pixel centres at integer (col, row); any positive scale) on a ``detector`` of W x H
+        pixels: P fixes the source, the detector's directions and the principal point, and
+        the pitch (one number, or (pu, pv); pv may be None to take it from P) fixes the
+        detector's distance. A singular or skewed P raises ValueError."""
+        w, h = _pair(detector, "detector")
+        if isinstance(pitch, (int, float)):
+            pu, pv = float(pitch), 0.0
+        else:
+            pu, pv = float(pitch[0]), 0.0 if pitch[1] is None else float(pitch[1])
+        return cls._wrap(_fvr.Camera.from_matrix(np.asarray(matrix, dtype=np.float64), int(w),
+                                                 int(h), pu, pv))
+
+    @classmethod
+    def read_matrix_file(cls, path) -> list:
+        """The cameras of a projection-matrix file (fvr-render --projection-matrix's format:
+        ``detector W H``, ``pitch PU [PV]``, then 3 rows of 4 numbers per view)."""
+        return [cls._wrap(c) for c in _fvr.Camera.read_matrix_file(os.fspath(path))]
 
     @classmethod
     def _wrap(cls, c) -> "Camera":

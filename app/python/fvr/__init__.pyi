@@ -1,5 +1,5 @@
 # Type hints of the package fvr (the implementation: __init__.py over the extension _fvr).
-from typing import Any, Callable, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -68,6 +68,10 @@ class Camera:
         principal_point: Tuple[float, float] = ...,
         volume: Optional[Volume] = ...,
     ) -> Camera: ...
+    @classmethod
+    def from_matrix(cls, matrix: Any, detector: Size, pitch: Any) -> Camera: ...
+    @classmethod
+    def read_matrix_file(cls, path: Any) -> List[Camera]: ...
     @property
     def source(self) -> Vec3: ...
     @property

@@ -1,0 +1,117 @@
+// The workstation's cone beam: the Geometry panel puts a view on a C-arm whose image is the ray
+// caster's for the same camera, its angles turn every view (a parallel view beside it shows the
+// same orientation), a drag moves the C-arm, the overlay reads as a cath lab, and the choices
+// survive a restart.
+#include <QComboBox>
+#include <QDoubleSpinBox>
+#include <QLabel>
+
+#include <fvr/core/render/cone_projector.h>
+#include <fvr/ui/panels/geometry_panel.h>
+#include <fvr/ui/panels/rendering_panel.h>
+
+#include "image_metrics.h"
+#include "ui_support.h"
+
+namespace {
+
+using namespace fvr;
+using fvr::test::openAndWait;
+using fvr::test::Workstation;
+using ui::StudySource;
+
+void choose(QComboBox* c, int data) { c->setCurrentIndex(c->findData(data)); }
+
+/** The ray caster's image of the C-arm at these angles, as the view's camera (cArmCamera about
+ *  the volume's centre, the framing pitch), computed here from the contract's parts. */
+std::vector<float> expectedCone(const ui::ProjectionView& v, double a, double b, double sid,
+                                double sod) {
+    const core::Volume& vol = *v.volume();
+    const int M = v.settings().size;
+    const double pitch = core::framingPitch(vol, sid, sod, M, M);
+    const core::ConeCamera cam =
+        core::cArmCamera({a, b, sid, sod, core::volumeCentre(vol)}, M, M, pitch, pitch);
+    core::ConeProjectorOptions o;
+    o.mapping = v.spectrum()->mapping;
+    return core::ConeProjector(vol, o).project(cam).pixels;
+}
+
+TEST_F(Workstation, ConeBeamViewShowsTheCArmsImageAndReadsAsACathLab) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    auto* v = window->views()[0];
+    choose(window->renderingPanel()->sizeCombo(), 128);
+    ui::GeometryPanel& g = *window->geometryPanel();
+    choose(g.projectionCombo(), int(ui::ProjectionKind::Cone));
+    g.primarySpin()->setValue(30.0);
+    g.secondarySpin()->setValue(15.0);
+    EXPECT_EQ(g.angleLabel()->text(), QString::fromUtf8("LAO 30° CRAN 15°"));
+    ASSERT_EQ(v->settings().projection, ui::ProjectionKind::Cone);
+    const auto img = v->projection();
+    ASSERT_TRUE(img);
+    EXPECT_GT(test::compare(img->pixels, expectedCone(*v, 30.0, 15.0, 1000.0, 750.0)).psnr, 120.0);
+    QApplication::processEvents();
+    EXPECT_TRUE(v->overlayText().contains(QString::fromUtf8("LAO 30° CRAN 15°  SID 1000  SOD 750")))
+        << v->overlayText().toStdString();
+    EXPECT_TRUE(v->overlayText().contains("cone beam"));
+
+    // A machine preset sets both distances; the image follows.
+    auto* preset = g.presetCombo();
+    preset->setCurrentIndex(2); // the chest radiograph
+    emit preset->activated(2);
+    EXPECT_EQ(v->settings().cone.sid, 1800.0);
+    EXPECT_EQ(v->settings().cone.sod, 1650.0);
+    EXPECT_GT(
+        test::compare(v->projection()->pixels, expectedCone(*v, 30.0, 15.0, 1800.0, 1650.0)).psnr,
+        120.0);
+
+    // A drag to the right moves toward LAO, upward toward cranial; the panel follows.
+    const QPoint c = v->rect().center();
+    QTest::mousePress(v, Qt::LeftButton, Qt::NoModifier, c);
+    QTest::mouseMove(v, c + QPoint(20, -10));
+    QTest::mouseRelease(v, Qt::LeftButton, Qt::NoModifier, c + QPoint(20, -10));
+    EXPECT_GT(g.primaryAngle(), 30.5);
+    EXPECT_GT(g.secondaryAngle(), 15.2);
+    const core::CArmAngles now = core::cArmAngles(*v->volume(), v->viewFrame());
+    EXPECT_NEAR(now.primaryDeg, g.primaryAngle(), 0.051); // the spin box rounds to 0.1
+    EXPECT_NEAR(now.secondaryDeg, g.secondaryAngle(), 0.051);
+
+    // Saved: a new window starts in cone mode with the chest radiograph's distances.
+    window.reset();
+    window = std::make_unique<ui::MainWindow>();
+    EXPECT_EQ(window->views()[0]->settings().projection, ui::ProjectionKind::Cone);
+    EXPECT_EQ(window->geometryPanel()->values().cone.sid, 1800.0);
+}
+
+TEST_F(Workstation, CompareModePutsParallelBesideConeAtTheSameAngles) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    window->setCompareCount(2);
+    ASSERT_EQ(window->views().size(), 2u);
+    auto* rendering = window->renderingPanel();
+    rendering->appliesToCombo()->setCurrentIndex(2); // view 2
+    choose(window->geometryPanel()->projectionCombo(), int(ui::ProjectionKind::Cone));
+    rendering->appliesToCombo()->setCurrentIndex(0);
+    auto* parallel = window->views()[0];
+    auto* cone = window->views()[1];
+    EXPECT_EQ(parallel->settings().projection, ui::ProjectionKind::Parallel);
+    EXPECT_EQ(cone->settings().projection, ui::ProjectionKind::Cone);
+    window->geometryPanel()->primarySpin()->setValue(-40.0);
+    window->geometryPanel()->secondarySpin()->setValue(-20.0);
+    for (auto* v : {parallel, cone}) {
+        const core::CArmAngles a = core::cArmAngles(*v->volume(), v->viewFrame());
+        EXPECT_NEAR(a.primaryDeg, -40.0, 1e-9);
+        EXPECT_NEAR(a.secondaryDeg, -20.0, 1e-9);
+    }
+    // The cone-beam view needs no spectrum of its kernel's; the parallel one has view 1's.
+    EXPECT_TRUE(cone->spectrum());
+    const auto p = parallel->projection(), c = cone->projection();
+    ASSERT_TRUE(p && c);
+    EXPECT_GT(test::compare(c->pixels, expectedCone(*cone, -40.0, -20.0, 1000.0, 750.0)).psnr,
+              120.0);
+    // Same orientation, different beams: alike but not equal (the cone magnifies the near side).
+    const auto cmp = test::compare(c->pixels, p->pixels);
+    EXPECT_GT(cmp.psnr, 12.0);
+    EXPECT_LT(cmp.psnr, 60.0);
+    EXPECT_TRUE(cone->overlayText().contains(QString::fromUtf8("RAO 40° CAUD 20°")));
+}
+
+} // namespace
