@@ -34,8 +34,10 @@ using fvr::test::runPlastimatchDrr;
             GTEST_SKIP() << why;                                                                   \
     } while (0)
 
+/** A scratch folder of the running test's own (ctest runs tests in parallel processes). */
 std::filesystem::path work(const std::string& name) {
-    return fvr::test::tmpDir() / "plastimatch" / name;
+    const auto* test = ::testing::UnitTest::GetInstance()->current_test_info();
+    return fvr::test::tmpDir() / "plastimatch" / (std::string(test->name()) + "_" + name);
 }
 
 /** N voxels of spacing s filled by f(i, j, k), index axes along `dir`, centred on `centre`. */
