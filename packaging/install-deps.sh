@@ -2,7 +2,7 @@
 # Installs what a fresh Debian 12 machine lacks to build and run FVR Workstation; with --tests,
 # also what only the tests need (make test): a real PACS (Orthanc; Debian starts its service,
 # which the tests never use: `systemctl disable --now orthanc` if you do not want it), pytest,
-# and Dask and Zarr for the dataset tests.
+# Dask and Zarr for the dataset tests, and plastimatch (the cone-beam box model's oracle).
 # Non-interactive and idempotent: packages already present are not touched, apt is not even
 # called when nothing is missing. Uses sudo only when not running as root.
 set -euo pipefail
@@ -26,6 +26,7 @@ if [ "${1:-}" = "--tests" ]; then
     openssl # the DICOM TLS tests make their CA and certificates with it
     python3-pytest python3-distributed python3-zarr
     python3-hypothesis # the dataset manifest fuzz (tests/fuzz/fuzz_manifest.py)
+    plastimatch # `plastimatch drr -i exact`: the oracle of the cone-beam box model's tests
   )
 fi
 
