@@ -2,12 +2,13 @@
 
 #include <QApplication>
 #include <QComboBox>
-#include <QDoubleSpinBox>
 #include <QCommandLineParser>
+#include <QDoubleSpinBox>
 #include <QObject>
 #include <QRegularExpression>
 
 #include <cmath>
+#include <memory>
 
 #include <fvr/core/errors.h>
 #include <fvr/core/render/render_settings.h>
@@ -65,6 +66,10 @@ void declareOptions(QCommandLineParser& p) {
         {"sid", "The cone beam's source-to-detector distance, mm", "mm"},
         {"sod", "The cone beam's source-to-isocentre distance, mm (less than --sid)", "mm"},
         {"ray-model", "The cone beam's voxel model: trilinear, box or bspline", "M"},
+        {"match-xray",
+         "Once the study is open, show this X-ray (XA, RF, DX, CR) beside the DRR rendered with "
+         "its geometry (File > Open X-ray to match...)",
+         "FILE"},
         {"window-size", "The main window's size, e.g. 1400x1000", "WxH"},
         {"export-views",
          "Once every view shows its full-quality frame, write DIR/view1.npy … (the float "
@@ -162,6 +167,7 @@ WorkstationOptions parseWorkstationOptions(const QApplication& app) {
         if (!m.hasMatch()) throw core::SettingsError("--window-size: expected WxH, e.g. 1400x1000");
         o.windowSize = QSize(m.captured(1).toInt(), m.captured(2).toInt());
     }
+    o.matchXray = p.value("match-xray");
     o.script.exportDir = p.value("export-views");
     o.script.screenshotFile = p.value("screenshot");
     o.script.quit = p.isSet("quit");
@@ -193,6 +199,16 @@ void applyGeometryOptions(ui::MainWindow& window, const WorkstationOptions& o, F
                 choose(g.projectionCombo(),
                        int(o.projections[std::min<std::size_t>(i, o.projections.size() - 1)]));
         });
+    }
+    if (!o.matchXray.isEmpty()) {
+        const QString path = o.matchXray;
+        auto done = std::make_shared<bool>(false); // once: at the study's first spectrum
+        QObject::connect(&window.study(), &ui::StudyController::spectrumReady, &window,
+                         [&window, path, done] {
+                             if (*done) return;
+                             *done = true;
+                             window.matchXray(path);
+                         });
     }
     if (o.carm) {
         const auto [a, b] = *o.carm;

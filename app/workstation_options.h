@@ -35,6 +35,7 @@ struct WorkstationOptions {
     std::optional<std::pair<double, double>> carm; ///< --carm PRIMARY,SECONDARY (degrees)
     std::optional<double> sid, sod; ///< mm
     std::optional<core::RayModel> rayModel;
+    QString matchXray; ///< --match-xray FILE: File ▸ Open X-ray to match… once the study is open
     std::optional<QSize> windowSize;
     ui::ScriptedRunOptions script;
 };

@@ -16,8 +16,8 @@
 
 #include <fvr/core/errors.h>
 #include <fvr/core/geometry/camera.h>
-#include <fvr/core/io/open_study.h>
 #include <fvr/core/geometry/projection_matrix_file.h>
+#include <fvr/core/io/open_study.h>
 #include <fvr/core/render/cone_projector.h>
 #include <fvr/core/render/cpu_batch.h>
 #include <fvr/core/xray/display_window.h>

@@ -2,13 +2,19 @@
 // caster's for the same camera, its angles turn every view (a parallel view beside it shows the
 // same orientation), a drag moves the C-arm, the overlay reads as a cath lab, and the choices
 // survive a restart.
+#include <QCheckBox>
 #include <QComboBox>
 #include <QDoubleSpinBox>
 #include <QLabel>
+#include <QSlider>
 
+#include <fstream>
+
+#include <fvr/core/dicom/xray_geometry.h>
 #include <fvr/core/render/cone_projector.h>
 #include <fvr/ui/panels/geometry_panel.h>
 #include <fvr/ui/panels/rendering_panel.h>
+#include <fvr/ui/xray_match.h>
 
 #include "image_metrics.h"
 #include "ui_support.h"
@@ -112,6 +118,52 @@ TEST_F(Workstation, CompareModePutsParallelBesideConeAtTheSameAngles) {
     EXPECT_GT(cmp.psnr, 12.0);
     EXPECT_LT(cmp.psnr, 60.0);
     EXPECT_TRUE(cone->overlayText().contains(QString::fromUtf8("RAO 40° CAUD 20°")));
+}
+
+TEST_F(Workstation, AnXrayIsShownBesideTheDrrOfItsOwnGeometry) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    const core::Volume& vol = *window->views()[0]->volume();
+    // The "X-ray": a cone beam of the study from an oblique C-arm with an off-centre
+    // detector, written as an XA carrying its geometry.
+    const core::CArm arm{-25.0, 12.0, 1100.0, 800.0, core::volumeCentre(vol)};
+    const core::ConeCamera cam = core::cArmCamera(arm, 96, 80, 0.9, 0.9, {3.0, -2.0});
+    core::ConeProjectorOptions o;
+    o.mapping = window->study().spectrum()->mapping;
+    const core::DetectorImage xray = core::ConeProjector(vol, o).project(cam);
+    const auto path = test::tmpDir() / "match_xa.dcm";
+    core::writeXrayDicom(path, xray, arm);
+
+    ui::XrayMatchDialog* d = window->matchXray(QString::fromStdString(path.string()));
+    ASSERT_TRUE(d);
+    ASSERT_TRUE(d->drr()) << d->errorText().toStdString();
+    EXPECT_EQ(d->drr()->width, 96);
+    EXPECT_EQ(d->drr()->height, 80);
+    // The DRR of the file's geometry is the image the file was made from.
+    EXPECT_GT(test::compare(d->drr()->pixels, xray.pixels).psnr, 80.0);
+    EXPECT_EQ(d->invertCheck()->isChecked(), true); // an XA: fluoroscopy's dense = dark
+    const QImage side = d->canvas()->composed();
+    EXPECT_EQ(side.size(), QSize(192, 80));
+    d->modeCombo()->setCurrentIndex(
+        d->modeCombo()->findData(int(ui::XrayMatchCanvas::Mode::Checkerboard)));
+    EXPECT_EQ(d->canvas()->composed().size(), QSize(96, 80));
+    // The opacity's ends show one image alone.
+    d->modeCombo()->setCurrentIndex(
+        d->modeCombo()->findData(int(ui::XrayMatchCanvas::Mode::Overlay)));
+    d->opacitySlider()->setValue(0);
+    const QImage xrayOnly = d->canvas()->composed();
+    d->opacitySlider()->setValue(100);
+    EXPECT_NE(d->canvas()->composed(), xrayOnly);
+
+    // Not an X-ray: said, nothing shown, the window still usable.
+    const auto bad = test::tmpDir() / "not_an_xray.dcm";
+    {
+        std::ofstream f(bad);
+        f << "hello";
+    }
+    d = window->matchXray(QString::fromStdString(bad.string()));
+    EXPECT_FALSE(d->drr());
+    EXPECT_FALSE(d->errorText().isEmpty());
+    EXPECT_TRUE(window->messages()->toPlainText().contains("not_an_xray.dcm"));
 }
 
 } // namespace

@@ -154,10 +154,6 @@ void MainWindow::buildDocks() {
     QDockWidget* studyDock = dock(tr("Study"), "dock.study", m_studyPanel, Qt::RightDockWidgetArea);
     QDockWidget* renderDock =
         dock(tr("Rendering"), "dock.rendering", m_rendering, Qt::RightDockWidgetArea);
-    QDockWidget* geometryDock =
-        dock(tr("Geometry"), "dock.geometry", m_geometry, Qt::RightDockWidgetArea);
-    tabifyDockWidget(renderDock, geometryDock);
-    renderDock->raise();
     QDockWidget* displayDock =
         dock(tr("Display"), "dock.display", m_display, Qt::RightDockWidgetArea);
     // The X-ray panel (its polychromatic rows) scrolls where it is taller than the space, instead
@@ -174,6 +170,10 @@ void MainWindow::buildDocks() {
     xrayScroll->setMinimumHeight(m_xray->minimumSizeHint().height());
     QDockWidget* xrayDock = dock(tr("X-ray"), "dock.xray", xrayScroll, Qt::RightDockWidgetArea);
     tabifyDockWidget(displayDock, xrayDock);
+    // The C-arm beside the X-ray look: one tab group, so the column is no taller.
+    QDockWidget* geometryDock =
+        dock(tr("Geometry"), "dock.geometry", m_geometry, Qt::RightDockWidgetArea);
+    tabifyDockWidget(xrayDock, geometryDock);
     displayDock->raise();
     QDockWidget* msgDock =
         dock(tr("Messages"), "dock.messages", m_messages, Qt::BottomDockWidgetArea);

@@ -13,6 +13,7 @@
 #include <fvr/ui/app_info.h>
 #include <fvr/ui/settings_keys.h>
 #include <fvr/ui/settings_model.h>
+#include <fvr/ui/xray_match.h>
 
 namespace fvr::ui {
 
@@ -33,6 +34,8 @@ void MainWindow::buildMenus() {
     file->addAction(tr("Open built-in Shepp-&Logan phantom"), this,
                     [this] { openStudy(StudySource::phantom(128)); });
     m_recentMenu = file->addMenu(tr("&Recent studies"));
+    file->addSeparator();
+    file->addAction(tr("Open &X-ray to match…"), this, &MainWindow::openXrayMatchDialog);
     file->addSeparator();
     QAction* shot =
         file->addAction(tr("Export &screenshot (PNG)…"), this, &MainWindow::exportScreenshotDialog);
@@ -165,6 +168,27 @@ void MainWindow::openFileDialog() {
         tr("Volumes and DICOM files (*.mhd *.mha *.nii *.nii.gz *.dcm *.dicom DICOMDIR);;"
            "All files (*)"));
     if (!path.isEmpty()) openStudy(StudySource::fromPath(path));
+}
+
+void MainWindow::openXrayMatchDialog() {
+    const QString path = QFileDialog::getOpenFileName(
+        this, tr("Open X-ray to match"), QSettings().value(keys::kLastFolder).toString(),
+        tr("DICOM X-rays (XA, RF, DX, CR) (*.dcm *.dicom *);;All files (*)"));
+    if (!path.isEmpty()) matchXray(path);
+}
+
+XrayMatchDialog* MainWindow::matchXray(const QString& path) {
+    if (!m_xrayMatch) m_xrayMatch = new XrayMatchDialog(this);
+    const auto volume = m_study->volume();
+    const auto spectrum = m_study->spectrum();
+    m_xrayMatch->setStudy(volume, spectrum ? spectrum->mapping : m_model->rendering().mapping);
+    if (!m_xrayMatch->openXray(path))
+        message(tr("X-ray %1: %2").arg(path, m_xrayMatch->errorText()));
+    else
+        message(tr("X-ray %1 matched: its C-arm, detector and pitch").arg(path));
+    m_xrayMatch->show();
+    m_xrayMatch->raise();
+    return m_xrayMatch;
 }
 
 void MainWindow::openFolderDialog() {

@@ -29,6 +29,7 @@ class PacsDialog;
 class PacsService;
 class DisplayPanel;
 class GeometryPanel;
+class XrayMatchDialog;
 class MessagesPanel;
 class RenderingPanel;
 class SettingsModel;
@@ -90,6 +91,9 @@ public:
     DisplayPanel* displayPanel() const { return m_display; }
     XrayPanel* xrayPanel() const { return m_xray; }
     GeometryPanel* geometryPanel() const { return m_geometry; }
+    /** File ▸ Open X-ray to match…: the X-ray beside the DRR of its geometry (the dialog,
+     *  shown; the reason in the messages when the file cannot be matched). */
+    XrayMatchDialog* matchXray(const QString& path);
     MessagesPanel* messages() const { return m_messages; }
     QProgressBar* progressBar() const { return m_progress; }
     QPushButton* cancelButton() const { return m_cancel; }
@@ -170,6 +174,7 @@ private:
     void rebuildRecentMenu();
     void openFileDialog();
     void openFolderDialog();
+    void openXrayMatchDialog();
     void exportScreenshotDialog();
     void exportProjectionDialog();
     void exportSweepDialog();
@@ -216,6 +221,7 @@ private:
     DisplayPanel* m_display = nullptr;
     XrayPanel* m_xray = nullptr;
     GeometryPanel* m_geometry = nullptr;
+    XrayMatchDialog* m_xrayMatch = nullptr; ///< child of the window, made on first use
     MessagesPanel* m_messages = nullptr;
     QProgressBar* m_progress = nullptr;
     QPushButton* m_cancel = nullptr;
