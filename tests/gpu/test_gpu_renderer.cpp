@@ -104,7 +104,8 @@ TEST_F(GlTest, CompiledProgramsBindWhereTheHostBinds) {
         {"M1", materialBinding(1)},
         {"M2", materialBinding(2)},
         {"M3", materialBinding(3)},
-        {"M4", materialBinding(4)}};
+        {"M4", materialBinding(4)},
+        {"ConeOut", Binding::PassOutput}};
     const std::vector<std::pair<std::string, ShaderSource::Defines>> programs{
         {"slice/slice.comp", {{"TAPS", "4"}, {"DEPTH_CUE", "1"}}},
         {"fft/rows.comp", {{"MAX_M", "64"}, {"WG_SIZE", "32"}}},
@@ -114,7 +115,8 @@ TEST_F(GlTest, CompiledProgramsBindWhereTheHostBinds) {
          {{"MAX_M", "64"}, {"WG_SIZE", "32"}, {"OUTPUT_REAL", "1"}, {"FUSED_DISPLAY", "1"}}},
         {"fft/hartley_correct.comp", {{"FUSED_DISPLAY", "1"}}},
         {"display/display.comp", {}},
-        {"xray/spectral_sum.comp", {{"MATERIALS", "5"}}}};
+        {"xray/spectral_sum.comp", {{"MATERIALS", "5"}}},
+        {"cone/cone_ray.comp", {{"MODEL", "1"}, {"HW_FILTER", "1"}}}};
     std::set<std::string> seen;
     int images = 0, samplers = 0;
     for (const auto& [path, defines] : programs) {
@@ -135,7 +137,8 @@ TEST_F(GlTest, CompiledProgramsBindWhereTheHostBinds) {
             seen.insert(name);
         }
         for (const auto& [uniform, unit] : {std::pair{"displayOut", point(ImageUnit::Display)},
-                                            std::pair{"uSpectrum", point(TextureUnit::Spectrum)}}) {
+                                            std::pair{"uSpectrum", point(TextureUnit::Spectrum)},
+                                            std::pair{"uVolume", point(TextureUnit::Volume)}}) {
             const GLint loc = glGetUniformLocation(prog, uniform);
             if (loc < 0) continue;
             GLint value = -1;
@@ -147,7 +150,7 @@ TEST_F(GlTest, CompiledProgramsBindWhereTheHostBinds) {
     }
     EXPECT_EQ(seen.size(), blocks.size()) << "a storage block above is in no program";
     EXPECT_EQ(images, 3);
-    EXPECT_EQ(samplers, 2);
+    EXPECT_EQ(samplers, 3);
 }
 
 TEST_F(GlTest, InverseFftMatchesFftwDouble) {

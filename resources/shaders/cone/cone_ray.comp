@@ -1,0 +1,185 @@
+#version 430
+// Cone-beam ray casting (fvr::gpu::ConeRayCaster), one invocation per detector pixel: the line
+// integral of the volume's voxel model from the source to the pixel's centre, as
+// fvr::core::ConeProjector computes it on the CPU. Positions are continuous voxel indices (voxel
+// centres at integers) relative to the grid's centre (N-1)/2; the host computes the ray vectors
+// in double, relative to that centre, so float keeps its precision inside the volume.
+// Variants (host defines):
+//   MODEL 0  box: each voxel a constant cube, exact path lengths (Amanatides-Woo walk);
+//   MODEL 1  trilinear, exact: a walk over the cells between voxel centres (support [-1, N]),
+//            Simpson's rule on each cell's segment (the interpolant is a cubic along a ray
+//            inside a cell, so the rule is exact);
+//   MODEL 2  trilinear, midpoint samples at uStep mm over the ray's part in [-1, N]^3;
+//   HW_FILTER 1  trilinear values from the texture's GL_LINEAR filter (border 0: zero outside)
+//            instead of 8 texelFetches with float weights (the hardware's weights are fixed
+//            point: 8 fraction bits on NVIDIA);
+//   SUBSAMPLES n  n x n rays per pixel at the centres of its n x n sub-pixels, averaged.
+#include "common/bindings.glsl"
+layout(local_size_x = 16, local_size_y = 16) in;
+
+#ifndef MODEL
+#define MODEL 1
+#endif
+#ifndef HW_FILTER
+#define HW_FILTER 0
+#endif
+#ifndef SUBSAMPLES
+#define SUBSAMPLES 1
+#endif
+
+layout(binding = FVR_TEXTURE_VOLUME) uniform sampler3D uVolume;
+layout(std430, binding = FVR_BINDING_PASS_OUTPUT) writeonly buffer ConeOut { float outValue[]; };
+
+uniform ivec2 uSize; // W, H
+uniform ivec3 uDims; // voxels per index axis
+uniform vec3 uCentre; // (N - 1) / 2
+uniform vec3 uSource; // the source, relative to the centre (voxel indices)
+uniform vec3 uDir0; // centre of pixel (0, 0) minus the source (voxel indices)
+uniform vec3 uDirCol; // one column along the detector (voxel indices)
+uniform vec3 uDirRow; // one row
+uniform mat3 uIndexToMm; // index steps to LPS millimetres (direction cosines x spacing)
+uniform float uStep; // MODEL 2: the sampling step, mm
+
+const float kFar = 3.0e38;
+
+/** A voxel's value, 0 outside the grid. */
+float voxel(ivec3 i) {
+    return all(greaterThanEqual(i, ivec3(0))) && all(lessThan(i, uDims))
+               ? texelFetch(uVolume, i, 0).r
+               : 0.0;
+}
+
+/** The trilinear interpolant at q (absolute voxel indices), zero outside the grid. */
+float trilinear(vec3 q) {
+#if HW_FILTER
+    return texture(uVolume, (q + 0.5) / vec3(uDims)).r;
+#else
+    const vec3 fl = floor(q);
+    const ivec3 i = ivec3(fl);
+    const vec3 f = q - fl;
+    const float c00 = mix(voxel(i), voxel(i + ivec3(1, 0, 0)), f.x);
+    const float c10 = mix(voxel(i + ivec3(0, 1, 0)), voxel(i + ivec3(1, 1, 0)), f.x);
+    const float c01 = mix(voxel(i + ivec3(0, 0, 1)), voxel(i + ivec3(1, 0, 1)), f.x);
+    const float c11 = mix(voxel(i + ivec3(0, 1, 1)), voxel(i + ivec3(1, 1, 1)), f.x);
+    return mix(mix(c00, c10, f.y), mix(c01, c11, f.y), f.z);
+#endif
+}
+
+/** The part [t0, t1] of s + t d, t in [0, 1] (source to pixel), inside |x| <= h per axis. */
+bool clipRay(vec3 s, vec3 d, vec3 h, out float t0, out float t1) {
+    t0 = 0.0;
+    t1 = 1.0;
+    for (int a = 0; a < 3; ++a) {
+        if (d[a] == 0.0) {
+            if (abs(s[a]) >= h[a]) return false;
+            continue;
+        }
+        const float ta = (-h[a] - s[a]) / d[a], tb = (h[a] - s[a]) / d[a];
+        t0 = max(t0, min(ta, tb));
+        t1 = min(t1, max(ta, tb));
+    }
+    return t0 < t1;
+}
+
+#if MODEL == 0 || MODEL == 1
+/** The integral over one cell's segment [ta, tb] of g0 + t d (g: cell k spans [k, k+1]). */
+float cellSegment(ivec3 cell, vec3 g0, vec3 d, float ta, float tb) {
+#if MODEL == 0
+    return (tb - ta) * voxel(cell); // g = q + 1/2: cell k is voxel k
+#else
+    const float tm = 0.5 * (ta + tb);
+#if HW_FILTER
+    // g = q + 1: the texture coordinate of g is (g - 1/2) / N.
+    const vec3 inv = 1.0 / vec3(uDims);
+    const float fa = texture(uVolume, (g0 + ta * d - 0.5) * inv).r;
+    const float fm = texture(uVolume, (g0 + tm * d - 0.5) * inv).r;
+    const float fb = texture(uVolume, (g0 + tb * d - 0.5) * inv).r;
+#else
+    // g = q + 1: cell k lies between voxels k - 1 and k; fetch its 8 corners once.
+    const ivec3 i = cell - 1;
+    const float c000 = voxel(i), c100 = voxel(i + ivec3(1, 0, 0));
+    const float c010 = voxel(i + ivec3(0, 1, 0)), c110 = voxel(i + ivec3(1, 1, 0));
+    const float c001 = voxel(i + ivec3(0, 0, 1)), c101 = voxel(i + ivec3(1, 0, 1));
+    const float c011 = voxel(i + ivec3(0, 1, 1)), c111 = voxel(i + ivec3(1, 1, 1));
+    float fv[3];
+    const float ts[3] = float[3](ta, tm, tb);
+    for (int k = 0; k < 3; ++k) {
+        const vec3 f = clamp(g0 + ts[k] * d - vec3(cell), 0.0, 1.0);
+        fv[k] = mix(mix(mix(c000, c100, f.x), mix(c010, c110, f.x), f.y),
+                    mix(mix(c001, c101, f.x), mix(c011, c111, f.x), f.y), f.z);
+    }
+    const float fa = fv[0], fm = fv[1], fb = fv[2];
+#endif
+    return (tb - ta) * (fa + 4.0 * fm + fb) / 6.0;
+#endif
+}
+
+/** The integral (per unit t) along g0 + t d, t in [0, T], over a grid of unit cells, cell k
+ *  spanning [k, k+1] per axis, k in [0, n): Amanatides and Woo's walk, each boundary computed
+ *  from g0 (no running sums). g0 lies on the grid's box (the clipped entry). */
+float walkCells(vec3 g0, vec3 d, float T, ivec3 n) {
+    ivec3 cell, stepDir;
+    vec3 tMax, invD;
+    for (int a = 0; a < 3; ++a) {
+        float c = floor(g0[a]);
+        if (d[a] < 0.0 && c == g0[a]) c -= 1.0; // on a boundary going down: the cell below
+        cell[a] = clamp(int(c), 0, n[a] - 1);
+        stepDir[a] = d[a] > 0.0 ? 1 : (d[a] < 0.0 ? -1 : 0);
+        invD[a] = d[a] != 0.0 ? 1.0 / d[a] : 0.0;
+        tMax[a] = d[a] != 0.0 ? (float(cell[a] + max(stepDir[a], 0)) - g0[a]) * invD[a] : kFar;
+    }
+    float t = 0.0, sum = 0.0;
+    const int guard = n.x + n.y + n.z + 3;
+    for (int it = 0; it < guard && t < T; ++it) {
+        const int m = tMax.x < tMax.y ? (tMax.x < tMax.z ? 0 : 2) : (tMax.y < tMax.z ? 1 : 2);
+        const float tn = min(tMax[m], T);
+        if (tn > t) {
+            sum += cellSegment(cell, g0, d, t, tn);
+            t = tn;
+        }
+        cell[m] += stepDir[m];
+        if (cell[m] < 0 || cell[m] >= n[m]) break;
+        tMax[m] = (float(cell[m] + max(stepDir[m], 0)) - g0[m]) * invD[m];
+    }
+    return sum;
+}
+#endif
+
+/** The line integral (value x mm) from the source s along d to s + d (both relative to the
+ *  centre, voxel indices). */
+float integrate(vec3 s, vec3 d) {
+    const float mmPerT = length(uIndexToMm * d);
+#if MODEL == 0
+    const vec3 h = 0.5 * vec3(uDims); // voxels' cubes: [-1/2, N - 1/2]
+#else
+    const vec3 h = 0.5 * vec3(uDims) + 0.5; // the trilinear support: [-1, N]
+#endif
+    float t0, t1;
+    if (!clipRay(s, d, h, t0, t1)) return 0.0;
+#if MODEL == 0 || MODEL == 1
+    const vec3 g0 = s + t0 * d + h; // the box's lower corner at 0
+    return mmPerT * walkCells(g0, d, t1 - t0, ivec3(2.0 * h + 0.5));
+#else
+    const float len = (t1 - t0) * mmPerT;
+    const int n = max(1, int(ceil(len / uStep)));
+    const float dt = (t1 - t0) / float(n);
+    const vec3 first = s + (t0 + 0.5 * dt) * d + uCentre, delta = dt * d;
+    float sum = 0.0;
+    for (int k = 0; k < n; ++k) sum += trilinear(first + float(k) * delta);
+    return sum * (len / float(n));
+#endif
+}
+
+void main() {
+    const ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    if (px.x >= uSize.x || px.y >= uSize.y) return;
+    float value = 0.0;
+    for (int sy = 0; sy < SUBSAMPLES; ++sy) {
+        for (int sx = 0; sx < SUBSAMPLES; ++sx) {
+            const vec2 off = (vec2(sx, sy) + 0.5) / float(SUBSAMPLES) - 0.5;
+            const vec2 at = vec2(px) + off;
+            value += integrate(uSource, uDir0 + at.x * uDirCol + at.y * uDirRow);
+        }
+    }
+    outValue[px.y * uSize.x + px.x] = value / float(SUBSAMPLES * SUBSAMPLES);
+}
