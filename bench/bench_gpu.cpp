@@ -12,6 +12,13 @@
  *                                               wait per batch of 16: what an interactive loop
  * gets)
  *
+ * And the cone-beam ray caster (gpu::ConeRayCaster) on the same phantom at N = 256 (mu values),
+ * a C-arm orbit (SID 1200, SOD 750, 20 degrees cranial, the detector framing the volume):
+ *
+ *   BM_ConeGpu/N<n>/<W>x<W>/<model>/<fetch>   views_per_s and view_ms: views issued back to
+ *                                             back, one wait per batch (no read-back);
+ *                                             readback_views_per_s: each view read back
+ *
  * Needs an OpenGL 4.3 context: a headless EGL one (gpu::EglContext, no X server; a hardware EGL
  * device, else Mesa llvmpipe, whose numbers are a sanity check only). N is 256 unless
  * FVR_BENCH_GPU_N says otherwise (e.g. 128,256,512). The 3D Shepp-Logan phantom, mu values, no
@@ -34,8 +41,11 @@
 #include <string>
 #include <vector>
 
+#include <fvr/core/geometry/camera.h>
+#include <fvr/core/render/cone_projector.h>
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/xray/phantom.h>
+#include <fvr/gpu/cone_ray_caster.h>
 #include <fvr/gpu/egl_context.h>
 #include <fvr/gpu/gpu_renderer.h>
 
@@ -143,6 +153,94 @@ void BM_GpuFrame(benchmark::State& state, int n, TransformKind kind, int M, Kern
     state.counters["wall_fps"] = wm > 0 ? 1000.0 / wm : 0.0;
 }
 
+/** The orbit's views: 64 primary angles, 20 degrees cranial, the detector framing the volume. */
+std::vector<ConeCamera> coneOrbit(const Volume& v, int size) {
+    std::vector<ConeCamera> out;
+    for (int i = 0; i < 64; ++i) {
+        CArm arm;
+        arm.primaryDeg = -180.0 + 360.0 * i / 64;
+        arm.secondaryDeg = 20.0;
+        arm.sid = 1200.0;
+        arm.sod = 750.0;
+        arm.isocentre = volumeCentre(v);
+        const double pitch = framingPitch(v, arm.sid, arm.sod, size, size);
+        out.push_back(cArmCamera(arm, size, size, pitch, pitch));
+    }
+    return out;
+}
+
+/** One cone-beam ray caster per volume size, model and fetch (the upload is not timed). */
+fvr::gpu::ConeRayCaster& coneCaster(int n, const ConeProjectorOptions& o,
+                                    fvr::gpu::TrilinearFetch fetch) {
+    static std::map<std::string, std::unique_ptr<fvr::gpu::ConeRayCaster>> cache;
+    auto& c = cache[std::to_string(n) + fvr::gpu::describeConeRayCaster(o, fetch)];
+    if (!c) c = std::make_unique<fvr::gpu::ConeRayCaster>(phantom(n), o, fetch);
+    return *c;
+}
+
+void BM_ConeGpu(benchmark::State& state, int n, int size, ConeProjectorOptions o,
+                fvr::gpu::TrilinearFetch fetch) {
+    auto& caster = coneCaster(n, o, fetch);
+    const auto cams = coneOrbit(phantom(n), size);
+    // Untimed: compiles nothing new, wakes the GPU; and sizes the batch to about 0.2 s.
+    const auto t0 = std::chrono::steady_clock::now();
+    caster.project(cams[0]);
+    const double first =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const int batch = std::clamp(int(0.2 / std::max(first, 1e-6)), 1, 256);
+    std::vector<double> view, readBack;
+    std::size_t i = 0;
+    for (auto _ : state) {
+        auto t = std::chrono::steady_clock::now();
+        for (int b = 0; b < batch; ++b) caster.projectToGpu(cams[i++ % cams.size()]);
+        glFinish();
+        auto now = std::chrono::steady_clock::now();
+        view.push_back(std::chrono::duration<double, std::milli>(now - t).count() / batch);
+        t = now;
+        caster.project(cams[i++ % cams.size()]);
+        readBack.push_back(
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t)
+                .count());
+    }
+    const double vm = median(view), rm = median(readBack);
+    state.counters["view_ms"] = vm;
+    state.counters["views_per_s"] = vm > 0 ? 1000.0 / vm : 0.0;
+    state.counters["readback_views_per_s"] = rm > 0 ? 1000.0 / rm : 0.0;
+    state.counters["batch"] = batch;
+    state.SetLabel(fvr::gpu::describeConeRayCaster(o, fetch));
+}
+
+void registerConeBenchmarks() {
+    using fvr::gpu::TrilinearFetch;
+    struct Variant {
+        const char* name;
+        RayModel model;
+        double step;
+        TrilinearFetch fetch;
+    };
+    const Variant variants[] = {
+        {"box", RayModel::Box, 0.0, TrilinearFetch::Manual},
+        {"trilinear-exact/manual", RayModel::Trilinear, 0.0, TrilinearFetch::Manual},
+        {"trilinear-exact/hardware", RayModel::Trilinear, 0.0, TrilinearFetch::Hardware},
+        {"trilinear-step0.5/manual", RayModel::Trilinear, 0.5, TrilinearFetch::Manual},
+        {"trilinear-step0.5/hardware", RayModel::Trilinear, 0.5, TrilinearFetch::Hardware}};
+    constexpr int n = 256;
+    for (int size : {256, 1024})
+        for (const Variant& v : variants) {
+            ConeProjectorOptions o;
+            o.model = v.model;
+            o.stepFraction = v.step;
+            o.mapping = ValueMapping::Mu;
+            const std::string name = "BM_ConeGpu/N" + std::to_string(n) + "/" +
+                                     std::to_string(size) + "x" + std::to_string(size) + "/" +
+                                     v.name;
+            benchmark::RegisterBenchmark(name.c_str(), BM_ConeGpu, n, size, o, v.fetch)
+                ->Iterations(size <= 256 ? 10 : 5)
+                ->Unit(benchmark::kMillisecond)
+                ->UseRealTime();
+        }
+}
+
 std::vector<int> volumeSizes() {
     std::vector<int> out;
     if (const char* e = std::getenv("FVR_BENCH_GPU_N")) {
@@ -190,6 +288,7 @@ int main(int argc, char** argv) {
                         ->Unit(benchmark::kMillisecond)
                         ->UseRealTime();
                 }
+    registerConeBenchmarks();
     benchmark::RunSpecifiedBenchmarks();
     benchmark::Shutdown();
     return 0;
