@@ -6,19 +6,13 @@
 #include <string>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/text.h>
 
 namespace fvr::core {
 namespace {
 
 bool finite(const glm::dvec3& x) {
     return std::isfinite(x.x) && std::isfinite(x.y) && std::isfinite(x.z);
-}
-
-std::string number(double v) {
-    std::string s = std::to_string(v);
-    s.erase(s.find_last_not_of('0') + 1);
-    if (!s.empty() && s.back() == '.') s.pop_back();
-    return s;
 }
 
 /** The detector plane's unit normal, pointing from the source toward the detector. */
@@ -73,7 +67,7 @@ void ConeCamera::validate() const {
     for (const auto& [name, p] : {std::pair{"column", pitchU}, std::pair{"row", pitchV}})
         if (!(p > 0.0) || !std::isfinite(p))
             fail(std::string(name) + " pitch: expected a positive number of mm, found " +
-                 number(p));
+                 formatNumber(p));
     if (!finite(source) || !finite(detectorCentre) || !finite(u) || !finite(v) ||
         !std::isfinite(principalOffset.x) || !std::isfinite(principalOffset.y))
         fail("a position or direction is not finite");
@@ -90,8 +84,8 @@ ConeCamera cArmCamera(const CArm& arm, int width, int height, double pitchU, dou
         !finite(arm.isocentre))
         throw SettingsError("C-arm: the angles and the isocentre must be finite");
     if (!(arm.sod > 0.0) || !(arm.sid > arm.sod) || !std::isfinite(arm.sid))
-        throw SettingsError("C-arm: expected 0 < SOD < SID, found SOD " + number(arm.sod) +
-                            " mm, SID " + number(arm.sid) + " mm");
+        throw SettingsError("C-arm: expected 0 < SOD < SID, found SOD " + formatNumber(arm.sod) +
+                            " mm, SID " + formatNumber(arm.sid) + " mm");
     const double a = arm.primaryDeg * std::numbers::pi / 180.0;
     const double b = arm.secondaryDeg * std::numbers::pi / 180.0;
     const glm::dvec3 d(std::sin(a) * std::cos(b), -std::cos(a) * std::cos(b), std::sin(b));

@@ -29,6 +29,10 @@ bool iequals(std::string_view a, std::string_view b);
 /** Whether `s` starts with `prefix`, ignoring ASCII case. */
 bool istartsWith(std::string_view s, std::string_view prefix);
 
+/** The shortest decimal text that reads back as `v` ("0.2", "1200", "1e-06"), whatever the
+ *  locale: numbers in messages and sidecars. */
+std::string formatNumber(double v);
+
 /** The number that the whole of `s` spells, in decimal: surrounding whitespace and one leading
  *  '+' are allowed; nothing else (empty text, other characters before or after the number, a
  *  value outside T's range) gives nullopt. Floating-point T also reads exponents, "inf" and
