@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <sstream>
+#include <utility>
 
 #include <fvr/core/errors.h>
 #include <fvr/core/xray/xray.h>
@@ -96,8 +97,6 @@ core::Volume geometryOf(const core::Volume& v) {
     return g;
 }
 
-glm::vec3 toFloat(const glm::dvec3& v) { return glm::vec3(v); }
-
 } // namespace
 
 const char* trilinearFetchName(TrilinearFetch f) {
@@ -136,6 +135,7 @@ ConeRayCaster::~ConeRayCaster() {
     if (m_program) glDeleteProgram(m_program);
     if (m_texture) glDeleteTextures(1, &m_texture);
     if (m_output) glDeleteBuffers(1, &m_output);
+    if (m_views) glDeleteBuffers(1, &m_views);
 }
 
 std::vector<std::pair<std::string, std::string>> ConeRayCaster::shaderDefines() const {
@@ -186,24 +186,34 @@ void ConeRayCaster::upload(const core::Volume& volume) {
     glTexParameterfv(GL_TEXTURE_3D, GL_TEXTURE_BORDER_COLOR, border);
 }
 
-void ConeRayCaster::setUniforms(const core::ConeCamera& camera) const {
+void ConeRayCaster::uploadViews(const std::vector<core::ConeCamera>& cameras) {
     // Voxel indices relative to the grid's centre, in double: float then holds the ray where
     // the samples are, whatever the volume's origin or the source's distance.
     const core::Dims3& n = m_geometry.dims;
     const glm::dvec3 centre((n[0] - 1) * 0.5, (n[1] - 1) * 0.5, (n[2] - 1) * 0.5);
     const glm::dmat3 toIndex(m_patientToIndex);
-    const glm::dvec3 source = glm::dvec3(m_patientToIndex * glm::dvec4(camera.source, 1.0));
-    const glm::dvec3 dir0 = toIndex * (camera.pixelCentre(0.0, 0.0) - camera.source);
-    const glm::dvec3 dirCol = toIndex * (camera.pitchU * camera.u);
-    const glm::dvec3 dirRow = toIndex * (camera.pitchV * camera.v);
+    std::vector<glm::vec4> rays;
+    rays.reserve(cameras.size() * 4);
+    for (const auto& c : cameras) {
+        const glm::dvec3 source(m_patientToIndex * glm::dvec4(c.source, 1.0));
+        rays.emplace_back(glm::vec3(source - centre), 0.0f);
+        rays.emplace_back(glm::vec3(toIndex * (c.pixelCentre(0.0, 0.0) - c.source)), 0.0f);
+        rays.emplace_back(glm::vec3(toIndex * (c.pitchU * c.u)), 0.0f);
+        rays.emplace_back(glm::vec3(toIndex * (c.pitchV * c.v)), 0.0f);
+    }
+    if (!m_views) glGenBuffers(1, &m_views);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_views);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(rays.size() * sizeof(glm::vec4)), rays.data(),
+                 GL_STREAM_DRAW);
+}
+
+void ConeRayCaster::setUniforms(int views) const {
+    const core::Dims3& n = m_geometry.dims;
+    const glm::vec3 centre((n[0] - 1) * 0.5, (n[1] - 1) * 0.5, (n[2] - 1) * 0.5);
     auto loc = [&](const char* name) { return glGetUniformLocation(m_program, name); };
-    glUniform2i(loc("uSize"), camera.width, camera.height);
+    glUniform3i(loc("uSize"), m_width, m_height, views);
     glUniform3i(loc("uDims"), GLint(n[0]), GLint(n[1]), GLint(n[2]));
-    glUniform3fv(loc("uCentre"), 1, &toFloat(centre)[0]);
-    glUniform3fv(loc("uSource"), 1, &toFloat(source - centre)[0]);
-    glUniform3fv(loc("uDir0"), 1, &toFloat(dir0)[0]);
-    glUniform3fv(loc("uDirCol"), 1, &toFloat(dirCol)[0]);
-    glUniform3fv(loc("uDirRow"), 1, &toFloat(dirRow)[0]);
+    glUniform3fv(loc("uCentre"), 1, &centre[0]);
     const glm::mat3 toMm(m_indexToMm);
     glUniformMatrix3fv(loc("uIndexToMm"), 1, GL_FALSE, &toMm[0][0]);
     const double minSpacing =
@@ -211,31 +221,68 @@ void ConeRayCaster::setUniforms(const core::ConeCamera& camera) const {
     glUniform1f(loc("uStep"), float(m_options.stepFraction * minSpacing));
 }
 
-void ConeRayCaster::projectToGpu(const core::ConeCamera& camera) {
-    core::validateConeView(camera, m_geometry);
-    const std::size_t pixels = std::size_t(camera.width) * std::size_t(camera.height);
-    if (!m_output) glGenBuffers(1, &m_output);
-    if (pixels != m_outputPixels) {
-        glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_output);
-        glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(pixels * sizeof(float)), nullptr,
-                     GL_DYNAMIC_COPY);
-        m_outputPixels = pixels;
+namespace {
+/** GpuMemoryError when `views` images of W x H floats exceed the largest storage block or the
+ *  dispatch's work group count. */
+void checkOutputFits(int width, int height, std::size_t views) {
+    GLint64 maxBlock = 0;
+    glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &maxBlock);
+    GLint maxGroupsZ = 0;
+    glGetIntegeri_v(GL_MAX_COMPUTE_WORK_GROUP_COUNT, 2, &maxGroupsZ);
+    const std::size_t bytes = std::size_t(width) * std::size_t(height) * views * sizeof(float);
+    if (maxBlock > 0 && bytes > std::size_t(maxBlock))
+        throw GpuMemoryError(std::to_string(views) + " views of " + std::to_string(width) + "x" +
+                             std::to_string(height) + " need " + std::to_string(bytes >> 20) +
+                             " MiB, more than the GPU's largest storage buffer (" +
+                             std::to_string(maxBlock >> 20) + " MiB): render fewer at once");
+    if (maxGroupsZ > 0 && views > std::size_t(maxGroupsZ))
+        throw GpuMemoryError(std::to_string(views) + " views in one dispatch, the GPU allows " +
+                             std::to_string(maxGroupsZ));
+}
+} // namespace
+
+void ConeRayCaster::projectToGpu(const std::vector<core::ConeCamera>& cameras) {
+    if (cameras.empty()) throw SettingsError("GPU cone-beam ray caster: no view to render");
+    const int W = cameras.front().width, H = cameras.front().height;
+    for (const auto& c : cameras) {
+        if (c.width != W || c.height != H)
+            throw SettingsError("GPU cone-beam ray caster: views of one dispatch must share a "
+                                "detector size, found " +
+                                std::to_string(W) + "x" + std::to_string(H) + " and " +
+                                std::to_string(c.width) + "x" + std::to_string(c.height));
+        core::validateConeView(c, m_geometry);
     }
-    m_width = camera.width;
-    m_height = camera.height;
+    checkOutputFits(W, H, cameras.size());
+    const std::size_t bytes = std::size_t(W) * std::size_t(H) * cameras.size() * sizeof(float);
+    if (!m_output) glGenBuffers(1, &m_output);
+    if (bytes > m_outputBytes) {
+        glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_output);
+        glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(bytes), nullptr, GL_DYNAMIC_COPY);
+        m_outputBytes = bytes;
+    }
+    m_width = W;
+    m_height = H;
+    m_viewCount = int(cameras.size());
+    uploadViews(cameras);
     glUseProgram(m_program);
-    setUniforms(camera);
+    setUniforms(m_viewCount);
     glActiveTexture(GL_TEXTURE0 + point(TextureUnit::Volume));
     glBindTexture(GL_TEXTURE_3D, m_texture);
     glActiveTexture(GL_TEXTURE0);
+    bindStorage(Binding::PassInput, m_views);
     bindStorage(Binding::PassOutput, m_output);
-    glDispatchCompute(GLuint((camera.width + 15) / 16), GLuint((camera.height + 15) / 16), 1);
-    if (const GLenum err = glGetError(); err != GL_NO_ERROR)
+    glDispatchCompute(GLuint((W + 15) / 16), GLuint((H + 15) / 16), GLuint(m_viewCount));
+    if (const GLenum err = glGetError(); err != GL_NO_ERROR) {
+        if (err == GL_OUT_OF_MEMORY)
+            throw GpuMemoryError("GPU cone-beam views: out of GPU memory for " +
+                                 std::to_string(m_viewCount) + " views of " + std::to_string(W) +
+                                 "x" + std::to_string(H));
         throw GlError("GPU cone-beam view failed: GL error " + std::to_string(err));
+    }
 }
 
 std::vector<float> ConeRayCaster::readBack() const {
-    std::vector<float> out(std::size_t(m_width) * std::size_t(m_height));
+    std::vector<float> out(std::size_t(m_width) * std::size_t(m_height) * std::size_t(m_viewCount));
     if (out.empty()) return out;
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_output);
@@ -246,15 +293,25 @@ std::vector<float> ConeRayCaster::readBack() const {
     return out;
 }
 
+std::vector<core::DetectorImage> ConeRayCaster::projectMany(
+    const std::vector<core::ConeCamera>& cameras) {
+    projectToGpu(cameras);
+    const std::vector<float> all = readBack();
+    const std::size_t pixels = std::size_t(m_width) * std::size_t(m_height);
+    std::vector<core::DetectorImage> out(cameras.size());
+    for (std::size_t i = 0; i < cameras.size(); ++i) {
+        out[i].width = m_width;
+        out[i].height = m_height;
+        out[i].camera = cameras[i];
+        out[i].mapping = m_options.mapping;
+        out[i].pixels.assign(all.begin() + std::ptrdiff_t(i * pixels),
+                             all.begin() + std::ptrdiff_t((i + 1) * pixels));
+    }
+    return out;
+}
+
 core::DetectorImage ConeRayCaster::project(const core::ConeCamera& camera) {
-    projectToGpu(camera);
-    core::DetectorImage image;
-    image.width = camera.width;
-    image.height = camera.height;
-    image.camera = camera;
-    image.mapping = m_options.mapping;
-    image.pixels = readBack();
-    return image;
+    return std::move(projectMany({camera}).front());
 }
 
 std::string describeConeRayCaster(const core::ConeProjectorOptions& options, TrilinearFetch fetch) {

@@ -321,3 +321,53 @@ TEST_F(GlTest, ConeHardwareFilterCostAgainstTheCpu) {
     const auto cmp = fvr::test::compare(stepped.project(cam).pixels, exact.project(cam).pixels);
     std::printf("[cone] CPU step 0.5 vs exact trilinear: %.1f dB\n", cmp.psnr);
 }
+
+// An orbit rendered in one dispatch equals its views rendered one by one, bit for bit (the same
+// rays, the same arithmetic); cameras of different sizes are refused, and so are more images
+// than the largest storage buffer holds, before anything is allocated.
+TEST_F(GlTest, ConeManyViewsInOneDispatchEqualSingleViews) {
+    const Volume& v = orientedPhantom();
+    std::vector<ConeCamera> orbit;
+    for (int i = 0; i < 5; ++i) {
+        CArm arm;
+        arm.primaryDeg = -150.0 + 67.0 * i;
+        arm.secondaryDeg = 10.0 * (i - 2);
+        arm.isocentre = volumeCentre(v);
+        orbit.push_back(cArmCamera(arm, 40, 30, 2.0, 2.0));
+    }
+    ConeRayCaster gpu(v, options(RayModel::Trilinear, 0.0, ValueMapping::Mu));
+    const auto many = gpu.projectMany(orbit);
+    ASSERT_EQ(many.size(), orbit.size());
+    for (std::size_t i = 0; i < orbit.size(); ++i) {
+        EXPECT_EQ(many[i].pixels, gpu.project(orbit[i]).pixels) << "view " << i;
+        EXPECT_EQ(many[i].camera.source, orbit[i].source) << "view " << i;
+    }
+    EXPECT_NE(many[0].pixels, many[1].pixels);
+
+    orbit.push_back(cArmCamera(CArm{0, 0, 1000, 750, volumeCentre(v)}, 41, 30, 2.0, 2.0));
+    try {
+        gpu.projectMany(orbit);
+        FAIL() << "40x30 and 41x30 in one dispatch";
+    } catch (const SettingsError& e) {
+        EXPECT_NE(std::string(e.what()).find("found 40x30 and 41x30"), std::string::npos)
+            << e.what();
+    }
+
+    GLint64 maxBlock = 0;
+    glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &maxBlock);
+    const std::int64_t perView = std::int64_t(4096) * 4096 * 4;
+    if (maxBlock <= 0 || maxBlock / perView > 256) GTEST_SKIP() << "storage blocks of " << maxBlock;
+    const std::vector<ConeCamera> big(
+        std::size_t(maxBlock / perView + 1),
+        cArmCamera(CArm{0, 0, 1000, 750, volumeCentre(v)}, 4096, 4096, 0.1, 0.1));
+    try {
+        gpu.projectToGpu(big);
+        FAIL() << big.size() << " views of 4096^2 in one storage buffer of " << maxBlock;
+    } catch (const GpuMemoryError& e) {
+        EXPECT_NE(std::string(e.what()).find(std::to_string(big.size()) + " views of 4096x4096"),
+                  std::string::npos)
+            << e.what();
+        EXPECT_NE(std::string(e.what()).find("largest storage buffer"), std::string::npos)
+            << e.what();
+    }
+}

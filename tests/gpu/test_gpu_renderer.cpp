@@ -105,7 +105,8 @@ TEST_F(GlTest, CompiledProgramsBindWhereTheHostBinds) {
         {"M2", materialBinding(2)},
         {"M3", materialBinding(3)},
         {"M4", materialBinding(4)},
-        {"ConeOut", Binding::PassOutput}};
+        {"ConeOut", Binding::PassOutput},
+        {"ConeViews", Binding::PassInput}};
     const std::vector<std::pair<std::string, ShaderSource::Defines>> programs{
         {"slice/slice.comp", {{"TAPS", "4"}, {"DEPTH_CUE", "1"}}},
         {"fft/rows.comp", {{"MAX_M", "64"}, {"WG_SIZE", "32"}}},

@@ -1,6 +1,6 @@
 #version 430
-// Cone-beam ray casting (fvr::gpu::ConeRayCaster), one invocation per detector pixel: the line
-// integral of the volume's voxel model from the source to the pixel's centre, as
+// Cone-beam ray casting (fvr::gpu::ConeRayCaster), one invocation per detector pixel and view
+// (gl_GlobalInvocationID.z: the view, its rays from the ConeViews buffer): the line integral of the volume's voxel model from the source to the pixel's centre, as
 // fvr::core::ConeProjector computes it on the CPU. Positions are continuous voxel indices (voxel
 // centres at integers) relative to the grid's centre (N-1)/2; the host computes the ray vectors
 // in double, relative to that centre, so float keeps its precision inside the volume.
@@ -29,14 +29,19 @@ layout(local_size_x = 16, local_size_y = 16) in;
 
 layout(binding = FVR_TEXTURE_VOLUME) uniform sampler3D uVolume;
 layout(std430, binding = FVR_BINDING_PASS_OUTPUT) writeonly buffer ConeOut { float outValue[]; };
+/** One view's rays (xyz; w unused): the source relative to the centre, the centre of pixel
+ *  (0, 0) minus the source, one column and one row along the detector, in voxel indices. */
+struct ConeView {
+    vec4 source;
+    vec4 dir0;
+    vec4 dirCol;
+    vec4 dirRow;
+};
+layout(std430, binding = FVR_BINDING_PASS_INPUT) readonly buffer ConeViews { ConeView views[]; };
 
-uniform ivec2 uSize; // W, H
+uniform ivec3 uSize; // W, H, views
 uniform ivec3 uDims; // voxels per index axis
 uniform vec3 uCentre; // (N - 1) / 2
-uniform vec3 uSource; // the source, relative to the centre (voxel indices)
-uniform vec3 uDir0; // centre of pixel (0, 0) minus the source (voxel indices)
-uniform vec3 uDirCol; // one column along the detector (voxel indices)
-uniform vec3 uDirRow; // one row
 uniform mat3 uIndexToMm; // index steps to LPS millimetres (direction cosines x spacing)
 uniform float uStep; // MODEL 2: the sampling step, mm
 
@@ -82,8 +87,10 @@ bool clipRay(vec3 s, vec3 d, vec3 h, out float t0, out float t1) {
 }
 
 #if MODEL == 0 || MODEL == 1
-/** The integral over one cell's segment [ta, tb] of g0 + t d (g: cell k spans [k, k+1]). */
-float cellSegment(ivec3 cell, vec3 g0, vec3 d, float ta, float tb) {
+/** The integral over one cell's segment [ta, tb] of g0 + t d (g: cell k spans [k, k+1]).
+ *  fEdge: with HW_FILTER, the interpolant at ta on entry (the previous segment's end), at tb on
+ *  return, so each cell costs 2 filtered fetches. */
+float cellSegment(ivec3 cell, vec3 g0, vec3 d, float ta, float tb, inout float fEdge) {
 #if MODEL == 0
     return (tb - ta) * voxel(cell); // g = q + 1/2: cell k is voxel k
 #else
@@ -91,9 +98,10 @@ float cellSegment(ivec3 cell, vec3 g0, vec3 d, float ta, float tb) {
 #if HW_FILTER
     // g = q + 1: the texture coordinate of g is (g - 1/2) / N.
     const vec3 inv = 1.0 / vec3(uDims);
-    const float fa = texture(uVolume, (g0 + ta * d - 0.5) * inv).r;
+    const float fa = fEdge;
     const float fm = texture(uVolume, (g0 + tm * d - 0.5) * inv).r;
     const float fb = texture(uVolume, (g0 + tb * d - 0.5) * inv).r;
+    fEdge = fb;
 #else
     // g = q + 1: cell k lies between voxels k - 1 and k; fetch its 8 corners once.
     const ivec3 i = cell - 1;
@@ -129,12 +137,17 @@ float walkCells(vec3 g0, vec3 d, float T, ivec3 n) {
         tMax[a] = d[a] != 0.0 ? (float(cell[a] + max(stepDir[a], 0)) - g0[a]) * invD[a] : kFar;
     }
     float t = 0.0, sum = 0.0;
+#if MODEL == 1 && HW_FILTER
+    float fEdge = texture(uVolume, (g0 - 0.5) / vec3(uDims)).r;
+#else
+    float fEdge = 0.0;
+#endif
     const int guard = n.x + n.y + n.z + 3;
     for (int it = 0; it < guard && t < T; ++it) {
         const int m = tMax.x < tMax.y ? (tMax.x < tMax.z ? 0 : 2) : (tMax.y < tMax.z ? 1 : 2);
         const float tn = min(tMax[m], T);
         if (tn > t) {
-            sum += cellSegment(cell, g0, d, t, tn);
+            sum += cellSegment(cell, g0, d, t, tn, fEdge);
             t = tn;
         }
         cell[m] += stepDir[m];
@@ -171,15 +184,17 @@ float integrate(vec3 s, vec3 d) {
 }
 
 void main() {
-    const ivec2 px = ivec2(gl_GlobalInvocationID.xy);
-    if (px.x >= uSize.x || px.y >= uSize.y) return;
+    const ivec3 px = ivec3(gl_GlobalInvocationID);
+    if (px.x >= uSize.x || px.y >= uSize.y || px.z >= uSize.z) return;
+    const ConeView view = views[px.z];
     float value = 0.0;
     for (int sy = 0; sy < SUBSAMPLES; ++sy) {
         for (int sx = 0; sx < SUBSAMPLES; ++sx) {
             const vec2 off = (vec2(sx, sy) + 0.5) / float(SUBSAMPLES) - 0.5;
-            const vec2 at = vec2(px) + off;
-            value += integrate(uSource, uDir0 + at.x * uDirCol + at.y * uDirRow);
+            const vec2 at = vec2(px.xy) + off;
+            value += integrate(view.source.xyz,
+                               view.dir0.xyz + at.x * view.dirCol.xyz + at.y * view.dirRow.xyz);
         }
     }
-    outValue[px.y * uSize.x + px.x] = value / float(SUBSAMPLES * SUBSAMPLES);
+    outValue[(px.z * uSize.y + px.y) * uSize.x + px.x] = value / float(SUBSAMPLES * SUBSAMPLES);
 }

@@ -1,8 +1,8 @@
 #pragma once
 /** Cone-beam DRRs on the GPU: core::ConeProjector's line integrals (core/render/cone_projector.h)
  *  by an OpenGL 4.3 compute shader, one invocation per detector pixel
- *  (resources/shaders/cone/cone_ray.comp). The (mapped) volume is uploaded once as a 3D float
- *  texture (R32F, zero border); each view sets a few uniforms: the ray vectors in voxel indices
+ *  and view (resources/shaders/cone/cone_ray.comp). The (mapped) volume is uploaded once as a 3D
+ * float texture (R32F, zero border); each view passes 4 vectors: the ray vectors in voxel indices
  *  relative to the grid's centre, computed in double from the camera and
  *  core::indexToPatient's inverse. Models: box (exact path lengths, a cell walk), trilinear
  *  exact per cell (the walk and Simpson's rule, as the CPU's default) or sampled at a step. The
@@ -52,13 +52,20 @@ public:
 
     /** One view's line integrals, read back (core::validateConeView first: SettingsError). */
     core::DetectorImage project(const core::ConeCamera& camera);
-    /** Renders one view into outputBuffer() without waiting or reading back (benches, and
-     *  callers that keep the image on the GPU). Validates like project(). */
-    void projectToGpu(const core::ConeCamera& camera);
-    /** The shader storage buffer holding the last view's W x H floats (row-major, row 0 the
-     *  top), 0 before the first view. */
+    /** Several views of one detector size in one dispatch (small views alone leave a large GPU
+     *  mostly idle), read back. SettingsError for cameras of different sizes; GpuMemoryError
+     *  when the images exceed the largest storage buffer the driver allows. */
+    std::vector<core::DetectorImage> projectMany(const std::vector<core::ConeCamera>& cameras);
+    /** Renders the views into outputBuffer() without waiting or reading back (benches, and
+     *  callers that keep the images on the GPU). Validates like projectMany(). */
+    void projectToGpu(const std::vector<core::ConeCamera>& cameras);
+    void projectToGpu(const core::ConeCamera& camera) {
+        projectToGpu(std::vector<core::ConeCamera>{camera});
+    }
+    /** The shader storage buffer holding the last dispatch's images: W x H floats per view
+     *  (row-major, row 0 the top), view after view; 0 before the first view. */
     unsigned outputBuffer() const { return m_output; }
-    /** Reads back the last view (waits for it). */
+    /** Reads back the last dispatch's images (waits for them), view after view. */
     std::vector<float> readBack() const;
 
     /** The shader variant's defines for these options (tests and logs). */
@@ -66,7 +73,8 @@ public:
 
 private:
     void upload(const core::Volume& volume);
-    void setUniforms(const core::ConeCamera& camera) const;
+    void setUniforms(int views) const;
+    void uploadViews(const std::vector<core::ConeCamera>& cameras);
 
     core::Volume m_geometry; ///< the volume's dims, spacing, origin, directions: no voxels
     core::ConeProjectorOptions m_options;
@@ -75,10 +83,11 @@ private:
     glm::dmat3 m_indexToMm{1.0};
     unsigned m_texture = 0;
     unsigned m_output = 0;
+    unsigned m_views = 0; ///< the views' rays (ConeViews in the shader)
     unsigned m_program = 0;
     std::size_t m_textureBytes = 0;
-    std::size_t m_outputPixels = 0;
-    int m_width = 0, m_height = 0;
+    std::size_t m_outputBytes = 0;
+    int m_width = 0, m_height = 0, m_viewCount = 0;
 };
 
 /** Words for logs and the bench: "GPU trilinear ray casting, exact per cell, manual fetch". */
