@@ -141,7 +141,7 @@ ConeRayCaster::~ConeRayCaster() {
 std::vector<std::pair<std::string, std::string>> ConeRayCaster::shaderDefines() const {
     const int model = m_options.model == RayModel::Box ? 0 : m_options.stepFraction > 0 ? 2 : 1;
     return {{"MODEL", std::to_string(model)},
-            {"HW_FILTER", m_fetch == TrilinearFetch::Hardware ? "1" : "0"},
+            {"HW_FILTER", model != 0 && m_fetch == TrilinearFetch::Hardware ? "1" : "0"},
             {"SUBSAMPLES", std::to_string(m_options.pixelSubsamples)}};
 }
 

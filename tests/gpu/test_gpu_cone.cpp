@@ -255,6 +255,25 @@ TEST_F(GlTest, ConeRefusesWhatItCannotDo) {
     ConeProjectorOptions o;
     o.pixelSubsamples = 17;
     EXPECT_THROW(ConeRayCaster(v, o), SettingsError);
+    // A view the CPU refuses (the source inside the volume's box) is refused the same way.
+    CArm inside;
+    inside.isocentre = volumeCentre(v);
+    inside.sod = 50.0; // the phantom's box is 256 mm wide
+    const ConeCamera cam = cArmCamera(inside, 16, 16, 1.0, 1.0);
+    ConeRayCaster gpu(v);
+    std::string cpuWhat, gpuWhat;
+    try {
+        ConeProjector(v).project(cam);
+    } catch (const SettingsError& e) {
+        cpuWhat = e.what();
+    }
+    try {
+        gpu.project(cam);
+    } catch (const SettingsError& e) {
+        gpuWhat = e.what();
+    }
+    EXPECT_FALSE(gpuWhat.empty()) << "a source inside the volume was accepted";
+    EXPECT_EQ(gpuWhat, cpuWhat);
 }
 
 namespace {

@@ -59,13 +59,13 @@ float trilinear(vec3 q) {
 #if HW_FILTER
     return texture(uVolume, (q + 0.5) / vec3(uDims)).r;
 #else
-    const vec3 fl = floor(q);
-    const ivec3 i = ivec3(fl);
-    const vec3 f = q - fl;
-    const float c00 = mix(voxel(i), voxel(i + ivec3(1, 0, 0)), f.x);
-    const float c10 = mix(voxel(i + ivec3(0, 1, 0)), voxel(i + ivec3(1, 1, 0)), f.x);
-    const float c01 = mix(voxel(i + ivec3(0, 0, 1)), voxel(i + ivec3(1, 0, 1)), f.x);
-    const float c11 = mix(voxel(i + ivec3(0, 1, 1)), voxel(i + ivec3(1, 1, 1)), f.x);
+    vec3 fl = floor(q);
+    ivec3 i = ivec3(fl);
+    vec3 f = q - fl;
+    float c00 = mix(voxel(i), voxel(i + ivec3(1, 0, 0)), f.x);
+    float c10 = mix(voxel(i + ivec3(0, 1, 0)), voxel(i + ivec3(1, 1, 0)), f.x);
+    float c01 = mix(voxel(i + ivec3(0, 0, 1)), voxel(i + ivec3(1, 0, 1)), f.x);
+    float c11 = mix(voxel(i + ivec3(0, 1, 1)), voxel(i + ivec3(1, 1, 1)), f.x);
     return mix(mix(c00, c10, f.y), mix(c01, c11, f.y), f.z);
 #endif
 }
@@ -79,7 +79,7 @@ bool clipRay(vec3 s, vec3 d, vec3 h, out float t0, out float t1) {
             if (abs(s[a]) >= h[a]) return false;
             continue;
         }
-        const float ta = (-h[a] - s[a]) / d[a], tb = (h[a] - s[a]) / d[a];
+        float ta = (-h[a] - s[a]) / d[a], tb = (h[a] - s[a]) / d[a];
         t0 = max(t0, min(ta, tb));
         t1 = min(t1, max(ta, tb));
     }
@@ -94,29 +94,29 @@ float cellSegment(ivec3 cell, vec3 g0, vec3 d, float ta, float tb, inout float f
 #if MODEL == 0
     return (tb - ta) * voxel(cell); // g = q + 1/2: cell k is voxel k
 #else
-    const float tm = 0.5 * (ta + tb);
+    float tm = 0.5 * (ta + tb);
 #if HW_FILTER
     // g = q + 1: the texture coordinate of g is (g - 1/2) / N.
-    const vec3 inv = 1.0 / vec3(uDims);
-    const float fa = fEdge;
-    const float fm = texture(uVolume, (g0 + tm * d - 0.5) * inv).r;
-    const float fb = texture(uVolume, (g0 + tb * d - 0.5) * inv).r;
+    vec3 inv = 1.0 / vec3(uDims);
+    float fa = fEdge;
+    float fm = texture(uVolume, (g0 + tm * d - 0.5) * inv).r;
+    float fb = texture(uVolume, (g0 + tb * d - 0.5) * inv).r;
     fEdge = fb;
 #else
     // g = q + 1: cell k lies between voxels k - 1 and k; fetch its 8 corners once.
-    const ivec3 i = cell - 1;
-    const float c000 = voxel(i), c100 = voxel(i + ivec3(1, 0, 0));
-    const float c010 = voxel(i + ivec3(0, 1, 0)), c110 = voxel(i + ivec3(1, 1, 0));
-    const float c001 = voxel(i + ivec3(0, 0, 1)), c101 = voxel(i + ivec3(1, 0, 1));
-    const float c011 = voxel(i + ivec3(0, 1, 1)), c111 = voxel(i + ivec3(1, 1, 1));
+    ivec3 i = cell - 1;
+    float c000 = voxel(i), c100 = voxel(i + ivec3(1, 0, 0));
+    float c010 = voxel(i + ivec3(0, 1, 0)), c110 = voxel(i + ivec3(1, 1, 0));
+    float c001 = voxel(i + ivec3(0, 0, 1)), c101 = voxel(i + ivec3(1, 0, 1));
+    float c011 = voxel(i + ivec3(0, 1, 1)), c111 = voxel(i + ivec3(1, 1, 1));
     float fv[3];
-    const float ts[3] = float[3](ta, tm, tb);
+    float ts[3] = float[3](ta, tm, tb);
     for (int k = 0; k < 3; ++k) {
-        const vec3 f = clamp(g0 + ts[k] * d - vec3(cell), 0.0, 1.0);
+        vec3 f = clamp(g0 + ts[k] * d - vec3(cell), 0.0, 1.0);
         fv[k] = mix(mix(mix(c000, c100, f.x), mix(c010, c110, f.x), f.y),
                     mix(mix(c001, c101, f.x), mix(c011, c111, f.x), f.y), f.z);
     }
-    const float fa = fv[0], fm = fv[1], fb = fv[2];
+    float fa = fv[0], fm = fv[1], fb = fv[2];
 #endif
     return (tb - ta) * (fa + 4.0 * fm + fb) / 6.0;
 #endif
@@ -142,10 +142,10 @@ float walkCells(vec3 g0, vec3 d, float T, ivec3 n) {
 #else
     float fEdge = 0.0;
 #endif
-    const int guard = n.x + n.y + n.z + 3;
+    int guard = n.x + n.y + n.z + 3;
     for (int it = 0; it < guard && t < T; ++it) {
-        const int m = tMax.x < tMax.y ? (tMax.x < tMax.z ? 0 : 2) : (tMax.y < tMax.z ? 1 : 2);
-        const float tn = min(tMax[m], T);
+        int m = tMax.x < tMax.y ? (tMax.x < tMax.z ? 0 : 2) : (tMax.y < tMax.z ? 1 : 2);
+        float tn = min(tMax[m], T);
         if (tn > t) {
             sum += cellSegment(cell, g0, d, t, tn, fEdge);
             t = tn;
@@ -161,22 +161,22 @@ float walkCells(vec3 g0, vec3 d, float T, ivec3 n) {
 /** The line integral (value x mm) from the source s along d to s + d (both relative to the
  *  centre, voxel indices). */
 float integrate(vec3 s, vec3 d) {
-    const float mmPerT = length(uIndexToMm * d);
+    float mmPerT = length(uIndexToMm * d);
 #if MODEL == 0
-    const vec3 h = 0.5 * vec3(uDims); // voxels' cubes: [-1/2, N - 1/2]
+    vec3 h = 0.5 * vec3(uDims); // voxels' cubes: [-1/2, N - 1/2]
 #else
-    const vec3 h = 0.5 * vec3(uDims) + 0.5; // the trilinear support: [-1, N]
+    vec3 h = 0.5 * vec3(uDims) + 0.5; // the trilinear support: [-1, N]
 #endif
     float t0, t1;
     if (!clipRay(s, d, h, t0, t1)) return 0.0;
 #if MODEL == 0 || MODEL == 1
-    const vec3 g0 = s + t0 * d + h; // the box's lower corner at 0
+    vec3 g0 = s + t0 * d + h; // the box's lower corner at 0
     return mmPerT * walkCells(g0, d, t1 - t0, ivec3(2.0 * h + 0.5));
 #else
-    const float len = (t1 - t0) * mmPerT;
-    const int n = max(1, int(ceil(len / uStep)));
-    const float dt = (t1 - t0) / float(n);
-    const vec3 first = s + (t0 + 0.5 * dt) * d + uCentre, delta = dt * d;
+    float len = (t1 - t0) * mmPerT;
+    int n = max(1, int(ceil(len / uStep)));
+    float dt = (t1 - t0) / float(n);
+    vec3 first = s + (t0 + 0.5 * dt) * d + uCentre, delta = dt * d;
     float sum = 0.0;
     for (int k = 0; k < n; ++k) sum += trilinear(first + float(k) * delta);
     return sum * (len / float(n));
@@ -184,14 +184,14 @@ float integrate(vec3 s, vec3 d) {
 }
 
 void main() {
-    const ivec3 px = ivec3(gl_GlobalInvocationID);
+    ivec3 px = ivec3(gl_GlobalInvocationID);
     if (px.x >= uSize.x || px.y >= uSize.y || px.z >= uSize.z) return;
-    const ConeView view = views[px.z];
+    ConeView view = views[px.z];
     float value = 0.0;
     for (int sy = 0; sy < SUBSAMPLES; ++sy) {
         for (int sx = 0; sx < SUBSAMPLES; ++sx) {
-            const vec2 off = (vec2(sx, sy) + 0.5) / float(SUBSAMPLES) - 0.5;
-            const vec2 at = vec2(px.xy) + off;
+            vec2 off = (vec2(sx, sy) + 0.5) / float(SUBSAMPLES) - 0.5;
+            vec2 at = vec2(px.xy) + off;
             value += integrate(view.source.xyz,
                                view.dir0.xyz + at.x * view.dirCol.xyz + at.y * view.dirRow.xyz);
         }
