@@ -2,14 +2,18 @@
 
 #include <QApplication>
 #include <QComboBox>
+#include <QDoubleSpinBox>
 #include <QCommandLineParser>
 #include <QObject>
 #include <QRegularExpression>
+
+#include <cmath>
 
 #include <fvr/core/errors.h>
 #include <fvr/core/render/render_settings.h>
 #include <fvr/core/text.h>
 #include <fvr/ui/main_window.h>
+#include <fvr/ui/panels/geometry_panel.h>
 #include <fvr/ui/panels/rendering_panel.h>
 
 namespace fvr::app {
@@ -50,6 +54,17 @@ void declareOptions(QCommandLineParser& p) {
          "bandlimited (as fvr-render's --voxel-model)",
          "M"},
         {"size", "Every view's slice/image size: 128, 256, 512, 1024 or 2048", "M"},
+        {"projection",
+         "Every view's projection, or the views' in order (P1,P2,…): parallel (Fourier) or cone "
+         "(a C-arm's cone beam, ray cast)",
+         "P"},
+        {"carm",
+         "Start at these C-arm angles (degrees): primary (LAO +, RAO -), secondary (CRAN +, CAUD "
+         "-), e.g. 30,15",
+         "A,B"},
+        {"sid", "The cone beam's source-to-detector distance, mm", "mm"},
+        {"sod", "The cone beam's source-to-isocentre distance, mm (less than --sid)", "mm"},
+        {"ray-model", "The cone beam's voxel model: trilinear, box or bspline", "M"},
         {"window-size", "The main window's size, e.g. 1400x1000", "WxH"},
         {"export-views",
          "Once every view shows its full-quality frame, write DIR/view1.npy … (the float "
@@ -71,6 +86,49 @@ int positiveInt(const QCommandLineParser& p, const QString& option) {
         throw core::SettingsError("--" + option.toStdString() + ": expected a positive number, " +
                                   "found '" + p.value(option).toStdString() + "'");
     return v;
+}
+
+double number(const QCommandLineParser& p, const QString& option) {
+    const auto v = core::parseNumber<double>(p.value(option).toStdString());
+    if (!v || !std::isfinite(*v))
+        throw core::SettingsError("--" + option.toStdString() + ": expected a number, found '" +
+                                  p.value(option).toStdString() + "'");
+    return *v;
+}
+
+void parseGeometry(const QCommandLineParser& p, WorkstationOptions& o) {
+    for (const QString& m : p.value("projection").split(',', Qt::SkipEmptyParts)) {
+        if (m == QStringLiteral("parallel"))
+            o.projections.push_back(ui::ProjectionKind::Parallel);
+        else if (m == QStringLiteral("cone"))
+            o.projections.push_back(ui::ProjectionKind::Cone);
+        else
+            throw core::SettingsError("--projection: expected parallel or cone, found '" +
+                                      m.toStdString() + "'");
+    }
+    if (int(o.projections.size()) > o.compare)
+        throw core::SettingsError("--projection: at most one per view (--compare)");
+    if (p.isSet("carm")) {
+        const QStringList a = p.value("carm").split(',');
+        const auto p0 =
+            a.size() == 2 ? core::parseNumber<double>(a[0].toStdString()) : std::nullopt;
+        const auto p1 =
+            a.size() == 2 ? core::parseNumber<double>(a[1].toStdString()) : std::nullopt;
+        if (!p0 || !p1 || std::abs(*p0) > 180.0 || std::abs(*p1) > 89.0)
+            throw core::SettingsError("--carm: expected PRIMARY,SECONDARY in degrees (|primary| "
+                                      "<= 180, |secondary| <= 89), found '" +
+                                      p.value("carm").toStdString() + "'");
+        o.carm = {*p0, *p1};
+    }
+    if (p.isSet("sid")) o.sid = number(p, "sid");
+    if (p.isSet("sod")) o.sod = number(p, "sod");
+    const double sid = o.sid.value_or(ui::ConeSettings{}.sid);
+    const double sod = o.sod.value_or(ui::ConeSettings{}.sod);
+    if (!(sod > 0.0) || !(sid > sod) || sid > 5000.0)
+        throw core::SettingsError("--sid, --sod: expected 0 < SOD < SID <= 5000 mm, found SOD " +
+                                  core::formatNumber(sod) + ", SID " + core::formatNumber(sid));
+    if (p.isSet("ray-model"))
+        o.rayModel = parsed("ray-model", p.value("ray-model"), core::parseRayModel);
 }
 
 } // namespace
@@ -98,6 +156,7 @@ WorkstationOptions parseWorkstationOptions(const QApplication& app) {
             return *m;
         });
     }
+    parseGeometry(p, o);
     if (p.isSet("window-size")) {
         const auto m = QRegularExpression("^(\\d+)x(\\d+)$").match(p.value("window-size"));
         if (!m.hasMatch()) throw core::SettingsError("--window-size: expected WxH, e.g. 1400x1000");
@@ -121,6 +180,30 @@ void choose(QComboBox* combo, int data) {
 }
 } // namespace
 
+/** The Geometry panel's controls, as a user would set them, per view through "Applies to". */
+template <class ForView>
+void applyGeometryOptions(ui::MainWindow& window, const WorkstationOptions& o, ForView forView) {
+    ui::GeometryPanel& g = *window.geometryPanel();
+    for (int i = 0; i < o.compare; ++i) {
+        forView(i, [&] {
+            if (o.sid) g.sidSpin()->setValue(*o.sid);
+            if (o.sod) g.sodSpin()->setValue(*o.sod);
+            if (o.rayModel) choose(g.rayModelCombo(), int(*o.rayModel));
+            if (!o.projections.empty())
+                choose(g.projectionCombo(),
+                       int(o.projections[std::min<std::size_t>(i, o.projections.size() - 1)]));
+        });
+    }
+    if (o.carm) {
+        const auto [a, b] = *o.carm;
+        QObject::connect(&window.study(), &ui::StudyController::studyLoaded, &window,
+                         [&window, a, b] {
+                             window.geometryPanel()->primarySpin()->setValue(a);
+                             window.geometryPanel()->secondarySpin()->setValue(b);
+                         });
+    }
+}
+
 void applyWorkstationOptions(ui::MainWindow& window, const WorkstationOptions& o) {
     if (o.windowSize) window.resize(*o.windowSize);
     window.setCompareCount(o.compare);
@@ -139,6 +222,7 @@ void applyWorkstationOptions(ui::MainWindow& window, const WorkstationOptions& o
             o.voxelModels[std::min<std::size_t>(i, o.voxelModels.size() - 1)];
         forView(i, [&] { choose(panel.voxelModelCombo(), int(m)); });
     }
+    applyGeometryOptions(window, o, forView);
     panel.appliesToCombo()->setCurrentIndex(0);
     if (o.view) {
         const core::PatientView pv = *o.view;

@@ -7,11 +7,13 @@
 #include <optional>
 #include <vector>
 
+#include <fvr/core/render/cone_projector.h>
 #include <fvr/core/render/kernels.h>
 #include <fvr/core/render/voxel_model.h>
 #include <fvr/core/xray/patient_views.h>
 #include <fvr/ui/scripted_run.h>
 #include <fvr/ui/study.h>
+#include <fvr/ui/view_settings.h>
 
 class QApplication;
 
@@ -28,6 +30,11 @@ struct WorkstationOptions {
     std::vector<core::Kernel> kernels; ///< view 1's, 2's … (fewer: the others keep theirs)
     std::vector<core::VoxelModel> voxelModels; ///< view 1's, 2's …; the last for the rest
     std::optional<int> size; ///< every view's
+    /** The views' projections in order (the last for the rest): parallel or cone. */
+    std::vector<ui::ProjectionKind> projections;
+    std::optional<std::pair<double, double>> carm; ///< --carm PRIMARY,SECONDARY (degrees)
+    std::optional<double> sid, sod; ///< mm
+    std::optional<core::RayModel> rayModel;
     std::optional<QSize> windowSize;
     ui::ScriptedRunOptions script;
 };

@@ -7,13 +7,17 @@
 
 #include <algorithm>
 #include <cstring>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/geometry/camera.h>
 #include <fvr/core/io/open_study.h>
+#include <fvr/core/render/cone_projector.h>
 #include <fvr/core/render/cpu_batch.h>
 #include <fvr/core/xray/display_window.h>
 #include <fvr/core/xray/patient_views.h>
@@ -212,10 +216,84 @@ public:
             cli::settingsJson(cli::RunFacts{o, *m_spectrum, g.pixelSize, m_batch->width(), "cpu"}));
     }
 
+    /** Cone-beam views (core::ConeProjector, made once per ray model and step and kept): an
+     *  (n, H, W) stack of line integrals, every camera checked against the volume first. */
+    py::array_t<float> renderCone(const std::vector<core::ConeCamera>& cameras,
+                                  const std::string& model, double step) {
+        refuseParallelOnlySettings();
+        core::ConeProjectorOptions po;
+        po.model = core::parseRayModel(model);
+        po.stepFraction = step;
+        po.mapping = m_options.settings.values; // mu for Hounsfield data, as the parallel views
+        po.threads = m_options.threads;
+        if (po.model == core::RayModel::Box && step != 0.0)
+            throw core::SettingsError("step: not with model box (exact path lengths, no step)");
+        if (cameras.empty()) throw core::SettingsError("cameras: expected at least one camera");
+        const int w = cameras[0].width, h = cameras[0].height;
+        for (std::size_t i = 0; i < cameras.size(); ++i) {
+            if (cameras[i].width != w || cameras[i].height != h)
+                throw core::SettingsError(
+                    "cameras: one stack needs one detector size: camera 0 has " + sizeText(w, h) +
+                    ", camera " + std::to_string(i) + " " +
+                    sizeText(cameras[i].width, cameras[i].height));
+            try {
+                core::validateConeView(cameras[i], *m_volume.volume);
+            } catch (const core::SettingsError& e) {
+                if (cameras.size() == 1) throw;
+                throw core::SettingsError("camera " + std::to_string(i) + ": " + e.what());
+            }
+        }
+        auto out =
+            py::array_t<float>({py::ssize_t(cameras.size()), py::ssize_t(h), py::ssize_t(w)});
+        float* dst = out.mutable_data();
+        const std::size_t pixels = std::size_t(w) * std::size_t(h);
+        py::gil_scoped_release release;
+        std::lock_guard lock(m_coneMutex);
+        core::ConeProjector& projector = coneProjector(po);
+        for (std::size_t i = 0; i < cameras.size(); ++i) {
+            const core::DetectorImage img = projector.project(cameras[i]);
+            std::memcpy(dst + i * pixels, img.pixels.data(), pixels * sizeof(float));
+        }
+        return out;
+    }
+
     const PyVolume& volume() const { return m_volume; }
     const Args& args() const { return m_args; }
 
 private:
+    static std::string sizeText(int w, int h) {
+        return std::to_string(w) + "x" + std::to_string(h);
+    }
+
+    /** The renderer's settings that change a parallel image but have no cone-beam meaning (the
+     *  ray caster would silently ignore them): refused, as fvr-render --geometry cone does. */
+    void refuseParallelOnlySettings() const {
+        const core::RenderSettings& s = m_options.settings;
+        const core::RenderSettings d;
+        auto refuse = [](const std::string& what, const std::string& why) {
+            throw core::SettingsError(what + ": not with a cone-beam camera (" + why + ")");
+        };
+        if (s.depthCue != d.depthCue) refuse("depth_cue", "a Fourier rendering setting");
+        if (s.filter.sharpenAmount != d.filter.sharpenAmount)
+            refuse("sharpen", "a Fourier rendering setting");
+        if (s.filter.bandLimitLpMm != d.filter.bandLimitLpMm)
+            refuse("band_limit", "a Fourier rendering setting");
+        if (s.pixelAperture) refuse("pixel_aperture", "not in the cone-beam ray caster yet");
+        if (m_options.polychromatic())
+            refuse("kvp", "polychromatic cone beam is not implemented yet");
+    }
+
+    /** The projector of these options, made on first use (the value mapping and the empty-block
+     *  map once per model and step). Called with m_coneMutex held. */
+    core::ConeProjector& coneProjector(const core::ConeProjectorOptions& po) {
+        const auto key = std::make_tuple(int(po.model), po.stepFraction, int(po.mapping));
+        auto it = m_cone.find(key);
+        if (it == m_cone.end())
+            it = m_cone.emplace(key, std::make_unique<core::ConeProjector>(*m_volume.volume, po))
+                     .first;
+        return *it->second;
+    }
+
     /** The renderer's settings with the call's: a view of the call replaces the renderer's own
      *  (--dir or --up drop its --view; --view drops its --dir and --up: fvr-render refuses
      *  --view with either). */
@@ -270,6 +348,10 @@ private:
     std::shared_ptr<const core::Spectrum> m_spectrum;
     std::unique_ptr<core::CpuBatchRenderer> m_batch;
     std::mutex m_mutex;
+    /** The cone-beam projectors by (model, step, value mapping), and their own lock (a cone
+     *  view and a parallel view may render at once). */
+    std::map<std::tuple<int, double, int>, std::unique_ptr<core::ConeProjector>> m_cone;
+    std::mutex m_coneMutex;
 };
 
 /** Beer-Lambert: the transmitted intensity of line integrals (fvr-render --beer-lambert's rule:
@@ -309,6 +391,108 @@ int runCli(const Args& args) {
     return o ? cli::run(*o) : 0;
 }
 
+glm::dvec3 toGlm(const core::Vec3& a) { return {a[0], a[1], a[2]}; }
+core::Vec3 fromGlm(const glm::dvec3& a) { return {a.x, a.y, a.z}; }
+
+/** A camera from its parts, checked (core::ConeCamera::validate). */
+core::ConeCamera makeCamera(const core::Vec3& source, const core::Vec3& centre, const core::Vec3& u,
+                            const core::Vec3& v, int width, int height, double pitchU,
+                            double pitchV, double du, double dv) {
+    core::ConeCamera c;
+    c.source = toGlm(source);
+    c.detectorCentre = toGlm(centre);
+    c.u = toGlm(u);
+    c.v = toGlm(v);
+    c.width = width;
+    c.height = height;
+    c.pitchU = pitchU;
+    c.pitchV = pitchV;
+    c.principalOffset = {du, dv};
+    c.validate();
+    return c;
+}
+
+/** A C-arm's camera (core::cArmCamera: DICOM's positioner angles, SID, SOD, isocentre). */
+core::ConeCamera cArm(double primary, double secondary, double sid, double sod,
+                      const core::Vec3& isocentre, int width, int height, double pitchU,
+                      double pitchV, double du, double dv) {
+    core::CArm arm;
+    arm.primaryDeg = primary;
+    arm.secondaryDeg = secondary;
+    arm.sid = sid;
+    arm.sod = sod;
+    arm.isocentre = toGlm(isocentre);
+    return core::cArmCamera(arm, width, height, pitchU, pitchV, {du, dv});
+}
+
+/** P as a (3, 4) array. */
+py::array_t<double> cameraMatrix(const core::ConeCamera& c) {
+    const core::ProjectionMatrix p = c.matrix();
+    py::array_t<double> out({py::ssize_t(3), py::ssize_t(4)});
+    auto w = out.mutable_unchecked<2>();
+    for (int r = 0; r < 3; ++r)
+        for (int k = 0; k < 4; ++k) w(r, k) = p.rows[r][k];
+    return out;
+}
+
+/** (N, 3) LPS points to (N, 3): column, row and depth w (mm along the detector normal from the
+ *  source, > 0 in front of it). */
+py::array_t<double> cameraProject(
+    const core::ConeCamera& c, py::array_t<double, py::array::c_style | py::array::forcecast> x) {
+    if (x.ndim() != 2 || x.shape(1) != 3)
+        throw core::SettingsError("points: expected an (N, 3) array of LPS points in mm");
+    const core::ProjectionMatrix p = c.matrix();
+    py::array_t<double> out({x.shape(0), py::ssize_t(3)});
+    auto r = x.unchecked<2>();
+    auto w = out.mutable_unchecked<2>();
+    for (py::ssize_t i = 0; i < x.shape(0); ++i) {
+        const glm::dvec3 q = p.apply({r(i, 0), r(i, 1), r(i, 2)});
+        for (int k = 0; k < 3; ++k) w(i, k) = q[k];
+    }
+    return out;
+}
+
+void bindCamera(py::module_& m) {
+    using core::ConeCamera;
+    py::class_<ConeCamera>(m, "Camera")
+        .def(py::init(&makeCamera), py::arg("source"), py::arg("detector_centre"), py::arg("u"),
+             py::arg("v"), py::arg("width"), py::arg("height"), py::arg("pitch_u"),
+             py::arg("pitch_v"), py::arg("du"), py::arg("dv"))
+        .def_static("carm", &cArm, py::arg("primary"), py::arg("secondary"), py::arg("sid"),
+                    py::arg("sod"), py::arg("isocentre"), py::arg("width"), py::arg("height"),
+                    py::arg("pitch_u"), py::arg("pitch_v"), py::arg("du"), py::arg("dv"))
+        .def_property_readonly("source", [](const ConeCamera& c) { return fromGlm(c.source); })
+        .def_property_readonly("detector_centre",
+                               [](const ConeCamera& c) { return fromGlm(c.detectorCentre); })
+        .def_property_readonly("u", [](const ConeCamera& c) { return fromGlm(c.u); })
+        .def_property_readonly("v", [](const ConeCamera& c) { return fromGlm(c.v); })
+        .def_readonly("width", &ConeCamera::width)
+        .def_readonly("height", &ConeCamera::height)
+        .def_readonly("pitch_u", &ConeCamera::pitchU)
+        .def_readonly("pitch_v", &ConeCamera::pitchV)
+        .def_property_readonly("principal_point",
+                               [](const ConeCamera& c) {
+                                   return py::make_tuple(c.principalOffset.x, c.principalOffset.y);
+                               })
+        .def_property_readonly("sid", &ConeCamera::sourceToDetector)
+        .def("pixel_centre", [](const ConeCamera& c, double col,
+                                double row) { return fromGlm(c.pixelCentre(col, row)); })
+        .def("matrix", &cameraMatrix)
+        .def("project", &cameraProject, py::arg("points"))
+        .def("flat_field", [](const ConeCamera& c) {
+            c.validate();
+            const std::vector<float> f = core::detectorFlatField(c);
+            py::array_t<float> out({py::ssize_t(c.height), py::ssize_t(c.width)});
+            std::memcpy(out.mutable_data(), f.data(), f.size() * sizeof(float));
+            return out;
+        });
+    m.def("volume_centre",
+          [](const PyVolume& v) { return fromGlm(core::volumeCentre(*v.volume)); });
+    m.def("framing_pitch", [](const PyVolume& v, double sid, double sod, int width, int height) {
+        return core::framingPitch(*v.volume, sid, sod, width, height);
+    });
+}
+
 void bindVolume(py::module_& m) {
     py::class_<PyVolume>(m, "Volume")
         .def(py::init(&volumeFromArray), py::arg("array"), py::arg("spacing"), py::arg("origin"),
@@ -341,6 +525,8 @@ void bindRenderer(py::module_& m) {
         .def("render_many", &PyRenderer::renderMany, py::arg("views"), py::arg("args"))
         .def("views", &PyRenderer::views, py::arg("args"))
         .def("settings_json", &PyRenderer::settingsJson, py::arg("args"))
+        .def("render_cone", &PyRenderer::renderCone, py::arg("cameras"), py::arg("model"),
+             py::arg("step"))
         .def_property_readonly("volume", &PyRenderer::volume)
         .def_property_readonly("args", &PyRenderer::args);
 }
@@ -357,9 +543,13 @@ PYBIND11_MODULE(_fvr, m) {
         }
     });
     bindVolume(m);
+    bindCamera(m);
     bindRenderer(m);
     m.def("load", &load, py::arg("path"), py::arg("args"));
     m.def("transmission", &transmission, py::arg("image"), py::arg("args"));
     m.def("film", &film, py::arg("image"), py::arg("args"), py::arg("invert"));
     m.def("run_cli", &runCli, py::arg("args"));
+    m.def(
+        "check_settings", [](const Args& args) { cli::parseSettings(args); }, py::arg("args"),
+        "Reads fvr-render settings as fvr-render does: ValueError with its message, else None.");
 }

@@ -3,10 +3,12 @@
 #include <chrono>
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include <fvr/core/render/image_metrics.h>
 #include <fvr/core/render/spatial_projector.h>
 
+#include "cone.h"
 #include "session.h"
 
 namespace fvr::cli {
@@ -97,6 +99,27 @@ void runBench(const Session& s) {
                                      "+display";
     }
     addRayCasting(s, fvrMs, j);
+    printJson(j);
+}
+
+void runConeBench(const ConeSession& s, const std::vector<ConeView>& views) {
+    const std::vector<ConeView> benchViews = coneBenchViews(s, views); // checked first
+    std::vector<double> ms;
+    for (const ConeView& v : benchViews) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const DetectorImage img = s.projector.project(v.camera);
+        ms.push_back(
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                .count());
+    }
+    const ConeCamera& c = benchViews.front().camera;
+    Json j{{"settings", coneSettingsJson(s)},
+           {"frames", s.options.bench},
+           {"detector", Json::array({c.width, c.height})},
+           {"prepare", statJson({s.prepareMs, s.prepareMs})},
+           {"ray_cast", rateJson(stats(ms))},
+           {"views_ms", ms},
+           {"first_view", coneViewJson(benchViews.front())}};
     printJson(j);
 }
 

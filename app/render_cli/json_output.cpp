@@ -96,6 +96,28 @@ Json settingsJson(const RunFacts& run) {
                   {"band_limit_lp_per_mm", o.settings.filter.bandLimitLpMm}}}};
 }
 
+Json volumeBlockJson(const core::Volume& volume) {
+    return Json{{"name", volume.name},
+                {"dims", dimsJson(volume.dims)},
+                {"spacing_mm", vecJson(volume.spacing)},
+                {"origin_mm", vecJson(volume.origin)},
+                {"direction", directionJson(volume.direction)},
+                {"units", core::unitsName(volume.units)}};
+}
+
+Json outputBlockJson(const Options& o, const WrittenOutput& output) {
+    return Json{{"values", output.values},
+                {"mu_water_per_mm", o.beerLambert ? o.transmission.muWaterPerMm : 0.0},
+                {"energy_kev", o.beerLambert && !o.settings.muWaterPerMm
+                                   ? Json(o.settings.energyKeV)
+                                   : Json(nullptr)},
+                {"exposure", o.beerLambert ? o.transmission.exposure : 0.0},
+                {"stacked", output.stacked},
+                {"files", output.files},
+                {"preprocess_ms", output.preprocessMs},
+                {"render_ms_per_view", output.renderMsPerView}};
+}
+
 Json sidecarJson(const RunFacts& run, const core::Volume& volume, const WrittenOutput& output,
                  const std::vector<core::ViewFrame>& views) {
     const Options& o = run.options;
@@ -105,23 +127,8 @@ Json sidecarJson(const RunFacts& run, const core::Volume& volume, const WrittenO
     return Json{
         {"generator", "fvr-render"},
         {"settings", settingsJson(run)},
-        {"volume",
-         {{"name", volume.name},
-          {"dims", dimsJson(volume.dims)},
-          {"spacing_mm", vecJson(volume.spacing)},
-          {"origin_mm", vecJson(volume.origin)},
-          {"direction", directionJson(volume.direction)},
-          {"units", core::unitsName(volume.units)}}},
-        {"output",
-         {{"values", output.values},
-          {"mu_water_per_mm", o.beerLambert ? o.transmission.muWaterPerMm : 0.0},
-          {"energy_kev",
-           o.beerLambert && !o.settings.muWaterPerMm ? Json(o.settings.energyKeV) : Json(nullptr)},
-          {"exposure", o.beerLambert ? o.transmission.exposure : 0.0},
-          {"stacked", output.stacked},
-          {"files", output.files},
-          {"preprocess_ms", output.preprocessMs},
-          {"render_ms_per_view", output.renderMsPerView}}},
+        {"volume", volumeBlockJson(volume)},
+        {"output", outputBlockJson(o, output)},
         {"image",
          {{"size", o.settings.size},
           {"pixel_size_mm", run.pixelSize},

@@ -47,6 +47,11 @@ struct WrittenOutput {
     double renderMsPerView = 0.0;
 };
 
+/** The sidecar's "volume" object: name, dims, spacing, origin, direction, units. */
+Json volumeBlockJson(const core::Volume& volume);
+/** The sidecar's "output" object: the values, the transmission's beam, the files, the times. */
+Json outputBlockJson(const Options& o, const WrittenOutput& output);
+
 /** The sidecar FILE.json: every parameter and view, so the output can be reproduced and
  *  registered (origin and spacing at full precision). */
 Json sidecarJson(const RunFacts& run, const core::Volume& volume, const WrittenOutput& output,

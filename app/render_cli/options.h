@@ -6,8 +6,10 @@
 #include <string>
 #include <vector>
 
+#include <fvr/core/geometry/camera.h>
 #include <fvr/core/io/volume_io.h>
 #include <fvr/core/pacs/pacs.h>
+#include <fvr/core/render/cone_projector.h>
 #include <fvr/core/render/kernels.h>
 #include <fvr/core/render/render_settings.h>
 #include <fvr/core/render/spectrum.h>
@@ -18,6 +20,25 @@
 #include <fvr/core/xray/xray.h>
 
 namespace fvr::cli {
+
+/** --geometry cone: a point source and a flat detector (core/geometry/camera.h), ray cast by
+ *  core::ConeProjector (cone.h runs it). */
+struct ConeOptions {
+    bool enabled = false; ///< --geometry cone (else parallel, the Fourier renderers)
+    /** --primary-angle, --secondary-angle, --sid, --sod; the isocentre is set per volume. */
+    core::CArm arm;
+    std::optional<glm::dvec3> isocentre; ///< --isocenter (default: the volume's centre)
+    int width = 0, height = 0; ///< --detector-size (0: settings.size square)
+    double pitchU = 0.0, pitchV = 0.0; ///< --pitch (0: core::framingPitch)
+    glm::dvec2 principalOffset{0.0}; ///< --principal-point, pixels
+    core::RayModel model = core::RayModel::Trilinear; ///< --ray-model
+    double step = 0.0; ///< --step, a fraction of the smallest spacing
+    bool flatField = false; ///< --flat-field (with --beer-lambert)
+    std::string matrixFile; ///< --projection-matrix FILE (instead of the C-arm)
+    /** --orbit FROM:TO:N: N primary angles from FROM to TO inclusive. */
+    std::optional<double> orbitFrom, orbitTo;
+    int orbitViews = 0;
+};
 
 /** Output file formats, from the extension of --out. */
 enum class OutputFormat { None, Npy, Pfm, Png, Dicom };
@@ -82,6 +103,8 @@ struct Options {
     double electronicNoise = 0.0; ///< Gaussian, standard deviation in quanta per pixel
     std::uint64_t seed = 1;
     std::string materialOut; ///< --material-out FILE.npy: rhoL (k, M, M) in g/cm^2
+
+    ConeOptions cone; ///< --geometry cone and its camera
 
     bool polychromatic() const { return kvp.has_value(); }
     bool kaiserBessel() const {

@@ -1,6 +1,7 @@
 // fvr-render --out: the views, the image files and the JSON sidecar.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
@@ -27,6 +28,7 @@
 #include <fvr/core/xray/display_window.h>
 #include <fvr/core/xray/patient_views.h>
 
+#include "cone.h"
 #include "output_files.h"
 #include "pacs.h"
 #include "session.h"
@@ -118,29 +120,32 @@ std::string numberedPath(const std::string& out, std::size_t i) {
 }
 
 /** What the output's pixels hold. */
-std::string valuesText(const Session& s) {
-    return s.options.beerLambert ? "transmitted intensity exposure x exp(-mu_water x line integral)"
-                                 : projectionUnits(s.options.settings.values, s.volume.units);
+std::string valuesText(const Options& o, const Volume& volume) {
+    return o.beerLambert ? "transmitted intensity exposure x exp(-mu_water x line integral)"
+                         : projectionUnits(o.settings.values, volume.units);
 }
+std::string valuesText(const Session& s) { return valuesText(s.options, s.volume); }
 
 /** The name of --send's temporary folders (.fvr-render-send.PID-ID.N.part in the temporary folder).
  */
 constexpr const char* kSendFolder = "fvr-render-send";
 
-/** Writes the views one by one, or streams them into one .npy stack (written as it is produced,
- *  header first), all into `files`' staging folder (committed with the sidecar, not here). */
+/** Writes the views (width x height images) one by one, or streams them into one .npy stack
+ *  (written as it is produced, header first), all into `files`' staging folder (committed with
+ *  the sidecar, not here). */
 class ViewWriter {
 public:
-    ViewWriter(const Session& s, OutputFiles& files, std::size_t viewCount,
+    ViewWriter(const Options& o, OutputFiles& files, std::size_t viewCount, int width, int height,
                DicomExportInfo exportInfo)
-        : m_o(s.options), m_files(files), m_count(viewCount), m_exportInfo(std::move(exportInfo)),
+        : m_o(o), m_files(files), m_count(viewCount), m_width(width), m_height(height),
+          m_exportInfo(std::move(exportInfo)),
           m_stacked(viewCount > 1 && m_o.format == OutputFormat::Npy && !m_o.numbered) {
         // Opened before the first view is rendered: an unwritable path fails at once.
         if (m_stacked) {
             const auto at = m_files.staged(m_o.out);
             finalNamesOnError([&] {
-                m_stack = std::make_unique<NpyStackWriter>(at, m_o.settings.size, m_o.settings.size,
-                                                           std::int64_t(m_count));
+                m_stack =
+                    std::make_unique<NpyStackWriter>(at, m_height, m_width, std::int64_t(m_count));
             });
         }
     }
@@ -161,31 +166,44 @@ public:
     /** Post-processes and writes view i (the writer thread calls it, in view order). */
     void add(std::size_t i, ProjectionImage& img) {
         core::checkFiniteImage(img); // never a NaN in a file
-        // Line integrals in the image; transmission where --beer-lambert asks for it.
+        addPixels(i, img.pixels, &img);
+    }
+    /** A cone-beam view (no DICOM output, no --send: the options refuse them). */
+    void add(std::size_t i, DetectorImage& img) {
+        for (float v : img.pixels)
+            if (!std::isfinite(v))
+                throw RenderError("a cone-beam view holds a value that is not finite");
+        addPixels(i, img.pixels, nullptr);
+    }
+
+    /** The line integrals in `pixels` (transmission where --beer-lambert asks for it) written
+     *  as the format says; `img` (null for a cone-beam view) for DICOM and --send. */
+    void addPixels(std::size_t i, std::vector<float>& pixels, const ProjectionImage* img) {
         std::optional<DisplayWindow> film;
         if (m_o.beerLambert && m_o.format == OutputFormat::Png) {
-            m_lineIntegrals = img.pixels; // the buffer is reused from view to view
+            m_lineIntegrals = pixels; // the buffer is reused from view to view
             // A Beer-Lambert PNG shows the film, as the workstation does: the window on the log
             // exposure, bone white (the float outputs hold the intensity itself).
             film = core::filmWindow(m_lineIntegrals, m_o.transmission, true);
         }
-        if (m_o.beerLambert) applyTransmission(img.pixels, m_o.transmission);
+        if (m_o.beerLambert) applyTransmission(pixels, m_o.transmission);
         if (m_stacked) {
-            finalNamesOnError([&] { m_stack->add(img.pixels.data()); });
+            finalNamesOnError([&] { m_stack->add(pixels.data()); });
             addToSend(i, m_o.out, img);
             return;
         }
         const std::string path = m_count > 1 ? numberedPath(m_o.out, i) : m_o.out;
         const std::filesystem::path at = m_files.staged(path);
-        const int M = m_o.settings.size;
         finalNamesOnError([&] {
             if (m_o.format == OutputFormat::Png)
-                writePng(at, film ? m_lineIntegrals.data() : img.pixels.data(), M, M,
-                         film ? *film : autoWindow(img.pixels), m_o.bitDepth);
-            else if (m_o.format == OutputFormat::Dicom)
-                writeDicomProjection(at, img, m_exportInfo);
+                writePng(at, film ? m_lineIntegrals.data() : pixels.data(), m_height, m_width,
+                         film ? *film : autoWindow(pixels), m_o.bitDepth);
+            else if (m_o.format == OutputFormat::Dicom && img)
+                writeDicomProjection(at, *img, m_exportInfo);
+            else if (m_o.format == OutputFormat::Pfm)
+                writePfm(at, pixels.data(), m_height, m_width);
             else
-                writeProjection(at, img);
+                writeNpy(at, pixels.data(), m_height, m_width);
         });
         m_written.push_back(path);
         addToSend(i, path, img); // the final path: sent after the commit
@@ -193,8 +211,9 @@ public:
 
     /** --send: the DICOM outputs themselves, else a Secondary Capture of each view written
      *  into a temporary folder (removed with the writer). */
-    void addToSend(std::size_t i, const std::string& path, const ProjectionImage& img) {
+    void addToSend(std::size_t i, const std::string& path, const ProjectionImage* img) {
         if (m_o.send.empty()) return;
+        if (!img) throw RenderError("--send: no DICOM for this view"); // refused by the options
         if (m_o.format == OutputFormat::Dicom) {
             m_toSend.emplace_back(path);
             return;
@@ -208,7 +227,7 @@ public:
             std::filesystem::create_directories(m_sendDir);
         }
         m_toSend.push_back(m_sendDir / ("view_" + std::to_string(i) + ".dcm"));
-        writeDicomProjection(m_toSend.back(), img, m_exportInfo);
+        writeDicomProjection(m_toSend.back(), *img, m_exportInfo);
     }
     const std::vector<std::filesystem::path>& toSend() const { return m_toSend; }
 
@@ -227,6 +246,7 @@ private:
     const Options& m_o;
     OutputFiles& m_files;
     std::size_t m_count;
+    int m_width, m_height;
     DicomExportInfo m_exportInfo;
     bool m_stacked;
     std::unique_ptr<NpyStackWriter> m_stack;
@@ -241,7 +261,9 @@ private:
  * loop renders view i+1 while view i is post-processed and written. The queue is bounded
  * (kQueued views wait at most), so that the images in memory stay few whatever the view count.
  * A writer error makes the next push() return false (the loop stops) and finish() rethrow it.
+ * Image: ProjectionImage (parallel views) or DetectorImage (cone beam).
  */
+template <class Image>
 class WriterThread {
 public:
     static constexpr std::size_t kQueued = 3;
@@ -262,7 +284,7 @@ public:
     WriterThread& operator=(const WriterThread&) = delete;
 
     /** Queues view i, waiting while the queue is full; false once the writer has failed. */
-    bool push(std::size_t i, ProjectionImage img) {
+    bool push(std::size_t i, Image img) {
         std::unique_lock lock(m_mutex);
         m_changed.wait(lock, [&] { return m_queue.size() < kQueued || m_error; });
         if (m_error) return false;
@@ -285,7 +307,7 @@ public:
 private:
     void loop() {
         for (;;) {
-            std::pair<std::size_t, ProjectionImage> item;
+            std::pair<std::size_t, Image> item;
             {
                 std::unique_lock lock(m_mutex);
                 m_changed.wait(lock, [&] { return !m_queue.empty() || m_closed; });
@@ -309,7 +331,7 @@ private:
     ViewWriter& m_writer;
     std::mutex m_mutex;
     std::condition_variable m_changed;
-    std::deque<std::pair<std::size_t, ProjectionImage>> m_queue;
+    std::deque<std::pair<std::size_t, Image>> m_queue;
     bool m_closed = false, m_cancelled = false;
     std::exception_ptr m_error;
     std::thread m_thread; // last: started when the rest is ready
@@ -325,46 +347,55 @@ DicomExportInfo dicomInfo(const Session& s, DicomExportInfo info) {
     return info;
 }
 
-/** Renders every view with a progress line while the writer thread writes them; returns the
- *  wall time from the first render to the last byte written, per view, in ms. */
-double renderViews(const Session& s, const std::vector<ViewFrame>& views, ViewWriter& writer) {
+/** Renders `count` views with a progress line while the writer thread writes them; `render`
+ *  (first, n) returns views first..first+n-1, `batch` at a time. Returns the wall time from the
+ *  first render to the last byte written, per view, in ms. */
+template <class Image, class Render>
+double renderViews(const Options& o, std::size_t count, std::size_t batch, Render render,
+                   ViewWriter& writer) {
     const auto t0 = std::chrono::steady_clock::now();
     auto lastReport = t0;
-    WriterThread writerThread(writer);
-    const std::size_t width = std::size_t(std::max(1, s.backend.batchWidth()));
-    std::vector<ProjectionImage> batch;
-    for (std::size_t i = 0; i < views.size(); ++i) {
-        if (i % width == 0) { // the next views at once (one per CPU thread)
-            std::vector<RenderParams> params;
-            for (std::size_t j = i; j < std::min(views.size(), i + width); ++j)
-                params.push_back(s.params(views[j]));
-            batch = s.backend.renderBatch(params);
-        }
-        if (!writerThread.push(i, std::move(batch[i % width])))
+    WriterThread<Image> writerThread(writer);
+    const std::size_t width = std::max<std::size_t>(1, batch);
+    std::vector<Image> images;
+    for (std::size_t i = 0; i < count; ++i) {
+        if (i % width == 0) images = render(i, std::min(count, i + width) - i); // the next views
+        if (!writerThread.push(i, std::move(images[i % width])))
             break; // the writer failed: finish() says why
         if (InterruptGuard::signal() != 0) {
-            if (views.size() > 1 && isatty(2)) std::fprintf(stderr, "\n");
-            std::string what = "interrupted after view " + std::to_string(i + 1) + " of " +
-                               std::to_string(views.size());
+            if (count > 1 && isatty(2)) std::fprintf(stderr, "\n");
+            std::string what =
+                "interrupted after view " + std::to_string(i + 1) + " of " + std::to_string(count);
             // The staged files go (the writer thread stops first): all or nothing.
-            throw Interrupted(what + ": " + s.options.out +
+            throw Interrupted(what + ": " + o.out +
                               " not written (nothing of this run is kept; an earlier run's "
                               "files stay as they were)");
         }
         const auto now = std::chrono::steady_clock::now();
-        if (views.size() > 1 &&
-            (now - lastReport > std::chrono::seconds(1) || i + 1 == views.size())) {
-            std::fprintf(stderr, "%sview %zu/%zu%s", isatty(2) ? "\r" : "", i + 1, views.size(),
+        if (count > 1 && (now - lastReport > std::chrono::seconds(1) || i + 1 == count)) {
+            std::fprintf(stderr, "%sview %zu/%zu%s", isatty(2) ? "\r" : "", i + 1, count,
                          isatty(2) ? "" : "\n");
             lastReport = now;
         }
     }
-    if (views.size() > 1 && isatty(2)) std::fprintf(stderr, "\n");
+    if (count > 1 && isatty(2)) std::fprintf(stderr, "\n");
     writerThread.finish();
     writer.finish();
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
                .count() /
-           double(views.size());
+           double(count);
+}
+
+/** The views of a Fourier-rendered run (one per CPU thread at once). */
+double renderViews(const Session& s, const std::vector<ViewFrame>& views, ViewWriter& writer) {
+    return renderViews<ProjectionImage>(
+        s.options, views.size(), std::size_t(std::max(1, s.backend.batchWidth())),
+        [&](std::size_t first, std::size_t n) {
+            std::vector<RenderParams> params;
+            for (std::size_t j = first; j < first + n; ++j) params.push_back(s.params(views[j]));
+            return s.backend.renderBatch(params);
+        },
+        writer);
 }
 
 void printSummary(const Session& s, std::size_t viewCount, bool stacked, double msPerView) {
@@ -381,28 +412,79 @@ void printSummary(const Session& s, std::size_t viewCount, bool stacked, double 
 
 } // namespace
 
-void writeOutputs(const Session& s, const std::vector<ViewFrame>& views,
-                  const DicomExportInfo& exportInfo) {
+namespace {
+
+/** One --out run: renders the views into the writer (`render` returns the time per view),
+ *  writes the sidecar (`sidecar` of the written output) and commits all of it together, says
+ *  what it wrote (`summary`(stacked, ms per view)) and sends the views where --send asks. */
+template <class Render, class Sidecar, class Summary>
+void writeRun(const Options& o, std::size_t viewCount, int width, int height,
+              DicomExportInfo exportInfo, Render render, Sidecar sidecar, Summary summary) {
     InterruptGuard interrupt; // before the writer opens its files
     std::string interrupted = "interrupted after the last view"; // the files are complete
     try {
-        OutputFiles files(s.options.out);
-        ViewWriter writer(s, files, views.size(), dicomInfo(s, exportInfo));
-        const double msPerView = renderViews(s, views, writer);
+        OutputFiles files(o.out);
+        ViewWriter writer(o, files, viewCount, width, height, std::move(exportInfo));
+        const double msPerView = render(writer);
         // JSON sidecar: every parameter, so the output can be reproduced and registered.
-        const WrittenOutput output{valuesText(s), writer.stacked(), writer.written(),
-                                   s.preprocessMs, msPerView};
-        writer.finalNamesOnError([&] {
-            writeFileAtomic(files.staged(s.options.out + ".json"),
-                            jsonText(sidecarJson(s.facts(), s.volume, output, views)));
-        });
+        const Json json = sidecar(writer, msPerView);
+        writer.finalNamesOnError(
+            [&] { writeFileAtomic(files.staged(o.out + ".json"), jsonText(json)); });
         files.commit(); // the images and their sidecar land together
-        printSummary(s, views.size(), writer.stacked(), msPerView);
-        if (!s.options.send.empty()) sendViews(s.options, writer.toSend());
+        summary(writer.stacked(), msPerView);
+        if (!o.send.empty()) sendViews(o, writer.toSend());
     } catch (const Interrupted& e) {
         interrupted = e.what();
     }
     interrupt.dieIfInterrupted(interrupted);
+}
+
+} // namespace
+
+void writeOutputs(const Session& s, const std::vector<ViewFrame>& views,
+                  const DicomExportInfo& exportInfo) {
+    const int M = s.options.settings.size;
+    writeRun(
+        s.options, views.size(), M, M, dicomInfo(s, exportInfo),
+        [&](ViewWriter& writer) { return renderViews(s, views, writer); },
+        [&](const ViewWriter& writer, double msPerView) {
+            const WrittenOutput output{valuesText(s), writer.stacked(), writer.written(),
+                                       s.preprocessMs, msPerView};
+            return sidecarJson(s.facts(), s.volume, output, views);
+        },
+        [&](bool stacked, double msPerView) { printSummary(s, views.size(), stacked, msPerView); });
+}
+
+void writeConeOutputs(const ConeSession& s, const std::vector<ConeView>& views) {
+    const Options& o = s.options;
+    const ConeCamera& first = views.front().camera;
+    writeRun(
+        o, views.size(), first.width, first.height, DicomExportInfo{},
+        [&](ViewWriter& writer) {
+            // One view at a time: the projector runs each on every thread.
+            return renderViews<DetectorImage>(
+                o, views.size(), 1,
+                [&](std::size_t i, std::size_t) {
+                    return std::vector<DetectorImage>{projectConeView(s, views[i].camera)};
+                },
+                writer);
+        },
+        [&](const ViewWriter& writer, double msPerView) {
+            const WrittenOutput output{valuesText(o, s.volume), writer.stacked(), writer.written(),
+                                       s.prepareMs, msPerView};
+            return coneSidecarJson(s, output, views);
+        },
+        [&](bool stacked, double msPerView) {
+            const bool one = stacked || views.size() == 1;
+            std::fprintf(
+                stderr,
+                "wrote %s%s (%zu view%s, %dx%d, pitch %.4g x %.4g mm, cone beam, %s, "
+                "%s, cpu; %.2f ms per view)\n",
+                one ? o.out.c_str() : numberedPath(o.out, 0).c_str(), one ? "" : " ...",
+                views.size(), views.size() > 1 ? "s" : "", first.width, first.height, first.pitchU,
+                first.pitchV, describeConeProjector(s.projector.options()).c_str(),
+                o.beerLambert ? "transmission" : valuesText(o, s.volume).c_str(), msPerView);
+        });
 }
 
 } // namespace fvr::cli

@@ -11,6 +11,7 @@
 #include <fvr/core/thread_pool.h>
 #include <fvr/core/xray/patient_views.h>
 
+#include "cone.h"
 #include "input.h"
 #include "pacs.h"
 #include "polychromatic.h"
@@ -46,6 +47,21 @@ RunFacts Session::facts() const {
     return RunFacts{options, *spectrum, geometry.pixelSize, threads, backend.name()};
 }
 
+Options resolvedForVolume(const Options& asked, const core::Volume& volume) {
+    // Attenuation only for Hounsfield data: others integrate their raw values (said when the
+    // values were asked for; the sidecar records what was used).
+    Options o = asked;
+    std::string note;
+    o.settings = asked.settings.forVolume(volume, &note);
+    if (!note.empty() && o.beerLambert)
+        throw core::SettingsError("--beer-lambert: " + note +
+                                  ", and a transmission needs attenuation");
+    if (!note.empty() && o.valuesGiven)
+        std::fprintf(stderr, "fvr-render: warning: --values %s: %s\n",
+                     core::valueMappingName(asked.settings.values), note.c_str());
+    return o;
+}
+
 namespace {
 
 using namespace fvr::core;
@@ -76,16 +92,7 @@ std::shared_ptr<const Spectrum> preprocessVolume(const Options& o, const Volume&
 /** Renders what the options ask for from the loaded volume. */
 int renderVolume(const Options& asked, const Volume& volume,
                  const std::vector<ViewFrame>& fileViews, const DicomExportInfo& exportInfo) {
-    // Attenuation only for Hounsfield data: others integrate their raw values (said when the
-    // values were asked for; the sidecar records what was used).
-    Options o = asked;
-    std::string note;
-    o.settings = asked.settings.forVolume(volume, &note);
-    if (!note.empty() && o.beerLambert)
-        throw SettingsError("--beer-lambert: " + note + ", and a transmission needs attenuation");
-    if (!note.empty() && o.valuesGiven)
-        std::fprintf(stderr, "fvr-render: warning: --values %s: %s\n",
-                     valueMappingName(asked.settings.values), note.c_str());
+    const Options o = resolvedForVolume(asked, volume);
     const ViewFrame base = baseView(o, volume);
     // The views first: their errors (a sweep along its axis) before the work.
     const std::vector<ViewFrame> views =
@@ -117,6 +124,7 @@ int run(const Options& o) {
     const std::vector<ViewFrame> fileViews = !o.out.empty() && !o.viewsFile.empty()
                                                  ? readViewsFile(o.viewsFile)
                                                  : std::vector<ViewFrame>{};
+    const std::vector<ConeCamera> fileCameras = readConeMatrixFile(o); // so is the matrix file
     const LoadedInput in = loadInput(o);
     for (const auto& w : in.warnings) std::fprintf(stderr, "fvr-render: warning: %s\n", w.c_str());
     if (in.seriesList) { // DICOM folder --info: the series list
@@ -128,6 +136,7 @@ int run(const Options& o) {
         printJson(volumeInfoJson(volume));
         if (o.out.empty() && o.bench <= 0) return 0;
     }
+    if (o.cone.enabled) return renderCone(o, volume, fileCameras);
     return renderVolume(o, volume, fileViews, in.exportInfo);
 }
 

@@ -11,6 +11,11 @@ namespace fvr::cli {
  *  status 2) and other exceptions for other failures (1). */
 int run(const Options& o);
 
+/** The options with the settings for this volume (core::RenderSettings::forVolume: raw values
+ *  for data that are not Hounsfield units, said on stderr where --values asked otherwise);
+ *  SettingsError where --beer-lambert then has no attenuation. */
+Options resolvedForVolume(const Options& asked, const core::Volume& volume);
+
 /** fvr-render's rules from settings to the core's parameters, shared with the Python module: */
 /** The spectrum's settings: --values, --transform, --oversampling, --threads, and gridding
  *  correction for --kernel where --deapodize says so, else where it helps (the workstation's

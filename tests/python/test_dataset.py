@@ -294,3 +294,73 @@ def test_temporaries_name_their_host_as_fvr_render_reads_it(fvr_render, tmp_path
                    tmp_path / "b.npy")
     assert not mine.exists()
     assert foreign.exists()
+
+
+# --- The geometry column: parallel (the default) or cone.
+
+def test_the_geometry_column_is_parallel_by_default_and_keeps_the_hash(tmp_path):
+    """A geometry cell "parallel", or empty, or no column at all: the same fvr-render
+    arguments, so the same settings hash as before the column existed (no study renders
+    again); the job and the sidecar's dataset record say "parallel"."""
+    manifest = tmp_path / "m.csv"
+    manifest.write_text("id,path,geometry,size\na,phantom:chest:64,parallel,128\n"
+                        "b,phantom:chest:64,,128\nc,phantom:chest:64,PARALLEL,128\n")
+    plain = tmp_path / "plain.csv"
+    plain.write_text("id,path,size\na,phantom:chest:64,128\n")
+    (before,) = dataset.read_manifest(plain)
+    jobs = dataset.read_manifest(manifest)
+    assert [j["geometry"] for j in jobs] == ["parallel"] * 3
+    assert [j["args"] for j in jobs] == [["--size=128"]] * 3
+    assert {dataset.settings_hash(j, "npy") for j in jobs} == {
+        dataset.settings_hash(before, "npy")}
+    assert before["geometry"] == "parallel"
+    (tmp_path / "out").mkdir()
+    result = dataset.render_study(jobs[0], str(tmp_path / "out"))
+    assert result["ok"], result
+    record = json.loads((tmp_path / "out" / "a.json").read_text())["dataset"]
+    assert record["geometry"] == "parallel"
+    assert record["settings_hash"] == dataset.settings_hash(before, "npy")
+
+
+def test_a_bad_geometry_is_a_manifest_error_naming_the_line(tmp_path):
+    manifest = tmp_path / "m.csv"
+    manifest.write_text("id,path,geometry\na,phantom:chest:64,\nb,phantom:chest:64,fan\n")
+    with pytest.raises(dataset.ManifestError) as e:
+        dataset.read_manifest(manifest)
+    assert str(e.value) == f"{manifest}:3: geometry 'fan': expected parallel or cone"
+
+
+def test_cone_rows_render_fvr_renders_cone_beam_or_are_refused_where_it_has_none(
+        tmp_path, fvr_render):
+    """geometry=cone passes --geometry=cone and the cone-beam columns to fvr-render: its stack
+    and the camera in its sidecar, as fvr-render writes them. An fvr-render without cone beam
+    (the dataset asks the package's own) refuses the row naming the line."""
+    manifest = tmp_path / "m.csv"
+    if not dataset.RENDERS_CONE:
+        manifest.write_text("id,path,geometry\na,phantom:chest:64,parallel\n"
+                            "b,phantom:chest:64,cone\n")
+        with pytest.raises(dataset.ManifestError) as e:
+            dataset.read_manifest(manifest)
+        assert str(e.value) == (f"{manifest}:3: geometry 'cone': this fvr-render renders "
+                                f"parallel projections only (it has no --geometry cone)")
+        assert "--geometry" not in subprocess.run([fvr_render, "--help"], capture_output=True,
+                                                  text=True).stdout
+        return
+    assert dataset.CONE_COLUMNS <= dataset.ALLOWED_COLUMNS
+    manifest.write_text("id,path,geometry,primary_angle,sid,sod,detector_size,ray_model\n"
+                        "c,phantom:chest:64,cone,30,1000,750,64x48,box\n")
+    (job,) = dataset.read_manifest(manifest)
+    assert job["geometry"] == "cone"
+    assert job["args"][0] == "--geometry=cone"
+    (tmp_path / "out").mkdir()
+    result = dataset.render_study(job, str(tmp_path / "out"))
+    assert result["ok"], result
+    stack = np.load(tmp_path / "out" / "c.npy")
+    expected = run_fvr_render(fvr_render, ["phantom:chest:64", "--geometry", "cone",
+                                           "--primary-angle", "30", "--sid", "1000", "--sod",
+                                           "750", "--detector-size", "64x48", "--ray-model",
+                                           "box"], tmp_path / "cli.npy")
+    assert stack.shape[-2:] == (48, 64)  # W x H: 64 columns, 48 rows
+    np.testing.assert_array_equal(stack, expected)
+    record = json.loads((tmp_path / "out" / "c.json").read_text())["dataset"]
+    assert record["geometry"] == "cone"

@@ -26,6 +26,7 @@
 #include <fvr/ui/app_info.h>
 #include <fvr/ui/materials_controller.h>
 #include <fvr/ui/panels/display_panel.h>
+#include <fvr/ui/panels/geometry_panel.h>
 #include <fvr/ui/panels/messages_panel.h>
 #include <fvr/ui/panels/rendering_panel.h>
 #include <fvr/ui/panels/study_panel.h>
@@ -148,10 +149,15 @@ void MainWindow::buildDocks() {
     m_rendering = new RenderingPanel(this);
     m_display = new DisplayPanel(this);
     m_xray = new XrayPanel(this);
+    m_geometry = new GeometryPanel(this);
     m_messages = new MessagesPanel(this);
     QDockWidget* studyDock = dock(tr("Study"), "dock.study", m_studyPanel, Qt::RightDockWidgetArea);
     QDockWidget* renderDock =
         dock(tr("Rendering"), "dock.rendering", m_rendering, Qt::RightDockWidgetArea);
+    QDockWidget* geometryDock =
+        dock(tr("Geometry"), "dock.geometry", m_geometry, Qt::RightDockWidgetArea);
+    tabifyDockWidget(renderDock, geometryDock);
+    renderDock->raise();
     QDockWidget* displayDock =
         dock(tr("Display"), "dock.display", m_display, Qt::RightDockWidgetArea);
     // The X-ray panel (its polychromatic rows) scrolls where it is taller than the space, instead
@@ -234,8 +240,10 @@ void MainWindow::onStudyLoaded(const QString& name) {
     message(tr("Opened %1").arg(name));
     if (m_study->source().kind != StudySource::Kind::Phantom) addRecent(m_study->source().path);
     assignSpectra();
-    for (auto* v : m_views)
-        v->setViewFrame(core::patientViewFrame(*m_study->volume(), core::RenderSettings{}.view));
+    const core::ViewFrame start =
+        core::patientViewFrame(*m_study->volume(), core::RenderSettings{}.view);
+    for (auto* v : m_views) v->setViewFrame(start);
+    showCArmAngles(start);
     updateStudyInfo();
 }
 

@@ -28,6 +28,7 @@ void MainWindow::restorePanels() {
         v->setAllowSoftwareGpu(m_model->rendering().softwareGpu);
     }
     m_viewSettings[0] = m_model->viewSettings();
+    restoreGeometryPanel();
     if (!m_views.empty()) m_views[0]->setSettings(m_viewSettings[0]);
     m_study->setSpectrumSettings(spectrumSettingsFromPanel());
 }
@@ -43,6 +44,7 @@ void MainWindow::connectPanels() {
     });
     connect(m_display, &DisplayPanel::windowChanged, this, &MainWindow::applyWindowFromPanel);
     connect(m_display, &DisplayPanel::presetRequested, this, &MainWindow::applyPreset);
+    connectGeometry();
     connectSettings();
     if (isTransmission(m_model->xray().output) || isPolychromatic(m_model->xray().output))
         applyOutput(true);
@@ -104,8 +106,12 @@ void MainWindow::applyRenderSettings() {
     const int slot = m_rendering->appliesTo();
     for (int i = 0; i < int(m_views.size()); ++i) {
         if (m_compareCount > 1 && slot > 0 && slot - 1 != i) continue;
-        m_viewSettings[i] = s;
-        if (m_compareCount > 1) m_views[i]->setTitle(viewTitle(i, s));
+        // The kernel, size and voxel model; the view keeps its projection (Geometry panel).
+        ViewSettings vs = s;
+        vs.projection = m_viewSettings[i].projection;
+        vs.cone = m_viewSettings[i].cone;
+        m_viewSettings[i] = vs;
+        if (m_compareCount > 1) m_views[i]->setTitle(viewTitle(i, vs));
     }
     saveRenderingSettings();
     // A spectrum deapodized for another kernel cannot render this one: view 1's kernel is the

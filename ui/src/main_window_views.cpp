@@ -118,6 +118,7 @@ void MainWindow::connectView(ProjectionView* v) {
         m_syncing = true;
         for (auto* o : m_views)
             if (o != v) o->setViewFrame(f);
+        showCArmAngles(f);
         m_syncing = false;
     });
     connect(v, &ProjectionView::windowChanged, this,
@@ -167,6 +168,8 @@ void MainWindow::setDifferenceMode(bool on) {
 QString MainWindow::viewTitle(int index, const ViewSettings& s) const {
     // Short enough to clear the orientation label above the image; the overlay's first line
     // names the voxel model.
+    if (s.projection == ProjectionKind::Cone)
+        return tr("View %1: cone beam %2×%2").arg(index + 1).arg(s.size);
     return tr("View %1: %2 %3×%3")
         .arg(index + 1)
         .arg(QString::fromUtf8(core::kernelName(s.kernel)))
@@ -177,6 +180,7 @@ void MainWindow::showPatientView(core::PatientView pv) {
     if (!m_study->volume() || m_views.empty()) return;
     const auto f = core::patientViewFrame(*m_study->volume(), pv);
     for (auto* v : m_views) v->setViewFrame(f);
+    showCArmAngles(f);
 }
 
 } // namespace fvr::ui

@@ -78,6 +78,7 @@ void ProjectionView::setStudy(std::shared_ptr<const core::Volume> volume,
     m_spectrumDirty = true;
     m_renderDirty = true;
     m_cpu.reset();
+    if (newVolume) m_cone.reset();
     if (newVolume) m_windowSet = false;
     m_frameRequested = false; // the next frame is timed from here (its upload included)
     requestFrame();
@@ -349,6 +350,14 @@ OverlayState ProjectionView::overlayState() const {
     s.shown = m_renderedQuality;
     s.gpu = m_gpu != nullptr;
     s.voxelModel = m_settings.voxelModel;
+    if (coneBeam() && m_volume) {
+        const core::CArmAngles a = core::cArmAngles(*m_volume, m_view);
+        s.coneGeometry = QString::fromStdString(core::cArmLabel(a.primaryDeg, a.secondaryDeg)) +
+                         tr("  SID %1  SOD %2 mm")
+                             .arg(m_settings.cone.sid, 0, 'f', 0)
+                             .arg(m_settings.cone.sod, 0, 'f', 0);
+        s.rayModel = m_settings.cone.model;
+    }
     s.effects = m_effects;
     s.stats = m_stats;
     s.interacting = m_progressive.interacting();
@@ -411,6 +420,10 @@ void ProjectionView::mouseMoveEvent(QMouseEvent* e) {
     } else if (m_dragButton == Qt::LeftButton) {
         // Trackball: horizontal drags turn about the screen's vertical axis, vertical drags about
         // the horizontal one; the object follows the mouse.
+        if (coneBeam()) {
+            dragCArm(delta);
+            return;
+        }
         const double k = std::numbers::pi / std::max(1, std::min(width(), height()));
         core::ViewFrame f = m_view;
         if (delta.x()) f = f.rotated(f.u, delta.x() * k);

@@ -94,6 +94,10 @@ gpu::GpuStageTimes cpuStages(const core::StageTimes& t) {
 
 void ProjectionView::renderFrame(const core::RenderParams& params, int level) {
     m_polyOnGpu = m_polySumOnGpu = false;
+    if (coneBeam()) {
+        renderConeFrame(params.image.size);
+        return;
+    }
     core::StageTimes t;
     if (m_poly && !m_poly->spectra.empty()) {
         if (m_gpu && renderPolychromaticOnGpu(params)) return;
@@ -118,7 +122,7 @@ void ProjectionView::renderFrame(const core::RenderParams& params, int level) {
 }
 
 void ProjectionView::subtractReference() {
-    auto own = (m_gpu && !m_poly) || m_polyOnGpu
+    auto own = !coneBeam() && ((m_gpu && !m_poly) || m_polyOnGpu)
                    ? std::optional<core::ProjectionImage>(shownGpu().readback())
                    : m_cpuImage;
     auto ref = m_reference->projection();
@@ -150,6 +154,10 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
     const bool poly = m_poly && !m_poly->spectra.empty();
     const auto full = [this] { return renderParams(m_settings.size, m_settings.kernel); };
     if (!m_glReady) {
+        if (coneBeam()) {
+            renderConeFrame(m_settings.size);
+            return m_cpuImage;
+        }
         if (poly) return renderPolychromatic(full());
         return floatRenderer().render(full());
     }
@@ -157,7 +165,11 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
     std::optional<core::ProjectionImage> img;
     try {
         renderIfNeeded(true); // exports and measurements always get the full-quality frame
-        if (poly && m_reference)
+        if (coneBeam() && m_reference)
+            renderConeFrame(m_settings.size), img = m_cpuImage; // its own, not the difference
+        else if (coneBeam())
+            img = m_cpuImage;
+        else if (poly && m_reference)
             img = renderPolychromatic(full());
         else if (m_polyOnGpu || (m_gpu && !poly))
             img = shownGpu().readback(); // the view's own projection, also in difference mode

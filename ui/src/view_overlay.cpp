@@ -118,6 +118,28 @@ QString ViewOverlay::stageLine() const {
 
 QStringList ViewOverlay::performanceLines() const {
     QStringList lines;
+    if (!m_s.coneGeometry.isEmpty()) {
+        // The cone beam is ray cast on the CPU: no kernel, no spectrum's effects.
+        lines << tr("%1  cone beam  %2×%2  CPU  %3 ray casting")
+                     .arg(speed())
+                     .arg(m_s.shown.size)
+                     .arg(QString::fromUtf8(core::rayModelName(m_s.rayModel)));
+        lines << m_s.coneGeometry;
+        if (m_s.progressive && m_s.level > 0)
+            lines << tr("interactive level %1/%2 (target %3 fps)")
+                         .arg(m_s.level)
+                         .arg(m_s.lastLevel)
+                         .arg(m_s.targetFps, 0, 'f', 0);
+        if (m_s.window.transmission.active())
+            lines << tr("Beer-Lambert μw %1/mm ×%2")
+                         .arg(m_s.window.transmission.muWaterPerMm, 0, 'f', 4)
+                         .arg(m_s.window.transmission.exposure, 0, 'g', 3);
+        lines << tr("ray casting %1 ms").arg(m_s.stats.totalMs, 0, 'f', 1);
+        lines << QStringLiteral("W %1  L %2")
+                     .arg(m_s.window.high - m_s.window.low, 0, 'g', 4)
+                     .arg((m_s.window.high + m_s.window.low) / 2, 0, 'g', 4);
+        return lines;
+    }
     lines << QStringLiteral("%1  %2  %3×%3  %4  %5 voxels%6")
                  .arg(speed())
                  .arg(QString::fromUtf8(core::kernelName(m_s.shown.kernel)))

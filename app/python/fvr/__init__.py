@@ -11,6 +11,8 @@ fvr-render's ``.npy`` outputs bit for bit. Images are float32 numpy arrays, row 
     r = fvr.Renderer(vol, kernel="kaiser-bessel", oversampling=1.25, values="mu")
     img = r.render(view="AP", size=512)       # (512, 512) line integrals
     stack = r.render_many(["AP", "LEFT"], size=256)
+    cam = r.camera(primary=30, secondary=15, sid=1000, sod=750, detector=(640, 480))
+    drr = r.render(camera=cam)                # (480, 640) cone-beam line integrals (ray cast)
 
 Bad settings raise ValueError carrying fvr-render's message (naming the option); other
 failures (unreadable files...) raise RuntimeError. The GIL is released while C++ works.
@@ -24,7 +26,7 @@ import numpy as np
 
 from . import _fvr
 
-__all__ = ["Volume", "Renderer", "load", "transmission", "film", "option_args", "run_cli"]
+__all__ = ["Volume", "Camera", "Renderer", "load", "transmission", "film", "option_args", "run_cli"]
 
 # Python names whose fvr-render option is spelled otherwise.
 _ALIASES = {"energy_kev": "energy"}
@@ -111,6 +113,146 @@ def load(path: str, series: Optional[str] = None, **settings) -> Volume:
     return Volume(_fvr.load(str(path), option_args(dict(series=series, **settings))))
 
 
+def _pair(value, what: str) -> tuple:
+    """(a, b) from a number (a, a) or a pair."""
+    if isinstance(value, (tuple, list, np.ndarray)):
+        if len(value) != 2:
+            raise ValueError(f"{what}: expected one number or two, found {len(value)}")
+        return tuple(value)
+    return (value, value)
+
+
+def _point(value, what: str) -> tuple:
+    if len(value) != 3:
+        raise ValueError(f"{what}: expected (x, y, z) in LPS mm, found {len(value)} numbers")
+    return tuple(map(float, value))
+
+
+class Camera:
+    """A cone-beam camera (core's ConeCamera), in patient LPS millimetres: a point source and a
+    flat detector of ``width`` x ``height`` pixels of pitch ``pitch`` (pu, pv) mm, columns along
+    the unit vector ``u`` and rows along ``v``. Pixel (col, row) lies at ``detector_centre +
+    (col - (W-1)/2 + du) pu u + (row - (H-1)/2 + dv) pv v``, (du, dv) the ``principal_point``
+    offset in pixels; pixel centres at integer 0-based (col, row). ``matrix`` is the 3x4 P with
+    [w col, w row, w] = P [x, y, z, 1].
+
+    ``Camera(source, detector_centre, u, v, detector=(W, H), pitch=(pu, pv))`` takes the parts;
+    ``Camera.carm(...)`` a C-arm by DICOM's positioner angles. Bad geometry raises ValueError
+    naming what is wrong (a size outside 16..4096, a pitch not > 0, u and v not orthonormal...).
+    """
+
+    def __init__(self, source, detector_centre, u, v, detector, pitch,
+                 principal_point=(0.0, 0.0)):
+        w, h = _pair(detector, "detector")
+        pu, pv = _pair(pitch, "pitch")
+        du, dv = _pair(principal_point, "principal_point")
+        self._c = _fvr.Camera(_point(source, "source"), _point(detector_centre, "detector_centre"),
+                              _point(u, "u"), _point(v, "v"), int(w), int(h), float(pu),
+                              float(pv), float(du), float(dv))
+
+    @classmethod
+    def carm(cls, primary: float = 0.0, secondary: float = 0.0, sid: float = 1000.0,
+             sod: float = 750.0, isocenter=None, detector=512, pitch=None,
+             principal_point=(0.0, 0.0), volume: Optional[Volume] = None) -> "Camera":
+        """A C-arm (DICOM PS3.3 C.8.7.5 positioner angles, degrees): ``primary`` LAO +, RAO -;
+        ``secondary`` cranial +, caudal -; ``sid`` source to detector and ``sod`` source to
+        isocentre (mm, 0 < SOD < SID). d = (sin a cos b, -cos a cos b, sin b) points from the
+        isocentre to the detector; source = I - SOD d, detector centre = I + (SID - SOD) d,
+        u = (cos a, sin a, 0), v = u x d: at 0/0 the source is posterior, columns run to the
+        patient's left and rows to the feet.
+
+        ``detector``: W x H pixels, (W, H) or one number for a square (16..4096 each).
+        ``isocenter`` (LPS mm) and ``pitch`` (mm, one number or (pu, pv)) may be left None only
+        with ``volume``: then the isocentre is the volume's centre and the pitch frames the
+        volume's diagonal, magnified at the isocentre by SID/SOD, on the smaller of W and H (as
+        fvr-render --geometry cone's defaults). ``principal_point``: the offset (du, dv) in
+        pixels of the class's pixel formula (the isocentre then projects to ((W-1)/2 - du,
+        (H-1)/2 - dv)). ``Renderer.camera(...)`` passes its own volume."""
+        w, h = _pair(detector, "detector")
+        if isocenter is None:
+            if volume is None:
+                raise ValueError("isocenter: give the isocentre (x, y, z in LPS mm), or a volume "
+                                 "whose centre it is")
+            isocenter = _fvr.volume_centre(volume._v)
+        if pitch is None:
+            if volume is None:
+                raise ValueError("pitch: give the detector's pitch in mm, or a volume for the "
+                                 "pitch that frames it")
+            pitch = _fvr.framing_pitch(volume._v, float(sid), float(sod), int(w), int(h))
+        pu, pv = _pair(pitch, "pitch")
+        du, dv = _pair(principal_point, "principal_point")
+        return cls._wrap(_fvr.Camera.carm(float(primary), float(secondary), float(sid),
+                                          float(sod), _point(isocenter, "isocenter"), int(w),
+                                          int(h), float(pu), float(pv), float(du), float(dv)))
+
+    @classmethod
+    def _wrap(cls, c) -> "Camera":
+        camera = cls.__new__(cls)
+        camera._c = c
+        return camera
+
+    source = property(lambda self: tuple(self._c.source), doc="the point source, LPS mm")
+    detector_centre = property(lambda self: tuple(self._c.detector_centre),
+                               doc="where the principal ray of a centred detector lands, LPS mm")
+    u = property(lambda self: tuple(self._c.u), doc="unit vector along increasing columns")
+    v = property(lambda self: tuple(self._c.v), doc="unit vector along increasing rows")
+    width = property(lambda self: self._c.width, doc="W, columns")
+    height = property(lambda self: self._c.height, doc="H, rows")
+    pitch = property(lambda self: (self._c.pitch_u, self._c.pitch_v),
+                     doc="(pu, pv): mm between column and between row centres")
+    principal_point = property(lambda self: tuple(self._c.principal_point),
+                               doc="the offset (du, dv) in pixels of the pixel formula above: "
+                                   "the principal ray lands at ((W-1)/2 - du, (H-1)/2 - dv)")
+    sid = property(lambda self: self._c.sid,
+                   doc="source to detector plane along its normal, mm")
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """P, (3, 4) float64: [w col, w row, w] = P [x, y, z, 1] (x, y, z in LPS mm)."""
+        return self._c.matrix()
+
+    def project(self, points, depth: bool = False) -> np.ndarray:
+        """(col, row) of LPS points (mm): (N, 3) gives (N, 2), one point (3,) gives (2,);
+        ``depth=True`` adds w, the depth along the detector normal from the source (mm, > 0
+        in front of it)."""
+        p = np.asarray(points, dtype=np.float64)
+        one = p.ndim == 1
+        q = self._c.project(p.reshape(1, -1) if one else p)
+        q = q if depth else q[:, :2]
+        return q[0] if one else q
+
+    def pixel_centre(self, col: float, row: float) -> tuple:
+        """Where the centre of pixel (col, row) lies, LPS mm (fractional indices allowed)."""
+        return tuple(self._c.pixel_centre(float(col), float(row)))
+
+    def flat_field(self) -> np.ndarray:
+        """(H, W) float32: a real flat panel's open-beam response relative to the pixel under
+        the source's foot, inverse square times obliquity, (SID / r)^3 with r the distance from
+        the source to the pixel's centre. It multiplies transmitted intensities
+        (``r.transmission(img) * cam.flat_field()``), never line integrals; no render applies
+        it by itself."""
+        return self._c.flat_field()
+
+    def __reduce__(self):  # pickles (Dask) by its parts
+        return (Camera, (self.source, self.detector_centre, self.u, self.v,
+                         (self.width, self.height), self.pitch, self.principal_point))
+
+    def __repr__(self):
+        return (f"fvr.Camera(source={self.source}, detector_centre={self.detector_centre}, "
+                f"detector=({self.width}, {self.height}), pitch={self.pitch})")
+
+
+def _cameras(views) -> Optional[list]:
+    """The cameras of ``views`` when it is a Camera or a sequence of them, else None."""
+    if isinstance(views, Camera):
+        return [views]
+    if isinstance(views, (list, tuple)) and views and all(isinstance(c, Camera) for c in views):
+        return list(views)
+    if isinstance(views, (list, tuple)) and any(isinstance(c, Camera) for c in views):
+        raise ValueError("views: expected cameras only, or view names, found a mix")
+    return None
+
+
 class Renderer:
     """A volume's spectrum, made once, and its projections (DRRs) on the CPU.
 
@@ -140,21 +282,58 @@ class Renderer:
         return list(self._r.args)
 
     def render(self, view: Optional[str] = None, dir=None, up=None, size: Optional[int] = None,
-               pixel_size: Optional[float] = None) -> np.ndarray:
+               pixel_size: Optional[float] = None, camera: Optional[Camera] = None,
+               model: Optional[str] = None, step: Optional[float] = None) -> np.ndarray:
         """One projection (size, size) float32, row 0 at the top: the view by name (AP, PA,
         LEFT, RIGHT, HEAD, FEET) or by ``dir`` and ``up`` (volume frame), else the settings'
         view. ``size`` a power of two 128..2048 (default 512); ``pixel_size`` in mm (default:
-        the volume's diagonal / size)."""
-        return self._r.render(option_args(dict(view=view, dir=dir, up=up, size=size,
-                                               pixel_size=pixel_size)))
+        the volume's diagonal / size).
+
+        ``camera=`` (a Camera) renders a cone beam instead: (H, W) line integrals from the
+        source to each pixel's centre, by CPU ray casting, in the parallel views' units (the
+        renderer's ``values``: mm of water for mu). ``model``: "trilinear" (default, exact per
+        cell), "box" (voxels as cubes, exact path lengths: plastimatch drr -i exact) or
+        "bspline"; ``step``: the ray step as a fraction 0..4 of the smallest voxel spacing
+        (trilinear: 0 = exact; bspline: 0 = 0.25; not for box)."""
+        if camera is None:
+            if model is not None or step is not None:
+                raise ValueError("model, step: only with camera= (the cone-beam ray caster)")
+            return self._r.render(option_args(dict(view=view, dir=dir, up=up, size=size,
+                                                   pixel_size=pixel_size)))
+        return self.render_many([camera], model=model, step=step,
+                                **dict(view=view, dir=dir, up=up, size=size,
+                                       pixel_size=pixel_size))[0]
 
     def render_many(self, views=None, size: Optional[int] = None,
-                    pixel_size: Optional[float] = None) -> np.ndarray:
+                    pixel_size: Optional[float] = None, model: Optional[str] = None,
+                    step: Optional[float] = None, **parallel) -> np.ndarray:
         """Projections (N, size, size) float32 of ``views``: names, or an (N, 2, 3) array of
         (dir, up); None: the settings' own views (``sweep=N`` about the head-feet axis, a
         ``views`` file, else the view), as ``fvr-render --out X.npy`` renders them. One view
-        per CPU thread."""
-        return self._r.render_many(views, option_args(dict(size=size, pixel_size=pixel_size)))
+        per CPU thread.
+
+        ``views`` a list of Cameras (one detector size): cone-beam views (N, H, W), as
+        render(camera=) renders each (``model``, ``step``); the ray caster is made once per
+        model and step and kept by the renderer."""
+        cameras = _cameras(views)
+        if cameras is None:
+            if model is not None or step is not None:
+                raise ValueError("model, step: only with cameras (the cone-beam ray caster)")
+            if parallel:
+                raise TypeError(f"render_many: unexpected arguments {sorted(parallel)}")
+            return self._r.render_many(views, option_args(dict(size=size, pixel_size=pixel_size)))
+        given = dict(size=size, pixel_size=pixel_size, **parallel)
+        wrong = [k for k, v in given.items() if v is not None]
+        if wrong:
+            raise ValueError(f"{', '.join(wrong)}: not with a cone-beam camera (the camera "
+                             f"gives the view, the detector's size and its pitch)")
+        return self._r.render_cone([c._c for c in cameras], model or "trilinear",
+                                   0.0 if step is None else float(step))
+
+    def camera(self, **carm) -> Camera:
+        """Camera.carm(...) about this renderer's volume: the isocentre defaults to its centre
+        and the pitch to the one that frames it."""
+        return Camera.carm(volume=self.volume, **carm)
 
     def views(self, **settings) -> np.ndarray:
         """The (N, 2, 3) (dir, up) views render_many(None) renders (e.g. ``sweep=36``)."""

@@ -41,6 +41,57 @@ class Volume:
 
 def load(path: str, series: Optional[str] = ..., **settings: Any) -> Volume: ...
 
+Pair = Union[float, Tuple[float, float]]
+Size = Union[int, Tuple[int, int]]
+
+class Camera:
+    def __init__(
+        self,
+        source: Sequence[float],
+        detector_centre: Sequence[float],
+        u: Sequence[float],
+        v: Sequence[float],
+        detector: Size,
+        pitch: Pair,
+        principal_point: Tuple[float, float] = ...,
+    ) -> None: ...
+    @classmethod
+    def carm(
+        cls,
+        primary: float = ...,
+        secondary: float = ...,
+        sid: float = ...,
+        sod: float = ...,
+        isocenter: Optional[Sequence[float]] = ...,
+        detector: Size = ...,
+        pitch: Optional[Pair] = ...,
+        principal_point: Tuple[float, float] = ...,
+        volume: Optional[Volume] = ...,
+    ) -> Camera: ...
+    @property
+    def source(self) -> Vec3: ...
+    @property
+    def detector_centre(self) -> Vec3: ...
+    @property
+    def u(self) -> Vec3: ...
+    @property
+    def v(self) -> Vec3: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def pitch(self) -> Tuple[float, float]: ...
+    @property
+    def principal_point(self) -> Tuple[float, float]: ...
+    @property
+    def sid(self) -> float: ...
+    @property
+    def matrix(self) -> npt.NDArray[np.float64]: ...
+    def project(self, points: npt.ArrayLike, depth: bool = ...) -> npt.NDArray[np.float64]: ...
+    def pixel_centre(self, col: float, row: float) -> Vec3: ...
+    def flat_field(self) -> npt.NDArray[np.float32]: ...
+
 class Renderer:
     volume: Volume
     def __init__(
@@ -63,13 +114,19 @@ class Renderer:
         up: Optional[Sequence[float]] = ...,
         size: Optional[int] = ...,
         pixel_size: Optional[float] = ...,
+        camera: Optional[Camera] = ...,
+        model: Optional[str] = ...,
+        step: Optional[float] = ...,
     ) -> npt.NDArray[np.float32]: ...
     def render_many(
         self,
-        views: Union[None, Sequence[str], npt.ArrayLike] = ...,
+        views: Union[None, Sequence[str], Sequence[Camera], npt.ArrayLike] = ...,
         size: Optional[int] = ...,
         pixel_size: Optional[float] = ...,
+        model: Optional[str] = ...,
+        step: Optional[float] = ...,
     ) -> npt.NDArray[np.float32]: ...
+    def camera(self, **carm: Any) -> Camera: ...
     def views(self, **settings: Any) -> npt.NDArray[np.float64]: ...
     @property
     def settings(self) -> dict[str, Any]: ...

@@ -10,12 +10,16 @@ data or talk to a PACS (``out``, ``material_out``, ``send``, ``store``...), and 
 id names the study's files in DIR: no path separator, control character or leading dot, no
 ending .npy/.json/.zarr/.part, at most 200 bytes, and unique compared in NFC, case-folded
 (``A`` and ``a`` would be one file on a macOS or Windows disk). A bad manifest stops the run
-with an error naming the file, the line and the reason.
+with an error naming the file, the line and the reason. A ``geometry`` column gives each row's
+projection: ``parallel`` (an empty cell, and the default: Fourier volume rendering) or ``cone``
+(fvr-render --geometry cone: a C-arm's point source, ray cast; the cone-beam options
+``primary_angle``, ``sid``, ``sod``, ``detector_size``, ``pitch``, ``ray_model``... are columns
+then: CONE_COLUMNS).
 
 Each row is one Dask task (load, preprocess once, all views) that runs fvr-render itself in
 the worker's process (fvr.run_cli): ``DIR/<id>.npy`` is the (N, M, M) float32 stack that
 ``fvr-render PATH ... --out X.npy`` writes, ``DIR/<id>.json`` its sidecar, with a "dataset"
-record added at its end (the row's id, its settings and their hash). With ``--format zarr``
+record added at its end (the row's id, its geometry, its settings and their hash). With ``--format zarr``
 the stack becomes ``DIR/<id>.zarr`` (one chunk per view). A row whose sidecar holds the hash of
 its settings and whose output exists is skipped (resumable); a failing row is reported and the
 others go on (exit status 1 when any failed). A LocalCluster by default (``--workers N``
@@ -60,6 +64,31 @@ ALLOWED_COLUMNS = frozenset({
     "beer-lambert", "mu-water", "energy", "exposure", "kvp", "filtration-al", "filtration-cu",
     "detector", "csi-um", "materials", "noise-mas", "electronic-noise", "seed",
 })
+# fvr-render --geometry cone's options (the C-arm, the detector, the ray caster), columns where the
+# fvr-render of this package has them: the list above is fvr-render's options and no other.
+CONE_COLUMNS = frozenset({
+    "geometry", "primary-angle", "secondary-angle", "sid", "sod", "isocenter", "detector-size",
+    "pitch", "principal-point", "ray-model", "step", "flat-field", "orbit",
+    # A camera file is read, as INPUT is
+    "projection-matrix",
+})
+
+
+def _renders_cone() -> bool:
+    """Whether this package's fvr-render takes --geometry cone."""
+    try:
+        fvr._fvr.check_settings(["--geometry=parallel"])
+        return True
+    except ValueError:
+        return False
+
+
+RENDERS_CONE = _renders_cone()
+if RENDERS_CONE:
+    ALLOWED_COLUMNS = ALLOWED_COLUMNS | CONE_COLUMNS
+# The geometry column's values: fvr-render's --geometry (parallel, the default, or cone).
+GEOMETRIES = ("parallel", "cone")
+
 # fvr-render options a manifest may not set, and why: the dataset decides the outputs, and a row
 # never writes a file outside --out, sends data or talks to a PACS. Any option not allowed above
 # is refused too (these only get a more precise message).
@@ -106,7 +135,7 @@ def _check_columns(path, columns: list) -> None:
         if name in seen:
             raise ManifestError(f"{path}:1: column '{c}' given twice (as '{seen[name]}' before)")
         seen[name] = c
-        if c in ("id", "path"):
+        if c in ("id", "path", "geometry"):
             continue
         if name in REFUSED_COLUMNS:
             raise ManifestError(f"{path}:1: column '{c}': not a setting a manifest may give "
@@ -195,7 +224,33 @@ def _job(path, line: int, row: dict, ids: dict) -> dict:
     if row["path"].startswith("-"):
         raise ManifestError(f"{path}:{line}: path {row['path']!r} starts with '-' (it would be "
                             f"read as an option)")
-    return {"id": row["id"], "path": row["path"], "line": line, "args": _row_args(row)}
+    geometry = _geometry_cell(path, line, row.get("geometry", ""))
+    args = _row_args({k: v for k, v in row.items() if k != "geometry"})
+    if geometry != "parallel":  # parallel, the default, adds no argument (nor a new hash)
+        args.insert(0, f"--geometry={geometry}")
+    return {"id": row["id"], "path": row["path"], "line": line, "geometry": geometry,
+            "args": args}
+
+
+def _geometry_cell(path, line: int, cell: str) -> str:
+    """The row's geometry: parallel (an empty cell too) or cone; ManifestError otherwise, and
+    for cone where this fvr-render has no cone beam."""
+    geometry = cell.lower() or "parallel"
+    if geometry not in GEOMETRIES:
+        raise ManifestError(f"{path}:{line}: geometry {cell!r}: expected "
+                            f"{' or '.join(GEOMETRIES)}")
+    if geometry == "cone" and not RENDERS_CONE:
+        raise ManifestError(f"{path}:{line}: geometry 'cone': this fvr-render renders parallel "
+                            f"projections only (it has no --geometry cone)")
+    return geometry
+
+
+def job_geometry(job: dict) -> str:
+    """A job's geometry: its "geometry", else (a job made by hand) its --geometry argument."""
+    if "geometry" in job:
+        return job["geometry"]
+    given = [a.partition("=")[2] for a in job["args"] if a.partition("=")[0] == "--geometry"]
+    return given[-1] if given else "parallel"
 
 
 def _row_args(row: dict) -> list:
@@ -350,8 +405,8 @@ def render_study(job: dict, out_dir: str, fmt: str = "npy", threads: int = 0) ->
         os.replace(str(npy) + ".json", sidecar)  # fvr-render's FILE.npy.json
         if fmt == "zarr":
             _to_zarr(npy, output)
-        record = {"id": job["id"], "args": job["args"], "settings_hash": settings_hash(job, fmt),
-                  "format": fmt}
+        record = {"id": job["id"], "geometry": job_geometry(job), "args": job["args"],
+                  "settings_hash": settings_hash(job, fmt), "format": fmt}
         _add_record(sidecar, record, None if fmt == "npy" else (str(npy), str(output)))
         views = len(json.loads(sidecar.read_text())["views"])
         return {"id": job["id"], "ok": True, "views": views, "seconds": time.perf_counter() - t0}

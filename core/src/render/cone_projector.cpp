@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 #include <glm/gtc/matrix_inverse.hpp>
 
@@ -51,6 +52,58 @@ double framingPitch(const Volume& v, double sid, double sod, int width, int heig
     const Vec3 e = v.extent();
     const double diagonal = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
     return diagonal * (sid / sod) / double(std::max(1, std::min(width, height)));
+}
+
+namespace {
+
+/** An LPS direction in the volume's index frame (components along the direction cosines). */
+Vec3 toIndexFrame(const Volume& v, const glm::dvec3& x) {
+    return {dot(v.direction[0], {x.x, x.y, x.z}), dot(v.direction[1], {x.x, x.y, x.z}),
+            dot(v.direction[2], {x.x, x.y, x.z})};
+}
+
+glm::dvec3 toPatient(const Volume& v, const Vec3& x) {
+    glm::dvec3 p(0.0);
+    for (int a = 0; a < 3; ++a)
+        p += x[a] * glm::dvec3(v.direction[a][0], v.direction[a][1], v.direction[a][2]);
+    return p;
+}
+
+} // namespace
+
+ViewFrame cArmViewFrame(const Volume& volume, double primaryDeg, double secondaryDeg) {
+    const ConeCamera c = cArmCamera({primaryDeg, secondaryDeg, 2.0, 1.0}, 16, 16, 1.0, 1.0);
+    const glm::dvec3 d = glm::normalize(c.detectorCentre - c.source);
+    ViewFrame f;
+    f.d = toIndexFrame(volume, -d);
+    f.u = toIndexFrame(volume, -c.v);
+    f.r = toIndexFrame(volume, c.u);
+    return f;
+}
+
+CArmAngles cArmAngles(const Volume& volume, const ViewFrame& frame) {
+    const glm::dvec3 d = -glm::normalize(toPatient(volume, frame.d));
+    CArmAngles a;
+    a.secondaryDeg = std::asin(std::clamp(d.z, -1.0, 1.0)) * 180.0 / std::numbers::pi;
+    const glm::dvec3 r = toPatient(volume, frame.r);
+    a.primaryDeg = std::hypot(d.x, d.y) > 1e-9 ? std::atan2(d.x, -d.y) * 180.0 / std::numbers::pi
+                                               : std::atan2(r.y, r.x) * 180.0 / std::numbers::pi;
+    if (a.primaryDeg <= -180.0) a.primaryDeg += 360.0;
+    return a;
+}
+
+std::string cArmLabel(double primaryDeg, double secondaryDeg) {
+    const long p = std::lround(primaryDeg), s = std::lround(secondaryDeg);
+    return std::string(p < 0 ? "RAO " : "LAO ") + std::to_string(std::labs(p)) + "\u00b0 " +
+           (s < 0 ? "CAUD " : "CRAN ") + std::to_string(std::labs(s)) + "\u00b0";
+}
+
+ConeCamera cArmCameraForView(const Volume& volume, const ViewFrame& frame, double sid, double sod,
+                             int size) {
+    const CArmAngles a = cArmAngles(volume, frame);
+    const double pitch = framingPitch(volume, sid, sod, size, size);
+    return cArmCamera({a.primaryDeg, a.secondaryDeg, sid, sod, volumeCentre(volume)}, size, size,
+                      pitch, pitch);
 }
 
 namespace {
@@ -156,27 +209,44 @@ struct ConeProjector::Data {
 
 namespace {
 
-/** Marks each block of the walk's cells that holds a cell touching a non-zero voxel. A box
- *  cell c is voxel c; a trilinear cell c (q = index + 1) has the corners c - 1 and c. */
+/** Marks each block of the walk's cells that may hold a cell touching a non-zero voxel. A box
+ *  cell c is voxel c, so its blocks are the voxels' blocks; a trilinear cell c (q = index + 1)
+ *  has the corners c - 1 and c, so its block b touches voxel blocks b - 1 and b per axis: it is
+ *  marked when any of those holds a non-zero voxel (a block marked without need is only walked;
+ *  one left unmarked would lose values, which this never does). */
 void markBlocks(const Volume& v, const std::vector<float>& mapped, CellGrid& g, bool trilinear) {
-    for (int a = 0; a < 3; ++a) g.blocks[a] = (g.cells[a] + kBlock - 1) / kBlock;
-    g.occupied.assign(std::size_t(g.blocks[0] * g.blocks[1] * g.blocks[2]), 0);
     const auto& N = v.dims;
+    std::int64_t vb[3];
+    for (int a = 0; a < 3; ++a) vb[a] = (N[a] + kBlock - 1) / kBlock;
+    std::vector<std::uint8_t> voxelBlocks(std::size_t(vb[0] * vb[1] * vb[2]), 0);
     for (std::int64_t z = 0; z < N[2]; ++z)
         for (std::int64_t y = 0; y < N[1]; ++y) {
             const float* row = mapped.data() + (z * N[1] + y) * N[0];
-            for (std::int64_t x = 0; x < N[0]; ++x) {
-                if (row[x] == 0.0f) continue;
-                const std::int64_t span = trilinear ? 2 : 1;
-                for (std::int64_t dz = 0; dz < span; ++dz)
-                    for (std::int64_t dy = 0; dy < span; ++dy)
-                        for (std::int64_t dx = 0; dx < span; ++dx) {
-                            const std::int64_t bx = (x + dx) / kBlock, by = (y + dy) / kBlock,
-                                               bz = (z + dz) / kBlock;
-                            g.occupied[std::size_t(bx + g.blocks[0] * (by + g.blocks[1] * bz))] = 1;
-                        }
-            }
+            std::uint8_t* flags = voxelBlocks.data() + (z / kBlock * vb[1] + y / kBlock) * vb[0];
+            for (std::int64_t x = 0; x < N[0]; ++x)
+                if (row[x] != 0.0f) flags[x / kBlock] = 1;
         }
+    for (int a = 0; a < 3; ++a) g.blocks[a] = (g.cells[a] + kBlock - 1) / kBlock;
+    g.occupied.assign(std::size_t(g.blocks[0] * g.blocks[1] * g.blocks[2]), 0);
+    const std::int64_t reach = trilinear ? 1 : 0;
+    std::int64_t used = 0;
+    for (std::int64_t bz = 0; bz < g.blocks[2]; ++bz)
+        for (std::int64_t by = 0; by < g.blocks[1]; ++by)
+            for (std::int64_t bx = 0; bx < g.blocks[0]; ++bx) {
+                bool any = false;
+                for (std::int64_t z = std::max<std::int64_t>(bz - reach, 0);
+                     z <= std::min(bz, vb[2] - 1) && !any; ++z)
+                    for (std::int64_t y = std::max<std::int64_t>(by - reach, 0);
+                         y <= std::min(by, vb[1] - 1) && !any; ++y)
+                        for (std::int64_t x = std::max<std::int64_t>(bx - reach, 0);
+                             x <= std::min(bx, vb[0] - 1) && !any; ++x)
+                            any = voxelBlocks[std::size_t(x + vb[0] * (y + vb[1] * z))] != 0;
+                g.occupied[std::size_t(bx + g.blocks[0] * (by + g.blocks[1] * bz))] = any;
+                used += any;
+            }
+    // Where most blocks hold something (a CT's noisy air is not 0) the block walk costs more than
+    // it skips: walk every cell then.
+    if (double(used) > 0.5 * double(g.occupied.size())) g.occupied.clear();
 }
 
 /** The voxels with lo zeros below and hi zeros above each axis. */
@@ -204,8 +274,10 @@ ConeProjector::ConeProjector(const Volume& volume, ConeProjectorOptions options)
                             formatNumber(options.stepFraction));
     validateGeometry(volume.dims, volume.spacing, volume.name);
     std::vector<float> mapped(volume.voxels.size());
-    for (std::size_t i = 0; i < mapped.size(); ++i)
-        mapped[i] = mapValue(options.mapping, volume.voxels[i]);
+    m_pool.parallelFor(std::int64_t(mapped.size()), 1 << 20, [&](std::int64_t i0, std::int64_t i1) {
+        for (std::int64_t i = i0; i < i1; ++i)
+            mapped[std::size_t(i)] = mapValue(options.mapping, volume.voxels[std::size_t(i)]);
+    });
     Data& d = *m_data;
     const auto& N = volume.dims;
     switch (options.model) {
@@ -295,13 +367,73 @@ inline void walk(const Ray& r, double scale, const std::int64_t lo[3], const std
     }
 }
 
-/** fn(cell, tEnter, tLeave) for every cell of `g` the ray crosses within [t0, t1], blocks of
- *  zeros left out. */
+/** The same walk over unit cells [lo, hi) for the inner loop, in scalars: fn(index, x, y, z,
+ *  tEnter, tLeave) with index = x + y sy + z sz. It takes as many steps as the entry and the
+ *  exit cell are apart (Siddon's count), so no bounds are checked per step: where rounding
+ *  takes a step across the grid's edge near the exit, the cell visited lies in the zero border
+ *  the data carry, for a rounding-sized length. */
 template <class Fn>
-void walkOccupied(const Ray& r, const CellGrid& g, double t0, double t1, Fn&& fn) {
+inline void walkCells(const Ray& r, const std::int64_t lo[3], const std::int64_t hi[3], double t0,
+                      double t1, std::int64_t sy, std::int64_t sz, Fn&& fn) {
+    std::int64_t c[3], step[3], n = 0;
+    double tNext[3], tDelta[3];
+    for (int a = 0; a < 3; ++a) {
+        const double p0 = r.o[a] + t0 * r.dir[a], p1 = r.o[a] + t1 * r.dir[a];
+        c[a] = std::clamp(std::int64_t(std::floor(p0)), lo[a], hi[a] - 1);
+        std::int64_t e = std::clamp(std::int64_t(std::floor(p1)), lo[a], hi[a] - 1);
+        if (r.dir[a] > 0.0) {
+            step[a] = 1;
+            tDelta[a] = 1.0 / r.dir[a];
+            tNext[a] = (double(c[a] + 1) - r.o[a]) / r.dir[a];
+            e = std::max(e, c[a]);
+        } else if (r.dir[a] < 0.0) {
+            step[a] = -1;
+            tDelta[a] = -1.0 / r.dir[a];
+            tNext[a] = (double(c[a]) - r.o[a]) / r.dir[a];
+            e = std::min(e, c[a]);
+        } else {
+            step[a] = 0;
+            tDelta[a] = tNext[a] = kInf;
+            e = c[a];
+        }
+        n += e > c[a] ? e - c[a] : c[a] - e;
+    }
+    std::int64_t x = c[0], y = c[1], z = c[2];
+    std::int64_t index = x + y * sy + z * sz;
+    const std::int64_t dy = step[1] * sy, dz = step[2] * sz;
+    double tx = tNext[0], ty = tNext[1], tz = tNext[2], t = t0;
+    for (std::int64_t i = 0; i < n; ++i) {
+        if (tx <= ty && tx <= tz) {
+            fn(index, x, y, z, t, tx);
+            t = tx;
+            tx += tDelta[0];
+            x += step[0];
+            index += step[0];
+        } else if (ty <= tz) {
+            fn(index, x, y, z, t, ty);
+            t = ty;
+            ty += tDelta[1];
+            y += step[1];
+            index += dy;
+        } else {
+            fn(index, x, y, z, t, tz);
+            t = tz;
+            tz += tDelta[2];
+            z += step[2];
+            index += dz;
+        }
+    }
+    if (t1 > t) fn(index, x, y, z, t, t1);
+}
+
+/** fn(index, x, y, z, tEnter, tLeave) for every cell of `g` the ray crosses within [t0, t1],
+ *  blocks of zeros left out when the grid has an occupancy map. */
+template <class Fn>
+void walkOccupied(const Ray& r, const CellGrid& g, double t0, double t1, std::int64_t sy,
+                  std::int64_t sz, Fn&& fn) {
     if (g.occupied.empty()) {
         const std::int64_t lo[3] = {0, 0, 0};
-        walk(r, 1.0, lo, g.cells, t0, t1, fn);
+        walkCells(r, lo, g.cells, t0, t1, sy, sz, fn);
         return;
     }
     const std::int64_t zero[3] = {0, 0, 0};
@@ -313,17 +445,22 @@ void walkOccupied(const Ray& r, const CellGrid& g, double t0, double t1, Fn&& fn
                  lo[a] = b[a] * kBlock;
                  hi[a] = std::min(lo[a] + kBlock, g.cells[a]);
              }
-             walk(r, 1.0, lo, hi, tb0, tb1, fn);
+             walkCells(r, lo, hi, tb0, tb1, sy, sz, fn);
          });
 }
 
-/** The trilinear interpolant inside one cell from its 8 corners c[z][y][x] at local (x, y, z). */
-inline double trilinear(const float* c, double x, double y, double z) {
-    const double c00 = c[0] + x * (c[1] - c[0]), c10 = c[2] + x * (c[3] - c[2]);
-    const double c01 = c[4] + x * (c[5] - c[4]), c11 = c[6] + x * (c[7] - c[6]);
-    const double c0 = c00 + y * (c10 - c00), c1 = c01 + y * (c11 - c01);
+/** The trilinear interpolant inside one cell from its 8 corners c[z][y][x] at local (x, y, z)
+ *  in [0, 1] (float: the voxels are float, and each ray's sum is kept in double). */
+inline float trilinear(const float* c, float x, float y, float z) {
+    const float c00 = c[0] + x * (c[1] - c[0]), c10 = c[2] + x * (c[3] - c[2]);
+    const float c01 = c[4] + x * (c[5] - c[4]), c11 = c[6] + x * (c[7] - c[6]);
+    const float c0 = c00 + y * (c10 - c00), c1 = c01 + y * (c11 - c01);
     return c0 + z * (c1 - c0);
 }
+
+/** floor(q) for the sampled models' q >= 0 (their clip boxes start at 0 or above; a rounding
+ *  -1e-16 gives cell 0 and a fraction of -1e-16): a conversion, not a libm call. */
+inline double cellOf(double q) { return double(std::int64_t(q)); }
 
 /** What one ray needs: the model's data and the per-view step. */
 struct Caster {
@@ -336,9 +473,9 @@ struct Caster {
     double box(const Ray& r, double t0, double t1) const {
         double sum = 0.0;
         const float* v = d.values.data() + d.lo * (1 + sy + sz);
-        walkOccupied(r, d.grid, t0, t1, [&](const std::int64_t* c, double ta, double tb) {
-            sum += (tb - ta) * v[c[0] + c[1] * sy + c[2] * sz];
-        });
+        walkOccupied(r, d.grid, t0, t1, sy, sz,
+                     [&](std::int64_t i, std::int64_t, std::int64_t, std::int64_t, double ta,
+                         double tb) { sum += (tb - ta) * v[i]; });
         return sum;
     }
 
@@ -346,33 +483,43 @@ struct Caster {
     double trilinearExact(const Ray& r, double t0, double t1) const {
         double sum = 0.0;
         const float* v = d.values.data();
-        walkOccupied(r, d.grid, t0, t1, [&](const std::int64_t* c, double ta, double tb) {
-            const float* b = v + c[0] + c[1] * sy + c[2] * sz;
-            const float k[8] = {b[0],      b[1],      b[sy],      b[sy + 1],
-                                b[sz + 0], b[sz + 1], b[sz + sy], b[sz + sy + 1]};
-            auto at = [&](double t) {
-                return trilinear(k, r.o.x + t * r.dir.x - double(c[0]),
-                                 r.o.y + t * r.dir.y - double(c[1]),
-                                 r.o.z + t * r.dir.z - double(c[2]));
-            };
-            sum += (tb - ta) * (at(ta) + 4.0 * at(0.5 * (ta + tb)) + at(tb)) / 6.0;
-        });
+        // The value where a cell is left is where the next is entered (the interpolant is
+        // continuous): two evaluations per cell.
+        double fa = 0.0, tLast = -1.0;
+        walkOccupied(
+            r, d.grid, t0, t1, sy, sz,
+            [&](std::int64_t i, std::int64_t x, std::int64_t y, std::int64_t z, double ta,
+                double tb) {
+                const float* b = v + i;
+                const float k[8] = {b[0],      b[1],      b[sy],      b[sy + 1],
+                                    b[sz + 0], b[sz + 1], b[sz + sy], b[sz + sy + 1]};
+                const double ox = r.o.x - double(x), oy = r.o.y - double(y), oz = r.o.z - double(z);
+                auto at = [&](double t) {
+                    return trilinear(k, ox + t * r.dir.x, oy + t * r.dir.y, oz + t * r.dir.z);
+                };
+                if (ta != tLast) fa = at(ta); // a skipped block or the first cell
+                const double fb = at(tb);
+                sum += (tb - ta) * (fa + 4.0 * at(0.5 * (ta + tb)) + fb);
+                fa = fb;
+                tLast = tb;
+            });
+        sum /= 6.0;
         return sum;
     }
 
     /** The trilinear interpolant at q (q = index + 1, inside [0, N + 1]). */
     double trilinearAt(double x, double y, double z) const {
-        const double fx = std::floor(x), fy = std::floor(y), fz = std::floor(z);
+        const double fx = cellOf(x), fy = cellOf(y), fz = cellOf(z);
         const float* b =
             d.values.data() + std::int64_t(fx) + std::int64_t(fy) * sy + std::int64_t(fz) * sz;
         const float k[8] = {b[0],      b[1],      b[sy],      b[sy + 1],
                             b[sz + 0], b[sz + 1], b[sz + sy], b[sz + sy + 1]};
-        return trilinear(k, x - fx, y - fy, z - fz);
+        return double(trilinear(k, float(x - fx), float(y - fy), float(z - fz)));
     }
 
     /** The cubic B-spline at q (q = index + kSplineMargin). */
     double bsplineAt(double x, double y, double z) const {
-        const double fx = std::floor(x), fy = std::floor(y), fz = std::floor(z);
+        const double fx = cellOf(x), fy = cellOf(y), fz = cellOf(z);
         double wx[4], wy[4], wz[4];
         auto weights = [](double t, double* w) {
             const double t2 = t * t, t3 = t2 * t, u = 1.0 - t;

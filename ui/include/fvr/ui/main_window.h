@@ -28,6 +28,7 @@ class MaterialsController;
 class PacsDialog;
 class PacsService;
 class DisplayPanel;
+class GeometryPanel;
 class MessagesPanel;
 class RenderingPanel;
 class SettingsModel;
@@ -88,6 +89,7 @@ public:
     RenderingPanel* renderingPanel() const { return m_rendering; }
     DisplayPanel* displayPanel() const { return m_display; }
     XrayPanel* xrayPanel() const { return m_xray; }
+    GeometryPanel* geometryPanel() const { return m_geometry; }
     MessagesPanel* messages() const { return m_messages; }
     QProgressBar* progressBar() const { return m_progress; }
     QPushButton* cancelButton() const { return m_cancel; }
@@ -136,6 +138,16 @@ private:
     void applyRenderSettings();
     /** The voxel model combo: changes only the voxel model of the views it applies to. */
     void applyVoxelModel();
+    /** The Geometry panel (main_window_geometry.cpp): its projection, distances and ray model
+     *  go to the views the Rendering panel's "Applies to" names (in compare mode a parallel
+     *  view can stand beside a cone-beam one); saved at once. */
+    void restoreGeometryPanel();
+    void connectGeometry();
+    void applyGeometry();
+    /** The panel's angles: every view turns to that C-arm (they are synchronised). */
+    void applyCArmAngles(double primaryDeg, double secondaryDeg);
+    /** Shows a view frame's C-arm angles in the panel. */
+    void showCArmAngles(const core::ViewFrame& frame);
     /** The Rendering panel's settings, with view 1's voxel model (the startup setting). */
     void saveRenderingSettings();
     /** "View 2: linear 512×512": a compare view's title. */
@@ -203,6 +215,7 @@ private:
     RenderingPanel* m_rendering = nullptr;
     DisplayPanel* m_display = nullptr;
     XrayPanel* m_xray = nullptr;
+    GeometryPanel* m_geometry = nullptr;
     MessagesPanel* m_messages = nullptr;
     QProgressBar* m_progress = nullptr;
     QPushButton* m_cancel = nullptr;

@@ -57,6 +57,9 @@ public:
      *  meanwhile and is not showsCurrentFrame()). */
     void setPolychromatic(std::shared_ptr<const PolychromaticSource> source);
     const std::shared_ptr<const PolychromaticSource>& polychromatic() const { return m_poly; }
+    /** A cone-beam view (settings().projection): the C-arm camera of its current frame and
+     *  size (core::cArmCameraForView); nothing for a parallel view or without a study. */
+    std::optional<core::ConeCamera> coneCamera(int size = 0) const;
     /** The last frame's spectral sum ran on the GPU (the view renders there). */
     bool polychromaticOnGpu() const { return m_polySumOnGpu; }
     const FrameEffects& effects() const { return m_effects; }
@@ -162,6 +165,13 @@ private:
     /** The polychromatic frame of m_poly: -ln(I/I0) or the material it shows. */
     core::ProjectionImage renderPolychromatic(const core::RenderParams& params,
                                               core::StageTimes* times = nullptr);
+    /** A cone-beam frame of M x M on the CPU (the C-arm of the view frame), as a projection
+     *  image whose pixel size is the detector's pitch at the isocentre. */
+    void renderConeFrame(int M);
+    bool coneBeam() const { return m_settings.projection == ProjectionKind::Cone; }
+    /** A rotation drag on a cone-beam view: horizontal moves the primary angle (to the right:
+     *  toward LAO), vertical the secondary (up: toward cranial). */
+    void dragCArm(const QPoint& delta);
     /** The same on the GPU (the view renders there): one GPU renderer per material, the
      *  spectral sum in one compute pass into the first one's frame, shown without a read-back
      *  (with noise: I/I0 read back once, the noise drawn on the CPU). False where it cannot
@@ -217,6 +227,7 @@ private:
 
     std::unique_ptr<gpu::GpuFourierRenderer> m_gpu;
     std::unique_ptr<core::CpuFourierRenderer> m_cpu;
+    std::unique_ptr<core::ConeProjector> m_cone; ///< made for the volume, mapping and ray model
     std::optional<core::ProjectionImage> m_cpuImage; // CPU path / difference mode
     std::shared_ptr<const PolychromaticSource> m_poly;
     std::unique_ptr<core::PolychromaticRenderer> m_polyRenderer;

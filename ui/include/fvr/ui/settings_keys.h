@@ -19,6 +19,12 @@ inline constexpr char kRenderPixelAperture[] = "render/pixelAperture";
 inline constexpr char kRenderSoftwareGpu[] = "render/softwareGpu";
 inline constexpr char kRenderVoxelModel[] = "render/voxelModel"; ///< a name (voxelModelName)
 
+// Geometry panel
+inline constexpr char kGeometryProjection[] = "geometry/projection"; ///< "parallel" or "cone"
+inline constexpr char kGeometrySid[] = "geometry/sid";
+inline constexpr char kGeometrySod[] = "geometry/sod";
+inline constexpr char kGeometryRayModel[] = "geometry/rayModel"; ///< a name (rayModelName)
+
 // Display panel
 inline constexpr char kDisplayInvert[] = "display/invert";
 

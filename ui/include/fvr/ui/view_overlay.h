@@ -50,6 +50,10 @@ struct OverlayState {
     core::QualityLevel shown; ///< what the frame on screen rendered with
     bool gpu = false; ///< rendered by the GPU renderer
     core::VoxelModel voxelModel = core::VoxelModel::Trilinear;
+    /** A cone-beam view: its ray model and C-arm line ("LAO 30° CRAN 15°  SID 1000  SOD 750");
+     *  empty for a parallel view. */
+    QString coneGeometry;
+    core::RayModel rayModel = core::RayModel::Trilinear;
     FrameEffects effects;
     FrameStats stats;
     bool interacting = false; ///< a drag: the frame rate the user sees, else the frame time

@@ -6,6 +6,7 @@
 #include <memory>
 #include <vector>
 
+#include <fvr/core/render/cone_projector.h>
 #include <fvr/core/render/kernels.h>
 #include <fvr/core/render/render_settings.h>
 #include <fvr/core/render/slice_filter.h>
@@ -15,12 +16,27 @@
 
 namespace fvr::ui {
 
+/** How a view projects: the Fourier renderers' parallel beam, or a C-arm's cone beam ray cast
+ *  on the CPU (core::ConeProjector). */
+enum class ProjectionKind { Parallel, Cone };
+
+/** The cone beam's C-arm, less its angles: those are the view frame's (core::cArmAngles), so
+ *  that dragging, the synchronised views and the compare mode share one orientation. */
+struct ConeSettings {
+    double sid = 1000.0; ///< source to detector, mm
+    double sod = 750.0; ///< source to isocentre (the volume's centre), mm
+    core::RayModel model = core::ConeProjectorOptions{}.model;
+    bool operator==(const ConeSettings&) const = default;
+};
+
 /** Per-view render settings (the compare mode gives each view its own); the defaults are
  *  core::RenderSettings'. */
 struct ViewSettings {
     core::Kernel kernel = core::RenderSettings{}.kernel;
     int size = core::RenderSettings{}.size;
     core::VoxelModel voxelModel = core::RenderSettings{}.voxelModel; ///< RenderParams::voxelModel
+    ProjectionKind projection = ProjectionKind::Parallel;
+    ConeSettings cone;
     bool operator==(const ViewSettings&) const = default;
 };
 

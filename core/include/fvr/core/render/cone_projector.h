@@ -19,6 +19,7 @@
 
 #include <fvr/core/geometry/camera.h>
 #include <fvr/core/render/spectrum.h>
+#include <fvr/core/render/view.h>
 #include <fvr/core/thread_pool.h>
 #include <fvr/core/volume.h>
 
@@ -76,6 +77,30 @@ void validateConeView(const ConeCamera& camera, const Volume& volume);
  *  the source to the pixel's centre. Multiplies transmitted intensities (I = I0 f exp(-p)),
  *  never line integrals. Off by default in every front end. */
 std::vector<float> detectorFlatField(const ConeCamera& camera);
+
+/** The parallel renderers' view frame (in the volume's index frame) that a C-arm at these
+ *  angles shows: the same columns (u) and rows (v) on the screen, D from the detector toward the
+ *  source (so that R = D x U, as patientViewFrame's AP is at 0/0 for an LPS volume). Comparing
+ *  a parallel frame with the cone beam of the same angles shows only what the cone adds. */
+ViewFrame cArmViewFrame(const Volume& volume, double primaryDeg, double secondaryDeg);
+
+/** The C-arm angles (degrees) of a view frame, as cArmViewFrame makes them: primary in
+ *  (-180, 180], secondary in [-90, 90]; a frame's roll about its direction is not a C-arm
+ *  angle and is dropped (at +-90 secondary the primary comes from the frame's columns). */
+struct CArmAngles {
+    double primaryDeg = 0.0;
+    double secondaryDeg = 0.0;
+};
+CArmAngles cArmAngles(const Volume& volume, const ViewFrame& frame);
+
+/** "LAO 30° CRAN 15°" (RAO for negative primary, CAUD for negative secondary; 0 as "LAO 0°"),
+ *  whole degrees, as a cath lab reads them. */
+std::string cArmLabel(double primaryDeg, double secondaryDeg);
+
+/** The camera the workstation renders for a parallel frame: the C-arm of its angles about the
+ *  volume's centre, a square M x M detector whose pitch frames the volume (framingPitch). */
+ConeCamera cArmCameraForView(const Volume& volume, const ViewFrame& frame, double sid, double sod,
+                             int size);
 
 class ConeProjector {
 public:

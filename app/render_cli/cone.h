@@ -1,0 +1,72 @@
+#pragma once
+/** fvr-render --geometry cone: the cameras (the C-arm options, --sweep and --orbit, or a
+ *  projection-matrix file), their checks against the volume, the CPU ray caster
+ *  (core::ConeProjector), --bench and --out. The images are written by the parallel views'
+ *  writers (outputs.cpp), the sidecar by json_output's blocks. */
+#include <optional>
+#include <vector>
+
+#include <fvr/core/geometry/camera.h>
+#include <fvr/core/render/cone_projector.h>
+#include <fvr/core/volume.h>
+
+#include "json_output.h"
+#include "options.h"
+
+namespace fvr::cli {
+
+/** One cone-beam view: its camera, and the C-arm that placed it (none from a matrix file). */
+struct ConeView {
+    core::ConeCamera camera;
+    std::optional<core::CArm> arm;
+};
+
+/** The cameras of --projection-matrix (read before the input loads, so that its errors come
+ *  first); empty without it. */
+std::vector<core::ConeCamera> readConeMatrixFile(const Options& o);
+
+/** The views: the matrix file's cameras, else the C-arm's (one, --sweep N: primary angles 360/N
+ *  apart from --primary-angle, --orbit FROM:TO:N) about the isocentre (default: the volume's
+ *  centre) with the detector's pitch (default: core::framingPitch). */
+std::vector<ConeView> coneViews(const Options& o, const core::Volume& volume,
+                                const std::vector<core::ConeCamera>& fileCameras);
+
+/** What the steps after loading share. */
+struct ConeSession {
+    const Options& options; ///< resolved for the volume (the value mapping)
+    const core::Volume& volume;
+    core::ConeProjector& projector;
+    double prepareMs = 0.0; ///< the projector's set-up (value mapping, empty-block map)
+    int threads = 0; ///< resolved (--threads, else all cores)
+};
+
+/** The run after loading: the views, their checks (core::validateConeView, before any
+ *  rendering), --bench, then --out. Returns the exit status. */
+int renderCone(const Options& o, const core::Volume& volume,
+               const std::vector<core::ConeCamera>& fileCameras);
+
+/** The projector's options from the command line (--ray-model, --step, --values, --threads). */
+core::ConeProjectorOptions coneProjectorOptions(const Options& o);
+
+/** One view's line integrals, with --flat-field folded in where it applies (see cone.cpp). */
+core::DetectorImage projectConeView(const ConeSession& s, const core::ConeCamera& camera);
+
+/** --out: renders the views and writes the images and the sidecar (outputs.cpp), all or
+ *  nothing, as the parallel views are. */
+void writeConeOutputs(const ConeSession& s, const std::vector<ConeView>& views);
+
+/** --bench N: N views of an orbit from the first view (its C-arm's primary angle stepped
+ *  360/N; a matrix file's views in turn), the ray caster's time per view as JSON (bench.cpp). */
+void runConeBench(const ConeSession& s, const std::vector<ConeView>& views);
+/** The views --bench times (cone.cpp). */
+std::vector<ConeView> coneBenchViews(const ConeSession& s, const std::vector<ConeView>& views);
+
+/** The "settings" object of a cone-beam run's sidecar and bench. */
+Json coneSettingsJson(const ConeSession& s);
+/** One view's camera: the C-arm when it placed it, source, detector, pitch, offset and P. */
+Json coneViewJson(const ConeView& view);
+/** The sidecar FILE.json of a cone-beam run. */
+Json coneSidecarJson(const ConeSession& s, const WrittenOutput& output,
+                     const std::vector<ConeView>& views);
+
+} // namespace fvr::cli
