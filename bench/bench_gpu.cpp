@@ -15,7 +15,9 @@
  * And the cone-beam ray caster (gpu::ConeRayCaster) on the same phantom at N = 256 (mu values),
  * a C-arm orbit (SID 1200, SOD 750, 20 degrees cranial, the detector framing the volume):
  *
- *   BM_ConeGpu/N<n>/<W>x<W>/<model>/<fetch>   views_per_s and view_ms: one view per dispatch,
+ *   BM_ConeGpu/N<n>/<W>x<W>/[noskip-]<model>/<fetch>
+ *                                             (noskip-: without leaving out blocks of air)
+ *                                             views_per_s and view_ms: one view per dispatch,
  *                                             back to back, one wait per batch (no read-back);
  *                                             grouped_views_per_s: views_per_dispatch views in
  *                                             one dispatch (projectMany's way);
@@ -227,13 +229,18 @@ void registerConeBenchmarks() {
         RayModel model;
         double step;
         TrilinearFetch fetch;
+        bool skipEmpty = true;
     };
     const Variant variants[] = {
         {"box", RayModel::Box, 0.0, TrilinearFetch::Manual},
         {"trilinear-exact/manual", RayModel::Trilinear, 0.0, TrilinearFetch::Manual},
         {"trilinear-exact/hardware", RayModel::Trilinear, 0.0, TrilinearFetch::Hardware},
         {"trilinear-step0.5/manual", RayModel::Trilinear, 0.5, TrilinearFetch::Manual},
-        {"trilinear-step0.5/hardware", RayModel::Trilinear, 0.5, TrilinearFetch::Hardware}};
+        {"trilinear-step0.5/hardware", RayModel::Trilinear, 0.5, TrilinearFetch::Hardware},
+        // What leaving out the blocks of air gains (the default above).
+        {"noskip-box", RayModel::Box, 0.0, TrilinearFetch::Manual, false},
+        {"noskip-trilinear-step0.5/hardware", RayModel::Trilinear, 0.5, TrilinearFetch::Hardware,
+         false}};
     constexpr int n = 256;
     for (int size : {256, 1024})
         for (const Variant& v : variants) {
@@ -241,6 +248,7 @@ void registerConeBenchmarks() {
             o.model = v.model;
             o.stepFraction = v.step;
             o.mapping = ValueMapping::Mu;
+            o.skipEmpty = v.skipEmpty;
             const std::string name = "BM_ConeGpu/N" + std::to_string(n) + "/" +
                                      std::to_string(size) + "x" + std::to_string(size) + "/" +
                                      v.name;

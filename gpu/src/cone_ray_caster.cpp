@@ -99,6 +99,29 @@ core::Volume geometryOf(const core::Volume& v) {
 
 } // namespace
 
+BlockMap::BlockMap(const core::Dims3& d, bool tri) : dims(d), trilinear(tri) {
+    for (int a = 0; a < 3; ++a) blocks[a] = (d[a] + (tri ? 1 : 0) + 7) / 8;
+    occupied.assign(std::size_t(blocks[0] * blocks[1] * blocks[2]), 0);
+}
+
+void BlockMap::mark(const float* values, std::int64_t z0, std::int64_t slices) {
+    const std::int64_t span = trilinear ? 2 : 1; // voxel x is a corner of cells x and x + 1
+    for (std::int64_t z = 0; z < slices; ++z)
+        for (std::int64_t y = 0; y < dims[1]; ++y) {
+            const float* row = values + (z * dims[1] + y) * dims[0];
+            for (std::int64_t x = 0; x < dims[0]; ++x) {
+                if (row[x] == 0.0f) continue;
+                for (std::int64_t dz = 0; dz < span; ++dz)
+                    for (std::int64_t dy = 0; dy < span; ++dy)
+                        for (std::int64_t dx = 0; dx < span; ++dx) {
+                            const std::int64_t bx = (x + dx) / 8, by = (y + dy) / 8,
+                                               bz = (z0 + z + dz) / 8;
+                            occupied[std::size_t(bx + blocks[0] * (by + blocks[1] * bz))] = 1;
+                        }
+            }
+        }
+}
+
 const char* trilinearFetchName(TrilinearFetch f) {
     return f == TrilinearFetch::Hardware ? "hardware" : "manual";
 }
@@ -126,6 +149,7 @@ ConeRayCaster::ConeRayCaster(const core::Volume& volume, core::ConeProjectorOpti
                                   "cone/cone_ray.comp");
     } catch (...) {
         glDeleteTextures(1, &m_texture);
+        if (m_occupancy) glDeleteTextures(1, &m_occupancy);
         throw;
     }
 }
@@ -134,6 +158,7 @@ ConeRayCaster::~ConeRayCaster() {
     if (!currentNativeContext()) return; // the context is gone, and its objects with it
     if (m_program) glDeleteProgram(m_program);
     if (m_texture) glDeleteTextures(1, &m_texture);
+    if (m_occupancy) glDeleteTextures(1, &m_occupancy);
     if (m_output) glDeleteBuffers(1, &m_output);
     if (m_views) glDeleteBuffers(1, &m_views);
 }
@@ -142,7 +167,8 @@ std::vector<std::pair<std::string, std::string>> ConeRayCaster::shaderDefines() 
     const int model = m_options.model == RayModel::Box ? 0 : m_options.stepFraction > 0 ? 2 : 1;
     return {{"MODEL", std::to_string(model)},
             {"HW_FILTER", model != 0 && m_fetch == TrilinearFetch::Hardware ? "1" : "0"},
-            {"SUBSAMPLES", std::to_string(m_options.pixelSubsamples)}};
+            {"SUBSAMPLES", std::to_string(m_options.pixelSubsamples)},
+            {"SKIP_EMPTY", m_options.skipEmpty ? "1" : "0"}};
 }
 
 void ConeRayCaster::upload(const core::Volume& volume) {
@@ -157,12 +183,14 @@ void ConeRayCaster::upload(const core::Volume& volume) {
     const std::size_t slice = std::size_t(d[0] * d[1]);
     const std::int64_t slab = std::max<std::int64_t>(1, std::int64_t((16u << 20) / slice));
     std::vector<float> buf(std::size_t(std::min(slab, d[2])) * slice);
+    BlockMap blocks(d, m_options.model == RayModel::Trilinear);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
     for (std::int64_t z = 0; z < d[2] && err == GL_NO_ERROR; z += slab) {
         const std::int64_t n = std::min(slab, d[2] - z);
         const float* src = volume.voxels.data() + std::size_t(z) * slice;
         for (std::size_t i = 0; i < std::size_t(n) * slice; ++i)
             buf[i] = core::mapValue(m_options.mapping, src[i]);
+        if (m_options.skipEmpty) blocks.mark(buf.data(), z, n);
         glTexSubImage3D(GL_TEXTURE_3D, 0, 0, 0, GLint(z), GLsizei(d[0]), GLsizei(d[1]), GLsizei(n),
                         GL_RED, GL_FLOAT, buf.data());
         err = glGetError();
@@ -184,6 +212,28 @@ void ConeRayCaster::upload(const core::Volume& volume) {
         glTexParameteri(GL_TEXTURE_3D, wrap, GL_CLAMP_TO_BORDER);
     const float border[4] = {0.0f, 0.0f, 0.0f, 0.0f};
     glTexParameterfv(GL_TEXTURE_3D, GL_TEXTURE_BORDER_COLOR, border);
+    if (m_options.skipEmpty) uploadBlocks(blocks);
+}
+
+void ConeRayCaster::uploadBlocks(const BlockMap& blocks) {
+    glGenTextures(1, &m_occupancy);
+    glBindTexture(GL_TEXTURE_3D, m_occupancy);
+    glTexStorage3D(GL_TEXTURE_3D, 1, GL_R8UI, GLsizei(blocks.blocks[0]), GLsizei(blocks.blocks[1]),
+                   GLsizei(blocks.blocks[2]));
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTexSubImage3D(GL_TEXTURE_3D, 0, 0, 0, 0, GLsizei(blocks.blocks[0]), GLsizei(blocks.blocks[1]),
+                    GLsizei(blocks.blocks[2]), GL_RED_INTEGER, GL_UNSIGNED_BYTE,
+                    blocks.occupied.data());
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    if (const GLenum err = glGetError(); err != GL_NO_ERROR) {
+        glDeleteTextures(1, &m_occupancy);
+        m_occupancy = 0;
+        glDeleteTextures(1, &m_texture);
+        m_texture = 0;
+        throw GlError("block map upload failed: GL error " + std::to_string(err));
+    }
 }
 
 void ConeRayCaster::uploadViews(const std::vector<core::ConeCamera>& cameras) {
@@ -268,6 +318,10 @@ void ConeRayCaster::projectToGpu(const std::vector<core::ConeCamera>& cameras) {
     setUniforms(m_viewCount);
     glActiveTexture(GL_TEXTURE0 + point(TextureUnit::Volume));
     glBindTexture(GL_TEXTURE_3D, m_texture);
+    if (m_occupancy) {
+        glActiveTexture(GL_TEXTURE0 + point(TextureUnit::Occupancy));
+        glBindTexture(GL_TEXTURE_3D, m_occupancy);
+    }
     glActiveTexture(GL_TEXTURE0);
     bindStorage(Binding::PassInput, m_views);
     bindStorage(Binding::PassOutput, m_output);
@@ -328,6 +382,7 @@ std::string describeConeRayCaster(const core::ConeProjectorOptions& options, Tri
     if (options.pixelSubsamples > 1)
         s += ", " + std::to_string(options.pixelSubsamples) + "x" +
              std::to_string(options.pixelSubsamples) + " rays per pixel";
+    if (!options.skipEmpty) s += ", no empty-space skipping";
     return s;
 }
 

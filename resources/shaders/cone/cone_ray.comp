@@ -13,7 +13,8 @@
 //   HW_FILTER 1  trilinear values from the texture's GL_LINEAR filter (border 0: zero outside)
 //            instead of 8 texelFetches with float weights (the hardware's weights are fixed
 //            point: 8 fraction bits on NVIDIA);
-//   SUBSAMPLES n  n x n rays per pixel at the centres of its n x n sub-pixels, averaged.
+//   SUBSAMPLES n  n x n rays per pixel at the centres of its n x n sub-pixels, averaged;
+//   SKIP_EMPTY 1  blocks of 8^3 cells whose corners are all 0 left out (exact: they add 0).
 #include "common/bindings.glsl"
 layout(local_size_x = 16, local_size_y = 16) in;
 
@@ -26,8 +27,15 @@ layout(local_size_x = 16, local_size_y = 16) in;
 #ifndef SUBSAMPLES
 #define SUBSAMPLES 1
 #endif
+#ifndef SKIP_EMPTY
+#define SKIP_EMPTY 0
+#endif
 
 layout(binding = FVR_TEXTURE_VOLUME) uniform sampler3D uVolume;
+#if SKIP_EMPTY
+/** Per block of 8^3 cells of the walk: 1 where a cell touches a non-zero voxel. */
+layout(binding = FVR_TEXTURE_OCCUPANCY) uniform usampler3D uOccupancy;
+#endif
 layout(std430, binding = FVR_BINDING_PASS_OUTPUT) writeonly buffer ConeOut { float outValue[]; };
 /** One view's rays (xyz; w unused): the source relative to the centre, the centre of pixel
  *  (0, 0) minus the source, one column and one row along the detector, in voxel indices. */
@@ -122,37 +130,94 @@ float cellSegment(ivec3 cell, vec3 g0, vec3 d, float ta, float tb, inout float f
 #endif
 }
 
-/** The integral (per unit t) along g0 + t d, t in [0, T], over a grid of unit cells, cell k
- *  spanning [k, k+1] per axis, k in [0, n): Amanatides and Woo's walk, each boundary computed
- *  from g0 (no running sums). g0 lies on the grid's box (the clipped entry). */
-float walkCells(vec3 g0, vec3 d, float T, ivec3 n) {
+/** The integral (per unit t) along g0 + t d, t in [ta, tb], over the unit cells [lo, hi) per
+ *  axis (cell k spans [k, k+1]): Amanatides and Woo's walk, each boundary computed from g0 (no
+ *  running sums), so that walks restarted at block boundaries meet the same boundaries. */
+float walkCells(vec3 g0, vec3 d, float ta, float tb, ivec3 lo, ivec3 hi, inout float fEdge) {
     ivec3 cell, stepDir;
     vec3 tMax, invD;
     for (int a = 0; a < 3; ++a) {
-        float c = floor(g0[a]);
-        if (d[a] < 0.0 && c == g0[a]) c -= 1.0; // on a boundary going down: the cell below
-        cell[a] = clamp(int(c), 0, n[a] - 1);
+        float p = g0[a] + ta * d[a];
+        float c = floor(p);
+        if (d[a] < 0.0 && c == p) c -= 1.0; // on a boundary going down: the cell below
+        cell[a] = clamp(int(c), lo[a], hi[a] - 1);
         stepDir[a] = d[a] > 0.0 ? 1 : (d[a] < 0.0 ? -1 : 0);
         invD[a] = d[a] != 0.0 ? 1.0 / d[a] : 0.0;
         tMax[a] = d[a] != 0.0 ? (float(cell[a] + max(stepDir[a], 0)) - g0[a]) * invD[a] : kFar;
     }
-    float t = 0.0, sum = 0.0;
-#if MODEL == 1 && HW_FILTER
-    float fEdge = texture(uVolume, (g0 - 0.5) / vec3(uDims)).r;
-#else
-    float fEdge = 0.0;
-#endif
-    int guard = n.x + n.y + n.z + 3;
-    for (int it = 0; it < guard && t < T; ++it) {
+    float t = ta, sum = 0.0;
+    int guard = (hi.x - lo.x) + (hi.y - lo.y) + (hi.z - lo.z) + 3;
+    for (int it = 0; it < guard && t < tb; ++it) {
         int m = tMax.x < tMax.y ? (tMax.x < tMax.z ? 0 : 2) : (tMax.y < tMax.z ? 1 : 2);
-        float tn = min(tMax[m], T);
+        float tn = min(tMax[m], tb);
         if (tn > t) {
             sum += cellSegment(cell, g0, d, t, tn, fEdge);
             t = tn;
         }
         cell[m] += stepDir[m];
-        if (cell[m] < 0 || cell[m] >= n[m]) break;
+        if (cell[m] < lo[m] || cell[m] >= hi[m]) break;
         tMax[m] = (float(cell[m] + max(stepDir[m], 0)) - g0[m]) * invD[m];
+    }
+    return sum;
+}
+#endif
+
+/** The interpolant at g0 + t d (g = q + 1), where the hardware-filtered exact walk starts. */
+float edgeValue(vec3 g0, vec3 d, float t) {
+#if MODEL == 1 && HW_FILTER
+    return texture(uVolume, (g0 + t * d - 0.5) / vec3(uDims)).r;
+#else
+    return 0.0;
+#endif
+}
+
+#if SKIP_EMPTY
+/** The ray's part in one block of cells [lo, hi), t in [ta, tb]: the cell walk (MODEL 0, 1), or
+ *  the midpoint samples k in [k0, k1) at (k + 1/2) dt (MODEL 2). */
+float blockPart(vec3 g0, vec3 d, float ta, float tb, ivec3 lo, ivec3 hi, int k0, int k1,
+                float dt) {
+#if MODEL == 2
+    vec3 first = g0 + 0.5 * dt * d - 1.0, delta = dt * d; // q = g - 1
+    float sum = 0.0;
+    for (int k = k0; k < k1; ++k) sum += trilinear(first + float(k) * delta);
+    return sum;
+#else
+    float fEdge = edgeValue(g0, d, ta);
+    return walkCells(g0, d, ta, tb, lo, hi, fEdge);
+#endif
+}
+
+/** The walk over blocks of 8^3 cells (n cells per axis), t in [0, T], leaving out the blocks
+ *  uOccupancy marks empty (all their cells' corners 0: they add nothing). MODEL 2: nSamples
+ *  samples dt apart; each block takes those whose t it holds, the same rule at every boundary
+ *  (k from ceil(t / dt - 1/2)), so each sample is taken once. */
+float walkBlocks(vec3 g0, vec3 d, float T, ivec3 n, int nSamples, float dt) {
+    ivec3 nb = (n + 7) / 8, blk, stepDir;
+    vec3 tMax, invD;
+    for (int a = 0; a < 3; ++a) {
+        float c = floor(g0[a] / 8.0);
+        if (d[a] < 0.0 && c * 8.0 == g0[a]) c -= 1.0;
+        blk[a] = clamp(int(c), 0, nb[a] - 1);
+        stepDir[a] = d[a] > 0.0 ? 1 : (d[a] < 0.0 ? -1 : 0);
+        invD[a] = d[a] != 0.0 ? 1.0 / d[a] : 0.0;
+        tMax[a] = d[a] != 0.0 ? (float((blk[a] + max(stepDir[a], 0)) * 8) - g0[a]) * invD[a] : kFar;
+    }
+    float t = 0.0, sum = 0.0;
+    int k0 = 0;
+    int guard = nb.x + nb.y + nb.z + 3;
+    for (int it = 0; it < guard && t < T; ++it) {
+        int m = tMax.x < tMax.y ? (tMax.x < tMax.z ? 0 : 2) : (tMax.y < tMax.z ? 1 : 2);
+        float tn = min(tMax[m], T);
+        if (tn > t) {
+            int k1 = tn >= T ? nSamples : clamp(int(ceil(tn / dt - 0.5)), k0, nSamples);
+            if (texelFetch(uOccupancy, blk, 0).r != 0u)
+                sum += blockPart(g0, d, t, tn, blk * 8, min(blk * 8 + 8, n), k0, k1, dt);
+            k0 = k1;
+            t = tn;
+        }
+        blk[m] += stepDir[m];
+        if (blk[m] < 0 || blk[m] >= nb[m]) break;
+        tMax[m] = (float((blk[m] + max(stepDir[m], 0)) * 8) - g0[m]) * invD[m];
     }
     return sum;
 }
@@ -169,17 +234,32 @@ float integrate(vec3 s, vec3 d) {
 #endif
     float t0, t1;
     if (!clipRay(s, d, h, t0, t1)) return 0.0;
-#if MODEL == 0 || MODEL == 1
-    vec3 g0 = s + t0 * d + h; // the box's lower corner at 0
-    return mmPerT * walkCells(g0, d, t1 - t0, ivec3(2.0 * h + 0.5));
+    vec3 g0 = s + t0 * d + h; // the walk's coordinates: the box's lower corner at 0
+    ivec3 n = ivec3(2.0 * h + 0.5); // its cells: N (box), N + 1 (trilinear)
+    float T = t1 - t0;
+#if MODEL == 2
+    float len = T * mmPerT;
+    int nSamples = max(1, int(ceil(len / uStep)));
+    float dt = T / float(nSamples);
 #else
-    float len = (t1 - t0) * mmPerT;
-    int n = max(1, int(ceil(len / uStep)));
-    float dt = (t1 - t0) / float(n);
-    vec3 first = s + (t0 + 0.5 * dt) * d + uCentre, delta = dt * d;
+    int nSamples = 0;
+    float dt = 1.0;
+#endif
+#if SKIP_EMPTY
+    float part = walkBlocks(g0, d, T, n, nSamples, dt);
+#if MODEL == 2
+    return part * dt * mmPerT; // dt mmPerT = len / nSamples
+#else
+    return part * mmPerT;
+#endif
+#elif MODEL == 2
+    vec3 first = g0 + 0.5 * dt * d - 1.0, delta = dt * d; // q = g - 1
     float sum = 0.0;
-    for (int k = 0; k < n; ++k) sum += trilinear(first + float(k) * delta);
-    return sum * (len / float(n));
+    for (int k = 0; k < nSamples; ++k) sum += trilinear(first + float(k) * delta);
+    return sum * (len / float(nSamples));
+#else
+    float fEdge = edgeValue(g0, d, 0.0);
+    return mmPerT * walkCells(g0, d, 0.0, T, ivec3(0), n, fEdge);
 #endif
 }
 

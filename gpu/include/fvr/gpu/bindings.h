@@ -37,6 +37,7 @@ enum class ImageUnit : unsigned {
 enum class TextureUnit : unsigned {
     Spectrum = 0, ///< the spectrum's 3D texture the slice samples
     Volume = 1, ///< the (mapped) volume's 3D texture the cone-beam ray caster samples
+    Occupancy = 2, ///< the cone-beam ray caster's map of non-empty 8^3 blocks
 };
 
 /** One GLSL name: `#define FVR_<glsl> <point>`. */
@@ -62,6 +63,7 @@ inline constexpr BindingName kGlslBindings[] = {
     {"IMAGE_DISPLAY", unsigned(ImageUnit::Display)},
     {"TEXTURE_SPECTRUM", unsigned(TextureUnit::Spectrum)},
     {"TEXTURE_VOLUME", unsigned(TextureUnit::Volume)},
+    {"TEXTURE_OCCUPANCY", unsigned(TextureUnit::Occupancy)},
 };
 
 /** The material frame binding of material `m` (0..4) in the spectral sum. */

@@ -10,6 +10,7 @@
  *  default) or from the texture unit's GL_LINEAR filter (TrilinearFetch::Hardware: faster, its
  *  weights fixed point). No B-spline (CPU only). Needs a current OpenGL 4.3 context for every
  *  call, the one it was made in. */
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -21,6 +22,20 @@
 #include <fvr/core/volume.h>
 
 namespace fvr::gpu {
+
+/** Which 8^3 blocks of the ray walk's cells hold a cell touching a non-zero voxel (the CPU's
+ *  empty-space map): a box cell c is voxel c; a trilinear cell c (between voxel centres c - 1
+ *  and c, support [-1, N]) has the corners c - 1 and c. */
+struct BlockMap {
+    BlockMap(const core::Dims3& dims, bool trilinear);
+    /** Marks the blocks of the non-zero values among `slices` slices from z0 (x fastest). */
+    void mark(const float* values, std::int64_t z0, std::int64_t slices);
+
+    core::Dims3 dims;
+    bool trilinear;
+    std::int64_t blocks[3] = {0, 0, 0};
+    std::vector<std::uint8_t> occupied; ///< per block, x fastest
+};
 
 /** Where trilinear values come from. */
 enum class TrilinearFetch {
@@ -34,7 +49,8 @@ class ConeRayCaster {
 public:
     /** Maps the values (options.mapping) and uploads them as a 3D R32F texture. options.model:
      *  Box or Trilinear (stepFraction 0: exact per cell; > 0: midpoint samples), BSpline is
-     *  refused (SettingsError); pixelSubsamples 1..16; threads and skipEmpty do not apply.
+     *  refused (SettingsError); pixelSubsamples 1..16; skipEmpty leaves out 8^3 blocks of
+     *  zeros (BlockMap, as the CPU); threads does not apply.
      *  Throws SettingsError for bad options or a volume whose voxels do not match its dims,
      *  GlError without an OpenGL 4.3 context, GpuMemoryError naming the sizes when the volume
      *  exceeds GL_MAX_3D_TEXTURE_SIZE or (where the driver tells) the free GPU memory. The
@@ -73,6 +89,7 @@ public:
 
 private:
     void upload(const core::Volume& volume);
+    void uploadBlocks(const BlockMap& blocks);
     void setUniforms(int views) const;
     void uploadViews(const std::vector<core::ConeCamera>& cameras);
 
@@ -82,6 +99,7 @@ private:
     glm::dmat4 m_patientToIndex{1.0};
     glm::dmat3 m_indexToMm{1.0};
     unsigned m_texture = 0;
+    unsigned m_occupancy = 0; ///< the BlockMap as an R8UI texture (skipEmpty)
     unsigned m_output = 0;
     unsigned m_views = 0; ///< the views' rays (ConeViews in the shader)
     unsigned m_program = 0;
