@@ -12,6 +12,17 @@
  *                                               wait per batch of 16: what an interactive loop
  * gets)
  *
+ * And the cone-beam ray caster (gpu::ConeRayCaster) on the same phantom at N = 256 (mu values),
+ * a C-arm orbit (SID 1200, SOD 750, 20 degrees cranial, the detector framing the volume):
+ *
+ *   BM_ConeGpu/N<n>/<W>x<W>/[noskip-]<model>/<fetch>
+ *                                             (noskip-: without leaving out blocks of air)
+ *                                             views_per_s and view_ms: one view per dispatch,
+ *                                             back to back, one wait per batch (no read-back);
+ *                                             grouped_views_per_s: views_per_dispatch views in
+ *                                             one dispatch (projectMany's way);
+ *                                             readback_views_per_s: one view, read back
+ *
  * Needs an OpenGL 4.3 context: a headless EGL one (gpu::EglContext, no X server; a hardware EGL
  * device, else Mesa llvmpipe, whose numbers are a sanity check only). N is 256 unless
  * FVR_BENCH_GPU_N says otherwise (e.g. 128,256,512). The 3D Shepp-Logan phantom, mu values, no
@@ -34,8 +45,11 @@
 #include <string>
 #include <vector>
 
+#include <fvr/core/geometry/camera.h>
+#include <fvr/core/render/cone_projector.h>
 #include <fvr/core/render/preprocess.h>
 #include <fvr/core/xray/phantom.h>
+#include <fvr/gpu/cone_ray_caster.h>
 #include <fvr/gpu/egl_context.h>
 #include <fvr/gpu/gpu_renderer.h>
 
@@ -143,6 +157,108 @@ void BM_GpuFrame(benchmark::State& state, int n, TransformKind kind, int M, Kern
     state.counters["wall_fps"] = wm > 0 ? 1000.0 / wm : 0.0;
 }
 
+/** The orbit's views: 64 primary angles, 20 degrees cranial, the detector framing the volume. */
+std::vector<ConeCamera> coneOrbit(const Volume& v, int size) {
+    std::vector<ConeCamera> out;
+    for (int i = 0; i < 64; ++i) {
+        CArm arm;
+        arm.primaryDeg = -180.0 + 360.0 * i / 64;
+        arm.secondaryDeg = 20.0;
+        arm.sid = 1200.0;
+        arm.sod = 750.0;
+        arm.isocentre = volumeCentre(v);
+        const double pitch = framingPitch(v, arm.sid, arm.sod, size, size);
+        out.push_back(cArmCamera(arm, size, size, pitch, pitch));
+    }
+    return out;
+}
+
+/** One cone-beam ray caster per volume size, model and fetch (the upload is not timed). */
+fvr::gpu::ConeRayCaster& coneCaster(int n, const ConeProjectorOptions& o,
+                                    fvr::gpu::TrilinearFetch fetch) {
+    static std::map<std::string, std::unique_ptr<fvr::gpu::ConeRayCaster>> cache;
+    auto& c = cache[std::to_string(n) + fvr::gpu::describeConeRayCaster(o, fetch)];
+    if (!c) c = std::make_unique<fvr::gpu::ConeRayCaster>(phantom(n), o, fetch);
+    return *c;
+}
+
+void BM_ConeGpu(benchmark::State& state, int n, int size, ConeProjectorOptions o,
+                fvr::gpu::TrilinearFetch fetch) {
+    using Clock = std::chrono::steady_clock;
+    auto ms = [](Clock::time_point t0) {
+        return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    };
+    auto& caster = coneCaster(n, o, fetch);
+    const auto cams = coneOrbit(phantom(n), size);
+    // Untimed: wakes the GPU, and sizes the batches to about 0.2 s (1 on a software renderer).
+    auto t0 = Clock::now();
+    caster.project(cams[0]);
+    const int batch = std::clamp(int(200.0 / std::max(ms(t0), 1e-3)), 1, 256);
+    const int perDispatch = std::min<int>(batch, int(cams.size()));
+    const std::vector<ConeCamera> group(cams.begin(), cams.begin() + perDispatch);
+    caster.projectToGpu(group);
+    glFinish();
+    std::vector<double> single, grouped, readBack;
+    std::size_t i = 0;
+    for (auto _ : state) {
+        t0 = Clock::now();
+        for (int b = 0; b < batch; ++b) caster.projectToGpu(cams[i++ % cams.size()]);
+        glFinish();
+        single.push_back(ms(t0) / batch);
+        t0 = Clock::now();
+        caster.projectToGpu(group);
+        glFinish();
+        grouped.push_back(ms(t0) / perDispatch);
+        t0 = Clock::now();
+        caster.project(cams[i++ % cams.size()]);
+        readBack.push_back(ms(t0));
+    }
+    const double sm = median(single), gm = median(grouped), rm = median(readBack);
+    state.counters["view_ms"] = sm;
+    state.counters["views_per_s"] = sm > 0 ? 1000.0 / sm : 0.0;
+    state.counters["grouped_views_per_s"] = gm > 0 ? 1000.0 / gm : 0.0;
+    state.counters["readback_views_per_s"] = rm > 0 ? 1000.0 / rm : 0.0;
+    state.counters["views_per_dispatch"] = perDispatch;
+    state.SetLabel(fvr::gpu::describeConeRayCaster(o, fetch));
+}
+
+void registerConeBenchmarks() {
+    using fvr::gpu::TrilinearFetch;
+    struct Variant {
+        const char* name;
+        RayModel model;
+        double step;
+        TrilinearFetch fetch;
+        bool skipEmpty = true;
+    };
+    const Variant variants[] = {
+        {"box", RayModel::Box, 0.0, TrilinearFetch::Manual},
+        {"trilinear-exact/manual", RayModel::Trilinear, 0.0, TrilinearFetch::Manual},
+        {"trilinear-exact/hardware", RayModel::Trilinear, 0.0, TrilinearFetch::Hardware},
+        {"trilinear-step0.5/manual", RayModel::Trilinear, 0.5, TrilinearFetch::Manual},
+        {"trilinear-step0.5/hardware", RayModel::Trilinear, 0.5, TrilinearFetch::Hardware},
+        // What leaving out the blocks of air gains (the default above).
+        {"noskip-box", RayModel::Box, 0.0, TrilinearFetch::Manual, false},
+        {"noskip-trilinear-step0.5/hardware", RayModel::Trilinear, 0.5, TrilinearFetch::Hardware,
+         false}};
+    constexpr int n = 256;
+    for (int size : {256, 1024})
+        for (const Variant& v : variants) {
+            ConeProjectorOptions o;
+            o.model = v.model;
+            o.stepFraction = v.step;
+            o.mapping = ValueMapping::Mu;
+            o.skipEmpty = v.skipEmpty;
+            const std::string name = "BM_ConeGpu/N" + std::to_string(n) + "/" +
+                                     std::to_string(size) + "x" + std::to_string(size) + "/" +
+                                     v.name;
+            benchmark::RegisterBenchmark(name.c_str(), BM_ConeGpu, n, size, o, v.fetch)
+                ->Iterations(size <= 256 ? 10 : 5)
+                ->Unit(benchmark::kMillisecond)
+                ->UseRealTime();
+        }
+}
+
 std::vector<int> volumeSizes() {
     std::vector<int> out;
     if (const char* e = std::getenv("FVR_BENCH_GPU_N")) {
@@ -190,6 +306,7 @@ int main(int argc, char** argv) {
                         ->Unit(benchmark::kMillisecond)
                         ->UseRealTime();
                 }
+    registerConeBenchmarks();
     benchmark::RunSpecifiedBenchmarks();
     benchmark::Shutdown();
     return 0;

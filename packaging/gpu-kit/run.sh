@@ -2,7 +2,9 @@
 # FVR Workstation GPU bench kit: runs, from the kit's own bin/ and lib/,
 #   1. fvr-render --gpu-info                  -> results/gpu-info.json
 #   2. the GPU Table 1 (fvr_bench_gpu)        -> results/table1.json, results/table1.md
-#   3. GPU-vs-CPU correctness (fvr-render on the 3D Shepp-Logan phantom with --backend gpu and
+#   3. cone-beam ray casting views/s (fvr_bench_gpu, BM_ConeGpu: 256^3 phantom at 256^2 and
+#      1024^2)                                -> results/cone.json, results/cone.log
+#   4. GPU-vs-CPU correctness (fvr-render on the 3D Shepp-Logan phantom with --backend gpu and
 #      --backend cpu, PSNR of the GPU image against the CPU one)
 #                                             -> results/correctness.json, results/correctness.md
 # Needs no X server, no Python: a headless EGL context on the first hardware EGL device (NVIDIA:
@@ -48,7 +50,7 @@ status=0
 say() { printf '[%s] %s\n' "$(date +%H:%M:%S)" "$*"; }
 
 # --- 1. GPU info -------------------------------------------------------------------------------
-say "1/3 GPU info (fvr-render --gpu-info)"
+say "1/4 GPU info (fvr-render --gpu-info)"
 if "$bin/fvr-render" --gpu-info > "$out/gpu-info.json" 2> "$work/gpu-info.log"; then
     renderer=$(sed -n 's/.*"renderer": *"\([^"]*\)".*/\1/p' "$out/gpu-info.json" | head -n 1)
     software=$(awk '/"gl": *\{/ { g = 1 } g && /"software":/ { print $2; exit }' "$out/gpu-info.json")
@@ -74,9 +76,9 @@ if [ $quick = 1 ]; then
     filter='/M256/(nearest|linear)/'
 else
     sizes=128,256,512
-    filter=.
+    filter=BM_Gpu
 fi
-say "2/3 GPU Table 1 (fvr_bench_gpu, N = $sizes, filter '$filter')"
+say "2/4 GPU Table 1 (fvr_bench_gpu, N = $sizes, filter '$filter')"
 {
     FVR_BENCH_GPU_N=$sizes "$bin/fvr_bench_gpu" --benchmark_filter="$filter" \
         --benchmark_out="$out/table1.json" --benchmark_out_format=json "$@"
@@ -91,7 +93,23 @@ else
     status=1
 fi
 
-# --- 3. GPU = CPU ------------------------------------------------------------------------------
+# --- 3. Cone-beam views/s ---------------------------------------------------------------------
+# The quick run: the box model at 256^2 only (a smoke test on llvmpipe).
+if [ $quick = 1 ]; then cone_filter='BM_ConeGpu/N256/256x256/box'; else cone_filter=BM_ConeGpu; fi
+say "3/4 cone-beam ray casting (fvr_bench_gpu, filter '$cone_filter')"
+{
+    "$bin/fvr_bench_gpu" --benchmark_filter="$cone_filter" --benchmark_out="$out/cone.json" \
+        --benchmark_out_format=json "$@"
+    echo $? > "$work/cone.rc"
+} 2>&1 | tee "$out/cone.log"
+if [ "$(cat "$work/cone.rc")" != 0 ]; then
+    say "  fvr_bench_gpu failed (exit status $(cat "$work/cone.rc")), see $out/cone.log"
+    status=1
+else
+    say "  wrote $out/cone.json (views_per_s: back to back; readback_views_per_s: each read back)"
+fi
+
+# --- 4. GPU = CPU ------------------------------------------------------------------------------
 # A case that produced no image: the log line, its JSON object (error) and table row (reason).
 case_failed() {
     say "  N=$n M=$m $t $k: $1"
@@ -157,7 +175,7 @@ else
     done
     cases="$cases 256:256:fft:linear:default 256:1024:fft:linear:default 256:1024:fht:sinc4:default"
 fi
-say "3/3 GPU = CPU (fvr-render --backend gpu vs --backend cpu, PSNR >= $min_psnr dB)"
+say "4/4 GPU = CPU (fvr-render --backend gpu vs --backend cpu, PSNR >= $min_psnr dB)"
 : > "$work/cases"
 : > "$work/rows"
 sep=""

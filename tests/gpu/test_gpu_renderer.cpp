@@ -104,7 +104,9 @@ TEST_F(GlTest, CompiledProgramsBindWhereTheHostBinds) {
         {"M1", materialBinding(1)},
         {"M2", materialBinding(2)},
         {"M3", materialBinding(3)},
-        {"M4", materialBinding(4)}};
+        {"M4", materialBinding(4)},
+        {"ConeOut", Binding::PassOutput},
+        {"ConeViews", Binding::PassInput}};
     const std::vector<std::pair<std::string, ShaderSource::Defines>> programs{
         {"slice/slice.comp", {{"TAPS", "4"}, {"DEPTH_CUE", "1"}}},
         {"fft/rows.comp", {{"MAX_M", "64"}, {"WG_SIZE", "32"}}},
@@ -114,7 +116,8 @@ TEST_F(GlTest, CompiledProgramsBindWhereTheHostBinds) {
          {{"MAX_M", "64"}, {"WG_SIZE", "32"}, {"OUTPUT_REAL", "1"}, {"FUSED_DISPLAY", "1"}}},
         {"fft/hartley_correct.comp", {{"FUSED_DISPLAY", "1"}}},
         {"display/display.comp", {}},
-        {"xray/spectral_sum.comp", {{"MATERIALS", "5"}}}};
+        {"xray/spectral_sum.comp", {{"MATERIALS", "5"}}},
+        {"cone/cone_ray.comp", {{"MODEL", "1"}, {"HW_FILTER", "1"}, {"SKIP_EMPTY", "1"}}}};
     std::set<std::string> seen;
     int images = 0, samplers = 0;
     for (const auto& [path, defines] : programs) {
@@ -134,8 +137,11 @@ TEST_F(GlTest, CompiledProgramsBindWhereTheHostBinds) {
             EXPECT_EQ(bound, GLint(point(blocks.at(name)))) << path << ": " << name;
             seen.insert(name);
         }
-        for (const auto& [uniform, unit] : {std::pair{"displayOut", point(ImageUnit::Display)},
-                                            std::pair{"uSpectrum", point(TextureUnit::Spectrum)}}) {
+        for (const auto& [uniform, unit] :
+             {std::pair{"displayOut", point(ImageUnit::Display)},
+              std::pair{"uSpectrum", point(TextureUnit::Spectrum)},
+              std::pair{"uVolume", point(TextureUnit::Volume)},
+              std::pair{"uOccupancy", point(TextureUnit::Occupancy)}}) {
             const GLint loc = glGetUniformLocation(prog, uniform);
             if (loc < 0) continue;
             GLint value = -1;
@@ -147,7 +153,7 @@ TEST_F(GlTest, CompiledProgramsBindWhereTheHostBinds) {
     }
     EXPECT_EQ(seen.size(), blocks.size()) << "a storage block above is in no program";
     EXPECT_EQ(images, 3);
-    EXPECT_EQ(samplers, 2);
+    EXPECT_EQ(samplers, 4);
 }
 
 TEST_F(GlTest, InverseFftMatchesFftwDouble) {

@@ -53,7 +53,7 @@ mkdir "$tmp/cwd"
 (cd "$tmp/cwd" && env -u DISPLAY -u FVR_EGL_DEVICE -u LD_LIBRARY_PATH "$kit/run.sh" --quick) ||
   bad "run.sh --quick failed (exit status $?)"
 r=$kit/results
-for f in gpu-info.json table1.json table1.md correctness.json correctness.md; do
+for f in gpu-info.json table1.json table1.md cone.json correctness.json correctness.md; do
   [ -s "$r/$f" ] || bad "results/$f is missing or empty"
 done
 grep -q '"available": true' "$r/gpu-info.json" || bad "gpu-info: no OpenGL context"
@@ -62,6 +62,10 @@ runs=$(grep -c '"name": "BM_Gpu' "$r/table1.json" || true)
 for s in "## FFT, N = 128" "## FHT, N = 128" "| 256×256 |"; do
   grep -qF "$s" "$r/table1.md" || bad "table1.md lacks '$s'"
 done
+cones=$(grep -c '"name": "BM_ConeGpu/N256/256x256/box' "$r/cone.json" || true)
+[ "$cones" -eq 1 ] || bad "cone.json holds $cones box runs at 256x256, expected 1"
+# Google Benchmark writes counters as d.ddde+XX: a leading 0 is 0 views/s.
+grep -q '"views_per_s": [1-9]' "$r/cone.json" || bad "cone.json: views_per_s is 0 or missing"
 psnrs=$( (grep -o '"psnr":[0-9.e+-]*' "$r/correctness.json" || true) | cut -d: -f2)
 [ "$(wc -w <<<"$psnrs")" -eq 2 ] || bad "correctness.json: expected 2 cases, found: $psnrs"
 for p in $psnrs; do

@@ -1,6 +1,7 @@
 #pragma once
 /** The binding points that the host and the compute shaders share: shader storage buffers, the
- *  display image and the spectrum's texture unit. This header is their one home: the shaders
+ *  display image and the spectrum's and the volume's texture units. This header is their one home:
+ * the shaders
  *  `#include "common/bindings.glsl"`, which ShaderSource::defaultReader() generates from
  *  bindingsGlsl() (the numbers below as `#define FVR_BINDING_<NAME> <point>` lines), so the host
  *  and the GLSL cannot disagree. A shader naming a binding missing from kGlslBindings fails to
@@ -35,6 +36,8 @@ enum class ImageUnit : unsigned {
 /** Texture units (glActiveTexture, sampler uniforms). */
 enum class TextureUnit : unsigned {
     Spectrum = 0, ///< the spectrum's 3D texture the slice samples
+    Volume = 1, ///< the (mapped) volume's 3D texture the cone-beam ray caster samples
+    Occupancy = 2, ///< the cone-beam ray caster's map of non-empty 8^3 blocks
 };
 
 /** One GLSL name: `#define FVR_<glsl> <point>`. */
@@ -59,6 +62,8 @@ inline constexpr BindingName kGlslBindings[] = {
     {"BINDING_MATERIAL_4", unsigned(Binding::Material4)},
     {"IMAGE_DISPLAY", unsigned(ImageUnit::Display)},
     {"TEXTURE_SPECTRUM", unsigned(TextureUnit::Spectrum)},
+    {"TEXTURE_VOLUME", unsigned(TextureUnit::Volume)},
+    {"TEXTURE_OCCUPANCY", unsigned(TextureUnit::Occupancy)},
 };
 
 /** The material frame binding of material `m` (0..4) in the spectral sum. */
