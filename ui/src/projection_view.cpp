@@ -14,6 +14,7 @@
 #include <numbers>
 
 #include <fvr/core/xray/display_window.h>
+#include <fvr/gpu/cone_ray_caster.h>
 #include <fvr/gpu/gpu_renderer.h>
 
 namespace fvr::ui {
@@ -58,6 +59,8 @@ ProjectionView::~ProjectionView() {
 void ProjectionView::releaseGl() {
     if (!m_glReady) return;
     m_gpu.reset();
+    m_gpuCone.reset();
+    m_gpuConeVolume = nullptr;
     m_polyGpu.clear();
     m_polyGpuSpectra.clear();
     m_polyOnGpu = false;
@@ -357,6 +360,7 @@ OverlayState ProjectionView::overlayState() const {
                              .arg(m_settings.cone.sid, 0, 'f', 0)
                              .arg(m_settings.cone.sod, 0, 'f', 0);
         s.rayModel = m_settings.cone.model;
+        s.gpu = m_coneOnGpu;
     }
     s.effects = m_effects;
     s.stats = m_stats;

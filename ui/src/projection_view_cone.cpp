@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 
+#include <fvr/gpu/cone_ray_caster.h>
 #include <fvr/ui/projection_view.h>
 
 namespace fvr::ui {
@@ -26,7 +27,10 @@ void ProjectionView::renderConeFrame(int M) {
     }
     const core::ConeCamera camera = *coneCamera(M);
     const auto t0 = std::chrono::steady_clock::now();
-    core::DetectorImage d = m_cone->project(camera);
+    std::optional<core::DetectorImage> onGpu =
+        m_gpu ? castConeOnGpu(camera, m_cone->options()) : std::nullopt;
+    m_coneOnGpu = onGpu.has_value();
+    core::DetectorImage d = onGpu ? std::move(*onGpu) : m_cone->project(camera);
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     core::ProjectionImage img;
@@ -40,6 +44,27 @@ void ProjectionView::renderConeFrame(int M) {
     m_stats.inverseMs = 0.0;
     m_stats.totalMs = ms;
     m_stats.fused = m_stats.displayFused = false;
+}
+
+std::optional<core::DetectorImage> ProjectionView::castConeOnGpu(
+    const core::ConeCamera& camera, const core::ConeProjectorOptions& options) {
+    if (options.model == core::RayModel::BSpline) return std::nullopt; // CPU only
+    try {
+        if (!m_gpuCone || m_gpuConeVolume != m_volume.get() ||
+            m_gpuCone->options().mapping != options.mapping ||
+            m_gpuCone->options().model != options.model) {
+            m_gpuCone.reset(); // the old one's GPU memory first
+            m_gpuCone = std::make_unique<gpu::ConeRayCaster>(*m_volume, options);
+            m_gpuConeVolume = m_volume.get();
+        }
+        return m_gpuCone->project(camera);
+    } catch (const std::exception& e) {
+        // Too large for a 3D texture, out of GPU memory, a shader the driver refuses: the CPU.
+        m_gpuCone.reset();
+        m_gpuConeVolume = nullptr;
+        m_notice = tr("Cone beam on the CPU: %1").arg(QString::fromUtf8(e.what()));
+        return std::nullopt;
+    }
 }
 
 void ProjectionView::dragCArm(const QPoint& delta) {

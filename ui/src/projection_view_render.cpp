@@ -8,6 +8,7 @@
 
 #include <fvr/core/xray/display_window.h>
 #include <fvr/gpu/choose_renderer.h>
+#include <fvr/gpu/cone_ray_caster.h>
 #include <fvr/gpu/gpu_renderer.h>
 #include <fvr/ui/projection_view.h>
 
@@ -15,6 +16,8 @@ namespace fvr::ui {
 
 void ProjectionView::chooseRenderer() {
     m_gpu.reset();
+    m_gpuCone.reset();
+    m_gpuConeVolume = nullptr;
     m_polyGpu.clear();
     m_polyGpuSpectra.clear();
     m_polyOnGpu = false;

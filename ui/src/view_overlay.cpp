@@ -120,9 +120,10 @@ QStringList ViewOverlay::performanceLines() const {
     QStringList lines;
     if (!m_s.coneGeometry.isEmpty()) {
         // The cone beam is ray cast on the CPU: no kernel, no spectrum's effects.
-        lines << tr("%1  cone beam  %2×%2  CPU  %3 ray casting")
+        lines << tr("%1  cone beam  %2×%2  %3  %4 ray casting")
                      .arg(speed())
                      .arg(m_s.shown.size)
+                     .arg(m_s.gpu ? QStringLiteral("GPU") : QStringLiteral("CPU"))
                      .arg(QString::fromUtf8(core::rayModelName(m_s.rayModel)));
         lines << m_s.coneGeometry;
         if (m_s.progressive && m_s.level > 0)

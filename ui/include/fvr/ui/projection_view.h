@@ -23,6 +23,7 @@ class QOpenGLTexture;
 class QOpenGLVertexArrayObject;
 
 namespace fvr::gpu {
+class ConeRayCaster;
 class GpuFourierRenderer;
 struct GpuStageTimes;
 } // namespace fvr::gpu
@@ -168,6 +169,10 @@ private:
     /** A cone-beam frame of M x M on the CPU (the C-arm of the view frame), as a projection
      *  image whose pixel size is the detector's pitch at the isocentre. */
     void renderConeFrame(int M);
+    /** The frame on the GPU (context current, the view renders there); nothing where it cannot
+     *  (the B-spline model, a volume too large: the CPU casts it, the notice says why). */
+    std::optional<core::DetectorImage> castConeOnGpu(const core::ConeCamera& camera,
+                                                     const core::ConeProjectorOptions& options);
     bool coneBeam() const { return m_settings.projection == ProjectionKind::Cone; }
     /** A rotation drag on a cone-beam view: horizontal moves the primary angle (to the right:
      *  toward LAO), vertical the secondary (up: toward cranial). */
@@ -228,6 +233,11 @@ private:
     std::unique_ptr<gpu::GpuFourierRenderer> m_gpu;
     std::unique_ptr<core::CpuFourierRenderer> m_cpu;
     std::unique_ptr<core::ConeProjector> m_cone; ///< made for the volume, mapping and ray model
+    /** The cone beam on the GPU where the view renders there (its GL objects: released with
+     *  the context current), for the volume m_gpuConeVolume. */
+    std::unique_ptr<gpu::ConeRayCaster> m_gpuCone;
+    const core::Volume* m_gpuConeVolume = nullptr;
+    bool m_coneOnGpu = false; ///< the last cone-beam frame was cast on the GPU
     std::optional<core::ProjectionImage> m_cpuImage; // CPU path / difference mode
     std::shared_ptr<const PolychromaticSource> m_poly;
     std::unique_ptr<core::PolychromaticRenderer> m_polyRenderer;
