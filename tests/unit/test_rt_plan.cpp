@@ -185,4 +185,36 @@ TEST(RtPlan, OtherObjectsAreRefusedSayingWhatTheyAre) {
     EXPECT_THROW(readRtPlan(text), LoadError);
 }
 
+TEST(RtPlan, ReadsPydicomsRtPlanTestFile) {
+    // A plan written by another tool: pydicom's test file (Debian's python3-pydicom ships it;
+    // packaging/install-deps.sh --tests installs it). Its values as dcmdump shows them.
+    const std::filesystem::path dir = "/usr/lib/python3/dist-packages/pydicom/data/test_files";
+    if (!std::filesystem::exists(dir / "rtplan.dcm"))
+        GTEST_SKIP() << dir / "rtplan.dcm"
+                     << " not found: install python3-pydicom (make test)";
+    const RtPlan plan = readRtPlan(dir / "rtplan.dcm");
+    EXPECT_EQ(plan.label, "Plan1");
+    ASSERT_EQ(plan.beams.size(), 1u);
+    const RtPlanBeam& b = plan.beams[0];
+    EXPECT_EQ(b.number, 1);
+    EXPECT_EQ(b.name, "Field 1");
+    EXPECT_EQ(b.deliveryType, "TREATMENT");
+    EXPECT_EQ(b.beam.sad, 1000.0);
+    EXPECT_TRUE(b.sadStated);
+    EXPECT_EQ(b.beam.gantryDeg, 0.0);
+    EXPECT_EQ(b.beam.collimatorDeg, 0.0);
+    EXPECT_EQ(b.beam.couchDeg, 0.0);
+    EXPECT_EQ(b.beam.isocentre, glm::dvec3(235.711172833292, 244.135437110782, -724.97815409918));
+    EXPECT_EQ(b.beam.position, PatientPosition::HFS);
+    EXPECT_TRUE(plan.warnings.empty());
+    // Its truncated copy ends inside IsocenterPosition: refused, naming the file.
+    try {
+        readRtPlan(dir / "rtplan_truncated.dcm");
+        ADD_FAILURE() << "a truncated plan was read";
+    } catch (const LoadError& e) {
+        expectHas(e.what(), (dir / "rtplan_truncated.dcm").string());
+        expectHas(e.what(), "not a readable DICOM file");
+    }
+}
+
 } // namespace
