@@ -699,7 +699,8 @@ void declareConeCamera(CLI::App& app, ConeOptions& c) {
         [](double v) { return v >= -90 && v <= 90; }, "expected -90..90 degrees")
         ->group(g);
     addNumber(
-        app, "--sid", c.arm.sid, "MM", "source to detector distance (default 1000)",
+        app, "--sid", c.arm.sid, "MM",
+        "source to detector distance (default 1000; 1500 with --beam or --rtplan)",
         [](double v) { return v > 0; }, "expected a positive number of mm")
         ->group(g);
     addNumber(

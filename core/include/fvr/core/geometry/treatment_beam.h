@@ -10,10 +10,12 @@
  *   - IEC PATIENT SUPPORT (s): the fixed system turned by the couch (patient support) angle
  *     about Zf; the patient lies on it as PatientPosition (0018,5100) says.
  *  So a point p_b of the beam-limiting-device system lies in the patient support system at
- *  Rz(couch)^T Ry(gantry) Rz(collimator) p_b, and in patient LPS at I + M(position) (that), with
- *  M the patient's axes in the support system: HFS (head first supine) has the patient's left
- *  along +Xs, the head along +Ys and the anterior along +Zs, so gantry 0 is an AP beam (source
- *  anterior), gantry 90 a left lateral, 180 PA, 270 right lateral.
+ *  Rz(couch)^T Ry(gantry) Rz(collimator) p_b (SlicerRT's IEC transform chain has the same
+ *  signs: gantry RotateY(+g), collimator RotateZ(+c), patient support RotateZ(+couch)), and in
+ *  patient LPS at I + M(position) (that), with M the patient's axes in the support system: HFS
+ *  (head first supine) has the patient's left along +Xs, the head along +Ys and the anterior
+ *  along +Zs, so gantry 0 is an AP beam (source anterior), gantry 90 a left lateral, 180 PA,
+ *  270 right lateral.
  *
  *  The imager (a kV or MV panel opposite the source, SID from it) lies in the beam-limiting-
  *  device system: its centre at Zb = SAD - SID, its columns along +Xb and its rows along -Yb,
