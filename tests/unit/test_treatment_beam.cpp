@@ -7,11 +7,13 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <tuple>
 
 #include <gtest/gtest.h>
 
 #include <fvr/core/errors.h>
 #include <fvr/core/geometry/camera.h>
+#include <fvr/core/geometry/projection_matrix_file.h>
 #include <fvr/core/geometry/treatment_beam.h>
 #include <fvr/core/render/cone_projector.h>
 #include <fvr/core/xray/phantom.h>
@@ -184,6 +186,35 @@ TEST(TreatmentBeam, Gantry180IsTheAPCArmMirrored) {
         EXPECT_NEAR(a.x, 199.0 - c.x, 1e-9);
         EXPECT_NEAR(a.y, c.y, 1e-9);
         EXPECT_NEAR(a.z, c.z, 1e-9);
+    }
+}
+
+TEST(TreatmentBeam, AMatrixFileOfTheBeamsGivesTheSameCameras) {
+    // A third way in: the beams' P written to a projection-matrix file and read back rebuild
+    // the same source, detector and axes (the file fixes P up to a factor, and the pitch).
+    std::vector<ConeCamera> cams;
+    for (const auto& [g, c, k, pos] : {std::tuple{30.0, 10.0, 20.0, PatientPosition::HFS},
+                                       std::tuple{270.0, 350.0, 0.0, PatientPosition::FFS},
+                                       std::tuple{181.5, 0.0, 90.0, PatientPosition::HFP}}) {
+        TreatmentBeam b;
+        b.gantryDeg = g;
+        b.couchDeg = c;
+        b.collimatorDeg = k;
+        b.position = pos;
+        b.isocentre = {12, -40, 101};
+        cams.push_back(treatmentBeamCamera(b, 96, 64, 0.75, 0.75, glm::dvec2(2.5, -1.0)));
+    }
+    const auto path = fvr::test::tmpDir() / "treatment_beam_matrices.txt";
+    writeProjectionMatrixFile(path, cams);
+    const std::vector<ConeCamera> back = readProjectionMatrixFile(path);
+    ASSERT_EQ(back.size(), cams.size());
+    for (std::size_t i = 0; i < cams.size(); ++i) {
+        expectNear(back[i].source, cams[i].source, 1e-6);
+        expectNear(back[i].detectorCentre, cams[i].detectorCentre, 1e-6);
+        expectNear(back[i].u, cams[i].u, 1e-9);
+        expectNear(back[i].v, cams[i].v, 1e-9);
+        EXPECT_NEAR(back[i].principalOffset.x, 2.5, 1e-9);
+        EXPECT_NEAR(back[i].principalOffset.y, -1.0, 1e-9);
     }
 }
 
