@@ -11,6 +11,7 @@
 
 #include <gtest/gtest.h>
 
+#include <fvr/core/dicom/dicom.h>
 #include <fvr/core/errors.h>
 #include <fvr/core/geometry/camera.h>
 #include <fvr/core/geometry/projection_matrix_file.h>
@@ -304,6 +305,63 @@ TEST(TreatmentBeamVsPlastimatch, BoxModelEqualsPlastimatchDrivenByItsOwnGantryAn
                         cmp.maxAbsError, cmp.peak);
             EXPECT_GE(cmp.psnr, 60.0) << "gantry " << b.gantryDeg;
         }
+    }
+}
+
+/** `in` averaged over b x b x 1 blocks (a smaller volume for plastimatch to read). */
+Volume downsampleXY(const Volume& in, int b) {
+    Volume out;
+    out.dims = {in.dims[0] / b, in.dims[1] / b, in.dims[2]};
+    out.spacing = {in.spacing[0] * b, in.spacing[1] * b, in.spacing[2]};
+    out.direction = in.direction;
+    out.units = in.units;
+    for (int c = 0; c < 3; ++c) { // the block's centre: (b - 1) / 2 voxels in
+        out.origin[c] = in.origin[c];
+        for (int a = 0; a < 2; ++a)
+            out.origin[c] += in.direction[a][c] * in.spacing[a] * (b - 1) / 2.0;
+    }
+    out.voxels.assign(std::size_t(out.voxelCount()), 0.0f);
+    for (std::int64_t k = 0; k < out.dims[2]; ++k)
+        for (std::int64_t j = 0; j < out.dims[1]; ++j)
+            for (std::int64_t i = 0; i < out.dims[0]; ++i) {
+                double sum = 0.0;
+                for (int dj = 0; dj < b; ++dj)
+                    for (int di = 0; di < b; ++di) sum += in.at(i * b + di, j * b + dj, k);
+                out.voxels[out.index(i, j, k)] = float(sum / (b * b));
+            }
+    return out;
+}
+
+TEST(TreatmentBeamVsPlastimatch, BoxModelEqualsPlastimatchOnAnHfsCTAtItsFourCardinalGantryAngles) {
+    if (const std::string why = fvr::test::plastimatchMissing(); !why.empty()) GTEST_SKIP() << why;
+    FVR_REQUIRE_DATA("dicom/ct_phantom_philips_512x512x140");
+    // A real CT scanned head first supine (its PatientPosition is HFS) with axial slices
+    // (ImageOrientationPatient 1\0\0\0\1\0): gantry 90 must look at its left side.
+    const Volume ct = downsampleXY(
+        loadDicomFolder(fvr::test::sharedData() / "dicom/ct_phantom_philips_512x512x140").volume,
+        4);
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b)
+            ASSERT_EQ(ct.direction[a][b], a == b ? 1.0 : 0.0) << "plastimatch's frame is LPS";
+    const glm::dvec3 iso = volumeCentre(ct) + glm::dvec3(10.0, -15.0, 20.0);
+    const double sad = 1000.0, sid = 1500.0;
+    const int size = 128;
+    const double pitch = framingPitch(ct, sid, sad, size, size);
+    const auto theirs =
+        plastimatchGantryDrrs(ct, iso, 4, 90.0, sad, sid, size, pitch,
+                              fvr::test::tmpDir() / "treatment_beam_plastimatch" / "philips");
+    ASSERT_EQ(theirs.size(), 4u);
+    ConeProjector ours(ct, {RayModel::Box});
+    for (int k = 0; k < 4; ++k) {
+        TreatmentBeam b;
+        b.gantryDeg = 90.0 - 90.0 * k;
+        b.isocentre = iso;
+        const DetectorImage img = ours.project(treatmentBeamCamera(b, size, size, pitch, pitch));
+        const auto cmp = fvr::test::compare(img.pixels, theirs[std::size_t(k)]);
+        std::printf("Philips CT 128x128x140 (HU), IEC gantry %g: %.1f dB (max error %.3g of peak "
+                    "%.4g)\n",
+                    b.gantryDeg, cmp.psnr, cmp.maxAbsError, cmp.peak);
+        EXPECT_GE(cmp.psnr, 60.0) << "gantry " << b.gantryDeg;
     }
 }
 
