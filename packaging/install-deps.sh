@@ -2,7 +2,8 @@
 # Installs what a fresh Debian 12 machine lacks to build and run FVR Workstation; with --tests,
 # also what only the tests need (make test): a real PACS (Orthanc; Debian starts its service,
 # which the tests never use: `systemctl disable --now orthanc` if you do not want it), pytest,
-# Dask and Zarr for the dataset tests, and plastimatch (the cone-beam box model's oracle).
+# Dask and Zarr for the dataset tests, plastimatch (the cone-beam box model's oracle) and pydicom
+# (its rtplan.dcm test file).
 # Non-interactive and idempotent: packages already present are not touched, apt is not even
 # called when nothing is missing. Uses sudo only when not running as root.
 set -euo pipefail
@@ -27,6 +28,7 @@ if [ "${1:-}" = "--tests" ]; then
     python3-pytest python3-distributed python3-zarr
     python3-hypothesis # the dataset manifest fuzz (tests/fuzz/fuzz_manifest.py)
     plastimatch # `plastimatch drr -i exact`: the oracle of the cone-beam box model's tests
+    python3-pydicom # its test file rtplan.dcm: a real RT Plan for the RT Plan reader's test
   )
 fi
 

@@ -40,11 +40,34 @@ std::vector<double> primaryAngles(const Options& o) {
 
 } // namespace
 
+std::vector<ConeView> beamViews(const Options& o, const Volume& volume) {
+    const ConeOptions& c = o.cone;
+    std::vector<RtPlanBeam> beams = c.planBeams;
+    if (c.beam) {
+        beams = {RtPlanBeam{}};
+        beams[0].beam = *c.beam;
+        beams[0].beam.isocentre = c.isocentre ? *c.isocentre : volumeCentre(volume);
+    }
+    const int width = c.width > 0 ? c.width : o.settings.size;
+    const int height = c.height > 0 ? c.height : o.settings.size;
+    std::vector<ConeView> views;
+    for (const RtPlanBeam& b : beams) {
+        double pitchU = c.pitchU, pitchV = c.pitchV;
+        if (!(pitchU > 0.0))
+            pitchU = pitchV = framingPitch(volume, b.beam.sid, b.beam.sad, width, height);
+        views.push_back(
+            {treatmentBeamCamera(b.beam, width, height, pitchU, pitchV, c.principalOffset),
+             std::nullopt, b});
+    }
+    return views;
+}
+
 std::vector<ConeView> coneViews(const Options& o, const Volume& volume,
                                 const std::vector<ConeCamera>& fileCameras) {
     std::vector<ConeView> views;
     for (const ConeCamera& camera : fileCameras) views.push_back({camera, std::nullopt});
     if (!views.empty()) return views;
+    if (o.cone.beams()) return beamViews(o, volume);
     const ConeOptions& c = o.cone;
     CArm arm = c.arm;
     arm.isocentre = c.isocentre ? *c.isocentre : volumeCentre(volume);
@@ -102,6 +125,8 @@ std::vector<ConeView> coneBenchViews(const ConeSession& s, const std::vector<Con
 int renderCone(const Options& asked, const Volume& volume,
                const std::vector<ConeCamera>& fileCameras) {
     const Options o = resolvedForVolume(asked, volume);
+    for (const auto& w : o.cone.planWarnings)
+        std::fprintf(stderr, "fvr-render: warning: %s: %s\n", o.cone.rtplan.c_str(), w.c_str());
     // Every view is checked against the volume before anything is rendered.
     const std::vector<ConeView> views = coneViews(o, volume, fileCameras);
     for (std::size_t i = 0; i < views.size(); ++i) {
@@ -127,6 +152,26 @@ namespace {
 
 Json vec3Json(const glm::dvec3& v) { return Json::array({v.x, v.y, v.z}); }
 
+/** A view's treatment beam: IEC 61217 angles, distances, isocentre, patient position, and the
+ *  plan's beam number and name (--rtplan). */
+Json treatmentBeamJson(const RtPlanBeam& b) {
+    Json j{{"convention", "IEC 61217; image seen from the source, columns +Xb, rows -Yb"},
+           {"gantry_angle_deg", b.beam.gantryDeg},
+           {"couch_angle_deg", b.beam.couchDeg},
+           {"collimator_angle_deg", b.beam.collimatorDeg},
+           {"sad_mm", b.beam.sad},
+           {"sid_mm", b.beam.sid},
+           {"isocenter_mm", vec3Json(b.beam.isocentre)},
+           {"patient_position", patientPositionName(b.beam.position)}};
+    if (b.number != 0 || !b.name.empty()) {
+        j["beam_number"] = b.number;
+        j["beam_name"] = b.name;
+        j["delivery_type"] = b.deliveryType;
+        j["sad_stated"] = b.sadStated;
+    }
+    return j;
+}
+
 } // namespace
 
 Json coneSettingsJson(const ConeSession& s) {
@@ -142,7 +187,8 @@ Json coneSettingsJson(const ConeSession& s) {
                 {"threads", s.threads},
                 {"flat_field", o.cone.flatField},
                 {"projection_matrix_file",
-                 o.cone.matrixFile.empty() ? Json(nullptr) : Json(o.cone.matrixFile)}};
+                 o.cone.matrixFile.empty() ? Json(nullptr) : Json(o.cone.matrixFile)},
+                {"rtplan", o.cone.rtplan.empty() ? Json(nullptr) : Json(o.cone.rtplan)}};
 }
 
 Json coneViewJson(const ConeView& view) {
@@ -154,6 +200,7 @@ Json coneViewJson(const ConeView& view) {
                       {"sid_mm", view.arm->sid},
                       {"sod_mm", view.arm->sod},
                       {"isocenter_mm", vec3Json(view.arm->isocentre)}};
+    if (view.beam) j["treatment_beam"] = treatmentBeamJson(*view.beam);
     const ProjectionMatrix p = c.matrix();
     Json rows = Json::array();
     for (const auto& r : p.rows) rows.push_back(Json::array({r.x, r.y, r.z, r.w}));

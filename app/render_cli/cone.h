@@ -6,6 +6,7 @@
 #include <optional>
 #include <vector>
 
+#include <fvr/core/dicom/rt_plan.h>
 #include <fvr/core/geometry/camera.h>
 #include <fvr/core/render/cone_projector.h>
 #include <fvr/core/volume.h>
@@ -15,19 +16,28 @@
 
 namespace fvr::cli {
 
-/** One cone-beam view: its camera, and the C-arm that placed it (none from a matrix file). */
+/** One cone-beam view: its camera, and the C-arm or the treatment beam that placed it (none
+ *  from a matrix file). */
 struct ConeView {
     core::ConeCamera camera;
     std::optional<core::CArm> arm;
+    /** --beam (number 0, no name) or one beam of --rtplan. */
+    std::optional<core::RtPlanBeam> beam;
 };
 
 /** The cameras of --projection-matrix (read before the input loads, so that its errors come
  *  first); empty without it. */
 std::vector<core::ConeCamera> readConeMatrixFile(const Options& o);
 
-/** The views: the matrix file's cameras, else the C-arm's (one, --sweep N: primary angles 360/N
- *  apart from --primary-angle, --orbit FROM:TO:N) about the isocentre (default: the volume's
- *  centre) with the detector's pitch (default: core::framingPitch). */
+/** The views of --beam or --rtplan's beams: the imager (--detector-size, --pitch, default
+ *  core::framingPitch at SAD and SID) about each beam's isocentre (--beam: --isocenter, else
+ *  the volume's centre). */
+std::vector<ConeView> beamViews(const Options& o, const core::Volume& volume);
+
+/** The views: the matrix file's cameras, the treatment beams' (beamViews), else the C-arm's (one,
+ * --sweep N: primary angles 360/N apart from --primary-angle, --orbit FROM:TO:N) about the
+ * isocentre (default: the volume's centre) with the detector's pitch (default: core::framingPitch).
+ */
 std::vector<ConeView> coneViews(const Options& o, const core::Volume& volume,
                                 const std::vector<core::ConeCamera>& fileCameras);
 

@@ -699,7 +699,8 @@ void declareConeCamera(CLI::App& app, ConeOptions& c) {
         [](double v) { return v >= -90 && v <= 90; }, "expected -90..90 degrees")
         ->group(g);
     addNumber(
-        app, "--sid", c.arm.sid, "MM", "source to detector distance (default 1000)",
+        app, "--sid", c.arm.sid, "MM",
+        "source to detector distance (default 1000; 1500 with --beam or --rtplan)",
         [](double v) { return v > 0; }, "expected a positive number of mm")
         ->group(g);
     addNumber(
@@ -798,6 +799,137 @@ void declareCone(CLI::App& app, ConeOptions& c) {
         ->group(g);
 }
 
+/** --rtplan: the plan's beams (only --beam-number's), each checked as a camera with the
+ *  imager at `sid`. */
+void readPlanBeams(ConeOptions& c, double sid) {
+    const core::RtPlan plan = core::readRtPlan(c.rtplan);
+    c.planWarnings = plan.warnings;
+    std::string numbers;
+    for (const core::RtPlanBeam& b : plan.beams) {
+        numbers += (numbers.empty() ? "" : ", ") + std::to_string(b.number);
+        if (c.beamNumber && b.number != *c.beamNumber) continue;
+        c.planBeams.push_back(b);
+        c.planBeams.back().beam.sid = sid;
+        try {
+            core::treatmentBeamCamera(c.planBeams.back().beam, 64, 64, 1.0, 1.0);
+        } catch (const SettingsError& e) {
+            throw SettingsError("--rtplan " + c.rtplan + ": beam number " +
+                                std::to_string(b.number) + ": " + e.what());
+        }
+    }
+    if (c.planBeams.empty())
+        throw SettingsError("--beam-number " + std::to_string(*c.beamNumber) + ": " + c.rtplan +
+                            " has no such beam (its beams: " + numbers + ")");
+}
+
+/** --beam GANTRY,COUCH,COLL: three finite angles in degrees; throws SettingsError. */
+glm::dvec3 parseBeamAngles(const std::string& s) {
+    const auto v = toVec3(s);
+    if (!v)
+        throw SettingsError("beam: expected GANTRY,COUCH,COLL in degrees (IEC 61217), found '" + s +
+                            "'");
+    return {(*v)[0], (*v)[1], (*v)[2]};
+}
+
+/** Treatment beams (IEC 61217, core/geometry/treatment_beam.h) as the cone-beam camera, from
+ *  the command line or an RT Plan (checked in checkBeam). */
+void declareBeam(CLI::App& app, ConeOptions& c) {
+    const std::string g = "Treatment beam (--geometry cone)";
+    app.add_option_function<std::string>(
+           "--beam",
+           [&c](const std::string& s) {
+               const glm::dvec3 a = parseBeamAngles(s);
+               c.beam = core::TreatmentBeam{};
+               c.beam->gantryDeg = a.x;
+               c.beam->couchDeg = a.y;
+               c.beam->collimatorDeg = a.z;
+           },
+           "a treatment beam instead of the C-arm: IEC 61217 gantry, couch (patient\n"
+           "support) and collimator angles in degrees; gantry 0 = source above the\n"
+           "couch (AP for HFS), 90 = source at the HFS patient's left. The image is\n"
+           "the imager's at --sid (default 1500) seen from the source (columns +Xb,\n"
+           "rows -Yb), about --isocenter (default: the volume's centre)")
+        ->check(coreCheck(parseBeamAngles))
+        ->option_text("G,C,K")
+        ->group(g);
+    addNumber(
+        app, "--sad", c.sad, "MM",
+        "with --beam: source to axis (isocentre) distance (default 1000)",
+        [](double v) { return v > 0; }, "expected a positive number of mm")
+        ->group(g);
+    addParsed(app, "--patient-position", c.patientPosition, core::parsePatientPosition, "POS",
+              "with --beam: how the patient lies on the couch, DICOM's codes HFS\n"
+              "(default), HFP, FFS, FFP, HFDL, HFDR, FFDL, FFDR")
+        ->group(g);
+    app.add_option("--rtplan", c.rtplan,
+                   "the beams of a DICOM RT Plan (each beam's first control point: angles,\n"
+                   "isocentre, SAD; the patient position of its setup), one view each in\n"
+                   "the plan's order, written as a stack; --sid is the imager's distance")
+        ->option_text("FILE")
+        ->group(g);
+    app.add_option_function<int>(
+           "--beam-number", [&c](int n) { c.beamNumber = n; },
+           "with --rtplan: only the beam of this Beam Number (300A,00C0)")
+        ->option_text("N")
+        ->group(g);
+}
+
+/** The beam options that need --geometry cone, and what each treatment-beam option replaces. */
+const std::vector<std::string> kBeamOptions = {"--beam", "--rtplan", "--beam-number", "--sad",
+                                               "--patient-position"};
+const std::vector<std::pair<std::string, std::string>> kBeamReplaces = {
+    {"--primary-angle", "a C-arm angle"},
+    {"--secondary-angle", "a C-arm angle"},
+    {"--sod", "the beam's source-to-isocentre distance is --sad"},
+    {"--orbit", "a C-arm's arc"},
+    {"--sweep", "a C-arm's orbit"},
+    {"--projection-matrix", "the file fixes the camera"}};
+const std::vector<std::pair<std::string, std::string>> kPlanGives = {
+    {"--beam", "the plan gives the beams"},
+    {"--sad", "the plan gives each beam's SAD"},
+    {"--isocenter", "the plan gives each beam's isocentre"},
+    {"--patient-position", "the plan's patient setup gives it"}};
+
+/** The treatment beam's checks, and the RT Plan read, before any input loads. */
+void checkBeam(const CLI::App& app, Options& o) {
+    ConeOptions& c = o.cone;
+    if (!c.enabled) {
+        for (const auto& name : kBeamOptions)
+            if (app.count(name) > 0) throw SettingsError(name + ": only with --geometry cone");
+        return;
+    }
+    if (!c.beams()) {
+        for (const auto& name : {"--sad", "--patient-position"})
+            if (app.count(name) > 0) throw SettingsError(std::string(name) + ": only with --beam");
+        if (app.count("--beam-number") > 0)
+            throw SettingsError("--beam-number: only with --rtplan");
+        return;
+    }
+    const std::string way = c.beam ? "--beam" : "--rtplan";
+    for (const auto& [name, why] : kBeamReplaces)
+        if (app.count(name) > 0) throw SettingsError(name + ": not with " + way + " (" + why + ")");
+    if (!c.rtplan.empty()) {
+        for (const auto& [name, why] : kPlanGives)
+            if (app.count(name) > 0)
+                throw SettingsError(name + ": not with --rtplan (" + why + ")");
+    } else if (app.count("--beam-number") > 0) {
+        throw SettingsError("--beam-number: only with --rtplan");
+    }
+    const double sid = app.count("--sid") > 0 ? c.arm.sid : 1500.0;
+    if (c.beam) {
+        c.beam->sad = c.sad;
+        c.beam->sid = sid;
+        c.beam->position = c.patientPosition;
+        try { // the beam's own checks (SAD < SID, finite angles) now
+            core::treatmentBeamCamera(*c.beam, 64, 64, 1.0, 1.0);
+        } catch (const SettingsError& e) {
+            throw SettingsError(std::string("--beam: ") + e.what());
+        }
+        return;
+    }
+    readPlanBeams(c, sid);
+}
+
 /** The options that only cone beam takes. */
 const std::vector<std::string> kConeOnly = {
     "--primary-angle", "--secondary-angle", "--sid",
@@ -842,6 +974,7 @@ const std::vector<std::string> kMatrixFixes = {
 /** The cone-beam checks that need the parsed command line: cone options without --geometry
  *  cone, parallel options with it, and the camera's own checks (before any input loads). */
 void checkGeometry(const CLI::App& app, Options& o) {
+    checkBeam(app, o);
     const ConeOptions& c = o.cone;
     if (!c.enabled) {
         for (const auto& name : kConeOnly)
@@ -874,7 +1007,7 @@ void checkGeometry(const CLI::App& app, Options& o) {
                             "--beer-lambert");
     if (c.model == core::RayModel::Box && app.count("--step") > 0)
         throw SettingsError("--step: not with --ray-model box (exact path lengths, no step)");
-    if (c.matrixFile.empty()) {
+    if (c.matrixFile.empty() && !c.beams()) {
         // The C-arm's own checks (SOD < SID) now; the isocentre and a default pitch follow
         // from the volume and cannot make it fail.
         core::CArm arm = c.arm;
@@ -943,6 +1076,7 @@ void declareAll(CLI::App& app, Parsing& p) {
     declareBenchmark(app, p.o);
     declarePacs(app, p.o);
     declareCone(app, p.o.cone);
+    declareBeam(app, p.o.cone);
 }
 
 /** The options of a parsed command line (the options counted by CLI11 resolved). */

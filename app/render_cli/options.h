@@ -6,7 +6,9 @@
 #include <string>
 #include <vector>
 
+#include <fvr/core/dicom/rt_plan.h>
 #include <fvr/core/geometry/camera.h>
+#include <fvr/core/geometry/treatment_beam.h>
 #include <fvr/core/io/volume_io.h>
 #include <fvr/core/pacs/pacs.h>
 #include <fvr/core/render/cone_projector.h>
@@ -38,6 +40,19 @@ struct ConeOptions {
     /** --orbit FROM:TO:N: N primary angles from FROM to TO inclusive. */
     std::optional<double> orbitFrom, orbitTo;
     int orbitViews = 0;
+    /** Treatment beams (IEC 61217) instead of the C-arm (options.cpp, declareBeam): --beam
+     *  GANTRY,COUCH,COLL with --sad and --patient-position, or the beams of --rtplan FILE
+     *  (--beam-number N: that one only; read before the input loads). --sid is the imager's
+     *  distance from the source, 1500 mm unless given; the isocentre the plan's, else
+     *  --isocenter, else the volume's centre. */
+    std::optional<core::TreatmentBeam> beam; ///< resolved from the four options below
+    double sad = 1000.0; ///< --sad
+    core::PatientPosition patientPosition = core::PatientPosition::HFS; ///< --patient-position
+    std::string rtplan;
+    std::optional<int> beamNumber;
+    std::vector<core::RtPlanBeam> planBeams; ///< the beams to render, from --rtplan
+    std::vector<std::string> planWarnings; ///< what the reader assumed (said when rendering)
+    bool beams() const { return beam.has_value() || !rtplan.empty(); }
 };
 
 /** Output file formats, from the extension of --out. */
