@@ -752,6 +752,36 @@ void declareConeCamera(CLI::App& app, ConeOptions& c) {
         ->group(g);
 }
 
+/** --geometry-from and --frame: the camera of an X-ray (checked in checkGeometryFrom). */
+void declareConeFromXray(CLI::App& app, ConeOptions& c) {
+    const std::string g = "Cone beam (--geometry cone)";
+    app.add_option("--geometry-from", c.geometryFrom,
+                   "the camera of a DICOM X-ray (XA, RF, DX, CR: its C-arm angles, SID, SOD,\n"
+                   "detector size and pitch) instead of the C-arm options; the isocentre is\n"
+                   "the file's where it states one (a DRR fvr wrote), else --isocenter,\n"
+                   "else the volume's centre")
+        ->option_text("XRAY.dcm")
+        ->group(g);
+    app.add_option_function<std::string>(
+           "--frame",
+           [&c](const std::string& s) {
+               c.allFrames = s == "all";
+               if (!c.allFrames) c.frame = *core::parseNumber<int>(s);
+           },
+           "with --geometry-from: the frame whose C-arm places the view, 0-based\n"
+           "(default 0), or all (every frame's, one view each)")
+        ->check(CLI::Validator(
+            [](std::string& s) -> std::string {
+                const auto k = core::parseNumber<int>(s);
+                return s == "all" || (k && *k >= 0)
+                           ? ""
+                           : "expected a frame number 0, 1, ... or all, found '" + s + "'";
+            },
+            ""))
+        ->option_text("K|all")
+        ->group(g);
+}
+
 void declareCone(CLI::App& app, ConeOptions& c) {
     const std::string g = "Cone beam (--geometry cone)";
     app.add_option_function<std::string>(
@@ -762,6 +792,7 @@ void declareCone(CLI::App& app, ConeOptions& c) {
         ->option_text("parallel|cone")
         ->group(g);
     declareConeCamera(app, c);
+    declareConeFromXray(app, c);
     addParsed(app, "--ray-model", c.model, core::parseRayModel, "M",
               "trilinear (default; exact per cell) | bspline (cubic B-spline, sampled)\n"
               "| box (voxels as cubes, exact path lengths: plastimatch drr -i exact)")
@@ -804,7 +835,7 @@ const std::vector<std::string> kConeOnly = {
     "--sod",           "--isocenter",       "--detector-size",
     "--pitch",         "--principal-point", "--ray-model",
     "--step",          "--flat-field",      "--projection-matrix",
-    "--orbit"};
+    "--orbit",         "--geometry-from",   "--frame"};
 
 /** The options that only the parallel (Fourier) renderers take, and why not in cone beam. */
 const std::vector<std::pair<std::string, std::string>> kParallelOnly = {
@@ -839,6 +870,29 @@ const std::vector<std::string> kMatrixFixes = {
     "--isocenter",       "--detector-size",   "--pitch", "--size",
     "--principal-point", "--orbit",           "--sweep"};
 
+/** The options --geometry-from replaces: the X-ray's C-arm and detector fix the camera
+ *  (--isocenter stays: the isocentre where the file states none). */
+const std::vector<std::string> kXrayFixes = {
+    "--primary-angle", "--secondary-angle", "--sid",  "--sod",
+    "--detector-size", "--pitch",           "--size", "--orbit",
+    "--sweep",         "--principal-point"};
+
+/** --geometry-from against the options it replaces, and --frame without it. */
+void checkGeometryFrom(const CLI::App& app, const ConeOptions& c) {
+    if (c.geometryFrom.empty()) {
+        if (app.count("--frame") > 0)
+            throw SettingsError("--frame: only with --geometry-from XRAY.dcm");
+        return;
+    }
+    if (!c.matrixFile.empty())
+        throw SettingsError("--geometry-from: not with --projection-matrix (one or the other "
+                            "gives the camera)");
+    for (const auto& name : kXrayFixes)
+        if (app.count(name) > 0)
+            throw SettingsError(name + ": not with --geometry-from (the X-ray's C-arm and "
+                                       "detector fix the camera)");
+}
+
 /** The cone-beam checks that need the parsed command line: cone options without --geometry
  *  cone, parallel options with it, and the camera's own checks (before any input loads). */
 void checkGeometry(const CLI::App& app, Options& o) {
@@ -854,9 +908,7 @@ void checkGeometry(const CLI::App& app, Options& o) {
     if (o.backend == Options::Backend::Gpu)
         throw SettingsError("--backend gpu: not with --geometry cone (the cone-beam ray caster "
                             "runs on the CPU)");
-    if (o.format == OutputFormat::Dicom)
-        throw SettingsError("--out: cone-beam DICOM output is not implemented yet (write .npy, "
-                            ".pfm or .png; the sidecar FILE.json records the camera)");
+    checkGeometryFrom(app, c);
     if (!c.matrixFile.empty())
         for (const auto& name : kMatrixFixes)
             if (app.count(name) > 0)
@@ -874,7 +926,7 @@ void checkGeometry(const CLI::App& app, Options& o) {
                             "--beer-lambert");
     if (c.model == core::RayModel::Box && app.count("--step") > 0)
         throw SettingsError("--step: not with --ray-model box (exact path lengths, no step)");
-    if (c.matrixFile.empty()) {
+    if (c.matrixFile.empty() && c.geometryFrom.empty()) {
         // The C-arm's own checks (SOD < SID) now; the isocentre and a default pitch follow
         // from the volume and cannot make it fail.
         core::CArm arm = c.arm;

@@ -38,6 +38,11 @@ struct ConeOptions {
     /** --orbit FROM:TO:N: N primary angles from FROM to TO inclusive. */
     std::optional<double> orbitFrom, orbitTo;
     int orbitViews = 0;
+    /** --geometry-from XRAY.dcm: the camera of an X-ray's frame (its C-arm, detector and pitch)
+     *  instead of the C-arm options; --frame K (0-based, default 0) or --frame all. */
+    std::string geometryFrom;
+    int frame = 0;
+    bool allFrames = false;
 };
 
 /** Output file formats, from the extension of --out. */
