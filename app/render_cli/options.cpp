@@ -432,7 +432,8 @@ void declareOutput(CLI::App& app, Options& o) {
            },
            ".npy (float32 line integrals, shape (M, M), row 0 at the top; several\n"
            "views: one stacked (N, M, M) file), .pfm (float, rows bottom-to-top),\n"
-           ".png (display-mapped, auto window), .dcm (DICOM secondary capture);\n"
+           ".png (display-mapped, auto window), .dcm (DICOM secondary capture;\n"
+           "--geometry cone: X-ray angiographic, carrying the C-arm; a run: one file);\n"
            "several views and .pfm/.png/.dcm: FILE_0000.ext, FILE_0001.ext, ...\n"
            "A JSON sidecar FILE.json records every parameter and view. The files land\n"
            "together or not at all: an interrupted or failed run leaves an earlier run's\n"
@@ -862,7 +863,8 @@ const std::vector<std::pair<std::string, std::string>> kParallelOnly = {
     {"--band-limit", "a Fourier rendering setting"},
     {"--fp16", "the cone-beam ray caster runs on the CPU"},
     {"--kvp", "polychromatic cone beam is not implemented yet"},
-    {"--send", "cone-beam DICOM output is not implemented yet"}};
+    {"--send", "not implemented for cone beam yet: write --out FILE.dcm, an X-ray that "
+               "carries its C-arm, and send that"}};
 
 /** The options --projection-matrix replaces (the file fixes the camera). */
 const std::vector<std::string> kMatrixFixes = {
