@@ -327,6 +327,16 @@ TEST(FvrRenderConeDicom, BadGeometryFromIsRefusedBeforeTheInputLoads) {
         EXPECT_EQ(r.output.find("/no/such/volume.mhd"), std::string::npos)
             << args << ": " << r.output;
     }
+    // A CT slice of the shared data: no projection X-ray, said with its modality.
+    const std::filesystem::path ct = std::filesystem::path(FVR_SHARED_DATA_DIR) / "dicom" /
+                                     "ct_phantom_philips_512x512x140_jpeg_lossless" / "I1180";
+    if (std::filesystem::exists(ct)) {
+        const Result r = run(none + "--geometry-from " + ct.string());
+        EXPECT_EQ(r.status, 2) << r.output;
+        EXPECT_NE(r.output.find(ct.string() + ": Modality (0008,0060) 'CT'"), std::string::npos)
+            << r.output;
+        EXPECT_NE(r.output.find("is not a projection X-ray"), std::string::npos) << r.output;
+    }
     const Result parallel = run("/no/such/volume.mhd --geometry-from " + dcm + " --out x.npy");
     EXPECT_EQ(parallel.status, 2);
     EXPECT_NE(parallel.output.find("--geometry-from: only with --geometry cone"), std::string::npos)
