@@ -180,16 +180,21 @@ TEST(FvrRenderConeDicom, AnOrbitRunIsOneMultiFrameXaAndEachFrameRendersItsView) 
         EXPECT_LT(matrixDifference(sidecar(ref)["views"][k], sidecar(all)["views"][k]), 1e-6) << k;
 }
 
-/** A projection-matrix file of one view: P of `camera`. */
-std::string matrixFile(const std::string& name, const fvr::core::ConeCamera& camera) {
+/** A projection-matrix file: P of each camera (one detector and pitch, the first's). */
+std::string matrixFile(const std::string& name, const std::vector<fvr::core::ConeCamera>& cameras) {
     const std::string path = tmp(name);
     std::ofstream m(path);
     m.precision(17);
-    m << "detector " << camera.width << " " << camera.height << "\npitch " << camera.pitchU << " "
-      << camera.pitchV << "\n";
-    for (const auto& row : camera.matrix().rows)
-        m << row.x << " " << row.y << " " << row.z << " " << row.w << "\n";
+    const fvr::core::ConeCamera& c = cameras.front();
+    m << "detector " << c.width << " " << c.height << "\npitch " << c.pitchU << " " << c.pitchV
+      << "\n";
+    for (const auto& camera : cameras)
+        for (const auto& row : camera.matrix().rows)
+            m << row.x << " " << row.y << " " << row.z << " " << row.w << "\n";
     return path;
+}
+std::string matrixFile(const std::string& name, const fvr::core::ConeCamera& camera) {
+    return matrixFile(name, std::vector<fvr::core::ConeCamera>{camera});
 }
 
 TEST(FvrRenderConeDicom, AMatrixCameraIsWrittenAsItsCArmAndARolledOneIsRefused) {
@@ -229,6 +234,37 @@ TEST(FvrRenderConeDicom, AMatrixCameraIsWrittenAsItsCArmAndARolledOneIsRefused) 
                   " --out " + tmp("rolled.npy"))
                   .status,
               0);
+}
+
+TEST(FvrRenderConeDicom, MatrixViewsMakeOneRunOnlyWhereOnlyTheirAnglesDiffer) {
+    using namespace fvr::core;
+    // Two views of one C-arm about the volume's centre: one two-frame XA.
+    CArm a{10.0, 5.0, 1000.0, 750.0, glm::dvec3(0.0)}, b = a;
+    b.primaryDeg = 40.0;
+    const std::string run2 = tmp("matrix_run.dcm");
+    Result r = run(
+        "phantom:chest:32 --geometry cone --projection-matrix " +
+        matrixFile("run.txt", {cArmCamera(a, 32, 24, 4.0, 4.0), cArmCamera(b, 32, 24, 4.0, 4.0)}) +
+        " --out " + run2);
+    ASSERT_EQ(r.status, 0) << r.output;
+    const XrayGeometry g = readXrayGeometry(run2, false);
+    ASSERT_EQ(g.frames.size(), 2u);
+    EXPECT_NEAR(g.frames[1].primaryDeg, 40.0, 1e-9);
+    EXPECT_NEAR(g.frames[1].secondaryDeg, 5.0, 1e-9);
+    // The second at another SID: two single-frame files, each with its own.
+    b.sid = 1200.0;
+    const std::string two = tmp("matrix_two.dcm");
+    r = run(
+        "phantom:chest:32 --geometry cone --projection-matrix " +
+        matrixFile("two.txt", {cArmCamera(a, 32, 24, 4.0, 4.0), cArmCamera(b, 32, 24, 4.0, 4.0)}) +
+        " --out " + two);
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_EQ(sidecar(two)["output"]["files"],
+              Json::array({tmp("matrix_two_0000.dcm"), tmp("matrix_two_0001.dcm")}));
+    EXPECT_NEAR(readXrayGeometry(tmp("matrix_two_0000.dcm"), false).frames[0].sid, 1000.0, 1e-9);
+    const XrayGeometry second = readXrayGeometry(tmp("matrix_two_0001.dcm"), false);
+    EXPECT_NEAR(second.frames[0].sid, 1200.0, 1e-9);
+    EXPECT_NEAR(second.frames[0].primaryDeg, 40.0, 1e-9);
 }
 
 TEST(FvrRenderConeDicom, WhatWeWritePassesDciodvfy) {
