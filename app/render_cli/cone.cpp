@@ -123,9 +123,11 @@ int renderCone(const Options& asked, const Volume& volume, const ConeFiles& file
     ConeProjector projector(volume, coneProjectorOptions(o));
     const double prepareMs =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    // A .dcm output's C-arms before any rendering: a matrix-file camera may have none.
-    const ConeDicom dicom =
-        !o.out.empty() && o.format == OutputFormat::Dicom ? coneDicom(volume, views) : ConeDicom{};
+    // The C-arms of a .dcm output or --send before any rendering: a matrix-file camera may
+    // have none.
+    const ConeDicom dicom = !o.out.empty() && (o.format == OutputFormat::Dicom || !o.send.empty())
+                                ? coneDicom(volume, views)
+                                : ConeDicom{};
     const ConeSession s{
         o,      volume,    projector, prepareMs, o.threads > 0 ? o.threads : hardwareThreads(),
         &files, exportInfo};

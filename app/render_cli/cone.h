@@ -54,8 +54,8 @@ struct ConeDicom {
     std::vector<core::CArm> arms;
     bool run = false;
 };
-/** The C-arms of the views, before anything renders: SettingsError naming the view whose camera
- *  no C-arm has (cone_xray.cpp). */
+/** The C-arms of the views (for a .dcm output or --send), before anything renders:
+ *  SettingsError naming the view whose camera no C-arm has (cone_xray.cpp). */
 ConeDicom coneDicom(const core::Volume& volume, const std::vector<ConeView>& views);
 
 /** The views: the matrix file's cameras, the X-ray's (xrayViews), else the C-arm's (one,

@@ -107,9 +107,10 @@ ConeDicom coneDicom(const Volume& volume, const std::vector<ConeView>& views) {
             d.arms.push_back(cArmFromCamera(views[i].camera, centre));
         } catch (const SettingsError& e) {
             throw SettingsError(
-                "--out: a .dcm output is an X-ray image, which holds a C-arm's geometry only: " +
+                "a cone-beam DICOM output (--out FILE.dcm, --send) is an X-ray image, which holds "
+                "a C-arm's geometry only: " +
                 (views.size() > 1 ? "view " + std::to_string(i) + ": " : std::string()) + e.what() +
-                " (write .npy, .pfm or .png; the sidecar records the camera)");
+                " (write .npy, .pfm or .png, without --send; the sidecar records the camera)");
         }
     }
     d.run = views.size() > 1;

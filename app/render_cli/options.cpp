@@ -619,7 +619,8 @@ void declarePacs(CLI::App& app, Options& o) {
         ->group(g);
     app.add_option("--send", o.send,
                    "store every output view as DICOM Secondary Capture on this PACS\n"
-                   "(C-STORE), e.g. dicom://ORTHANC@pacs:4242")
+                   "(C-STORE), e.g. dicom://ORTHANC@pacs:4242 (--geometry cone: X-ray\n"
+                   "angiographic, carrying the C-arm: a .dcm output's files as written)")
         ->option_text("URL")
         ->group(g);
     app.add_option("--pacs-timeout", o.pacsTimeout,
@@ -862,9 +863,7 @@ const std::vector<std::pair<std::string, std::string>> kParallelOnly = {
     {"--sharpen-radius", "a Fourier rendering setting"},
     {"--band-limit", "a Fourier rendering setting"},
     {"--fp16", "the cone-beam ray caster runs on the CPU"},
-    {"--kvp", "polychromatic cone beam is not implemented yet"},
-    {"--send", "not implemented for cone beam yet: write --out FILE.dcm, an X-ray that "
-               "carries its C-arm, and send that"}};
+    {"--kvp", "polychromatic cone beam is not implemented yet"}};
 
 /** The options --projection-matrix replaces (the file fixes the camera). */
 const std::vector<std::string> kMatrixFixes = {

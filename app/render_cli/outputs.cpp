@@ -169,15 +169,20 @@ public:
         core::checkFiniteImage(img); // never a NaN in a file
         addPixels(i, img.pixels, &img);
     }
-    /** A cone-beam view (no --send: the options refuse it). */
+    /** A cone-beam view: as its format says, and for --send as an X-ray of its C-arm. */
     void add(std::size_t i, DetectorImage& img) {
         for (float v : img.pixels)
             if (!std::isfinite(v))
                 throw RenderError("a cone-beam view holds a value that is not finite");
-        if (m_o.format == OutputFormat::Dicom && m_coneDicom)
+        if (m_o.format == OutputFormat::Dicom && m_coneDicom) {
             addConeDicom(i, img);
-        else
-            addPixels(i, img.pixels, nullptr);
+            return;
+        }
+        addPixels(i, img.pixels, nullptr); // the pixels now as written (transmission)
+        if (!m_o.send.empty() && m_coneDicom) { // --send: the view as an X-ray of its C-arm
+            m_toSend.push_back(sendPath(i));
+            writeXrayDicom(m_toSend.back(), img, m_coneDicom->arms.at(i), m_exportInfo);
+        }
     }
 
     /** Cone-beam views written as X-ray images carrying `dicom`'s C-arms (set before the first
@@ -201,6 +206,7 @@ public:
         const std::string path = m_count > 1 ? numberedPath(m_o.out, i) : m_o.out;
         finalNamesOnError([&] { writeXrayDicom(m_files.staged(path), img, arm, m_exportInfo); });
         m_written.push_back(path);
+        if (!m_o.send.empty()) m_toSend.emplace_back(path); // sent after the commit
     }
 
     /** The line integrals in `pixels` (transmission where --beer-lambert asks for it) written
@@ -239,12 +245,17 @@ public:
     /** --send: the DICOM outputs themselves, else a Secondary Capture of each view written
      *  into a temporary folder (removed with the writer). */
     void addToSend(std::size_t i, const std::string& path, const ProjectionImage* img) {
-        if (m_o.send.empty()) return;
+        if (m_o.send.empty() || (!img && m_coneDicom)) return; // a cone-beam view: add()
         if (!img) throw RenderError("--send: no DICOM for this view"); // refused by the options
         if (m_o.format == OutputFormat::Dicom) {
             m_toSend.emplace_back(path);
             return;
         }
+        m_toSend.push_back(sendPath(i));
+        writeDicomProjection(m_toSend.back(), *img, m_exportInfo);
+    }
+    /** Where view i's DICOM for --send is written when the output is not DICOM. */
+    std::filesystem::path sendPath(std::size_t i) {
         if (m_sendDir.empty()) {
             // Its own temporary folder (several runs in one process, the Python module's, may
             // send at once); those of runs that died are removed first.
@@ -253,8 +264,7 @@ public:
             m_sendDir = tmp / temporaryName(kSendFolder);
             std::filesystem::create_directories(m_sendDir);
         }
-        m_toSend.push_back(m_sendDir / ("view_" + std::to_string(i) + ".dcm"));
-        writeDicomProjection(m_toSend.back(), *img, m_exportInfo);
+        return m_sendDir / ("view_" + std::to_string(i) + ".dcm");
     }
     const std::vector<std::filesystem::path>& toSend() const { return m_toSend; }
 
@@ -269,6 +279,7 @@ public:
                 writeXrayDicomRun(m_files.staged(m_o.out), m_run, m_coneDicom->arms, m_exportInfo);
             });
             m_written.push_back(m_o.out);
+            if (!m_o.send.empty()) m_toSend.emplace_back(m_o.out);
         }
         if (!m_stacked) return;
         finalNamesOnError([&] { m_stack->finish(); });
@@ -467,7 +478,10 @@ void writeRun(const Options& o, std::size_t viewCount, int width, int height,
             [&] { writeFileAtomic(files.staged(o.out + ".json"), jsonText(json)); });
         files.commit(); // the images and their sidecar land together
         summary(writer.stacked(), msPerView);
-        if (!o.send.empty()) sendViews(o, writer.toSend());
+        if (!o.send.empty())
+            sendViews(o, writer.toSend(),
+                      o.cone.enabled ? "X-Ray Angiographic" : "Secondary Capture",
+                      o.cone.enabled ? "file" : "view");
     } catch (const Interrupted& e) {
         interrupted = e.what();
     }
@@ -499,7 +513,7 @@ void writeConeOutputs(const ConeSession& s, const std::vector<ConeView>& views,
     writeRun(
         o, views.size(), first.width, first.height, info,
         [&](ViewWriter& writer) {
-            if (o.format == OutputFormat::Dicom) writer.setConeDicom(dicom);
+            if (o.format == OutputFormat::Dicom || !o.send.empty()) writer.setConeDicom(dicom);
             // One view at a time: the projector runs each on every thread.
             return renderViews<DetectorImage>(
                 o, views.size(), 1,
