@@ -10,10 +10,12 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <tuple>
 #include <vector>
 
+#include <fvr/core/dicom/xray_geometry.h>
 #include <fvr/core/errors.h>
 #include <fvr/core/geometry/camera.h>
 #include <fvr/core/geometry/projection_matrix_file.h>
@@ -453,6 +455,41 @@ py::array_t<double> cameraProject(
     return out;
 }
 
+/** The camera of frame `frame` of a DICOM X-ray (core::readXrayGeometry), about the file's
+ *  isocentre where it states one, else `isocentre` (SettingsError where neither is), with the
+ *  reader's warnings and where the isocentre came from: (camera, warnings, "file"|"given"). */
+py::tuple xrayCamera(const std::string& path, long frame,
+                     const std::optional<core::Vec3>& isocentre) {
+    const core::XrayGeometry g = core::readXrayGeometry(path, false);
+    if (frame < 0 || std::size_t(frame) >= g.frames.size())
+        throw core::SettingsError(
+            "frame: " + std::to_string(frame) + " asked for, " + path + " has " +
+            std::to_string(g.frames.size()) + " frame" +
+            (g.frames.size() == 1 ? " (0)" : "s (0.." + std::to_string(g.frames.size() - 1) + ")"));
+    if (!g.isocentreStated && !isocentre)
+        throw core::SettingsError("isocenter: " + path +
+                                  " states no isocentre (no X-ray does, but a DRR fvr wrote): "
+                                  "give the isocentre (x, y, z in LPS mm), or a volume whose "
+                                  "centre it is");
+    const glm::dvec3 iso = isocentre ? toGlm(*isocentre) : glm::dvec3(0.0);
+    return py::make_tuple(g.camera(std::size_t(frame), iso), g.warnings,
+                          g.isocentreStated ? "file" : "given");
+}
+
+/** A DICOM X-ray's pixels (core::readXrayGeometry): float32 (H, W), or (n, H, W) for several
+ *  frames, and the reader's warnings. */
+py::tuple xrayPixels(const std::string& path) {
+    const core::XrayGeometry g = core::readXrayGeometry(path, true);
+    const auto n = py::ssize_t(g.frames.size()), h = py::ssize_t(g.height),
+               w = py::ssize_t(g.width);
+    py::array_t<float> out = n == 1 ? py::array_t<float>({h, w}) : py::array_t<float>({n, h, w});
+    if (g.pixels.size() != std::size_t(n * h * w))
+        throw core::LoadError(path + ": expected " + std::to_string(n * h * w) +
+                              " pixel values, read " + std::to_string(g.pixels.size()));
+    std::memcpy(out.mutable_data(), g.pixels.data(), g.pixels.size() * sizeof(float));
+    return py::make_tuple(out, g.warnings);
+}
+
 void bindCamera(py::module_& m) {
     using core::ConeCamera;
     py::class_<ConeCamera>(m, "Camera")
@@ -476,6 +513,8 @@ void bindCamera(py::module_& m) {
             },
             py::arg("matrix"), py::arg("width"), py::arg("height"), py::arg("pitch_u"),
             py::arg("pitch_v"))
+        .def_static("from_dicom", &xrayCamera, py::arg("path"), py::arg("frame"),
+                    py::arg("isocentre"))
         .def_static("read_matrix_file",
                     [](const std::string& path) { return core::readProjectionMatrixFile(path); })
         .def_property_readonly("source", [](const ConeCamera& c) { return fromGlm(c.source); })
@@ -503,6 +542,7 @@ void bindCamera(py::module_& m) {
             std::memcpy(out.mutable_data(), f.data(), f.size() * sizeof(float));
             return out;
         });
+    m.def("read_xray", &xrayPixels, py::arg("path"));
     m.def("volume_centre",
           [](const PyVolume& v) { return fromGlm(core::volumeCentre(*v.volume)); });
     m.def("framing_pitch", [](const PyVolume& v, double sid, double sod, int width, int height) {

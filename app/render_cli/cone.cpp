@@ -62,11 +62,18 @@ std::vector<ConeView> beamViews(const Options& o, const Volume& volume) {
     return views;
 }
 
-std::vector<ConeView> coneViews(const Options& o, const Volume& volume,
-                                const std::vector<ConeCamera>& fileCameras) {
+ConeFiles readConeFiles(const Options& o) {
+    ConeFiles files;
+    files.matrixCameras = readConeMatrixFile(o);
+    files.xray = readConeXray(o);
+    return files;
+}
+
+std::vector<ConeView> coneViews(const Options& o, const Volume& volume, const ConeFiles& files) {
     std::vector<ConeView> views;
-    for (const ConeCamera& camera : fileCameras) views.push_back({camera, std::nullopt});
+    for (const ConeCamera& camera : files.matrixCameras) views.push_back({camera, std::nullopt});
     if (!views.empty()) return views;
+    if (files.xray) return xrayViews(o, volume, *files.xray);
     if (o.cone.beams()) return beamViews(o, volume);
     const ConeOptions& c = o.cone;
     CArm arm = c.arm;
@@ -122,13 +129,13 @@ std::vector<ConeView> coneBenchViews(const ConeSession& s, const std::vector<Con
     return out;
 }
 
-int renderCone(const Options& asked, const Volume& volume,
-               const std::vector<ConeCamera>& fileCameras) {
+int renderCone(const Options& asked, const Volume& volume, const ConeFiles& files,
+               const DicomExportInfo& exportInfo) {
     const Options o = resolvedForVolume(asked, volume);
     for (const auto& w : o.cone.planWarnings)
         std::fprintf(stderr, "fvr-render: warning: %s: %s\n", o.cone.rtplan.c_str(), w.c_str());
     // Every view is checked against the volume before anything is rendered.
-    const std::vector<ConeView> views = coneViews(o, volume, fileCameras);
+    const std::vector<ConeView> views = coneViews(o, volume, files);
     for (std::size_t i = 0; i < views.size(); ++i) {
         try {
             validateConeView(views[i].camera, volume);
@@ -141,10 +148,16 @@ int renderCone(const Options& asked, const Volume& volume,
     ConeProjector projector(volume, coneProjectorOptions(o));
     const double prepareMs =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    const ConeSession s{o, volume, projector, prepareMs,
-                        o.threads > 0 ? o.threads : hardwareThreads()};
+    // The C-arms of a .dcm output or --send before any rendering: a matrix-file camera may
+    // have none.
+    const ConeDicom dicom = !o.out.empty() && (o.format == OutputFormat::Dicom || !o.send.empty())
+                                ? coneDicom(volume, views)
+                                : ConeDicom{};
+    const ConeSession s{
+        o,      volume,    projector, prepareMs, o.threads > 0 ? o.threads : hardwareThreads(),
+        &files, exportInfo};
     if (o.bench > 0) runConeBench(s, views);
-    if (!o.out.empty()) writeConeOutputs(s, views);
+    if (!o.out.empty()) writeConeOutputs(s, views, dicom);
     return 0;
 }
 
@@ -188,7 +201,9 @@ Json coneSettingsJson(const ConeSession& s) {
                 {"flat_field", o.cone.flatField},
                 {"projection_matrix_file",
                  o.cone.matrixFile.empty() ? Json(nullptr) : Json(o.cone.matrixFile)},
-                {"rtplan", o.cone.rtplan.empty() ? Json(nullptr) : Json(o.cone.rtplan)}};
+                {"rtplan", o.cone.rtplan.empty() ? Json(nullptr) : Json(o.cone.rtplan)},
+                {"geometry_from",
+                 s.files && s.files->xray ? xrayGeometryJson(o, *s.files->xray) : Json(nullptr)}};
 }
 
 Json coneViewJson(const ConeView& view) {

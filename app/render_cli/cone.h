@@ -7,6 +7,8 @@
 #include <vector>
 
 #include <fvr/core/dicom/rt_plan.h>
+#include <fvr/core/dicom/dicom_export.h>
+#include <fvr/core/dicom/xray_geometry.h>
 #include <fvr/core/geometry/camera.h>
 #include <fvr/core/render/cone_projector.h>
 #include <fvr/core/volume.h>
@@ -34,12 +36,44 @@ std::vector<core::ConeCamera> readConeMatrixFile(const Options& o);
  *  the volume's centre). */
 std::vector<ConeView> beamViews(const Options& o, const core::Volume& volume);
 
-/** The views: the matrix file's cameras, the treatment beams' (beamViews), else the C-arm's (one,
- * --sweep N: primary angles 360/N apart from --primary-angle, --orbit FROM:TO:N) about the
- * isocentre (default: the volume's centre) with the detector's pitch (default: core::framingPitch).
- */
+/** What the camera options name in files, read before the input loads (their errors first). */
+struct ConeFiles {
+    std::vector<core::ConeCamera> matrixCameras; ///< --projection-matrix
+    std::optional<core::XrayGeometry> xray; ///< --geometry-from, without its pixels
+};
+/** Reads --projection-matrix and --geometry-from (cone_xray.cpp). */
+ConeFiles readConeFiles(const Options& o);
+
+/** --geometry-from (cone_xray.cpp): reads the X-ray's geometry, checks --frame against its
+ *  frames and says each of its warnings on stderr; nothing without the option. */
+std::optional<core::XrayGeometry> readConeXray(const Options& o);
+/** The views of --geometry-from: the frame's (or every frame's) C-arm with the file's detector,
+ *  pitch and principal offset, about the file's isocentre where it states one, else --isocenter,
+ *  else the volume's centre. */
+std::vector<ConeView> xrayViews(const Options& o, const core::Volume& volume,
+                                const core::XrayGeometry& xray);
+/** The sidecar's "geometry_from" object: the file, its frames, where the isocentre came from and
+ *  the reader's warnings. */
+Json xrayGeometryJson(const Options& o, const core::XrayGeometry& xray);
+
+/** What a cone-beam .dcm output writes: each view's C-arm (a matrix-file camera's from
+ *  core::cArmFromCamera about the volume's centre), and whether the views make one rotational
+ *  run (one multi-frame XA; else FILE_NNNN.dcm, one XA each). */
+struct ConeDicom {
+    std::vector<core::CArm> arms;
+    bool run = false;
+};
+/** The C-arms of the views (for a .dcm output or --send), before anything renders:
+ *  SettingsError naming the view whose camera no C-arm has (cone_xray.cpp). */
+ConeDicom coneDicom(const core::Volume& volume, const std::vector<ConeView>& views);
+
+/** The views: the matrix file's cameras, the X-ray's (xrayViews), the treatment beams'
+ *  (beamViews), else the C-arm's (one,
+ *  --sweep N: primary angles 360/N apart from --primary-angle, --orbit FROM:TO:N) about the
+ *  isocentre (default: the volume's centre) with the detector's pitch (default:
+ *  core::framingPitch). */
 std::vector<ConeView> coneViews(const Options& o, const core::Volume& volume,
-                                const std::vector<core::ConeCamera>& fileCameras);
+                                const ConeFiles& files);
 
 /** What the steps after loading share. */
 struct ConeSession {
@@ -48,12 +82,14 @@ struct ConeSession {
     core::ConeProjector& projector;
     double prepareMs = 0.0; ///< the projector's set-up (value mapping, empty-block map)
     int threads = 0; ///< resolved (--threads, else all cores)
+    const ConeFiles* files = nullptr; ///< what the camera options read
+    core::DicomExportInfo exportInfo{}; ///< the input study's, for .dcm outputs
 };
 
 /** The run after loading: the views, their checks (core::validateConeView, before any
  *  rendering), --bench, then --out. Returns the exit status. */
-int renderCone(const Options& o, const core::Volume& volume,
-               const std::vector<core::ConeCamera>& fileCameras);
+int renderCone(const Options& o, const core::Volume& volume, const ConeFiles& files,
+               const core::DicomExportInfo& exportInfo = {});
 
 /** The projector's options from the command line (--ray-model, --step, --values, --threads). */
 core::ConeProjectorOptions coneProjectorOptions(const Options& o);
@@ -62,8 +98,10 @@ core::ConeProjectorOptions coneProjectorOptions(const Options& o);
 core::DetectorImage projectConeView(const ConeSession& s, const core::ConeCamera& camera);
 
 /** --out: renders the views and writes the images and the sidecar (outputs.cpp), all or
- *  nothing, as the parallel views are. */
-void writeConeOutputs(const ConeSession& s, const std::vector<ConeView>& views);
+ *  nothing, as the parallel views are; a .dcm output as X-Ray Angiographic images carrying
+ *  `dicom`'s C-arms. */
+void writeConeOutputs(const ConeSession& s, const std::vector<ConeView>& views,
+                      const ConeDicom& dicom = {});
 
 /** --bench N: N views of an orbit from the first view (its C-arm's primary angle stepped
  *  360/N; a matrix file's views in turn), the ray caster's time per view as JSON (bench.cpp). */

@@ -432,7 +432,8 @@ void declareOutput(CLI::App& app, Options& o) {
            },
            ".npy (float32 line integrals, shape (M, M), row 0 at the top; several\n"
            "views: one stacked (N, M, M) file), .pfm (float, rows bottom-to-top),\n"
-           ".png (display-mapped, auto window), .dcm (DICOM secondary capture);\n"
+           ".png (display-mapped, auto window), .dcm (DICOM secondary capture;\n"
+           "--geometry cone: X-ray angiographic, carrying the C-arm; a run: one file);\n"
            "several views and .pfm/.png/.dcm: FILE_0000.ext, FILE_0001.ext, ...\n"
            "A JSON sidecar FILE.json records every parameter and view. The files land\n"
            "together or not at all: an interrupted or failed run leaves an earlier run's\n"
@@ -618,7 +619,8 @@ void declarePacs(CLI::App& app, Options& o) {
         ->group(g);
     app.add_option("--send", o.send,
                    "store every output view as DICOM Secondary Capture on this PACS\n"
-                   "(C-STORE), e.g. dicom://ORTHANC@pacs:4242")
+                   "(C-STORE), e.g. dicom://ORTHANC@pacs:4242 (--geometry cone: X-ray\n"
+                   "angiographic, carrying the C-arm: a .dcm output's files as written)")
         ->option_text("URL")
         ->group(g);
     app.add_option("--pacs-timeout", o.pacsTimeout,
@@ -753,6 +755,36 @@ void declareConeCamera(CLI::App& app, ConeOptions& c) {
         ->group(g);
 }
 
+/** --geometry-from and --frame: the camera of an X-ray (checked in checkGeometryFrom). */
+void declareConeFromXray(CLI::App& app, ConeOptions& c) {
+    const std::string g = "Cone beam (--geometry cone)";
+    app.add_option("--geometry-from", c.geometryFrom,
+                   "the camera of a DICOM X-ray (XA, RF, DX, CR: its C-arm angles, SID, SOD,\n"
+                   "detector size and pitch) instead of the C-arm options; the isocentre is\n"
+                   "the file's where it states one (a DRR fvr wrote), else --isocenter,\n"
+                   "else the volume's centre")
+        ->option_text("XRAY.dcm")
+        ->group(g);
+    app.add_option_function<std::string>(
+           "--frame",
+           [&c](const std::string& s) {
+               c.allFrames = s == "all";
+               if (!c.allFrames) c.frame = *core::parseNumber<int>(s);
+           },
+           "with --geometry-from: the frame whose C-arm places the view, 0-based\n"
+           "(default 0), or all (every frame's, one view each)")
+        ->check(CLI::Validator(
+            [](std::string& s) -> std::string {
+                const auto k = core::parseNumber<int>(s);
+                return s == "all" || (k && *k >= 0)
+                           ? ""
+                           : "expected a frame number 0, 1, ... or all, found '" + s + "'";
+            },
+            ""))
+        ->option_text("K|all")
+        ->group(g);
+}
+
 void declareCone(CLI::App& app, ConeOptions& c) {
     const std::string g = "Cone beam (--geometry cone)";
     app.add_option_function<std::string>(
@@ -763,6 +795,7 @@ void declareCone(CLI::App& app, ConeOptions& c) {
         ->option_text("parallel|cone")
         ->group(g);
     declareConeCamera(app, c);
+    declareConeFromXray(app, c);
     addParsed(app, "--ray-model", c.model, core::parseRayModel, "M",
               "trilinear (default; exact per cell) | bspline (cubic B-spline, sampled)\n"
               "| box (voxels as cubes, exact path lengths: plastimatch drr -i exact)")
@@ -905,6 +938,12 @@ void checkBeam(const CLI::App& app, Options& o) {
             throw SettingsError("--beam-number: only with --rtplan");
         return;
     }
+    // A beam's image is seen from the source (the C-arm's mirrored): no X-ray IOD holds it, and
+    // an RT Image writer is not there yet.
+    if ((!o.out.empty() && outputFormat(o.out) == OutputFormat::Dicom) || !o.send.empty())
+        throw SettingsError(std::string(c.rtplan.empty() ? "--beam" : "--rtplan") +
+                            ": DICOM output (.dcm, --send) of treatment beams is not written yet; "
+                            "write .npy, .pfm or .png");
     const std::string way = c.beam ? "--beam" : "--rtplan";
     for (const auto& [name, why] : kBeamReplaces)
         if (app.count(name) > 0) throw SettingsError(name + ": not with " + way + " (" + why + ")");
@@ -936,7 +975,7 @@ const std::vector<std::string> kConeOnly = {
     "--sod",           "--isocenter",       "--detector-size",
     "--pitch",         "--principal-point", "--ray-model",
     "--step",          "--flat-field",      "--projection-matrix",
-    "--orbit"};
+    "--orbit",         "--geometry-from",   "--frame"};
 
 /** The options that only the parallel (Fourier) renderers take, and why not in cone beam. */
 const std::vector<std::pair<std::string, std::string>> kParallelOnly = {
@@ -962,14 +1001,37 @@ const std::vector<std::pair<std::string, std::string>> kParallelOnly = {
     {"--sharpen-radius", "a Fourier rendering setting"},
     {"--band-limit", "a Fourier rendering setting"},
     {"--fp16", "the cone-beam ray caster runs on the CPU"},
-    {"--kvp", "polychromatic cone beam is not implemented yet"},
-    {"--send", "cone-beam DICOM output is not implemented yet"}};
+    {"--kvp", "polychromatic cone beam is not implemented yet"}};
 
 /** The options --projection-matrix replaces (the file fixes the camera). */
 const std::vector<std::string> kMatrixFixes = {
     "--primary-angle",   "--secondary-angle", "--sid",   "--sod",
     "--isocenter",       "--detector-size",   "--pitch", "--size",
     "--principal-point", "--orbit",           "--sweep"};
+
+/** The options --geometry-from replaces: the X-ray's C-arm and detector fix the camera
+ *  (--isocenter stays: the isocentre where the file states none). */
+const std::vector<std::string> kXrayFixes = {
+    "--primary-angle", "--secondary-angle", "--sid",    "--sod",
+    "--detector-size", "--pitch",           "--size",   "--orbit",
+    "--sweep",         "--principal-point", "--beam",   "--sad",
+    "--rtplan",        "--beam-number",     "--patient-position"};
+
+/** --geometry-from against the options it replaces, and --frame without it. */
+void checkGeometryFrom(const CLI::App& app, const ConeOptions& c) {
+    if (c.geometryFrom.empty()) {
+        if (app.count("--frame") > 0)
+            throw SettingsError("--frame: only with --geometry-from XRAY.dcm");
+        return;
+    }
+    if (!c.matrixFile.empty())
+        throw SettingsError("--geometry-from: not with --projection-matrix (one or the other "
+                            "gives the camera)");
+    for (const auto& name : kXrayFixes)
+        if (app.count(name) > 0)
+            throw SettingsError(name + ": not with --geometry-from (the X-ray's C-arm and "
+                                       "detector fix the camera)");
+}
 
 /** The cone-beam checks that need the parsed command line: cone options without --geometry
  *  cone, parallel options with it, and the camera's own checks (before any input loads). */
@@ -987,9 +1049,7 @@ void checkGeometry(const CLI::App& app, Options& o) {
     if (o.backend == Options::Backend::Gpu)
         throw SettingsError("--backend gpu: not with --geometry cone (the cone-beam ray caster "
                             "runs on the CPU)");
-    if (o.format == OutputFormat::Dicom)
-        throw SettingsError("--out: cone-beam DICOM output is not implemented yet (write .npy, "
-                            ".pfm or .png; the sidecar FILE.json records the camera)");
+    checkGeometryFrom(app, c);
     if (!c.matrixFile.empty())
         for (const auto& name : kMatrixFixes)
             if (app.count(name) > 0)
@@ -1007,7 +1067,7 @@ void checkGeometry(const CLI::App& app, Options& o) {
                             "--beer-lambert");
     if (c.model == core::RayModel::Box && app.count("--step") > 0)
         throw SettingsError("--step: not with --ray-model box (exact path lengths, no step)");
-    if (c.matrixFile.empty() && !c.beams()) {
+    if (c.matrixFile.empty() && !c.beams() && c.geometryFrom.empty()) {
         // The C-arm's own checks (SOD < SID) now; the isocentre and a default pitch follow
         // from the volume and cannot make it fail.
         core::CArm arm = c.arm;

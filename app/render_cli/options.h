@@ -53,6 +53,11 @@ struct ConeOptions {
     std::vector<core::RtPlanBeam> planBeams; ///< the beams to render, from --rtplan
     std::vector<std::string> planWarnings; ///< what the reader assumed (said when rendering)
     bool beams() const { return beam.has_value() || !rtplan.empty(); }
+    /** --geometry-from XRAY.dcm: the camera of an X-ray's frame (its C-arm, detector and pitch)
+     *  instead of the C-arm options; --frame K (0-based, default 0) or --frame all. */
+    std::string geometryFrom;
+    int frame = 0;
+    bool allFrames = false;
 };
 
 /** Output file formats, from the extension of --out. */

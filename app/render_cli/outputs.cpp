@@ -160,7 +160,8 @@ public:
         }
     }
 
-    bool stacked() const { return m_stacked; }
+    /** One file holds every view: a .npy stack, or a cone-beam run as one multi-frame XA. */
+    bool stacked() const { return m_stacked || (m_coneDicom && m_coneDicom->run); }
     const std::vector<std::string>& written() const { return m_written; }
 
     /** Post-processes and writes view i (the writer thread calls it, in view order). */
@@ -168,12 +169,44 @@ public:
         core::checkFiniteImage(img); // never a NaN in a file
         addPixels(i, img.pixels, &img);
     }
-    /** A cone-beam view (no DICOM output, no --send: the options refuse them). */
+    /** A cone-beam view: as its format says, and for --send as an X-ray of its C-arm. */
     void add(std::size_t i, DetectorImage& img) {
         for (float v : img.pixels)
             if (!std::isfinite(v))
                 throw RenderError("a cone-beam view holds a value that is not finite");
-        addPixels(i, img.pixels, nullptr);
+        if (m_o.format == OutputFormat::Dicom && m_coneDicom) {
+            addConeDicom(i, img);
+            return;
+        }
+        addPixels(i, img.pixels, nullptr); // the pixels now as written (transmission)
+        if (!m_o.send.empty() && m_coneDicom) { // --send: the view as an X-ray of its C-arm
+            m_toSend.push_back(sendPath(i));
+            writeXrayDicom(m_toSend.back(), img, m_coneDicom->arms.at(i), m_exportInfo);
+        }
+    }
+
+    /** Cone-beam views written as X-ray images carrying `dicom`'s C-arms (set before the first
+     *  view). */
+    void setConeDicom(const ConeDicom& dicom) { m_coneDicom = &dicom; }
+
+    /** A cone-beam view as an X-Ray Angiographic image: its own file, or a frame of the run
+     *  written by finish(). */
+    void addConeDicom(std::size_t i, DetectorImage& img) {
+        if (m_o.beerLambert) applyTransmission(img.pixels, m_o.transmission);
+        const CArm& arm = m_coneDicom->arms.at(i);
+        if (m_coneDicom->run) {
+            if (!m_run.empty()) { // the run's one detector (equal to rounding, cone_xray.cpp)
+                const ConeCamera& f = m_run.front().camera;
+                img.camera =
+                    cArmCamera(arm, f.width, f.height, f.pitchU, f.pitchV, f.principalOffset);
+            }
+            m_run.push_back(std::move(img));
+            return;
+        }
+        const std::string path = m_count > 1 ? numberedPath(m_o.out, i) : m_o.out;
+        finalNamesOnError([&] { writeXrayDicom(m_files.staged(path), img, arm, m_exportInfo); });
+        m_written.push_back(path);
+        if (!m_o.send.empty()) m_toSend.emplace_back(path); // sent after the commit
     }
 
     /** The line integrals in `pixels` (transmission where --beer-lambert asks for it) written
@@ -212,12 +245,17 @@ public:
     /** --send: the DICOM outputs themselves, else a Secondary Capture of each view written
      *  into a temporary folder (removed with the writer). */
     void addToSend(std::size_t i, const std::string& path, const ProjectionImage* img) {
-        if (m_o.send.empty()) return;
+        if (m_o.send.empty() || (!img && m_coneDicom)) return; // a cone-beam view: add()
         if (!img) throw RenderError("--send: no DICOM for this view"); // refused by the options
         if (m_o.format == OutputFormat::Dicom) {
             m_toSend.emplace_back(path);
             return;
         }
+        m_toSend.push_back(sendPath(i));
+        writeDicomProjection(m_toSend.back(), *img, m_exportInfo);
+    }
+    /** Where view i's DICOM for --send is written when the output is not DICOM. */
+    std::filesystem::path sendPath(std::size_t i) {
         if (m_sendDir.empty()) {
             // Its own temporary folder (several runs in one process, the Python module's, may
             // send at once); those of runs that died are removed first.
@@ -226,8 +264,7 @@ public:
             m_sendDir = tmp / temporaryName(kSendFolder);
             std::filesystem::create_directories(m_sendDir);
         }
-        m_toSend.push_back(m_sendDir / ("view_" + std::to_string(i) + ".dcm"));
-        writeDicomProjection(m_toSend.back(), *img, m_exportInfo);
+        return m_sendDir / ("view_" + std::to_string(i) + ".dcm");
     }
     const std::vector<std::filesystem::path>& toSend() const { return m_toSend; }
 
@@ -237,6 +274,13 @@ public:
     }
 
     void finish() {
+        if (!m_run.empty()) { // a rotational run: one multi-frame X-ray
+            finalNamesOnError([&] {
+                writeXrayDicomRun(m_files.staged(m_o.out), m_run, m_coneDicom->arms, m_exportInfo);
+            });
+            m_written.push_back(m_o.out);
+            if (!m_o.send.empty()) m_toSend.emplace_back(m_o.out);
+        }
         if (!m_stacked) return;
         finalNamesOnError([&] { m_stack->finish(); });
         m_written.push_back(m_o.out);
@@ -254,6 +298,8 @@ private:
     std::vector<std::filesystem::path> m_toSend;
     std::vector<float> m_lineIntegrals;
     std::vector<std::string> m_written;
+    const ConeDicom* m_coneDicom = nullptr;
+    std::vector<DetectorImage> m_run; ///< a cone-beam run's views, written by finish()
 };
 
 /**
@@ -432,7 +478,10 @@ void writeRun(const Options& o, std::size_t viewCount, int width, int height,
             [&] { writeFileAtomic(files.staged(o.out + ".json"), jsonText(json)); });
         files.commit(); // the images and their sidecar land together
         summary(writer.stacked(), msPerView);
-        if (!o.send.empty()) sendViews(o, writer.toSend());
+        if (!o.send.empty())
+            sendViews(o, writer.toSend(),
+                      o.cone.enabled ? "X-Ray Angiographic" : "Secondary Capture",
+                      o.cone.enabled ? "file" : "view");
     } catch (const Interrupted& e) {
         interrupted = e.what();
     }
@@ -455,12 +504,16 @@ void writeOutputs(const Session& s, const std::vector<ViewFrame>& views,
         [&](bool stacked, double msPerView) { printSummary(s, views.size(), stacked, msPerView); });
 }
 
-void writeConeOutputs(const ConeSession& s, const std::vector<ConeView>& views) {
+void writeConeOutputs(const ConeSession& s, const std::vector<ConeView>& views,
+                      const ConeDicom& dicom) {
     const Options& o = s.options;
     const ConeCamera& first = views.front().camera;
+    DicomExportInfo info = s.exportInfo;
+    info.valueDescription = valuesText(o, s.volume);
     writeRun(
-        o, views.size(), first.width, first.height, DicomExportInfo{},
+        o, views.size(), first.width, first.height, info,
         [&](ViewWriter& writer) {
+            if (o.format == OutputFormat::Dicom || !o.send.empty()) writer.setConeDicom(dicom);
             // One view at a time: the projector runs each on every thread.
             return renderViews<DetectorImage>(
                 o, views.size(), 1,

@@ -211,11 +211,12 @@ int runQuery(const Options& o) {
     return 0;
 }
 
-void sendViews(const Options& o, const std::vector<std::filesystem::path>& files) {
+void sendViews(const Options& o, const std::vector<std::filesystem::path>& files, const char* what,
+               const char* noun) {
     const pacs::DicomUrl url = parseNode(o, o.send);
     pacs::sendFiles(url.node, localAe(o), files);
-    std::fprintf(stderr, "sent %zu view%s to %s (Secondary Capture, C-STORE)\n", files.size(),
-                 files.size() == 1 ? "" : "s", pacs::describe(url.node).c_str());
+    std::fprintf(stderr, "sent %zu %s%s to %s (%s, C-STORE)\n", files.size(), noun,
+                 files.size() == 1 ? "" : "s", pacs::describe(url.node).c_str(), what);
 }
 
 } // namespace fvr::cli

@@ -34,7 +34,10 @@ std::filesystem::path retrieveInput(const Options& o);
 /** --query: the matching studies as JSON on stdout (with their series for --query-series). */
 int runQuery(const Options& o);
 
-/** --send: C-STORE of the views' Secondary Capture files to the node; says so on stderr. */
-void sendViews(const Options& o, const std::vector<std::filesystem::path>& files);
+/** --send: C-STORE of the views' files (`what`: Secondary Capture, or a cone-beam run's X-Ray
+ *  Angiographic files, one of which may hold every view) to the node; "sent N <noun>s to ..."
+ *  on stderr. */
+void sendViews(const Options& o, const std::vector<std::filesystem::path>& files,
+               const char* what = "Secondary Capture", const char* noun = "view");
 
 } // namespace fvr::cli

@@ -124,7 +124,8 @@ int run(const Options& o) {
     const std::vector<ViewFrame> fileViews = !o.out.empty() && !o.viewsFile.empty()
                                                  ? readViewsFile(o.viewsFile)
                                                  : std::vector<ViewFrame>{};
-    const std::vector<ConeCamera> fileCameras = readConeMatrixFile(o); // so is the matrix file
+    // So are the matrix file and the X-ray of --geometry-from.
+    const ConeFiles coneFiles = o.cone.enabled ? readConeFiles(o) : ConeFiles{};
     const LoadedInput in = loadInput(o);
     for (const auto& w : in.warnings) std::fprintf(stderr, "fvr-render: warning: %s\n", w.c_str());
     if (in.seriesList) { // DICOM folder --info: the series list
@@ -136,7 +137,7 @@ int run(const Options& o) {
         printJson(volumeInfoJson(volume));
         if (o.out.empty() && o.bench <= 0) return 0;
     }
-    if (o.cone.enabled) return renderCone(o, volume, fileCameras);
+    if (o.cone.enabled) return renderCone(o, volume, coneFiles, in.exportInfo);
     return renderVolume(o, volume, fileViews, in.exportInfo);
 }
 

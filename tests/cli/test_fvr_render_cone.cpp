@@ -342,10 +342,6 @@ TEST(FvrRenderCone, BadGeometryIsRefusedBeforeTheInputLoads) {
         EXPECT_EQ(r.output.find("/no/such/volume.mhd"), std::string::npos)
             << args << ": " << r.output;
     }
-    const Result dcm = run("/no/such/volume.mhd --geometry cone --out " + tmp("x.dcm"));
-    EXPECT_EQ(dcm.status, 2);
-    EXPECT_NE(dcm.output.find("cone-beam DICOM output is not implemented yet"), std::string::npos)
-        << dcm.output;
 }
 
 TEST(FvrRenderCone, ViewsThatNeedTheVolumeAreRefusedBeforeRendering) {

@@ -1,5 +1,6 @@
 // fvr-render and the PACS: a dicom:// INPUT renders as the same folder does, --query prints
 // JSON, --send stores the views on Orthanc.
+#include <algorithm>
 #include <fstream>
 #include <iterator>
 
@@ -143,4 +144,55 @@ TEST(PacsCli, SendStoresEveryViewOnThePacs) {
         EXPECT_TRUE(fvr::core::loadDicomFile(file).volume.voxels ==
                     fvr::core::loadDicomFile(back).volume.voxels);
     }
+}
+
+TEST(PacsCli, SendStoresConeBeamViewsAsXraysThatCarryTheirCArm) {
+    FVR_REQUIRE_ORTHANC();
+    const fs::path dir = env().dir / "cli-send-cone";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    // A .dcm orbit: its one multi-frame XA, sent as written (the same bytes come back).
+    const fs::path run = dir / "run.dcm";
+    auto r = render("phantom:chest:32 --geometry cone --detector-size 32x24 --orbit 0:60:3 --out " +
+                        run.string() + " --send " + nodeUrl(),
+                    dir / "err");
+    ASSERT_EQ(r.status, 0) << readAll(dir / "err");
+    EXPECT_NE(readAll(dir / "err").find("sent 1 file to ORTHANC@127.0.0.1:"), std::string::npos)
+        << readAll(dir / "err");
+    EXPECT_NE(readAll(dir / "err").find("(X-Ray Angiographic, C-STORE)"), std::string::npos);
+    const auto instance = [&](const fs::path& file) {
+        const std::string sop = fvr::test::dicomTag(file, "SOPInstanceUID");
+        const auto ids = nlohmann::json::parse(env().orthanc().post("/tools/lookup", sop).body);
+        return ids.size() == 1 ? std::string(ids[0]["ID"]) : std::string();
+    };
+    const std::string id = instance(run);
+    ASSERT_FALSE(id.empty());
+    EXPECT_EQ(env().orthanc().get("/instances/" + id + "/file").body, readAll(run));
+    const auto tags =
+        nlohmann::json::parse(env().orthanc().get("/instances/" + id + "/tags?simplify").body);
+    EXPECT_EQ(tags["Modality"], "XA");
+    EXPECT_EQ(tags["NumberOfFrames"], "3");
+    EXPECT_EQ(tags["PositionerPrimaryAngleIncrement"], "0\\30\\60");
+    // A .npy output: each view sent as its own XA, at its own primary angle.
+    r = render("phantom:chest:32 --geometry cone --detector-size 32x24 --sweep 2 "
+               "--primary-angle 20 --out " +
+                   (dir / "views.npy").string() + " --send " + nodeUrl(),
+               dir / "err2");
+    ASSERT_EQ(r.status, 0) << readAll(dir / "err2");
+    EXPECT_NE(readAll(dir / "err2").find("sent 2 files to ORTHANC@127.0.0.1:"), std::string::npos)
+        << readAll(dir / "err2");
+    // On the PACS: XA instances at the sweep's primary angles, 20 and 200 degrees.
+    const auto xa = nlohmann::json::parse(
+        env()
+            .orthanc()
+            .post("/tools/find", R"({"Level": "Instance", "Query": {"Modality": "XA"}})")
+            .body);
+    std::vector<std::string> angles;
+    for (const auto& xid : xa) {
+        const auto t = nlohmann::json::parse(
+            env().orthanc().get("/instances/" + std::string(xid) + "/tags?simplify").body);
+        if (!t.contains("NumberOfFrames")) angles.push_back(t["PositionerPrimaryAngle"]);
+    }
+    EXPECT_NE(std::find(angles.begin(), angles.end(), "20"), angles.end());
+    EXPECT_NE(std::find(angles.begin(), angles.end(), "200"), angles.end());
 }

@@ -5,6 +5,7 @@ render_many against single renders, Beer-Lambert by numpy, the checks' messages,
 fvr-render --geometry cone's .npy (where the built fvr-render has cone beam)."""
 import math
 import pickle
+import shutil
 import subprocess
 
 import numpy as np
@@ -246,3 +247,92 @@ def test_render_equals_fvr_renders_cone_beam(fvr_render, tmp_path):
                                           "--sid", "1100", "--sod", "700", "--detector-size",
                                           "80x56", "--ray-model", model], tmp_path / "c.npy")
         np.testing.assert_array_equal(r.render(camera=cam, model=model), cli.reshape(56, 80))
+
+
+# A DRR written as DICOM by fvr-render (in this process, fvr.run_cli) read back: an oblique C-arm
+# off the volume's centre, with unequal pitches and a principal-point offset.
+OBLIQUE = dict(primary=35, secondary=-20, sid=1100, sod=720, isocenter=(5, -3, 8),
+               detector=(48, 40), pitch=(2.5, 3.0), principal_point=(1.5, -2.0))
+
+
+def write_oblique_dicom(path, *extra):
+    o = OBLIQUE
+    fvr.run_cli(["phantom:chest:32", "--geometry", "cone", "--primary-angle", o["primary"],
+                 "--secondary-angle", o["secondary"], "--sid", o["sid"], "--sod", o["sod"],
+                 "--isocenter", "5,-3,8", "--detector-size", "48x40", "--pitch", "2.5,3",
+                 "--principal-point", "1.5,-2", *extra, "--out", path])
+
+
+def test_from_dicom_is_the_camera_that_wrote_the_file_and_read_xray_its_pixels(tmp_path):
+    dcm = tmp_path / "oblique.dcm"
+    write_oblique_dicom(dcm)
+    cam = fvr.Camera.from_dicom(dcm)
+    assert cam.warnings == [] and cam.isocenter_from == "file"
+    expected = fvr.Camera.carm(**OBLIQUE)
+    assert (cam.width, cam.height) == (48, 40) and cam.principal_point == (1.5, -2.0)
+    np.testing.assert_allclose(cam.matrix, expected.matrix,
+                               atol=1e-9 * np.abs(expected.matrix).max())
+    # The file's pixels are the line integrals of that camera within the 16-bit quantisation
+    # (half a step of the range over 65535).
+    r = fvr.Renderer(fvr.load("phantom:chest:32"))
+    ref = r.render(camera=expected)
+    pixels = fvr.read_xray(dcm)
+    assert pixels.shape == (40, 48) and pixels.dtype == np.float32
+    step = (ref.max() - ref.min()) / 65535
+    assert np.abs(pixels - ref).max() <= 0.5 * step * 1.001 + 1e-5 * ref.max()
+    psnr = 10 * np.log10(ref.max() ** 2 / np.mean((pixels.astype(np.float64) - ref) ** 2))
+    assert psnr >= 80
+    # An isocentre given for a file that states its own: the file's wins.
+    same = fvr.Camera.from_dicom(dcm, isocenter=(100, 100, 100))
+    np.testing.assert_array_equal(same.matrix, cam.matrix)
+
+
+def test_from_dicom_takes_each_frame_of_a_run(tmp_path):
+    dcm = tmp_path / "orbit.dcm"
+    fvr.run_cli(["phantom:chest:32", "--geometry", "cone", "--secondary-angle", "10",
+                 "--detector-size", "40x32", "--pitch", "3", "--orbit", "-30:60:4", "--out", dcm])
+    stack = fvr.read_xray(dcm)
+    assert stack.shape == (4, 32, 40)
+    r = fvr.Renderer(fvr.load("phantom:chest:32"))
+    for k in range(4):
+        cam = fvr.Camera.from_dicom(dcm, frame=k)
+        expected = r.camera(primary=-30 + 30 * k, secondary=10, detector=(40, 32), pitch=3)
+        np.testing.assert_allclose(cam.matrix, expected.matrix,
+                                   atol=1e-9 * np.abs(expected.matrix).max())
+        ref = r.render(camera=expected)
+        assert np.abs(stack[k] - ref).max() <= 1e-4 * ref.max()
+    with pytest.raises(ValueError, match=r"frame: 4 asked for, .*orbit.dcm has 4 frames \(0..3\)"):
+        fvr.Camera.from_dicom(dcm, frame=4)
+
+
+def test_from_dicom_without_an_isocentre_takes_the_given_or_the_volumes(tmp_path):
+    dcmodify = shutil.which("dcmodify")
+    if not dcmodify:
+        pytest.skip("dcmodify (Debian package dcmtk) is not installed")
+    dcm = tmp_path / "plain.dcm"
+    write_oblique_dicom(dcm)
+    # As an X-ray from a real C-arm: no isocentre (our private tags gone), and no SID.
+    subprocess.run([dcmodify, "-nb", "-ea", "(0018,1110)", "-ea", "(0009,1001)", "-ea",
+                    "(0009,1002)", "-ea", "(0009,0010)", str(dcm)], check=True)
+    with pytest.raises(ValueError, match="plain.dcm states no isocentre"):
+        fvr.Camera.from_dicom(dcm)
+    cam = fvr.Camera.from_dicom(dcm, isocenter=(5, -3, 8))
+    assert cam.isocenter_from == "isocenter"
+    assert any("DistanceSourceToDetector (0018,1110) missing" in w for w in cam.warnings)
+    # SID from SOD x EstimatedRadiographicMagnificationFactor; no principal-point offset.
+    expected = fvr.Camera.carm(**{**OBLIQUE, "principal_point": (0.0, 0.0)})
+    np.testing.assert_allclose(cam.matrix, expected.matrix,
+                               atol=1e-9 * np.abs(expected.matrix).max())
+    vol = fvr.load("phantom:chest:32")
+    centred = fvr.Camera.from_dicom(dcm, volume=vol)
+    assert centred.isocenter_from == "volume"
+    np.testing.assert_allclose(centred.project(fvr._fvr.volume_centre(vol._v)),
+                               (47 / 2, 39 / 2), atol=1e-9)
+
+
+def test_from_dicom_and_read_xray_name_a_file_they_cannot_read(tmp_path):
+    bad = tmp_path / "bad.dcm"
+    bad.write_text("not DICOM")
+    for call in (fvr.Camera.from_dicom, fvr.read_xray):
+        with pytest.raises(RuntimeError, match="bad.dcm"):
+            call(bad)

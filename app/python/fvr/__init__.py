@@ -27,7 +27,8 @@ import numpy as np
 
 from . import _fvr
 
-__all__ = ["Volume", "Camera", "Renderer", "load", "transmission", "film", "option_args", "run_cli"]
+__all__ = ["Volume", "Camera", "Renderer", "load", "read_xray", "transmission", "film",
+           "option_args", "run_cli"]
 
 # Python names whose fvr-render option is spelled otherwise.
 _ALIASES = {"energy_kev": "energy"}
@@ -202,10 +203,40 @@ class Camera:
                                                  int(h), pu, pv))
 
     @classmethod
+    def from_dicom(cls, path, frame: int = 0, isocenter=None,
+                   volume: Optional[Volume] = None) -> "Camera":
+        """The camera of frame ``frame`` (0-based) of a DICOM X-ray (XA, RF, DX, CR; single or
+        multi-frame): its C-arm (PositionerPrimary/SecondaryAngle, per frame where stated),
+        DistanceSourceToDetector and DistanceSourceToPatient, Rows x Columns and
+        ImagerPixelSpacing, as fvr-render --geometry-from reads them.
+
+        The isocentre: the file's where it states one (a DRR that fvr wrote, with ``--out
+        x.dcm``), else ``isocenter`` (LPS mm), else the centre of ``volume``; with none of
+        them ValueError. Whatever the reader had to assume (a missing tag and the value taken)
+        is in the returned camera's ``warnings`` (a list of str, empty when the file states
+        everything), and ``isocenter_from`` says "file", "isocenter" or "volume". A file that
+        cannot be read raises RuntimeError naming it."""
+        given, source = None, None
+        if isocenter is not None:
+            given, source = _point(isocenter, "isocenter"), "isocenter"
+        elif volume is not None:
+            given, source = _fvr.volume_centre(volume._v), "volume"
+        c, warnings, stated = _fvr.Camera.from_dicom(os.fspath(path), int(frame), given)
+        camera = cls._wrap(c)
+        camera.warnings = list(warnings)
+        camera.isocenter_from = "file" if stated == "file" else source
+        return camera
+
+    @classmethod
     def read_matrix_file(cls, path) -> list:
         """The cameras of a projection-matrix file (fvr-render --projection-matrix's format:
         ``detector W H``, ``pitch PU [PV]``, then 3 rows of 4 numbers per view)."""
         return [cls._wrap(c) for c in _fvr.Camera.read_matrix_file(os.fspath(path))]
+
+    #: What Camera.from_dicom had to assume (empty for a camera made otherwise).
+    warnings: list = []
+    #: Where Camera.from_dicom's isocentre came from ("file", "isocenter", "volume"), else None.
+    isocenter_from: Optional[str] = None
 
     @classmethod
     def _wrap(cls, c) -> "Camera":
@@ -262,6 +293,17 @@ class Camera:
     def __repr__(self):
         return (f"fvr.Camera(source={self.source}, detector_centre={self.detector_centre}, "
                 f"detector=({self.width}, {self.height}), pitch={self.pitch})")
+
+
+def read_xray(path) -> np.ndarray:
+    """The pixels of a DICOM X-ray (XA, RF, DX, CR) as float32: (H, W) for one frame, (n, H, W)
+    for several; the real values (rescale or Modality LUT applied, MONOCHROME1 inverted so that
+    larger is brighter), row 0 at the top, in the orientation of ``Camera.from_dicom``'s camera
+    (an image stored mirrored is flipped to it, with a warning). For a DRR that fvr-render wrote
+    as .dcm: its line integrals (or transmission) within the 16-bit quantisation of their range.
+    A file that cannot be read raises RuntimeError naming it."""
+    pixels, _ = _fvr.read_xray(os.fspath(path))
+    return pixels
 
 
 def _cameras(views) -> Optional[list]:

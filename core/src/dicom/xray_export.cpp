@@ -227,6 +227,9 @@ void writeXrayDicomRun(const std::filesystem::path& path, const std::vector<Dete
     put(DCM_RescaleType, "US");
     put(DCM_WindowCenter, ds(0.5 * (q.lo + q.hi)));
     put(DCM_WindowWidth, ds(std::max(1e-6, q.hi - q.lo)));
+    // A width below 1 (transmitted intensities in 0..1) is permitted only with LINEAR_EXACT
+    // (PS3.3 C.11.2.1.2, VOI LUT Function), which maps the window's ends exactly as written.
+    if (q.hi - q.lo < 1.0) put(DCM_VOILUTFunction, "LINEAR_EXACT");
     if (dset->putAndInsertUint16Array(DCM_PixelData, q.stored.data(), q.stored.size()).bad())
         failWrite(path, "cannot store the pixel data");
     writeAtomically(path, [&](const std::filesystem::path& tmp) {
