@@ -6,8 +6,8 @@
 #include <optional>
 #include <vector>
 
-#include <fvr/core/dicom/rt_plan.h>
 #include <fvr/core/dicom/dicom_export.h>
+#include <fvr/core/dicom/rt_plan.h>
 #include <fvr/core/dicom/xray_geometry.h>
 #include <fvr/core/geometry/camera.h>
 #include <fvr/core/render/cone_projector.h>

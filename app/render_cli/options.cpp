@@ -1011,11 +1011,21 @@ const std::vector<std::string> kMatrixFixes = {
 
 /** The options --geometry-from replaces: the X-ray's C-arm and detector fix the camera
  *  (--isocenter stays: the isocentre where the file states none). */
-const std::vector<std::string> kXrayFixes = {
-    "--primary-angle", "--secondary-angle", "--sid",    "--sod",
-    "--detector-size", "--pitch",           "--size",   "--orbit",
-    "--sweep",         "--principal-point", "--beam",   "--sad",
-    "--rtplan",        "--beam-number",     "--patient-position"};
+const std::vector<std::string> kXrayFixes = {"--primary-angle",
+                                             "--secondary-angle",
+                                             "--sid",
+                                             "--sod",
+                                             "--detector-size",
+                                             "--pitch",
+                                             "--size",
+                                             "--orbit",
+                                             "--sweep",
+                                             "--principal-point",
+                                             "--beam",
+                                             "--sad",
+                                             "--rtplan",
+                                             "--beam-number",
+                                             "--patient-position"};
 
 /** --geometry-from against the options it replaces, and --frame without it. */
 void checkGeometryFrom(const CLI::App& app, const ConeOptions& c) {

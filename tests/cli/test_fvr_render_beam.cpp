@@ -218,6 +218,15 @@ TEST(FvrRenderBeam, BadBeamsAndPlansAreRefusedBeforeTheInputLoads) {
         EXPECT_EQ(r.output.find("/no/such/volume.mhd"), std::string::npos)
             << args << ": " << r.output;
     }
+    // A beam's image has no X-ray IOD to go to yet: said before anything loads.
+    const std::string toDicom = "/no/such/volume.mhd --out " + tmp("x.dcm") + " --geometry cone ";
+    for (const auto& [args, expect] :
+         {std::pair<std::string, std::string>{"--beam 90,0,0", "--beam: DICOM output"},
+          std::pair<std::string, std::string>{"--rtplan " + goodPlan, "--rtplan: DICOM output"}}) {
+        const Result r = run(toDicom + args);
+        EXPECT_EQ(r.status, 2) << args << ": " << r.output;
+        EXPECT_NE(r.output.find(expect), std::string::npos) << args << ": " << r.output;
+    }
 }
 
 TEST(FvrRenderBeam, TheSidecarRecordsTheBeamAndItsP) {

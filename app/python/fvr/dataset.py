@@ -69,8 +69,10 @@ ALLOWED_COLUMNS = frozenset({
 CONE_COLUMNS = frozenset({
     "geometry", "primary-angle", "secondary-angle", "sid", "sod", "isocenter", "detector-size",
     "pitch", "principal-point", "ray-model", "step", "flat-field", "orbit",
-    # A camera file is read, as INPUT is
-    "projection-matrix",
+    # Treatment beams (IEC 61217)
+    "beam", "sad", "patient-position", "beam-number",
+    # A camera file is read, as INPUT is: 3x4 matrices, an X-ray's geometry, an RT Plan's beams
+    "projection-matrix", "geometry-from", "frame", "rtplan",
 })
 
 

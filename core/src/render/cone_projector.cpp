@@ -205,6 +205,10 @@ struct ConeProjector::Data {
     std::int64_t L[3] = {0, 0, 0};
     int lo = 0;
     CellGrid grid;
+    /** Box and trilinear with skipEmpty: the box of the walk's cells that touch a non-zero
+     *  voxel (each ray's exact integral is clipped to it: the air around a body is not walked);
+     *  else the whole grid. Empty (lo > hi) for a volume of zeros. */
+    glm::dvec3 occupiedLo{0.0}, occupiedHi{0.0};
 };
 
 namespace {
@@ -249,6 +253,41 @@ void markBlocks(const Volume& v, const std::vector<float>& mapped, CellGrid& g, 
     if (double(used) > 0.5 * double(g.occupied.size())) g.occupied.clear();
 }
 
+/** The cells of the walk that touch a non-zero voxel, as a box in its coordinates: voxel x is
+ *  cell x of the box model and cells x, x + 1 of the trilinear one (`extra` 1); the whole grid
+ *  without `skip`. */
+void occupiedBox(const Volume& v, const std::vector<float>& mapped, bool skip, int extra,
+                 ConeProjector::Data& d) {
+    const auto& N = v.dims;
+    std::int64_t lo[3] = {N[0], N[1], N[2]}, hi[3] = {-1, -1, -1};
+    if (!skip) {
+        lo[0] = lo[1] = lo[2] = 0;
+        for (int a = 0; a < 3; ++a) hi[a] = N[a] - 1;
+    } else {
+        for (std::int64_t z = 0; z < N[2]; ++z)
+            for (std::int64_t y = 0; y < N[1]; ++y) {
+                const float* row = mapped.data() + (z * N[1] + y) * N[0];
+                std::int64_t first = -1, last = -1;
+                for (std::int64_t x = 0; x < N[0]; ++x)
+                    if (row[x] != 0.0f) {
+                        if (first < 0) first = x;
+                        last = x;
+                    }
+                if (first < 0) continue;
+                lo[0] = std::min(lo[0], first);
+                hi[0] = std::max(hi[0], last);
+                lo[1] = std::min(lo[1], y);
+                hi[1] = std::max(hi[1], y);
+                lo[2] = std::min(lo[2], z);
+                hi[2] = std::max(hi[2], z);
+            }
+    }
+    for (int a = 0; a < 3; ++a) {
+        d.occupiedLo[a] = double(lo[a]);
+        d.occupiedHi[a] = double(hi[a] + 1 + extra);
+    }
+}
+
 /** The voxels with lo zeros below and hi zeros above each axis. */
 std::vector<float> padded(const std::vector<float>& vox, const Dims3& N, int lo, int hi,
                           std::int64_t L[3]) {
@@ -286,12 +325,14 @@ ConeProjector::ConeProjector(const Volume& volume, ConeProjectorOptions options)
         d.values = padded(mapped, N, 1, 2, d.L);
         for (int a = 0; a < 3; ++a) d.grid.cells[a] = N[a];
         if (options.skipEmpty) markBlocks(volume, mapped, d.grid, false);
+        occupiedBox(volume, mapped, options.skipEmpty, 0, d);
         break;
     case RayModel::Trilinear:
         d.lo = 1;
         d.values = padded(mapped, N, 1, 2, d.L);
         for (int a = 0; a < 3; ++a) d.grid.cells[a] = N[a] + 1;
         if (options.skipEmpty) markBlocks(volume, mapped, d.grid, true);
+        occupiedBox(volume, mapped, options.skipEmpty, 1, d);
         break;
     case RayModel::BSpline:
         d.lo = kSplineMargin;
@@ -576,14 +617,18 @@ struct Caster {
     double integrate(const Ray& r) const {
         double t0 = 0.0, t1 = 1.0;
         switch (model) {
-        case RayModel::Box: {
-            const glm::dvec3 hi(d.grid.cells[0], d.grid.cells[1], d.grid.cells[2]);
-            return clipToBox(r, glm::dvec3(0.0), hi, t0, t1) ? box(r, t0, t1) : 0.0;
-        }
+        case RayModel::Box:
+            if (d.occupiedLo.x >= d.occupiedHi.x) return 0.0; // only zeros
+            return clipToBox(r, d.occupiedLo, d.occupiedHi, t0, t1) ? box(r, t0, t1) : 0.0;
         case RayModel::Trilinear: {
+            if (stepT <= 0.0) {
+                if (d.occupiedLo.x >= d.occupiedHi.x) return 0.0;
+                return clipToBox(r, d.occupiedLo, d.occupiedHi, t0, t1) ? trilinearExact(r, t0, t1)
+                                                                        : 0.0;
+            }
+            // The sampled model keeps the whole grid's clip: its samples stay where they are.
             const glm::dvec3 hi(d.grid.cells[0], d.grid.cells[1], d.grid.cells[2]);
             if (!clipToBox(r, glm::dvec3(0.0), hi, t0, t1)) return 0.0;
-            if (stepT <= 0.0) return trilinearExact(r, t0, t1);
             return sampled(r, t0, t1, !d.grid.occupied.empty(),
                            [&](double x, double y, double z) { return trilinearAt(x, y, z); });
         }
