@@ -129,6 +129,15 @@ screenshots: build
 	 convert view1.png view2.png -crop "$$crop" +repage -bordercolor black -border 24 +append \
 	   "$(abspath $(SCREENSHOT_DIR))/voxel-models.png"
 	@rm -rf "$(SHOT_CONFIG)"
+	@# Cone beam beside parallel: the chest phantom at LAO 30 CRAN 15, a cardiac C-arm's SID and
+	@# SOD, view 1 the Fourier renderer's parallel image, view 2 the ray-cast cone beam.
+	@rm -rf "$(SHOT_CONFIG)"
+	@$(SHOT) phantom:chest --compare 2 --projection parallel,cone --carm 30,15 --sid 1020 \
+	   --sod 750 --size 256 --screenshot $(SCREENSHOT_DIR)/cone-beam.png
+	@# resources/screenshots/xray-match.png (File > Open X-ray to match...) is a capture of the
+	@# dialog (not the main window, which --screenshot grabs): a simulated XA of the chest phantom
+	@# (256^3 box model, 640x560, 0.6 mm, LAO 20 CRAN 10, SID 1100, SOD 800, Poisson noise) opened
+	@# with `fvr-workstation --match-xray FILE`, the screen grabbed with `import -window root`.
 	@# Polychromatic: the chest phantom AP at 70 and 120 kVp (TASMIP + 1.5 mm Al, CsI-free ideal
 	@# energy-integrating detector), -ln(I/I0) each at its own auto window, bone white.
 	@for k in 70 120; do $(BUILD_DIR)/app/fvr-render phantom:chest --view AP --kvp $$k \

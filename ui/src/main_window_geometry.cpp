@@ -40,7 +40,9 @@ void MainWindow::applyGeometry() {
         s.projection = g.projection;
         s.cone = g.cone;
         m_views[std::size_t(i)]->setSettings(s);
-        if (m_compareCount > 1) m_views[std::size_t(i)]->setTitle(viewTitle(i, s));
+        // The title from the settings in effect (a new size reaches the view with its spectrum).
+        if (m_compareCount > 1)
+            m_views[std::size_t(i)]->setTitle(viewTitle(i, m_viewSettings[std::size_t(i)]));
     }
     assignSpectra(); // a cone-beam view takes the study's spectrum, whatever its kernel
     // The startup setting is view 1's.
