@@ -17,6 +17,7 @@
 
 #include <fvr/core/io/image_io.h>
 
+#include "cli_support.h"
 #include "support/rt_plan_writer.h"
 #include "test_support.h"
 
@@ -28,19 +29,8 @@ std::string tmp(const std::string& name) {
     return (fvr::test::tmpDir() / ("beam_" + name)).string();
 }
 
-struct Result {
-    int status = -1;
-    std::string output; // stdout, then stderr
-};
-
-Result run(const std::string& args) {
-    const std::string err = tmp("stderr_" + std::to_string(getpid()) + ".txt");
-    const auto c = fvr::test::runCommand(std::string(FVR_RENDER_EXE) + " " + args + " 2>" + err);
-    std::ifstream in(err);
-    Result r{c.status, c.out + std::string(std::istreambuf_iterator<char>(in), {})};
-    std::remove(err.c_str());
-    return r;
-}
+using Result = fvr::test::RenderResult;
+Result run(const std::string& args) { return fvr::test::runFvrRender(args); }
 
 /** A 64 x 32 x 48 float32 MetaImage of 1 mm voxels centred on the LPS origin, zero but for a
  *  3 mm cube at (20, 0, 10): 20 mm to the patient's left, 10 mm toward the head. */

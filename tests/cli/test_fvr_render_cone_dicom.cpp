@@ -25,6 +25,7 @@
 #include <fvr/core/geometry/camera.h>
 #include <fvr/core/io/image_io.h>
 
+#include "cli_support.h"
 #include "test_support.h"
 
 namespace {
@@ -35,19 +36,8 @@ std::string tmp(const std::string& name) {
     return (fvr::test::tmpDir() / ("cone_dicom_" + name)).string();
 }
 
-struct Result {
-    int status = -1;
-    std::string output; // stdout, then stderr
-};
-
-Result run(const std::string& args) {
-    const std::string err = tmp("stderr_" + std::to_string(getpid()) + ".txt");
-    const auto c = fvr::test::runCommand(std::string(FVR_RENDER_EXE) + " " + args + " 2>" + err);
-    std::ifstream in(err);
-    Result r{c.status, c.out + std::string(std::istreambuf_iterator<char>(in), {})};
-    std::remove(err.c_str());
-    return r;
-}
+using Result = fvr::test::RenderResult;
+Result run(const std::string& args) { return fvr::test::runFvrRender(args); }
 
 Json sidecar(const std::string& out) {
     std::ifstream in(out + ".json");
@@ -214,7 +204,9 @@ TEST(FvrRenderConeDicom, AMatrixCameraIsWrittenAsItsCArmAndARolledOneIsRefused) 
     EXPECT_NEAR(g.frames[0].sod, 800.0, 1e-6);
     EXPECT_TRUE(g.isocentreStated);
     EXPECT_NEAR(glm::length(g.frames[0].isocentre), 0.0, 1e-6);
-    if (haveDciodvfy()) EXPECT_EQ(dciodvfy(dcm).find("Error"), std::string::npos);
+    if (haveDciodvfy()) {
+        EXPECT_EQ(dciodvfy(dcm).find("Error"), std::string::npos);
+    }
     // The same detector rolled 30 degrees about the principal ray: no C-arm has it.
     ConeCamera rolled = c;
     const double t = 30.0 * 3.14159265358979323846 / 180.0;

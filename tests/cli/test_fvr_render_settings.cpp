@@ -18,6 +18,7 @@
 #include <fvr/core/render/render_settings.h>
 #include <fvr/core/xray/phantom.h>
 
+#include "cli_support.h"
 #include "image_metrics.h"
 #include "test_support.h"
 
@@ -30,19 +31,8 @@ std::string tmp(const std::string& name) {
     return (fvr::test::tmpDir() / ("settings_" + name)).string();
 }
 
-struct Result {
-    int status = -1;
-    std::string output; // stdout, then stderr
-};
-
-Result run(const std::string& args) {
-    const std::string err = tmp("stderr_" + std::to_string(getpid()) + ".txt");
-    const auto c = fvr::test::runCommand(std::string(FVR_RENDER_EXE) + " " + args + " 2>" + err);
-    std::ifstream in(err);
-    Result r{c.status, c.out + std::string(std::istreambuf_iterator<char>(in), {})};
-    std::remove(err.c_str());
-    return r;
-}
+using Result = fvr::test::RenderResult;
+Result run(const std::string& args) { return fvr::test::runFvrRender(args); }
 
 Json settingsOf(const std::string& out) {
     std::ifstream in(out + ".json");
