@@ -9,6 +9,7 @@
 #include <fvr/core/thread_pool.h>
 #ifdef FVR_HAVE_GPU
 #include <fvr/gpu/choose_renderer.h>
+#include <fvr/gpu/cone_ray_caster.h>
 #include <fvr/gpu/egl_context.h>
 #include <fvr/gpu/gl_info.h>
 #include <fvr/gpu/gpu_renderer.h>
@@ -300,6 +301,82 @@ nlohmann::json gpuInfoJson() {
     j["reason"] = "built without the GPU renderer";
 #endif
     return j;
+}
+
+namespace {
+
+class CpuConeCaster final : public ConeCaster {
+public:
+    CpuConeCaster(const core::Volume& volume, const core::ConeProjectorOptions& o)
+        : m_projector(volume, o) {}
+    core::DetectorImage project(const core::ConeCamera& c) override {
+        return m_projector.project(c);
+    }
+    const core::ConeProjectorOptions& options() const override { return m_projector.options(); }
+    std::string name() const override { return "cpu"; }
+    std::string description() const override {
+        return core::describeConeProjector(m_projector.options());
+    }
+
+private:
+    core::ConeProjector m_projector;
+};
+
+#ifdef FVR_HAVE_GPU
+class GpuConeCaster final : public ConeCaster {
+public:
+    GpuConeCaster(std::unique_ptr<fvr::gpu::EglContext> context, const core::Volume& volume,
+                  const core::ConeProjectorOptions& o)
+        : m_context(std::move(context)), m_caster(volume, o) {}
+    core::DetectorImage project(const core::ConeCamera& c) override { return m_caster.project(c); }
+    const core::ConeProjectorOptions& options() const override { return m_caster.options(); }
+    std::string name() const override { return "gpu: " + m_context->description(); }
+    std::string description() const override {
+        return fvr::gpu::describeConeRayCaster(m_caster.options(), m_caster.fetch());
+    }
+
+private:
+    std::unique_ptr<fvr::gpu::EglContext> m_context; // declared first: destroyed last
+    fvr::gpu::ConeRayCaster m_caster;
+};
+
+/** The GPU's caster where --backend allows it, else null (the reason on stderr when the GPU
+ *  was asked for or is hardware). */
+std::unique_ptr<ConeCaster> gpuConeCaster(const Options& o, const core::Volume& volume,
+                                          const core::ConeProjectorOptions& po) {
+    const bool asked = o.backend == Options::Backend::Gpu;
+    if (po.model == core::RayModel::BSpline) {
+        if (asked)
+            std::fprintf(stderr, "fvr-render: the B-spline ray model runs on the CPU only\n");
+        return nullptr;
+    }
+    bool hardware = false;
+    try {
+        auto context = std::make_unique<fvr::gpu::EglContext>();
+        hardware = !fvr::gpu::currentGlInfo().software();
+        if (!asked && !hardware) return nullptr; // auto: a software GL is slower than the CPU
+        return std::make_unique<GpuConeCaster>(std::move(context), volume, po);
+    } catch (const std::exception& e) {
+        if (asked || hardware)
+            std::fprintf(stderr,
+                         "fvr-render: the GPU cannot cast the cone beam (%s); the CPU does\n",
+                         e.what());
+        return nullptr;
+    }
+}
+#endif
+
+} // namespace
+
+std::unique_ptr<ConeCaster> makeConeCaster(const Options& o, const core::Volume& volume,
+                                           const core::ConeProjectorOptions& po) {
+#ifdef FVR_HAVE_GPU
+    if (o.backend != Options::Backend::Cpu)
+        if (auto gpu = gpuConeCaster(o, volume, po)) return gpu;
+#else
+    if (o.backend == Options::Backend::Gpu) sayBuiltWithoutGpu();
+#endif
+    return std::make_unique<CpuConeCaster>(volume, po);
 }
 
 } // namespace fvr::cli

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <fvr/core/render/cone_projector.h>
 #include <fvr/core/render/renderer.h>
 #include <fvr/core/render/spectrum.h>
 #include <fvr/core/xray/polychromatic_render.h>
@@ -73,5 +74,25 @@ PolychromaticFrameFn gpuPolychromaticFrames(
  *  surfaceless), "description", "egl"}, "gl": {"vendor", "renderer", "version", "major",
  *  "minor", "coreProfile", "max3dTextureSize", "freeMemoryMiB" (null where not reported)}}. */
 nlohmann::json gpuInfoJson();
+
+/** The cone-beam ray caster fvr-render runs: core::ConeProjector, or gpu::ConeRayCaster on a
+ *  headless EGL context (the same models and images to float rounding). */
+class ConeCaster {
+public:
+    virtual ~ConeCaster() = default;
+    virtual core::DetectorImage project(const core::ConeCamera& camera) = 0;
+    virtual const core::ConeProjectorOptions& options() const = 0;
+    /** "cpu", or "gpu: <EGL device>". */
+    virtual std::string name() const = 0;
+    /** The models in words (core::describeConeProjector, or the GPU's with its fetch). */
+    virtual std::string description() const = 0;
+};
+
+/** The ray caster of --backend: gpu takes the GPU (a software one too), auto a hardware GPU
+ *  only, cpu the CPU. The B-spline model and whatever the GPU refuses (a volume beyond its 3D
+ *  texture size or memory, no EGL) run on the CPU, saying why on stderr where the GPU was asked
+ *  for or is hardware. */
+std::unique_ptr<ConeCaster> makeConeCaster(const Options& o, const core::Volume& volume,
+                                           const core::ConeProjectorOptions& po);
 
 } // namespace fvr::cli

@@ -107,7 +107,7 @@ void runConeBench(const ConeSession& s, const std::vector<ConeView>& views) {
     std::vector<double> ms;
     for (const ConeView& v : benchViews) {
         const auto t0 = std::chrono::steady_clock::now();
-        const DetectorImage img = s.projector.project(v.camera);
+        const DetectorImage img = s.caster.project(v.camera);
         ms.push_back(
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
                 .count());

@@ -99,7 +99,7 @@ ConeProjectorOptions coneProjectorOptions(const Options& o) {
 }
 
 DetectorImage projectConeView(const ConeSession& s, const ConeCamera& camera) {
-    DetectorImage img = s.projector.project(camera);
+    DetectorImage img = s.caster.project(camera);
     if (s.options.cone.flatField) {
         // I = I0 f exp(-mu p) = I0 exp(-mu (p - ln f / mu)): the flat field folded into the
         // line integrals, so that the writers' transmission and film window (outputs.cpp) see
@@ -145,7 +145,7 @@ int renderCone(const Options& asked, const Volume& volume, const ConeFiles& file
         }
     }
     const auto t0 = std::chrono::steady_clock::now();
-    ConeProjector projector(volume, coneProjectorOptions(o));
+    const std::unique_ptr<ConeCaster> caster = makeConeCaster(o, volume, coneProjectorOptions(o));
     const double prepareMs =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     // The C-arms of a .dcm output or --send before any rendering: a matrix-file camera may
@@ -154,7 +154,7 @@ int renderCone(const Options& asked, const Volume& volume, const ConeFiles& file
                                 ? coneDicom(volume, views)
                                 : ConeDicom{};
     const ConeSession s{
-        o,      volume,    projector, prepareMs, o.threads > 0 ? o.threads : hardwareThreads(),
+        o,      volume,    *caster, prepareMs, o.threads > 0 ? o.threads : hardwareThreads(),
         &files, exportInfo};
     if (o.bench > 0) runConeBench(s, views);
     if (!o.out.empty()) writeConeOutputs(s, views, dicom);
@@ -189,11 +189,11 @@ Json treatmentBeamJson(const RtPlanBeam& b) {
 
 Json coneSettingsJson(const ConeSession& s) {
     const Options& o = s.options;
-    const ConeProjectorOptions& po = s.projector.options();
+    const ConeProjectorOptions& po = s.caster.options();
     return Json{{"input", o.input},
                 {"geometry", "cone"},
-                {"backend", "cpu"},
-                {"renderer", describeConeProjector(po)},
+                {"backend", s.caster.name()},
+                {"renderer", s.caster.description()},
                 {"ray_model", rayModelName(po.model)},
                 {"step", po.stepFraction},
                 {"values", valueMappingName(o.settings.values)},

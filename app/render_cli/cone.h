@@ -13,6 +13,7 @@
 #include <fvr/core/render/cone_projector.h>
 #include <fvr/core/volume.h>
 
+#include "backend.h"
 #include "json_output.h"
 #include "options.h"
 
@@ -79,8 +80,8 @@ std::vector<ConeView> coneViews(const Options& o, const core::Volume& volume,
 struct ConeSession {
     const Options& options; ///< resolved for the volume (the value mapping)
     const core::Volume& volume;
-    core::ConeProjector& projector;
-    double prepareMs = 0.0; ///< the projector's set-up (value mapping, empty-block map)
+    ConeCaster& caster; ///< the CPU's or the GPU's (--backend)
+    double prepareMs = 0.0; ///< the caster's set-up (value mapping, empty-block map, upload)
     int threads = 0; ///< resolved (--threads, else all cores)
     const ConeFiles* files = nullptr; ///< what the camera options read
     core::DicomExportInfo exportInfo{}; ///< the input study's, for .dcm outputs

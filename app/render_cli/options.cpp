@@ -1056,9 +1056,6 @@ void checkGeometry(const CLI::App& app, Options& o) {
     for (const auto& [name, why] : kParallelOnly)
         if (app.count(name) > 0)
             throw SettingsError(name + ": not with --geometry cone (" + why + ")");
-    if (o.backend == Options::Backend::Gpu)
-        throw SettingsError("--backend gpu: not with --geometry cone (the cone-beam ray caster "
-                            "runs on the CPU)");
     checkGeometryFrom(app, c);
     if (!c.matrixFile.empty())
         for (const auto& name : kMatrixFixes)

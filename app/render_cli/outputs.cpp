@@ -529,14 +529,14 @@ void writeConeOutputs(const ConeSession& s, const std::vector<ConeView>& views,
         },
         [&](bool stacked, double msPerView) {
             const bool one = stacked || views.size() == 1;
-            std::fprintf(
-                stderr,
-                "wrote %s%s (%zu view%s, %dx%d, pitch %.4g x %.4g mm, cone beam, %s, "
-                "%s, cpu; %.2f ms per view)\n",
-                one ? o.out.c_str() : numberedPath(o.out, 0).c_str(), one ? "" : " ...",
-                views.size(), views.size() > 1 ? "s" : "", first.width, first.height, first.pitchU,
-                first.pitchV, describeConeProjector(s.projector.options()).c_str(),
-                o.beerLambert ? "transmission" : valuesText(o, s.volume).c_str(), msPerView);
+            std::fprintf(stderr,
+                         "wrote %s%s (%zu view%s, %dx%d, pitch %.4g x %.4g mm, cone beam, %s, "
+                         "%s, %s; %.2f ms per view)\n",
+                         one ? o.out.c_str() : numberedPath(o.out, 0).c_str(), one ? "" : " ...",
+                         views.size(), views.size() > 1 ? "s" : "", first.width, first.height,
+                         first.pitchU, first.pitchV, s.caster.description().c_str(),
+                         o.beerLambert ? "transmission" : valuesText(o, s.volume).c_str(),
+                         s.caster.name().c_str(), msPerView);
         });
 }
 
