@@ -81,6 +81,15 @@ TEST_F(Workstation, ConeBeamViewShowsTheCArmsImageAndReadsAsACathLab) {
     EXPECT_NEAR(now.primaryDeg, g.primaryAngle(), 0.051); // the spin box rounds to 0.1
     EXPECT_NEAR(now.secondaryDeg, g.secondaryAngle(), 0.051);
 
+    // Another study: the cone beam of the new volume, not of the old one's GPU texture.
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(32)));
+    ASSERT_EQ(v->volume()->dims[0], 32);
+    const core::CArmAngles a = core::cArmAngles(*v->volume(), v->viewFrame());
+    EXPECT_GT(test::compare(v->projection()->pixels,
+                            expectedCone(*v, a.primaryDeg, a.secondaryDeg, 1800.0, 1650.0))
+                  .psnr,
+              120.0);
+
     // Saved: a new window starts in cone mode with the chest radiograph's distances.
     window.reset();
     window = std::make_unique<ui::MainWindow>();

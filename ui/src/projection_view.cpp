@@ -81,7 +81,12 @@ void ProjectionView::setStudy(std::shared_ptr<const core::Volume> volume,
     m_spectrumDirty = true;
     m_renderDirty = true;
     m_cpu.reset();
-    if (newVolume) m_cone.reset();
+    if (newVolume) {
+        m_cone.reset();
+        // The GPU caster goes with its volume at the next cast (with the context current); its
+        // address is no proof of sameness once the old volume is freed.
+        m_gpuConeVolume = nullptr;
+    }
     if (newVolume) m_windowSet = false;
     m_frameRequested = false; // the next frame is timed from here (its upload included)
     requestFrame();
