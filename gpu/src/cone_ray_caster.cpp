@@ -23,10 +23,6 @@ using core::SettingsError;
 
 namespace {
 
-constexpr GLenum kGpuMemoryInfoAvailableNvx =
-    0x9049; // GL_GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX (KiB)
-constexpr GLenum kTextureFreeMemoryAti = 0x87FC; // GL_TEXTURE_FREE_MEMORY_ATI (KiB)
-
 std::string number(double x) {
     std::ostringstream s;
     s << x;
@@ -71,13 +67,9 @@ void checkTextureFits(const core::Dims3& dims, std::size_t bytes) {
         throw GpuMemoryError("volume texture " + dimsText(dims) +
                              " exceeds the GPU's 3D texture limit of " + std::to_string(max3d) +
                              " per axis (the cone-beam ray caster needs the whole volume)");
-    GLint freeKiB[4] = {0, 0, 0, 0};
-    if (epoxy_has_gl_extension("GL_NVX_gpu_memory_info"))
-        glGetIntegerv(kGpuMemoryInfoAvailableNvx, freeKiB);
-    else if (epoxy_has_gl_extension("GL_ATI_meminfo"))
-        glGetIntegerv(kTextureFreeMemoryAti, freeKiB);
-    while (glGetError() != GL_NO_ERROR) {}
-    const std::size_t freeBytes = std::size_t(freeKiB[0]) * 1024;
+    // Free memory where the driver tells (NVIDIA, AMD: currentGlInfo); else the upload's error.
+    const GlInfo gl = currentGlInfo();
+    const std::size_t freeBytes = gl.freeMemoryKiB > 0 ? std::size_t(gl.freeMemoryKiB) * 1024 : 0;
     if (freeBytes > 0 && bytes > freeBytes)
         throw GpuMemoryError("volume texture " + dimsText(dims) + " needs " +
                              std::to_string(bytes >> 20) + " MiB of GPU memory, " +
