@@ -83,6 +83,17 @@ PyVolume volumeFromArray(py::array_t<float, py::array::c_style | py::array::forc
     return PyVolume{std::move(v), std::move(warnings)};
 }
 
+/** The settings of a Renderer and its parallel renders: a cone beam is rendered through a
+ *  camera (render(camera=...)), whose parts the cone-beam options would give. */
+cli::Options rendererSettings(const Args& args) {
+    cli::Options o = cli::parseSettings(args);
+    if (o.cone.enabled)
+        throw core::SettingsError(
+            "geometry: a cone beam is rendered with a camera: r.render(camera=fvr.Camera.carm("
+            "...)) (the C-arm, detector and pitch are the camera's)");
+    return o;
+}
+
 /** fvr.load: the path by core's rule (core::openStudy through fvr-render's loadInput). */
 PyVolume load(const std::string& path, const Args& args) {
     cli::Options o = cli::parseSettings(args);
@@ -130,7 +141,7 @@ class PyRenderer {
 public:
     PyRenderer(PyVolume volume, Args args, py::object progress)
         : m_volume(std::move(volume)), m_args(std::move(args)),
-          m_options(cli::parseSettings(m_args)) {
+          m_options(rendererSettings(m_args)) {
         // As fvr-render: attenuation for Hounsfield data, raw values for any other.
         m_options.settings = m_options.settings.forVolume(*m_volume.volume);
         const core::PreprocessOptions po = cli::preprocessOptions(m_options);
@@ -316,7 +327,7 @@ private:
             all.push_back(m_args[i]);
         }
         all.insert(all.end(), extra.begin(), extra.end());
-        cli::Options o = cli::parseSettings(all);
+        cli::Options o = rendererSettings(all);
         o.settings = o.settings.forVolume(*m_volume.volume);
         return o;
     }

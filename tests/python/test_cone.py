@@ -336,3 +336,8 @@ def test_from_dicom_and_read_xray_name_a_file_they_cannot_read(tmp_path):
     for call in (fvr.Camera.from_dicom, fvr.read_xray):
         with pytest.raises(RuntimeError, match="bad.dcm"):
             call(bad)
+
+
+def test_a_renderer_asked_for_a_cone_beam_says_to_give_a_camera(ball):
+    with pytest.raises(ValueError, match="rendered with a camera"):
+        fvr.Renderer(ball.volume, geometry="cone")
