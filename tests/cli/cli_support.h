@@ -7,6 +7,8 @@
 #include <iterator>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "test_support.h"
 
 namespace fvr::test {
@@ -28,6 +30,12 @@ inline RenderResult runFvrRender(const std::string& args) {
     RenderResult r{c.status, c.out + std::string(std::istreambuf_iterator<char>(in), {})};
     std::remove(err.c_str());
     return r;
+}
+
+/** The JSON sidecar fvr-render wrote beside `out` (out + ".json"). */
+inline nlohmann::json readSidecar(const std::string& out) {
+    std::ifstream in(out + ".json");
+    return nlohmann::json::parse(in);
 }
 
 } // namespace fvr::test

@@ -133,7 +133,7 @@ TEST(FvrRenderBeam, AnRtPlanGivesOneViewPerBeamEachTheImageOfTheSameBeamByHand) 
     std::vector<std::int64_t> shape;
     const auto views = fvr::core::readNpy(stack, shape);
     ASSERT_EQ(shape, (std::vector<std::int64_t>{2, 192, 256}));
-    const Json side = Json::parse(std::ifstream(stack + ".json"));
+    const Json side = fvr::test::readSidecar(stack);
     EXPECT_EQ(side["settings"]["rtplan"], planFile);
     ASSERT_EQ(side["views"].size(), 2u);
     const Json& tb = side["views"][1]["treatment_beam"];
@@ -224,7 +224,7 @@ TEST(FvrRenderBeam, TheSidecarRecordsTheBeamAndItsP) {
     const Result r =
         run(blobVolume() + kDetector + "--beam 30,0,0 --isocenter 1,2,3 --sid 1600 --out " + out);
     ASSERT_EQ(r.status, 0) << r.output;
-    const Json side = Json::parse(std::ifstream(out + ".json"));
+    const Json side = fvr::test::readSidecar(out);
     const Json& v = side["views"][0];
     EXPECT_EQ(v["treatment_beam"]["gantry_angle_deg"], 30.0);
     EXPECT_EQ(v["treatment_beam"]["sid_mm"], 1600.0);

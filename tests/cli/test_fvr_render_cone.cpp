@@ -32,10 +32,7 @@ std::string tmp(const std::string& name) {
 using Result = fvr::test::RenderResult;
 Result run(const std::string& args) { return fvr::test::runFvrRender(args); }
 
-Json sidecar(const std::string& out) {
-    std::ifstream in(out + ".json");
-    return Json::parse(in);
-}
+Json sidecar(const std::string& out) { return fvr::test::readSidecar(out); }
 
 std::vector<float> image(const std::string& path, std::vector<std::int64_t>& shape) {
     return fvr::core::readNpy(path, shape);

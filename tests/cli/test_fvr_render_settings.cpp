@@ -34,10 +34,7 @@ std::string tmp(const std::string& name) {
 using Result = fvr::test::RenderResult;
 Result run(const std::string& args) { return fvr::test::runFvrRender(args); }
 
-Json settingsOf(const std::string& out) {
-    std::ifstream in(out + ".json");
-    return Json::parse(in)["settings"];
-}
+Json settingsOf(const std::string& out) { return fvr::test::readSidecar(out)["settings"]; }
 
 TEST(FvrRenderSettings, TheDefaultsAreRenderSettingsDefaults) {
     const RenderSettings d;

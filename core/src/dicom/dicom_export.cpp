@@ -12,66 +12,30 @@
 
 #include <fvr/core/errors.h>
 
+#include "dicom_write_internal.h"
+
 namespace fvr::core {
 
-namespace {
-/** Throws WriteError naming the file and the problem: "<path>: <detail>". */
-[[noreturn]] void failWrite(const std::filesystem::path& path, const std::string& detail) {
-    throw WriteError(path.string() + ": " + detail);
-}
-
-/** Type 2 attributes of the Secondary Capture IOD: present, empty when unknown (dciodvfy); the
- *  study's date is the source's (a study has one date), the content's is now (UTC). */
-template <class Put>
-void putType2(const Put& put, const DicomExportInfo& info) {
-    for (const DcmTagKey& t :
-         {DCM_PatientBirthDate, DCM_PatientSex, DCM_ReferringPhysicianName, DCM_StudyID,
-          DCM_AccessionNumber, DCM_Laterality, DCM_PatientOrientation, DCM_StudyTime})
-        put(t, "");
-    put(DCM_StudyDate, info.studyDate);
-    char date[16], time[16];
-    const std::time_t now = std::time(nullptr);
-    std::tm tm{};
-    gmtime_r(&now, &tm);
-    std::strftime(date, sizeof date, "%Y%m%d", &tm);
-    std::strftime(time, sizeof time, "%H%M%S", &tm);
-    put(DCM_ContentDate, date);
-    put(DCM_ContentTime, time);
-}
-
-} // namespace
+using dicom_write::failWrite;
 
 void writeDicomProjection(const std::filesystem::path& path, const ProjectionImage& image,
                           const DicomExportInfo& info) {
     const int M = image.size;
     if (M <= 0 || image.pixels.size() != std::size_t(M) * M) failWrite(path, "no image to export");
-    float lo = image.pixels[0], hi = image.pixels[0];
-    for (float v : image.pixels)
-        if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
-    // stored = (value - lo) / slope, 0..65535
-    const double slope = hi > lo ? (double(hi) - lo) / 65535.0 : 1.0;
-    std::vector<Uint16> stored(image.pixels.size());
-    for (std::size_t i = 0; i < stored.size(); ++i) {
-        const double v = std::isfinite(image.pixels[i]) ? image.pixels[i] : lo;
-        stored[i] = Uint16(std::clamp(std::lround((v - lo) / slope), 0L, 65535L));
-    }
+    const dicom_write::Quantized q = dicom_write::quantize(image.pixels);
+    const double lo = q.lo, hi = q.hi, slope = q.slope;
 
     DcmFileFormat file;
     DcmDataset* ds = file.getDataset();
-    char uid[100];
     auto put = [&](const DcmTagKey& tag, const std::string& value) {
         if (ds->putAndInsertString(tag, value.c_str()).bad())
             failWrite(path, std::string("cannot set DICOM tag ") + DcmTag(tag).getTagName());
     };
-    put(DCM_SOPClassUID, UID_SecondaryCaptureImageStorage);
-    put(DCM_SOPInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_INSTANCE_UID_ROOT));
-    put(DCM_StudyInstanceUID, info.studyInstanceUid.empty()
-                                  ? dcmGenerateUniqueIdentifier(uid, SITE_STUDY_UID_ROOT)
-                                  : info.studyInstanceUid);
-    put(DCM_SeriesInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_SERIES_UID_ROOT));
-    put(DCM_PatientName, info.patientName);
-    put(DCM_PatientID, info.patientId);
-    putType2(put, info);
+    // The Secondary Capture IOD's type 2 attributes: present, empty when unknown.
+    dicom_write::putNewInstance(put, UID_SecondaryCaptureImageStorage, info,
+                                {DCM_PatientBirthDate, DCM_PatientSex, DCM_ReferringPhysicianName,
+                                 DCM_StudyID, DCM_AccessionNumber, DCM_Laterality,
+                                 DCM_PatientOrientation, DCM_StudyTime});
     put(DCM_Modality, "OT");
     put(DCM_ConversionType, "WSD"); // workstation
     put(DCM_SeriesDescription, info.seriesDescription);
@@ -107,7 +71,7 @@ void writeDicomProjection(const std::filesystem::path& path, const ProjectionIma
       << " (volume index frame); pixel (col,row) at centre + (col - M/2) d right - (row - M/2) d "
          "up";
     put(DCM_ImageComments, c.str());
-    if (ds->putAndInsertUint16Array(DCM_PixelData, stored.data(), stored.size()).bad())
+    if (ds->putAndInsertUint16Array(DCM_PixelData, q.stored.data(), q.stored.size()).bad())
         failWrite(path, "cannot store the pixel data");
     writeAtomically(path, [&](const std::filesystem::path& tmp) {
         const OFCondition st = file.saveFile(tmp.c_str(), EXS_LittleEndianExplicit);

@@ -18,13 +18,15 @@
 
 #include <fvr/core/errors.h>
 
+#include "dicom_write_internal.h"
+
 namespace fvr::core {
 
 namespace {
 
-[[noreturn]] void failWrite(const std::filesystem::path& path, const std::string& detail) {
-    throw WriteError(path.string() + ": " + detail);
-}
+using dicom_write::failWrite;
+using dicom_write::quantize;
+using dicom_write::Quantized;
 
 /** A decimal string (DS) of at most 16 characters holding as many digits of v as fit. */
 std::string ds(double v) {
@@ -34,30 +36,6 @@ std::string ds(double v) {
         if (std::string(buf).size() <= 16) return buf;
     }
     return "0";
-}
-
-/** Stored 16-bit values and the rescale that maps them back: value = stored x slope + lo. */
-struct Quantized {
-    std::vector<Uint16> stored;
-    double slope = 1.0, lo = 0.0, hi = 0.0;
-};
-
-Quantized quantize(const std::vector<float>& pixels) {
-    Quantized q;
-    bool any = false;
-    for (float v : pixels)
-        if (std::isfinite(v)) {
-            q.lo = any ? std::min(q.lo, double(v)) : v;
-            q.hi = any ? std::max(q.hi, double(v)) : v;
-            any = true;
-        }
-    q.slope = q.hi > q.lo ? (q.hi - q.lo) / 65535.0 : 1.0;
-    q.stored.resize(pixels.size());
-    for (std::size_t i = 0; i < pixels.size(); ++i) {
-        const double v = std::isfinite(pixels[i]) ? pixels[i] : q.lo;
-        q.stored[i] = Uint16(std::clamp(std::lround((v - q.lo) / q.slope), 0L, 65535L));
-    }
-    return q;
 }
 
 /** Throws SettingsError unless the image's camera is the C-arm's. */
@@ -125,32 +103,16 @@ void putRun(const std::function<void(const DcmTagKey&, const std::string&)>& put
     put(DCM_PositionerSecondaryAngleIncrement, secondary);
 }
 
-using Put = std::function<void(const DcmTagKey&, const std::string&)>;
+using Put = dicom_write::PutTag;
 
 /** Patient, study, series, equipment and image identification (XA IOD's type 1 and 2). */
 void putIdentity(const Put& put, const DicomExportInfo& info) {
-    char uid[100];
-    char date[16], time[16];
-    const std::time_t now = std::time(nullptr);
-    std::tm tm{};
-    gmtime_r(&now, &tm);
-    std::strftime(date, sizeof date, "%Y%m%d", &tm);
-    std::strftime(time, sizeof time, "%H%M%S", &tm);
-    put(DCM_SOPClassUID, UID_XRayAngiographicImageStorage);
-    put(DCM_SOPInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_INSTANCE_UID_ROOT));
-    put(DCM_StudyInstanceUID, info.studyInstanceUid.empty()
-                                  ? dcmGenerateUniqueIdentifier(uid, SITE_STUDY_UID_ROOT)
-                                  : info.studyInstanceUid);
-    put(DCM_SeriesInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_SERIES_UID_ROOT));
-    put(DCM_PatientName, info.patientName);
-    put(DCM_PatientID, info.patientId);
-    for (const DcmTagKey& t : {DCM_PatientBirthDate, DCM_PatientSex, DCM_ReferringPhysicianName,
-                               DCM_StudyID, DCM_AccessionNumber, DCM_Laterality, DCM_KVP,
-                               DCM_XRayTubeCurrent, DCM_ExposureTime, DCM_Exposure, DCM_StudyTime})
-        put(t, "");
-    put(DCM_StudyDate, info.studyDate); // the source study's: a study has one date
-    put(DCM_ContentDate, date);
-    put(DCM_ContentTime, time);
+    // The XA IOD's type 2 attributes: present, empty when unknown.
+    dicom_write::putNewInstance(put, UID_XRayAngiographicImageStorage, info,
+                                {DCM_PatientBirthDate, DCM_PatientSex, DCM_ReferringPhysicianName,
+                                 DCM_StudyID, DCM_AccessionNumber, DCM_Laterality, DCM_KVP,
+                                 DCM_XRayTubeCurrent, DCM_ExposureTime, DCM_Exposure,
+                                 DCM_StudyTime});
     put(DCM_Modality, "XA");
     put(DCM_Manufacturer, "FVR Workstation");
     put(DCM_SeriesDescription, info.seriesDescription);

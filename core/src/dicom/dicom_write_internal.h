@@ -1,0 +1,38 @@
+#pragma once
+// What the DICOM writers share (dicom_export.cpp: the Secondary Capture of a parallel
+// projection; xray_export.cpp: a cone-beam DRR as XA): the 16-bit quantisation of float values,
+// the identity of a new instance, and the error naming the file. Not installed.
+#include <dcmtk/config/osconfig.h>
+#include <dcmtk/dcmdata/dctk.h>
+
+#include <filesystem>
+#include <functional>
+#include <initializer_list>
+#include <string>
+#include <vector>
+
+#include <fvr/core/dicom/dicom_export.h>
+
+namespace fvr::core::dicom_write {
+
+/** Throws WriteError naming the file and the problem: "<path>: <detail>". */
+[[noreturn]] void failWrite(const std::filesystem::path& path, const std::string& detail);
+
+/** Stored 16-bit values and the rescale that maps them back: value = stored x slope + lo, over
+ *  the finite values (a value that is not finite is stored as lo). */
+struct Quantized {
+    std::vector<Uint16> stored;
+    double slope = 1.0, lo = 0.0, hi = 0.0;
+};
+Quantized quantize(const std::vector<float>& pixels);
+
+using PutTag = std::function<void(const DcmTagKey&, const std::string&)>;
+
+/** What every object we write carries first: `sopClassUid` and a new instance UID, the export's
+ *  study (a new one when it names none) and a new series, the patient, the type 2 attributes
+ *  `emptyType2` present and empty (dciodvfy), the source study's date (a study has one date)
+ *  and the content's date and time: now, UTC. */
+void putNewInstance(const PutTag& put, const char* sopClassUid, const DicomExportInfo& info,
+                    std::initializer_list<DcmTagKey> emptyType2);
+
+} // namespace fvr::core::dicom_write
