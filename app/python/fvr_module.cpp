@@ -412,18 +412,8 @@ core::Vec3 fromGlm(const glm::dvec3& a) { return {a.x, a.y, a.z}; }
 core::ConeCamera makeCamera(const core::Vec3& source, const core::Vec3& centre, const core::Vec3& u,
                             const core::Vec3& v, int width, int height, double pitchU,
                             double pitchV, double du, double dv) {
-    core::ConeCamera c;
-    c.source = toGlm(source);
-    c.detectorCentre = toGlm(centre);
-    c.u = toGlm(u);
-    c.v = toGlm(v);
-    c.width = width;
-    c.height = height;
-    c.pitchU = pitchU;
-    c.pitchV = pitchV;
-    c.principalOffset = {du, dv};
-    c.validate();
-    return c;
+    return core::coneCamera(toGlm(source), toGlm(centre), toGlm(u), toGlm(v), width, height, pitchU,
+                            pitchV, {du, dv});
 }
 
 /** A C-arm's camera (core::cArmCamera: DICOM's positioner angles, SID, SOD, isocentre). */

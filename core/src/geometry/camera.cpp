@@ -78,6 +78,23 @@ void ConeCamera::validate() const {
         fail("the detector plane passes through the source (it does not face it)");
 }
 
+ConeCamera coneCamera(const glm::dvec3& source, const glm::dvec3& detectorCentre,
+                      const glm::dvec3& u, const glm::dvec3& v, int width, int height,
+                      double pitchU, double pitchV, glm::dvec2 principalOffset) {
+    ConeCamera c;
+    c.source = source;
+    c.detectorCentre = detectorCentre;
+    c.u = u;
+    c.v = v;
+    c.width = width;
+    c.height = height;
+    c.pitchU = pitchU;
+    c.pitchV = pitchV;
+    c.principalOffset = principalOffset;
+    c.validate();
+    return c;
+}
+
 ConeCamera cArmCamera(const CArm& arm, int width, int height, double pitchU, double pitchV,
                       glm::dvec2 principalOffset) {
     if (!std::isfinite(arm.primaryDeg) || !std::isfinite(arm.secondaryDeg) ||
@@ -89,18 +106,9 @@ ConeCamera cArmCamera(const CArm& arm, int width, int height, double pitchU, dou
     const double a = arm.primaryDeg * std::numbers::pi / 180.0;
     const double b = arm.secondaryDeg * std::numbers::pi / 180.0;
     const glm::dvec3 d(std::sin(a) * std::cos(b), -std::cos(a) * std::cos(b), std::sin(b));
-    ConeCamera c;
-    c.source = arm.isocentre - arm.sod * d;
-    c.detectorCentre = arm.isocentre + (arm.sid - arm.sod) * d;
-    c.u = glm::dvec3(std::cos(a), std::sin(a), 0.0);
-    c.v = glm::cross(c.u, d);
-    c.width = width;
-    c.height = height;
-    c.pitchU = pitchU;
-    c.pitchV = pitchV;
-    c.principalOffset = principalOffset;
-    c.validate();
-    return c;
+    const glm::dvec3 u(std::cos(a), std::sin(a), 0.0);
+    return coneCamera(arm.isocentre - arm.sod * d, arm.isocentre + (arm.sid - arm.sod) * d, u,
+                      glm::cross(u, d), width, height, pitchU, pitchV, principalOffset);
 }
 
 } // namespace fvr::core

@@ -108,18 +108,10 @@ ConeCamera treatmentBeamCamera(const TreatmentBeam& beam, int width, int height,
                             "isocentre), found SAD " +
                             formatNumber(beam.sad) + " mm, SID " + formatNumber(beam.sid) + " mm");
     const glm::dmat3 b = beamLimitingDeviceToLps(beam);
-    ConeCamera c;
-    c.source = beam.isocentre + beam.sad * b[2];
-    c.detectorCentre = beam.isocentre + (beam.sad - beam.sid) * b[2];
-    c.u = b[0]; // columns along +Xb
-    c.v = -b[1]; // rows along -Yb (row 0 toward +Yb, seen from the source)
-    c.width = width;
-    c.height = height;
-    c.pitchU = pitchU;
-    c.pitchV = pitchV;
-    c.principalOffset = principalOffset;
-    c.validate();
-    return c;
+    // Columns along +Xb, rows along -Yb (row 0 toward +Yb, seen from the source).
+    return coneCamera(beam.isocentre + beam.sad * b[2],
+                      beam.isocentre + (beam.sad - beam.sid) * b[2], b[0], -b[1], width, height,
+                      pitchU, pitchV, principalOffset);
 }
 
 } // namespace fvr::core

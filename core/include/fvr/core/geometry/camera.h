@@ -41,6 +41,12 @@ struct ConeCamera {
     void validate() const;
 };
 
+/** A camera from its parts: a source, a detector centre, unit column and row directions u and v,
+ *  W x H pixels of pitch pu x pv and a principal offset; checked (ConeCamera::validate). */
+ConeCamera coneCamera(const glm::dvec3& source, const glm::dvec3& detectorCentre,
+                      const glm::dvec3& u, const glm::dvec3& v, int width, int height,
+                      double pitchU, double pitchV, glm::dvec2 principalOffset = glm::dvec2(0.0));
+
 /** A C-arm: positioner angles in degrees (DICOM's signs), source-to-detector (SID) and
  *  source-to-isocentre (SOD) distances in mm, and the isocentre. */
 struct CArm {
