@@ -2,6 +2,8 @@
 // conventions this relies on and how each was found).
 #include "support/plastimatch.h"
 
+#include <fvr/core/text.h>
+
 #include <sys/wait.h>
 
 #include <bit>
@@ -18,15 +20,18 @@ namespace {
 
 glm::dvec3 dvec(const core::Vec3& v) { return {v[0], v[1], v[2]}; }
 
-/** Enough digits that the text reads back as the same double. */
-std::string num(double v) {
-    char buf[40];
-    std::snprintf(buf, sizeof buf, "%.17g", v);
-    return buf;
-}
+/** Text that reads back as the same double (core::formatNumber: the shortest such). */
+std::string num(double v) { return core::formatNumber(v); }
 
 std::string triple(const glm::dvec3& v) {
-    return "'" + num(v.x) + " " + num(v.y) + " " + num(v.z) + "'";
+    std::string s = "'";
+    s += num(v.x);
+    s += ' ';
+    s += num(v.y);
+    s += ' ';
+    s += num(v.z);
+    s += '\'';
+    return s;
 }
 
 /** Single quotes for the shell (paths with spaces or quotes). */
