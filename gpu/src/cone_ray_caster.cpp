@@ -1,5 +1,7 @@
 #include <fvr/gpu/cone_ray_caster.h>
 
+#include <fvr/core/text.h>
+
 #include <epoxy/gl.h>
 
 #include <algorithm>
@@ -23,12 +25,6 @@ using core::SettingsError;
 
 namespace {
 
-std::string number(double x) {
-    std::ostringstream s;
-    s << x;
-    return s.str();
-}
-
 std::string dimsText(const core::Dims3& d) {
     return std::to_string(d[0]) + "x" + std::to_string(d[1]) + "x" + std::to_string(d[2]);
 }
@@ -39,7 +35,7 @@ void checkInput(const core::Volume& v, const core::ConeProjectorOptions& o) {
         throw SettingsError("GPU cone-beam ray caster: the B-spline model runs on the CPU only "
                             "(use trilinear or box)");
     if (o.model == RayModel::Trilinear && !(o.stepFraction >= 0.0 && o.stepFraction <= 4.0))
-        throw SettingsError("GPU cone-beam ray caster: step " + number(o.stepFraction) +
+        throw SettingsError("GPU cone-beam ray caster: step " + core::formatNumber(o.stepFraction) +
                             " is not in 0..4 (a fraction of the smallest voxel spacing)");
     if (o.pixelSubsamples < 1 || o.pixelSubsamples > 16)
         throw SettingsError("GPU cone-beam ray caster: " + std::to_string(o.pixelSubsamples) +
@@ -367,7 +363,7 @@ std::string describeConeRayCaster(const core::ConeProjectorOptions& options, Tri
     } else {
         s += "trilinear ray casting, ";
         s += options.stepFraction > 0
-                 ? "step " + number(options.stepFraction) + " of the smallest spacing"
+                 ? "step " + core::formatNumber(options.stepFraction) + " of the smallest spacing"
                  : std::string("exact per cell");
         s += std::string(", ") + trilinearFetchName(fetch) + " fetch";
     }

@@ -15,12 +15,6 @@
 namespace fvr::core {
 namespace {
 
-std::string number(double v) {
-    char buf[40];
-    std::snprintf(buf, sizeof buf, "%.17g", v);
-    return buf;
-}
-
 /** A short number for messages (6 significant digits). */
 std::string shortNumber(double v) {
     char buf[40];
@@ -201,7 +195,7 @@ std::string projectionMatrixText(const std::vector<ConeCamera>& cameras) {
         "mm,\n# pixel centres at integer 0-based (col, row), row 0 at the top; "
         "w > 0 in front of the source\n";
     text += "detector " + std::to_string(first.width) + " " + std::to_string(first.height) + "\n";
-    text += "pitch " + number(first.pitchU) + " " + number(first.pitchV) + "\n";
+    text += "pitch " + formatNumber(first.pitchU) + " " + formatNumber(first.pitchV) + "\n";
     for (std::size_t i = 0; i < cameras.size(); ++i) {
         const ConeCamera& c = cameras[i];
         if (c.width != first.width || c.height != first.height || c.pitchU != first.pitchU ||
@@ -211,7 +205,8 @@ std::string projectionMatrixText(const std::vector<ConeCamera>& cameras) {
         const ProjectionMatrix p = c.matrix();
         text += "# view " + std::to_string(i) + "\n";
         for (const auto& r : p.rows)
-            text += number(r.x) + " " + number(r.y) + " " + number(r.z) + " " + number(r.w) + "\n";
+            text += formatNumber(r.x) + " " + formatNumber(r.y) + " " + formatNumber(r.z) + " " +
+                    formatNumber(r.w) + "\n";
     }
     return text;
 }
