@@ -127,7 +127,9 @@ TEST(ConeProjector, TrilinearExactEqualsAFineStepIntegrationOnRealCt) {
         const auto cmp = compare(caster.project(cam).pixels, fineTrilinear(v, cam, 0.1));
         std::printf("body CT, trilinear exact vs fine step, LAO %g CRAN %g: %.1f dB\n", a, b,
                     cmp.psnr);
-        EXPECT_GT(cmp.psnr, 55.0);
+        // The target is 55 dB; the exact integral gives about 128, and a quadrature
+        // error (the trapezoid rule per cell instead of Simpson's: 61 dB) must fail here.
+        EXPECT_GT(cmp.psnr, 100.0);
     }
 }
 
