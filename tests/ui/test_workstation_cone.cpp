@@ -2,6 +2,7 @@
 // caster's for the same camera, its angles turn every view (a parallel view beside it shows the
 // same orientation), a drag moves the C-arm, the overlay reads as a cath lab, and the choices
 // survive a restart.
+#include <QAction>
 #include <QCheckBox>
 #include <QComboBox>
 #include <QDoubleSpinBox>
@@ -69,6 +70,19 @@ TEST_F(Workstation, ConeBeamViewShowsTheCArmsImageAndReadsAsACathLab) {
     EXPECT_GT(
         test::compare(v->projection()->pixels, expectedCone(*v, 30.0, 15.0, 1800.0, 1650.0)).psnr,
         120.0);
+
+    // Where the view renders on the GPU the GPU casts (the fixture allows llvmpipe); without it
+    // the CPU does: the same image either way.
+    EXPECT_TRUE(v->overlayText().contains("cone beam  128×128  GPU"))
+        << v->overlayText().toStdString();
+    window->softwareGpuAction()->trigger();
+    ASSERT_FALSE(v->usingGpu());
+    EXPECT_GT(
+        test::compare(v->projection()->pixels, expectedCone(*v, 30.0, 15.0, 1800.0, 1650.0)).psnr,
+        120.0);
+    QApplication::processEvents();
+    EXPECT_TRUE(v->overlayText().contains("cone beam  128×128  CPU"))
+        << v->overlayText().toStdString();
 
     // A drag to the right moves toward LAO, upward toward cranial; the panel follows.
     const QPoint c = v->rect().center();

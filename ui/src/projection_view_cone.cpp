@@ -17,20 +17,23 @@ std::optional<core::ConeCamera> ProjectionView::coneCamera(int size) const {
 
 void ProjectionView::renderConeFrame(int M) {
     const core::ValueMapping mapping = m_spectrum->mapping;
-    if (!m_cone || m_cone->options().mapping != mapping ||
-        m_cone->options().model != m_settings.cone.model) {
-        core::ConeProjectorOptions o;
-        o.model = m_settings.cone.model;
-        o.mapping = mapping;
-        m_cone.reset(); // the old one's memory first
-        m_cone = std::make_unique<core::ConeProjector>(*m_volume, o);
-    }
+    core::ConeProjectorOptions o;
+    o.model = m_settings.cone.model;
+    o.mapping = mapping;
     const core::ConeCamera camera = *coneCamera(M);
     const auto t0 = std::chrono::steady_clock::now();
-    std::optional<core::DetectorImage> onGpu =
-        m_gpu ? castConeOnGpu(camera, m_cone->options()) : std::nullopt;
-    m_coneOnGpu = onGpu.has_value();
-    core::DetectorImage d = onGpu ? std::move(*onGpu) : m_cone->project(camera);
+    std::optional<core::DetectorImage> d = m_gpu ? castConeOnGpu(camera, o) : std::nullopt;
+    m_coneOnGpu = d.has_value();
+    if (!d) {
+        // The CPU caster (its mapped, padded copy of the volume) only where the CPU casts.
+        if (!m_cone || m_cone->options().mapping != mapping || m_cone->options().model != o.model) {
+            m_cone.reset(); // the old one's memory first
+            m_cone = std::make_unique<core::ConeProjector>(*m_volume, o);
+        }
+        d = m_cone->project(camera);
+    } else {
+        m_cone.reset();
+    }
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     core::ProjectionImage img;
@@ -38,7 +41,7 @@ void ProjectionView::renderConeFrame(int M) {
     img.pixelSize = camera.pitchU * m_settings.cone.sod / m_settings.cone.sid;
     img.view = m_view;
     img.mapping = mapping;
-    img.pixels = std::move(d.pixels);
+    img.pixels = std::move(d->pixels);
     m_cpuImage = std::move(img);
     m_stats.sliceMs = 0.0;
     m_stats.inverseMs = 0.0;
