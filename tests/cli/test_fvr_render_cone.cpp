@@ -26,7 +26,9 @@ namespace {
 using Json = nlohmann::json;
 
 std::string tmp(const std::string& name) {
-    return (fvr::test::tmpDir() / ("cone_" + name)).string();
+    // Of this process: ctest runs each test in a process of its own, in parallel, and two tests
+    // writing the same file (a volume one of them is reading) would race.
+    return (fvr::test::tmpDir() / ("cone_" + std::to_string(getpid()) + "_" + name)).string();
 }
 
 using Result = fvr::test::RenderResult;
@@ -56,7 +58,8 @@ std::string writeVolume(const std::string& name, int nx, int ny, int nz, Value v
     std::ofstream(mhd) << "ObjectType = Image\nNDims = 3\nDimSize = " << nx << " " << ny << " "
                        << nz << "\nElementSpacing = 1 1 1\nOffset = " << ox << " " << oy << " "
                        << oz << "\nTransformMatrix = 1 0 0 0 1 0 0 0 1\n"
-                       << "ElementType = MET_FLOAT\nElementDataFile = cone_" << name << ".raw\n";
+                       << "ElementType = MET_FLOAT\nElementDataFile = "
+                       << std::filesystem::path(raw).filename().string() << "\n";
     return mhd;
 }
 

@@ -33,7 +33,9 @@ namespace {
 using Json = nlohmann::json;
 
 std::string tmp(const std::string& name) {
-    return (fvr::test::tmpDir() / ("cone_dicom_" + name)).string();
+    // Of this process: ctest runs each test in a process of its own, in parallel, and two tests
+    // writing the same file (a volume one of them is reading) would race.
+    return (fvr::test::tmpDir() / ("cone_dicom_" + std::to_string(getpid()) + "_" + name)).string();
 }
 
 using Result = fvr::test::RenderResult;
