@@ -18,8 +18,6 @@
 namespace fvr::test {
 namespace {
 
-glm::dvec3 dvec(const core::Vec3& v) { return {v[0], v[1], v[2]}; }
-
 /** Text that reads back as the same double (core::formatNumber: the shortest such). */
 std::string num(double v) { return core::formatNumber(v); }
 
@@ -52,14 +50,14 @@ std::string tail(const std::filesystem::path& path, std::size_t maxChars = 1500)
 
 /** A vector of patient LPS in the volume's index-axis frame (the direction cosines' rows). */
 glm::dvec3 rotateToFrame(const core::Volume& volume, const glm::dvec3& x) {
-    return {glm::dot(dvec(volume.direction[0]), x), glm::dot(dvec(volume.direction[1]), x),
-            glm::dot(dvec(volume.direction[2]), x)};
+    return {glm::dot(volume.direction[0], x), glm::dot(volume.direction[1], x),
+            glm::dot(volume.direction[2], x)};
 }
 
 void checkOrthonormal(const core::Volume& volume) {
     for (int a = 0; a < 3; ++a)
         for (int b = 0; b < 3; ++b) {
-            const double d = glm::dot(dvec(volume.direction[a]), dvec(volume.direction[b]));
+            const double d = glm::dot(volume.direction[a], volume.direction[b]);
             if (std::abs(d - (a == b ? 1.0 : 0.0)) > 1e-6)
                 throw std::runtime_error("plastimatch: the volume's direction cosines are not "
                                          "orthonormal (axes " +
@@ -79,7 +77,7 @@ std::string plastimatchMissing() {
 
 glm::dvec3 toPlastimatchFrame(const core::Volume& volume, const glm::dvec3& lps) {
     // Voxel index i lies at O + R diag(s) i in LPS and at O + diag(s) i in plastimatch's frame.
-    const glm::dvec3 o = dvec(volume.origin);
+    const glm::dvec3 o = volume.origin;
     return o + rotateToFrame(volume, lps - o);
 }
 
@@ -121,7 +119,7 @@ PlastimatchGeometry plastimatchGeometry(const core::Volume& volume,
     g.pitchV = camera.pitchV;
     // The isocentre only fixes where along the principal ray the source is (cam = iso + sad nrm):
     // take the depth of the volume's centre (any positive depth gives the same rays).
-    glm::dvec3 centre = dvec(volume.origin);
+    glm::dvec3 centre = volume.origin;
     for (int k = 0; k < 3; ++k) centre[k] += 0.5 * double(volume.dims[k] - 1) * volume.spacing[k];
     g.sad = glm::dot(centre - s, n);
     if (!(g.sad > 1.0)) g.sad = 0.5 * g.sid;

@@ -80,8 +80,6 @@ inline std::string joined(const std::vector<std::string>& v) {
     return s;
 }
 
-inline double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-
 inline void expectVec(const Vec3& got, const Vec3& want, double tol, const std::string& what) {
     for (int i = 0; i < 3; ++i)
         EXPECT_NEAR(got[static_cast<std::size_t>(i)], want[static_cast<std::size_t>(i)], tol)

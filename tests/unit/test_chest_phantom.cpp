@@ -30,8 +30,8 @@ Ellipsoid sphere(const Vec3& c, double r, double density) {
 /** The value at the pixel whose ray passes through the point p (mm from the volume centre). */
 float pixelAt(const ProjectionImage& img, const Vec3& p) {
     const int M = img.size;
-    const int col = M / 2 + int(std::lround(dot(p, img.view.r) / img.pixelSize));
-    const int row = M / 2 - int(std::lround(dot(p, img.view.u) / img.pixelSize));
+    const int col = M / 2 + int(std::lround(glm::dot(p, img.view.r) / img.pixelSize));
+    const int row = M / 2 - int(std::lround(glm::dot(p, img.view.u) / img.pixelSize));
     return img.pixels[std::size_t(row) * std::size_t(M) + std::size_t(col)];
 }
 

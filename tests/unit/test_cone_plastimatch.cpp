@@ -42,7 +42,7 @@ std::filesystem::path work(const std::string& name) {
 
 /** N voxels of spacing s filled by f(i, j, k), index axes along `dir`, centred on `centre`. */
 template <class F>
-Volume makeVolume(const Dims3& n, const Vec3& s, F&& f, const std::array<Vec3, 3>& dir,
+Volume makeVolume(const Dims3& n, const Vec3& s, F&& f, const glm::dmat3& dir,
                   const glm::dvec3& centre) {
     Volume v;
     v.dims = n;
@@ -59,11 +59,11 @@ Volume makeVolume(const Dims3& n, const Vec3& s, F&& f, const std::array<Vec3, 3
     return v;
 }
 
-const std::array<Vec3, 3> kIdentity{Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
+const glm::dmat3 kIdentity{Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
 /** A proper rotation that permutes the axes: index x runs toward -z, y toward +x, z toward -y. */
-const std::array<Vec3, 3> kRotated{Vec3{0, 0, -1}, Vec3{1, 0, 0}, Vec3{0, -1, 0}};
+const glm::dmat3 kRotated{Vec3{0, 0, -1}, Vec3{1, 0, 0}, Vec3{0, -1, 0}};
 /** A mirror (determinant -1): index x runs toward the patient's right. */
-const std::array<Vec3, 3> kMirrored{Vec3{-1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
+const glm::dmat3 kMirrored{Vec3{-1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
 
 /** Voxel (i, j, k)'s centre in LPS. */
 glm::dvec3 voxelCentre(const Volume& v, double i, double j, double k) {
@@ -135,7 +135,7 @@ TEST(PlastimatchOracle, ItsMatrixPutsPointsWhereOurPDoes) {
         }
         // plastimatch looks from the source: its columns are ours mirrored, unless the volume's
         // frame is itself a mirror.
-        EXPECT_EQ(plm.mirrorColumns, dot(dir[0], cross(dir[1], dir[2])) > 0.0);
+        EXPECT_EQ(plm.mirrorColumns, glm::dot(dir[0], glm::cross(dir[1], dir[2])) > 0.0);
     }
 }
 

@@ -27,8 +27,8 @@ namespace {
 /** Bilinear value of a single-slice volume at physical point p (nullopt outside the slice). */
 std::optional<double> sliceValueAt(const Volume& s, const Vec3& p) {
     Vec3 d{p[0] - s.origin[0], p[1] - s.origin[1], p[2] - s.origin[2]};
-    const double fx = dot(d, s.direction[0]) / s.spacing[0];
-    const double fy = dot(d, s.direction[1]) / s.spacing[1];
+    const double fx = glm::dot(d, s.direction[0]) / s.spacing[0];
+    const double fy = glm::dot(d, s.direction[1]) / s.spacing[1];
     if (fx < 0 || fy < 0 || fx > double(s.dims[0] - 1) || fy > double(s.dims[1] - 1))
         return std::nullopt;
     const auto x0 = std::min<std::int64_t>(std::int64_t(fx), s.dims[0] - 2);
@@ -78,7 +78,7 @@ TEST(Dicom, GantryTiltWarnsAndDeshearsConsistentWithSlices) {
         const Vec3 d{s.volume.origin[0] - v.volume.origin[0],
                      s.volume.origin[1] - v.volume.origin[1],
                      s.volume.origin[2] - v.volume.origin[2]};
-        slices.emplace_back(dot(d, v.volume.direction[2]), std::move(s.volume));
+        slices.emplace_back(glm::dot(d, v.volume.direction[2]), std::move(s.volume));
     }
     std::sort(slices.begin(), slices.end(),
               [](const auto& a, const auto& b) { return a.first < b.first; });

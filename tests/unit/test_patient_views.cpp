@@ -41,7 +41,7 @@ TEST(PatientViews, MirroredStorageIsNotShownMirrored) {
     EXPECT_EQ(patientDirectionLabel(v, f.u), "S");
     // Trackball rotations keep the frame's handedness.
     const ViewFrame g = f.rotated(f.u, 0.3);
-    EXPECT_LT(dot(g.r, cross(g.d, g.u)), 0.0);
+    EXPECT_LT(glm::dot(g.r, glm::cross(g.d, g.u)), 0.0);
 }
 
 TEST(PatientViews, Parse) {

@@ -91,14 +91,14 @@ std::pair<Vec3, Vec3> meanCosines(const std::vector<PlanSlice>& slices, const st
     for (const PlanSlice& s : slices) {
         const auto& o = s.info->orientation;
         const Vec3 ri{o[0], o[1], o[2]}, ci{o[3], o[4], o[5]};
-        const double nr = norm(ri), nc = norm(ci);
+        const double nr = glm::length(ri), nc = glm::length(ci);
         if (std::abs(nr - 1.0) > 0.01 || std::abs(nc - 1.0) > 0.01 ||
-            std::abs(dot(ri, ci)) > 0.01 * nr * nc)
+            std::abs(glm::dot(ri, ci)) > 0.01 * nr * nc)
             fail(source, "ImageOrientationPatient (0020,0037) in " + s.label +
                              ": expected two orthogonal unit vectors, found row " + vecText(ri) +
                              ", column " + vecText(ci));
-        rs = add(rs, scale(ri, 1.0 / nr));
-        cs = add(cs, scale(ci, 1.0 / nc));
+        rs = rs + ri * (1.0 / nr);
+        cs = cs + ci * (1.0 / nc);
     }
     return {rs, cs};
 }
@@ -108,12 +108,12 @@ double orientationSpread(const std::vector<PlanSlice>& slices, const Vec3& r, co
     double spread = 0.0;
     for (const PlanSlice& s : slices) {
         const auto& o = s.info->orientation;
-        spread = std::max(
-            spread, std::acos(std::clamp(
-                        dot(r, Vec3{o[0], o[1], o[2]}) / norm(Vec3{o[0], o[1], o[2]}), -1.0, 1.0)));
-        spread = std::max(
-            spread, std::acos(std::clamp(
-                        dot(c, Vec3{o[3], o[4], o[5]}) / norm(Vec3{o[3], o[4], o[5]}), -1.0, 1.0)));
+        spread = std::max(spread, std::acos(std::clamp(glm::dot(r, Vec3{o[0], o[1], o[2]}) /
+                                                           glm::length(Vec3{o[0], o[1], o[2]}),
+                                                       -1.0, 1.0)));
+        spread = std::max(spread, std::acos(std::clamp(glm::dot(c, Vec3{o[3], o[4], o[5]}) /
+                                                           glm::length(Vec3{o[3], o[4], o[5]}),
+                                                       -1.0, 1.0)));
     }
     return spread;
 }
@@ -141,9 +141,9 @@ std::pair<Vec3, Vec3> meanOrientation(const std::vector<PlanSlice>& slices, bool
                                  " but present in other slices of the series");
     }
     const auto [rs, cs] = meanCosines(slices, source);
-    const Vec3 r = scale(rs, 1.0 / norm(rs));
-    Vec3 c = sub(cs, scale(r, dot(cs, r)));
-    c = scale(c, 1.0 / norm(c));
+    const Vec3 r = rs * (1.0 / glm::length(rs));
+    Vec3 c = cs - r * glm::dot(cs, r);
+    c = c * (1.0 / glm::length(c));
     const double spread = orientationSpread(slices, r, c);
     if (spread > 1e-4)
         plan.warnings.push_back("slice orientations differ by up to " +
@@ -216,7 +216,7 @@ SortedStack sortAlongNormal(const std::vector<PlanSlice>& slices, const Vec3& nr
                             GeometryPlan& plan) {
     const std::size_t n = slices.size();
     std::vector<double> tAll(n);
-    for (std::size_t i = 0; i < n; ++i) tAll[i] = dot(slices[i].info->position, nrm);
+    for (std::size_t i = 0; i < n; ++i) tAll[i] = glm::dot(slices[i].info->position, nrm);
     plan.order.resize(n);
     std::iota(plan.order.begin(), plan.order.end(), 0);
     std::stable_sort(plan.order.begin(), plan.order.end(), [&](int a, int b) {
@@ -270,9 +270,9 @@ void measureStack(SortedStack& s, const Vec3& r, const Vec3& c, double sx, doubl
     s.u.resize(n);
     s.v.resize(n);
     for (std::size_t k = 0; k < n; ++k) {
-        const Vec3 d = sub(s.p[k], s.p[0]);
-        s.u[k] = dot(d, r);
-        s.v[k] = dot(d, c);
+        const Vec3 d = s.p[k] - s.p[0];
+        s.u[k] = glm::dot(d, r);
+        s.v[k] = glm::dot(d, c);
         s.maxShift = std::max({s.maxShift, std::abs(s.u[k]), std::abs(s.v[k])});
     }
     const double shiftTol = std::max(0.01, 0.05 * std::min(sx, sy));
@@ -329,7 +329,7 @@ void planResampling(const SortedStack& s, std::int64_t cols, std::int64_t rows, 
                          std::to_string(m) + " voxels (more than 16 times the input); refusing");
     plan.dims = {nx, ny, m};
     plan.spacing = {sx, sy, dz};
-    plan.origin = add(s.p[0], add(scale(r, umin), scale(c, vmin)));
+    plan.origin = s.p[0] + (r * umin + c * vmin);
     plan.z0 = 0.0;
     plan.t.resize(n);
     plan.du.resize(n);
@@ -417,7 +417,7 @@ GeometryPlan planGeometry(const std::vector<PlanSlice>& slices, std::int64_t col
         return s.fromMultiFrame && s.file == slices[0].file;
     });
     const auto [r, c] = meanOrientation(slices, allFromOneFile, source, plan);
-    const Vec3 nrm = cross(r, c);
+    const Vec3 nrm = glm::cross(r, c);
     plan.direction = {r, c, nrm};
 
     std::size_t withPosition = 0;

@@ -162,7 +162,7 @@ struct GeometryPlan {
     Dims3 dims{0, 0, 0};
     Vec3 spacing{1, 1, 1};
     Vec3 origin{0, 0, 0};
-    std::array<Vec3, 3> direction{Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
+    glm::dmat3 direction{1.0}; ///< as Volume::direction
     std::vector<int> order; ///< indices into the planner's input, sorted along the normal
     bool resample = false; ///< uneven spacing or sheared stack: interpolate
     std::vector<double> t; ///< sorted slices' distances along the normal (mm), resample only

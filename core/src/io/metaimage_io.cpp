@@ -155,7 +155,7 @@ struct MetaGeometry {
     std::int64_t voxelCount = 0;
     Vec3 spacing{1.0, 1.0, 1.0};
     Vec3 origin{0.0, 0.0, 0.0};
-    std::array<Vec3, 3> direction = Volume{}.direction;
+    glm::dmat3 direction = Volume{}.direction;
     bool directionStated = false; ///< TransformMatrix, Rotation or Orientation present
 };
 
@@ -236,7 +236,8 @@ void readMetaDirection(const fs::path& path, const MetaHeader& header, MetaGeome
         g.direction[a] = *unit;
     }
     if (ndims == 2)
-        g.direction[2] = normalized(cross(g.direction[0], g.direction[1])).value_or(Vec3{0, 0, 1});
+        g.direction[2] =
+            normalized(glm::cross(g.direction[0], g.direction[1])).value_or(Vec3{0, 0, 1});
 }
 
 /** How the voxel bytes are stored: element type, byte order, compression, HeaderSize. */

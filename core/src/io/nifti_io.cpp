@@ -14,6 +14,8 @@
 #include <string_view>
 #include <vector>
 
+#include <glm/matrix.hpp>
+
 #include <fvr/core/errors.h>
 
 #include "volume_io_internal.h"
@@ -268,8 +270,8 @@ NiftiData niftiData(const fs::path& path, const NiftiHeaderReader& r, const Nift
 
 /** Index axis directions and origin in the NIfTI world frame (RAS, the file's units). */
 struct NiftiOrientation {
-    std::array<Vec3, 3> direction;
-    Vec3 origin;
+    glm::dmat3 direction{1.0};
+    Vec3 origin{};
     bool stated = true; ///< from the sform or qform (false: identity assumed)
 };
 
@@ -289,7 +291,7 @@ std::optional<NiftiOrientation> niftiSform(const fs::path& path, const NiftiHead
     const auto c0 = normalized({srow[0][0], srow[1][0], srow[2][0]});
     const auto c1 = normalized({srow[0][1], srow[1][1], srow[2][1]});
     auto c2 = normalized({srow[0][2], srow[1][2], srow[2][2]});
-    if (c0 && c1 && !c2) c2 = normalized(cross(*c0, *c1));
+    if (c0 && c1 && !c2) c2 = normalized(glm::cross(*c0, *c1));
     if (!c0 || !c1 || !c2) return std::nullopt;
     return NiftiOrientation{{*c0, *c1, *c2}, {srow[0][3], srow[1][3], srow[2][3]}};
 }
@@ -317,16 +319,15 @@ std::optional<NiftiOrientation> niftiQform(const fs::path& path, const NiftiHead
         a = std::sqrt(a);
     }
     const double qfac = r.get<float>(76) < 0.0f ? -1.0 : 1.0; // pixdim[0]
-    const double R[3][3] = {
-        {a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)},
-        {2 * (b * c + a * d), a * a + c * c - b * b - d * d, 2 * (c * d - a * b)},
-        {2 * (b * d - a * c), 2 * (c * d + a * b), a * a + d * d - c * c - b * b},
-    };
+    // The rotation matrix as the NIfTI-1 header documents it, written row by row (GLM's
+    // constructor takes columns, hence the transpose); qfac flips the third column.
+    const glm::dmat3 R = glm::transpose(
+        glm::dmat3(a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c), //
+                   2 * (b * c + a * d), a * a + c * c - b * b - d * d, 2 * (c * d - a * b), //
+                   2 * (b * d - a * c), 2 * (c * d + a * b), a * a + d * d - c * c - b * b));
     NiftiOrientation o;
-    for (int ax = 0; ax < 3; ++ax) {
-        const double f = ax == 2 ? qfac : 1.0;
-        o.direction[ax] = {R[0][ax] * f, R[1][ax] * f, R[2][ax] * f};
-    }
+    o.direction = R;
+    o.direction[2] *= qfac;
     o.origin = {qx, qy, qz};
     return o;
 }
@@ -343,9 +344,9 @@ NiftiOrientation niftiOrientation(const fs::path& path, const NiftiHeaderReader&
         return assumed;
     }
     // NIfTI world coordinates are RAS; the Volume uses LPS like DICOM.
-    for (Vec3& axis : o->direction) {
-        axis[0] = -axis[0];
-        axis[1] = -axis[1];
+    for (int a = 0; a < 3; ++a) {
+        o->direction[a].x = -o->direction[a].x;
+        o->direction[a].y = -o->direction[a].y;
     }
     o->origin = {-o->origin[0] * unitToMm, -o->origin[1] * unitToMm, o->origin[2] * unitToMm};
     return *o;

@@ -170,7 +170,7 @@ std::uint64_t maxInflatedBytes(std::uint64_t compressedBytes) {
 
 /** A volume with its geometry and room for its voxels (allocated after every check passed). */
 Volume emptyVolume(const Dims3& dims, const Vec3& spacing, const Vec3& origin,
-                   const std::array<Vec3, 3>& direction, std::string name, const fs::path& file) {
+                   const glm::dmat3& direction, std::string name, const fs::path& file) {
     Volume vol;
     vol.dims = dims;
     vol.spacing = spacing;

@@ -246,6 +246,6 @@ std::uint64_t readElements(ByteSource& src, ElementType t, bool bigEndian, const
 std::vector<float> allocateVoxels(const Dims3& dims, const fs::path& file);
 std::uint64_t maxInflatedBytes(std::uint64_t compressedBytes);
 Volume emptyVolume(const Dims3& dims, const Vec3& spacing, const Vec3& origin,
-                   const std::array<Vec3, 3>& direction, std::string name, const fs::path& file);
+                   const glm::dmat3& direction, std::string name, const fs::path& file);
 
 } // namespace fvr::core::detail

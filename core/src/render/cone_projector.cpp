@@ -57,17 +57,9 @@ double framingPitch(const Volume& v, double sid, double sod, int width, int heig
 namespace {
 
 /** An LPS direction in the volume's index frame (components along the direction cosines). */
-Vec3 toIndexFrame(const Volume& v, const glm::dvec3& x) {
-    return {dot(v.direction[0], {x.x, x.y, x.z}), dot(v.direction[1], {x.x, x.y, x.z}),
-            dot(v.direction[2], {x.x, x.y, x.z})};
-}
+Vec3 toIndexFrame(const Volume& v, const glm::dvec3& x) { return x * v.direction; }
 
-glm::dvec3 toPatient(const Volume& v, const Vec3& x) {
-    glm::dvec3 p(0.0);
-    for (int a = 0; a < 3; ++a)
-        p += x[a] * glm::dvec3(v.direction[a][0], v.direction[a][1], v.direction[a][2]);
-    return p;
-}
+glm::dvec3 toPatient(const Volume& v, const Vec3& x) { return v.direction * x; }
 
 } // namespace
 

@@ -4,44 +4,35 @@
 #include <cmath>
 #include <cstdio>
 
+#include <glm/ext/matrix_transform.hpp>
+
 #include <fvr/core/errors.h>
 #include <fvr/core/render/voxel_model.h>
 
 namespace fvr::core {
 
-namespace {
-Vec3 rotate(const Vec3& v, const Vec3& k, double angle) {
-    // Rodrigues' formula, k unit.
-    const double c = std::cos(angle), s = std::sin(angle);
-    const Vec3 kxv = cross(k, v);
-    const double kv = dot(k, v);
-    return {v[0] * c + kxv[0] * s + k[0] * kv * (1 - c),
-            v[1] * c + kxv[1] * s + k[1] * kv * (1 - c),
-            v[2] * c + kxv[2] * s + k[2] * kv * (1 - c)};
-}
-} // namespace
-
 ViewFrame ViewFrame::fromDirUp(const Vec3& dir, const Vec3& up) {
-    const double nd = norm(dir);
+    const double nd = glm::length(dir);
     if (!(nd > 1e-12) || !std::isfinite(nd))
         throw SettingsError("view direction: expected a non-zero finite vector");
     ViewFrame f;
-    f.d = scale(dir, 1.0 / nd);
-    const Vec3 upOrtho = sub(up, scale(f.d, dot(up, f.d)));
-    const double nu = norm(upOrtho);
-    if (!(nu > 1e-9 * std::max(1.0, norm(up))) || !std::isfinite(nu))
+    f.d = dir * (1.0 / nd);
+    const Vec3 upOrtho = up - f.d * glm::dot(up, f.d);
+    const double nu = glm::length(upOrtho);
+    if (!(nu > 1e-9 * std::max(1.0, glm::length(up))) || !std::isfinite(nu))
         throw SettingsError("view up vector: expected a vector not parallel to the direction");
-    f.u = scale(upOrtho, 1.0 / nu);
-    f.r = cross(f.d, f.u);
+    f.u = upOrtho * (1.0 / nu);
+    f.r = glm::cross(f.d, f.u);
     return f;
 }
 
 ViewFrame ViewFrame::rotated(const Vec3& axis, double angleRad) const {
-    const double n = norm(axis);
+    const double n = glm::length(axis);
     if (!(n > 1e-12)) throw SettingsError("rotation axis: expected a non-zero vector");
-    const Vec3 k = scale(axis, 1.0 / n);
-    ViewFrame f = fromDirUp(rotate(d, k, angleRad), rotate(u, k, angleRad));
-    if (dot(r, cross(d, u)) < 0) f.r = scale(f.r, -1.0); // keep a mirrored frame mirrored
+    // GLM's rotation about the axis (right-handed; it normalises the axis itself).
+    const glm::dmat3 rotation(glm::rotate(glm::dmat4(1.0), angleRad, axis));
+    ViewFrame f = fromDirUp(rotation * d, rotation * u);
+    if (glm::dot(r, glm::cross(d, u)) < 0) f.r = f.r * -1.0; // keep a mirrored frame mirrored
     return f;
 }
 

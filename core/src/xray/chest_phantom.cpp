@@ -20,12 +20,6 @@ constexpr double kProcess = 1.50; // vertebral arches and processes: thin cortex
 constexpr double kRib = 1.60; // a rib's section: mostly cortex
 constexpr double kCortical = 1.85;
 
-Vec3 unit(const Vec3& v) { return scale(v, 1.0 / std::sqrt(dot(v, v))); }
-
-Vec3 cross(const Vec3& a, const Vec3& b) {
-    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-
 /** An axis-aligned ellipsoid. */
 Ellipsoid box(const Vec3& centre, const Vec3& semi, double density) {
     Ellipsoid e;
@@ -39,15 +33,15 @@ Ellipsoid box(const Vec3& centre, const Vec3& semi, double density) {
  *  across it horizontally and `tall` across it in the plane holding the line and +z. */
 Ellipsoid along(const Vec3& p0, const Vec3& p1, double thick, double tall, double density,
                 double stretch = 1.0) {
-    const Vec3 d = sub(p1, p0);
-    const Vec3 a0 = unit(d);
+    const Vec3 d = p1 - p0;
+    const Vec3 a0 = glm::normalize(d);
     Vec3 up{0, 0, 1};
     if (std::abs(a0[2]) > 0.95) up = {0, -1, 0};
-    const Vec3 a2 = unit(sub(up, scale(a0, dot(up, a0))));
+    const Vec3 a2 = glm::normalize(up - a0 * glm::dot(up, a0));
     Ellipsoid e;
-    e.centre = scale(add(p0, p1), 0.5);
-    e.semiAxes = {stretch * 0.5 * std::sqrt(dot(d, d)), thick, tall};
-    e.axes = {a0, cross(a2, a0), a2};
+    e.centre = (p0 + p1) * 0.5;
+    e.semiAxes = {stretch * 0.5 * std::sqrt(glm::dot(d, d)), thick, tall};
+    e.axes = {a0, glm::cross(a2, a0), a2};
     e.density = density;
     return e;
 }
@@ -72,7 +66,7 @@ void addBody(std::vector<Ellipsoid>& out) {
     const Ellipsoid neck = box({0, 14, 240}, {58, 58, 100}, kFat);
     for (const Ellipsoid& e : {torso, girdle, neck}) out.push_back(e);
     for (Ellipsoid e : {torso, girdle, neck}) {
-        e.semiAxes = sub(e.semiAxes, {12, 12, 12});
+        e.semiAxes = e.semiAxes - 12.0;
         e.density = kSoft;
         out.push_back(e);
     }
@@ -95,14 +89,14 @@ void addLungVessels(std::vector<Ellipsoid>& out) {
         out.push_back(along(root, hilum, 10, 10, kBlood, 1.1));
         for (const Vec3& e : ends) {
             const Vec3 end = s < 0 ? mirror(e) : e;
-            const Vec3 mid = add(hilum, scale(sub(end, hilum), 0.5));
+            const Vec3 mid = hilum + (end - hilum) * 0.5;
             tube(out, {hilum, mid, end}, 6.0, 3.5, kBlood);
             // Two twigs from the end of each branch.
-            const Vec3 dir = sub(end, hilum);
-            const Vec3 side = unit(cross(dir, {0, 0.3, 1}));
+            const Vec3 dir = end - hilum;
+            const Vec3 side = glm::normalize(glm::cross(dir, Vec3{0, 0.3, 1}));
             for (double t : {-1.0, 1.0})
-                out.push_back(along(end, add(end, add(scale(dir, 0.28), scale(side, t * 16))), 2.0,
-                                    2.0, kBlood, 1.1));
+                out.push_back(
+                    along(end, end + (dir * 0.28 + side * (t * 16)), 2.0, 2.0, kBlood, 1.1));
         }
     }
 }
@@ -111,9 +105,9 @@ void addHeartAndVessels(std::vector<Ellipsoid>& out) {
     // Heart: long axis from the base (right, up, back) to the apex (left, down, front).
     Ellipsoid heart;
     heart.centre = {26, -20, -38};
-    const Vec3 a0 = unit({1.0, -0.4, -0.6});
-    const Vec3 a1 = unit(cross({0, 0, 1}, a0));
-    heart.axes = {a0, a1, cross(a0, a1)};
+    const Vec3 a0 = glm::normalize(Vec3{1.0, -0.4, -0.6});
+    const Vec3 a1 = glm::normalize(glm::cross(Vec3{0, 0, 1}, a0));
+    heart.axes = {a0, a1, glm::cross(a0, a1)};
     heart.semiAxes = {74, 52, 50};
     heart.density = kBlood;
     out.push_back(heart);
@@ -226,8 +220,8 @@ EllipsoidPhantom EllipsoidPhantom::chest(double fieldMm) {
     addShoulderGirdle(e);
     const double f = fieldMm / 420.0;
     for (Ellipsoid& x : e) {
-        x.centre = scale(x.centre, f);
-        x.semiAxes = scale(x.semiAxes, f);
+        x.centre = x.centre * f;
+        x.semiAxes = x.semiAxes * f;
     }
     return p;
 }

@@ -31,7 +31,7 @@ PatientView parsePatientView(const std::string& s) {
 namespace {
 /** LPS vector -> index-frame vector: components along the (orthonormal) index axes. */
 Vec3 fromPatient(const Volume& v, const Vec3& lps) {
-    return {dot(v.direction[0], lps), dot(v.direction[1], lps), dot(v.direction[2], lps)};
+    return lps * v.direction; // transpose(direction) lps
 }
 } // namespace
 
@@ -49,14 +49,12 @@ ViewFrame patientViewFrame(const Volume& volume, PatientView view) {
     // R must be D x U in the patient's (right-handed) frame. Index frames stored mirrored (a
     // direction matrix with determinant -1, e.g. NIfTI with qfac -1) need R = -(D x U) in index
     // coordinates, or the image would be mirrored.
-    f.r = fromPatient(volume, cross(d, u));
+    f.r = fromPatient(volume, glm::cross(d, u));
     return f;
 }
 
 std::string patientDirectionLabel(const Volume& volume, const Vec3& v) {
-    Vec3 w{0, 0, 0};
-    for (int a = 0; a < 3; ++a)
-        for (int c = 0; c < 3; ++c) w[c] += v[a] * volume.direction[a][c];
+    const Vec3 w = volume.direction * v; // the LPS direction
     const char pos[3] = {'L', 'P', 'S'}, neg[3] = {'R', 'A', 'I'};
     int order[3] = {0, 1, 2};
     std::sort(order, order + 3, [&](int a, int b) { return std::abs(w[a]) > std::abs(w[b]); });

@@ -14,8 +14,8 @@ namespace fvr::core {
 namespace {
 Vec3 toLocal(const Ellipsoid& e, const Vec3& v) {
     // Coordinates along the ellipsoid's axes, scaled by the semi-axes (unit sphere frame).
-    return {dot(e.axes[0], v) / e.semiAxes[0], dot(e.axes[1], v) / e.semiAxes[1],
-            dot(e.axes[2], v) / e.semiAxes[2]};
+    return {glm::dot(e.axes[0], v) / e.semiAxes[0], glm::dot(e.axes[1], v) / e.semiAxes[1],
+            glm::dot(e.axes[2], v) / e.semiAxes[2]};
 }
 
 /** Where the line o + t dir crosses the axis-aligned box [-h, h]; false if it misses. */
@@ -132,8 +132,8 @@ std::vector<float> voxelizePainted(const std::vector<Ellipsoid>& all, const Dims
     std::vector<Vec3> lo(all.size()), hi(all.size());
     for (std::size_t i = 0; i < all.size(); ++i) {
         const Vec3 h = boundingHalfExtent(all[i]);
-        lo[i] = sub(all[i].centre, h);
-        hi[i] = add(all[i].centre, h);
+        lo[i] = all[i].centre - h;
+        hi[i] = all[i].centre + h;
     }
     ThreadPool pool;
     pool.parallelFor(dims[2], 1, [&](std::int64_t z0, std::int64_t z1) {
@@ -165,8 +165,8 @@ std::vector<float> voxelizeSum(const std::vector<Ellipsoid>& ellipsoids, const D
 
 bool Ellipsoid::interval(const Vec3& o, const Vec3& dir, double& t0, double& t1) const {
     const Vec3 a = toLocal(*this, dir);
-    const Vec3 b = toLocal(*this, sub(o, centre));
-    const double aa = dot(a, a), ab = dot(a, b), bb = dot(b, b);
+    const Vec3 b = toLocal(*this, o - centre);
+    const double aa = glm::dot(a, a), ab = glm::dot(a, b), bb = glm::dot(b, b);
     const double disc = ab * ab - aa * (bb - 1.0);
     if (disc <= 0.0) return false;
     const double r = std::sqrt(disc);
@@ -181,8 +181,8 @@ double Ellipsoid::chord(const Vec3& o, const Vec3& dir) const {
 }
 
 bool Ellipsoid::contains(const Vec3& p) const {
-    const Vec3 q = toLocal(*this, sub(p, centre));
-    return dot(q, q) <= 1.0;
+    const Vec3 q = toLocal(*this, p - centre);
+    return glm::dot(q, q) <= 1.0;
 }
 
 EllipsoidPhantom EllipsoidPhantom::sheppLogan3D(double fieldMm) {
@@ -244,7 +244,7 @@ namespace {
 std::vector<float> voxelizeSum(const std::vector<Ellipsoid>& ellipsoids, const Dims3& dims,
                                const Vec3& spacing, int S) {
     std::vector<float> mu(std::size_t(dims[0] * dims[1] * dims[2]), 0.0f);
-    const double halfDiag = 0.5 * std::sqrt(dot(spacing, spacing));
+    const double halfDiag = 0.5 * std::sqrt(glm::dot(spacing, spacing));
     ThreadPool pool;
     for (const Ellipsoid& e : ellipsoids) {
         const double minAxis = std::min({e.semiAxes[0], e.semiAxes[1], e.semiAxes[2]});
@@ -264,8 +264,8 @@ std::vector<float> voxelizeSum(const std::vector<Ellipsoid>& ellipsoids, const D
                         const Vec3 p{(x - (dims[0] - 1) / 2.0) * spacing[0],
                                      (y - (dims[1] - 1) / 2.0) * spacing[1],
                                      (z - (dims[2] - 1) / 2.0) * spacing[2]};
-                        const Vec3 q = toLocal(e, sub(p, e.centre));
-                        const double r = std::sqrt(dot(q, q));
+                        const Vec3 q = toLocal(e, p - e.centre);
+                        const double r = std::sqrt(glm::dot(q, q));
                         const double margin = halfDiag / minAxis;
                         float frac;
                         if (r + margin < 1.0)

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include <glm/mat3x3.hpp>
+
 #include <fvr/core/vec3.h>
 
 namespace fvr::core {
@@ -24,14 +26,16 @@ inline constexpr std::int64_t kMaxVoxels = std::int64_t(2048) * 2048 * 2048;
 /**
  * A scalar volume. Voxel (x, y, z) (x = column, fastest; y = row; z = slice) is stored at
  * index x + nx * (y + ny * z). Spacing in mm per index axis. Origin is the physical (patient,
- * LPS for DICOM) position of voxel (0,0,0); direction[a] is the unit vector of index axis a in
- * that frame (identity when the file carries no orientation).
+ * LPS for DICOM) position of voxel (0,0,0); direction[a] (column a of the matrix) is the unit
+ * vector of index axis a in that frame (identity when the file carries no orientation): the
+ * physical offset of index offset i is direction * (i * spacing), and `x * direction` (x times the
+ * matrix, that is transpose(direction) x) takes a physical offset back onto the index axes.
  */
 struct Volume {
     Dims3 dims{0, 0, 0};
     Vec3 spacing{1.0, 1.0, 1.0};
     Vec3 origin{0.0, 0.0, 0.0};
-    std::array<Vec3, 3> direction{Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
+    glm::dmat3 direction{1.0};
     ValueUnits units = ValueUnits::Unknown;
     /** False when the file carries no orientation (a MetaImage without TransformMatrix, a NIfTI
      *  with neither sform nor qform, raw data): `direction` is then the identity by assumption
