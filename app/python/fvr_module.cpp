@@ -25,6 +25,7 @@
 #include <fvr/core/xray/display_window.h>
 #include <fvr/core/xray/patient_views.h>
 
+#include "glm_caster.h"
 #include "input.h"
 #include "json_output.h"
 #include "options.h"
@@ -56,7 +57,7 @@ core::ValueUnits unitsFromName(const std::string& name) {
 /** A volume from a (z, y, x) array: one copy into the volume's own storage, GIL released. */
 PyVolume volumeFromArray(py::array_t<float, py::array::c_style | py::array::forcecast> a,
                          const core::Vec3& spacing, const core::Vec3& origin,
-                         const std::array<core::Vec3, 3>& direction, const std::string& units,
+                         const glm::dmat3& direction, const std::string& units,
                          const std::string& name) {
     if (a.ndim() != 3)
         throw core::SettingsError("array: expected 3 dimensions (z, y, x), found " +
@@ -405,15 +406,11 @@ int runCli(const Args& args) {
     return o ? cli::run(*o) : 0;
 }
 
-glm::dvec3 toGlm(const core::Vec3& a) { return {a[0], a[1], a[2]}; }
-core::Vec3 fromGlm(const glm::dvec3& a) { return {a.x, a.y, a.z}; }
-
 /** A camera from its parts, checked (core::ConeCamera::validate). */
 core::ConeCamera makeCamera(const core::Vec3& source, const core::Vec3& centre, const core::Vec3& u,
                             const core::Vec3& v, int width, int height, double pitchU,
                             double pitchV, double du, double dv) {
-    return core::coneCamera(toGlm(source), toGlm(centre), toGlm(u), toGlm(v), width, height, pitchU,
-                            pitchV, {du, dv});
+    return core::coneCamera(source, centre, u, v, width, height, pitchU, pitchV, {du, dv});
 }
 
 /** A C-arm's camera (core::cArmCamera: DICOM's positioner angles, SID, SOD, isocentre). */
@@ -425,7 +422,7 @@ core::ConeCamera cArm(double primary, double secondary, double sid, double sod,
     arm.secondaryDeg = secondary;
     arm.sid = sid;
     arm.sod = sod;
-    arm.isocentre = toGlm(isocentre);
+    arm.isocentre = isocentre;
     return core::cArmCamera(arm, width, height, pitchU, pitchV, {du, dv});
 }
 
@@ -472,7 +469,7 @@ py::tuple xrayCamera(const std::string& path, long frame,
                                   " states no isocentre (no X-ray does, but a DRR fvr wrote): "
                                   "give the isocentre (x, y, z in LPS mm), or a volume whose "
                                   "centre it is");
-    const glm::dvec3 iso = isocentre ? toGlm(*isocentre) : glm::dvec3(0.0);
+    const glm::dvec3 iso = isocentre ? *isocentre : glm::dvec3(0.0);
     return py::make_tuple(g.camera(std::size_t(frame), iso), g.warnings,
                           g.isocentreStated ? "file" : "given");
 }
@@ -518,11 +515,11 @@ void bindCamera(py::module_& m) {
                     py::arg("isocentre"))
         .def_static("read_matrix_file",
                     [](const std::string& path) { return core::readProjectionMatrixFile(path); })
-        .def_property_readonly("source", [](const ConeCamera& c) { return fromGlm(c.source); })
+        .def_property_readonly("source", [](const ConeCamera& c) { return c.source; })
         .def_property_readonly("detector_centre",
-                               [](const ConeCamera& c) { return fromGlm(c.detectorCentre); })
-        .def_property_readonly("u", [](const ConeCamera& c) { return fromGlm(c.u); })
-        .def_property_readonly("v", [](const ConeCamera& c) { return fromGlm(c.v); })
+                               [](const ConeCamera& c) { return c.detectorCentre; })
+        .def_property_readonly("u", [](const ConeCamera& c) { return c.u; })
+        .def_property_readonly("v", [](const ConeCamera& c) { return c.v; })
         .def_readonly("width", &ConeCamera::width)
         .def_readonly("height", &ConeCamera::height)
         .def_readonly("pitch_u", &ConeCamera::pitchU)
@@ -532,8 +529,8 @@ void bindCamera(py::module_& m) {
                                    return py::make_tuple(c.principalOffset.x, c.principalOffset.y);
                                })
         .def_property_readonly("sid", &ConeCamera::sourceToDetector)
-        .def("pixel_centre", [](const ConeCamera& c, double col,
-                                double row) { return fromGlm(c.pixelCentre(col, row)); })
+        .def("pixel_centre",
+             [](const ConeCamera& c, double col, double row) { return c.pixelCentre(col, row); })
         .def("matrix", &cameraMatrix)
         .def("project", &cameraProject, py::arg("points"))
         .def("flat_field", [](const ConeCamera& c) {
@@ -544,8 +541,7 @@ void bindCamera(py::module_& m) {
             return out;
         });
     m.def("read_xray", &xrayPixels, py::arg("path"));
-    m.def("volume_centre",
-          [](const PyVolume& v) { return fromGlm(core::volumeCentre(*v.volume)); });
+    m.def("volume_centre", [](const PyVolume& v) { return core::volumeCentre(*v.volume); });
     m.def("framing_pitch", [](const PyVolume& v, double sid, double sod, int width, int height) {
         return core::framingPitch(*v.volume, sid, sod, width, height);
     });

@@ -14,7 +14,7 @@ namespace {
 
 Json dimsJson(const core::Dims3& d) { return Json::array({d[0], d[1], d[2]}); }
 Json vecJson(const core::Vec3& v) { return Json::array({v[0], v[1], v[2]}); }
-Json directionJson(const std::array<core::Vec3, 3>& m) {
+Json directionJson(const glm::dmat3& m) { // a list of the index axes (columns)
     return Json::array({vecJson(m[0]), vecJson(m[1]), vecJson(m[2])});
 }
 

@@ -45,7 +45,7 @@ std::vector<core::ViewFrame> sweepViews(const Options& o, const core::Volume& vo
     // Views along the axis would all be one projection turned in the image plane: the default
     // view gives way to the first of AP, LEFT and HEAD that looks across the axis.
     auto alongAxis = [&](const ViewFrame& v) {
-        return std::abs(dot(v.d, axis)) > 0.999 * norm(v.d) * norm(axis);
+        return std::abs(glm::dot(v.d, axis)) > 0.999 * glm::length(v.d) * glm::length(axis);
     };
     ViewFrame start = base;
     for (PatientView pv : {PatientView::AP, PatientView::Left, PatientView::Head})

@@ -26,7 +26,7 @@ SliceParams sliceParams(const Spectrum& s, const RenderParams& params) {
     const int M = params.image.size;
     const double d = params.image.pixelSize;
     const Vec3& R = params.view.r;
-    const Vec3 V{-params.view.u[0], -params.view.u[1], -params.view.u[2]};
+    const Vec3 V = -params.view.u;
     p.banded = params.voxelModel == VoxelModel::BandLimited;
     for (int a = 0; a < 3; ++a) {
         p.padded[a] = s.padded[a];
