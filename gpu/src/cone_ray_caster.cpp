@@ -10,6 +10,8 @@
 #include <sstream>
 #include <utility>
 
+#include <glm/gtc/type_ptr.hpp>
+
 #include <fvr/core/errors.h>
 #include <fvr/core/xray/xray.h>
 #include <fvr/gpu/bindings.h>
@@ -251,9 +253,9 @@ void ConeRayCaster::setUniforms(int views) const {
     auto loc = [&](const char* name) { return glGetUniformLocation(m_program, name); };
     glUniform3i(loc("uSize"), m_width, m_height, views);
     glUniform3i(loc("uDims"), GLint(n[0]), GLint(n[1]), GLint(n[2]));
-    glUniform3fv(loc("uCentre"), 1, &centre[0]);
-    const glm::mat3 toMm(m_indexToMm);
-    glUniformMatrix3fv(loc("uIndexToMm"), 1, GL_FALSE, &toMm[0][0]);
+    glUniform3fv(loc("uCentre"), 1, glm::value_ptr(centre));
+    const glm::mat3 toMm(m_indexToMm); // GL takes floats, column-major as GLM stores them
+    glUniformMatrix3fv(loc("uIndexToMm"), 1, GL_FALSE, glm::value_ptr(toMm));
     const double minSpacing =
         std::min({m_geometry.spacing[0], m_geometry.spacing[1], m_geometry.spacing[2]});
     glUniform1f(loc("uStep"), float(m_options.stepFraction * minSpacing));

@@ -9,6 +9,8 @@
 #include <mutex>
 #include <tuple>
 
+#include <glm/gtc/type_ptr.hpp>
+
 #include <fvr/core/errors.h>
 #include <fvr/core/render/fftw_planning.h>
 #include <fvr/core/render/slice_filter.h>
@@ -447,10 +449,14 @@ void GpuFourierRenderer::setClipUniforms(unsigned prog, const core::RenderParams
     const core::Spectrum& s = *m_spectrum;
     const core::Vec3 half =
         core::supportHalfExtents(s.volumeDims, s.spacing, core::voxelModelReach(p->voxelModel));
-    glUniform3f(loc("uBoxHalf"), float(half[0]), float(half[1]), float(half[2]));
-    glUniform3f(loc("uViewD"), float(p->view.d[0]), float(p->view.d[1]), float(p->view.d[2]));
-    glUniform3f(loc("uViewR"), float(p->view.r[0]), float(p->view.r[1]), float(p->view.r[2]));
-    glUniform3f(loc("uViewU"), float(p->view.u[0]), float(p->view.u[1]), float(p->view.u[2]));
+    // GL takes floats: each double vector is rounded once, here.
+    auto vec3 = [&](const char* n, const core::Vec3& v) {
+        glUniform3fv(loc(n), 1, glm::value_ptr(glm::vec3(v)));
+    };
+    vec3("uBoxHalf", half);
+    vec3("uViewD", p->view.d);
+    vec3("uViewR", p->view.r);
+    vec3("uViewU", p->view.u);
     glUniform1f(loc("uPixel"), float(p->image.pixelSize));
 }
 

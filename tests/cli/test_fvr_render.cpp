@@ -835,6 +835,27 @@ TEST(FvrRender, SidecarOriginAndSpacingRoundTripExactly) {
     EXPECT_EQ(info["origin_mm"], volume["origin_mm"]);
 }
 
+TEST(FvrRender, SidecarDirectionListsTheIndexAxes) {
+    // "direction" is the list of the index axes' unit vectors in the order the MetaImage's
+    // TransformMatrix gives them (x, y, z axes), not its transpose: a permutation that is not
+    // symmetric tells the two apart.
+    const std::string mhd = tmp("permuted_axes.mhd");
+    {
+        std::ofstream f(mhd);
+        f << "NDims = 3\nDimSize = 8 8 8\nElementType = MET_SHORT\nElementSpacing = 1 1 1\n"
+             "TransformMatrix = 0 1 0 0 0 1 1 0 0\nElementDataFile = permuted_axes.raw\n";
+        std::ofstream raw(tmp("permuted_axes.raw"), std::ios::binary);
+        const std::vector<std::int16_t> voxels(512, 100);
+        raw.write(reinterpret_cast<const char*>(voxels.data()), std::streamsize(voxels.size() * 2));
+    }
+    const std::string out = tmp("permuted_axes.npy");
+    const Result r = run(mhd + " --size 128 --out " + out);
+    ASSERT_EQ(r.status, 0) << r.output;
+    const Json want = Json::parse("[[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]");
+    EXPECT_EQ(jsonFile(out + ".json")["volume"]["direction"], want);
+    EXPECT_EQ(stdoutJson(run(mhd + " --info"))["direction"], want);
+}
+
 TEST(FvrRender, InfoOfAVolumeHoldingInfinitySaysSoInValidJson) {
     // A float volume with an infinite voxel: the voxel is said and becomes the lowest finite
     // value (core::replaceNonFiniteVoxels; it would spread through the transform), so the value

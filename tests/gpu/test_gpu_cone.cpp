@@ -31,16 +31,16 @@ using fvr::test::GlTest;
 namespace {
 
 /** Unit vectors of a rotation by `deg` about the (normalized) axis, as direction cosines. */
-std::array<Vec3, 3> rotatedAxes(glm::dvec3 axis, double deg) {
+glm::dmat3 rotatedAxes(glm::dvec3 axis, double deg) {
     axis = glm::normalize(axis);
     const double a = deg * M_PI / 180.0, c = std::cos(a), s = std::sin(a);
-    std::array<Vec3, 3> out;
+    glm::dmat3 out(1.0);
     for (int i = 0; i < 3; ++i) {
         glm::dvec3 e(0.0);
         e[i] = 1.0;
         // Rodrigues: e c + (k x e) s + k (k.e)(1 - c)
         const glm::dvec3 r = e * c + glm::cross(axis, e) * s + axis * glm::dot(axis, e) * (1 - c);
-        out[std::size_t(i)] = {r.x, r.y, r.z};
+        out[i] = r;
     }
     return out;
 }
@@ -60,12 +60,10 @@ Volume obliqueVolume(Dims3 dims, float (*value)(std::int64_t, std::int64_t, std:
     return v;
 }
 
-glm::dvec3 toGlm(const Vec3& a) { return {a[0], a[1], a[2]}; }
-
 /** Where the volume's index axis a reads x (continuous index, voxel centres at integers):
  *  dot(x - origin, direction[a]) / spacing[a]. Independent of any matrix inverse. */
 double indexAlong(const Volume& v, int a, const glm::dvec3& x) {
-    return glm::dot(x - toGlm(v.origin), toGlm(v.direction[std::size_t(a)])) / v.spacing[a];
+    return glm::dot(x - v.origin, v.direction[a]) / v.spacing[a];
 }
 
 /** The part [t0, t1] of source + t (pixel - source), t in [0, 1], whose indices lie in

@@ -124,6 +124,21 @@ def test_volume_from_numpy_renders_as_the_loaded_volume(body, renderer):
     np.testing.assert_array_equal(as64.array, body.array)
 
 
+def test_volume_geometry_round_trips_as_given():
+    # direction[a] is index axis a, as given (a permutation that is not symmetric: a transpose
+    # would show); spacing, origin and direction come back as given, in Python and in info().
+    axes = ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (1.0, 0.0, 0.0))
+    v = fvr.Volume(np.zeros((4, 5, 6), np.float32), spacing=(0.5, 1.25, 3.0),
+                   origin=np.array([-10.5, 2.0, 7.25]), direction=np.array(axes), units="HU")
+    assert v.spacing == (0.5, 1.25, 3.0) and v.origin == (-10.5, 2.0, 7.25)
+    assert v.direction == axes
+    info = v.info
+    assert info["direction"] == [list(a) for a in axes]
+    assert info["spacing_mm"] == [0.5, 1.25, 3.0] and info["origin_mm"] == [-10.5, 2.0, 7.25]
+    with pytest.raises((TypeError, ValueError)):
+        fvr.Volume(np.zeros((4, 4, 4), np.float32), spacing=(1.0, 1.0))
+
+
 def test_non_finite_voxels_are_said_and_replaced():
     a = np.full((8, 8, 8), 100.0, np.float32)
     a[0, 0, 1] = -50.0
