@@ -30,9 +30,7 @@ QStringList ViewOverlay::orientationLabels(const core::Volume& volume,
     auto lbl = [&](const core::Vec3& v) {
         return QString::fromStdString(core::patientDirectionLabel(volume, v)) + assumed;
     };
-    const core::Vec3 neg_r{-view.r[0], -view.r[1], -view.r[2]};
-    const core::Vec3 neg_u{-view.u[0], -view.u[1], -view.u[2]};
-    return {lbl(neg_r), lbl(view.r), lbl(view.u), lbl(neg_u)};
+    return {lbl(-view.r), lbl(view.r), lbl(view.u), lbl(-view.u)};
 }
 
 QFont ViewOverlay::font(bool bold) const {

@@ -14,8 +14,7 @@ namespace fvr::core {
 namespace {
 Vec3 toLocal(const Ellipsoid& e, const Vec3& v) {
     // Coordinates along the ellipsoid's axes, scaled by the semi-axes (unit sphere frame).
-    return {glm::dot(e.axes[0], v) / e.semiAxes[0], glm::dot(e.axes[1], v) / e.semiAxes[1],
-            glm::dot(e.axes[2], v) / e.semiAxes[2]};
+    return (v * e.axes) / e.semiAxes; // v * axes: transpose(axes) v
 }
 
 /** Where the line o + t dir crosses the axis-aligned box [-h, h]; false if it misses. */
@@ -85,7 +84,7 @@ Vec3 boundingHalfExtent(const Ellipsoid& e) {
     Vec3 h;
     for (int k = 0; k < 3; ++k) {
         double s = 0;
-        for (int i = 0; i < 3; ++i) s += std::pow(e.semiAxes[i] * e.axes[std::size_t(i)][k], 2);
+        for (int i = 0; i < 3; ++i) s += std::pow(e.semiAxes[i] * e.axes[i][k], 2);
         h[k] = std::sqrt(s);
     }
     return h;

@@ -9,12 +9,13 @@
 
 namespace fvr::core {
 
-/** A solid ellipsoid, in mm relative to the volume's physical centre. `axes[i]` is the unit
- *  direction of semi-axis i in the volume frame; `density` adds mu/mu_water inside. */
+/** A solid ellipsoid, in mm relative to the volume's physical centre. `axes[i]` (column i of
+ *  the rotation) is the unit direction of semi-axis i in the volume frame; `density` adds
+ *  mu/mu_water inside. */
 struct Ellipsoid {
     Vec3 centre{0, 0, 0};
     Vec3 semiAxes{1, 1, 1};
-    std::array<Vec3, 3> axes{Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
+    glm::dmat3 axes{1.0};
     double density = 1.0;
 
     /** Length (mm) of the chord of the line o + t dir (dir unit, o relative to the centre). */
