@@ -97,8 +97,8 @@ std::pair<Vec3, Vec3> meanCosines(const std::vector<PlanSlice>& slices, const st
             fail(source, "ImageOrientationPatient (0020,0037) in " + s.label +
                              ": expected two orthogonal unit vectors, found row " + vecText(ri) +
                              ", column " + vecText(ci));
-        rs = rs + ri * (1.0 / nr);
-        cs = cs + ci * (1.0 / nc);
+        rs += ri * (1.0 / nr);
+        cs += ci * (1.0 / nc);
     }
     return {rs, cs};
 }

@@ -32,7 +32,7 @@ ViewFrame ViewFrame::rotated(const Vec3& axis, double angleRad) const {
     // GLM's rotation about the axis (right-handed; it normalises the axis itself).
     const glm::dmat3 rotation(glm::rotate(glm::dmat4(1.0), angleRad, axis));
     ViewFrame f = fromDirUp(rotation * d, rotation * u);
-    if (glm::dot(r, glm::cross(d, u)) < 0) f.r = f.r * -1.0; // keep a mirrored frame mirrored
+    if (glm::dot(r, glm::cross(d, u)) < 0) f.r = -f.r; // keep a mirrored frame mirrored
     return f;
 }
 
