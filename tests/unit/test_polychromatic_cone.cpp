@@ -217,3 +217,25 @@ TEST(PolychromaticCone, RefusesNonHounsfieldDataAndAMismatchedResponse) {
         EXPECT_NE(std::string(e.what()).find("Hounsfield"), std::string::npos) << e.what();
     }
 }
+
+TEST(PolychromaticCone, ANewResponseIsTheProjectorOfThatResponse) {
+    const Volume v = waterWithBone();
+    const std::vector<Material> mats{Material::Soft, Material::Bone};
+    auto r70 = std::make_shared<SpectralResponse>(tubeSpectrum(70.0), DetectorModel{}, mats);
+    auto r120 = std::make_shared<SpectralResponse>(tubeSpectrum(120.0), DetectorModel{}, mats);
+    PolychromaticConeProjector swapped(v, {mats, 70.0}, r70, {RayModel::Box});
+    const ConeCamera cam = cArmCamera({10.0, 0.0, 500.0, 350.0}, 24, 24, 3.0, 3.0);
+    const auto at70 = swapped.project(cam).transmission.pixels;
+    swapped.setResponse(r120);
+    const auto at120 = swapped.project(cam).transmission.pixels;
+    EXPECT_EQ(at120, PolychromaticConeProjector(v, {mats, 70.0}, r120, {RayModel::Box})
+                         .project(cam)
+                         .transmission.pixels);
+    for (std::size_t k = 0; k < at70.size(); ++k)
+        if (at70[k] < 0.99f) {
+            EXPECT_GT(at120[k], at70[k]) << k; // harder beam, more transmitted
+        }
+    auto one = std::make_shared<SpectralResponse>(tubeSpectrum(70.0), DetectorModel{},
+                                                  std::vector<Material>{Material::Soft});
+    EXPECT_THROW(swapped.setResponse(one), SettingsError);
+}

@@ -83,6 +83,7 @@ void ProjectionView::setStudy(std::shared_ptr<const core::Volume> volume,
     m_cpu.reset();
     if (newVolume) {
         m_cone.reset();
+        m_polyCone.reset();
         // The GPU caster goes with its volume at the next cast (with the context current); its
         // address is no proof of sameness once the old volume is freed.
         m_gpuConeVolume = nullptr;

@@ -17,11 +17,10 @@ PolychromaticConeProjector::PolychromaticConeProjector(
     const Volume& hu, const MaterialMapping& mapping,
     std::shared_ptr<const SpectralResponse> response, ConeProjectorOptions options,
     const CasterFactory& factory)
-    : m_options(options), m_response(std::move(response)), m_pool(options.threads) {
+    : m_options(options), m_pool(options.threads) {
     m_options.mapping = ValueMapping::Raw; // the densities' line integrals, rho x mm
-    if (!m_response || m_response->materials() != mapping.materials.size())
-        throw SettingsError("polychromatic cone beam: expected a response for " +
-                            std::to_string(mapping.materials.size()) + " materials");
+    m_volumes.resize(mapping.materials.size()); // setResponse checks against their count
+    setResponse(std::move(response));
     m_volumes = materialVolumes(hu, mapping, &m_pool);
     for (const Volume& v : m_volumes) {
         if (factory) {
@@ -35,6 +34,13 @@ PolychromaticConeProjector::PolychromaticConeProjector(
 }
 
 PolychromaticConeProjector::~PolychromaticConeProjector() = default;
+
+void PolychromaticConeProjector::setResponse(std::shared_ptr<const SpectralResponse> response) {
+    if (!response || response->materials() != m_volumes.size())
+        throw SettingsError("polychromatic cone beam: expected a response for " +
+                            std::to_string(m_volumes.size()) + " materials");
+    m_response = std::move(response);
+}
 
 PolychromaticConeFrame PolychromaticConeProjector::project(const ConeCamera& camera,
                                                            const NoiseModel& noise,

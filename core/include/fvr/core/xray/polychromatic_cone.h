@@ -49,6 +49,9 @@ public:
     PolychromaticConeProjector(const PolychromaticConeProjector&) = delete;
     PolychromaticConeProjector& operator=(const PolychromaticConeProjector&) = delete;
 
+    /** Swaps the response (kVp, filtration, detector): no decomposition again. SettingsError
+     *  for a response of other materials. */
+    void setResponse(std::shared_ptr<const SpectralResponse> response);
     std::size_t materials() const { return m_volumes.size(); }
     const ConeProjectorOptions& options() const { return m_options; }
     const SpectralResponse& response() const { return *m_response; }
