@@ -26,13 +26,17 @@ void ProjectionView::renderConeFrame(int M) {
     o.pixelSubsamples = m_effects.pixelAperture ? 4 : 1;
     const core::ConeCamera camera = *coneCamera(M);
     const auto t0 = std::chrono::steady_clock::now();
-    if (!poly) m_polyCone.reset(); // the materials' volumes go with the polychromatic output
+    if (!poly) { // the materials' volumes go with the polychromatic output
+        m_polyCone.reset();
+        m_polyConeGpu.clear();
+        m_polyConeOnGpu = false;
+    }
     std::optional<core::DetectorImage> d;
     if (poly)
         d = castPolychromaticCone(camera, o);
     else if (m_gpu)
         d = castConeOnGpu(camera, o);
-    m_coneOnGpu = d.has_value() && !poly;
+    m_coneOnGpu = poly ? m_polyConeOnGpu : d.has_value();
     if (!d) {
         // The CPU caster (its mapped, padded copy of the volume) only where the CPU casts.
         if (!m_cone || m_cone->options().mapping != mapping || m_cone->options().model != o.model ||
@@ -83,12 +87,34 @@ std::optional<core::DetectorImage> ProjectionView::castConeOnGpu(
 
 core::DetectorImage ProjectionView::castPolychromaticCone(const core::ConeCamera& camera,
                                                           const core::ConeProjectorOptions& o) {
+    const bool gpu = m_gpu && o.model != core::RayModel::BSpline; // no B-spline on the GPU
     if (!m_polyCone || m_polyConeVolume != m_volume.get() ||
         m_polyCone->options().model != o.model ||
-        m_polyCone->options().pixelSubsamples != o.pixelSubsamples) {
+        m_polyCone->options().pixelSubsamples != o.pixelSubsamples || m_polyConeOnGpu != gpu) {
         m_polyCone.reset(); // the old materials' memory first
-        m_polyCone = std::make_unique<core::PolychromaticConeProjector>(
-            *m_volume, core::MaterialMapping{core::defaultMaterials(), 70.0}, m_poly->response, o);
+        m_polyConeGpu.clear();
+        m_polyConeOnGpu = false;
+        const core::MaterialMapping mapping{core::defaultMaterials(), 70.0};
+        if (gpu) {
+            try {
+                m_polyCone = std::make_unique<core::PolychromaticConeProjector>(
+                    *m_volume, mapping, m_poly->response, o,
+                    [this](const core::Volume& v, const core::ConeProjectorOptions& po) {
+                        m_polyConeGpu.push_back(std::make_unique<gpu::ConeRayCaster>(v, po));
+                        gpu::ConeRayCaster* c = m_polyConeGpu.back().get();
+                        return [c](const core::ConeCamera& cam) { return c->project(cam); };
+                    });
+                m_polyConeOnGpu = true;
+            } catch (const std::exception& e) { // too large for the GPU: the CPU casts
+                m_polyCone.reset();
+                m_polyConeGpu.clear();
+                m_notice =
+                    tr("Polychromatic cone beam on the CPU: %1").arg(QString::fromUtf8(e.what()));
+            }
+        }
+        if (!m_polyCone)
+            m_polyCone = std::make_unique<core::PolychromaticConeProjector>(*m_volume, mapping,
+                                                                            m_poly->response, o);
         m_polyConeVolume = m_volume.get();
     } else {
         m_polyCone->setResponse(m_poly->response); // kVp, filtration, detector

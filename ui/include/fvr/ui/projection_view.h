@@ -174,9 +174,10 @@ private:
      *  (the B-spline model, a volume too large: the CPU casts it, the notice says why). */
     std::optional<core::DetectorImage> castConeOnGpu(const core::ConeCamera& camera,
                                                      const core::ConeProjectorOptions& options);
-    /** The polychromatic cone beam of m_poly's response on the CPU (one ray caster per
-     *  material's density volume, made once per volume, model and rays per pixel): -ln(I/I0)
-     *  with m_poly's noise, or the mass thickness (g/cm^2) of the material it shows. */
+    /** The polychromatic cone beam of m_poly's response (one ray caster per material's density
+     *  volume, made once per volume, model, rays per pixel and backend: the GPU's where the
+     *  view renders there, context current, else the CPU's): -ln(I/I0) with m_poly's noise, or
+     *  the mass thickness (g/cm^2) of the material it shows. */
     core::DetectorImage castPolychromaticCone(const core::ConeCamera& camera,
                                               const core::ConeProjectorOptions& options);
     bool coneBeam() const { return m_settings.projection == ProjectionKind::Cone; }
@@ -248,6 +249,9 @@ private:
      *  the volume m_polyConeVolume; released when the output is line integrals again. */
     std::unique_ptr<core::PolychromaticConeProjector> m_polyCone;
     const core::Volume* m_polyConeVolume = nullptr;
+    /** m_polyCone's GPU casters, one per material (released with the context current). */
+    std::vector<std::unique_ptr<gpu::ConeRayCaster>> m_polyConeGpu;
+    bool m_polyConeOnGpu = false; ///< m_polyCone casts on the GPU
     std::optional<core::ProjectionImage> m_cpuImage; // CPU path / difference mode
     std::shared_ptr<const PolychromaticSource> m_poly;
     std::unique_ptr<core::PolychromaticRenderer> m_polyRenderer;
