@@ -241,6 +241,8 @@ public:
         po.stepFraction = step;
         po.mapping = m_options.settings.values; // mu for Hounsfield data, as the parallel views
         po.threads = m_options.threads;
+        // pixel_aperture: the pixel's area, n x n rays averaged (fvr-render's default n).
+        po.pixelSubsamples = m_options.settings.pixelAperture ? m_options.cone.pixelSubsamples : 1;
         if (po.model == core::RayModel::Box && step != 0.0)
             throw core::SettingsError("step: not with model box (exact path lengths, no step)");
         if (cameras.empty()) throw core::SettingsError("cameras: expected at least one camera");
@@ -293,15 +295,16 @@ private:
             refuse("sharpen", "a Fourier rendering setting");
         if (s.filter.bandLimitLpMm != d.filter.bandLimitLpMm)
             refuse("band_limit", "a Fourier rendering setting");
-        if (s.pixelAperture) refuse("pixel_aperture", "not in the cone-beam ray caster yet");
         if (m_options.polychromatic())
-            refuse("kvp", "polychromatic cone beam is not implemented yet");
+            refuse("kvp", "this module renders no polychromatic images; fvr.run_cli with "
+                          "--geometry cone --kvp does");
     }
 
     /** The projector of these options, made on first use (the value mapping and the empty-block
-     *  map once per model and step). Called with m_coneMutex held. */
+     *  map once per model, step and rays per pixel). Called with m_coneMutex held. */
     core::ConeProjector& coneProjector(const core::ConeProjectorOptions& po) {
-        const auto key = std::make_tuple(int(po.model), po.stepFraction, int(po.mapping));
+        const auto key =
+            std::make_tuple(int(po.model), po.stepFraction, int(po.mapping), po.pixelSubsamples);
         auto it = m_cone.find(key);
         if (it == m_cone.end())
             it = m_cone.emplace(key, std::make_unique<core::ConeProjector>(*m_volume.volume, po))
@@ -363,9 +366,9 @@ private:
     std::shared_ptr<const core::Spectrum> m_spectrum;
     std::unique_ptr<core::CpuBatchRenderer> m_batch;
     std::mutex m_mutex;
-    /** The cone-beam projectors by (model, step, value mapping), and their own lock (a cone
-     *  view and a parallel view may render at once). */
-    std::map<std::tuple<int, double, int>, std::unique_ptr<core::ConeProjector>> m_cone;
+    /** The cone-beam projectors by (model, step, value mapping, rays per pixel), and their own lock
+     * (a cone view and a parallel view may render at once). */
+    std::map<std::tuple<int, double, int, int>, std::unique_ptr<core::ConeProjector>> m_cone;
     std::mutex m_coneMutex;
 };
 

@@ -328,7 +328,10 @@ public:
     GpuConeCaster(std::unique_ptr<fvr::gpu::EglContext> context, const core::Volume& volume,
                   const core::ConeProjectorOptions& o)
         : m_context(std::move(context)), m_caster(volume, o) {}
-    core::DetectorImage project(const core::ConeCamera& c) override { return m_caster.project(c); }
+    core::DetectorImage project(const core::ConeCamera& c) override {
+        m_context->makeCurrent(); // several casters (one per --kvp material) take turns
+        return m_caster.project(c);
+    }
     const core::ConeProjectorOptions& options() const override { return m_caster.options(); }
     std::string name() const override { return "gpu: " + m_context->description(); }
     std::string description() const override {

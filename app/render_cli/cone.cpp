@@ -10,6 +10,7 @@
 #include <fvr/core/render/projection.h>
 #include <fvr/core/thread_pool.h>
 
+#include "cone_polychromatic.h"
 #include "run.h"
 
 namespace fvr::cli {
@@ -95,6 +96,8 @@ ConeProjectorOptions coneProjectorOptions(const Options& o) {
     po.stepFraction = o.cone.step;
     po.mapping = o.settings.values;
     po.threads = o.threads;
+    // The pixel aperture: n x n rays per pixel, averaged (the pixel's area, box-filtered).
+    po.pixelSubsamples = o.settings.pixelAperture ? o.cone.pixelSubsamples : 1;
     return po;
 }
 
@@ -144,6 +147,7 @@ int renderCone(const Options& asked, const Volume& volume, const ConeFiles& file
                                                  : std::string(e.what()));
         }
     }
+    if (o.polychromatic()) return renderConePolychromatic(o, volume, views, files);
     const auto t0 = std::chrono::steady_clock::now();
     const std::unique_ptr<ConeCaster> caster = makeConeCaster(o, volume, coneProjectorOptions(o));
     const double prepareMs =
@@ -199,6 +203,8 @@ Json coneSettingsJson(const ConeSession& s) {
                 {"values", valueMappingName(o.settings.values)},
                 {"threads", s.threads},
                 {"flat_field", o.cone.flatField},
+                {"pixel_aperture", o.settings.pixelAperture},
+                {"pixel_subsamples", po.pixelSubsamples},
                 {"projection_matrix_file",
                  o.cone.matrixFile.empty() ? Json(nullptr) : Json(o.cone.matrixFile)},
                 {"rtplan", o.cone.rtplan.empty() ? Json(nullptr) : Json(o.cone.rtplan)},

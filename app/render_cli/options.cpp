@@ -242,8 +242,9 @@ void declareModel(CLI::App& app, Options& o) {
                   defaultText(core::voxelModelName(kDefaults.voxelModel)))
         ->group(g);
     app.add_flag("--pixel-aperture", o.settings.pixelAperture,
-                 "detector pixels integrate over their area (sinc per image axis)\n"
-                 "instead of sampling the projection at their centres")
+                 "detector pixels integrate over their area (sinc per image axis;\n"
+                 "cone beam: --pixel-subsamples rays per pixel averaged) instead of\n"
+                 "sampling the projection at their centres")
         ->group(g);
     CLI::Option* noClip =
         app.add_flag_callback(

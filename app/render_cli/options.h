@@ -35,7 +35,9 @@ struct ConeOptions {
     glm::dvec2 principalOffset{0.0}; ///< --principal-point, pixels
     core::RayModel model = core::RayModel::Trilinear; ///< --ray-model
     double step = 0.0; ///< --step, a fraction of the smallest spacing
-    bool flatField = false; ///< --flat-field (with --beer-lambert)
+    bool flatField = false; ///< --flat-field (with --beer-lambert or --kvp)
+    /** --pixel-subsamples: with --pixel-aperture, n x n rays per pixel averaged (1..16). */
+    int pixelSubsamples = 4;
     std::string matrixFile; ///< --projection-matrix FILE (instead of the C-arm)
     /** --orbit FROM:TO:N: N primary angles from FROM to TO inclusive. */
     std::optional<double> orbitFrom, orbitTo;

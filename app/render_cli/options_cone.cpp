@@ -189,8 +189,15 @@ void declareCone(CLI::App& app, ConeOptions& c) {
         [](double v) { return v >= 0 && v <= 4; }, "expected a fraction in 0..4")
         ->group(g);
     app.add_flag("--flat-field", c.flatField,
-                 "with --beer-lambert: a real detector's open-beam response, inverse\n"
-                 "square x obliquity, (SID/r)^3, multiplies the transmitted intensity")
+                 "with --beer-lambert or --kvp: a real detector's open-beam response,\n"
+                 "inverse square x obliquity, (SID/r)^3, multiplies the transmitted intensity")
+        ->group(g);
+    app.add_option("--pixel-subsamples", c.pixelSubsamples,
+                   "with --pixel-aperture: N x N rays per detector pixel, averaged (1..16,\n"
+                   "default 4): the pixel's area instead of its centre")
+        ->check(CLI::Range(1, 16))
+        ->option_text("N")
+        ->needs("--pixel-aperture")
         ->group(g);
     app.add_option("--projection-matrix", c.matrixFile,
                    "the camera(s) from a 3x4 projection-matrix file (detector, pitch, then\n"
@@ -358,12 +365,14 @@ void checkBeam(const CLI::App& app, Options& o) {
 }
 
 /** The options that only cone beam takes. */
-const std::vector<std::string> kConeOnly = {
-    "--primary-angle", "--secondary-angle", "--sid",
-    "--sod",           "--isocenter",       "--detector-size",
-    "--pitch",         "--principal-point", "--ray-model",
-    "--step",          "--flat-field",      "--projection-matrix",
-    "--orbit",         "--geometry-from",   "--frame"};
+const std::vector<std::string> kConeOnly = {"--primary-angle", "--secondary-angle",
+                                            "--sid",           "--sod",
+                                            "--isocenter",     "--detector-size",
+                                            "--pitch",         "--principal-point",
+                                            "--ray-model",     "--step",
+                                            "--flat-field",    "--projection-matrix",
+                                            "--orbit",         "--geometry-from",
+                                            "--frame",         "--pixel-subsamples"};
 
 /** The options that only the parallel (Fourier) renderers take, and why not in cone beam. */
 const std::vector<std::pair<std::string, std::string>> kParallelOnly = {
@@ -379,7 +388,6 @@ const std::vector<std::pair<std::string, std::string>> kParallelOnly = {
     {"--transform", "a Fourier rendering setting"},
     {"--oversampling", "a Fourier rendering setting"},
     {"--voxel-model", "cone beam takes --ray-model"},
-    {"--pixel-aperture", "not in the cone-beam ray caster yet"},
     {"--clip", "cone-beam rays are clipped to the volume always"},
     {"--no-clip", "cone-beam rays are clipped to the volume always"},
     {"--keep-negative", "a Fourier rendering setting"},
@@ -388,8 +396,7 @@ const std::vector<std::pair<std::string, std::string>> kParallelOnly = {
     {"--sharpen", "a Fourier rendering setting"},
     {"--sharpen-radius", "a Fourier rendering setting"},
     {"--band-limit", "a Fourier rendering setting"},
-    {"--fp16", "the cone-beam ray caster runs on the CPU"},
-    {"--kvp", "polychromatic cone beam is not implemented yet"}};
+    {"--fp16", "the cone-beam ray caster runs on the CPU"}};
 
 /** The options --projection-matrix replaces (the file fixes the camera). */
 const std::vector<std::string> kMatrixFixes = {
@@ -459,9 +466,11 @@ void checkGeometry(const CLI::App& app, Options& o) {
                             "view's primary angle)");
     if (app.count("--detector-size") > 0 && app.count("--size") > 0)
         throw SettingsError("--detector-size: not with --size (both set the detector's size)");
-    if (c.flatField && !o.beerLambert)
+    if (c.flatField && !o.beerLambert && !o.polychromatic())
         throw SettingsError("--flat-field: multiplies transmitted intensity, so it needs "
-                            "--beer-lambert");
+                            "--beer-lambert or --kvp");
+    if (o.polychromatic() && !o.send.empty())
+        throw SettingsError("--send: not with --kvp (I/I0 has no DICOM export yet)");
     if (c.model == core::RayModel::Box && app.count("--step") > 0)
         throw SettingsError("--step: not with --ray-model box (exact path lengths, no step)");
     if (c.matrixFile.empty() && !c.beams() && c.geometryFrom.empty()) {

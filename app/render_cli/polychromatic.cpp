@@ -17,15 +17,17 @@
 #include "output_files.h"
 
 namespace fvr::cli {
-namespace {
 
 using namespace fvr::core;
+
+namespace {
 
 double msSince(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-/** The "polychromatic" settings of the sidecar. */
+} // namespace
+
 Json polychromaticJson(const Options& o, const TubeSpectrum& s, const SpectralResponse& r,
                        const NoiseModel& noise) {
     return Json{
@@ -46,6 +48,8 @@ Json polychromaticJson(const Options& o, const TubeSpectrum& s, const SpectralRe
         {"material_out", o.materialOut}};
 }
 
+namespace {
+
 std::string numbered(const std::string& out, std::size_t i) {
     const std::filesystem::path p(out);
     char num[32];
@@ -56,64 +60,54 @@ std::string numbered(const std::string& out, std::size_t i) {
 /** Writes view i's I/I0 (staged in `files`): .npy/.pfm as is, .png as -ln(I/I0) auto-windowed
  *  (bone white). Returns its final path. */
 std::string writeView(const Options& o, OutputFiles& files, std::size_t i, std::size_t count,
-                      const ProjectionImage& img) {
-    core::checkFiniteImage(img); // never a NaN in a file
+                      const PolychromaticImages& img) {
+    const int W = img.width, H = img.height;
+    ProjectionImage check;
+    check.pixels = img.transmission;
+    core::checkFiniteImage(check); // never a NaN in a file
     const std::string final = count > 1 ? numbered(o.out, i) : o.out;
     const std::filesystem::path path = files.staged(final);
-    const int M = img.size;
     if (o.format == OutputFormat::Png) {
-        std::vector<float> logs = img.pixels;
+        std::vector<float> logs = img.transmission;
         negativeLogInPlace(logs);
-        writePng(path, logs.data(), M, M, autoWindow(logs), o.bitDepth);
+        writePng(path, logs.data(), H, W, autoWindow(logs), o.bitDepth);
     } else if (o.format == OutputFormat::Pfm) {
-        writePfm(path, img.pixels.data(), M, M);
+        writePfm(path, img.transmission.data(), H, W);
     } else {
-        writeNpy(path, img.pixels.data(), M, M);
+        writeNpy(path, img.transmission.data(), H, W);
     }
     return final;
 }
 
-void writeMaterials(const Options& o, OutputFiles& files, const PolychromaticFrame& f) {
-    const int M = f.transmission.size;
+void writeMaterials(const Options& o, OutputFiles& files, const PolychromaticImages& img) {
     std::vector<float> stack;
-    for (const auto& img : f.massThickness)
-        stack.insert(stack.end(), img.pixels.begin(), img.pixels.end());
-    writeNpy(files.staged(o.materialOut), stack.data(), M, M, std::int64_t(f.massThickness.size()));
+    for (const auto& m : img.materials) stack.insert(stack.end(), m.begin(), m.end());
+    writeNpy(files.staged(o.materialOut), stack.data(), img.height, img.width,
+             std::int64_t(img.materials.size()));
 }
 
-struct RenderedViews {
-    std::vector<std::string> files;
-    bool stacked = false;
-    double msPerView = 0.0;
-    double spectralSumMs = 0.0; ///< per view
-};
-
-/** Renders and writes every view (several .npy views: one (n, M, M) stack, as without --kvp,
- *  unless --numbered); each view has its own noise seed (seed + view index). */
-RenderedViews renderViews(const Options& o, OutputFiles& files, const PolychromaticFrameFn& frame,
-                          const std::vector<ViewFrame>& views, const ImageGeometry& geometry,
-                          const NoiseModel& noise) {
-    RenderedViews out;
-    out.stacked = views.size() > 1 && o.format == OutputFormat::Npy && !o.numbered;
+/** Renders and writes every view (several .npy views: one (n, H, W) stack, as without --kvp,
+ *  unless --numbered); view i has its own noise seed (seed + i). */
+RenderedPolychromatic renderViews(const Options& o, OutputFiles& files, std::size_t count,
+                                  int width, int height, const PolychromaticViewFn& view) {
+    RenderedPolychromatic out;
+    out.stacked = count > 1 && o.format == OutputFormat::Npy && !o.numbered;
     std::unique_ptr<NpyStackWriter> stack;
     if (out.stacked)
-        stack = std::make_unique<NpyStackWriter>(files.staged(o.out), o.settings.size,
-                                                 o.settings.size, std::int64_t(views.size()));
+        stack = std::make_unique<NpyStackWriter>(files.staged(o.out), height, width,
+                                                 std::int64_t(count));
     const auto t0 = std::chrono::steady_clock::now();
-    for (std::size_t i = 0; i < views.size(); ++i) {
-        const RenderParams p = o.settings.toRenderParams(views[i], geometry);
-        NoiseModel n = noise;
-        n.seed = o.seed + i;
-        const PolychromaticFrame f = frame(p, n, !o.materialOut.empty());
-        out.spectralSumMs += f.spectralSumMs / double(views.size());
+    for (std::size_t i = 0; i < count; ++i) {
+        const PolychromaticImages img = view(i, o.seed + i, !o.materialOut.empty());
+        out.spectralSumMs += img.spectralSumMs / double(count);
         if (stack)
-            stack->add(f.transmission.pixels.data());
+            stack->add(img.transmission.data());
         else
-            out.files.push_back(writeView(o, files, i, views.size(), f.transmission));
-        if (!o.materialOut.empty()) writeMaterials(o, files, f);
+            out.files.push_back(writeView(o, files, i, count, img));
+        if (!o.materialOut.empty()) writeMaterials(o, files, img);
         if (InterruptGuard::signal() != 0) // the staged files go: all or nothing
             throw Interrupted("interrupted after view " + std::to_string(i + 1) + " of " +
-                              std::to_string(views.size()) + ": " + o.out +
+                              std::to_string(count) + ": " + o.out +
                               " not written (nothing of this run is kept; an earlier run's "
                               "files stay as they were)");
     }
@@ -121,7 +115,7 @@ RenderedViews renderViews(const Options& o, OutputFiles& files, const Polychroma
         stack->finish();
         out.files.push_back(o.out);
     }
-    out.msPerView = msSince(t0) / double(views.size());
+    out.msPerView = msSince(t0) / double(count);
     return out;
 }
 
@@ -136,8 +130,9 @@ struct RunRecord {
 
 /** The sidecar FILE.json of a rendered run. */
 Json sidecar(const Options& o, const Volume& volume, const std::vector<ViewFrame>& views,
-             const RunRecord& run, const RenderedViews& rendered, const TubeSpectrum& spectrum,
-             const SpectralResponse& response, const NoiseModel& noise) {
+             const RunRecord& run, const RenderedPolychromatic& rendered,
+             const TubeSpectrum& spectrum, const SpectralResponse& response,
+             const NoiseModel& noise) {
     const WrittenOutput output{"I/I0 (polychromatic, relative to the unattenuated beam)",
                                rendered.stacked, rendered.files, run.preprocessMs,
                                rendered.msPerView};
@@ -158,16 +153,19 @@ Json sidecar(const Options& o, const Volume& volume, const std::vector<ViewFrame
 
 } // namespace
 
-int renderPolychromatic(const Options& o, const Volume& volume,
-                        const std::vector<ViewFrame>& views) {
-    if (views.empty()) return 0; // --info alone
+void checkPolychromaticRun(const Options& o, const Volume& volume, std::size_t views) {
     if (volume.units != ValueUnits::HounsfieldUnits)
         throw SettingsError(std::string("--kvp: the materials come from CT numbers, but INPUT "
                                         "holds ") +
                             unitsName(volume.units) + " (needs HU)");
-    if (!o.materialOut.empty() && views.size() != 1)
-        throw SettingsError("--material-out: needs one view (found " +
-                            std::to_string(views.size()) + ")");
+    if (!o.materialOut.empty() && views != 1)
+        throw SettingsError("--material-out: needs one view (found " + std::to_string(views) + ")");
+}
+
+int renderPolychromatic(const Options& o, const Volume& volume,
+                        const std::vector<ViewFrame>& views) {
+    if (views.empty()) return 0; // --info alone
+    checkPolychromaticRun(o, volume, views.size());
     const TubeSpectrum spectrum = tubeSpectrum(*o.kvp, o.filtrationAlMm, o.filtrationCuMm);
     auto response = std::make_shared<SpectralResponse>(spectrum, o.detector, o.materials);
     PreprocessOptions po = o.settings.toPreprocessOptions(); // preprocessMaterials maps raw
@@ -188,29 +186,51 @@ int renderPolychromatic(const Options& o, const Volume& volume,
         };
     const double d = run.pixelSize = o.settings.imageGeometry(volume).pixelSize;
     const NoiseModel noise{o.noiseMas, 1000.0, d * d, o.electronicNoise, o.seed};
+    const int M = o.settings.size;
+    auto view = [&](std::size_t i, std::uint64_t seed, bool materials) {
+        NoiseModel n = noise;
+        n.seed = seed;
+        PolychromaticFrame f = frame(o.settings.toRenderParams(views[i], {M, d}), n, materials);
+        PolychromaticImages img{M, M, std::move(f.transmission.pixels), {}, f.spectralSumMs};
+        for (auto& m : f.massThickness) img.materials.push_back(std::move(m.pixels));
+        return img;
+    };
+    writePolychromaticRun(
+        o, views.size(), M, M, view,
+        [&](const RenderedPolychromatic& rendered) {
+            return sidecar(o, volume, views, run, rendered, spectrum, *response, noise);
+        },
+        [&](const RenderedPolychromatic& rendered) {
+            std::fprintf(stderr,
+                         "wrote %s (%zu view%s, %dx%d, %g kVp, %zu materials, I/I0; %.2f ms per "
+                         "view)\n",
+                         rendered.files.front().c_str(), views.size(), views.size() > 1 ? "s" : "",
+                         M, M, *o.kvp, o.materials.size(), rendered.msPerView);
+        });
+    return 0;
+}
+
+void writePolychromaticRun(const Options& o, std::size_t count, int width, int height,
+                           const PolychromaticViewFn& view,
+                           const std::function<Json(const RenderedPolychromatic&)>& sidecar,
+                           const std::function<void(const RenderedPolychromatic&)>& summary) {
     InterruptGuard interrupt; // before the first file is staged
     std::string interrupted = "interrupted after the last view"; // the files are complete
     try {
         OutputFiles files(o.out);
-        RenderedViews rendered;
+        RenderedPolychromatic rendered;
         try { // the messages name the final paths, not the staged ones
-            rendered = renderViews(o, files, frame, views, {o.settings.size, d}, noise);
-            writeFileAtomic(
-                files.staged(o.out + ".json"),
-                jsonText(sidecar(o, volume, views, run, rendered, spectrum, *response, noise)));
+            rendered = renderViews(o, files, count, width, height, view);
+            writeFileAtomic(files.staged(o.out + ".json"), jsonText(sidecar(rendered)));
         } catch (const WriteError& e) {
             throw WriteError(files.finalNames(e.what()));
         }
         files.commit(); // the images and their sidecar land together
-        std::fprintf(
-            stderr, "wrote %s (%zu view%s, %dx%d, %g kVp, %zu materials, I/I0; %.2f ms per view)\n",
-            rendered.files.front().c_str(), views.size(), views.size() > 1 ? "s" : "",
-            o.settings.size, o.settings.size, *o.kvp, o.materials.size(), rendered.msPerView);
+        summary(rendered);
     } catch (const Interrupted& e) {
         interrupted = e.what();
     }
     interrupt.dieIfInterrupted(interrupted);
-    return 0;
 }
 
 } // namespace fvr::cli

@@ -342,7 +342,7 @@ TEST(FvrRenderCone, BadGeometryIsRefusedBeforeTheInputLoads) {
         {"--geometry parallel --ray-model box", "--ray-model: only with --geometry cone"},
         {"--geometry cone --view AP", "--view: not with --geometry cone"},
         {"--geometry cone --kernel sinc4", "--kernel: not with --geometry cone"},
-        {"--geometry cone --kvp 80", "--kvp: not with --geometry cone"},
+        {"--pixel-aperture --pixel-subsamples 2", "--pixel-subsamples: only with --geometry cone"},
         {"--geometry cone --flat-field", "--flat-field: multiplies transmitted intensity"},
         {"--geometry cone --ray-model box --step 0.5", "--step: not with --ray-model box"},
         {"--geometry cone --orbit 0:90:1", "--orbit"},

@@ -61,6 +61,9 @@ void ProjectionView::releaseGl() {
     m_gpu.reset();
     m_gpuCone.reset();
     m_gpuConeVolume = nullptr;
+    if (m_polyConeOnGpu) m_polyCone.reset(); // its casters go next
+    m_polyConeGpu.clear();
+    m_polyConeOnGpu = false;
     m_polyGpu.clear();
     m_polyGpuSpectra.clear();
     m_polyOnGpu = false;
@@ -83,6 +86,8 @@ void ProjectionView::setStudy(std::shared_ptr<const core::Volume> volume,
     m_cpu.reset();
     if (newVolume) {
         m_cone.reset();
+        if (!m_polyConeOnGpu) m_polyCone.reset(); // else at the next cast, context current
+        m_polyConeVolume = nullptr;
         // The GPU caster goes with its volume at the next cast (with the context current); its
         // address is no proof of sameness once the old volume is freed.
         m_gpuConeVolume = nullptr;

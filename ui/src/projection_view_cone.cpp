@@ -16,17 +16,31 @@ std::optional<core::ConeCamera> ProjectionView::coneCamera(int size) const {
 }
 
 void ProjectionView::renderConeFrame(int M) {
-    const core::ValueMapping mapping = m_spectrum->mapping;
+    // The polychromatic output once its response is there (the waiting source has none).
+    const bool poly = m_poly && m_poly->response;
+    const core::ValueMapping mapping = poly ? core::ValueMapping::Raw : m_spectrum->mapping;
     core::ConeProjectorOptions o;
     o.model = m_settings.cone.model;
     o.mapping = mapping;
+    // The pixel aperture: 4 x 4 rays per pixel, averaged (fvr-render --pixel-aperture's rule).
+    o.pixelSubsamples = m_effects.pixelAperture ? 4 : 1;
     const core::ConeCamera camera = *coneCamera(M);
     const auto t0 = std::chrono::steady_clock::now();
-    std::optional<core::DetectorImage> d = m_gpu ? castConeOnGpu(camera, o) : std::nullopt;
-    m_coneOnGpu = d.has_value();
+    if (!poly) { // the materials' volumes go with the polychromatic output
+        m_polyCone.reset();
+        m_polyConeGpu.clear();
+        m_polyConeOnGpu = false;
+    }
+    std::optional<core::DetectorImage> d;
+    if (poly)
+        d = castPolychromaticCone(camera, o);
+    else if (m_gpu)
+        d = castConeOnGpu(camera, o);
+    m_coneOnGpu = poly ? m_polyConeOnGpu : d.has_value();
     if (!d) {
         // The CPU caster (its mapped, padded copy of the volume) only where the CPU casts.
-        if (!m_cone || m_cone->options().mapping != mapping || m_cone->options().model != o.model) {
+        if (!m_cone || m_cone->options().mapping != mapping || m_cone->options().model != o.model ||
+            m_cone->options().pixelSubsamples != o.pixelSubsamples) {
             m_cone.reset(); // the old one's memory first
             m_cone = std::make_unique<core::ConeProjector>(*m_volume, o);
         }
@@ -55,7 +69,8 @@ std::optional<core::DetectorImage> ProjectionView::castConeOnGpu(
     try {
         if (!m_gpuCone || m_gpuConeVolume != m_volume.get() ||
             m_gpuCone->options().mapping != options.mapping ||
-            m_gpuCone->options().model != options.model) {
+            m_gpuCone->options().model != options.model ||
+            m_gpuCone->options().pixelSubsamples != options.pixelSubsamples) {
             m_gpuCone.reset(); // the old one's GPU memory first
             m_gpuCone = std::make_unique<gpu::ConeRayCaster>(*m_volume, options);
             m_gpuConeVolume = m_volume.get();
@@ -68,6 +83,47 @@ std::optional<core::DetectorImage> ProjectionView::castConeOnGpu(
         m_notice = tr("Cone beam on the CPU: %1").arg(QString::fromUtf8(e.what()));
         return std::nullopt;
     }
+}
+
+core::DetectorImage ProjectionView::castPolychromaticCone(const core::ConeCamera& camera,
+                                                          const core::ConeProjectorOptions& o) {
+    const bool gpu = m_gpu && o.model != core::RayModel::BSpline; // no B-spline on the GPU
+    if (!m_polyCone || m_polyConeVolume != m_volume.get() ||
+        m_polyCone->options().model != o.model ||
+        m_polyCone->options().pixelSubsamples != o.pixelSubsamples || m_polyConeOnGpu != gpu) {
+        m_polyCone.reset(); // the old materials' memory first
+        m_polyConeGpu.clear();
+        m_polyConeOnGpu = false;
+        const core::MaterialMapping mapping{core::defaultMaterials(), 70.0};
+        if (gpu) {
+            try {
+                m_polyCone = std::make_unique<core::PolychromaticConeProjector>(
+                    *m_volume, mapping, m_poly->response, o,
+                    [this](const core::Volume& v, const core::ConeProjectorOptions& po) {
+                        m_polyConeGpu.push_back(std::make_unique<gpu::ConeRayCaster>(v, po));
+                        gpu::ConeRayCaster* c = m_polyConeGpu.back().get();
+                        return [c](const core::ConeCamera& cam) { return c->project(cam); };
+                    });
+                m_polyConeOnGpu = true;
+            } catch (const std::exception& e) { // too large for the GPU: the CPU casts
+                m_polyCone.reset();
+                m_polyConeGpu.clear();
+                m_notice =
+                    tr("Polychromatic cone beam on the CPU: %1").arg(QString::fromUtf8(e.what()));
+            }
+        }
+        if (!m_polyCone)
+            m_polyCone = std::make_unique<core::PolychromaticConeProjector>(*m_volume, mapping,
+                                                                            m_poly->response, o);
+        m_polyConeVolume = m_volume.get();
+    } else {
+        m_polyCone->setResponse(m_poly->response); // kVp, filtration, detector
+    }
+    core::PolychromaticConeFrame f =
+        m_polyCone->project(camera, m_poly->noise, core::SpectralResponse::Output::NegativeLog);
+    if (m_poly->show >= 0 && std::size_t(m_poly->show) < f.massThickness.size())
+        return std::move(f.massThickness[std::size_t(m_poly->show)]);
+    return std::move(f.transmission); // -ln(I/I0), the quantity shown
 }
 
 void ProjectionView::dragCArm(const QPoint& delta) {

@@ -101,6 +101,10 @@ void ProjectionView::renderFrame(const core::RenderParams& params, int level) {
         renderConeFrame(params.image.size);
         return;
     }
+    // A parallel view keeps no cone-beam materials (3x the volume; context current here).
+    m_polyCone.reset();
+    m_polyConeGpu.clear();
+    m_polyConeOnGpu = false;
     core::StageTimes t;
     if (m_poly && !m_poly->spectra.empty()) {
         if (m_gpu && renderPolychromaticOnGpu(params)) return;

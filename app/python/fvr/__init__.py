@@ -358,7 +358,10 @@ class Renderer:
         renderer's ``values``: mm of water for mu). ``model``: "trilinear" (default, exact per
         cell), "box" (voxels as cubes, exact path lengths: plastimatch drr -i exact) or
         "bspline"; ``step``: the ray step as a fraction 0..4 of the smallest voxel spacing
-        (trilinear: 0 = exact; bspline: 0 = 0.25; not for box)."""
+        (trilinear: 0 = exact; bspline: 0 = 0.25; not for box). A renderer made with
+        ``pixel_aperture=True`` averages 4 x 4 rays over each pixel (its area, as fvr-render
+        --pixel-aperture). Polychromatic settings (``kvp``) are refused with a camera: this
+        module renders no polychromatic images (fvr.run_cli with --geometry cone --kvp does)."""
         if camera is None:
             if model is not None or step is not None:
                 raise ValueError("model, step: only with camera= (the cone-beam ray caster)")

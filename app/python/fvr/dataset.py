@@ -68,7 +68,7 @@ ALLOWED_COLUMNS = frozenset({
 # fvr-render of this package has them: the list above is fvr-render's options and no other.
 CONE_COLUMNS = frozenset({
     "geometry", "primary-angle", "secondary-angle", "sid", "sod", "isocenter", "detector-size",
-    "pitch", "principal-point", "ray-model", "step", "flat-field", "orbit",
+    "pitch", "principal-point", "ray-model", "step", "flat-field", "orbit", "pixel-subsamples",
     # Treatment beams (IEC 61217)
     "beam", "sad", "patient-position", "beam-number",
     # A camera file is read, as INPUT is: 3x4 matrices, an X-ray's geometry, an RT Plan's beams

@@ -66,6 +66,25 @@ std::vector<std::shared_ptr<const Spectrum>> preprocessMaterials(const Volume& h
     return spectra;
 }
 
+double spectralSumWithNoise(const SpectralResponse& response, const std::vector<const float*>& rhoL,
+                            std::vector<float>& out, const NoiseModel& noise,
+                            SpectralResponse::Output output, ThreadPool* pool, const float* gain) {
+    using Output = SpectralResponse::Output;
+    const auto t0 = std::chrono::steady_clock::now();
+    // Noise and a gain act on I/I0: the table's -ln(I/I0) only where neither applies.
+    const bool direct = !noise.active() && !gain;
+    response.apply(rhoL, out.data(), std::int64_t(out.size()), pool,
+                   direct ? output : Output::Transmission);
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    if (direct) return ms;
+    if (gain)
+        for (std::size_t p = 0; p < out.size(); ++p) out[p] *= gain[p];
+    if (noise.active()) applyQuantumNoise(out, unattenuatedQuanta(response, noise), noise);
+    if (output == Output::NegativeLog) negativeLogInPlace(out);
+    return ms;
+}
+
 PolychromaticRenderer::PolychromaticRenderer(std::vector<std::unique_ptr<Renderer>> perMaterial,
                                              std::shared_ptr<const SpectralResponse> response,
                                              int threads)
@@ -83,7 +102,6 @@ void PolychromaticRenderer::setResponse(std::shared_ptr<const SpectralResponse> 
 PolychromaticFrame PolychromaticRenderer::render(const RenderParams& params,
                                                  const NoiseModel& noise, StageTimes* times,
                                                  SpectralResponse::Output output) {
-    using Output = SpectralResponse::Output;
     PolychromaticFrame frame;
     StageTimes sum;
     for (auto& r : m_renderers) {
@@ -95,23 +113,14 @@ PolychromaticFrame PolychromaticRenderer::render(const RenderParams& params,
         sum.inverseMs += t.inverseMs;
         sum.totalMs += t.totalMs;
     }
-    const auto t0 = std::chrono::steady_clock::now();
     frame.transmission = frame.massThickness.front();
     frame.transmission.mapping = ValueMapping::Raw;
     std::vector<const float*> rhoL;
     for (const auto& img : frame.massThickness) rhoL.push_back(img.pixels.data());
-    const bool noisy = noise.active();
-    m_response->apply(rhoL, frame.transmission.pixels.data(),
-                      std::int64_t(frame.transmission.pixels.size()), &m_pool,
-                      noisy ? Output::Transmission : output);
+    NoiseModel n = noise;
+    n.pixelAreaMm2 = params.image.pixelSize * params.image.pixelSize;
     frame.spectralSumMs =
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    if (noisy) {
-        NoiseModel n = noise;
-        n.pixelAreaMm2 = params.image.pixelSize * params.image.pixelSize;
-        applyQuantumNoise(frame.transmission.pixels, unattenuatedQuanta(*m_response, n), n);
-        if (output == Output::NegativeLog) negativeLogInPlace(frame.transmission.pixels);
-    }
+        spectralSumWithNoise(*m_response, rhoL, frame.transmission.pixels, n, output, &m_pool);
     sum.totalMs += frame.spectralSumMs;
     if (times) *times = sum;
     return frame;

@@ -14,6 +14,7 @@
 #include <fvr/core/render/spectrum.h>
 #include <fvr/core/render/view.h>
 #include <fvr/core/volume.h>
+#include <fvr/core/xray/polychromatic_cone.h>
 #include <fvr/core/xray/polychromatic_render.h>
 #include <fvr/ui/view_overlay.h>
 #include <fvr/ui/view_settings.h>
@@ -173,6 +174,12 @@ private:
      *  (the B-spline model, a volume too large: the CPU casts it, the notice says why). */
     std::optional<core::DetectorImage> castConeOnGpu(const core::ConeCamera& camera,
                                                      const core::ConeProjectorOptions& options);
+    /** The polychromatic cone beam of m_poly's response (one ray caster per material's density
+     *  volume, made once per volume, model, rays per pixel and backend: the GPU's where the
+     *  view renders there, context current, else the CPU's): -ln(I/I0) with m_poly's noise, or
+     *  the mass thickness (g/cm^2) of the material it shows. */
+    core::DetectorImage castPolychromaticCone(const core::ConeCamera& camera,
+                                              const core::ConeProjectorOptions& options);
     bool coneBeam() const { return m_settings.projection == ProjectionKind::Cone; }
     /** A rotation drag on a cone-beam view: horizontal moves the primary angle (to the right:
      *  toward LAO), vertical the secondary (up: toward cranial). */
@@ -238,6 +245,13 @@ private:
     std::unique_ptr<gpu::ConeRayCaster> m_gpuCone;
     const core::Volume* m_gpuConeVolume = nullptr;
     bool m_coneOnGpu = false; ///< the last cone-beam frame was cast on the GPU
+    /** The polychromatic cone beam's casters (the materials' volumes: 3x the CT's memory), for
+     *  the volume m_polyConeVolume; released when the output is line integrals again. */
+    std::unique_ptr<core::PolychromaticConeProjector> m_polyCone;
+    const core::Volume* m_polyConeVolume = nullptr;
+    /** m_polyCone's GPU casters, one per material (released with the context current). */
+    std::vector<std::unique_ptr<gpu::ConeRayCaster>> m_polyConeGpu;
+    bool m_polyConeOnGpu = false; ///< m_polyCone casts on the GPU
     std::optional<core::ProjectionImage> m_cpuImage; // CPU path / difference mode
     std::shared_ptr<const PolychromaticSource> m_poly;
     std::unique_ptr<core::PolychromaticRenderer> m_polyRenderer;

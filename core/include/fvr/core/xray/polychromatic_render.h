@@ -27,6 +27,18 @@ std::vector<std::shared_ptr<const Spectrum>> preprocessMaterials(
     const Volume& hu, const MaterialMapping& mapping, PreprocessOptions options,
     const ProgressFn& progress = {}, const CancelToken* cancel = nullptr);
 
+/** The step every polychromatic image shares (the parallel renderer's and the cone beam's):
+ *  `out` (sized by the caller: the pixels of rhoL) gets I/I0 of the materials' mass thicknesses
+ * rhoL (g/cm^2) through the response, multiplied by `gain` where given (a detector's flat field:
+ * the open beam's relative intensity per pixel), then quantum noise where `noise` is active (its
+ * pixel area and SID as the caller states them), or -ln of that when `output` is NegativeLog (from
+ * the table without noise). Runs on `pool` (null: this thread). Returns the spectral sum's time in
+ * ms (noise excluded). */
+double spectralSumWithNoise(const SpectralResponse& response, const std::vector<const float*>& rhoL,
+                            std::vector<float>& out, const NoiseModel& noise,
+                            SpectralResponse::Output output, ThreadPool* pool = nullptr,
+                            const float* gain = nullptr);
+
 /** What the polychromatic frame returns besides I/I0. */
 struct PolychromaticFrame {
     /** I/I0 (noisy when noise is on), or -ln of it when render() was asked for NegativeLog. */
