@@ -63,11 +63,10 @@ struct PacketStart {
     double adm[4] = {1, 1, 1, 1};
 };
 
-/** False where the non-empty rays differ in major axis or direction along it. */
-bool packetStart(const CellData& c, const RayPacket& p, PacketStart& st) {
-    int m = -1;
-    double s = 0.0;
-    bool any = false;
+/** The major axis m and the direction s along it that the non-empty rays share (any: there
+ *  is one); false where they differ. */
+bool commonMajorAxis(const RayPacket& p, int& m, double& s, bool& any) {
+    any = false;
     for (int r = 0; r < 4; ++r) {
         if (!(p.t1[r] > p.t0[r])) continue;
         const double ax = std::abs(p.dir[r][0]), ay = std::abs(p.dir[r][1]),
@@ -79,6 +78,15 @@ bool packetStart(const CellData& c, const RayPacket& p, PacketStart& st) {
         s = sr;
         any = true;
     }
+    return true;
+}
+
+/** False where the non-empty rays differ in major axis or direction along it. */
+bool packetStart(const CellData& c, const RayPacket& p, PacketStart& st) {
+    int m = 0;
+    double s = 1.0;
+    bool any = false;
+    if (!commonMajorAxis(p, m, s, any)) return false;
     st.empty = !any;
     if (!any) return true;
     st.m = m;

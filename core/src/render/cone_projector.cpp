@@ -653,6 +653,34 @@ struct Caster {
     }
 };
 
+/** The exact models' integrals of the four rays of pixels (col .. col + 3, row) into out, by
+ *  the AVX2 walk of four rays at once (each clipped to the occupied box); false where it
+ *  declines (rays of different major axes), for the walk of one ray at a time. */
+bool castPacket(const ConeProjector::Data& d, bool box, const detail::CellData& cells,
+                const ConeCamera& camera, const glm::dvec3& src, const glm::dvec3& p00,
+                const glm::dvec3& du, const glm::dvec3& dv, int col, std::int64_t row, float* out) {
+    detail::RayPacket p;
+    double length[4];
+    for (int k = 0; k < 4; ++k) {
+        const glm::dvec3 end = p00 + double(col + k) * du + double(row) * dv;
+        length[k] = glm::length(camera.pixelCentre(col + k, double(row)) - camera.source);
+        const Ray ray{src, end - src};
+        p.t0[k] = 0.0;
+        p.t1[k] = 1.0;
+        if (!clipToBox(ray, d.occupiedLo, d.occupiedHi, p.t0[k], p.t1[k])) p.t0[k] = p.t1[k] = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            p.o[k][a] = ray.o[a];
+            p.dir[k][a] = ray.dir[a];
+        }
+    }
+    double sums[4];
+    if (!(box ? detail::boxPacketAvx2(cells, p, sums)
+              : detail::trilinearPacketAvx2(cells, p, sums)))
+        return false;
+    for (int k = 0; k < 4; ++k) out[k] = float(length[k] * sums[k]);
+    return true;
+}
+
 } // namespace
 
 DetectorImage ConeProjector::project(const ConeCamera& camera) {
@@ -703,31 +731,11 @@ DetectorImage ConeProjector::project(const ConeCamera& camera) {
         Caster c = caster;
         for (std::int64_t row = r0; row < r1; ++row)
             for (int col = 0; col < W; ++col) {
-                if (packets && col + 4 <= W) {
-                    detail::RayPacket p;
-                    double length[4];
-                    for (int k = 0; k < 4; ++k) {
-                        const glm::dvec3 end = p00 + double(col + k) * du + double(row) * dv;
-                        length[k] =
-                            glm::length(camera.pixelCentre(col + k, double(row)) - camera.source);
-                        const Ray ray{src, end - src};
-                        p.t0[k] = 0.0;
-                        p.t1[k] = 1.0;
-                        if (!clipToBox(ray, d.occupiedLo, d.occupiedHi, p.t0[k], p.t1[k]))
-                            p.t0[k] = p.t1[k] = 0.0;
-                        for (int a = 0; a < 3; ++a) {
-                            p.o[k][a] = ray.o[a];
-                            p.dir[k][a] = ray.dir[a];
-                        }
-                    }
-                    double sums[4];
-                    if (box ? detail::boxPacketAvx2(cells, p, sums)
-                            : detail::trilinearPacketAvx2(cells, p, sums)) {
-                        for (int k = 0; k < 4; ++k)
-                            img.pixels[std::size_t(row) * W + col + k] = float(length[k] * sums[k]);
-                        col += 3;
-                        continue;
-                    }
+                if (packets && col + 4 <= W &&
+                    castPacket(d, box, cells, camera, src, p00, du, dv, col, row,
+                               img.pixels.data() + std::size_t(row) * W + col)) {
+                    col += 3;
+                    continue;
                 }
                 double sum = 0.0;
                 for (int j = 0; j < sub; ++j)
