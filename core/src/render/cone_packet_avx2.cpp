@@ -332,10 +332,16 @@ bool trilinearPacket(const CellData& c, const RayPacket& p, const PacketStart& s
         const __m256d zM = _mm256_add_pd(zb, _mm256_andnot_pd(aFirst, _mm256_and_pd(st.signB, cb)));
         sum = _mm256_add_pd(sum, trilinearPiece<Major>(base, iA, sy, sz, lo, _mm256_sub_pd(u1, lo),
                                                        s, M, st.cA, st.kA, ya, st.cB, st.kB, zb));
-        sum = _mm256_add_pd(sum, trilinearPiece<Major>(base, iM, sy, sz, u1, _mm256_sub_pd(u2, u1),
-                                                       s, M, st.cA, st.kA, yM, st.cB, st.kB, zM));
-        sum = _mm256_add_pd(sum, trilinearPiece<Major>(base, iD, sy, sz, u2, _mm256_sub_pd(hi, u2),
-                                                       s, M, st.cA, st.kA, yD, st.cB, st.kB, zD));
+        // The middle and last pieces only where some lane has one (a branch: half the time
+        // neither; the first piece is almost always there).
+        const __m256d lM = _mm256_sub_pd(u2, u1), lD = _mm256_sub_pd(hi, u2);
+        const __m256d zero = _mm256_setzero_pd();
+        if (_mm256_movemask_pd(_mm256_cmp_pd(lM, zero, _CMP_GT_OQ)) != 0)
+            sum = _mm256_add_pd(sum, trilinearPiece<Major>(base, iM, sy, sz, u1, lM, s, M, st.cA,
+                                                           st.kA, yM, st.cB, st.kB, zM));
+        if (_mm256_movemask_pd(_mm256_cmp_pd(lD, zero, _CMP_GT_OQ)) != 0)
+            sum = _mm256_add_pd(sum, trilinearPiece<Major>(base, iD, sy, sz, u2, lD, s, M, st.cA,
+                                                           st.kA, yD, st.cB, st.kB, zD));
         nextA = _mm256_add_pd(nextA, _mm256_and_pd(st.deltaA, ca));
         nextB = _mm256_add_pd(nextB, _mm256_and_pd(st.deltaB, cb));
         iA = iD;
