@@ -15,6 +15,8 @@
 #include <fvr/core/text.h>
 #include <fvr/core/xray/xray.h>
 
+#include "cone_packet.h"
+
 namespace fvr::core {
 
 const char* rayModelName(RayModel m) {
@@ -320,8 +322,10 @@ ConeProjector::ConeProjector(const Volume& volume, ConeProjectorOptions options)
         occupiedBox(volume, mapped, options.skipEmpty, 0, d);
         break;
     case RayModel::Trilinear:
-        d.lo = 1;
-        d.values = padded(mapped, N, 1, 2, d.L);
+        // Two zero voxels below (a cell -1 that rounding reaches at the exit has its corners
+        // there), two above.
+        d.lo = 2;
+        d.values = padded(mapped, N, 2, 2, d.L);
         for (int a = 0; a < 3; ++a) d.grid.cells[a] = N[a] + 1;
         if (options.skipEmpty) markBlocks(volume, mapped, d.grid, true);
         occupiedBox(volume, mapped, options.skipEmpty, 1, d);
@@ -512,10 +516,14 @@ struct Caster {
         return sum;
     }
 
+    /** The trilinear model's cell c (q = index + 1: between voxels c - 1 and c) has its
+     *  corner (0, 0, 0) at this + c (voxel c - 1 lies at padded c - 1 + lo). */
+    const float* trilinearCorners() const { return d.values.data() + (d.lo - 1) * (1 + sy + sz); }
+
     /** Trilinear, exact: Simpson's rule per cell (the interpolant is a cubic along the ray). */
     double trilinearExact(const Ray& r, double t0, double t1) const {
         double sum = 0.0;
-        const float* v = d.values.data();
+        const float* v = trilinearCorners();
         // The value where a cell is left is where the next is entered (the interpolant is
         // continuous): two evaluations per cell.
         double fa = 0.0, tLast = -1.0;
@@ -544,7 +552,7 @@ struct Caster {
     double trilinearAt(double x, double y, double z) const {
         const double fx = cellOf(x), fy = cellOf(y), fz = cellOf(z);
         const float* b =
-            d.values.data() + std::int64_t(fx) + std::int64_t(fy) * sy + std::int64_t(fz) * sz;
+            trilinearCorners() + std::int64_t(fx) + std::int64_t(fy) * sy + std::int64_t(fz) * sz;
         const float k[8] = {b[0],      b[1],      b[sy],      b[sy + 1],
                             b[sz + 0], b[sz + 1], b[sz + sy], b[sz + sy + 1]};
         return double(trilinear(k, float(x - fx), float(y - fy), float(z - fz)));
@@ -637,6 +645,34 @@ struct Caster {
     }
 };
 
+/** The exact models' integrals of the four rays of pixels (col .. col + 3, row) into out, by
+ *  the AVX2 walk of four rays at once (each clipped to the occupied box); false where it
+ *  declines (rays of different major axes), for the walk of one ray at a time. */
+bool castPacket(const ConeProjector::Data& d, bool box, const detail::CellData& cells,
+                const ConeCamera& camera, const glm::dvec3& src, const glm::dvec3& p00,
+                const glm::dvec3& du, const glm::dvec3& dv, int col, std::int64_t row, float* out) {
+    detail::RayPacket p;
+    double length[4];
+    for (int k = 0; k < 4; ++k) {
+        const glm::dvec3 end = p00 + double(col + k) * du + double(row) * dv;
+        length[k] = glm::length(camera.pixelCentre(col + k, double(row)) - camera.source);
+        const Ray ray{src, end - src};
+        p.t0[k] = 0.0;
+        p.t1[k] = 1.0;
+        if (!clipToBox(ray, d.occupiedLo, d.occupiedHi, p.t0[k], p.t1[k])) p.t0[k] = p.t1[k] = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            p.o[k][a] = ray.o[a];
+            p.dir[k][a] = ray.dir[a];
+        }
+    }
+    double sums[4];
+    if (!(box ? detail::boxPacketAvx2(cells, p, sums)
+              : detail::trilinearPacketAvx2(cells, p, sums)))
+        return false;
+    for (int k = 0; k < 4; ++k) out[k] = float(length[k] * sums[k]);
+    return true;
+}
+
 } // namespace
 
 DetectorImage ConeProjector::project(const ConeCamera& camera) {
@@ -671,10 +707,28 @@ DetectorImage ConeProjector::project(const ConeCamera& camera) {
     Caster caster{d, m_options.model, 0.0, d.L[0], d.L[0] * d.L[1]};
     const int sub = m_options.pixelSubsamples;
     const int W = img.width;
+    // The exact models (box, trilinear) with one ray per pixel walk four neighbouring pixels'
+    // rays at once where the CPU has AVX2 (every cell of the occupied box: no block skipping).
+    const bool box = m_options.model == RayModel::Box;
+    const bool packets =
+        (box || (m_options.model == RayModel::Trilinear && m_options.stepFraction <= 0.0)) &&
+        sub == 1 && detail::coneAvx2() && d.occupiedLo.x < d.occupiedHi.x;
+    detail::CellData cells;
+    cells.v =
+        box ? d.values.data() + d.lo * (1 + d.L[0] + d.L[0] * d.L[1]) : caster.trilinearCorners();
+    cells.stride[1] = d.L[0];
+    cells.stride[2] = d.L[0] * d.L[1];
+    for (int a = 0; a < 3; ++a) cells.cells[a] = d.grid.cells[a];
     m_pool.parallelFor(img.height, 1, [&](std::int64_t r0, std::int64_t r1) {
         Caster c = caster;
         for (std::int64_t row = r0; row < r1; ++row)
             for (int col = 0; col < W; ++col) {
+                if (packets && col + 4 <= W &&
+                    castPacket(d, box, cells, camera, src, p00, du, dv, col, row,
+                               img.pixels.data() + std::size_t(row) * W + col)) {
+                    col += 3;
+                    continue;
+                }
                 double sum = 0.0;
                 for (int j = 0; j < sub; ++j)
                     for (int i = 0; i < sub; ++i) {
