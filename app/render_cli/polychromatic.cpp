@@ -60,25 +60,26 @@ std::string writeView(const Options& o, OutputFiles& files, std::size_t i, std::
     core::checkFiniteImage(img); // never a NaN in a file
     const std::string final = count > 1 ? numbered(o.out, i) : o.out;
     const std::filesystem::path path = files.staged(final);
-    const int M = img.size;
+    const int W = img.width, H = img.height;
     if (o.format == OutputFormat::Png) {
         std::vector<float> logs = img.pixels;
         negativeLogInPlace(logs);
-        writePng(path, logs.data(), M, M, autoWindow(logs), o.bitDepth);
+        writePng(path, logs.data(), H, W, autoWindow(logs), o.bitDepth);
     } else if (o.format == OutputFormat::Pfm) {
-        writePfm(path, img.pixels.data(), M, M);
+        writePfm(path, img.pixels.data(), H, W);
     } else {
-        writeNpy(path, img.pixels.data(), M, M);
+        writeNpy(path, img.pixels.data(), H, W);
     }
     return final;
 }
 
 void writeMaterials(const Options& o, OutputFiles& files, const PolychromaticFrame& f) {
-    const int M = f.transmission.size;
+    const ProjectionImage& t = f.transmission;
     std::vector<float> stack;
     for (const auto& img : f.massThickness)
         stack.insert(stack.end(), img.pixels.begin(), img.pixels.end());
-    writeNpy(files.staged(o.materialOut), stack.data(), M, M, std::int64_t(f.massThickness.size()));
+    writeNpy(files.staged(o.materialOut), stack.data(), t.height, t.width,
+             std::int64_t(f.massThickness.size()));
 }
 
 struct RenderedViews {
@@ -88,7 +89,7 @@ struct RenderedViews {
     double spectralSumMs = 0.0; ///< per view
 };
 
-/** Renders and writes every view (several .npy views: one (n, M, M) stack, as without --kvp,
+/** Renders and writes every view (several .npy views: one (n, H, W) stack, as without --kvp,
  *  unless --numbered); each view has its own noise seed (seed + view index). */
 RenderedViews renderViews(const Options& o, OutputFiles& files, const PolychromaticFrameFn& frame,
                           const std::vector<ViewFrame>& views, const ImageGeometry& geometry,
@@ -97,8 +98,8 @@ RenderedViews renderViews(const Options& o, OutputFiles& files, const Polychroma
     out.stacked = views.size() > 1 && o.format == OutputFormat::Npy && !o.numbered;
     std::unique_ptr<NpyStackWriter> stack;
     if (out.stacked)
-        stack = std::make_unique<NpyStackWriter>(files.staged(o.out), o.settings.size,
-                                                 o.settings.size, std::int64_t(views.size()));
+        stack = std::make_unique<NpyStackWriter>(files.staged(o.out), geometry.rows(),
+                                                 geometry.cols(), std::int64_t(views.size()));
     const auto t0 = std::chrono::steady_clock::now();
     for (std::size_t i = 0; i < views.size(); ++i) {
         const RenderParams p = o.settings.toRenderParams(views[i], geometry);
@@ -186,7 +187,8 @@ int renderPolychromatic(const Options& o, const Volume& volume,
         frame = [&poly](const RenderParams& p, const NoiseModel& n, bool) {
             return poly.render(p, n);
         };
-    const double d = run.pixelSize = o.settings.imageGeometry(volume).pixelSize;
+    const ImageGeometry geometry = o.settings.imageGeometry(volume);
+    const double d = run.pixelSize = geometry.pixelSize;
     const NoiseModel noise{o.noiseMas, 1000.0, d * d, o.electronicNoise, o.seed};
     InterruptGuard interrupt; // before the first file is staged
     std::string interrupted = "interrupted after the last view"; // the files are complete
@@ -194,7 +196,7 @@ int renderPolychromatic(const Options& o, const Volume& volume,
         OutputFiles files(o.out);
         RenderedViews rendered;
         try { // the messages name the final paths, not the staged ones
-            rendered = renderViews(o, files, frame, views, {o.settings.size, d}, noise);
+            rendered = renderViews(o, files, frame, views, geometry, noise);
             writeFileAtomic(
                 files.staged(o.out + ".json"),
                 jsonText(sidecar(o, volume, views, run, rendered, spectrum, *response, noise)));
@@ -205,7 +207,7 @@ int renderPolychromatic(const Options& o, const Volume& volume,
         std::fprintf(
             stderr, "wrote %s (%zu view%s, %dx%d, %g kVp, %zu materials, I/I0; %.2f ms per view)\n",
             rendered.files.front().c_str(), views.size(), views.size() > 1 ? "s" : "",
-            o.settings.size, o.settings.size, *o.kvp, o.materials.size(), rendered.msPerView);
+            geometry.cols(), geometry.rows(), *o.kvp, o.materials.size(), rendered.msPerView);
     } catch (const Interrupted& e) {
         interrupted = e.what();
     }
