@@ -7,6 +7,7 @@
 #include <QObject>
 #include <QRegularExpression>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -157,7 +158,12 @@ WorkstationOptions parseWorkstationOptions(const QApplication& app) {
         o.size = parsed("size", p.value("size"), [](const std::string& s) {
             const auto m = core::parseNumber<int>(s);
             if (!m) throw core::SettingsError("expected a whole number, found '" + s + "'");
-            core::validateSettingsSize(*m);
+            const auto sizes = core::settingsSizes();
+            if (std::find(sizes.begin(), sizes.end(), *m) == sizes.end())
+                throw core::SettingsError("expected one of the workstation's sizes, 128, 256, "
+                                          "512, 1024 or 2048, found " +
+                                          std::to_string(*m) +
+                                          " (fvr-render and Python render any WxH)");
             return *m;
         });
     }

@@ -6,6 +6,8 @@
  *   BM_Preprocess/N<n>/<fft|fht-fromfft|fht-dht>   3D transform of the Shepp-Logan phantom
  *   BM_Frame/N<n>/<fft|fht>/M<m>/<kernel>         one projection per iteration, rotating view
  *   BM_RayCast/N128/M<m>/step<0.25vox|1vox>       spatial ray casting (trilinear), same views
+ *   BM_Size/N256/<W>x<H>/<kernel>                  one W x H frame (a cropped square of FFTW's
+ *                                                  fast side): sizes other than powers of two
  *   BM_BareFft/M<m>                                one in-place M x M complex FFT (FFTW, MEASURE):
  *                                                  the yardstick a frame is measured in (frame /
  * bare FFT) BM_Effects/N256/<fft|fht>/M512/<kernel>/<effect> the per-frame cost of depth cueing and
@@ -337,6 +339,17 @@ void timeFrames(benchmark::State& state, CpuFourierRenderer& r, RenderParams p) 
     state.counters["other_cores"] = probe.otherCores();
 }
 
+/** One W x H frame (any size: the renderer transforms a square of fourierSide() and crops it),
+ *  against the power-of-two squares around it: what a size other than a power of two costs. */
+void BM_Size(benchmark::State& state, int n, int W, int H, Kernel kernel) {
+    CpuFourierRenderer& r = renderer(n, TransformKind::Fft);
+    const Volume& v = phantom(n);
+    const ImageGeometry g{W, defaultPixelSize(v.dims, v.spacing, std::min(W, H)), H};
+    state.SetLabel("transform " + std::to_string(fourierSide(W, H, false)) + "^2 (GPU " +
+                   std::to_string(fourierSide(W, H, true)) + "^2)");
+    timeFrames(state, r, RenderParams{views()[0], g, kernel});
+}
+
 void BM_Effects(benchmark::State& state, int n, TransformKind kind, int M, Kernel kernel,
                 Effect e) {
     RenderParams p{views()[0], geometry(n, M), kernel};
@@ -483,6 +496,22 @@ void registerAll(const std::vector<int>& sizes) {
                             ->Unit(benchmark::kMillisecond)
                             ->UseRealTime();
                     }
+    for (auto [W, H] : {std::pair{200, 200},
+                        {224, 224},
+                        {256, 256},
+                        {976, 976},
+                        {1024, 1024},
+                        {1240, 960},
+                        {1250, 1250},
+                        {2048, 2048}})
+        for (Kernel k : {Kernel::Linear, Kernel::KaiserBessel4}) {
+            const std::string name =
+                "BM_Size/N256/" + std::to_string(W) + "x" + std::to_string(H) + "/" + kernelName(k);
+            benchmark::RegisterBenchmark(name.c_str(), BM_Size, 256, W, H, k)
+                ->Iterations(framesFor(std::max(W, H)))
+                ->Unit(benchmark::kMillisecond)
+                ->UseRealTime();
+        }
     for (int M : {256, 512, 1024}) {
         const std::string name = "BM_BareFft/M" + std::to_string(M);
         benchmark::RegisterBenchmark(name.c_str(), BM_BareFft, M)

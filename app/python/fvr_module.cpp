@@ -116,8 +116,8 @@ py::array volumeArray(const PyVolume& v) {
 }
 
 /** An image stack (n, M, M), row 0 at the top as fvr-render's .npy. */
-py::array_t<float> imageStack(std::size_t n, int size) {
-    return py::array_t<float>({py::ssize_t(n), py::ssize_t(size), py::ssize_t(size)});
+py::array_t<float> imageStack(std::size_t n, int height, int width) {
+    return py::array_t<float>({py::ssize_t(n), py::ssize_t(height), py::ssize_t(width)});
 }
 
 /** Views from an (N, 2, 3) array of (dir, up) rows. */
@@ -174,7 +174,7 @@ public:
         const core::ImageGeometry g = cli::imageGeometry(o, *m_volume.volume);
         const core::RenderParams p = cli::renderParams(o, cli::baseView(o, *m_volume.volume), g);
         core::validateRenderParams(p);
-        auto out = py::array_t<float>({py::ssize_t(g.size), py::ssize_t(g.size)});
+        auto out = py::array_t<float>({py::ssize_t(g.rows()), py::ssize_t(g.cols())});
         float* dst = out.mutable_data();
         py::gil_scoped_release release;
         std::lock_guard lock(m_mutex);
@@ -192,9 +192,9 @@ public:
         std::vector<core::RenderParams> params;
         for (const auto& v : frames) params.push_back(cli::renderParams(o, v, g));
         if (!params.empty()) core::validateRenderParams(params[0]);
-        auto out = imageStack(params.size(), g.size);
+        auto out = imageStack(params.size(), g.rows(), g.cols());
         float* dst = out.mutable_data();
-        const std::size_t pixels = std::size_t(g.size) * std::size_t(g.size);
+        const std::size_t pixels = std::size_t(g.rows()) * std::size_t(g.cols());
         py::gil_scoped_release release;
         std::lock_guard lock(m_mutex);
         const std::size_t width = std::size_t(m_batch->width());

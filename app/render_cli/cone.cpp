@@ -50,7 +50,9 @@ std::vector<ConeView> beamViews(const Options& o, const Volume& volume) {
         beams[0].beam.isocentre = c.isocentre ? *c.isocentre : volumeCentre(volume);
     }
     const int width = c.width > 0 ? c.width : o.settings.size;
-    const int height = c.height > 0 ? c.height : o.settings.size;
+    const int height = c.height > 0            ? c.height
+                       : o.settings.height > 0 ? o.settings.height
+                                               : o.settings.size;
     std::vector<ConeView> views;
     for (const RtPlanBeam& b : beams) {
         double pitchU = c.pitchU, pitchV = c.pitchV;
@@ -80,7 +82,9 @@ std::vector<ConeView> coneViews(const Options& o, const Volume& volume, const Co
     CArm arm = c.arm;
     arm.isocentre = c.isocentre ? *c.isocentre : volumeCentre(volume);
     const int width = c.width > 0 ? c.width : o.settings.size;
-    const int height = c.height > 0 ? c.height : o.settings.size;
+    const int height = c.height > 0            ? c.height
+                       : o.settings.height > 0 ? o.settings.height
+                                               : o.settings.size;
     double pitchU = c.pitchU, pitchV = c.pitchV;
     if (!(pitchU > 0.0)) pitchU = pitchV = framingPitch(volume, arm.sid, arm.sod, width, height);
     for (const double angle : primaryAngles(o)) {

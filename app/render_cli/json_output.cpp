@@ -77,6 +77,7 @@ Json settingsJson(const RunFacts& run) {
                 {"kernel", core::kernelName(o.settings.kernel)},
                 {"transform", core::transformName(o.settings.transform)},
                 {"size", o.settings.size},
+                {"height", o.settings.height > 0 ? o.settings.height : o.settings.size},
                 {"pixel_size_mm", run.pixelSize},
                 {"oversampling", o.settings.oversampling},
                 {"values", core::valueMappingName(o.settings.values)},
@@ -124,17 +125,19 @@ Json sidecarJson(const RunFacts& run, const core::Volume& volume, const WrittenO
     Json viewList = Json::array();
     for (const auto& v : views)
         viewList.push_back({{"dir", vecJson(v.d)}, {"up", vecJson(v.u)}, {"right", vecJson(v.r)}});
-    return Json{
-        {"generator", "fvr-render"},
-        {"settings", settingsJson(run)},
-        {"volume", volumeBlockJson(volume)},
-        {"output", outputBlockJson(o, output)},
-        {"image",
-         {{"size", o.settings.size},
-          {"pixel_size_mm", run.pixelSize},
-          {"pixel", "(col, row) is the line integral along dir through centre + (col - M/2) d "
-                    "right - (row - M/2) d up"}}},
-        {"views", viewList}};
+    const int width = o.settings.size, height = o.settings.height > 0 ? o.settings.height : width;
+    Json image{{"width", width},
+               {"height", height},
+               {"pixel_size_mm", run.pixelSize},
+               {"pixel", "(col, row) is the line integral along dir through centre + (col - W/2) d "
+                         "right - (row - H/2) d up (W/2, H/2: integer halves)"}};
+    if (width == height) image["size"] = width; // M, as square images always said
+    return Json{{"generator", "fvr-render"},
+                {"settings", settingsJson(run)},
+                {"volume", volumeBlockJson(volume)},
+                {"output", outputBlockJson(o, output)},
+                {"image", image},
+                {"views", viewList}};
 }
 
 namespace {

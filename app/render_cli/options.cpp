@@ -179,16 +179,18 @@ void declareView(CLI::App& app, Options& o) {
         ->group(g)
         ->excludes(dir)
         ->excludes(up);
-    app.add_option("--size", o.settings.size,
-                   "slice/image size, power of two " + std::to_string(kDefaults.kMinSize) + ".." +
-                       std::to_string(kDefaults.kMaxSize) + " " +
-                       defaultText(std::to_string(kDefaults.size)))
-        ->check(coreCheck([](const std::string& s) {
-            const auto m = core::parseNumber<int>(s);
-            if (!m) throw SettingsError("size: expected a whole number, found '" + s + "'");
-            core::validateSettingsSize(*m);
-        }))
-        ->option_text("M")
+    app.add_option_function<std::string>(
+           "--size",
+           [&o](const std::string& s) {
+               const auto [w, h] = core::parseImageSize(s);
+               o.settings.size = w;
+               o.settings.height = w == h ? 0 : h;
+           },
+           "image size in pixels: N (square) or WxH, each " + std::to_string(kDefaults.kMinImage) +
+               ".." + std::to_string(kDefaults.kMaxImage) + " " +
+               defaultText(std::to_string(kDefaults.size)))
+        ->check(coreCheck([](const std::string& s) { core::parseImageSize(s); }))
+        ->option_text("N|WxH")
         ->group(g);
     addNumber(
         app, "--pixel-size", o.settings.pixelSize, "mm",

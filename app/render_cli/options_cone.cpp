@@ -29,17 +29,7 @@ std::optional<std::pair<double, double>> toPair(const std::string& s, char sep =
 
 /** --detector-size "WxH" (or "N": square), each 16..4096; throws SettingsError. */
 std::pair<int, int> parseDetectorSize(const std::string& s) {
-    auto whole = [&](const std::string& t) {
-        const auto v = core::parseNumber<int>(t);
-        if (!v) throw SettingsError("detector size: expected WxH in pixels, found '" + s + "'");
-        if (*v < 16 || *v > 4096)
-            throw SettingsError("detector size: expected 16..4096 pixels a side, found '" + s +
-                                "'");
-        return *v;
-    };
-    const auto x = core::asciiLower(s).find('x');
-    if (x == std::string::npos) return {whole(s), whole(s)};
-    return {whole(s.substr(0, x)), whole(s.substr(x + 1))};
+    return core::parseImageSize(s, "detector size");
 }
 
 /** --pitch "PU[,PV]", mm, each > 0; throws SettingsError. */

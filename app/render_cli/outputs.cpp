@@ -450,7 +450,7 @@ void printSummary(const Session& s, std::size_t viewCount, bool stacked, double 
     std::fprintf(
         stderr, "wrote %s%s (%zu view%s, %dx%d, pixel %.4g mm, %s, %s, %s, %s; %.2f ms per view)\n",
         one ? o.out.c_str() : numberedPath(o.out, 0).c_str(), one ? "" : " ...", viewCount,
-        viewCount > 1 ? "s" : "", o.settings.size, o.settings.size, s.geometry.pixelSize,
+        viewCount > 1 ? "s" : "", s.geometry.cols(), s.geometry.rows(), s.geometry.pixelSize,
         kernelName(o.settings.kernel), transformName(o.settings.transform),
         o.beerLambert ? "transmission" : projectionUnits(o.settings.values, s.volume.units).c_str(),
         s.backend.name().c_str(), msPerView);
@@ -492,9 +492,8 @@ void writeRun(const Options& o, std::size_t viewCount, int width, int height,
 
 void writeOutputs(const Session& s, const std::vector<ViewFrame>& views,
                   const DicomExportInfo& exportInfo) {
-    const int M = s.options.settings.size;
     writeRun(
-        s.options, views.size(), M, M, dicomInfo(s, exportInfo),
+        s.options, views.size(), s.geometry.cols(), s.geometry.rows(), dicomInfo(s, exportInfo),
         [&](ViewWriter& writer) { return renderViews(s, views, writer); },
         [&](const ViewWriter& writer, double msPerView) {
             const WrittenOutput output{valuesText(s), writer.stacked(), writer.written(),

@@ -184,19 +184,20 @@ int renderPolychromatic(const Options& o, const Volume& volume,
         frame = [&poly](const RenderParams& p, const NoiseModel& n, bool) {
             return poly.render(p, n);
         };
-    const double d = run.pixelSize = o.settings.imageGeometry(volume).pixelSize;
+    const ImageGeometry geometry = o.settings.imageGeometry(volume);
+    const double d = run.pixelSize = geometry.pixelSize;
     const NoiseModel noise{o.noiseMas, 1000.0, d * d, o.electronicNoise, o.seed};
-    const int M = o.settings.size;
+    const int W = geometry.cols(), H = geometry.rows();
     auto view = [&](std::size_t i, std::uint64_t seed, bool materials) {
         NoiseModel n = noise;
         n.seed = seed;
-        PolychromaticFrame f = frame(o.settings.toRenderParams(views[i], {M, d}), n, materials);
-        PolychromaticImages img{M, M, std::move(f.transmission.pixels), {}, f.spectralSumMs};
+        PolychromaticFrame f = frame(o.settings.toRenderParams(views[i], geometry), n, materials);
+        PolychromaticImages img{W, H, std::move(f.transmission.pixels), {}, f.spectralSumMs};
         for (auto& m : f.massThickness) img.materials.push_back(std::move(m.pixels));
         return img;
     };
     writePolychromaticRun(
-        o, views.size(), M, M, view,
+        o, views.size(), W, H, view,
         [&](const RenderedPolychromatic& rendered) {
             return sidecar(o, volume, views, run, rendered, spectrum, *response, noise);
         },
@@ -205,7 +206,7 @@ int renderPolychromatic(const Options& o, const Volume& volume,
                          "wrote %s (%zu view%s, %dx%d, %g kVp, %zu materials, I/I0; %.2f ms per "
                          "view)\n",
                          rendered.files.front().c_str(), views.size(), views.size() > 1 ? "s" : "",
-                         M, M, *o.kvp, o.materials.size(), rendered.msPerView);
+                         W, H, *o.kvp, o.materials.size(), rendered.msPerView);
         });
     return 0;
 }

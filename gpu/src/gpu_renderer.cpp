@@ -490,12 +490,18 @@ void GpuFourierRenderer::runHartleyCorrection(int M, const core::RenderParams* p
         (display ? GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT : 0));
 }
 
-void GpuFourierRenderer::renderToGpu(const core::RenderParams& p,
+void GpuFourierRenderer::renderToGpu(const core::RenderParams& requested,
                                      const core::DisplayWindow* display) {
     const core::PlannerBusyScope busy; // the CPU's FFTW planner measures between frames only
     if (!m_spectrum) throw GlError("GPU renderer: no spectrum uploaded");
-    core::validateRenderParams(p, *m_spectrum);
-    core::checkKernelMatchesSpectrum(*m_spectrum, p.kernel);
+    core::validateRenderParams(requested, *m_spectrum);
+    core::checkKernelMatchesSpectrum(*m_spectrum, requested.kernel);
+    // The FFT passes need a power of two: a W x H image is the centred crop of the square of
+    // the next one (readback() crops), at the same pixel size.
+    core::RenderParams p = requested;
+    p.image = {
+        core::fourierSide(requested.image, m_spectrum->volumeDims, m_spectrum->spacing, true),
+        requested.image.pixelSize};
     const int M = p.image.size;
     if (M > 4096) throw core::SettingsError("GPU slice size: at most 4096");
     ensureSize(M);
@@ -528,22 +534,24 @@ void GpuFourierRenderer::renderToGpu(const core::RenderParams& p,
     m_timesPending = true;
     m_displayTimed = false;
     m_last = p;
+    m_lastWidth = requested.image.cols();
+    m_lastHeight = requested.image.rows();
     m_displayed = display ? std::optional<core::DisplayWindow>(*display) : std::nullopt;
 }
 
 core::ProjectionImage GpuFourierRenderer::readback() const {
     if (!m_size) throw GlError("GPU renderer: nothing rendered yet");
     core::ProjectionImage img;
-    img.size = m_last.image.size;
+    img.width = img.height = m_last.image.size;
     img.pixelSize = m_last.image.pixelSize;
     img.view = m_last.view;
     img.mapping = m_spectrum->mapping;
-    img.pixels.resize(std::size_t(img.size) * img.size);
+    img.pixels.resize(std::size_t(img.width) * img.height);
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, m_image);
     glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(img.pixels.size() * 4),
                        img.pixels.data());
-    return img;
+    return core::cropProjection(std::move(img), m_lastWidth, m_lastHeight);
 }
 
 core::ProjectionImage GpuFourierRenderer::render(const core::RenderParams& p,

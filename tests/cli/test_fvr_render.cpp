@@ -188,7 +188,7 @@ TEST(FvrRender, BadInputExitsTwoWithAClearMessage) {
         {"/no/such/volume.nii.gz --out " + tmp("x.npy"), "/no/such/volume.nii.gz"},
         {bad + " --out " + tmp("x.npy"), "DimSize"},
         {"phantom:shepp-logan:32 --kernel lanczos --out " + tmp("x.npy"), "kernel"},
-        {"phantom:shepp-logan:32 --size 100 --out " + tmp("x.npy"), "size"},
+        {"phantom:shepp-logan:32 --size 8 --out " + tmp("x.npy"), "size"},
         {"phantom:shepp-logan:32 --oversampling 3 --out " + tmp("x.npy"), "oversampling"},
         {"phantom:shepp-logan:32 --dir 0,0,1 --up 0,0,1 --out " + tmp("x.npy"), "up"},
         {"phantom:shepp-logan:32", "--out"},
@@ -248,6 +248,16 @@ TEST(FvrRender, GpuBackendMatchesCpuOrFallsBackWithANotice) {
     EXPECT_GT(
         fvr::test::compare(readNpy(tmp("gpux.npy"), shape), readNpy(tmp("cpux.npy"), shape)).psnr,
         90.0);
+    // A W x H image: the GPU crops its power-of-two square as the CPU crops its own (both 128
+    // here, so the same transform: the crops must agree to float precision).
+    const std::string rect = "phantom:shepp-logan:48 --dir 0.3,0.5,0.8 --size 128x72 ";
+    r = run("--backend gpu " + rect + "--out " + tmp("gpur.npy"), headless);
+    ASSERT_EQ(r.status, 0) << r.output;
+    ASSERT_NE(r.output.find("gpu: "), std::string::npos) << "GPU backend not used: " << r.output;
+    ASSERT_EQ(run("--backend cpu " + rect + "--out " + tmp("cpur.npy")).status, 0);
+    const auto gr = readNpy(tmp("gpur.npy"), shape);
+    EXPECT_EQ(shape, (std::vector<std::int64_t>{72, 128}));
+    EXPECT_GT(fvr::test::compare(gr, readNpy(tmp("cpur.npy"), shape)).psnr, 90.0);
 }
 
 // --backend auto (the default) renders on the GPU only when it is hardware: on a software
@@ -760,9 +770,10 @@ TEST(FvrRender, BadSizeAndOutputFormatAreRejectedBeforeLoading) {
         std::string args, expect;
     };
     const Case cases[] = {
-        {missing + " --size 100 --out " + tmp("early.npy"),
-         "--size: expected a power of two in 128..2048, found 100"},
-        {missing + " --size 4096 --out " + tmp("early.npy"), "--size"},
+        {missing + " --size 15 --out " + tmp("early.npy"),
+         "--size: expected 16..4096 pixels, found 15"},
+        {missing + " --size 200x4097 --out " + tmp("early.npy"), "found 4097"},
+        {missing + " --size 20y30 --out " + tmp("early.npy"), "expected N or WxH in pixels"},
         {missing + " --out " + tmp("early.tiff"), "--out: unknown output format '.tiff'"},
     };
     for (const Case& c : cases) {
@@ -883,8 +894,8 @@ TEST(FvrRender, InfoOfAVolumeHoldingInfinitySaysSoInValidJson) {
 TEST(FvrRender, HelpListsEveryOptionGroupAndExitsZero) {
     const Result r = run("--help");
     EXPECT_EQ(r.status, 0) << r.output;
-    for (const char* text : {"usage: fvr-render INPUT",
-                             "Input:", "Output:", "Rendering:", "X-ray:", "Benchmark:", "--size M",
-                             "--energy keV", "--voxel-model V", "Exit status"})
+    for (const char* text :
+         {"usage: fvr-render INPUT", "Input:", "Output:", "Rendering:", "X-ray:", "Benchmark:",
+          "--size N|WxH", "--energy keV", "--voxel-model V", "Exit status"})
         EXPECT_NE(r.out.find(text), std::string::npos) << text << " in " << r.out;
 }

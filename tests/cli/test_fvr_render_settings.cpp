@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <fvr/core/errors.h>
 #include <fvr/core/io/image_io.h>
 #include <fvr/core/render/cpu_renderer.h>
 #include <fvr/core/render/render_settings.h>
@@ -159,13 +160,52 @@ TEST(FvrRenderSettings, TheDefaultBeamIsWaterAt70KeV) {
     EXPECT_DOUBLE_EQ(out["mu_water_per_mm"].get<double>(), waterAttenuationPerMm(70.0)) << out;
 }
 
-TEST(FvrRenderSettings, SizesAreTheSettingsSizes) {
+TEST(FvrRenderSettings, TheWorkstationsSizesAreAmongTheSizesThatRender) {
     for (int m : settingsSizes()) EXPECT_NO_THROW(validateSettingsSize(m)) << m;
     EXPECT_EQ(settingsSizes().front(), RenderSettings::kMinSize);
     EXPECT_EQ(settingsSizes().back(), RenderSettings::kMaxSize);
-    const Result r = run("phantom:shepp-logan:32 --size 200 --out " + tmp("s.npy"));
+    for (int m : {16, 17, 200, 224, 975, 4096}) EXPECT_NO_THROW(validateSettingsSize(m)) << m;
+    for (int m : {15, 0, -4, 4097}) EXPECT_THROW(validateSettingsSize(m), SettingsError) << m;
+    const Result r = run("phantom:shepp-logan:32 --size 4097 --out " + tmp("s.npy"));
     EXPECT_EQ(r.status, 2) << r.output;
-    EXPECT_NE(r.output.find("power of two in 128..2048, found 200"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("expected 16..4096 pixels, found 4097"), std::string::npos) << r.output;
+}
+
+TEST(FvrRenderSettings, AnyWidthAndHeightRenderWithTheCentreAtWHalfHHalf) {
+    // 96 x 64 and the 128^2 square at the same pixel size, 3.5 mm: the phantom's 443 mm
+    // diagonal fits 128 pixels, so the rectangle is transformed on the same 128^2 square and is
+    // its centred crop (column 48 of 96 is column 64 of 128), to the bit.
+    const std::string args = "phantom:shepp-logan:32 --dir 0.3,0.5,0.8 --pixel-size 3.5 ";
+    Result r = run(args + "--size 96x64 --out " + tmp("rect.npy"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_NE(r.output.find("96x64"), std::string::npos) << r.output;
+    ASSERT_EQ(run(args + "--size 128 --out " + tmp("square.npy")).status, 0);
+    std::vector<std::int64_t> shape;
+    const auto rect = readNpy(tmp("rect.npy"), shape);
+    ASSERT_EQ(shape, (std::vector<std::int64_t>{64, 96}));
+    const auto square = readNpy(tmp("square.npy"), shape);
+    std::vector<float> crop, shifted;
+    for (int row = 0; row < 64; ++row)
+        for (int col = 0; col < 96; ++col) {
+            crop.push_back(square[std::size_t(row + 32) * 128 + std::size_t(col + 16)]);
+            shifted.push_back(square[std::size_t(row + 32) * 128 + std::size_t(col + 17)]);
+        }
+    EXPECT_EQ(rect, crop);
+    EXPECT_LT(fvr::test::compare(rect, shifted).psnr, 50.0); // one column off is far off
+    const Json image = fvr::test::readSidecar(tmp("rect.npy"))["image"];
+    EXPECT_EQ(image["width"], 96);
+    EXPECT_EQ(image["height"], 64);
+    EXPECT_FALSE(image.contains("size")); // M only where the image is square
+    EXPECT_EQ(settingsOf(tmp("rect.npy"))["height"], 64);
+    // Other formats write W columns and H rows too.
+    ASSERT_EQ(run(args + "--size 96x64 --out " + tmp("rect.pfm")).status, 0);
+    std::ifstream pfm(tmp("rect.pfm"));
+    std::string magic;
+    int w = 0, h = 0;
+    pfm >> magic >> w >> h;
+    EXPECT_EQ(magic, "Pf");
+    EXPECT_EQ(w, 96);
+    EXPECT_EQ(h, 64);
 }
 
 } // namespace

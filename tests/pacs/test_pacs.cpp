@@ -278,7 +278,7 @@ TEST(PacsRetrieve, UnknownStudySaysSo) {
 TEST(PacsSend, AProjectionReadBackFromOrthanc) {
     FVR_REQUIRE_ORTHANC();
     ProjectionImage img;
-    img.size = 48;
+    img.width = img.height = 48;
     img.pixelSize = 0.5;
     img.pixels.resize(48 * 48);
     for (int i = 0; i < 48 * 48; ++i) img.pixels[i] = float(std::sin(0.05 * i) * 100.0);

@@ -156,7 +156,7 @@ TEST(PacsFaults, StoreToAFrozenPacs) {
     FVR_REQUIRE_ORTHANC();
     ThawAfter thaw;
     ProjectionImage img;
-    img.size = 16;
+    img.width = img.height = 16;
     img.pixelSize = 1.0;
     img.pixels.assign(16 * 16, 1.0f);
     const fs::path file = env().dir / "fault-send.dcm";

@@ -167,7 +167,7 @@ TEST_F(PacsTls, EchoFindGetAndStore) {
     EXPECT_EQ(entry->instances, 93);
 
     ProjectionImage img;
-    img.size = 16;
+    img.width = img.height = 16;
     img.pixelSize = 1.0;
     img.pixels.assign(16 * 16, 2.0f);
     const fs::path sent = dir() / "sent.dcm";

@@ -364,3 +364,14 @@ def test_cone_rows_render_fvr_renders_cone_beam_or_are_refused_where_it_has_none
     np.testing.assert_array_equal(stack, expected)
     record = json.loads((tmp_path / "out" / "c.json").read_text())["dataset"]
     assert record["geometry"] == "cone"
+
+
+def test_a_size_column_takes_any_width_and_height(tmp_path):
+    """Training sets use 64^2, 200^2, 224^2 and detectors' own shapes: W x H stacks (N, H, W)."""
+    (tmp_path / "m.csv").write_text("id,path,sweep,size\nwide,phantom:shepp-logan:32,3,96x64\n"
+                                    "small,phantom:shepp-logan:32,2,64\n")
+    done = subprocess.run([sys.executable, "-m", "fvr.dataset", str(tmp_path / "m.csv"), "--out",
+                           str(tmp_path / "out"), "--workers", "0"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert np.load(tmp_path / "out" / "wide.npy").shape == (3, 64, 96)
+    assert np.load(tmp_path / "out" / "small.npy").shape == (2, 64, 64)

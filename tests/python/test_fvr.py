@@ -71,6 +71,26 @@ def test_render_is_bit_identical_to_fvr_render(body, renderer, fvr_render, tmp_p
         assert img.max() > 1.0  # a real projection, not an empty image
 
 
+def test_any_width_and_height_renders_as_fvr_render_does(body, renderer, fvr_render, tmp_path):
+    # Training sets' sizes (64, 200, 224) and a real detector's aspect: (H, W) arrays, the same
+    # bytes as fvr-render --size WxH, the volume's centre at pixel (W // 2, H // 2).
+    for size, shape, text in [(64, (64, 64), "64"), (200, (200, 200), "200"),
+                              ((224, 160), (160, 224), "224x160")]:
+        cli = run_fvr_render(fvr_render, [BODY_CT_MHD, *CLI_SETTINGS, "--view", "AP",
+                                          "--size", text], tmp_path / f"s{text}.npy")
+        img = renderer.render(view="AP", size=size)
+        assert img.dtype == np.float32 and img.shape == shape
+        assert cli.tobytes() == img.tobytes(), text
+    # A pixel size whose 128 pixels hold the volume's diagonal: 90 x 120 is transformed on the
+    # 128^2 square too, and is its crop about pixel (64, 64) to the bit.
+    extent = np.array(body.shape[::-1]) * np.array(body.spacing)
+    d = float(np.linalg.norm(extent)) / 128 * 1.001
+    stack = renderer.render_many(["AP", "LEFT"], size=(90, 120), pixel_size=d)
+    assert stack.shape == (2, 120, 90)
+    square = renderer.render(view="AP", size=128, pixel_size=d)
+    np.testing.assert_array_equal(stack[0], square[64 - 60:64 + 60, 64 - 45:64 + 45])
+
+
 def test_default_settings_render_what_fvr_render_renders(fvr_render, tmp_path):
     # Nothing chosen on either side: one set of defaults (core's RenderSettings: the AP view,
     # mu, kaiser-bessel4 deapodized at 1.25x, trilinear), so the same bytes.
@@ -156,7 +176,9 @@ def test_non_finite_voxels_are_said_and_replaced():
     (lambda v, r: fvr.Renderer(v, oversampling=3), "expected a factor in [1, 2], found 3"),
     # was CLI11's "Value -1 not in range 0.000000 to 1797693134862315708145...":
     (lambda v, r: fvr.Renderer(v, threads=-1), "--threads: expected a whole number of threads"),
-    (lambda v, r: r.render(size=100), "--size: expected a power of two in 128..2048, found 100"),
+    (lambda v, r: r.render(size=15), "--size: expected 16..4096 pixels, found 15"),
+    (lambda v, r: r.render(size=(64, 5000)), "expected 16..4096 pixels, found 5000"),
+    (lambda v, r: r.render(size=(64, 48, 2)), "size: expected N or (W, H)"),
     (lambda v, r: r.render(view="SIDEWAYS"), "SIDEWAYS"),
     (lambda v, r: r.render(dir=(0, 0, 0)), "view direction: expected a non-zero finite vector"),
     (lambda v, r: r.render(pixel_size=-1), "--pixel-size: expected a positive number of mm"),

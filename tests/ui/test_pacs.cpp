@@ -222,8 +222,8 @@ TEST_F(Workstation, ProjectionExportsAsDicomSecondaryCaptureWithItsValues) {
     Uint16 rows = 0, cols = 0;
     ds->findAndGetUint16(DCM_Rows, rows);
     ds->findAndGetUint16(DCM_Columns, cols);
-    ASSERT_EQ(int(rows), p->size);
-    ASSERT_EQ(int(cols), p->size);
+    ASSERT_EQ(int(rows), p->height);
+    ASSERT_EQ(int(cols), p->width);
     Float64 slope = 0, intercept = 0;
     ds->findAndGetFloat64(DCM_RescaleSlope, slope);
     ds->findAndGetFloat64(DCM_RescaleIntercept, intercept);

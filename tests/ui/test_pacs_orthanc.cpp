@@ -144,7 +144,7 @@ TEST_F(PacsWorkstation, FindRetrieveOpenAndSendBack) {
         nlohmann::json::parse(orthanc->get("/instances/" + added[0] + "/tags?simplify").body);
     EXPECT_EQ(tags["SOPClassUID"], "1.2.840.10008.5.1.4.1.1.7"); // Secondary Capture
     EXPECT_EQ(tags["StudyInstanceUID"], window->study().series()->studyUid);
-    EXPECT_EQ(tags["Rows"], std::to_string(window->views()[0]->projection()->size));
+    EXPECT_EQ(tags["Rows"], std::to_string(window->views()[0]->projection()->height));
 }
 
 TEST_F(PacsWorkstation, MoveToOurListenerAndAWrongCalledAeSaidInWords) {

@@ -113,7 +113,7 @@ TEST_F(Workstation, PanelControlsChangeSettingsAndImage) {
     auto* size = window->renderingPanel()->sizeCombo();
     size->setCurrentIndex(size->findData(256));
     EXPECT_EQ(v->settings().size, 256);
-    EXPECT_EQ(v->projection()->size, 256);
+    EXPECT_EQ(v->projection()->width, 256);
 
     ASSERT_TRUE(waitSpectrum(*window, [&] {
         window->renderingPanel()->oversamplingCombo()->setCurrentIndex(
@@ -347,14 +347,14 @@ TEST_F(Workstation, ExportsMatchTheRendererProjection) {
     EXPECT_EQ(core::readNpy(dir / "p.npy", shape), p.pixels);
     ASSERT_TRUE(window->exportProjection(QString::fromStdString((dir / "p.png").string())));
     const QImage png(QString::fromStdString((dir / "p.png").string()));
-    EXPECT_EQ(png.width(), p.size);
+    EXPECT_EQ(png.width(), p.width);
     EXPECT_EQ(png.format(), QImage::Format_Grayscale16);
     ASSERT_TRUE(window->exportScreenshot(QString::fromStdString((dir / "shot.png").string())));
     EXPECT_FALSE(QImage(QString::fromStdString((dir / "shot.png").string())).isNull());
     ASSERT_TRUE(
         window->exportSweep(QString::fromStdString((dir / "sweep").string()), 4, {0, 1, 0}));
     const auto stack = core::readNpy(dir / "sweep" / "sweep.npy", shape);
-    EXPECT_EQ(shape, (std::vector<std::int64_t>{4, p.size, p.size}));
+    EXPECT_EQ(shape, (std::vector<std::int64_t>{4, p.height, p.width}));
     EXPECT_TRUE(std::equal(p.pixels.begin(), p.pixels.end(), stack.begin())); // frame 0 = the view
     EXPECT_TRUE(std::filesystem::exists(dir / "sweep" / "frame_0003.png"));
     EXPECT_FALSE(window->exportProjection("/no/such/dir/p.npy"));
@@ -457,7 +457,7 @@ TEST_F(Workstation, BonePresetKeepsTheSkullVault) {
     EXPECT_GT(bone.low, wide.low + 0.2 * (wide.high - wide.low)); // a bone window: air, soft
                                                                   // tissue below it
     // The vault: the first rows of the head from the top (the LEFT view has the head up).
-    const int M = p->size;
+    const int M = p->width;
     auto rowMax = [&](int r) {
         return *std::max_element(p->pixels.begin() + r * M, p->pixels.begin() + (r + 1) * M);
     };
@@ -835,7 +835,7 @@ TEST_F(Workstation, ProgressiveRefinementHoldsTheTargetWhileDragging) {
         [&] { return v->framesRendered() > before && v->displayedLevel() == 0; }, 20000));
     EXPECT_EQ(v->displayedSize(), 512);
     EXPECT_FALSE(v->progressive().interacting());
-    EXPECT_EQ(v->projection()->size, 512);
+    EXPECT_EQ(v->projection()->width, 512);
 
     // Off: the drag stays at full quality however slow.
     window->renderingPanel()->targetFpsSpin()->setValue(0);

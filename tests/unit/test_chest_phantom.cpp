@@ -29,10 +29,9 @@ Ellipsoid sphere(const Vec3& c, double r, double density) {
 
 /** The value at the pixel whose ray passes through the point p (mm from the volume centre). */
 float pixelAt(const ProjectionImage& img, const Vec3& p) {
-    const int M = img.size;
-    const int col = M / 2 + int(std::lround(glm::dot(p, img.view.r) / img.pixelSize));
-    const int row = M / 2 - int(std::lround(glm::dot(p, img.view.u) / img.pixelSize));
-    return img.pixels[std::size_t(row) * std::size_t(M) + std::size_t(col)];
+    const int col = img.width / 2 + int(std::lround(glm::dot(p, img.view.r) / img.pixelSize));
+    const int row = img.height / 2 - int(std::lround(glm::dot(p, img.view.u) / img.pixelSize));
+    return img.at(col, row);
 }
 
 /** The HU of the voxel holding the point p (mm from the volume centre). */
@@ -104,12 +103,12 @@ fvr::test::Comparison compareInside(const ProjectionImage& a, const ProjectionIm
                                     const Volume& v) {
     const double limit = v.extent()[2] / 2 - 2 * v.spacing[2];
     std::vector<float> pa, pb;
-    for (int row = 0; row < a.size; ++row)
-        for (int col = 0; col < a.size; ++col) {
-            const double z = (col - a.size / 2) * a.pixelSize * a.view.r[2] -
-                             (row - a.size / 2) * a.pixelSize * a.view.u[2];
+    for (int row = 0; row < a.height; ++row)
+        for (int col = 0; col < a.width; ++col) {
+            const double z = (col - a.width / 2) * a.pixelSize * a.view.r[2] -
+                             (row - a.height / 2) * a.pixelSize * a.view.u[2];
             if (std::abs(a.view.d[2]) < 1e-12 && std::abs(z) > limit) continue;
-            const std::size_t i = std::size_t(row) * std::size_t(a.size) + std::size_t(col);
+            const std::size_t i = std::size_t(row) * std::size_t(a.width) + std::size_t(col);
             pa.push_back(a.pixels[i]);
             pb.push_back(b.pixels[i]);
         }

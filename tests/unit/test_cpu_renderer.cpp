@@ -287,7 +287,8 @@ TEST(CpuRenderer, RejectsBadGeometry) {
     v.voxels.assign(512, 1.0f);
     CpuFourierRenderer r(spectrumOf(v, TransformKind::Fft), 1);
     const ViewFrame f;
-    EXPECT_THROW(r.render({f, {100, 1.0}, Kernel::Linear}), SettingsError);
+    EXPECT_THROW(r.render({f, {15, 1.0}, Kernel::Linear}), SettingsError);
+    EXPECT_THROW(r.render({f, {64, 1.0, 4097}, Kernel::Linear}), SettingsError);
     EXPECT_THROW(r.render({f, {128, 0.0}, Kernel::Linear}), SettingsError);
     EXPECT_THROW(ViewFrame::fromDirUp({0, 0, 1}, {0, 0, 2}), SettingsError);
     EXPECT_THROW(ViewFrame::fromDirUp({0, 0, 0}, {0, 1, 0}), SettingsError);

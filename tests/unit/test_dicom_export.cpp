@@ -15,7 +15,7 @@ using namespace fvr::core;
 
 TEST(DicomExport, RoundTripsValuesAndPixelSpacing) {
     ProjectionImage img;
-    img.size = 64;
+    img.width = img.height = 64;
     img.pixelSize = 0.75;
     img.view = ViewFrame::fromDirUp({0, 1, 0}, {0, 0, 1});
     img.pixels.resize(64 * 64);
@@ -36,7 +36,7 @@ TEST(DicomExport, RoundTripsValuesAndPixelSpacing) {
 
 TEST(DicomExport, UnwritablePathNamesIt) {
     ProjectionImage img;
-    img.size = 2;
+    img.width = img.height = 2;
     img.pixels.assign(4, 1.0f);
     try {
         writeDicomProjection("/no/such/dir/x.dcm", img);
@@ -50,7 +50,7 @@ TEST(DicomExport, SecondaryCapturePassesDciodvfyWithoutErrors) {
     if (fvr::test::runCommand("command -v dciodvfy").status != 0)
         GTEST_SKIP() << "dciodvfy (Debian package dicom3tools) is not installed";
     ProjectionImage img;
-    img.size = 32;
+    img.width = img.height = 32;
     img.pixelSize = 1.0;
     img.view = ViewFrame::fromDirUp({0, 1, 0}, {0, 0, 1});
     img.pixels.assign(32 * 32, 2.5f);

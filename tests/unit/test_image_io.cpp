@@ -185,7 +185,7 @@ TEST(ImageIo, AutoWindowIgnoresOutliers) {
 
 TEST(ImageIo, UnknownExtensionAndUnwritablePath) {
     ProjectionImage img;
-    img.size = 2;
+    img.width = img.height = 2;
     img.pixels.assign(4, 1.0f);
     EXPECT_THROW(writeProjection(fvr::test::tmpDir() / "x.bmp", img), WriteError);
     try {

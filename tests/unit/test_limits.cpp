@@ -350,7 +350,7 @@ TEST(Limits, ValuesWhoseSpectrumOverflowsFloatAreRefusedNamingThem) {
 
 TEST(Limits, AnImageHoldingNaNIsAnErrorNotAnOutput) {
     ProjectionImage img;
-    img.size = 4;
+    img.width = img.height = 4;
     img.pixels.assign(16, 1.0f);
     EXPECT_NO_THROW(checkFiniteImage(img));
     img.pixels[3] = std::nanf("");

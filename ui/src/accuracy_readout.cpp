@@ -28,13 +28,13 @@ void AccuracyReadout::measure(ProjectionView& view, const StudyController& study
     if (!fvr) return;
     const auto volume = study.volume();
     // The ray caster with the same voxel model, depth weighting and pixel sampling as the frame.
-    const core::RenderParams rendered = view.renderParams(fvr->size, view.settings().kernel);
+    const core::RenderParams rendered = view.renderParams(fvr->width, view.settings().kernel);
     const core::SpatialProjectorOptions options =
         core::matchingProjectorOptions(rendered, study.spectrum()->mapping);
     const QString reference =
         QString::fromStdString(core::describeProjector(options, rendered.voxelModel));
     const core::ViewFrame frame = fvr->view;
-    const core::ImageGeometry geom{fvr->size, fvr->pixelSize};
+    const core::ImageGeometry geom = fvr->geometry();
     emit message(tr("Measuring accuracy: %1 of the same view, in the background…").arg(reference),
                  false);
     m_jobs.run(

@@ -61,11 +61,11 @@ bool MainWindow::exportProjection(const QString& path) {
         std::vector<float> values = p->pixels;
         if (t.active() && ext != "png") core::applyTransmission(values, t);
         if (ext == "npy")
-            core::writeNpy(out, values.data(), p->size, p->size);
+            core::writeNpy(out, values.data(), p->height, p->width);
         else if (ext == "pfm")
-            core::writePfm(out, values.data(), p->size, p->size);
+            core::writePfm(out, values.data(), p->height, p->width);
         else if (ext == "png")
-            core::writePng(out, p->pixels.data(), p->size, p->size, m_views[0]->window(), 16);
+            core::writePng(out, p->pixels.data(), p->height, p->width, m_views[0]->window(), 16);
         else if (ext == "dcm")
             writeDicomProjection(out);
         else
@@ -74,9 +74,10 @@ bool MainWindow::exportProjection(const QString& path) {
         message(tr("Could not export: %1").arg(QString::fromUtf8(e.what())), true);
         return false;
     }
-    message(tr("Exported projection %1 (%2 × %2, pixel %3 mm, %4)")
+    message(tr("Exported projection %1 (%2 × %3, pixel %4 mm, %5)")
                 .arg(path)
-                .arg(p->size)
+                .arg(p->width)
+                .arg(p->height)
                 .arg(p->pixelSize, 0, 'g', 4)
                 .arg(t.active() ? tr("transmitted intensity, μ_water %1/mm, exposure %2")
                                       .arg(t.muWaterPerMm, 0, 'f', 4)
@@ -129,7 +130,7 @@ bool MainWindow::exportSweep(const QString& folder, int frames, const core::Vec3
             ok = false;
             break;
         }
-        M = p->size;
+        M = p->width; // the views render squares
         if (const core::Transmission t = currentTransmission(); t.active()) {
             std::vector<float> intensity = p->pixels;
             core::applyTransmission(intensity, t);

@@ -265,7 +265,7 @@ GLuint ProjectionView::frameTexture() {
 
 void ProjectionView::uploadCpuTexture(const core::ProjectionImage& image) {
     auto* f = context()->extraFunctions();
-    const int M = image.size;
+    const int M = image.width; // the views render squares
     std::vector<unsigned char> rgba(std::size_t(M) * M * 4);
     for (std::size_t i = 0; i < std::size_t(M) * M; ++i) {
         const auto v =

@@ -51,7 +51,7 @@ void ProjectionView::renderConeFrame(int M) {
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     core::ProjectionImage img;
-    img.size = M;
+    img.width = img.height = M;
     img.pixelSize = camera.pitchU * m_settings.cone.sod / m_settings.cone.sid;
     img.view = m_view;
     img.mapping = mapping;

@@ -136,7 +136,7 @@ void ProjectionView::subtractReference() {
     // The reference made its own context current (and released it): this view's again, or the
     // frame's texture goes to no context and the view stays empty.
     makeCurrent();
-    if (!own || !ref || ref->size != own->size) return;
+    if (!own || !ref || ref->width != own->width || ref->height != own->height) return;
     double maxAbs = 0;
     for (std::size_t i = 0; i < own->pixels.size(); ++i) {
         own->pixels[i] -= ref->pixels[i];

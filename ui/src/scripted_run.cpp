@@ -49,7 +49,7 @@ QJsonObject viewJson(int index, ProjectionView& v, const core::ProjectionImage& 
             {"npy", stem + ".npy"},
             {"png", stem + ".png"},
             {"kernel", core::kernelName(v.settings().kernel)},
-            {"size", p.size},
+            {"size", p.width}, // the views render squares
             {"pixelSizeMm", p.pixelSize},
             {"voxelModel", core::voxelModelName(v.settings().voxelModel)},
             {"npyValues", transmission ? "transmitted intensity" : "line integrals"},
@@ -186,9 +186,10 @@ void ScriptedRun::writeViews(const QString& dir) {
         // window, the mapping the display shader applies (row 0 at the top, as on screen).
         std::vector<float> values = p->pixels;
         if (t.active()) core::applyTransmission(values, t);
-        core::writeNpy(out.filePath(stem + ".npy").toStdString(), values.data(), p->size, p->size);
-        core::writePng(out.filePath(stem + ".png").toStdString(), p->pixels.data(), p->size,
-                       p->size, v.window(), 8);
+        core::writeNpy(out.filePath(stem + ".npy").toStdString(), values.data(), p->height,
+                       p->width);
+        core::writePng(out.filePath(stem + ".png").toStdString(), p->pixels.data(), p->height,
+                       p->width, v.window(), 8);
         views.append(viewJson(int(i), v, *p, t.active()));
     }
     const StudyController& study = m_window.study();

@@ -50,7 +50,11 @@ def option_args(settings: dict) -> list:
         if value is True:
             args.append(name)
             continue
-        if isinstance(value, (tuple, list, np.ndarray)):
+        if key == "size" and isinstance(value, (tuple, list, np.ndarray)):
+            if len(value) != 2:
+                raise ValueError(f"size: expected N or (W, H), found {value!r}")
+            text = f"{int(value[0])}x{int(value[1])}"  # columns x rows, as --size WxH
+        elif isinstance(value, (tuple, list, np.ndarray)):
             text = ",".join(repr(float(v)) for v in value)
         elif isinstance(value, (float, np.floating)):
             text = repr(float(value))
@@ -345,13 +349,14 @@ class Renderer:
         """The fvr-render option arguments of the renderer's settings."""
         return list(self._r.args)
 
-    def render(self, view: Optional[str] = None, dir=None, up=None, size: Optional[int] = None,
+    def render(self, view: Optional[str] = None, dir=None, up=None, size=None,
                pixel_size: Optional[float] = None, camera: Optional[Camera] = None,
                model: Optional[str] = None, step: Optional[float] = None) -> np.ndarray:
-        """One projection (size, size) float32, row 0 at the top: the view by name (AP, PA,
+        """One projection (H, W) float32, row 0 at the top: the view by name (AP, PA,
         LEFT, RIGHT, HEAD, FEET) or by ``dir`` and ``up`` (volume frame), else the settings'
-        view. ``size`` a power of two 128..2048 (default 512); ``pixel_size`` in mm (default:
-        the volume's diagonal / size).
+        view. ``size`` N (square) or (W, H), each 16..4096 (default 512); ``pixel_size`` in mm
+        (default: the volume's diagonal / min(W, H)). The volume's centre is at pixel
+        (W // 2, H // 2).
 
         ``camera=`` (a Camera) renders a cone beam instead: (H, W) line integrals from the
         source to each pixel's centre, by CPU ray casting, in the parallel views' units (the
@@ -371,13 +376,13 @@ class Renderer:
                                 **dict(view=view, dir=dir, up=up, size=size,
                                        pixel_size=pixel_size))[0]
 
-    def render_many(self, views=None, size: Optional[int] = None,
+    def render_many(self, views=None, size=None,
                     pixel_size: Optional[float] = None, model: Optional[str] = None,
                     step: Optional[float] = None, **parallel) -> np.ndarray:
-        """Projections (N, size, size) float32 of ``views``: names, or an (N, 2, 3) array of
-        (dir, up); None: the settings' own views (``sweep=N`` about the head-feet axis, a
-        ``views`` file, else the view), as ``fvr-render --out X.npy`` renders them. One view
-        per CPU thread.
+        """Projections (N, H, W) float32 (``size`` as in render()) of ``views``: names, or an
+        (N, 2, 3) array of (dir, up); None: the settings' own views (``sweep=N`` about the
+        head-feet axis, a ``views`` file, else the view), as ``fvr-render --out X.npy`` renders
+        them. One view per CPU thread.
 
         ``views`` a list of Cameras (one detector size): cone-beam views (N, H, W), as
         render(camera=) renders each (``model``, ``step``); the ray caster is made once per

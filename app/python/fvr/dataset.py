@@ -17,7 +17,7 @@ projection: ``parallel`` (an empty cell, and the default: Fourier volume renderi
 then: CONE_COLUMNS).
 
 Each row is one Dask task (load, preprocess once, all views) that runs fvr-render itself in
-the worker's process (fvr.run_cli): ``DIR/<id>.npy`` is the (N, M, M) float32 stack that
+the worker's process (fvr.run_cli): ``DIR/<id>.npy`` is the (N, H, W) float32 stack that
 ``fvr-render PATH ... --out X.npy`` writes, ``DIR/<id>.json`` its sidecar, with a "dataset"
 record added at its end (the row's id, its geometry, its settings and their hash). With ``--format zarr``
 the stack becomes ``DIR/<id>.zarr`` (one chunk per view). A row whose sidecar holds the hash of

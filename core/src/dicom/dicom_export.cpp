@@ -20,8 +20,9 @@ using dicom_write::failWrite;
 
 void writeDicomProjection(const std::filesystem::path& path, const ProjectionImage& image,
                           const DicomExportInfo& info) {
-    const int M = image.size;
-    if (M <= 0 || image.pixels.size() != std::size_t(M) * M) failWrite(path, "no image to export");
+    const int W = image.width, H = image.height;
+    if (W <= 0 || H <= 0 || image.pixels.size() != std::size_t(W) * H)
+        failWrite(path, "no image to export");
     const dicom_write::Quantized q = dicom_write::quantize(image.pixels);
     const double lo = q.lo, hi = q.hi, slope = q.slope;
 
@@ -44,8 +45,8 @@ void writeDicomProjection(const std::filesystem::path& path, const ProjectionIma
     put(DCM_ImageType, "DERIVED\\SECONDARY\\PROJECTION");
     put(DCM_PhotometricInterpretation, "MONOCHROME2");
     ds->putAndInsertUint16(DCM_SamplesPerPixel, 1);
-    ds->putAndInsertUint16(DCM_Rows, Uint16(M));
-    ds->putAndInsertUint16(DCM_Columns, Uint16(M));
+    ds->putAndInsertUint16(DCM_Rows, Uint16(H));
+    ds->putAndInsertUint16(DCM_Columns, Uint16(W));
     ds->putAndInsertUint16(DCM_BitsAllocated, 16);
     ds->putAndInsertUint16(DCM_BitsStored, 16);
     ds->putAndInsertUint16(DCM_HighBit, 15);
@@ -68,8 +69,9 @@ void writeDicomProjection(const std::filesystem::path& path, const ProjectionIma
       << " " << image.view.d[1] << " " << image.view.d[2] << "; up " << image.view.u[0] << " "
       << image.view.u[1] << " " << image.view.u[2] << "; right " << image.view.r[0] << " "
       << image.view.r[1] << " " << image.view.r[2]
-      << " (volume index frame); pixel (col,row) at centre + (col - M/2) d right - (row - M/2) d "
-         "up";
+      << " (volume index frame); pixel (col,row) at centre + (col - W/2) d right - (row - H/2) d "
+         "up, W x H = "
+      << W << " x " << H << " (integer halves)";
     put(DCM_ImageComments, c.str());
     if (ds->putAndInsertUint16Array(DCM_PixelData, q.stored.data(), q.stored.size()).bad())
         failWrite(path, "cannot store the pixel data");

@@ -196,13 +196,13 @@ void writePng(const fs::path& path, const float* data, int rows, int cols, const
 
 void writeProjection(const fs::path& path, const ProjectionImage& image) {
     const std::string ext = asciiLower(path.extension().string());
-    const int M = image.size;
+    const int W = image.width, H = image.height;
     if (ext == ".npy")
-        writeNpy(path, image.pixels.data(), M, M);
+        writeNpy(path, image.pixels.data(), H, W);
     else if (ext == ".pfm")
-        writePfm(path, image.pixels.data(), M, M);
+        writePfm(path, image.pixels.data(), H, W);
     else if (ext == ".png")
-        writePng(path, image.pixels.data(), M, M, autoWindow(image.pixels), 8);
+        writePng(path, image.pixels.data(), H, W, autoWindow(image.pixels), 8);
     else
         fail<WriteError>(path, "unknown output format '" + ext + "' (expected .npy, .pfm or .png)");
 }

@@ -164,13 +164,14 @@ FrameMapping frameMapping(const SliceParams& sp) {
     return f;
 }
 
-ProjectionImage emptyImage(const RenderParams& params, const Spectrum& s) {
+/** The M x M image the square transform fills. */
+ProjectionImage emptyImage(const RenderParams& params, const Spectrum& s, int M) {
     ProjectionImage img;
-    img.size = params.image.size;
+    img.width = img.height = M;
     img.pixelSize = params.image.pixelSize;
     img.view = params.view;
     img.mapping = s.mapping;
-    img.pixels.resize(std::size_t(img.size) * img.size);
+    img.pixels.resize(std::size_t(M) * M);
     return img;
 }
 
@@ -201,7 +202,7 @@ void CpuFourierRenderer::invertSlice(SizeResources& res, ProjectionImage& img) {
     } else {
         fftwf_execute_dft_r2c(res.inverse.get(), res.slice.get(),
                               reinterpret_cast<fftwf_complex*>(res.image.get()));
-        hartleyFromHalfSpectrum(res.image.get(), img.pixels.data(), img.size, m_pool);
+        hartleyFromHalfSpectrum(res.image.get(), img.pixels.data(), img.width, m_pool);
     }
 }
 
@@ -209,7 +210,7 @@ void CpuFourierRenderer::clipAndClamp(const RenderParams& params, ProjectionImag
     const Spectrum& s = *m_spectrum;
     const bool clamp = params.nonNegative && s.nonNegative;
     if (!params.clipToVolume && !clamp) return;
-    const int M = img.size;
+    const int M = img.width; // the square transform's side
     const double d = img.pixelSize;
     const Vec3 half =
         supportHalfExtents(s.volumeDims, s.spacing, voxelModelReach(params.voxelModel));
@@ -238,22 +239,29 @@ ProjectionImage CpuFourierRenderer::render(const RenderParams& params, StageTime
     const auto t0 = Clock::now();
     const Spectrum& s = *m_spectrum;
     checkKernelMatchesSpectrum(s, params.kernel);
-    const int M = params.image.size;
+    // A W x H image is the centred crop of a square of FFTW's fast side M >= W, H (the same
+    // pixel size: the crop changes neither the values nor their positions).
+    const int W = params.image.cols(), H = params.image.rows();
+    RenderParams square = params;
+    square.image = {fourierSide(params.image, s.volumeDims, s.spacing, false),
+                    params.image.pixelSize};
+    const int M = square.image.size;
     SizeResources& res = resources(M);
 
-    const SliceParams sp = sliceParams(s, params);
+    const SliceParams sp = sliceParams(s, square);
     const SliceContext c =
         makeSliceContext(s, sp, m_tables.at(params.kernel).get(),
                          transferTable(params.voxelModel, sp.maxCyclesPerVoxel), m_lookups.get());
     const SliceFilterTable filter(params.filter, params.pixelAperture, M, params.image.pixelSize);
-    ProjectionImage img = emptyImage(params, s);
+    ProjectionImage img = emptyImage(params, s, M);
 
     detail::sampleSlice(c, frameMapping(sp), filter, sp, s.kind, M, res.slice.get(), m_pool);
     const auto t1 = Clock::now();
     invertSlice(res, img);
     // The last pass: zero outside the model's support, and no negative line integrals of a
     // non-negative volume.
-    clipAndClamp(params, img);
+    clipAndClamp(square, img);
+    if (W != M || H != M) img = cropProjection(std::move(img), W, H);
     const auto t2 = Clock::now();
     if (times) {
         auto ms = [](auto a, auto b) {

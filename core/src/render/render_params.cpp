@@ -2,6 +2,7 @@
 // and on the images they write; declared in renderer.h.
 #include <fvr/core/render/renderer.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -31,6 +32,20 @@ void checkFiniteImage(const ProjectionImage& image) {
                       std::to_string(image.pixels.size()) +
                       " pixels are not finite (NaN or infinite): the projection overflowed float "
                       "(voxel values or line integrals too large); nothing is output");
+}
+
+ProjectionImage cropProjection(ProjectionImage square, int width, int height) {
+    if (square.width == width && square.height == height) return square;
+    const CropOffset o = centredCrop(square.width, width, height);
+    ProjectionImage out = square;
+    out.width = width;
+    out.height = height;
+    out.pixels.resize(std::size_t(width) * height);
+    for (int row = 0; row < height; ++row) {
+        const float* from = square.pixels.data() + std::size_t(row + o.row) * square.width + o.col;
+        std::copy(from, from + width, out.pixels.data() + std::size_t(row) * width);
+    }
+    return out;
 }
 
 void validateRenderParams(const RenderParams& params, const Spectrum& spectrum) {

@@ -1,7 +1,10 @@
 // The one home of every rendering choice and its defaults (render_settings.h).
 #include <fvr/core/render/render_settings.h>
 
+#include <algorithm>
+
 #include <fvr/core/errors.h>
+#include <fvr/core/text.h>
 
 namespace fvr::core {
 
@@ -85,18 +88,35 @@ RenderParams RenderSettings::toRenderParams(const ViewFrame& view,
 }
 
 ImageGeometry RenderSettings::imageGeometry(const Volume& volume) const {
-    const ImageGeometry g{size, pixelSize ? *pixelSize
-                                          : defaultPixelSize(volume.dims, volume.spacing, size)};
+    const int shortSide = height > 0 ? std::min(size, height) : size;
+    const ImageGeometry g{
+        size, pixelSize ? *pixelSize : defaultPixelSize(volume.dims, volume.spacing, shortSide),
+        height};
     validateImageGeometry(g, volume.dims, volume.spacing);
     return g;
 }
 
-void validateSettingsSize(int size) {
-    if (size < RenderSettings::kMinSize || size > RenderSettings::kMaxSize ||
-        (size & (size - 1)) != 0)
-        throw SettingsError(
-            "size: expected a power of two in " + std::to_string(RenderSettings::kMinSize) + ".." +
-            std::to_string(RenderSettings::kMaxSize) + ", found " + std::to_string(size));
+void validateSettingsSize(int size, const std::string& what) {
+    if (size < RenderSettings::kMinImage || size > RenderSettings::kMaxImage)
+        throw SettingsError(what + ": expected " + std::to_string(RenderSettings::kMinImage) +
+                            ".." + std::to_string(RenderSettings::kMaxImage) + " pixels, found " +
+                            std::to_string(size));
+}
+
+std::pair<int, int> parseImageSize(const std::string& text, const std::string& what) {
+    const auto whole = [&](const std::string& t) {
+        const auto v = parseNumber<int>(t);
+        if (!v)
+            throw SettingsError(what + ": expected N or WxH in pixels (" +
+                                std::to_string(RenderSettings::kMinImage) + ".." +
+                                std::to_string(RenderSettings::kMaxImage) + " each), found '" +
+                                text + "'");
+        validateSettingsSize(*v, what);
+        return *v;
+    };
+    const auto x = asciiLower(text).find('x');
+    if (x == std::string::npos) return {whole(text), whole(text)};
+    return {whole(text.substr(0, x)), whole(text.substr(x + 1))};
 }
 
 std::vector<int> settingsSizes() {

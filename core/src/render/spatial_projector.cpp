@@ -220,21 +220,21 @@ double integrateRay(const RayGeometry& g, const double* o, double h, const Depth
 template <class Sampler>
 void castRays(const RayGeometry& g, double h, const DepthCueWeights& w, const Sampler& sample,
               int sub, ProjectionImage& img, ThreadPool& pool) {
-    const int M = img.size;
-    pool.parallelFor(M, 2, [&](std::int64_t r0, std::int64_t r1) {
+    const int W = img.width, H = img.height;
+    pool.parallelFor(H, 2, [&](std::int64_t r0, std::int64_t r1) {
         for (std::int64_t row = r0; row < r1; ++row)
-            for (int col = 0; col < M; ++col) {
+            for (int col = 0; col < W; ++col) {
                 double sum = 0.0;
                 for (int j = 0; j < sub; ++j)
                     for (int i = 0; i < sub; ++i) {
                         const double du = (i + 0.5) / sub - 0.5, dv = (j + 0.5) / sub - 0.5;
                         double o[3];
                         for (int a = 0; a < 3; ++a)
-                            o[a] = g.c[a] + (col - M / 2 + du) * g.rgt[a] +
-                                   (row - M / 2 + dv) * g.dwn[a];
+                            o[a] = g.c[a] + (col - W / 2 + du) * g.rgt[a] +
+                                   (row - H / 2 + dv) * g.dwn[a];
                         sum += integrateRay(g, o, h, w, sample);
                     }
-                img.pixels[std::size_t(row) * M + col] = float(sum / double(sub * sub));
+                img.pixels[std::size_t(row) * W + col] = float(sum / double(sub * sub));
             }
     });
 }
@@ -251,11 +251,12 @@ ProjectionImage SpatialProjector::project(const ViewFrame& view, const ImageGeom
     const bool spline = m_options.voxelModel == VoxelModel::BSpline;
 
     ProjectionImage img;
-    img.size = image.size;
+    img.width = image.cols();
+    img.height = image.rows();
     img.pixelSize = image.pixelSize;
     img.view = view;
     img.mapping = m_options.mapping;
-    img.pixels.assign(std::size_t(img.size) * img.size, 0.0f);
+    img.pixels.assign(std::size_t(img.width) * img.height, 0.0f);
 
     const RayGeometry g(view, image.pixelSize, N, s, spline);
     const int sub = m_options.pixelSubsamples;

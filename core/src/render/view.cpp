@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <string>
+#include <utility>
 
 #include <glm/ext/matrix_transform.hpp>
 
@@ -43,10 +45,44 @@ double defaultPixelSize(const Dims3& dims, const Vec3& spacing, int size) {
     return std::sqrt(diag2) / size;
 }
 
+namespace {
+/** The smallest allowed side (fourierSide) of at least `need` pixels, at most 4096. */
+int sideOfAtLeast(int need, bool powerOfTwo) {
+    need = std::clamp(need, 16, 4096);
+    int M = 16;
+    if (powerOfTwo) {
+        while (M < need) M *= 2;
+        return M;
+    }
+    for (M = need + need % 2;; M += 2) { // even: the half spectrum's Nyquist column exists
+        int rest = M;
+        for (int p : {2, 3, 5, 7})
+            while (rest % p == 0) rest /= p;
+        if (rest == 1) return M;
+    }
+}
+} // namespace
+
+int fourierSide(int width, int height, bool powerOfTwo) {
+    return sideOfAtLeast(std::max(width, height), powerOfTwo);
+}
+
+int fourierSide(const ImageGeometry& image, const Dims3& dims, const Vec3& spacing,
+                bool powerOfTwo) {
+    const int W = image.cols(), H = image.rows();
+    if (W == H && fourierSide(W, H, powerOfTwo) == W) return W; // a square as it always was
+    // The diagonal over the pixel size, less a rounding tolerance (the default pixel size gives
+    // min(W, H) exactly).
+    const double period = defaultPixelSize(dims, spacing, 1) / image.pixelSize - 1e-6;
+    const double need = std::max({double(W), double(H), std::min(4096.0, std::ceil(period))});
+    return sideOfAtLeast(int(need), powerOfTwo);
+}
+
 void validateImageGeometry(const ImageGeometry& g) {
-    if (g.size < 16 || g.size > 4096 || (g.size & (g.size - 1)) != 0)
-        throw SettingsError("slice size: expected a power of two in 16..4096, found " +
-                            std::to_string(g.size));
+    for (const auto& [what, n] : {std::pair{"width", g.cols()}, std::pair{"height", g.rows()}})
+        if (n < 16 || n > 4096)
+            throw SettingsError(std::string("image ") + what +
+                                ": expected 16..4096 pixels, found " + std::to_string(n));
     if (!(g.pixelSize > 0.0) || !std::isfinite(g.pixelSize))
         throw SettingsError("pixel size: expected a positive number of mm, found " +
                             std::to_string(g.pixelSize));
@@ -65,16 +101,23 @@ PixelSizeRange pixelSizeRange(const Dims3& dims, const Vec3& spacing, int size) 
 
 void validateImageGeometry(const ImageGeometry& g, const Dims3& dims, const Vec3& spacing) {
     validateImageGeometry(g);
-    const PixelSizeRange r = pixelSizeRange(dims, spacing, g.size);
+    // The larger side bounds the finest pixel, the smaller side the coarsest (the span rule
+    // holds both ways).
+    const int longSide = std::max(g.cols(), g.rows()), shortSide = std::min(g.cols(), g.rows());
+    const PixelSizeRange r{pixelSizeRange(dims, spacing, longSide).min,
+                           pixelSizeRange(dims, spacing, shortSide).max};
     if (g.pixelSize >= r.min && g.pixelSize <= r.max) return;
     const double diagonal = defaultPixelSize(dims, spacing, 1);
+    const std::string shape =
+        g.square() ? std::to_string(g.cols()) + "-pixel"
+                   : std::to_string(g.cols()) + "x" + std::to_string(g.rows()) + "-pixel";
     char msg[640];
     std::snprintf(msg, sizeof msg,
-                  "pixel size %g mm: the %d-pixel image would span %g mm of a volume whose "
+                  "pixel size %g mm: the %s image would span %g mm of a volume whose "
                   "diagonal is %g mm; expected a pixel size from %g to %g mm at this size (the "
                   "image spans 1/%g to %g times the volume's diagonal, and a pixel is at least "
                   "1/%.0f of the largest voxel spacing, %g mm)",
-                  g.pixelSize, g.size, g.pixelSize * g.size, diagonal, r.min, r.max,
+                  g.pixelSize, shape.c_str(), g.pixelSize * longSide, diagonal, r.min, r.max,
                   kFieldOfViewFactor, kFieldOfViewFactor,
                   TransferTable::kMaxCyclesPerVoxel / std::sqrt(2.0) * 2.0,
                   std::max({spacing[0], spacing[1], spacing[2]}));

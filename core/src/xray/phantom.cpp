@@ -299,14 +299,15 @@ ProjectionImage EllipsoidPhantom::project(const ViewFrame& view, const ImageGeom
         throw SettingsError(
             "phantom projection: the bone-enhanced mapping has no analytic projection");
     const DepthCueWeights w = depthCueWeights(depthCue, dims, spacing);
-    const int M = image.size;
+    const int W = image.cols(), H = image.rows();
     const double d = image.pixelSize;
     ProjectionImage img;
-    img.size = M;
+    img.width = W;
+    img.height = H;
     img.pixelSize = d;
     img.view = view;
     img.mapping = mapping;
-    img.pixels.assign(std::size_t(M) * M, 0.0f);
+    img.pixels.assign(std::size_t(W) * H, 0.0f);
     std::vector<int> everyone(ellipsoids.size());
     for (std::size_t i = 0; i < everyone.size(); ++i) everyone[i] = int(i);
     std::vector<Segment> hits, segs;
@@ -327,17 +328,17 @@ ProjectionImage EllipsoidPhantom::project(const ViewFrame& view, const ImageGeom
         return mu;
     };
     const Vec3 half{dims[0] * spacing[0] / 2, dims[1] * spacing[1] / 2, dims[2] * spacing[2] / 2};
-    for (int row = 0; row < M; ++row)
-        for (int col = 0; col < M; ++col) {
+    for (int row = 0; row < H; ++row)
+        for (int col = 0; col < W; ++col) {
             Vec3 o;
             for (int a = 0; a < 3; ++a)
-                o[a] = (col - M / 2) * d * view.r[a] - (row - M / 2) * d * view.u[a];
+                o[a] = (col - W / 2) * d * view.r[a] - (row - H / 2) * d * view.u[a];
             double b0, b1;
             if (!boxInterval(o, view.d, half, b0, b1)) continue; // the ray misses the volume
             const double mu = lineIntegral(o, b0, b1);
             const double box = weightedLength(b0, b1, w.a, w.b);
             const double v = mapping == ValueMapping::Mu ? mu : 1000.0 * mu - 1000.0 * box;
-            img.pixels[std::size_t(row) * M + col] = float(v);
+            img.pixels[std::size_t(row) * W + col] = float(v);
         }
     return img;
 }

@@ -64,7 +64,8 @@ public:
      */
     void renderToGpu(const core::RenderParams& params,
                      const core::DisplayWindow* display = nullptr);
-    /** The last render's float line integrals (row 0 at the top). */
+    /** The last render's float line integrals (row 0 at the top): the W x H the parameters asked
+     *  for, cropped from the power-of-two square the FFT passes ran on. */
     core::ProjectionImage readback() const;
     /** renderToGpu() + readback() with the GPU's per-stage times. */
     core::ProjectionImage renderImage(const core::RenderParams& params,
@@ -147,7 +148,8 @@ private:
     unsigned m_queries[4] = {0, 0, 0, 0};
     bool m_timesPending = false, m_displayTimed = false;
     GpuStageTimes m_times;
-    core::RenderParams m_last;
+    core::RenderParams m_last; ///< the square transform the last render ran
+    int m_lastWidth = 0, m_lastHeight = 0; ///< the image it asked for (readback() crops)
     std::optional<core::DisplayWindow>
         m_displayed; ///< the window the display texture holds the last render in
 };

@@ -10,6 +10,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <fvr/core/render/kernels.h>
@@ -50,8 +51,9 @@ struct RenderSettings {
     SliceFilter filter;
 
     // The image and the view.
-    int size = 512; ///< M: a power of two in kMinSize..kMaxSize
-    std::optional<double> pixelSize; ///< mm; empty: defaultPixelSize (the volume's diagonal / M)
+    int size = 512; ///< W, the columns: kMinImage..kMaxImage (the workstation offers kMinSize..)
+    int height = 0; ///< H, the rows; 0: as many as the columns (a square image)
+    std::optional<double> pixelSize; ///< mm; empty: defaultPixelSize (the diagonal / min(W, H))
     PatientView view = PatientView::AP;
 
     // The X-ray output: line integrals or the Beer-Lambert transmission of beam(). The
@@ -65,6 +67,10 @@ struct RenderSettings {
      *  smaller sizes, down to validateImageGeometry's 16). */
     static constexpr int kMinSize = 128;
     static constexpr int kMaxSize = 2048;
+    /** Any W and H in this range render (the Fourier renderers transform a square of
+     *  fourierSide() and crop it; view.h). */
+    static constexpr int kMinImage = 16;
+    static constexpr int kMaxImage = 4096;
 
     /** "default" (these defaults) or "paper" (the paper's Table 1: linear, no oversampling, raw
      *  values, band-limited, no gridding correction, no clipping, negative values kept). Throws
@@ -91,9 +97,12 @@ struct RenderSettings {
     bool operator==(const RenderSettings&) const = default;
 };
 
-/** Throws SettingsError "size: expected a power of two in 128..2048, found N". */
-void validateSettingsSize(int size);
-/** The choices users see: 128, 256, ..., 2048. */
+/** Throws SettingsError "size: expected 16..4096 pixels, found N" (`what` names the option). */
+void validateSettingsSize(int size, const std::string& what = "size");
+/** An image size as users write it: "N" (square) or "WxH", each kMinImage..kMaxImage;
+ *  SettingsError naming `what` and the text otherwise. Returns {W, H}. */
+std::pair<int, int> parseImageSize(const std::string& text, const std::string& what = "size");
+/** The choices the workstation offers: 128, 256, ..., 2048. */
 std::vector<int> settingsSizes();
 
 } // namespace fvr::core

@@ -25,14 +25,47 @@ struct ViewFrame {
     ViewFrame rotated(const Vec3& axis, double angleRad) const;
 };
 
-/** Projection image geometry: M x M pixels of size d (mm). */
+/** Projection image geometry: W x H pixels of size d (mm), W = size and H = height (0: square).
+ *  The volume's centre projects onto pixel (W/2, H/2) (integer division), as on M x M. The
+ *  Fourier renderers transform a square of side fourierSide() (with the volume) and crop it
+ *  about that pixel. */
 struct ImageGeometry {
-    int size = 256;
+    int size = 256; ///< W, the columns (and the rows when height is 0)
     double pixelSize = 1.0;
+    int height = 0; ///< H, the rows; 0: as many as the columns
+
+    int cols() const { return size; }
+    int rows() const { return height > 0 ? height : size; }
+    bool square() const { return rows() == cols(); }
 };
 
+/** The side of the square the Fourier renderers transform for a W x H image: the smallest
+ *  M >= max(W, H, 16) that is even and has no prime factor above 7 (FFTW's fast sizes), or
+ *  the smallest power of two (`powerOfTwo`: the GPU's FFT). */
+int fourierSide(int width, int height, bool powerOfTwo);
+/** The same for an image of this volume. A square whose side is already such an M renders
+ *  as it always has (its period M d is the user's choice: a pixel size below the default makes
+ *  the copies overlap, as on the paper's fig. 6). Any other W x H takes M d >= D too, D the
+ *  voxel grid's diagonal and d the pixel size (at most 4096): the period of a square image at
+ *  the default pixel size, so that a crop has its accuracy, never a smaller square's periodic
+ *  copies or folded kernel ghosts. With the default pixel size (D over min(W, H)) that is
+ *  fourierSide(W, H) itself. */
+int fourierSide(const ImageGeometry& image, const Dims3& dims, const Vec3& spacing,
+                bool powerOfTwo);
+
+/** Pixel (col, row) of the centred W x H crop of an M x M image is pixel
+ *  (col + (M/2 - W/2), row + (M/2 - H/2)) of it: the crop keeps the centre pixel. */
+struct CropOffset {
+    int col = 0;
+    int row = 0;
+};
+inline CropOffset centredCrop(int M, int width, int height) {
+    return {M / 2 - width / 2, M / 2 - height / 2};
+}
+
 /** The default pixel size: the volume's physical diagonal spread over M pixels, so that the
- *  projection of any view fits the image period M*d (no overlapping copies). */
+ *  projection of any view fits the image period M*d (no overlapping copies). For W x H, pass
+ *  min(W, H): the diagonal then fits both ways. */
 double defaultPixelSize(const Dims3& dims, const Vec3& spacing, int size);
 
 /** Half extents (mm, around the volume's centre) of the box outside which the voxel model is 0:
@@ -54,9 +87,9 @@ struct ColumnRange {
 };
 ColumnRange volumeShadowColumns(const ViewFrame& view, const Vec3& half, int M, double d, int row);
 
-/** Checks that M is a power of two in [16, 4096] and pixel size > 0; throws SettingsError. The
- *  renderers' own range: users choose from RenderSettings' sizes (render_settings.h), and the
- *  progressive refinement's interactive levels render smaller ones. */
+/** Checks that W and H are in [16, 4096] and the pixel size > 0; throws SettingsError. The
+ *  renderers' own range: the workstation offers RenderSettings' sizes (render_settings.h), and
+ *  the progressive refinement's interactive levels render smaller ones. */
 void validateImageGeometry(const ImageGeometry& g);
 
 /** How far the image's span M d may stray from the volume's diagonal (the default pixel size
