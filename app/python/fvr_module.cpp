@@ -92,6 +92,12 @@ cli::Options rendererSettings(const Args& args) {
         throw core::SettingsError(
             "geometry: a cone beam is rendered with a camera: r.render(camera=fvr.Camera.carm("
             "...)) (the C-arm, detector and pitch are the camera's)");
+    // The renderer gives line integrals (and Beer-Lambert through transmission()): a --kvp it
+    // took would be a polychromatic setting silently not applied.
+    if (o.polychromatic())
+        throw core::SettingsError(
+            "kvp: fvr.Renderer renders line integrals, not polychromatic images; "
+            "fvr.run_cli([..., \"--kvp\", ...]) runs fvr-render --kvp");
     return o;
 }
 
@@ -295,9 +301,6 @@ private:
             refuse("sharpen", "a Fourier rendering setting");
         if (s.filter.bandLimitLpMm != d.filter.bandLimitLpMm)
             refuse("band_limit", "a Fourier rendering setting");
-        if (m_options.polychromatic())
-            refuse("kvp", "this module renders no polychromatic images; fvr.run_cli with "
-                          "--geometry cone --kvp does");
     }
 
     /** The projector of these options, made on first use (the value mapping and the empty-block
@@ -507,10 +510,10 @@ void bindCamera(py::module_& m) {
                 if (p.ndim() != 2 || p.shape(0) != 3 || p.shape(1) != 4)
                     throw core::SettingsError("matrix: expected a (3, 4) array");
                 auto r = p.unchecked<2>();
-                core::ProjectionMatrix m;
+                core::ProjectionMatrix matrix;
                 for (int i = 0; i < 3; ++i)
-                    m.rows[i] = glm::dvec4(r(i, 0), r(i, 1), r(i, 2), r(i, 3));
-                return core::cameraFromMatrix(m, width, height, pitchU, pitchV);
+                    matrix.rows[i] = glm::dvec4(r(i, 0), r(i, 1), r(i, 2), r(i, 3));
+                return core::cameraFromMatrix(matrix, width, height, pitchU, pitchV);
             },
             py::arg("matrix"), py::arg("width"), py::arg("height"), py::arg("pitch_u"),
             py::arg("pitch_v"))

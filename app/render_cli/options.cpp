@@ -584,6 +584,8 @@ void checkCombinations(Options& o) {
         throw SettingsError("--kvp: writes .npy, .pfm or .png (no DICOM export yet)");
     if (o.polychromatic() && o.bench > 0)
         throw SettingsError("--kvp: not with --bench (bench/ times the polychromatic frame)");
+    if (o.polychromatic() && !o.send.empty())
+        throw SettingsError("--send: not with --kvp (I/I0 has no DICOM export yet)");
     // --dir and --up (unless --view replaces them): the message names the vector at fault.
     if (o.dirUpGiven) core::ViewFrame::fromDirUp(o.dir, o.up);
     if (o.energy) o.settings.energyKeV = *o.energy;

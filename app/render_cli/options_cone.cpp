@@ -386,7 +386,7 @@ const std::vector<std::pair<std::string, std::string>> kParallelOnly = {
     {"--sharpen", "a Fourier rendering setting"},
     {"--sharpen-radius", "a Fourier rendering setting"},
     {"--band-limit", "a Fourier rendering setting"},
-    {"--fp16", "the cone-beam ray caster runs on the CPU"}};
+    {"--fp16", "a Fourier rendering setting (the spectrum's storage)"}};
 
 /** The options --projection-matrix replaces (the file fixes the camera). */
 const std::vector<std::string> kMatrixFixes = {

@@ -123,6 +123,9 @@ TEST(FvrRenderPoly, BadOptionsNameTheOption) {
     expectError(kChest + " --kvp 80 --values mu --beer-lambert" + out, "--beer-lambert");
     expectError(kChest + " --kvp 80 --sweep 3 --material-out " + tmp("m.npy") + out,
                 "--material-out");
+    // It exited 0 and sent nothing: I/I0 has no DICOM object to send yet.
+    expectError(kChest + " --kvp 80 --send dicom://PACS@127.0.0.1:1" + out,
+                "--send: not with --kvp");
 }
 
 TEST(FvrRenderPoly, GpuMaterialFramesAndSpectralSumMatchTheCpu) {

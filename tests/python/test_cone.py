@@ -218,13 +218,19 @@ def test_bad_geometry_raises_value_error_with_the_message(ball, call, message):
     (dict(depth_cue=0.3), "depth_cue: not with a cone-beam camera"),
     (dict(sharpen=0.5), "sharpen: not with a cone-beam camera"),
     (dict(band_limit=0.2), "band_limit: not with a cone-beam camera"),
-    (dict(kvp=80), "kvp: not with a cone-beam camera"),
 ])
 def test_parallel_only_settings_are_refused_for_cone_beam(setting, message):
     r = fvr.Renderer(volume(np.ones((20, 20, 20), np.float32)), threads=1, **setting)
     with pytest.raises(ValueError) as e:
         r.render(camera=r.camera(detector=32))
     assert message in str(e.value)
+
+
+def test_kvp_is_refused_where_the_renderer_is_made():
+    """The renderer renders line integrals: a kvp it took was silently not applied (parallel
+    images equal to those without it); fvr.run_cli runs fvr-render --kvp."""
+    with pytest.raises(ValueError, match="kvp: fvr.Renderer renders line integrals"):
+        fvr.Renderer(volume(np.ones((20, 20, 20), np.float32)), threads=1, kvp=80)
 
 
 def test_pixel_aperture_averages_the_pixels_area_as_a_finer_detector_binned_down(ball):

@@ -177,6 +177,8 @@ def test_non_finite_voxels_are_said_and_replaced():
     # was CLI11's "Value -1 not in range 0.000000 to 1797693134862315708145...":
     (lambda v, r: fvr.Renderer(v, threads=-1), "--threads: expected a whole number of threads"),
     (lambda v, r: r.render(size=15), "--size: expected 16..4096 pixels, found 15"),
+    # It rendered line integrals, as if kvp had not been given:
+    (lambda v, r: fvr.Renderer(v, kvp=80), "kvp: fvr.Renderer renders line integrals"),
     (lambda v, r: r.render(size=(64, 5000)), "expected 16..4096 pixels, found 5000"),
     (lambda v, r: r.render(size=(64, 48, 2)), "size: expected N or (W, H)"),
     (lambda v, r: r.render(view="SIDEWAYS"), "SIDEWAYS"),

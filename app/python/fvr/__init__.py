@@ -365,8 +365,8 @@ class Renderer:
         "bspline"; ``step``: the ray step as a fraction 0..4 of the smallest voxel spacing
         (trilinear: 0 = exact; bspline: 0 = 0.25; not for box). A renderer made with
         ``pixel_aperture=True`` averages 4 x 4 rays over each pixel (its area, as fvr-render
-        --pixel-aperture). Polychromatic settings (``kvp``) are refused with a camera: this
-        module renders no polychromatic images (fvr.run_cli with --geometry cone --kvp does)."""
+        --pixel-aperture). This module renders no polychromatic images: ``kvp`` is refused
+        when the renderer is made (fvr.run_cli with --kvp runs fvr-render, which does)."""
         if camera is None:
             if model is not None or step is not None:
                 raise ValueError("model, step: only with camera= (the cone-beam ray caster)")
