@@ -6,8 +6,9 @@
 
 #include <cstdint>
 
-// GCC on x86-64 (its target pragma; clang and other CPUs keep the scalar walk).
-#if defined __x86_64__ && defined __GNUC__ && !defined __clang__
+#include "cpu_simd.h"
+
+#ifdef FVR_CPU_AVX2 // (cpu_simd.h: GCC on x86-64; clang and other CPUs keep the scalar walk)
 #define FVR_CONE_AVX2 1
 #endif
 

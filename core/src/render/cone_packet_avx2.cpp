@@ -14,15 +14,7 @@
 
 namespace fvr::core::detail {
 
-bool coneAvx2() {
-#ifdef FVR_CONE_AVX2
-    static const bool cpu = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-    const char* env = std::getenv("FVR_CPU_SIMD");
-    return cpu && !(env && std::string_view(env) == "baseline");
-#else
-    return false;
-#endif
-}
+bool coneAvx2() { return cpuRunsAvx2(); }
 
 #ifndef FVR_CONE_AVX2
 

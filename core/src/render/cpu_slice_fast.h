@@ -13,8 +13,9 @@
 #include <immintrin.h>
 #endif
 
-// GCC on x86-64 (its target pragma; clang and other CPUs keep the baseline rows).
-#if defined __x86_64__ && defined __GNUC__ && !defined __clang__
+#include "cpu_simd.h"
+
+#ifdef FVR_CPU_AVX2 // (cpu_simd.h: GCC on x86-64; clang and other CPUs keep the baseline rows)
 #define FVR_SLICE_AVX2 1
 #endif
 

@@ -48,15 +48,7 @@ void fastRowComplex(const SliceContext& c, const FrameMapping& f, const FrameLoo
 
 /** Whether the CPU runs the slice's x86-64-v3 code (AVX2 and FMA), unless FVR_CPU_SIMD=baseline
  *  (read per frame: tests compare both). */
-bool sliceAvx2() {
-#ifdef FVR_SLICE_AVX2
-    static const bool cpu = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-    const char* env = std::getenv("FVR_CPU_SIMD");
-    return cpu && !(env && std::string_view(env) == "baseline");
-#else
-    return false;
-#endif
-}
+bool sliceAvx2() { return cpuRunsAvx2(); }
 
 /** fastRowComplexAvx2 where it exists (4 and 6 taps on x86-64), fastRowComplex otherwise. */
 template <int T>
