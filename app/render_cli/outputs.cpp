@@ -509,6 +509,7 @@ void writeConeOutputs(const ConeSession& s, const std::vector<ConeView>& views,
     const ConeCamera& first = views.front().camera;
     DicomExportInfo info = s.exportInfo;
     info.valueDescription = valuesText(o, s.volume);
+    info.transmission = o.beerLambert;
     writeRun(
         o, views.size(), first.width, first.height, info,
         [&](ViewWriter& writer) {

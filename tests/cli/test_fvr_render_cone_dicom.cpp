@@ -272,6 +272,16 @@ TEST(FvrRenderConeDicom, WhatWeWritePassesDciodvfy) {
         EXPECT_NE(v.find("XAImage"), std::string::npos) << path << ": " << v;
         EXPECT_EQ(v.find("Error"), std::string::npos) << path << ": " << v;
     }
+    // Line integrals are a logarithm of the intensity; a Beer-Lambert output is the intensity
+    // (it said LOG too).
+    for (const auto& [path, relationship] : {std::pair{one, "LOG"}, {film, "LIN"}}) {
+        DcmFileFormat ff;
+        ASSERT_TRUE(ff.loadFile(path.c_str()).good());
+        OFString value;
+        ASSERT_TRUE(
+            ff.getDataset()->findAndGetOFString(DCM_PixelIntensityRelationship, value).good());
+        EXPECT_EQ(std::string(value.c_str()), relationship) << path;
+    }
 }
 
 /** `from` without the tags named, saved as `to`. */

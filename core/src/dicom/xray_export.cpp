@@ -175,8 +175,9 @@ void writeXrayDicomRun(const std::filesystem::path& path, const std::vector<Dete
     putGeometry(put, dset, first, arms[0], path);
     if (views.size() > 1) putRun(put, dset, arms, path);
     put(DCM_PhotometricInterpretation, "MONOCHROME2");
-    // Line integrals are the logarithm of the transmitted intensity.
-    put(DCM_PixelIntensityRelationship, "LOG");
+    // The X-Ray Image module's defined terms: LOG for attenuation (line integrals, the log of
+    // the transmitted intensity), LIN for values proportional to the beam's intensity.
+    put(DCM_PixelIntensityRelationship, info.transmission ? "LIN" : "LOG");
     dset->putAndInsertUint16(DCM_SamplesPerPixel, 1);
     dset->putAndInsertUint16(DCM_Rows, Uint16(first.height));
     dset->putAndInsertUint16(DCM_Columns, Uint16(first.width));
