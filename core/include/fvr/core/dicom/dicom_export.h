@@ -16,12 +16,12 @@ struct DicomExportInfo {
     std::string patientName, patientId, studyInstanceUid; ///< copied from the source when known
     std::string seriesDescription = "FVR projection";
     std::string valueDescription = "line integral"; ///< e.g. "mm (mu/mu_water x mm)"
-    /** The pixels are transmitted intensities (Beer-Lambert), not line integrals: an X-ray
-     *  image then says PixelIntensityRelationship LIN instead of LOG. */
-    bool transmission = false;
     /** The source study's StudyDate (YYYYMMDD), copied with its UID so that the export does not
      *  contradict its study; empty when unknown (then written empty, as type 2 allows). */
     std::string studyDate;
+    /** The pixels are transmitted intensities (Beer-Lambert), not line integrals: an X-ray
+     *  image then says PixelIntensityRelationship LIN instead of LOG. */
+    bool transmission = false;
 };
 
 /** Patient, patient ID, study UID and study date of the series a projection comes from (none for
