@@ -191,6 +191,12 @@ public:
     /** Cone-beam views written as X-ray images carrying `dicom`'s C-arms, or RT Images carrying
      *  its treatment beams (set before the first view). */
     void setConeDicom(const ConeDicom& dicom) { m_coneDicom = &dicom; }
+    /** What --send stores: Secondary Captures of parallel views, X-rays of C-arms or RT Images
+     *  of treatment beams. */
+    const char* sentKind() const {
+        if (!m_coneDicom) return "Secondary Capture";
+        return m_coneDicom->beams.empty() ? "X-Ray Angiographic" : "RT Image";
+    }
 
     /** A cone-beam view as an X-Ray Angiographic image: its own file, or a frame of the run
      *  written by finish(). */
@@ -492,9 +498,7 @@ void writeRun(const Options& o, std::size_t viewCount, int width, int height,
         files.commit(); // the images and their sidecar land together
         summary(writer.stacked(), msPerView);
         if (!o.send.empty())
-            sendViews(o, writer.toSend(),
-                      o.cone.enabled ? "X-Ray Angiographic" : "Secondary Capture",
-                      o.cone.enabled ? "file" : "view");
+            sendViews(o, writer.toSend(), writer.sentKind(), o.cone.enabled ? "file" : "view");
     } catch (const Interrupted& e) {
         interrupted = e.what();
     }
