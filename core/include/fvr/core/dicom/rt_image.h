@@ -13,7 +13,7 @@
  *  of treatmentBeamCamera: columns along +Xb, rows along -Yb. The receptor turns with the
  *  collimator there (a beam's eye view), so XRayImageReceptorAngle (3002,000E) = the collimator
  *  angle ("A positive angle corresponds to a counter-clockwise rotation of the X-Ray Image
- *  Receptor as viewed from the radiation source in the IEC GANTRY coordinate system", C.8.8.14.3:
+ *  Receptor as viewed from the radiation source in the IEC GANTRY coordinate system", PS3.3:
  *  the sense of IEC 61217's right-handed rotation about Zg, as the collimator's).
  *   - RTImagePosition (3002,0012): x, y in mm of the first pixel's centre in the receptor
  *     system: (-(W-1)/2 pu, +(H-1)/2 pv), the receptor's origin at the image's centre.
