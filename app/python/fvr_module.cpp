@@ -465,11 +465,11 @@ py::array_t<double> cameraProject(
 py::tuple xrayCamera(const std::string& path, long frame,
                      const std::optional<core::Vec3>& isocentre) {
     const core::XrayGeometry g = core::readXrayGeometry(path, false);
-    if (frame < 0 || std::size_t(frame) >= g.frames.size())
-        throw core::SettingsError(
-            "frame: " + std::to_string(frame) + " asked for, " + path + " has " +
-            std::to_string(g.frames.size()) + " frame" +
-            (g.frames.size() == 1 ? " (0)" : "s (0.." + std::to_string(g.frames.size() - 1) + ")"));
+    const std::size_t n = g.frameCount(); // C-arms, or an RT Image's beams
+    if (frame < 0 || std::size_t(frame) >= n)
+        throw core::SettingsError("frame: " + std::to_string(frame) + " asked for, " + path +
+                                  " has " + std::to_string(n) + " frame" +
+                                  (n == 1 ? " (0)" : "s (0.." + std::to_string(n - 1) + ")"));
     if (!g.isocentreStated && !isocentre)
         throw core::SettingsError("isocenter: " + path +
                                   " states no isocentre (no X-ray does, but a DRR fvr wrote): "
@@ -484,8 +484,7 @@ py::tuple xrayCamera(const std::string& path, long frame,
  *  frames, and the reader's warnings. */
 py::tuple xrayPixels(const std::string& path) {
     const core::XrayGeometry g = core::readXrayGeometry(path, true);
-    const auto n = py::ssize_t(g.frames.size()), h = py::ssize_t(g.height),
-               w = py::ssize_t(g.width);
+    const auto n = py::ssize_t(g.frameCount()), h = py::ssize_t(g.height), w = py::ssize_t(g.width);
     py::array_t<float> out = n == 1 ? py::array_t<float>({h, w}) : py::array_t<float>({n, h, w});
     if (g.pixels.size() != std::size_t(n * h * w))
         throw core::LoadError(path + ": expected " + std::to_string(n * h * w) +

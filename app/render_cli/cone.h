@@ -7,6 +7,7 @@
 #include <vector>
 
 #include <fvr/core/dicom/dicom_export.h>
+#include <fvr/core/dicom/rt_image.h>
 #include <fvr/core/dicom/rt_plan.h>
 #include <fvr/core/dicom/xray_geometry.h>
 #include <fvr/core/geometry/camera.h>
@@ -59,13 +60,16 @@ Json xrayGeometryJson(const Options& o, const core::XrayGeometry& xray);
 
 /** What a cone-beam .dcm output writes: each view's C-arm (a matrix-file camera's from
  *  core::cArmFromCamera about the volume's centre), and whether the views make one rotational
- *  run (one multi-frame XA; else FILE_NNNN.dcm, one XA each). */
+ *  run (one multi-frame XA; else FILE_NNNN.dcm, one XA each); or, for treatment beams (--beam,
+ *  --rtplan, an RT Image's --geometry-from), each view's beam, one RT Image each. */
 struct ConeDicom {
     std::vector<core::CArm> arms;
+    std::vector<core::RtPlanBeam> beams; ///< RT Images instead of X-rays when not empty
     bool run = false;
 };
-/** The C-arms of the views (for a .dcm output or --send), before anything renders:
- *  SettingsError naming the view whose camera no C-arm has (cone_xray.cpp). */
+/** The C-arms (or treatment beams) of the views (for a .dcm output or --send), before anything
+ *  renders: SettingsError naming the view whose camera no C-arm (no beam's imager) has
+ *  (cone_xray.cpp). */
 ConeDicom coneDicom(const core::Volume& volume, const std::vector<ConeView>& views);
 
 /** The views: the matrix file's cameras, the X-ray's (xrayViews), the treatment beams'

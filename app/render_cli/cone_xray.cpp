@@ -23,7 +23,7 @@ std::string xyzText(const glm::dvec3& p) {
 /** The frames --frame names: one, or every frame with --frame all. */
 std::vector<std::size_t> framesOf(const Options& o, const XrayGeometry& g) {
     if (!o.cone.allFrames) return {std::size_t(o.cone.frame)};
-    std::vector<std::size_t> all(g.frames.size());
+    std::vector<std::size_t> all(g.frameCount());
     for (std::size_t k = 0; k < all.size(); ++k) all[k] = k;
     return all;
 }
@@ -39,20 +39,21 @@ const char* isocentreSource(const Options& o, const XrayGeometry& g) {
 std::optional<XrayGeometry> readConeXray(const Options& o) {
     if (!o.cone.enabled || o.cone.geometryFrom.empty()) return std::nullopt;
     XrayGeometry g = readXrayGeometry(o.cone.geometryFrom, false);
-    if (std::size_t(o.cone.frame) >= g.frames.size())
+    const std::size_t n = g.frameCount();
+    if (std::size_t(o.cone.frame) >= n)
         throw SettingsError("--frame " + std::to_string(o.cone.frame) + ": " + o.cone.geometryFrom +
-                            " has " + std::to_string(g.frames.size()) +
-                            (g.frames.size() == 1
-                                 ? " frame (0)"
-                                 : " frames (0.." + std::to_string(g.frames.size() - 1) + ")"));
+                            " has " + std::to_string(n) +
+                            (n == 1 ? " frame (0)" : " frames (0.." + std::to_string(n - 1) + ")"));
     for (const std::string& w : g.warnings)
         std::fprintf(stderr, "fvr-render: warning: %s\n", w.c_str());
     if (g.isocentreStated && o.cone.isocentre)
-        std::fprintf(stderr,
-                     "fvr-render: warning: --isocenter %s ignored: %s states its isocentre, %s "
-                     "(a DRR that fvr wrote)\n",
-                     xyzText(*o.cone.isocentre).c_str(), o.cone.geometryFrom.c_str(),
-                     xyzText(g.frames.front().isocentre).c_str());
+        std::fprintf(
+            stderr,
+            "fvr-render: warning: --isocenter %s ignored: %s states its isocentre, %s "
+            "(a DRR that fvr wrote, or an RT Image's IsocenterPosition)\n",
+            xyzText(*o.cone.isocentre).c_str(), o.cone.geometryFrom.c_str(),
+            xyzText(g.beams.empty() ? g.frames.front().isocentre : g.beams.front().isocentre)
+                .c_str());
     return g;
 }
 
@@ -60,6 +61,13 @@ std::vector<ConeView> xrayViews(const Options& o, const Volume& volume, const Xr
     const glm::dvec3 isocentre = o.cone.isocentre ? *o.cone.isocentre : volumeCentre(volume);
     std::vector<ConeView> views;
     for (const std::size_t k : framesOf(o, g)) {
+        if (!g.beams.empty()) { // an RT Image: its treatment beam
+            RtPlanBeam beam;
+            beam.beam = g.beams[k];
+            if (!g.isocentreStated) beam.beam.isocentre = isocentre;
+            views.push_back({g.camera(k, isocentre), std::nullopt, beam});
+            continue;
+        }
         CArm arm = g.frames[k];
         if (!g.isocentreStated) arm.isocentre = isocentre;
         views.push_back({g.camera(k, isocentre), arm});
@@ -73,7 +81,7 @@ Json xrayGeometryJson(const Options& o, const XrayGeometry& g) {
     return Json{{"file", o.cone.geometryFrom},
                 {"modality", g.modality},
                 {"sop_class_uid", g.sopClassUid},
-                {"frames_in_file", g.frames.size()},
+                {"frames_in_file", g.frameCount()},
                 {"frames", frames},
                 {"isocenter_from", isocentreSource(o, g)},
                 {"warnings", g.warnings}};
@@ -93,9 +101,34 @@ bool sameRun(const ConeView& a, const CArm& armA, const ConeView& b, const CArm&
            glm::length(armA.isocentre - armB.isocentre) <= tol;
 }
 
+/** Treatment beams' views as RT Images: each camera must be its beam's imager. */
+ConeDicom beamDicom(const std::vector<ConeView>& views) {
+    ConeDicom d;
+    for (std::size_t i = 0; i < views.size(); ++i) {
+        const ConeCamera& c = views[i].camera;
+        const TreatmentBeam& b = views[i].beam->beam;
+        const ConeCamera e =
+            treatmentBeamCamera(b, c.width, c.height, c.pitchU, c.pitchV, c.principalOffset);
+        const double tol = 1e-9 * b.sid;
+        if (glm::length(e.source - c.source) > tol ||
+            glm::length(e.detectorCentre - c.detectorCentre) > tol ||
+            glm::length(e.u - c.u) > 1e-9 || glm::length(e.v - c.v) > 1e-9)
+            throw SettingsError(
+                "a treatment beam's DICOM output (--out FILE.dcm, --send) is an RT Image whose "
+                "receptor turns with the collimator: " +
+                (views.size() > 1 ? "view " + std::to_string(i) + "'s" : std::string("the")) +
+                " imager is not (an RT Image read with --geometry-from whose "
+                "XRayImageReceptorAngle or RTImageOrientation differs); write .npy, .pfm or .png, "
+                "without --send (the sidecar records the camera)");
+        d.beams.push_back(*views[i].beam);
+    }
+    return d;
+}
+
 } // namespace
 
 ConeDicom coneDicom(const Volume& volume, const std::vector<ConeView>& views) {
+    if (!views.empty() && views.front().beam) return beamDicom(views);
     ConeDicom d;
     const glm::dvec3 centre = volumeCentre(volume);
     for (std::size_t i = 0; i < views.size(); ++i) {

@@ -130,9 +130,10 @@ void declareConeFromXray(CLI::App& app, ConeOptions& c) {
     const std::string g = "Cone beam (--geometry cone)";
     app.add_option("--geometry-from", c.geometryFrom,
                    "the camera of a DICOM X-ray (XA, RF, DX, CR: its C-arm angles, SID, SOD,\n"
-                   "detector size and pitch) instead of the C-arm options; the isocentre is\n"
-                   "the file's where it states one (a DRR fvr wrote), else --isocenter,\n"
-                   "else the volume's centre")
+                   "detector size and pitch) or RT Image (its treatment beam and imager)\n"
+                   "instead of the C-arm options; the isocentre is the file's where it\n"
+                   "states one (a DRR fvr wrote, an RT Image's IsocenterPosition), else\n"
+                   "--isocenter, else the volume's centre")
         ->option_text("XRAY.dcm")
         ->group(g);
     app.add_option_function<std::string>(
@@ -323,12 +324,8 @@ void checkBeam(const CLI::App& app, Options& o) {
             throw SettingsError("--beam-number: only with --rtplan");
         return;
     }
-    // A beam's image is seen from the source (the C-arm's mirrored): no X-ray IOD holds it, and
-    // an RT Image writer is not there yet.
-    if ((!o.out.empty() && outputFormat(o.out) == OutputFormat::Dicom) || !o.send.empty())
-        throw SettingsError(std::string(c.rtplan.empty() ? "--beam" : "--rtplan") +
-                            ": DICOM output (.dcm, --send) of treatment beams is not written yet; "
-                            "write .npy, .pfm or .png");
+    // A beam's image is seen from the source (the C-arm's mirrored): its DICOM output is an RT
+    // Image (core/dicom/rt_image.h), one per beam.
     const std::string way = c.beam ? "--beam" : "--rtplan";
     for (const auto& [name, why] : kBeamReplaces)
         if (app.count(name) > 0) throw SettingsError(name + ": not with " + way + " (" + why + ")");

@@ -179,20 +179,39 @@ public:
             return;
         }
         addPixels(i, img.pixels, nullptr); // the pixels now as written (transmission)
-        if (!m_o.send.empty() && m_coneDicom) { // --send: the view as an X-ray of its C-arm
+        if (!m_o.send.empty() && m_coneDicom) { // --send: an X-ray of its C-arm, or an RT Image
             m_toSend.push_back(sendPath(i));
-            writeXrayDicom(m_toSend.back(), img, m_coneDicom->arms.at(i), m_exportInfo);
+            if (!m_coneDicom->beams.empty())
+                writeRtImageDicom(m_toSend.back(), img, m_coneDicom->beams.at(i), m_exportInfo);
+            else
+                writeXrayDicom(m_toSend.back(), img, m_coneDicom->arms.at(i), m_exportInfo);
         }
     }
 
-    /** Cone-beam views written as X-ray images carrying `dicom`'s C-arms (set before the first
-     *  view). */
+    /** Cone-beam views written as X-ray images carrying `dicom`'s C-arms, or RT Images carrying
+     *  its treatment beams (set before the first view). */
     void setConeDicom(const ConeDicom& dicom) { m_coneDicom = &dicom; }
+    /** What --send stores: Secondary Captures of parallel views, X-rays of C-arms or RT Images
+     *  of treatment beams. */
+    const char* sentKind() const {
+        if (!m_coneDicom) return "Secondary Capture";
+        return m_coneDicom->beams.empty() ? "X-Ray Angiographic" : "RT Image";
+    }
 
     /** A cone-beam view as an X-Ray Angiographic image: its own file, or a frame of the run
      *  written by finish(). */
     void addConeDicom(std::size_t i, DetectorImage& img) {
         if (m_o.beerLambert) applyTransmission(img.pixels, m_o.transmission);
+        if (!m_coneDicom->beams.empty()) { // a treatment beam: one RT Image each
+            const std::string path = m_count > 1 ? numberedPath(m_o.out, i) : m_o.out;
+            finalNamesOnError([&] {
+                writeRtImageDicom(m_files.staged(path), img, m_coneDicom->beams.at(i),
+                                  m_exportInfo);
+            });
+            m_written.push_back(path);
+            if (!m_o.send.empty()) m_toSend.emplace_back(path); // sent after the commit
+            return;
+        }
         const CArm& arm = m_coneDicom->arms.at(i);
         if (m_coneDicom->run) {
             if (!m_run.empty()) { // the run's one detector (equal to rounding, cone_xray.cpp)
@@ -479,9 +498,7 @@ void writeRun(const Options& o, std::size_t viewCount, int width, int height,
         files.commit(); // the images and their sidecar land together
         summary(writer.stacked(), msPerView);
         if (!o.send.empty())
-            sendViews(o, writer.toSend(),
-                      o.cone.enabled ? "X-Ray Angiographic" : "Secondary Capture",
-                      o.cone.enabled ? "file" : "view");
+            sendViews(o, writer.toSend(), writer.sentKind(), o.cone.enabled ? "file" : "view");
     } catch (const Interrupted& e) {
         interrupted = e.what();
     }

@@ -5,8 +5,10 @@
 // the beams; every bad beam option or plan is refused, naming it, before the input loads.
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <string>
@@ -15,6 +17,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <fvr/core/dicom/xray_geometry.h>
 #include <fvr/core/io/image_io.h>
 
 #include "cli_support.h"
@@ -211,15 +214,117 @@ TEST(FvrRenderBeam, BadBeamsAndPlansAreRefusedBeforeTheInputLoads) {
         EXPECT_EQ(r.output.find("/no/such/volume.mhd"), std::string::npos)
             << args << ": " << r.output;
     }
-    // A beam's image has no X-ray IOD to go to yet: said before anything loads.
-    const std::string toDicom = "/no/such/volume.mhd --out " + tmp("x.dcm") + " --geometry cone ";
-    for (const auto& [args, expect] :
-         {std::pair<std::string, std::string>{"--beam 90,0,0", "--beam: DICOM output"},
-          std::pair<std::string, std::string>{"--rtplan " + goodPlan, "--rtplan: DICOM output"}}) {
-        const Result r = run(toDicom + args);
-        EXPECT_EQ(r.status, 2) << args << ": " << r.output;
-        EXPECT_NE(r.output.find(expect), std::string::npos) << args << ": " << r.output;
+}
+
+/** The largest |a - b| of two images. */
+double maxDifference(const std::vector<float>& a, const float* b) {
+    double d = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, double(std::abs(a[i] - b[i])));
+    return d;
+}
+
+/** The largest difference of two views' projection matrices (the sidecar's), each scaled to
+ *  unit norm. */
+double matrixDifference(const Json& a, const Json& b) {
+    double na = 0, nb = 0, d = 0;
+    for (int r = 0; r < 3; ++r)
+        for (int k = 0; k < 4; ++k) {
+            na += std::pow(a["projection_matrix"][r][k].get<double>(), 2);
+            nb += std::pow(b["projection_matrix"][r][k].get<double>(), 2);
+        }
+    for (int r = 0; r < 3; ++r)
+        for (int k = 0; k < 4; ++k)
+            d = std::max(d, std::abs(a["projection_matrix"][r][k].get<double>() / std::sqrt(na) -
+                                     b["projection_matrix"][r][k].get<double>() / std::sqrt(nb)));
+    return d;
+}
+
+TEST(FvrRenderBeam, DicomOutputIsOneRtImagePerBeamThatReadsBackToTheSameImage) {
+    // Two beams of a plan (the second with couch and collimator turned) as .dcm: one RT Image
+    // each (FILE_NNNN.dcm), its pixels the DRR, its geometry the beam's, and --geometry-from
+    // each file renders the same image again.
+    fvr::test::TestPlan plan;
+    fvr::test::TestBeam a, b;
+    a.number = 2;
+    a.name = "AP";
+    a.gantry = "0";
+    b.number = 5;
+    b.name = "LAO";
+    b.gantry = "45";
+    b.couch = "10";
+    b.collimator = "15";
+    b.isocentre = "2\\-3\\4";
+    plan.beams = {a, b};
+    const std::string planFile = tmp("dcm_plan.dcm");
+    fvr::test::writeTestRtPlan(planFile, plan);
+    const std::string vol = blobVolume(), stack = tmp("dcm_plan.npy"), dcm = tmp("beams.dcm");
+    const std::string args = vol + kDetector + "--rtplan " + planFile + " --out ";
+    ASSERT_EQ(run(args + stack).status, 0);
+    const Result w = run(args + dcm);
+    ASSERT_EQ(w.status, 0) << w.output;
+    const std::string files[] = {tmp("beams_0000.dcm"), tmp("beams_0001.dcm")};
+    EXPECT_EQ(fvr::test::readSidecar(dcm)["output"]["files"], Json::array({files[0], files[1]}));
+    EXPECT_FALSE(std::filesystem::exists(dcm)); // one file per beam, none unnumbered
+    std::vector<std::int64_t> shape;
+    const auto views = fvr::core::readNpy(stack, shape);
+    ASSERT_EQ(shape, (std::vector<std::int64_t>{2, 192, 256}));
+    const std::size_t n = 192 * 256;
+    const double gantry[] = {0, 45}, couch[] = {0, 10}, coll[] = {0, 15};
+    for (std::size_t k = 0; k < 2; ++k) {
+        const fvr::core::XrayGeometry g = fvr::core::readXrayGeometry(files[k]);
+        EXPECT_EQ(g.modality, "RTIMAGE");
+        EXPECT_TRUE(g.warnings.empty()) << g.warnings.front();
+        ASSERT_EQ(g.beams.size(), 1u);
+        EXPECT_EQ(g.beams[0].gantryDeg, gantry[k]);
+        EXPECT_EQ(g.beams[0].couchDeg, couch[k]);
+        EXPECT_EQ(g.beams[0].collimatorDeg, coll[k]);
+        // The pixels are the DRR within the 16-bit quantisation (half a step of its range).
+        const std::vector<float> view(views.begin() + std::ptrdiff_t(k * n),
+                                      views.begin() + std::ptrdiff_t((k + 1) * n));
+        const auto [lo, hi] = std::minmax_element(view.begin(), view.end());
+        ASSERT_GT(*hi, 1.0f); // the blob is in view
+        ASSERT_EQ(g.pixels.size(), n);
+        EXPECT_LE(maxDifference(view, g.pixels.data()), 0.5 * (*hi - *lo) / 65535 * 1.001 + 1e-6);
+        // --geometry-from the RT Image: the same camera and the same image.
+        const std::string back = tmp("beam_back.npy");
+        const Result r =
+            run(vol + " --geometry cone --geometry-from " + files[k] + " --out " + back);
+        ASSERT_EQ(r.status, 0) << r.output;
+        EXPECT_EQ(r.output.find("warning"), std::string::npos) << r.output;
+        const Json sb = fvr::test::readSidecar(back), sa = fvr::test::readSidecar(stack);
+        EXPECT_LT(matrixDifference(sa["views"][k], sb["views"][0]), 1e-6) << k;
+        EXPECT_EQ(sb["settings"]["geometry_from"]["modality"], "RTIMAGE");
+        EXPECT_EQ(sb["settings"]["geometry_from"]["isocenter_from"], "the file");
+        EXPECT_EQ(sb["views"][0]["treatment_beam"]["gantry_angle_deg"], gantry[k]);
+        const auto again = fvr::core::readNpy(back, shape);
+        ASSERT_EQ(again.size(), n);
+        EXPECT_LE(maxDifference(view, again.data()), 1e-5 * *hi) << k;
     }
+    if (fvr::test::runCommand("command -v dciodvfy").status == 0)
+        for (const std::string& f : files) {
+            const auto v = fvr::test::runCommand("dciodvfy -new '" + f + "' 2>&1");
+            EXPECT_NE(v.out.find("RTImage"), std::string::npos) << v.out;
+            EXPECT_EQ(v.out.find("Error"), std::string::npos) << v.out;
+        }
+    // The RT Image read back is written again as the same beam.
+    const std::string rewritten = tmp("beam_again.dcm");
+    const Result again =
+        run(vol + " --geometry cone --geometry-from " + files[1] + " --out " + rewritten);
+    ASSERT_EQ(again.status, 0) << again.output;
+    const fvr::core::XrayGeometry g1 = fvr::core::readXrayGeometry(files[1], false),
+                                  g2 = fvr::core::readXrayGeometry(rewritten, false);
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c)
+            EXPECT_NEAR(g1.camera(0, {}).matrix().rows[r][c], g2.camera(0, {}).matrix().rows[r][c],
+                        1e-6 * std::abs(g1.camera(0, {}).matrix().rows[2][3]));
+    // One --beam: one RT Image, unnumbered, about the volume's centre (stated in the file).
+    const std::string one = tmp("one_beam.dcm");
+    const Result r = run(vol + kDetector + "--beam 90,0,30 --out " + one);
+    ASSERT_EQ(r.status, 0) << r.output;
+    const fvr::core::XrayGeometry g = fvr::core::readXrayGeometry(one, false);
+    EXPECT_EQ(g.beams.at(0).gantryDeg, 90.0);
+    EXPECT_EQ(g.beams.at(0).collimatorDeg, 30.0);
+    EXPECT_TRUE(g.isocentreStated);
 }
 
 TEST(FvrRenderBeam, TheSidecarRecordsTheBeamAndItsP) {

@@ -196,3 +196,52 @@ TEST(PacsCli, SendStoresConeBeamViewsAsXraysThatCarryTheirCArm) {
     EXPECT_NE(std::find(angles.begin(), angles.end(), "20"), angles.end());
     EXPECT_NE(std::find(angles.begin(), angles.end(), "200"), angles.end());
 }
+
+TEST(PacsCli, SendStoresTreatmentBeamsAsRtImages) {
+    FVR_REQUIRE_ORTHANC();
+    const fs::path dir = env().dir / "cli-send-beam";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    // A .dcm output of one beam: its RT Image, sent as written (the same bytes come back).
+    const fs::path dcm = dir / "beam.dcm";
+    auto r =
+        render("phantom:chest:32 --geometry cone --detector-size 32x24 --beam 45,10,15 --out " +
+                   dcm.string() + " --send " + nodeUrl(),
+               dir / "err");
+    ASSERT_EQ(r.status, 0) << readAll(dir / "err");
+    EXPECT_NE(readAll(dir / "err").find("sent 1 file to ORTHANC@127.0.0.1:"), std::string::npos)
+        << readAll(dir / "err");
+    EXPECT_NE(readAll(dir / "err").find("(RT Image, C-STORE)"), std::string::npos)
+        << readAll(dir / "err");
+    const std::string sop = fvr::test::dicomTag(dcm, "SOPInstanceUID");
+    const auto ids = nlohmann::json::parse(env().orthanc().post("/tools/lookup", sop).body);
+    ASSERT_EQ(ids.size(), 1u);
+    const std::string id = ids[0]["ID"];
+    EXPECT_EQ(env().orthanc().get("/instances/" + id + "/file").body, readAll(dcm));
+    const auto tags =
+        nlohmann::json::parse(env().orthanc().get("/instances/" + id + "/tags?simplify").body);
+    EXPECT_EQ(tags["Modality"], "RTIMAGE");
+    EXPECT_EQ(tags["GantryAngle"], "45");
+    EXPECT_EQ(tags["PatientSupportAngle"], "10");
+    EXPECT_EQ(tags["BeamLimitingDeviceAngle"], "15");
+    // A .npy output: the beam sent as its own RT Image.
+    r = render("phantom:chest:32 --geometry cone --detector-size 32x24 --beam 270,0,0 --out " +
+                   (dir / "beam.npy").string() + " --send " + nodeUrl(),
+               dir / "err2");
+    ASSERT_EQ(r.status, 0) << readAll(dir / "err2");
+    EXPECT_NE(readAll(dir / "err2").find("sent 1 file to ORTHANC@127.0.0.1:"), std::string::npos)
+        << readAll(dir / "err2");
+    const auto rt = nlohmann::json::parse(
+        env()
+            .orthanc()
+            .post("/tools/find",
+                  R"({"Level": "Instance", "Query": {"Modality": "RTIMAGE"}, "Expand": true})")
+            .body);
+    std::vector<std::string> gantry;
+    for (const auto& inst : rt) {
+        const auto t = nlohmann::json::parse(
+            env().orthanc().get("/instances/" + std::string(inst["ID"]) + "/tags?simplify").body);
+        gantry.push_back(t["GantryAngle"]);
+    }
+    EXPECT_NE(std::find(gantry.begin(), gantry.end(), "270"), gantry.end());
+}

@@ -384,3 +384,18 @@ def test_from_dicom_and_read_xray_name_a_file_they_cannot_read(tmp_path):
 def test_a_renderer_asked_for_a_cone_beam_says_to_give_a_camera(ball):
     with pytest.raises(ValueError, match="rendered with a camera"):
         fvr.Renderer(ball.volume, geometry="cone")
+
+
+def test_from_dicom_reads_a_treatment_beams_rt_image(tmp_path):
+    # A beam with couch and collimator turned, written by fvr-render as an RT Image: the camera
+    # read back is the sidecar's (the same P), and read_xray gives its pixels.
+    dcm = tmp_path / "beam.dcm"
+    fvr.run_cli(["phantom:chest:32", "--geometry", "cone", "--beam", "60,15,20",
+                 "--detector-size", "40x32", "--pitch", "2", "--out", dcm])
+    cam = fvr.Camera.from_dicom(dcm)
+    assert cam.warnings == [] and cam.isocenter_from == "file"
+    import json
+    view = json.loads((tmp_path / "beam.dcm.json").read_text())["views"][0]
+    expected = np.array(view["projection_matrix"])
+    np.testing.assert_allclose(cam.matrix, expected, atol=1e-6 * np.abs(expected).max())
+    assert fvr.read_xray(dcm).shape == (32, 40)

@@ -11,6 +11,7 @@
 
 #include <fstream>
 
+#include <fvr/core/dicom/rt_image.h>
 #include <fvr/core/dicom/xray_geometry.h>
 #include <fvr/core/render/cone_projector.h>
 #include <fvr/core/xray/polychromatic_render.h>
@@ -280,6 +281,30 @@ TEST_F(Workstation, AnXrayIsShownBesideTheDrrOfItsOwnGeometry) {
     EXPECT_FALSE(d->drr());
     EXPECT_FALSE(d->errorText().isEmpty());
     EXPECT_TRUE(window->messages()->toPlainText().contains("not_an_xray.dcm"));
+}
+
+TEST_F(Workstation, AnRtImageIsShownBesideTheDrrOfItsTreatmentBeam) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    const core::Volume& vol = *window->views()[0]->volume();
+    // A treatment beam's DRR with couch and collimator turned, written as an RT Image.
+    core::TreatmentBeam beam;
+    beam.gantryDeg = 30.0;
+    beam.couchDeg = 10.0;
+    beam.collimatorDeg = 20.0;
+    beam.isocentre = core::volumeCentre(vol);
+    const core::ConeCamera cam = core::treatmentBeamCamera(beam, 96, 80, 1.2, 1.2);
+    core::ConeProjectorOptions o;
+    o.mapping = window->study().spectrum()->mapping;
+    const core::DetectorImage image = core::ConeProjector(vol, o).project(cam);
+    const auto path = test::tmpDir() / "match_rtimage.dcm";
+    core::writeRtImageDicom(path, image, beam);
+
+    ui::XrayMatchDialog* d = window->matchXray(QString::fromStdString(path.string()));
+    ASSERT_TRUE(d);
+    ASSERT_TRUE(d->drr()) << d->errorText().toStdString();
+    EXPECT_EQ(d->frameSpin()->maximum(), 1);
+    EXPECT_GT(test::compare(d->drr()->pixels, image.pixels).psnr, 80.0);
+    EXPECT_TRUE(d->warningsText().isEmpty()) << d->warningsText().toStdString();
 }
 
 } // namespace

@@ -177,7 +177,7 @@ bool XrayMatchDialog::openXray(const QString& path) {
     m_shownFrame = 0;
     {
         const QSignalBlocker b(m_frame);
-        m_frame->setRange(1, std::max(1, int(m_xray->frames.size())));
+        m_frame->setRange(1, std::max(1, int(m_xray->frameCount())));
         m_frame->setValue(1);
     }
     // Fluoroscopy shows dense tissue dark; a radiograph for presentation shows it bright.
@@ -191,7 +191,7 @@ bool XrayMatchDialog::openXray(const QString& path) {
 }
 
 void XrayMatchDialog::showFrame(int frame) {
-    if (!m_xray || frame < 0 || frame >= int(m_xray->frames.size())) return;
+    if (!m_xray || frame < 0 || frame >= int(m_xray->frameCount())) return;
     m_shownFrame = frame;
     renderDrr();
 }
@@ -226,17 +226,27 @@ QString XrayMatchDialog::warningsText() const {
 
 void XrayMatchDialog::updateImages() {
     if (!m_xray) return;
-    const core::CArm& arm = m_xray->frames[std::size_t(m_shownFrame)];
-    QString text =
-        tr("%1 %2×%3, pitch %4 × %5 mm, %6, SID %7 mm, SOD %8 mm")
-            .arg(QString::fromStdString(m_xray->modality))
-            .arg(m_xray->width)
-            .arg(m_xray->height)
-            .arg(m_xray->pitchU, 0, 'g', 4)
-            .arg(m_xray->pitchV, 0, 'g', 4)
-            .arg(QString::fromStdString(core::cArmLabel(arm.primaryDeg, arm.secondaryDeg)))
-            .arg(arm.sid, 0, 'f', 0)
-            .arg(arm.sod, 0, 'f', 0);
+    QString text = tr("%1 %2×%3, pitch %4 × %5 mm, ")
+                       .arg(QString::fromStdString(m_xray->modality))
+                       .arg(m_xray->width)
+                       .arg(m_xray->height)
+                       .arg(m_xray->pitchU, 0, 'g', 4)
+                       .arg(m_xray->pitchV, 0, 'g', 4);
+    if (!m_xray->beams.empty()) { // an RT Image: its treatment beam (IEC 61217)
+        const core::TreatmentBeam& b = m_xray->beams[std::size_t(m_shownFrame)];
+        text += tr("gantry %1° couch %2° collimator %3°, SAD %4 mm, SID %5 mm")
+                    .arg(b.gantryDeg, 0, 'g', 6)
+                    .arg(b.couchDeg, 0, 'g', 6)
+                    .arg(b.collimatorDeg, 0, 'g', 6)
+                    .arg(b.sad, 0, 'f', 0)
+                    .arg(b.sid, 0, 'f', 0);
+    } else {
+        const core::CArm& arm = m_xray->frames[std::size_t(m_shownFrame)];
+        text += tr("%1, SID %2 mm, SOD %3 mm")
+                    .arg(QString::fromStdString(core::cArmLabel(arm.primaryDeg, arm.secondaryDeg)))
+                    .arg(arm.sid, 0, 'f', 0)
+                    .arg(arm.sod, 0, 'f', 0);
+    }
     if (!warningsText().isEmpty()) text += '\n' + tr("Assumed: ") + warningsText();
     if (!m_error.isEmpty()) text += '\n' + m_error;
     m_info->setText(text);

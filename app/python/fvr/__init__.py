@@ -212,7 +212,9 @@ class Camera:
         """The camera of frame ``frame`` (0-based) of a DICOM X-ray (XA, RF, DX, CR; single or
         multi-frame): its C-arm (PositionerPrimary/SecondaryAngle, per frame where stated),
         DistanceSourceToDetector and DistanceSourceToPatient, Rows x Columns and
-        ImagerPixelSpacing, as fvr-render --geometry-from reads them.
+        ImagerPixelSpacing, as fvr-render --geometry-from reads them; or of an RT Image (its
+        treatment beam's IEC 61217 angles, RadiationMachineSAD, RTImageSID and imager, and its
+        IsocenterPosition as the file's isocentre).
 
         The isocentre: the file's where it states one (a DRR that fvr wrote, with ``--out
         x.dcm``), else ``isocenter`` (LPS mm), else the centre of ``volume``; with none of

@@ -3,6 +3,7 @@
 #include <fvr/core/dicom/xray_geometry.h>
 
 #include "dicom_internal.h"
+#include "rt_image_internal.h"
 
 #include <algorithm>
 #include <cmath>
@@ -175,10 +176,6 @@ bool isRadiograph(const std::string& modality) {
 /** Refuses images that are no projection X-ray (CT slices, MR, ...). */
 void checkModality(const XrayGeometry& g, const DicomHeader& h) {
     if (h.modality == "XA" || h.modality == "RF" || isRadiograph(h.modality)) return;
-    if (h.modality == "RTIMAGE")
-        fail(g.file, "an RT Image's geometry is a treatment machine's (IEC 61217 GantryAngle "
-                     "(300A,011E), RTImageSID (3002,0026), RadiationMachineSAD (3002,0022)), not "
-                     "a C-arm's positioner angles: not read as an X-ray");
     fail(g.file, "Modality (0008,0060) '" + h.modality + "' (" + describeSopClass(h.sopClassUid) +
                      ") is not a projection X-ray: expected XA, RF, DX, CR, RG, MG, IO or PX");
 }
@@ -434,9 +431,17 @@ std::string patientOrientationLetters(const glm::dvec3& direction) {
 }
 
 ConeCamera XrayGeometry::camera(std::size_t frame, const glm::dvec3& isocentre) const {
-    if (frame >= frames.size())
+    if (frame >= frameCount())
         throw SettingsError(file.string() + ": frame " + std::to_string(frame + 1) +
-                            " asked for, the file has " + std::to_string(frames.size()));
+                            " asked for, the file has " + std::to_string(frameCount()));
+    if (!beams.empty()) { // an RT Image: its imager about the isocentre
+        ConeCamera c = beamCameras[frame];
+        if (!isocentreStated) {
+            c.source += isocentre;
+            c.detectorCentre += isocentre;
+        }
+        return c;
+    }
     CArm arm = frames[frame];
     if (!isocentreStated) arm.isocentre = isocentre;
     return cArmCamera(arm, width, height, pitchU, pitchV, principalOffset);
@@ -455,6 +460,12 @@ XrayGeometry readXrayGeometry(const std::filesystem::path& path, bool withPixels
                        std::to_string(h.rows) + " x " + std::to_string(h.cols));
     g.width = int(h.cols);
     g.height = int(h.rows);
+    if (h.modality == "RTIMAGE" || h.sopClassUid == UID_RTImageStorage) {
+        g.modality = "RTIMAGE";
+        readRtImageGeometry(g, ds, h.frames);
+        if (withPixels) readPixels(g, h, *ff);
+        return g;
+    }
     checkModality(g, h);
     const FileStated f = fileLevel(ds, path);
     resolveFrames(g, ds, h, f);

@@ -36,6 +36,7 @@
 
 #include <fvr/core/dicom/dicom_export.h>
 #include <fvr/core/geometry/camera.h>
+#include <fvr/core/geometry/treatment_beam.h>
 #include <fvr/core/render/cone_projector.h>
 
 namespace fvr::core {
@@ -49,15 +50,26 @@ struct XrayGeometry {
     double pitchU = 1.0; ///< mm between column centres on the detector
     double pitchV = 1.0; ///< mm between row centres on the detector
     glm::dvec2 principalOffset{0.0}; ///< pixels; 0 unless the file is one of ours
-    /** One C-arm per frame. Its isocentre is (0, 0, 0) unless `isocentreStated`. */
+    /** One C-arm per frame. Its isocentre is (0, 0, 0) unless `isocentreStated`. Empty for an
+     *  RT Image, whose frames are `beams`. */
     std::vector<CArm> frames;
-    bool isocentreStated = false; ///< a file this project wrote: the isocentre it used
+    /** An RT Image (Modality RTIMAGE, rt_image.h): each frame's treatment beam (IEC 61217
+     *  angles, SAD, SID, patient position; its isocentre (0, 0, 0) unless `isocentreStated`) and
+     *  its imager's camera about that isocentre (RTImagePosition, ImagePlanePixelSpacing,
+     *  XRayImageReceptorTranslation and Angle, RTImageOrientation); empty for an X-ray. */
+    std::vector<TreatmentBeam> beams;
+    std::vector<ConeCamera> beamCameras;
+    /** Whether the isocentre is the file's: a file this project wrote (X-ray), or an RT Image's
+     *  IsocenterPosition (300A,012C). */
+    bool isocentreStated = false;
     /** frames x rows x columns real values (rescale or Modality LUT applied, MONOCHROME1
      *  inverted so that larger is brighter), frame f at f * W * H, row 0 at the top; empty when
      *  read without pixels. */
     std::vector<float> pixels;
     std::vector<std::string> warnings;
 
+    /** The number of frames: C-arms, or an RT Image's beams. */
+    std::size_t frameCount() const { return beams.empty() ? frames.size() : beams.size(); }
     /** The camera of frame `frame` with the isocentre at `isocentre` (ignored when the file
      *  states one). */
     ConeCamera camera(std::size_t frame, const glm::dvec3& isocentre) const;
@@ -67,7 +79,10 @@ struct XrayGeometry {
  *  above 1e-4 only: (1, 0, 0) "L", (0.6, -0.8, 0) "AL", (0, 0, -1) "F". */
 std::string patientOrientationLetters(const glm::dvec3& direction);
 
-/** Reads the geometry (and, when `withPixels`, the pixel values) of a DICOM X-ray image.
+/** Reads the geometry (and, when `withPixels`, the pixel values) of a DICOM X-ray image, or
+ *  of an RT Image (its treatment beam and imager, rt_image.h; a missing RTImageSID is refused,
+ *  other missing values assumed with a warning naming the tag; a NON_NORMAL image plane and an
+ *  RT Image Orientation out of the receptor's plane are refused).
  *  Throws DicomError (a LoadError) naming the file and the problem: unreadable, no image,
  *  colour, angles or distances that are not numbers, SOD not below SID, an angle increment
  *  vector whose length is neither 1 nor the number of frames, a mammographic positioner. */
