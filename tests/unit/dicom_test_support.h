@@ -5,6 +5,7 @@
 
 #include <fvr/core/dicom/dicom.h>
 #include <fvr/core/errors.h>
+#include <fvr/core/geometry/camera.h>
 #include <fvr/core/volume.h>
 
 #include <algorithm>
@@ -220,6 +221,19 @@ inline std::vector<std::uint16_t> pattern(
     for (std::int64_t y = 0; y < rows; ++y)
         for (std::int64_t x = 0; x < cols; ++x) w[static_cast<std::size_t>(y * cols + x)] = f(x, y);
     return w;
+}
+
+/** P scaled to unit Frobenius norm, for comparing cameras. */
+inline std::array<double, 12> normalisedP(const core::ConeCamera& c) {
+    const core::ProjectionMatrix P = c.matrix();
+    std::array<double, 12> a{};
+    double n = 0;
+    for (int r = 0; r < 3; ++r)
+        for (int k = 0; k < 4; ++k) n += P.rows[r][k] * P.rows[r][k];
+    n = std::sqrt(n);
+    for (int r = 0; r < 3; ++r)
+        for (int k = 0; k < 4; ++k) a[std::size_t(r * 4 + k)] = P.rows[r][k] / n;
+    return a;
 }
 
 } // namespace fvr::test::dicom

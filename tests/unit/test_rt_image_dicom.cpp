@@ -15,11 +15,13 @@
 #include <fvr/core/dicom/xray_geometry.h>
 #include <fvr/core/errors.h>
 
+#include "dicom_test_support.h"
 #include "test_support.h"
 
 namespace {
 
 using namespace fvr::core;
+using fvr::test::dicom::normalisedP;
 namespace fs = std::filesystem;
 
 DetectorImage drrOf(const TreatmentBeam& beam, int W, int H, double pu, double pv,
@@ -33,19 +35,6 @@ DetectorImage drrOf(const TreatmentBeam& beam, int W, int H, double pu, double p
         for (int c = 0; c < W; ++c)
             img.pixels[std::size_t(r) * W + c] = float(2.0 * std::cos(0.07 * r) * c + 0.5 * r);
     return img;
-}
-
-/** P scaled to unit Frobenius norm, for comparing cameras. */
-std::array<double, 12> normalisedP(const ConeCamera& c) {
-    const ProjectionMatrix P = c.matrix();
-    std::array<double, 12> a{};
-    double n = 0;
-    for (int r = 0; r < 3; ++r)
-        for (int k = 0; k < 4; ++k) n += P.rows[r][k] * P.rows[r][k];
-    n = std::sqrt(n);
-    for (int r = 0; r < 3; ++r)
-        for (int k = 0; k < 4; ++k) a[std::size_t(r * 4 + k)] = P.rows[r][k] / n;
-    return a;
 }
 
 std::string joined(const std::vector<std::string>& v) {

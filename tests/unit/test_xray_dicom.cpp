@@ -16,11 +16,13 @@
 #include <fvr/core/dicom/xray_geometry.h>
 #include <fvr/core/errors.h>
 
+#include "dicom_test_support.h"
 #include "test_support.h"
 
 namespace {
 
 using namespace fvr::core;
+using fvr::test::dicom::normalisedP;
 namespace fs = std::filesystem;
 
 /** Writes a W x H x frames 16-bit image (value = frame * 1000 + row * W + col) of `sopClass`
@@ -69,19 +71,6 @@ std::string joined(const std::vector<std::string>& v) {
     std::string s;
     for (const auto& w : v) s += w + "\n";
     return s;
-}
-
-/** P scaled to unit Frobenius norm with a positive w row sum, for comparing cameras. */
-std::array<double, 12> normalisedP(const ConeCamera& c) {
-    const ProjectionMatrix P = c.matrix();
-    std::array<double, 12> a{};
-    double n = 0;
-    for (int r = 0; r < 3; ++r)
-        for (int k = 0; k < 4; ++k) n += P.rows[r][k] * P.rows[r][k];
-    n = std::sqrt(n);
-    for (int r = 0; r < 3; ++r)
-        for (int k = 0; k < 4; ++k) a[std::size_t(r * 4 + k)] = P.rows[r][k] / n;
-    return a;
 }
 
 std::string errorOf(const std::function<void()>& f) {

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <ctime>
 
 #include <fvr/core/errors.h>
@@ -52,6 +53,43 @@ void putNewInstance(const PutTag& put, const char* sopClassUid, const DicomExpor
     std::strftime(time, sizeof time, "%H%M%S", &tm);
     put(DCM_ContentDate, date);
     put(DCM_ContentTime, time);
+}
+
+bool sameCamera(const ConeCamera& expected, const ConeCamera& actual, int width, int height,
+                double scale) {
+    const double tol = 1e-6 * std::max(1.0, scale);
+    return actual.width == width && actual.height == height &&
+           glm::length(expected.source - actual.source) <= tol &&
+           glm::length(expected.detectorCentre - actual.detectorCentre) <= tol &&
+           glm::length(expected.u - actual.u) <= 1e-6 && glm::length(expected.v - actual.v) <= 1e-6;
+}
+
+std::string decimalString(double v) {
+    char buf[64];
+    for (int precision = 16; precision > 1; --precision) {
+        std::snprintf(buf, sizeof buf, "%.*g", precision, v);
+        if (std::string(buf).size() <= 16) return buf;
+    }
+    return "0";
+}
+
+void putPixels16(const PutTag& put, DcmDataset* dset, const Quantized& q, int rows, int cols,
+                 const std::filesystem::path& path) {
+    dset->putAndInsertUint16(DCM_SamplesPerPixel, 1);
+    dset->putAndInsertUint16(DCM_Rows, Uint16(rows));
+    dset->putAndInsertUint16(DCM_Columns, Uint16(cols));
+    dset->putAndInsertUint16(DCM_BitsAllocated, 16);
+    dset->putAndInsertUint16(DCM_BitsStored, 16);
+    dset->putAndInsertUint16(DCM_HighBit, 15);
+    dset->putAndInsertUint16(DCM_PixelRepresentation, 0);
+    put(DCM_RescaleSlope, decimalString(q.slope));
+    put(DCM_RescaleIntercept, decimalString(q.lo));
+    put(DCM_RescaleType, "US");
+    put(DCM_WindowCenter, decimalString(0.5 * (q.lo + q.hi)));
+    put(DCM_WindowWidth, decimalString(std::max(1e-6, q.hi - q.lo)));
+    if (q.hi - q.lo < 1.0) put(DCM_VOILUTFunction, "LINEAR_EXACT");
+    if (dset->putAndInsertUint16Array(DCM_PixelData, q.stored.data(), q.stored.size()).bad())
+        failWrite(path, "cannot store the pixel data");
 }
 
 } // namespace fvr::core::dicom_write

@@ -1,7 +1,8 @@
 #pragma once
 // What the DICOM writers share (dicom_export.cpp: the Secondary Capture of a parallel
-// projection; xray_export.cpp: a cone-beam DRR as XA): the 16-bit quantisation of float values,
-// the identity of a new instance, and the error naming the file. Not installed.
+// projection; xray_export.cpp: a cone-beam DRR as XA; rt_image_export.cpp: a treatment beam's
+// DRR as RT Image): the 16-bit quantisation of float values and its pixel module, decimal
+// strings, the identity of a new instance, and the error naming the file. Not installed.
 #include <dcmtk/config/osconfig.h>
 #include <dcmtk/dcmdata/dctk.h>
 
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include <fvr/core/dicom/dicom_export.h>
+#include <fvr/core/geometry/camera.h>
 
 namespace fvr::core::dicom_write {
 
@@ -27,6 +29,21 @@ struct Quantized {
 Quantized quantize(const std::vector<float>& pixels);
 
 using PutTag = std::function<void(const DcmTagKey&, const std::string&)>;
+
+/** Whether a DRR's camera is the one its geometry makes (`expected`): the same size, source and
+ *  detector centre within 1e-6 x max(1, scale) mm (scale: the SID), u and v within 1e-6. An
+ *  X-ray or RT Image carries only its own geometry, so the writers check before writing. */
+bool sameCamera(const ConeCamera& expected, const ConeCamera& actual, int width, int height,
+                double scale);
+
+/** A decimal string (DS) of at most 16 characters holding as many digits of v as fit. */
+std::string decimalString(double v);
+
+/** The image pixel module of `q` (one 16-bit unsigned sample, rows x cols per frame, every
+ *  frame in q.stored), its rescale back to the values, a window over them (LINEAR_EXACT for a
+ *  width below 1, the only function that permits it: PS3.3 C.11.2.1.2) and the pixel data. */
+void putPixels16(const PutTag& put, DcmDataset* dset, const Quantized& q, int rows, int cols,
+                 const std::filesystem::path& path);
 
 /** What every object we write carries first: `sopClassUid` and a new instance UID, the export's
  *  study (a new one when it names none) and a new series, the patient, the type 2 attributes

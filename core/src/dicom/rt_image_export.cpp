@@ -23,15 +23,7 @@ using dicom_write::failWrite;
 using dicom_write::Quantized;
 using Put = dicom_write::PutTag;
 
-/** A decimal string (DS) of at most 16 characters holding as many digits of v as fit. */
-std::string ds(double v) {
-    char buf[64];
-    for (int precision = 16; precision > 1; --precision) {
-        std::snprintf(buf, sizeof buf, "%.*g", precision, v);
-        if (std::string(buf).size() <= 16) return buf;
-    }
-    return "0";
-}
+std::string ds(double v) { return dicom_write::decimalString(v); }
 
 std::string ds3(const glm::dvec3& v) { return ds(v.x) + "\\" + ds(v.y) + "\\" + ds(v.z); }
 
@@ -40,11 +32,7 @@ void checkCamera(const DetectorImage& image, const TreatmentBeam& beam) {
     const ConeCamera& c = image.camera;
     const ConeCamera e =
         treatmentBeamCamera(beam, image.width, image.height, c.pitchU, c.pitchV, c.principalOffset);
-    const double tol = 1e-6 * std::max(1.0, beam.sid);
-    if (c.width != image.width || c.height != image.height ||
-        glm::length(e.source - c.source) > tol ||
-        glm::length(e.detectorCentre - c.detectorCentre) > tol || glm::length(e.u - c.u) > 1e-6 ||
-        glm::length(e.v - c.v) > 1e-6)
+    if (!dicom_write::sameCamera(e, c, image.width, image.height, beam.sid))
         throw SettingsError("the DRR's camera is not the treatment beam's imager (gantry " +
                             ds(beam.gantryDeg) + ", couch " + ds(beam.couchDeg) + ", collimator " +
                             ds(beam.collimatorDeg) + " deg, SAD " + ds(beam.sad) + ", SID " +
@@ -135,21 +123,7 @@ void writeRtImageDicom(const std::filesystem::path& path, const DetectorImage& i
     // the other way (LOG: larger line integrals, less intensity: -1).
     put(DCM_PixelIntensityRelationship, info.transmission ? "LIN" : "LOG");
     dset->putAndInsertSint16(DCM_PixelIntensityRelationshipSign, info.transmission ? 1 : -1);
-    dset->putAndInsertUint16(DCM_SamplesPerPixel, 1);
-    dset->putAndInsertUint16(DCM_Rows, Uint16(image.height));
-    dset->putAndInsertUint16(DCM_Columns, Uint16(image.width));
-    dset->putAndInsertUint16(DCM_BitsAllocated, 16);
-    dset->putAndInsertUint16(DCM_BitsStored, 16);
-    dset->putAndInsertUint16(DCM_HighBit, 15);
-    dset->putAndInsertUint16(DCM_PixelRepresentation, 0);
-    put(DCM_RescaleSlope, ds(q.slope));
-    put(DCM_RescaleIntercept, ds(q.lo));
-    put(DCM_RescaleType, "US");
-    put(DCM_WindowCenter, ds(0.5 * (q.lo + q.hi)));
-    put(DCM_WindowWidth, ds(std::max(1e-6, q.hi - q.lo)));
-    if (q.hi - q.lo < 1.0) put(DCM_VOILUTFunction, "LINEAR_EXACT"); // as the XA writer
-    if (dset->putAndInsertUint16Array(DCM_PixelData, q.stored.data(), q.stored.size()).bad())
-        failWrite(path, "cannot store the pixel data");
+    dicom_write::putPixels16(put, dset, q, image.height, image.width, path);
     writeAtomically(path, [&](const std::filesystem::path& tmp) {
         const OFCondition st = file.saveFile(tmp.c_str(), EXS_LittleEndianExplicit);
         if (st.bad()) failWrite(path, st.text());

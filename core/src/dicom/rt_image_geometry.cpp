@@ -15,39 +15,12 @@ namespace fvr::core::dicom_detail {
 
 namespace {
 
-std::string tagText(const DcmTagKey& tag) {
-    return std::string(DcmTag(tag).getTagName()) + " " + tag.toString().c_str();
-}
-
-std::string num(double v) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.6g", v);
-    return buf;
-}
-
-std::string stringOf(DcmItem* item, const DcmTagKey& tag) {
-    OFString s;
-    if (item->findAndGetOFStringArray(tag, s).bad()) return {};
-    std::string r(s.c_str());
-    const auto b = r.find_first_not_of(" \t\r\n");
-    if (b == std::string::npos) return {};
-    return r.substr(b, r.find_last_not_of(" \t\r\n") - b + 1);
-}
-
-/** The values of a DS element: empty when absent or empty; throws naming the file and the tag
- *  when they are not finite numbers or not `count` of them. */
+/** The values of a numeric element (numbersOf): empty when absent or empty; throws naming the
+ *  file and the tag when they are not `count` of them. */
 std::vector<double> numbersOf(DcmItem* item, const DcmTagKey& tag, std::size_t count,
                               const fs::path& file) {
-    std::vector<double> out;
-    DcmElement* e = nullptr;
-    if (item->findAndGetElement(tag, e).bad() || !e || e->getLength() == 0) return out;
-    for (unsigned long i = 0; i < e->getVM(); ++i) {
-        Float64 v = 0;
-        if (item->findAndGetFloat64(tag, v, i).bad() || !std::isfinite(v))
-            fail(file, tagText(tag) + " '" + stringOf(item, tag) + "' is not a list of numbers");
-        out.push_back(v);
-    }
-    if (out.size() != count)
+    std::vector<double> out = dicom_detail::numbersOf(item, tag, file);
+    if (!out.empty() && out.size() != count)
         fail(file, tagText(tag) + " holds " + std::to_string(out.size()) + " values, expected " +
                        std::to_string(count));
     return out;

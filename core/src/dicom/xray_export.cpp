@@ -28,26 +28,14 @@ using dicom_write::failWrite;
 using dicom_write::quantize;
 using dicom_write::Quantized;
 
-/** A decimal string (DS) of at most 16 characters holding as many digits of v as fit. */
-std::string ds(double v) {
-    char buf[64];
-    for (int precision = 16; precision > 1; --precision) {
-        std::snprintf(buf, sizeof buf, "%.*g", precision, v);
-        if (std::string(buf).size() <= 16) return buf;
-    }
-    return "0";
-}
+std::string ds(double v) { return dicom_write::decimalString(v); }
 
 /** Throws SettingsError unless the image's camera is the C-arm's. */
 void checkCamera(const DetectorImage& image, const CArm& arm) {
     const ConeCamera& c = image.camera;
     const ConeCamera e =
         cArmCamera(arm, image.width, image.height, c.pitchU, c.pitchV, c.principalOffset);
-    const double tol = 1e-6 * std::max(1.0, arm.sid);
-    if (c.width != image.width || c.height != image.height ||
-        glm::length(e.source - c.source) > tol ||
-        glm::length(e.detectorCentre - c.detectorCentre) > tol || glm::length(e.u - c.u) > 1e-6 ||
-        glm::length(e.v - c.v) > 1e-6)
+    if (!dicom_write::sameCamera(e, c, image.width, image.height, arm.sid))
         throw SettingsError("the DRR's camera is not the C-arm's (primary " + ds(arm.primaryDeg) +
                             ", secondary " + ds(arm.secondaryDeg) + " deg, SID " + ds(arm.sid) +
                             ", SOD " + ds(arm.sod) +
@@ -178,23 +166,7 @@ void writeXrayDicomRun(const std::filesystem::path& path, const std::vector<Dete
     // The X-Ray Image module's defined terms: LOG for attenuation (line integrals, the log of
     // the transmitted intensity), LIN for values proportional to the beam's intensity.
     put(DCM_PixelIntensityRelationship, info.transmission ? "LIN" : "LOG");
-    dset->putAndInsertUint16(DCM_SamplesPerPixel, 1);
-    dset->putAndInsertUint16(DCM_Rows, Uint16(first.height));
-    dset->putAndInsertUint16(DCM_Columns, Uint16(first.width));
-    dset->putAndInsertUint16(DCM_BitsAllocated, 16);
-    dset->putAndInsertUint16(DCM_BitsStored, 16);
-    dset->putAndInsertUint16(DCM_HighBit, 15);
-    dset->putAndInsertUint16(DCM_PixelRepresentation, 0);
-    put(DCM_RescaleSlope, ds(q.slope));
-    put(DCM_RescaleIntercept, ds(q.lo));
-    put(DCM_RescaleType, "US");
-    put(DCM_WindowCenter, ds(0.5 * (q.lo + q.hi)));
-    put(DCM_WindowWidth, ds(std::max(1e-6, q.hi - q.lo)));
-    // A width below 1 (transmitted intensities in 0..1) is permitted only with LINEAR_EXACT
-    // (PS3.3 C.11.2.1.2, VOI LUT Function), which maps the window's ends exactly as written.
-    if (q.hi - q.lo < 1.0) put(DCM_VOILUTFunction, "LINEAR_EXACT");
-    if (dset->putAndInsertUint16Array(DCM_PixelData, q.stored.data(), q.stored.size()).bad())
-        failWrite(path, "cannot store the pixel data");
+    dicom_write::putPixels16(put, dset, q, first.height, first.width, path);
     writeAtomically(path, [&](const std::filesystem::path& tmp) {
         const OFCondition st = file.saveFile(tmp.c_str(), EXS_LittleEndianExplicit);
         if (st.bad()) failWrite(path, st.text());

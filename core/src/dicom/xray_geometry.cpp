@@ -21,13 +21,7 @@
 
 namespace fvr::core {
 
-using namespace dicom_detail;
-
-namespace {
-
-constexpr double kDefaultSid = 1000.0; ///< mm, a C-arm's or a table radiograph's
-constexpr double kDefaultSodFraction = 0.75; ///< SOD = SID x 0.75 (a cardiac C-arm's)
-const char* const kPrivateCreator = "FVR Workstation";
+namespace dicom_detail {
 
 /** "DistanceSourceToDetector (0018,1110)". */
 std::string tagText(const DcmTagKey& tag) {
@@ -67,6 +61,16 @@ std::vector<double> numbersOf(DcmItem* item, const DcmTagKey& tag, const fs::pat
     }
     return out;
 }
+
+} // namespace dicom_detail
+
+using namespace dicom_detail;
+
+namespace {
+
+constexpr double kDefaultSid = 1000.0; ///< mm, a C-arm's or a table radiograph's
+constexpr double kDefaultSodFraction = 0.75; ///< SOD = SID x 0.75 (a cardiac C-arm's)
+const char* const kPrivateCreator = "FVR Workstation";
 
 std::optional<double> numberOf(DcmItem* item, const DcmTagKey& tag, const fs::path& file) {
     const std::vector<double> v = numbersOf(item, tag, file);
