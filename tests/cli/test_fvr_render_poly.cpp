@@ -1,6 +1,8 @@
 // fvr-render --kvp end to end: I/I0 against the exact spectral sum of the written
 // material line integrals, the materials against the monochromatic mu projection (they keep
 // the attenuation at 70 keV), kVp, noise, the sidecar and the option errors.
+#include <unistd.h>
+
 #include <cmath>
 #include <fstream>
 #include <iterator>
@@ -20,7 +22,10 @@ using namespace fvr::core;
 
 namespace {
 
-std::string tmp(const std::string& name) { return (fvr::test::tmpDir() / name).string(); }
+std::string tmp(const std::string& name) {
+    // Of this process: ctest runs the tests in parallel processes.
+    return (fvr::test::tmpDir() / ("poly_" + std::to_string(getpid()) + "_" + name)).string();
+}
 
 fvr::test::CommandOutput render(const std::string& args) {
     return fvr::test::runCommand(std::string(FVR_RENDER_EXE) + " " + args + " 2>&1");

@@ -28,10 +28,7 @@ void writeDicomProjection(const std::filesystem::path& path, const ProjectionIma
 
     DcmFileFormat file;
     DcmDataset* ds = file.getDataset();
-    auto put = [&](const DcmTagKey& tag, const std::string& value) {
-        if (ds->putAndInsertString(tag, value.c_str()).bad())
-            failWrite(path, std::string("cannot set DICOM tag ") + DcmTag(tag).getTagName());
-    };
+    const dicom_write::PutTag put = dicom_write::putterFor(ds, path);
     // The Secondary Capture IOD's type 2 attributes: present, empty when unknown.
     dicom_write::putNewInstance(put, UID_SecondaryCaptureImageStorage, info,
                                 {DCM_PatientBirthDate, DCM_PatientSex, DCM_ReferringPhysicianName,

@@ -64,6 +64,13 @@ bool sameCamera(const ConeCamera& expected, const ConeCamera& actual, int width,
            glm::length(expected.u - actual.u) <= 1e-6 && glm::length(expected.v - actual.v) <= 1e-6;
 }
 
+PutTag putterFor(DcmDataset* dset, const std::filesystem::path& path) {
+    return [dset, path](const DcmTagKey& tag, const std::string& value) {
+        if (dset->putAndInsertString(tag, value.c_str()).bad())
+            failWrite(path, std::string("cannot set DICOM tag ") + DcmTag(tag).getTagName());
+    };
+}
+
 std::string decimalString(double v) {
     char buf[64];
     for (int precision = 16; precision > 1; --precision) {

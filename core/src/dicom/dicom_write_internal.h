@@ -30,6 +30,9 @@ Quantized quantize(const std::vector<float>& pixels);
 
 using PutTag = std::function<void(const DcmTagKey&, const std::string&)>;
 
+/** Puts a string value into `dset`; WriteError naming the file and the tag when DCMTK refuses. */
+PutTag putterFor(DcmDataset* dset, const std::filesystem::path& path);
+
 /** Whether a DRR's camera is the one its geometry makes (`expected`): the same size, source and
  *  detector centre within 1e-6 x max(1, scale) mm (scale: the SID), u and v within 1e-6. An
  *  X-ray or RT Image carries only its own geometry, so the writers check before writing. */

@@ -111,10 +111,7 @@ void writeRtImageDicom(const std::filesystem::path& path, const DetectorImage& i
 
     DcmFileFormat file;
     DcmDataset* dset = file.getDataset();
-    const Put put = [&](const DcmTagKey& tag, const std::string& value) {
-        if (dset->putAndInsertString(tag, value.c_str()).bad())
-            failWrite(path, std::string("cannot set DICOM tag ") + DcmTag(tag).getTagName());
-    };
+    const Put put = dicom_write::putterFor(dset, path);
     putIdentity(put, info);
     putGeometry(put, image, beam);
     put(DCM_PhotometricInterpretation, "MONOCHROME2");

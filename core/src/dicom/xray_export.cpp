@@ -155,10 +155,7 @@ void writeXrayDicomRun(const std::filesystem::path& path, const std::vector<Dete
 
     DcmFileFormat file;
     DcmDataset* dset = file.getDataset();
-    const Put put = [&](const DcmTagKey& tag, const std::string& value) {
-        if (dset->putAndInsertString(tag, value.c_str()).bad())
-            failWrite(path, std::string("cannot set DICOM tag ") + DcmTag(tag).getTagName());
-    };
+    const Put put = dicom_write::putterFor(dset, path);
     putIdentity(put, info);
     putGeometry(put, dset, first, arms[0], path);
     if (views.size() > 1) putRun(put, dset, arms, path);
