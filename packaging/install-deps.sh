@@ -12,7 +12,7 @@ packages=(
   build-essential dpkg-dev cmake pkg-config ninja-build python3
   libfftw3-dev zlib1g-dev libcli11-dev nlohmann-json3-dev libglm-dev
   libdcmtk-dev libopenjp2-7-dev
-  libxrl-dev
+  libxrl-dev libnlopt-dev
   qt6-base-dev libqt6opengl6-dev libgl-dev libepoxy-dev libegl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev clang-format
