@@ -105,7 +105,7 @@ Json runOne(const Config& c, const Volume& ct, const std::vector<ConeCamera>& ca
 
 } // namespace
 
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
     Config c;
     CLI::App app{"fvr_register_eval: 2D/3D registration against simulated X-rays"};
     app.add_option("ct", c.ct, "CT: DICOM folder, volume file or phantom:chest")->required();
@@ -189,4 +189,13 @@ int main(int argc, char** argv) {
     std::printf("summary %s\n", summary.dump().c_str());
     if (!c.json.empty()) std::ofstream(c.json) << Json{{"summary", summary}, {"runs", all}}.dump(1);
     return 0;
+}
+
+int main(int argc, char** argv) {
+    try {
+        return run(argc, argv);
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "fvr_register_eval: %s\n", e.what());
+        return 1;
+    }
 }
