@@ -25,6 +25,8 @@
 #include <fvr/core/render/cone_projector.h>
 #include <fvr/core/text.h>
 
+#include "render_cli/json_output.h"
+
 #ifdef FVR_HAVE_GPU
 #include <fvr/gpu/cone_ray_caster.h>
 #include <fvr/gpu/egl_context.h>
@@ -75,7 +77,7 @@ std::vector<double> numberList(const std::string& text, std::size_t count, const
     return v;
 }
 
-/** The levels of --preset, or of --levels "FACTOR:VOXELMM:EVALS[:STEPDEG:STEPMM],...". */
+/** The levels of --preset, or of --levels "PIXELS:VOXELMM:EVALS[:STEPDEG:STEPMM],...". */
 std::vector<RegistrationLevel> parseLevels(const Args& a) {
     if (a.levels.empty()) {
         const RegistrationOptions defaults;
@@ -98,21 +100,22 @@ std::vector<RegistrationLevel> parseLevels(const Args& a) {
         const std::size_t n = std::size_t(std::count(item.begin(), item.end(), ':')) + 1;
         if (n != 3 && n != 5)
             throw SettingsError("--levels '" + a.levels + "': level '" + item +
-                                "' is not FACTOR:VOXELMM:EVALS[:STEPDEG:STEPMM]");
+                                "' is not PIXELS:VOXELMM:EVALS[:STEPDEG:STEPMM]");
         const std::vector<double> v = numberList(colons, n, "--levels");
         RegistrationLevel l;
-        l.imageFactor = int(v[0]);
+        l.imagePixels = int(v[0]);
         l.voxelMm = v[1];
         l.maxEvaluations = int(v[2]);
         if (n == 5) {
             l.stepDeg = v[3];
             l.stepMm = v[4];
         }
-        if (v[0] != l.imageFactor || l.imageFactor < 1 || l.voxelMm < 0 || l.maxEvaluations < 1 ||
+        if (v[0] != l.imagePixels || l.imagePixels < 0 || l.voxelMm < 0 || l.maxEvaluations < 1 ||
             !(l.stepDeg > 0) || !(l.stepMm > 0))
-            throw SettingsError("--levels '" + a.levels + "': level '" + item +
-                                "': factor >= 1 (whole), voxel mm >= 0, evaluations >= 1, "
-                                "steps > 0");
+            throw SettingsError(
+                "--levels '" + a.levels + "': level '" + item +
+                "': pixels >= 0 (whole; 0: full resolution), voxel mm >= 0, evaluations >= 1, "
+                "steps > 0");
         levels.push_back(l);
     }
     return levels;
@@ -136,8 +139,10 @@ std::optional<Args> parseArgs(int argc, char** argv) {
                    "target points for mTRE (x,y,z per line, LPS mm; default: the corners of a "
                    "100 mm cube at the isocentre)");
     app.add_option("--similarity", a.similarity, "ncc or gradient-ncc")->capture_default_str();
-    app.add_option("--levels", a.levels,
-                   "the pyramid, coarse to fine: FACTOR:VOXELMM:EVALS[:STEPDEG:STEPMM],...");
+    app.add_option(
+        "--levels", a.levels,
+        "the pyramid, coarse to fine: PIXELS:VOXELMM:EVALS[:STEPDEG:STEPMM],... (PIXELS: "
+        "the X-ray's larger side at the level, 0 full; VOXELMM: the CT's, 0 as it is)");
     app.add_option("--preset", a.preset, "fast, default or fine (without --levels)")
         ->capture_default_str();
     app.add_option("--global", a.global, "Halton samples of the global stage (0: none)")
@@ -409,7 +414,7 @@ Json resultJson(const Args& a, const Inputs& in, const OpenedStudy& study, const
     for (const XrayInput& x : in.xrays) xrays.push_back(xrayJson(x));
     Json levels = Json::array();
     for (const RegistrationLevel& l : in.options.levels)
-        levels.push_back({{"image_factor", l.imageFactor},
+        levels.push_back({{"image_pixels", l.imagePixels},
                           {"voxel_mm", l.voxelMm},
                           {"max_evaluations", l.maxEvaluations},
                           {"step_deg", l.stepDeg},
@@ -483,9 +488,7 @@ int run(const Args& a) {
     if (in.truth) result["evaluation"] = evaluationJson(in, poseMatrix(init, in.centre), r.matrix);
     result["overlays"] =
         writeOverlays(in, study.volume, in.options, poseMatrix(init, in.centre), r.matrix);
-    std::ostringstream text;
-    text << result.dump(2, ' ', false, Json::error_handler_t::replace) << "\n";
-    writeFileAtomic(in.out, text.str());
+    writeFileAtomic(in.out, fvr::cli::jsonText(result)); // fvr-render's layout
     std::fprintf(stderr, "fvr-register: similarity %.4f -> %.4f in %.2f s; wrote %s\n",
                  r.similarityBefore, r.similarityAfter, r.seconds, in.out.c_str());
     if (result.contains("evaluation"))

@@ -256,13 +256,17 @@ std::vector<float> imageFrame(const fs::path& path, const std::string& ext, int 
             pixels.begin() + std::ptrdiff_t(n * (std::size_t(frame) + 1))};
 }
 
-/** The sidecar's output quantity: line integrals, or transmitted intensities (Beer-Lambert:
- *  exposure x exp(-mu L)) whose -ln(I / exposure) / mu gives the line integrals back. */
+/** The sidecar's output quantity: line integrals; transmitted intensities (Beer-Lambert:
+ *  exposure x exp(-mu L)) whose -ln(I / exposure) / mu gives the line integrals back; or a
+ *  polychromatic render's I/I0 (relative to the open beam: I0 = 1). A PNG holds display levels:
+ *  of the line integrals, or of -ln(I/I0) for a polychromatic render (both taken as line
+ *  integrals), or a film's densities for Beer-Lambert (refused). */
 void sidecarValues(XrayInput& x, const Json& j, const std::string& ext, XrayValues values,
                    const fs::path& sidecar) {
     const Json out = j.value("output", Json::object());
     const std::string quantity = out.is_object() ? out.value("values", std::string()) : "";
     const bool transmission = quantity == "transmission";
+    const bool relative = quantity.rfind("I/I0", 0) == 0;
     if (ext == ".png") {
         if (transmission)
             failLoad(x.file, "a PNG of a Beer-Lambert render holds film densities, not "
@@ -271,11 +275,14 @@ void sidecarValues(XrayInput& x, const Json& j, const std::string& ext, XrayValu
                              "clipped outside it; .npy or .pfm keeps the values");
     }
     XrayValues v = values;
-    if (v == XrayValues::Auto) v = transmission ? XrayValues::Intensity : XrayValues::LineIntegrals;
+    if (v == XrayValues::Auto)
+        v = (transmission || relative) && ext != ".png" ? XrayValues::Intensity
+                                                        : XrayValues::LineIntegrals;
     if (v == XrayValues::LineIntegrals) {
         x.valuesNote =
             "line integrals as stored (" +
-            (quantity.empty() ? std::string("the sidecar states no quantity") : quantity) + ")";
+            (quantity.empty() ? std::string("the sidecar states no quantity") : quantity) +
+            (ext == ".png" ? ", PNG display levels" : "") + ")";
         return;
     }
     const double mu = out.is_object() ? out.value("mu_water_per_mm", 0.0) : 0.0;
@@ -283,6 +290,8 @@ void sidecarValues(XrayInput& x, const Json& j, const std::string& ext, XrayValu
     if (transmission && mu > 0.0 && exposure > 0.0)
         intensityToLineIntegrals(x, exposure, mu,
                                  "the exposure " + sidecar.filename().string() + " states");
+    else if (relative)
+        intensityToLineIntegrals(x, 1.0, 1.0, "the open beam, as " + quantity);
     else
         intensityToLineIntegrals(x, 0.0, 1.0, "the 99.5th percentile of the frame");
 }
