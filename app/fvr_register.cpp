@@ -188,16 +188,17 @@ struct Inputs {
     fs::path out, overlayPrefix;
 };
 
-/** WriteError when `file` cannot be written: a folder, or its folder missing or read-only. */
+/** SettingsError (a bad option: exit status 2) when `file` cannot be written: a folder, or its
+ * folder missing or read-only. */
 void checkWritable(const fs::path& file, const std::string& what) {
-    if (fs::is_directory(file)) throw WriteError(what + " " + file.string() + ": is a folder");
+    if (fs::is_directory(file)) throw SettingsError(what + " " + file.string() + ": is a folder");
     const fs::path dir = file.parent_path().empty() ? fs::path(".") : file.parent_path();
     if (!fs::is_directory(dir))
-        throw WriteError(what + " " + file.string() + ": the folder " + dir.string() +
-                         " does not exist");
+        throw SettingsError(what + " " + file.string() + ": the folder " + dir.string() +
+                            " does not exist");
     if (access(dir.c_str(), W_OK) != 0)
-        throw WriteError(what + " " + file.string() + ": the folder " + dir.string() +
-                         " is not writable");
+        throw SettingsError(what + " " + file.string() + ": the folder " + dir.string() +
+                            " is not writable");
 }
 
 fs::path overlayPrefixOf(const Args& a) {
