@@ -21,6 +21,7 @@
 
 #ifdef FVR_EVAL_GPU
 #include <fvr/gpu/drr_renderer.h>
+#include <fvr/gpu/egl_context.h>
 #endif
 
 using namespace fvr::core;
@@ -34,7 +35,9 @@ struct Config {
     double rangeDeg = 10.0, rangeMm = 20.0, sid = 1000.0, sod = 750.0;
     unsigned seed = 1;
     std::string similarity = "gradient-ncc", json;
-    bool gpu = false;
+    bool gpu = false, noCoverage = false;
+    double detectorBlur = 0.0;
+    XraySimulation sim;
 };
 
 double median(std::vector<double> v) {
@@ -64,7 +67,7 @@ Json runOne(const Config& c, const Volume& ct, const std::vector<ConeCamera>& ca
     const glm::dmat4 tTruth = poseMatrix(truth, centre);
     std::vector<RegistrationView> views;
     for (std::size_t v = 0; v < cams.size(); ++v) {
-        XraySimulation sim;
+        XraySimulation sim = c.sim;
         sim.seed = std::uint64_t(c.seed) * 1000 + std::uint64_t(index) * 10 + v;
         sim.threads = c.threads;
         views.push_back(
@@ -74,18 +77,22 @@ Json runOne(const Config& c, const Volume& ct, const std::vector<ConeCamera>& ca
     const std::vector<glm::dvec3> targets = cubeCorners(centre, 100.0);
     const double before = meanTargetError(tTruth, glm::dmat4(1.0), targets);
     const double after = meanTargetError(tTruth, r.matrix, targets);
-    Json j{{"index", index},
-           {"truth_rotation_deg", {truth.rotationDeg.x, truth.rotationDeg.y, truth.rotationDeg.z}},
-           {"truth_translation_mm",
-            {truth.translationMm.x, truth.translationMm.y, truth.translationMm.z}},
-           {"mtre_before_mm", before},
-           {"mtre_mm", after},
-           {"success", after < 2.0},
-           {"seconds", r.seconds},
-           {"evaluations", r.evaluations},
-           {"drrs", r.drrs},
-           {"similarity_before", r.similarityBefore},
-           {"similarity_after", r.similarityAfter}};
+    Json j{
+        {"index", index},
+        {"truth_rotation_deg", {truth.rotationDeg.x, truth.rotationDeg.y, truth.rotationDeg.z}},
+        {"truth_translation_mm",
+         {truth.translationMm.x, truth.translationMm.y, truth.translationMm.z}},
+        {"found_rotation_deg", {r.pose.rotationDeg.x, r.pose.rotationDeg.y, r.pose.rotationDeg.z}},
+        {"found_translation_mm",
+         {r.pose.translationMm.x, r.pose.translationMm.y, r.pose.translationMm.z}},
+        {"mtre_before_mm", before},
+        {"mtre_mm", after},
+        {"success", after < 2.0},
+        {"seconds", r.seconds},
+        {"evaluations", r.evaluations},
+        {"drrs", r.drrs},
+        {"similarity_before", r.similarityBefore},
+        {"similarity_after", r.similarityAfter}};
     for (const StageReport& s : r.stages)
         j["stages"].push_back({{"name", s.name},
                                {"seconds", s.seconds},
@@ -111,6 +118,12 @@ int main(int argc, char** argv) {
     app.add_option("--threads", c.threads, "CPU threads");
     app.add_option("--seed", c.seed, "pose and noise seed");
     app.add_option("--similarity", c.similarity, "ncc or gradient-ncc");
+    app.add_flag("--no-coverage", c.noCoverage, "no coverage mask");
+    app.add_option("--detector-blur", c.detectorBlur, "the blur the registration models (px)");
+    app.add_option("--sim-kvp", c.sim.kvp, "simulated tube kVp");
+    app.add_option("--sim-mas", c.sim.mAs, "simulated exposure (0: no noise)");
+    app.add_option("--sim-blur", c.sim.blurPixels, "simulated detector blur (pixels)");
+    app.add_option("--sim-hu", c.sim.huOffset, "simulated CT number offset (HU)");
     app.add_option("--json", c.json, "write every registration's JSON here");
 #ifdef FVR_EVAL_GPU
     app.add_flag("--gpu", c.gpu, "render the DRRs on the GPU (headless EGL)");
@@ -123,10 +136,13 @@ int main(int argc, char** argv) {
     options.similarity = parseSimilarity(c.similarity);
     options.projector.threads = c.threads;
     options.globalSamples = c.global;
+    options.coverageMask = !c.noCoverage;
+    options.detectorBlurPixels = c.detectorBlur;
 #ifdef FVR_EVAL_GPU
-    std::unique_ptr<fvr::gpu::HeadlessGpu> gpu;
+    std::unique_ptr<fvr::gpu::EglContext> gpu;
     if (c.gpu) {
-        gpu = std::make_unique<fvr::gpu::HeadlessGpu>();
+        gpu = std::make_unique<fvr::gpu::EglContext>();
+        std::fprintf(stderr, "GPU: %s\n", gpu->description().c_str());
         options.renderer = fvr::gpu::gpuDrrRendererFactory();
     }
 #endif
@@ -157,7 +173,14 @@ int main(int argc, char** argv) {
                        {"median_seconds", median(seconds)},
                        {"threads", c.threads},
                        {"global", c.global},
-                       {"gpu", c.gpu}};
+                       {"gpu", c.gpu},
+                       {"coverage_mask", !c.noCoverage},
+                       {"detector_blur_px", c.detectorBlur},
+                       {"simulation",
+                        {{"kvp", c.sim.kvp},
+                         {"mAs", c.sim.mAs},
+                         {"blur_px", c.sim.blurPixels},
+                         {"hu_offset", c.sim.huOffset}}}};
     std::printf("summary %s\n", summary.dump().c_str());
     if (!c.json.empty()) std::ofstream(c.json) << Json{{"summary", summary}, {"runs", all}}.dump(1);
     return 0;

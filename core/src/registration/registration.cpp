@@ -10,6 +10,7 @@
 #include <nlopt.h>
 
 #include <fvr/core/errors.h>
+#include <fvr/core/xray/xray.h>
 
 namespace fvr::core {
 
@@ -33,6 +34,7 @@ public:
         for (const RegistrationView& v : views) {
             const int f = levelImageFactor(v.camera.width, v.camera.height, level.imagePixels);
             m_cameras.push_back(downsampleCamera(v.camera, f));
+            m_blur.push_back(options.detectorBlurPixels / double(f));
             m_images.push_back(
                 downsampleImage({v.camera.width, v.camera.height, v.image, v.mask}, f));
         }
@@ -53,7 +55,10 @@ public:
         ++m_evaluations;
         m_drrs += int(drrs.size());
         double sum = 0.0;
-        for (std::size_t v = 0; v < drrs.size(); ++v) sum += viewSimilarity(v, drrs[v], t);
+        for (std::size_t v = 0; v < drrs.size(); ++v) {
+            if (m_blur[v] > 0.0) blurAsDetector(drrs[v], m_blur[v]);
+            sum += viewSimilarity(v, drrs[v], t);
+        }
         return sum / double(drrs.size());
     }
 
@@ -64,6 +69,14 @@ public:
     int drrs() const { return m_drrs; }
 
 private:
+    /** Line integrals in mm of water (the Mu mapping) to I/I0 at 70 keV, blurred, and back. */
+    static void blurAsDetector(DetectorImage& drr, double sigma) {
+        static const float mu = float(waterAttenuationPerMm(70.0));
+        for (float& p : drr.pixels) p = std::exp(-mu * p);
+        gaussianBlur(drr.pixels, drr.width, drr.height, sigma);
+        for (float& p : drr.pixels) p = -std::log(std::max(p, 1e-30f)) / mu;
+    }
+
     double viewSimilarity(std::size_t v, const DetectorImage& drr, const glm::dmat4& t) const {
         const MaskedImage& x = m_images[v];
         std::vector<std::uint8_t> mask = x.mask;
@@ -84,6 +97,7 @@ private:
     std::unique_ptr<DrrRenderer> m_renderer;
     std::vector<ConeCamera> m_cameras;
     std::vector<MaskedImage> m_images;
+    std::vector<double> m_blur; ///< per view, in this level's pixels
     int m_evaluations = 0, m_drrs = 0;
 };
 

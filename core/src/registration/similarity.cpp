@@ -1,6 +1,7 @@
 // NCC, gradient NCC and the image pyramid of the registration (registration/similarity.h).
 #include <fvr/core/registration/similarity.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include <fvr/core/errors.h>
@@ -146,6 +147,33 @@ ConeCamera downsampleCamera(const ConeCamera& camera, int factor) {
     c.pitchU = camera.pitchU * f;
     c.pitchV = camera.pitchV * f;
     return c;
+}
+
+void gaussianBlur(std::vector<float>& image, int width, int height, double sigma) {
+    if (sigma <= 0.0) return;
+    const int r = std::max(1, int(std::ceil(3.0 * sigma)));
+    std::vector<double> k(std::size_t(2 * r + 1));
+    double sum = 0.0;
+    for (int i = -r; i <= r; ++i)
+        sum += k[std::size_t(i + r)] = std::exp(-0.5 * i * i / (sigma * sigma));
+    for (double& w : k) w /= sum;
+    std::vector<float> tmp(image.size());
+    for (int y = 0; y < height; ++y) // rows
+        for (int x = 0; x < width; ++x) {
+            double acc = 0.0;
+            for (int i = -r; i <= r; ++i)
+                acc += k[std::size_t(i + r)] *
+                       image[std::size_t(y) * width + std::clamp(x + i, 0, width - 1)];
+            tmp[std::size_t(y) * width + x] = float(acc);
+        }
+    for (int y = 0; y < height; ++y) // columns
+        for (int x = 0; x < width; ++x) {
+            double acc = 0.0;
+            for (int i = -r; i <= r; ++i)
+                acc += k[std::size_t(i + r)] *
+                       tmp[std::size_t(std::clamp(y + i, 0, height - 1)) * width + x];
+            image[std::size_t(y) * width + x] = float(acc);
+        }
 }
 
 } // namespace fvr::core

@@ -92,6 +92,13 @@ struct RegistrationOptions {
     double boundDeg = 30.0;
     double boundMm = 60.0;
     bool coverageMask = true;
+    /** The X-rays' detector blur, a Gaussian's standard deviation in their full-resolution
+     *  pixels (0: none). The DRRs get the same blur of their intensities exp(-p) before -ln, as a
+     *  detector blurs the light it converts: a blur applied to intensities moves the edges of a
+     *  radiograph's line integrals inward, which a sharp DRR would match by a wrong
+     *  magnification (a depth error in a single view). The intensities are those of water's
+     *  attenuation at 70 keV (the Mu mapping's line integrals are mm of water). */
+    double detectorBlurPixels = 0.0;
     ConeProjectorOptions projector; ///< the model and threads; mapping Mu by default
     DrrRendererFactory renderer; ///< empty: cpuDrrRenderer
     std::function<void(const RegistrationProgress&)> progress;

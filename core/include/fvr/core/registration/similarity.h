@@ -47,4 +47,8 @@ MaskedImage downsampleImage(const MaskedImage& image, int factor);
  *  that each new pixel's centre is its block's centre. */
 ConeCamera downsampleCamera(const ConeCamera& camera, int factor);
 
+/** A Gaussian blur of standard deviation `sigma` pixels (separable, the edges clamped), in
+ *  place; sigma <= 0 leaves the image as it is. */
+void gaussianBlur(std::vector<float>& image, int width, int height, double sigma);
+
 } // namespace fvr::core

@@ -33,8 +33,4 @@ struct XraySimulation {
 std::vector<float> simulateXray(const Volume& ct, const ConeCamera& camera, const glm::dmat4& T,
                                 const XraySimulation& simulation = {});
 
-/** A Gaussian blur of standard deviation `sigma` pixels (separable, the edges clamped), in
- *  place; sigma <= 0 leaves the image as it is. */
-void gaussianBlur(std::vector<float>& image, int width, int height, double sigma);
-
 } // namespace fvr::core
