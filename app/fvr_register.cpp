@@ -28,7 +28,7 @@
 #include "render_cli/json_output.h"
 
 #ifdef FVR_HAVE_GPU
-#include <fvr/gpu/cone_ray_caster.h>
+#include <fvr/gpu/drr_renderer.h>
 #include <fvr/gpu/egl_context.h>
 #endif
 
@@ -50,6 +50,7 @@ struct Args {
     int threads = 0;
     bool gpu = false;
     bool noCoverageMask = false;
+    double detectorBlur = 0.0;
 };
 
 /** "a,b,c" as numbers; SettingsError naming the option otherwise. */
@@ -158,6 +159,10 @@ std::optional<Args> parseArgs(int argc, char** argv) {
     app.add_flag("--gpu", a.gpu, "render the DRRs on the GPU (EGL) where the build has one");
     app.add_flag("--no-coverage-mask", a.noCoverageMask,
                  "count pixels whose rays leave the CT through its cut ends");
+    app.add_option("--detector-blur", a.detectorBlur,
+                   "the X-rays' detector blur, a Gaussian's sigma in pixels, given to the DRRs "
+                   "too (0: none)")
+        ->capture_default_str();
     app.add_option("--overlay-prefix", a.overlayPrefix,
                    "PATH: PATH-before-blend.png, PATH-after-blend.png, -before-checker, "
                    "-after-checker (default: --out without .json)");
@@ -257,35 +262,13 @@ Inputs readInputs(const Args& a, const glm::dvec3& centre) {
     if (a.threads < 0) throw SettingsError("--threads: expected >= 0");
     o.projector.threads = a.threads;
     o.coverageMask = !a.noCoverageMask;
+    if (!(a.detectorBlur >= 0.0) || !std::isfinite(a.detectorBlur))
+        throw SettingsError("--detector-blur: expected a sigma in pixels >= 0");
+    o.detectorBlurPixels = a.detectorBlur;
     o.centreSet = true;
     o.centre = centre;
     return in;
 }
-
-#ifdef FVR_HAVE_GPU
-/** The GPU's cone-beam ray caster as the registration's renderer (the EGL context current on the
- *  registering thread, made by the caller). */
-class GpuDrrRenderer final : public DrrRenderer {
-public:
-    GpuDrrRenderer(const Volume& volume, const ConeProjectorOptions& options)
-        : m_caster(volume, options) {}
-    std::vector<DetectorImage> render(const std::vector<ConeCamera>& cameras) override {
-        bool sameSize = true;
-        for (const ConeCamera& c : cameras)
-            sameSize = sameSize && c.width == cameras[0].width && c.height == cameras[0].height;
-        if (sameSize) return m_caster.projectMany(cameras); // one dispatch
-        std::vector<DetectorImage> out;
-        for (const ConeCamera& c : cameras) out.push_back(m_caster.project(c));
-        return out;
-    }
-    std::string describe() const override {
-        return fvr::gpu::describeConeRayCaster(m_caster.options(), m_caster.fetch());
-    }
-
-private:
-    fvr::gpu::ConeRayCaster m_caster;
-};
-#endif
 
 /** The renderer factory: the GPU's for --gpu where the build and the machine have one (the
  *  context kept in `context`), else empty (the CPU's). */
@@ -294,9 +277,7 @@ DrrRendererFactory rendererFactory(bool gpu, std::shared_ptr<void>& context) {
 #ifdef FVR_HAVE_GPU
     try {
         context = std::make_shared<fvr::gpu::EglContext>();
-        return [](const Volume& v, const ConeProjectorOptions& o) -> std::unique_ptr<DrrRenderer> {
-            return std::make_unique<GpuDrrRenderer>(v, o);
-        };
+        return fvr::gpu::gpuDrrRendererFactory();
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fvr-register: the GPU cannot render (%s); the CPU does\n", e.what());
         return {};
@@ -438,6 +419,7 @@ Json resultJson(const Args& a, const Inputs& in, const OpenedStudy& study, const
                  {{"levels", levels},
                   {"global_samples", in.options.globalSamples},
                   {"coverage_mask", in.options.coverageMask},
+                  {"detector_blur_px", in.options.detectorBlurPixels},
                   {"threads", in.options.projector.threads},
                   {"gpu_asked", a.gpu}}},
                 {"inputs",

@@ -696,7 +696,7 @@ py::dict registerPose(
     std::vector<double> initParams, const std::string& similarity,
     const std::vector<std::vector<double>>& levels, int globalSamples,
     std::optional<glm::dvec3> centre, int threads, const std::vector<ByteImage>& masks,
-    bool coverageMask, py::object progress) {
+    bool coverageMask, double detectorBlur, py::object progress) {
     const std::vector<core::RegistrationView> views = registrationViews(images, cameras, masks);
     core::RegistrationOptions o;
     o.similarity = core::parseSimilarity(similarity);
@@ -707,6 +707,7 @@ py::dict registerPose(
     o.centre = centre ? *centre : core::volumeCentre(*volume.volume);
     o.projector.threads = threads;
     o.coverageMask = coverageMask;
+    o.detectorBlurPixels = detectorBlur;
     core::Pose init;
     if (initMatrix) {
         const auto& m = *initMatrix;
@@ -757,7 +758,7 @@ PYBIND11_MODULE(_fvr, m) {
     m.def("register_pose", &registerPose, py::arg("volume"), py::arg("images"), py::arg("cameras"),
           py::arg("init_matrix"), py::arg("init_params"), py::arg("similarity"), py::arg("levels"),
           py::arg("global_samples"), py::arg("centre"), py::arg("threads"), py::arg("masks"),
-          py::arg("coverage_mask"), py::arg("progress"));
+          py::arg("coverage_mask"), py::arg("detector_blur"), py::arg("progress"));
     m.def(
         "check_settings", [](const Args& args) { cli::parseSettings(args); }, py::arg("args"),
         "Reads fvr-render settings as fvr-render does: ValueError with its message, else None.");

@@ -460,7 +460,7 @@ def run_cli(args: Sequence[str]) -> int:
 
 def register(volume: Volume, images, cameras, init=None, similarity: str = "gradient-ncc",
              levels=None, global_samples: int = 0, centre=None, threads: int = 0, masks=None,
-             coverage_mask: bool = True,
+             coverage_mask: bool = True, detector_blur: float = 0.0,
              progress: Optional[Callable[[str, int, float], None]] = None) -> dict:
     """2D/3D registration: the rigid pose of ``volume`` (a CT) whose cone-beam DRRs best match
     ``images`` (one (H, W) array per camera, or an (n, H, W) stack: line integrals, larger = more
@@ -478,7 +478,8 @@ def register(volume: Volume, images, cameras, init=None, similarity: str = "grad
     (pixels: the images' larger side at that level, 0 full; voxel_mm: the CT's, 0 as it is);
     None: core's defaults. ``global_samples``: Halton poses of a global stage (0: none).
     ``masks``: None, or one uint8 (H, W) per image (non-zero = counted). ``coverage_mask``: leave
-    out pixels whose rays leave the CT through its cut ends. ``progress(stage, evaluations,
+    out pixels whose rays leave the CT through its cut ends. ``detector_blur``: the images'
+    detector blur (a Gaussian's sigma in pixels), given to the DRRs too. ``progress(stage, evaluations,
     similarity)`` is called as it goes.
 
     Returns a dict: ``pose`` (4x4 numpy, row-major), ``rotation_deg``, ``translation_mm``,
@@ -508,4 +509,5 @@ def register(volume: Volume, images, cameras, init=None, similarity: str = "grad
                               similarity, [tuple(map(float, l)) for l in (levels or [])],
                               int(global_samples),
                               None if centre is None else _point(centre, "centre"), int(threads),
-                              masks or [], bool(coverage_mask), progress)
+                              masks or [], bool(coverage_mask), float(detector_blur),
+                              progress)

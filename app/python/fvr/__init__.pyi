@@ -179,5 +179,6 @@ def register(
     threads: int = ...,
     masks: Optional[Sequence[npt.ArrayLike]] = ...,
     coverage_mask: bool = ...,
+    detector_blur: float = ...,
     progress: Optional[Callable[[str, int, float], None]] = ...,
 ) -> Dict[str, Any]: ...
