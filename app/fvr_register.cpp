@@ -306,6 +306,18 @@ std::function<void(const RegistrationProgress&)> stderrProgress() {
     };
 }
 
+/** A sidecar's X-ray rendered from another volume than the CT (its name, grid or position):
+ *  said, not refused (another CT of the same patient in the same frame is a fair input). */
+void warnOtherVolume(Inputs& in, const Volume& ct) {
+    Json block = Json::parse(fvr::cli::volumeBlockJson(ct).dump()); // keys sorted, as read
+    block.erase("units");
+    const std::string mine = "volume " + block.dump();
+    for (XrayInput& x : in.xrays)
+        if (x.frameOfReference.rfind("volume ", 0) == 0 && x.frameOfReference != mine)
+            x.warnings.push_back("rendered from another volume than the CT (" + x.frameOfReference +
+                                 "; the CT: " + mine + ")");
+}
+
 Json vec3Json(const glm::dvec3& v) { return Json::array({v.x, v.y, v.z}); }
 
 Json poseJson(const glm::dmat4& T, const glm::dvec3& centre) {
@@ -453,6 +465,7 @@ int run(const Args& a) {
     for (const std::string& w : study.warnings)
         std::fprintf(stderr, "fvr-register: warning: %s: %s\n", a.ct.c_str(), w.c_str());
     Inputs in = readInputs(a, iso.value_or(volumeCentre(study.volume)));
+    warnOtherVolume(in, study.volume);
     for (const XrayInput& x : in.xrays) {
         for (const std::string& w : x.warnings)
             std::fprintf(stderr, "fvr-register: warning: %s: %s\n", x.file.c_str(), w.c_str());

@@ -94,6 +94,7 @@ TEST(FvrRegister, BiplaneFromAnOffsetFindsTheGeometrysPose) {
         (dir / "result.json").string());
     ASSERT_EQ(r.status, 0) << r.output;
     EXPECT_NE(r.output.find("fvr-register: level 1"), std::string::npos) << r.output; // progress
+    EXPECT_EQ(r.output.find("another volume"), std::string::npos) << r.output; // the CT's own
     const Json j = readJson(dir / "result.json");
     // The pose: a rigid 4x4 (row-major, last row 0 0 0 1), its angles, translation and centre.
     const Json& m = j["pose"]["matrix"];
