@@ -39,7 +39,7 @@ using namespace fvr::core;
 using Json = nlohmann::json;
 
 struct Args {
-    std::string ct;
+    std::string ct, series;
     std::vector<std::string> xrays;
     std::string init, truth, targets, out, overlayPrefix;
     std::string similarity = "gradient-ncc";
@@ -132,6 +132,9 @@ std::optional<Args> parseArgs(int argc, char** argv) {
                    "JSON sidecar fvr-render wrote (FILE.json)")
         ->required()
         ->expected(1, 2);
+    app.add_option("--series", a.series,
+                   "a DICOM folder's series to register (its key, as fvr-render --series; default: "
+                   "the folder's default series)");
     app.add_option("--out", a.out, "RESULT.json: the pose, similarity, stages and timing")
         ->required();
     app.add_option("--init", a.init, "the initial pose (POSE.json; default: the identity)");
@@ -461,7 +464,9 @@ int run(const Args& a) {
         iso = glm::dvec3(v[0], v[1], v[2]);
     }
     readInputs(a, iso.value_or(glm::dvec3(0.0)));
-    OpenedStudy study = openStudy(classifyInput(a.ct));
+    OpenOptions open;
+    open.seriesKey = a.series;
+    OpenedStudy study = openStudy(classifyInput(a.ct), open);
     for (const std::string& w : study.warnings)
         std::fprintf(stderr, "fvr-register: warning: %s: %s\n", a.ct.c_str(), w.c_str());
     Inputs in = readInputs(a, iso.value_or(volumeCentre(study.volume)));
