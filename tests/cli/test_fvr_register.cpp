@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include <dcmtk/config/osconfig.h>
+#include <dcmtk/dcmdata/dctk.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -170,6 +172,15 @@ TEST(FvrRegister, BadInputIsRefusedBeforeAnyWork) {
                                  (dir / "sl.npy").string());
     ASSERT_EQ(sl.status, 0) << sl.output;
     fs::copy_file(dir / "ap.npy", dir / "bare.npy");
+    // An XA without its SID (nor the magnification that would give it).
+    const auto xa = runFvrRender("phantom:chest --geometry cone --size 64 --values mu --out " +
+                                 (dir / "nosid.dcm").string());
+    ASSERT_EQ(xa.status, 0) << xa.output;
+    DcmFileFormat ff;
+    ASSERT_TRUE(ff.loadFile((dir / "nosid.dcm").c_str()).good());
+    ff.getDataset()->findAndDeleteElement(DCM_DistanceSourceToDetector);
+    ff.getDataset()->findAndDeleteElement(DCM_EstimatedRadiographicMagnificationFactor);
+    ASSERT_TRUE(ff.saveFile((dir / "nosid.dcm").c_str(), EXS_LittleEndianExplicit).good());
     std::ofstream(dir / "bad.json") << R"({"rotation_deg": [1, 2], "translation_mm": [0, 0, 0]})";
     const std::string ap = (dir / "ap.npy").string(), out = " --out " + (dir / "r.json").string();
     const struct {
@@ -178,6 +189,8 @@ TEST(FvrRegister, BadInputIsRefusedBeforeAnyWork) {
         {ap + " --init " + (dir / "bad.json").string() + out,
          "bad.json: \"rotation_deg\" must be an array of 3 numbers"},
         {(dir / "bare.npy").string() + out, "bare.npy: no camera sidecar bare.npy.json"},
+        {(dir / "nosid.dcm").string() + out,
+         "nosid.dcm: DistanceSourceToDetector (0018,1110) missing: a registration needs"},
         {ap + " " + (dir / "sl.npy").string() + out, "sl.npy: images of different frames"},
         {ap + " --out " + (dir / "none" / "r.json").string(), "does not exist"},
         {ap + " --targets " + (dir / "none.csv").string() + out, "none.csv"},

@@ -249,6 +249,47 @@ TEST(RegistrationIo, RefusalsNameTheFileAndTheProblem) {
     EXPECT_STREQ(xrayValuesName(XrayValues::LineIntegrals), "line-integrals");
 }
 
+/** Our XA of the test image with `tags` removed (DCMTK), as `name`. */
+fs::path xaWithout(const fs::path& dir, const std::string& name,
+                   const std::vector<DcmTagKey>& tags) {
+    DetectorImage img;
+    img.width = kW;
+    img.height = kH;
+    img.camera = testCamera();
+    img.pixels = lineIntegrals();
+    writeXrayDicom(dir / name, img, testArm());
+    DcmFileFormat ff;
+    EXPECT_TRUE(ff.loadFile((dir / name).c_str()).good());
+    for (const DcmTagKey& t : tags) ff.getDataset()->findAndDeleteElement(t);
+    EXPECT_TRUE(ff.saveFile((dir / name).c_str(), EXS_LittleEndianExplicit).good());
+    return dir / name;
+}
+
+TEST(RegistrationIo, DicomWithoutItsGeometryIsRefusedByTag) {
+    const fs::path dir = scratch("regio_geometry");
+    std::string m = loadMessage(
+        xaWithout(dir, "nosid.dcm",
+                  {DCM_DistanceSourceToDetector, DCM_EstimatedRadiographicMagnificationFactor}));
+    EXPECT_NE(m.find("nosid.dcm: DistanceSourceToDetector (0018,1110) missing: a registration "
+                     "needs the X-ray's stated geometry"),
+              std::string::npos)
+        << m;
+    m = loadMessage(xaWithout(dir, "nopitch.dcm", {DCM_ImagerPixelSpacing, DCM_PixelSpacing}));
+    EXPECT_NE(m.find("nopitch.dcm: ImagerPixelSpacing (0018,1164) and PixelSpacing (0028,0030) "
+                     "missing"),
+              std::string::npos)
+        << m;
+    m = loadMessage(xaWithout(dir, "noangle.dcm", {DCM_PositionerPrimaryAngle}));
+    EXPECT_NE(m.find("noangle.dcm: PositionerPrimaryAngle (0018,1510) missing"), std::string::npos)
+        << m;
+    // SOD alone is derived (SID / magnification): read, with the reader's warning.
+    const XrayInput x =
+        readXrayInput(xaWithout(dir, "nosod.dcm", {DCM_DistanceSourceToPatient}), glm::dvec3(0.0));
+    bool said = false;
+    for (const auto& w : x.warnings) said = said || w.find("DistanceSourceToPatient") == 0;
+    EXPECT_TRUE(said);
+}
+
 TEST(RegistrationIo, TwoDifferentFramesAreRefused) {
     const fs::path dir = scratch("regio_frames");
     const std::vector<float> L = lineIntegrals();

@@ -131,9 +131,29 @@ void readDicomIdentity(XrayInput& x, std::string& relationship, bool& ours) {
         x.frameOfReference = "StudyInstanceUID " + study;
 }
 
+/** The geometry reader assumes what a file leaves out, and says so (xray_geometry.h). A DRR may
+ *  be made with an assumed value; a registration may not: a wrong SID or pitch is a wrong
+ *  magnification, a wrong angle a wrong view, and the pose found would be wrong without a sign.
+ *  So an assumed SID, detector pitch or primary angle is refused (each named by its tag); the
+ *  isocentre and SOD only place the starting pose, which the registration moves. */
+void refuseAssumedGeometry(const XrayGeometry& g) {
+    static const char* const kRefused[] = {
+        "DistanceSourceToDetector (0018,1110) missing: assumed",
+        "ImagerPixelSpacing (0018,1164) and PixelSpacing (0028,0030) missing",
+        "PositionerPrimaryAngle (0018,1510) missing: assumed"};
+    for (const std::string& w : g.warnings)
+        for (const char* r : kRefused)
+            if (w.rfind(r, 0) == 0)
+                failLoad(g.file, w.substr(0, w.find(" missing")) +
+                                     " missing: a registration needs the X-ray's stated "
+                                     "geometry (a DRR would have" +
+                                     w.substr(w.find(':') + 1) + ")");
+}
+
 XrayInput readDicomXray(const fs::path& path, const glm::dvec3& isocentre, XrayValues values,
                         int frame) {
     XrayGeometry g = readXrayGeometry(path, true);
+    refuseAssumedGeometry(g);
     XrayInput x;
     x.file = path;
     x.frame = frame;
