@@ -178,6 +178,7 @@ TEST(FvrRegister, BadInputIsRefusedBeforeAnyWork) {
     ASSERT_EQ(xa.status, 0) << xa.output;
     DcmFileFormat ff;
     ASSERT_TRUE(ff.loadFile((dir / "nosid.dcm").c_str()).good());
+    ff.loadAllDataIntoMemory(); // the file is written over
     ff.getDataset()->findAndDeleteElement(DCM_DistanceSourceToDetector);
     ff.getDataset()->findAndDeleteElement(DCM_EstimatedRadiographicMagnificationFactor);
     ASSERT_TRUE(ff.saveFile((dir / "nosid.dcm").c_str(), EXS_LittleEndianExplicit).good());
