@@ -31,12 +31,12 @@ namespace {
 
 struct Config {
     std::string ct;
-    int views = 1, poses = 10, size = 256, global = 0, threads = 2;
+    int views = 1, poses = 10, size = 256, global = 200, threads = 2;
     double rangeDeg = 10.0, rangeMm = 20.0, sid = 1000.0, sod = 750.0;
     unsigned seed = 1;
     std::string similarity = "gradient-ncc", json;
     bool gpu = false, noCoverage = false;
-    double detectorBlur = 0.0;
+    double detectorBlur = 0.0, globalRange = 15.0;
     XraySimulation sim;
 };
 
@@ -115,6 +115,8 @@ int main(int argc, char** argv) {
     app.add_option("--range-mm", c.rangeMm, "truth translations uniform in +-T");
     app.add_option("--size", c.size, "detector pixels per side");
     app.add_option("--global", c.global, "global stage samples (0: none)");
+    app.add_option("--global-range", c.globalRange,
+                   "the global stage's range: +-DEG degrees and +-DEG mm x 2 (default 15)");
     app.add_option("--threads", c.threads, "CPU threads");
     app.add_option("--seed", c.seed, "pose and noise seed");
     app.add_option("--similarity", c.similarity, "ncc or gradient-ncc");
@@ -136,6 +138,8 @@ int main(int argc, char** argv) {
     options.similarity = parseSimilarity(c.similarity);
     options.projector.threads = c.threads;
     options.globalSamples = c.global;
+    options.globalRangeDeg = c.globalRange;
+    options.globalRangeMm = 2.0 * c.globalRange;
     options.coverageMask = !c.noCoverage;
     options.detectorBlurPixels = c.detectorBlur;
 #ifdef FVR_EVAL_GPU
@@ -173,6 +177,7 @@ int main(int argc, char** argv) {
                        {"median_seconds", median(seconds)},
                        {"threads", c.threads},
                        {"global", c.global},
+                       {"global_range_deg", c.globalRange},
                        {"gpu", c.gpu},
                        {"coverage_mask", !c.noCoverage},
                        {"detector_blur_px", c.detectorBlur},

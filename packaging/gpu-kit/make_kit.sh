@@ -15,7 +15,7 @@ out=$(realpath -m "${2:-$build/gpu-kit}")
 tarball=$(realpath -m "${3:-$out/fvr-gpu-kit.tar.gz}")
 limit_bytes=${FVR_KIT_LIMIT_BYTES:-48000000} # 48 MB
 here=$(cd "$(dirname "$0")" && pwd)
-programs=(app/fvr-render bench/fvr_bench_gpu bench/fvr_compare_npy bench/fvr_table1_md)
+programs=(app/fvr-render bench/fvr_bench_gpu bench/fvr_compare_npy bench/fvr_table1_md bench/fvr_register_eval)
 # Sonames the host provides: glibc, the dynamic loader, libglvnd's GL/EGL and Mesa's drivers.
 # (libnsl.so.2, which DCMTK's network library needs, is libnsl2, not glibc: it travels.)
 excluded='^(ld-linux.*|libc|libm|libmvec|libpthread|libdl|librt|libresolv|libutil|libanl|libBrokenLocale|libcrypt|libEGL.*|libGL.*|libGLX.*|libGLdispatch|libOpenGL|libgbm|libglapi|libdrm.*|libgallium.*|libvulkan|libLLVM.*|libnvidia.*|libcuda)\.so'

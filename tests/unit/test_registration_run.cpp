@@ -51,6 +51,7 @@ std::vector<RegistrationView> simulatedViews(const Volume& ct, const std::vector
 RegistrationOptions quickOptions() {
     RegistrationOptions o;
     o.levels = {{32, 8.0, 200, 4.0, 8.0}, {64, 4.0, 120, 1.0, 2.0}, {0, 0.0, 80, 0.3, 0.6}};
+    o.globalSamples = 0;
     return o;
 }
 
@@ -94,11 +95,29 @@ TEST(Registration, OneViewWithTheGlobalStage) {
     RegistrationOptions o = quickOptions();
     o.globalSamples = 24;
     o.globalStarts = 2;
+    o.globalLevel = {32, 8.0, 100, 4.0, 8.0};
     const RegistrationResult r = registerPose(ct, views, Pose{}, o);
     ASSERT_EQ(r.stages.size(), 4u);
     EXPECT_EQ(r.stages[0].name, "global");
+    EXPECT_EQ(r.stages[0].imageWidth, 32);
     EXPECT_GE(r.stages[0].evaluations, 25); // the samples and the start
     EXPECT_LT(mtre(ct, truth, r.matrix), 2.0);
+}
+
+TEST(Registration, TheGlobalStageReachesAPoseThirtyDegreesOff) {
+    const Volume& ct = chest();
+    const glm::dmat4 truth =
+        poseMatrix({{22.0, -18.0, 26.0}, {28.0, -24.0, 20.0}}, volumeCentre(ct));
+    const auto views = simulatedViews(ct, {0.0, 90.0}, truth);
+    RegistrationOptions o = quickOptions();
+    const RegistrationResult local = registerPose(ct, views, Pose{}, o);
+    o.globalSamples = 200;
+    o.globalRangeDeg = 30.0;
+    o.globalRangeMm = 30.0;
+    const RegistrationResult global = registerPose(ct, views, Pose{}, o);
+    std::printf("30 degrees off: mTRE %.2f mm with the global stage, %.2f mm without\n",
+                mtre(ct, truth, global.matrix), mtre(ct, truth, local.matrix));
+    EXPECT_LT(mtre(ct, truth, global.matrix), 2.0);
 }
 
 TEST(Registration, CancelStopsAtTheNextEvaluationWithTheBestPoseSoFar) {

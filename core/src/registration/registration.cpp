@@ -232,7 +232,9 @@ void validateInputs(const Volume& ct, const std::vector<RegistrationView>& views
             if (!std::isfinite(x))
                 throw SettingsError("registration: " + v.name + ": a value is not finite");
         validateConeView(v.camera, ct);
-        for (const RegistrationLevel& l : options.levels) {
+        std::vector<RegistrationLevel> all = options.levels;
+        if (options.globalSamples > 0) all.push_back(options.globalLevel);
+        for (const RegistrationLevel& l : all) {
             const int f = levelImageFactor(v.camera.width, v.camera.height, l.imagePixels);
             if (v.camera.width / f < 16 || v.camera.height / f < 16)
                 throw SettingsError("registration: " + v.name + ": a level of " +
@@ -240,6 +242,42 @@ void validateInputs(const Volume& ct, const std::vector<RegistrationView>& views
                                     " pixels shrinks it below 16 pixels");
         }
     }
+}
+
+} // namespace
+
+namespace {
+
+/** One stage: from `start`, the global search or BOBYQA on `objective`; its report. */
+StageReport runStage(Search& search, LevelObjective& objective, const RegistrationLevel& level,
+                     const std::string& name, bool global, const Pose& start) {
+    const auto ts = Clock::now();
+    const int e0 = objective.evaluations(), d0 = objective.drrs();
+    StageReport report;
+    report.name = name;
+    search.objective = &objective;
+    search.progress.stage = name;
+    search.progress.evaluations = 0;
+    search.progress.maxEvaluations =
+        level.maxEvaluations + (global ? search.options->globalSamples + 1 : 1);
+    search.best = -2.0;
+    report.similarityBefore = search.evaluate(start);
+    if (global)
+        globalStage(search, start, level);
+    else
+        bobyqa(search, start, level, level.maxEvaluations);
+    report.similarityAfter = search.best;
+    report.pose = search.bestPose;
+    report.renderer = objective.describe();
+    report.imageWidth = objective.cameras().front().width;
+    report.imageHeight = objective.cameras().front().height;
+    const Vec3& sp = objective.ct().spacing;
+    report.voxelMm = std::max({sp[0], sp[1], sp[2]});
+    report.evaluations = objective.evaluations() - e0;
+    report.drrs = objective.drrs() - d0;
+    report.seconds = secondsSince(ts);
+    ++search.progress.stageIndex;
+    return report;
 }
 
 } // namespace
@@ -255,48 +293,28 @@ RegistrationResult registerPose(const Volume& ct, const std::vector<Registration
     search.origin = init.parameters();
     search.history = &result.history;
     search.bestPose = init;
+    const bool global = options.globalSamples > 0;
     const int levels = int(options.levels.size());
-    const int stages = levels + (options.globalSamples > 0 ? 1 : 0);
-    search.progress.stageCount = stages;
+    search.progress.stageCount = levels + (global ? 1 : 0);
+    auto record = [&](const StageReport& r) {
+        result.evaluations += r.evaluations;
+        result.drrs += r.drrs;
+        result.stages.push_back(r);
+    };
     Pose current = init;
+    if (global) {
+        LevelObjective objective(ct, views, options.globalLevel, options, result.centre);
+        record(runStage(search, objective, options.globalLevel, "global", true, current));
+        current = search.bestPose;
+    }
     for (int l = 0; l < levels && !search.cancelled; ++l) {
         const RegistrationLevel& level = options.levels[std::size_t(l)];
         LevelObjective objective(ct, views, level, options, result.centre);
-        search.objective = &objective;
-        const bool global = l == 0 && options.globalSamples > 0;
-        for (int pass = global ? 0 : 1; pass < 2 && !search.cancelled; ++pass) {
-            const auto ts = Clock::now();
-            const int e0 = objective.evaluations(), d0 = objective.drrs();
-            StageReport report;
-            report.name = pass == 0 ? "global" : "level " + std::to_string(l + 1);
-            search.progress.stage = report.name;
-            search.progress.stageIndex = int(result.stages.size());
-            search.progress.evaluations = 0;
-            search.progress.maxEvaluations =
-                level.maxEvaluations + (pass == 0 ? options.globalSamples + 1 : 0);
-            search.best = -2.0;
-            report.similarityBefore = search.evaluate(current);
-            if (pass == 0)
-                globalStage(search, current, level);
-            else
-                bobyqa(search, current, level, level.maxEvaluations);
-            current = search.bestPose;
-            report.similarityAfter = search.best;
-            report.pose = current;
-            report.renderer = objective.describe();
-            report.imageWidth = objective.cameras().front().width;
-            report.imageHeight = objective.cameras().front().height;
-            report.voxelMm = std::max(
-                {objective.ct().spacing[0], objective.ct().spacing[1], objective.ct().spacing[2]});
-            report.evaluations = objective.evaluations() - e0;
-            report.drrs = objective.drrs() - d0;
-            report.seconds = secondsSince(ts);
-            result.evaluations += report.evaluations;
-            result.drrs += report.drrs;
-            result.stages.push_back(report);
-        }
+        record(
+            runStage(search, objective, level, "level " + std::to_string(l + 1), false, current));
+        current = search.bestPose;
         if (l == levels - 1 || search.cancelled) {
-            // Before and after at the finest level's resolution.
+            // Before and after at this level's resolution (the finest unless cancelled).
             result.similarityBefore = objective.similarity(init);
             result.similarityAfter = objective.similarity(current);
         }

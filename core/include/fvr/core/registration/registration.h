@@ -4,9 +4,10 @@
  *
  *  Method. A pyramid of levels, coarse to fine; each level has its own image downsampling
  *  (block means of the X-ray, its camera to match: similarity.h) and its own CT (block means to
- *  a voxel size), so that a coarse DRR costs a small fraction of a fine one. The first level
- *  starts a global stage: the similarity at a low-discrepancy (Halton) set of poses around the
- *  initial one, and a local search from each of the best few (multi-start). Every level then
+ *  a voxel size), so that a coarse DRR costs a small fraction of a fine one. An optional global
+ *  stage comes first, at its own coarser level: the similarity at a low-discrepancy (Halton) set
+ *  of poses around the initial one, and a local search from each of the best few (multi-start),
+ *  for starting poses further off than the local search reaches. Every level then
  *  refines the best pose with NLopt's BOBYQA (Powell's bound-constrained quadratic models: no
  *  derivatives, few evaluations for 6 parameters) within bounds around the initial pose. The
  *  cost is minus the similarity, summed over the views.
@@ -82,12 +83,16 @@ struct RegistrationOptions {
     /** The rotations' centre: the isocentre (default: the CT's centre, volumeCentre). */
     bool centreSet = false;
     glm::dvec3 centre{0.0};
-    /** The global stage on the first level: `globalSamples` Halton poses within +-range of the
-     *  initial pose, then BOBYQA from the best `globalStarts` (0 samples: no global stage). */
-    int globalSamples = 0;
-    int globalStarts = 3;
-    double globalRangeDeg = 10.0;
-    double globalRangeMm = 20.0;
+    /** The global stage, before the levels, at its own coarse level: `globalSamples` Halton
+     *  poses within +-range of the initial pose, then BOBYQA from the best `globalStarts`
+     *  (globalLevel.maxEvaluations shared among them). 0 samples: no global stage. On by
+     *  default: at 32 pixels and 8 mm voxels it costs a fraction of a second and widens the
+     *  capture range (README, "2D/3D registration"). */
+    int globalSamples = 200;
+    int globalStarts = 4;
+    double globalRangeDeg = 15.0;
+    double globalRangeMm = 30.0;
+    RegistrationLevel globalLevel{32, 8.0, 400, 4.0, 8.0};
     /** BOBYQA's bounds about the initial pose. */
     double boundDeg = 30.0;
     double boundMm = 60.0;
@@ -123,7 +128,7 @@ struct RegistrationResult {
     Pose pose; ///< about `centre`
     glm::dmat4 matrix{1.0};
     glm::dvec3 centre{0.0};
-    /** At full resolution (the finest level's images), mean over the views. */
+    /** At the finest level (the level reached when cancelled), mean over the views. */
     double similarityBefore = 0.0, similarityAfter = 0.0;
     std::vector<StageReport> stages;
     /** The best similarity after each evaluation, all stages in order (each at its stage's
