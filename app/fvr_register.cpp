@@ -44,7 +44,7 @@ struct Args {
     std::string init, truth, targets, out, overlayPrefix;
     std::string similarity = "gradient-ncc";
     std::string levels, preset = "default";
-    int global = 0;
+    int global = RegistrationOptions().globalSamples; // core's default
     std::string isocentre, values = "auto", offset;
     std::vector<int> frames;
     int threads = 0;
@@ -149,7 +149,8 @@ std::optional<Args> parseArgs(int argc, char** argv) {
         "the X-ray's larger side at the level, 0 full; VOXELMM: the CT's, 0 as it is)");
     app.add_option("--preset", a.preset, "fast, default or fine (without --levels)")
         ->capture_default_str();
-    app.add_option("--global", a.global, "Halton samples of the global stage (0: none)")
+    app.add_option("--global", a.global,
+                   "Halton poses of the global stage, at its own coarse level (0: none)")
         ->capture_default_str();
     app.add_option("--isocenter", a.isocentre,
                    "x,y,z (LPS mm): the rotations' centre, and the isocentre of X-rays that do "

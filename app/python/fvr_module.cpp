@@ -694,15 +694,17 @@ py::dict registerPose(
     const std::vector<core::ConeCamera>& cameras,
     std::optional<py::array_t<double, py::array::c_style | py::array::forcecast>> initMatrix,
     std::vector<double> initParams, const std::string& similarity,
-    const std::vector<std::vector<double>>& levels, int globalSamples,
+    const std::vector<std::vector<double>>& levels, std::optional<int> globalSamples,
     std::optional<glm::dvec3> centre, int threads, const std::vector<ByteImage>& masks,
     bool coverageMask, double detectorBlur, py::object progress) {
     const std::vector<core::RegistrationView> views = registrationViews(images, cameras, masks);
     core::RegistrationOptions o;
     o.similarity = core::parseSimilarity(similarity);
     o.levels = registrationLevels(levels);
-    if (globalSamples < 0) throw core::SettingsError("global_samples: expected >= 0");
-    o.globalSamples = globalSamples;
+    if (globalSamples) {
+        if (*globalSamples < 0) throw core::SettingsError("global_samples: expected >= 0");
+        o.globalSamples = *globalSamples;
+    }
     o.centreSet = true;
     o.centre = centre ? *centre : core::volumeCentre(*volume.volume);
     o.projector.threads = threads;

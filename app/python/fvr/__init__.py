@@ -459,7 +459,7 @@ def run_cli(args: Sequence[str]) -> int:
 
 
 def register(volume: Volume, images, cameras, init=None, similarity: str = "gradient-ncc",
-             levels=None, global_samples: int = 0, centre=None, threads: int = 0, masks=None,
+             levels=None, global_samples: Optional[int] = None, centre=None, threads: int = 0, masks=None,
              coverage_mask: bool = True, detector_blur: float = 0.0,
              progress: Optional[Callable[[str, int, float], None]] = None) -> dict:
     """2D/3D registration: the rigid pose of ``volume`` (a CT) whose cone-beam DRRs best match
@@ -476,7 +476,8 @@ def register(volume: Volume, images, cameras, init=None, similarity: str = "grad
     ``translation_mm`` (about ``centre``). ``similarity``: "gradient-ncc" (default) or "ncc".
     ``levels``: [(pixels, voxel_mm, evaluations[, step_deg, step_mm]), ...] coarse to fine
     (pixels: the images' larger side at that level, 0 full; voxel_mm: the CT's, 0 as it is);
-    None: core's defaults. ``global_samples``: Halton poses of a global stage (0: none).
+    None: core's defaults. ``global_samples``: Halton poses of the global stage, at its own
+    coarse level before the others (0: none; None: core's default, 200).
     ``masks``: None, or one uint8 (H, W) per image (non-zero = counted). ``coverage_mask``: leave
     out pixels whose rays leave the CT through its cut ends. ``detector_blur``: the images'
     detector blur (a Gaussian's sigma in pixels), given to the DRRs too. ``progress(stage, evaluations,
@@ -507,7 +508,7 @@ def register(volume: Volume, images, cameras, init=None, similarity: str = "grad
         init_matrix = np.asarray(init, dtype=np.float64)
     return _fvr.register_pose(volume._v, images, [c._c for c in cams], init_matrix, init_params,
                               similarity, [tuple(map(float, l)) for l in (levels or [])],
-                              int(global_samples),
+                              None if global_samples is None else int(global_samples),
                               None if centre is None else _point(centre, "centre"), int(threads),
                               masks or [], bool(coverage_mask), float(detector_blur),
                               progress)

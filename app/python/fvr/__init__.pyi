@@ -174,7 +174,7 @@ def register(
     init: Union[None, npt.ArrayLike, Dict[str, Sequence[float]]] = ...,
     similarity: str = ...,
     levels: Optional[Sequence[Sequence[float]]] = ...,
-    global_samples: int = ...,
+    global_samples: Optional[int] = ...,
     centre: Optional[Sequence[float]] = ...,
     threads: int = ...,
     masks: Optional[Sequence[npt.ArrayLike]] = ...,
