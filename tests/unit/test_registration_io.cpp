@@ -132,6 +132,17 @@ TEST(RegistrationIo, SidecarStackPicksTheFramesCamera) {
     const std::string m = loadMessage(dir / "s.npy", XrayValues::Auto, 2);
     EXPECT_NE(m.find("s.npy"), std::string::npos) << m;
     EXPECT_NE(m.find("frame 2 out of range"), std::string::npos) << m;
+
+    // Several views unstacked: STEM_NNNN.npy, one sidecar STEM.npy.json listing them in order.
+    writeNpy(dir / "n_0000.npy", both.data(), kH, kW);
+    writeNpy(dir / "n_0001.npy", two.data(), kH, kW);
+    Json j = coneSidecar({testCamera(), second}, {{"values", "mm"}});
+    j["output"]["files"] = {"n_0000.npy", "n_0001.npy"};
+    writeText(dir / "n.npy.json", j.dump());
+    const XrayInput n1 = readXrayInput(dir / "n_0001.npy", glm::dvec3(0.0));
+    expectSameP(n1.view.camera, second, 1e-9);
+    EXPECT_EQ(n1.view.image, two);
+    expectSameP(readXrayInput(dir / "n_0000.npy", glm::dvec3(0.0)).view.camera, testCamera(), 1e-9);
 }
 
 TEST(RegistrationIo, SidecarTransmissionComesBackAsLineIntegrals) {

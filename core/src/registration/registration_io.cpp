@@ -323,9 +323,40 @@ std::string sidecarFrame(const Json& j) {
     return "volume " + v.dump();
 }
 
+/** Where an image's camera is: its own sidecar FILE.json (the view of its frame), or, for one of
+ *  the numbered files STEM_NNNN.EXT that fvr-render writes for several views unstacked, the
+ *  sidecar STEM.EXT.json whose "output" "files" list names it (the view at that place). */
+struct SidecarRef {
+    fs::path sidecar;
+    int view = -1; ///< -1: the frame's
+};
+
+SidecarRef findSidecar(const fs::path& path) {
+    const fs::path own = path.string() + ".json";
+    const std::string stem = path.stem().string();
+    const std::size_t us = stem.rfind('_');
+    if (fs::exists(own) || us == std::string::npos || us + 5 > stem.size() ||
+        stem.find_first_not_of("0123456789", us + 1) != std::string::npos)
+        return {own};
+    const fs::path base =
+        path.parent_path() / (stem.substr(0, us) + path.extension().string() + ".json");
+    std::ifstream in(base);
+    if (!in) return {own};
+    try {
+        const Json j = Json::parse(in);
+        const Json files = j.at("output").at("files");
+        for (std::size_t k = 0; k < files.size(); ++k)
+            if (files[k].get<std::string>() == path.filename().string()) return {base, int(k)};
+    } catch (const std::exception&) {
+        // Not a sidecar that lists this file: the image's own is missing then.
+    }
+    return {own};
+}
+
 XrayInput readSidecarXray(const fs::path& path, const std::string& ext, XrayValues values,
                           int frame) {
-    const fs::path sidecar = path.string() + ".json";
+    const SidecarRef ref = findSidecar(path);
+    const fs::path& sidecar = ref.sidecar;
     const Json j = readSidecar(path, sidecar);
     if (!j.is_object() || !j.contains("views") || !j["views"].is_array() || j["views"].empty())
         failLoad(sidecar, "no \"views\" list: not an fvr-render sidecar");
@@ -334,14 +365,15 @@ XrayInput readSidecarXray(const fs::path& path, const std::string& ext, XrayValu
                           "the cone-beam camera (fvr-render --geometry cone)");
     const Json& views = j["views"];
     // A stack holds one image per view; a single image is the first view's.
-    if (frame < 0 || std::size_t(frame) >= views.size())
+    const int view = ref.view >= 0 ? ref.view : frame;
+    if (view < 0 || std::size_t(view) >= views.size())
         failLoad(path, "frame " + std::to_string(frame) +
                            " out of range: " + sidecar.filename().string() + " lists " +
                            std::to_string(views.size()) + " view(s)");
     XrayInput x;
     x.file = path;
     x.frame = frame;
-    x.view.camera = sidecarCamera(views, frame, sidecar);
+    x.view.camera = sidecarCamera(views, view, sidecar);
     int rows = 0, cols = 0;
     x.view.image = imageFrame(path, ext, frame, rows, cols);
     if (rows != x.view.camera.height || cols != x.view.camera.width)
