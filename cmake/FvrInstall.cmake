@@ -1,6 +1,6 @@
-# Install rules: the two programs, the desktop entry and the icon (shaders are embedded).
+# Install rules: the programs, the desktop entry and the icon (shaders are embedded).
 include(GNUInstallDirs)
-set(_fvr_programs fvr-render)
+set(_fvr_programs fvr-render fvr-register)
 if(TARGET fvr-workstation)
   list(APPEND _fvr_programs fvr-workstation)
 endif()

@@ -20,6 +20,7 @@
 #include <fvr/core/geometry/camera.h>
 #include <fvr/core/geometry/projection_matrix_file.h>
 #include <fvr/core/io/open_study.h>
+#include <fvr/core/registration/registration.h>
 #include <fvr/core/render/cone_projector.h>
 #include <fvr/core/render/cpu_batch.h>
 #include <fvr/core/xray/display_window.h>
@@ -590,6 +591,154 @@ void bindRenderer(py::module_& m) {
         .def_property_readonly("args", &PyRenderer::args);
 }
 
+// ---- 2D/3D registration ------------------------------------------------------------------------
+
+using FloatImage = py::array_t<float, py::array::c_style | py::array::forcecast>;
+using ByteImage = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
+
+/** The views: one (H, W) image per camera (its size), masks none or one per view. */
+std::vector<core::RegistrationView> registrationViews(const std::vector<FloatImage>& images,
+                                                      const std::vector<core::ConeCamera>& cameras,
+                                                      const std::vector<ByteImage>& masks) {
+    if (images.size() != cameras.size() || images.empty())
+        throw core::SettingsError("images, cameras: one image per camera, at least one (found " +
+                                  std::to_string(images.size()) + " images, " +
+                                  std::to_string(cameras.size()) + " cameras)");
+    if (!masks.empty() && masks.size() != images.size())
+        throw core::SettingsError("masks: one per image or none");
+    std::vector<core::RegistrationView> views;
+    for (std::size_t i = 0; i < images.size(); ++i) {
+        const FloatImage& a = images[i];
+        const core::ConeCamera& c = cameras[i];
+        if (a.ndim() != 2 || a.shape(0) != c.height || a.shape(1) != c.width)
+            throw core::SettingsError("images[" + std::to_string(i) + "]: expected (" +
+                                      std::to_string(c.height) + ", " + std::to_string(c.width) +
+                                      "), its camera's (H, W)");
+        core::RegistrationView v{"view " + std::to_string(i + 1),
+                                 c,
+                                 std::vector<float>(a.data(), a.data() + a.size()),
+                                 {}};
+        if (!masks.empty()) {
+            const ByteImage& m = masks[i];
+            if (m.ndim() != 2 || m.shape(0) != c.height || m.shape(1) != c.width)
+                throw core::SettingsError("masks[" + std::to_string(i) +
+                                          "]: expected its image's "
+                                          "shape");
+            v.mask.assign(m.data(), m.data() + m.size());
+        }
+        views.push_back(std::move(v));
+    }
+    return views;
+}
+
+/** Levels as (pixels, voxel_mm, evaluations[, step_deg, step_mm]) tuples; none: the defaults. */
+std::vector<core::RegistrationLevel> registrationLevels(const std::vector<std::vector<double>>& l) {
+    if (l.empty()) return core::RegistrationOptions().levels;
+    std::vector<core::RegistrationLevel> out;
+    for (const auto& t : l) {
+        if (t.size() != 3 && t.size() != 5)
+            throw core::SettingsError(
+                "levels: each (pixels, voxel_mm, evaluations[, step_deg, step_mm])");
+        core::RegistrationLevel level{int(t[0]), t[1], int(t[2])};
+        if (t.size() == 5) {
+            level.stepDeg = t[3];
+            level.stepMm = t[4];
+        }
+        out.push_back(level);
+    }
+    return out;
+}
+
+py::array_t<double> matrixArray(const glm::dmat4& T) {
+    py::array_t<double> a({4, 4});
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) a.mutable_at(r, c) = T[c][r]; // GLM: column-major
+    return a;
+}
+
+py::dict registrationDict(const core::RegistrationResult& r) {
+    py::list stages;
+    for (const core::StageReport& s : r.stages) {
+        py::dict d;
+        d["name"] = s.name;
+        d["renderer"] = s.renderer;
+        d["image_size"] = py::make_tuple(s.imageWidth, s.imageHeight);
+        d["voxel_mm"] = s.voxelMm;
+        d["evaluations"] = s.evaluations;
+        d["drrs"] = s.drrs;
+        d["seconds"] = s.seconds;
+        d["similarity_before"] = s.similarityBefore;
+        d["similarity_after"] = s.similarityAfter;
+        stages.append(d);
+    }
+    py::dict d;
+    d["pose"] = matrixArray(r.matrix);
+    d["rotation_deg"] = r.pose.rotationDeg;
+    d["translation_mm"] = r.pose.translationMm;
+    d["centre"] = r.centre;
+    d["similarity_before"] = r.similarityBefore;
+    d["similarity_after"] = r.similarityAfter;
+    d["history"] = r.history;
+    d["stages"] = stages;
+    d["evaluations"] = r.evaluations;
+    d["drrs"] = r.drrs;
+    d["seconds"] = r.seconds;
+    return d;
+}
+
+/** core::registerPose with the GIL released; init: a 4x4 (row-major) or six parameters (rx, ry,
+ *  rz deg, tx, ty, tz mm about the centre); progress(stage, evaluations, similarity) between
+ *  evaluations, with the GIL. */
+py::dict registerPose(
+    const PyVolume& volume, const std::vector<FloatImage>& images,
+    const std::vector<core::ConeCamera>& cameras,
+    std::optional<py::array_t<double, py::array::c_style | py::array::forcecast>> initMatrix,
+    std::vector<double> initParams, const std::string& similarity,
+    const std::vector<std::vector<double>>& levels, std::optional<int> globalSamples,
+    std::optional<glm::dvec3> centre, int threads, const std::vector<ByteImage>& masks,
+    bool coverageMask, double detectorBlur, py::object progress) {
+    const std::vector<core::RegistrationView> views = registrationViews(images, cameras, masks);
+    core::RegistrationOptions o;
+    o.similarity = core::parseSimilarity(similarity);
+    o.levels = registrationLevels(levels);
+    if (globalSamples) {
+        if (*globalSamples < 0) throw core::SettingsError("global_samples: expected >= 0");
+        o.globalSamples = *globalSamples;
+    }
+    o.centreSet = true;
+    o.centre = centre ? *centre : core::volumeCentre(*volume.volume);
+    o.projector.threads = threads;
+    o.coverageMask = coverageMask;
+    o.detectorBlurPixels = detectorBlur;
+    core::Pose init;
+    if (initMatrix) {
+        const auto& m = *initMatrix;
+        if (m.ndim() != 2 || m.shape(0) != 4 || m.shape(1) != 4)
+            throw core::SettingsError("init: expected a 4x4 matrix");
+        glm::dmat4 T(1.0);
+        for (int r = 0; r < 4; ++r)
+            for (int c = 0; c < 4; ++c) T[c][r] = m.at(r, c);
+        init = core::poseFromMatrix(T, o.centre);
+    } else if (!initParams.empty()) {
+        if (initParams.size() != 6)
+            throw core::SettingsError("init: expected rx, ry, rz, tx, ty, tz (6 numbers)");
+        init = core::Pose::fromParameters(initParams.data());
+    }
+    if (!progress.is_none()) {
+        // Shared, so that copies of the callback made without the GIL never touch its count.
+        auto fn = std::make_shared<py::object>(std::move(progress));
+        o.progress = [fn](const core::RegistrationProgress& p) {
+            py::gil_scoped_acquire gil;
+            (*fn)(p.stage, p.evaluations, p.bestSimilarity);
+        };
+    }
+    core::RegistrationResult r;
+    {
+        py::gil_scoped_release release;
+        r = core::registerPose(*volume.volume, views, init, o);
+    }
+    return registrationDict(r);
+}
 } // namespace
 
 PYBIND11_MODULE(_fvr, m) {
@@ -608,6 +757,10 @@ PYBIND11_MODULE(_fvr, m) {
     m.def("transmission", &transmission, py::arg("image"), py::arg("args"));
     m.def("film", &film, py::arg("image"), py::arg("args"), py::arg("invert"));
     m.def("run_cli", &runCli, py::arg("args"));
+    m.def("register_pose", &registerPose, py::arg("volume"), py::arg("images"), py::arg("cameras"),
+          py::arg("init_matrix"), py::arg("init_params"), py::arg("similarity"), py::arg("levels"),
+          py::arg("global_samples"), py::arg("centre"), py::arg("threads"), py::arg("masks"),
+          py::arg("coverage_mask"), py::arg("detector_blur"), py::arg("progress"));
     m.def(
         "check_settings", [](const Args& args) { cli::parseSettings(args); }, py::arg("args"),
         "Reads fvr-render settings as fvr-render does: ValueError with its message, else None.");

@@ -13,6 +13,7 @@ fvr-render's ``.npy`` outputs bit for bit. Images are float32 numpy arrays, row 
     stack = r.render_many(["AP", "LEFT"], size=256)
     cam = r.camera(primary=30, secondary=15, sid=1000, sod=750, detector=(640, 480))
     drr = r.render(camera=cam)                # (480, 640) cone-beam line integrals (ray cast)
+    res = fvr.register(vol, drr, cam, init={"rotation_deg": (2, 0, 0)})  # 2D/3D: res["pose"]
 
 Bad settings raise ValueError carrying fvr-render's message (naming the option); other
 failures (unreadable files...) raise RuntimeError. The GIL is released while C++ works.
@@ -28,7 +29,7 @@ import numpy as np
 from . import _fvr
 
 __all__ = ["Volume", "Camera", "Renderer", "load", "read_xray", "transmission", "film",
-           "option_args", "run_cli"]
+           "option_args", "run_cli", "register"]
 
 # Python names whose fvr-render option is spelled otherwise.
 _ALIASES = {"energy_kev": "energy"}
@@ -455,3 +456,59 @@ def run_cli(args: Sequence[str]) -> int:
     messages (on stderr) as the program. Raises ValueError for bad settings, RuntimeError for
     other failures."""
     return _fvr.run_cli([str(a) for a in args])
+
+
+def register(volume: Volume, images, cameras, init=None, similarity: str = "gradient-ncc",
+             levels=None, global_samples: Optional[int] = None, centre=None, threads: int = 0, masks=None,
+             coverage_mask: bool = True, detector_blur: float = 0.0,
+             progress: Optional[Callable[[str, int, float], None]] = None) -> dict:
+    """2D/3D registration: the rigid pose of ``volume`` (a CT) whose cone-beam DRRs best match
+    ``images`` (one (H, W) array per camera, or an (n, H, W) stack: line integrals, larger = more
+    attenuation; a raw radiograph's intensities first as -ln(I / I0)) seen by ``cameras`` (a
+    Camera or a list: one view, or two for a biplane pair, registered jointly).
+
+    The pose T maps a CT point X (LPS mm) to the same anatomy in the cameras' frame: the X-ray
+    shows X at pixel P T X; the identity is the geometry as the cameras record it.
+    T X = R (X - c) + c + t with R = Rz Ry Rx (degrees about the LPS x, y, z axes, x first), c the
+    ``centre`` (default: the volume's centre), t in mm.
+
+    ``init``: None (the identity), a 4x4 matrix (row-major), or a dict with ``rotation_deg`` and
+    ``translation_mm`` (about ``centre``). ``similarity``: "gradient-ncc" (default) or "ncc".
+    ``levels``: [(pixels, voxel_mm, evaluations[, step_deg, step_mm]), ...] coarse to fine
+    (pixels: the images' larger side at that level, 0 full; voxel_mm: the CT's, 0 as it is);
+    None: core's defaults. ``global_samples``: Halton poses of the global stage, at its own
+    coarse level before the others (0: none; None: core's default, 200).
+    ``masks``: None, or one uint8 (H, W) per image (non-zero = counted). ``coverage_mask``: leave
+    out pixels whose rays leave the CT through its cut ends. ``detector_blur``: the images'
+    detector blur (a Gaussian's sigma in pixels), given to the DRRs too. ``progress(stage, evaluations,
+    similarity)`` is called as it goes.
+
+    Returns a dict: ``pose`` (4x4 numpy, row-major), ``rotation_deg``, ``translation_mm``,
+    ``centre``, ``similarity_before`` / ``similarity_after`` (full resolution, mean over the
+    views), ``history`` (the best similarity after each evaluation), ``stages`` (name, renderer,
+    image_size, voxel_mm, evaluations, drrs, seconds, similarity before/after), ``evaluations``,
+    ``drrs``, ``seconds``. Bad input raises ValueError naming it."""
+    cams = _cameras(cameras)
+    if cams is None:
+        raise ValueError("cameras: expected a Camera or a list of Cameras")
+    if isinstance(images, np.ndarray) and images.ndim == 3:
+        images = list(images)
+    elif isinstance(images, np.ndarray):
+        images = [images]
+    images = [np.ascontiguousarray(a, dtype=np.float32) for a in images]
+    if masks is not None:
+        masks = [np.ascontiguousarray(m, dtype=np.uint8) for m in
+                 (list(masks) if isinstance(masks, (list, tuple)) or np.ndim(masks) == 3
+                  else [masks])]
+    init_matrix, init_params = None, []
+    if isinstance(init, dict):
+        init_params = [float(x) for x in list(init.get("rotation_deg", (0, 0, 0))) +
+                       list(init.get("translation_mm", (0, 0, 0)))]
+    elif init is not None:
+        init_matrix = np.asarray(init, dtype=np.float64)
+    return _fvr.register_pose(volume._v, images, [c._c for c in cams], init_matrix, init_params,
+                              similarity, [tuple(map(float, l)) for l in (levels or [])],
+                              None if global_samples is None else int(global_samples),
+                              None if centre is None else _point(centre, "centre"), int(threads),
+                              masks or [], bool(coverage_mask), float(detector_blur),
+                              progress)

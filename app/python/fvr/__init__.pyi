@@ -1,5 +1,5 @@
 # Type hints of the package fvr (the implementation: __init__.py over the extension _fvr).
-from typing import Any, Callable, List, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -167,3 +167,18 @@ def film(
 ) -> npt.NDArray[np.float32]: ...
 def read_xray(path: Any) -> npt.NDArray[np.float32]: ...
 def run_cli(args: Sequence[str]) -> int: ...
+def register(
+    volume: Volume,
+    images: Union[npt.ArrayLike, Sequence[npt.ArrayLike]],
+    cameras: Union[Camera, Sequence[Camera]],
+    init: Union[None, npt.ArrayLike, Dict[str, Sequence[float]]] = ...,
+    similarity: str = ...,
+    levels: Optional[Sequence[Sequence[float]]] = ...,
+    global_samples: Optional[int] = ...,
+    centre: Optional[Sequence[float]] = ...,
+    threads: int = ...,
+    masks: Optional[Sequence[npt.ArrayLike]] = ...,
+    coverage_mask: bool = ...,
+    detector_blur: float = ...,
+    progress: Optional[Callable[[str, int, float], None]] = ...,
+) -> Dict[str, Any]: ...

@@ -48,9 +48,19 @@ private:
 std::vector<float> readNpy(const std::filesystem::path& path, std::vector<std::int64_t>& shape);
 /** Grayscale PFM ("Pf", little-endian scale -1), rows stored bottom-to-top as the format says. */
 void writePfm(const std::filesystem::path& path, const float* data, int rows, int cols);
+/** Reads a grayscale PFM ("Pf", either byte order by the sign of its scale), rows returned top to
+ *  bottom. LoadError naming the file: not a PFM, a colour PFM ("PF"), truncated. */
+std::vector<float> readPfm(const std::filesystem::path& path, int& rows, int& cols);
+/** Reads a grayscale PNG (colour type 0, 8 or 16 bits, not interlaced) as its levels scaled to
+ *  [0, 1]. LoadError naming the file and what it holds otherwise (colour, a palette, interlace,
+ *  a bad chunk or stream). */
+std::vector<float> readPng(const std::filesystem::path& path, int& rows, int& cols);
 /** Grayscale PNG; bitDepth 8 or 16; values mapped through the window. */
 void writePng(const std::filesystem::path& path, const float* data, int rows, int cols,
               const DisplayWindow& window, int bitDepth = 8);
+
+/** RGB PNG (8 bits per channel) of rows x cols x 3 bytes, row 0 at the top. */
+void writePngRgb(const std::filesystem::path& path, const std::uint8_t* rgb, int rows, int cols);
 
 /** Writes by extension: .npy (raw floats), .pfm (raw floats), .png (auto-windowed 8-bit).
  *  Throws WriteError (unknown extension, I/O failure) naming the path. */

@@ -39,7 +39,9 @@ struct XrayInput {
 
 /** Reads frame `frame` of an X-ray: DICOM XA, RF, DX, CR or RT Image (readXrayGeometry; its
  *  camera with the isocentre at `isocentre` unless the file states one), or .npy / .pfm / .png
- *  beside the JSON sidecar fvr-render wrote for it (FILE.json, the camera of views[frame]).
+ *  beside the JSON sidecar fvr-render wrote for it (FILE.json, the camera of views[frame]; for
+ *  the numbered files STEM_NNNN.EXT of several views unstacked, STEM.EXT.json's view at the
+ *  place its "output" "files" list names the file).
  *  LoadError naming the file and what is missing (no geometry tag, no sidecar, a sidecar without
  *  a camera, a frame out of range, values that are not finite). */
 XrayInput readXrayInput(const std::filesystem::path& path, const glm::dvec3& isocentre,
