@@ -55,7 +55,9 @@ std::unique_ptr<DrrRenderer> cpuDrrRenderer(const Volume& volume,
                                             const ConeProjectorOptions& options);
 
 struct RegistrationLevel {
-    int imageFactor = 1; ///< the X-rays' block size (1: full resolution)
+    /** The X-rays' block means to about this many pixels across their larger side (a whole
+     *  factor, levelImageFactor); 0: full resolution. */
+    int imagePixels = 0;
     double voxelMm = 0.0; ///< the CT's block means to about this voxel size (0: the CT as it is)
     int maxEvaluations = 200; ///< BOBYQA's budget at this level (each: one DRR per view)
     double stepDeg = 2.0; ///< BOBYQA's initial trust radius for the rotations
@@ -76,7 +78,7 @@ struct RegistrationProgress {
 struct RegistrationOptions {
     SimilarityMeasure similarity = SimilarityMeasure::GradientNcc;
     std::vector<RegistrationLevel> levels = {
-        {4, 4.0, 300, 4.0, 8.0}, {2, 2.0, 200, 1.0, 2.0}, {1, 0.0, 150, 0.3, 0.6}};
+        {64, 4.0, 300, 4.0, 8.0}, {128, 2.0, 200, 1.0, 2.0}, {256, 1.0, 120, 0.3, 0.6}};
     /** The rotations' centre: the isocentre (default: the CT's centre, volumeCentre). */
     bool centreSet = false;
     glm::dvec3 centre{0.0};
@@ -128,9 +130,14 @@ struct RegistrationResult {
 /** Finds the pose of `ct` (CT numbers; mapped by options.projector.mapping) that best matches
  *  the views, starting from `init` (about options' centre). SettingsError naming the problem for
  *  no views, a view whose image or mask is not its camera's size, non-finite values, a camera the
- *  CT cannot be seen by (validateConeView), no levels, or a level's factor < 1. */
+ *  CT cannot be seen by (validateConeView), no levels, or a level that would shrink an image
+ *  below 16 pixels. */
 RegistrationResult registerPose(const Volume& ct, const std::vector<RegistrationView>& views,
                                 const Pose& init, const RegistrationOptions& options = {});
+
+/** The block size that brings a W x H image to about `imagePixels` across its larger side
+ *  (at least 1; 1 for imagePixels 0). */
+int levelImageFactor(int width, int height, int imagePixels);
 
 /** The CT's block means to about `voxelMm` (per axis: the whole factor round(voxelMm / spacing),
  *  at least 1), the grid's centre kept; the volume itself (a copy) when every factor is 1. */
