@@ -116,7 +116,7 @@ TEST_F(Workstation, RegisterToXrayMovesThePoseByHandAndFindsTheTruth) {
         core::meanTargetError(truth, d->poseMatrix(), core::cubeCorners(s.centre));
 
     // Register with a small budget: two levels.
-    d->registrationOptions().levels = {{4, 4.0, 120, 3.0, 6.0}, {2, 2.0, 80, 1.0, 2.0}};
+    d->registrationOptions().levels = {{32, 4.0, 120, 3.0, 6.0}, {64, 2.0, 80, 1.0, 2.0}};
     d->grab().save(QString::fromStdString((test::tmpDir() / "register_before.png").string()));
     const core::Pose before = d->pose();
     QElapsedTimer clock;
@@ -240,7 +240,7 @@ TEST_F(Workstation, RegisterToXrayCancelGivesTheBestPoseSoFarAndAcceptKeepsIt) {
     ui::XrayRegisterDialog* d = window->registerXray(QString::fromStdString(path.string()));
     ASSERT_TRUE(d->drr()) << d->errorText().toStdString();
     // A large budget: the run would take long; it is cancelled once it has reported progress.
-    d->registrationOptions().levels = {{2, 2.0, 5000, 3.0, 6.0}, {1, 0.0, 5000, 1.0, 2.0}};
+    d->registrationOptions().levels = {{64, 2.0, 5000, 3.0, 6.0}, {0, 0.0, 5000, 1.0, 2.0}};
     d->registerButton()->click();
     ASSERT_TRUE(d->registering());
     ASSERT_TRUE(

@@ -61,6 +61,11 @@ void PoseCanvas::setImages(QImage xray, QImage drr) {
     update();
 }
 
+void PoseCanvas::setCaption(const QString& caption) {
+    m_caption = caption;
+    update();
+}
+
 void PoseCanvas::setCheckerboard(bool on) {
     m_checker = on;
     update();
@@ -138,9 +143,9 @@ XrayRegisterDialog::XrayRegisterDialog(QWidget* parent) : QDialog(parent) {
     setWindowTitle(tr("Register to X-ray"));
     auto* layout = new QVBoxLayout(this);
     auto* pictures = new QHBoxLayout;
-    m_beforeCanvas = new PoseCanvas(tr("Before registration"), this);
+    m_beforeCanvas = new PoseCanvas(QString(), this);
     m_beforeCanvas->hide();
-    m_canvas = new PoseCanvas(tr("Current pose (X-ray green, DRR magenta)"), this);
+    m_canvas = new PoseCanvas(QString(), this);
     m_canvas->setInteractive(true);
     pictures->addWidget(m_beforeCanvas, 1);
     pictures->addWidget(m_canvas, 1);
@@ -238,6 +243,7 @@ void XrayRegisterDialog::connectControls() {
     connect(m_checker, &QCheckBox::toggled, this, [this](bool on) {
         m_canvas->setCheckerboard(on);
         m_beforeCanvas->setCheckerboard(on);
+        showCaptions();
     });
 }
 
@@ -381,6 +387,14 @@ void XrayRegisterDialog::renderDrr() {
     }
     QApplication::restoreOverrideCursor();
     updateImages();
+}
+
+void XrayRegisterDialog::showCaptions() {
+    const QString colours = m_checker->isChecked() ? tr("checkerboard of X-ray and DRR")
+                                                   : tr("X-ray green, DRR magenta");
+    m_beforeCanvas->setCaption(tr("Before registration (%1)").arg(colours));
+    m_canvas->setCaption(m_pending ? tr("After registration (%1)").arg(colours)
+                                   : tr("Current pose (%1)").arg(colours));
 }
 
 QString XrayRegisterDialog::xrayName() const {

@@ -43,6 +43,7 @@ void XrayRegisterDialog::setBusy(bool busy) {
     const bool pending = !busy && m_pending;
     m_accept->setEnabled(pending);
     m_revert->setEnabled(pending);
+    showCaptions();
     m_save->setEnabled(!busy && ready);
 }
 

@@ -50,6 +50,7 @@ class PoseCanvas : public QWidget {
 public:
     explicit PoseCanvas(const QString& caption, QWidget* parent = nullptr);
     void setImages(QImage xray, QImage drr);
+    void setCaption(const QString& caption);
     void setCheckerboard(bool on);
     void setCheckerSize(int pixels);
     /** The X-ray's size: the blend, or the checkerboard (X-ray where (col/s + row/s) is even). */
@@ -166,6 +167,8 @@ private:
     void applyStep(const glm::dmat4& step);
     void savePoseDialog();
     QString xrayName() const;
+    /** The canvases' captions: "after registration" while a registered pose awaits the user. */
+    void showCaptions();
 
     std::shared_ptr<const core::Volume> m_volume;
     core::ValueMapping m_mapping = core::ValueMapping::Mu;
