@@ -240,11 +240,14 @@ TEST_F(Workstation, RegisterToXrayCancelGivesTheBestPoseSoFarAndAcceptKeepsIt) {
     ui::XrayRegisterDialog* d = window->registerXray(QString::fromStdString(path.string()));
     ASSERT_TRUE(d->drr()) << d->errorText().toStdString();
     // A large budget: the run would take long; it is cancelled once it has reported progress.
+    // A global stage of a million poses: the run cannot end on its own before the cancel.
     d->registrationOptions().levels = {{64, 2.0, 5000, 3.0, 6.0}, {0, 0.0, 5000, 1.0, 2.0}};
+    d->registrationOptions().globalSamples = 1000000;
     d->registerButton()->click();
     ASSERT_TRUE(d->registering());
     ASSERT_TRUE(
         QTest::qWaitFor([&] { return d->progressLabel()->text().startsWith("Stage"); }, 120000));
+    ASSERT_TRUE(d->registering());
     QElapsedTimer clock;
     clock.start();
     d->cancelButton()->click();
@@ -278,6 +281,30 @@ TEST_F(Workstation, RegisterToXrayRefusesAFileWithoutGeometry) {
     EXPECT_FALSE(d->errorText().isEmpty());
     EXPECT_FALSE(d->registerButton()->isEnabled());
     EXPECT_TRUE(window->messages()->toPlainText().contains("register_not_an_xray.dcm"));
+}
+
+TEST_F(Workstation, ClosingTheWindowDuringARegistrationStopsIt) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::chest(64)));
+    const core::Volume& vol = *window->views()[0]->volume();
+    const Scene s = sceneFor(vol, window->study().spectrum()->mapping);
+    const auto path =
+        writeXrayAtPose(vol, s, core::poseMatrix(truthPose(), s.centre), "register_close.dcm");
+    ui::XrayRegisterDialog* d = window->registerXray(QString::fromStdString(path.string()));
+    ASSERT_TRUE(d->drr()) << d->errorText().toStdString();
+    d->registrationOptions().levels = {{0, 0.0, 100000, 3.0, 6.0}};
+    d->registrationOptions().globalSamples = 1000000; // cannot end on its own
+    d->registerButton()->click();
+    ASSERT_TRUE(
+        QTest::qWaitFor([&] { return d->progressLabel()->text().startsWith("Stage"); }, 120000));
+    // The dialog goes with the window: its registration sees the cancel at its next evaluation
+    // and the window's destruction waits for it (no crash, no outcome delivered to the dead).
+    ASSERT_TRUE(d->registering());
+    QElapsedTimer clock;
+    clock.start();
+    window.reset();
+    std::printf("[ register ] window closed during a registration in %lld ms\n",
+                (long long)clock.elapsed());
+    QApplication::processEvents();
 }
 
 } // namespace
