@@ -4,6 +4,7 @@
 // follows the pose, Register finds the true pose (mTRE against the truth), Cancel stops a run
 // with the best pose so far, Revert and Accept do what they say, and Save pose writes a file
 // that readPoseJson reads back.
+#include <QAction>
 #include <QCheckBox>
 #include <QDoubleSpinBox>
 #include <QElapsedTimer>
@@ -173,8 +174,18 @@ TEST_F(Workstation, RegisterToXrayManualControlsMoveThePoseAsTheirHelpSays) {
     const core::Volume& vol = *window->views()[0]->volume();
     const Scene s = sceneFor(vol, window->study().spectrum()->mapping);
     const auto path = writeXrayAtPose(vol, s, glm::dmat4(1.0), "register_identity.dcm");
-    ui::XrayRegisterDialog* d = window->registerXray(QString::fromStdString(path.string()));
+    // File ▸ Register to X-ray… registers to the X-ray the match dialog shows.
+    ui::XrayMatchDialog* m = window->matchXray(QString::fromStdString(path.string()));
+    ASSERT_TRUE(m->drr()) << m->errorText().toStdString();
+    QAction* action = nullptr;
+    for (QAction* a : window->findChildren<QAction*>())
+        if (a->text() == QString::fromUtf8("Re&gister to X-ray…")) action = a;
+    ASSERT_TRUE(action);
+    action->trigger();
+    ui::XrayRegisterDialog* d = window->findChild<ui::XrayRegisterDialog*>();
+    ASSERT_TRUE(d);
     ASSERT_TRUE(d->drr()) << d->errorText().toStdString();
+    EXPECT_EQ(d->xray()->file, path);
 
     // A drag of 10 detector pixels right: the CT's centre is shown 10 columns further right.
     const glm::dvec2 c0 = pixelOf(s.camera, s.centre);
@@ -248,6 +259,7 @@ TEST_F(Workstation, RegisterToXrayCancelGivesTheBestPoseSoFarAndAcceptKeepsIt) {
     ASSERT_TRUE(
         QTest::qWaitFor([&] { return d->progressLabel()->text().startsWith("Stage"); }, 120000));
     ASSERT_TRUE(d->registering());
+    EXPECT_FALSE(d->poseSpin(0)->isEnabled()); // no manual steps meanwhile
     QElapsedTimer clock;
     clock.start();
     d->cancelButton()->click();

@@ -105,6 +105,11 @@ void XrayRegisterDialog::showProgress(const core::RegistrationProgress& p) {
                                 .arg(p.evaluations)
                                 .arg(p.maxEvaluations)
                                 .arg(p.bestSimilarity, 0, 'f', 4));
+    // The spin boxes (disabled meanwhile) follow the best pose so far; the DRR waits for the end.
+    const core::Pose shown = m_pose;
+    m_pose = p.bestPose;
+    showPoseInSpins();
+    m_pose = shown;
 }
 
 void XrayRegisterDialog::finishRegistration(core::RegistrationResult r) {
@@ -144,6 +149,7 @@ void XrayRegisterDialog::failRegistration(const QString& why, bool cancelled) {
     m_progress->setRange(0, 1);
     m_progress->setValue(0);
     m_progressText->setText(cancelled ? tr("Cancelled") : tr("Failed: %1").arg(why));
+    showPoseInSpins(); // the pose before Register, still shown
     setBusy(false);
     emit message(tr("Registration to %1 %2")
                      .arg(xrayName(), cancelled ? tr("cancelled") : tr("failed: %1").arg(why)),
