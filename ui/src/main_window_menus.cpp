@@ -14,6 +14,7 @@
 #include <fvr/ui/settings_keys.h>
 #include <fvr/ui/settings_model.h>
 #include <fvr/ui/xray_match.h>
+#include <fvr/ui/xray_register.h>
 
 namespace fvr::ui {
 
@@ -36,6 +37,7 @@ void MainWindow::buildMenus() {
     m_recentMenu = file->addMenu(tr("&Recent studies"));
     file->addSeparator();
     file->addAction(tr("Open &X-ray to match…"), this, &MainWindow::openXrayMatchDialog);
+    file->addAction(tr("Re&gister to X-ray…"), this, &MainWindow::openRegisterDialog);
     file->addSeparator();
     QAction* shot =
         file->addAction(tr("Export &screenshot (PNG)…"), this, &MainWindow::exportScreenshotDialog);
@@ -178,7 +180,11 @@ void MainWindow::openXrayMatchDialog() {
 }
 
 XrayMatchDialog* MainWindow::matchXray(const QString& path) {
-    if (!m_xrayMatch) m_xrayMatch = new XrayMatchDialog(this);
+    if (!m_xrayMatch) {
+        m_xrayMatch = new XrayMatchDialog(this);
+        connect(m_xrayMatch, &XrayMatchDialog::registerRequested, this,
+                [this](const QString& p, int frame) { registerXray(p, frame); });
+    }
     const auto volume = m_study->volume();
     const auto spectrum = m_study->spectrum();
     m_xrayMatch->setStudy(volume, spectrum ? spectrum->mapping : m_model->rendering().mapping);
@@ -189,6 +195,35 @@ XrayMatchDialog* MainWindow::matchXray(const QString& path) {
     m_xrayMatch->show();
     m_xrayMatch->raise();
     return m_xrayMatch;
+}
+
+void MainWindow::openRegisterDialog() {
+    if (m_xrayMatch && m_xrayMatch->isVisible() && m_xrayMatch->xray() && m_xrayMatch->drr()) {
+        registerXray(QString::fromStdString(m_xrayMatch->xray()->file.string()),
+                     m_xrayMatch->frame());
+        return;
+    }
+    const QString path = QFileDialog::getOpenFileName(
+        this, tr("Register to X-ray"), QSettings().value(keys::kLastFolder).toString(),
+        tr("X-rays: DICOM XA, RF, DX, CR, RT Image; .npy, .pfm, .png with their JSON sidecar "
+           "(*.dcm *.dicom *.npy *.pfm *.png *);;All files (*)"));
+    if (!path.isEmpty()) registerXray(path);
+}
+
+XrayRegisterDialog* MainWindow::registerXray(const QString& path, int frame) {
+    if (!m_register) {
+        m_register = new XrayRegisterDialog(this);
+        connect(m_register, &XrayRegisterDialog::message, this,
+                [this](const QString& text, bool error) { message(text, error); });
+    }
+    const auto spectrum = m_study->spectrum();
+    m_register->setStudy(m_study->volume(),
+                         spectrum ? spectrum->mapping : m_model->rendering().mapping);
+    if (!m_register->openXray(path, frame))
+        message(tr("Register to X-ray %1: %2").arg(path, m_register->errorText()), true);
+    m_register->show();
+    m_register->raise();
+    return m_register;
 }
 
 void MainWindow::openFolderDialog() {

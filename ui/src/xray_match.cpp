@@ -10,6 +10,7 @@
 #include <QHBoxLayout>
 #include <QLabel>
 #include <QPainter>
+#include <QPushButton>
 #include <QSlider>
 #include <QSpinBox>
 #include <QVBoxLayout>
@@ -22,9 +23,6 @@
 
 namespace fvr::ui {
 
-namespace {
-
-/** 8-bit grayscale of W x H values through their own 0.5-99.5 % window. */
 QImage grayImage(const float* values, int width, int height, bool invert) {
     const std::vector<float> v(values, values + std::size_t(width) * std::size_t(height));
     core::DisplayWindow w = core::autoWindow(v);
@@ -37,8 +35,6 @@ QImage grayImage(const float* values, int width, int height, bool invert) {
     }
     return img;
 }
-
-} // namespace
 
 XrayMatchCanvas::XrayMatchCanvas(QWidget* parent) : QWidget(parent) {
     setMinimumSize(480, 320);
@@ -136,6 +132,10 @@ XrayMatchDialog::XrayMatchDialog(QWidget* parent) : QDialog(parent) {
     m_invert->setToolTip(tr("Show the DRR as fluoroscopy does (dense = dark), e.g. beside an "
                             "angiogram; off: as a film (dense = bright)"));
     controls->addWidget(m_invert);
+    m_register = new QPushButton(tr("Register to X-ray…"), this);
+    m_register->setToolTip(tr("Find the study's pose in this X-ray's geometry: adjust it by "
+                              "hand, then register"));
+    controls->addWidget(m_register);
     layout->addLayout(controls);
     resize(1000, 620);
 
@@ -145,6 +145,10 @@ XrayMatchDialog::XrayMatchDialog(QWidget* parent) : QDialog(parent) {
             [this](int v) { m_canvas->setOpacity(v / 100.0); });
     connect(m_frame, &QSpinBox::valueChanged, this, [this](int f) { showFrame(f - 1); });
     connect(m_invert, &QCheckBox::toggled, this, [this] { updateImages(); });
+    connect(m_register, &QPushButton::clicked, this, [this] {
+        if (m_xray && m_drr)
+            emit registerRequested(QString::fromStdString(m_xray->file.string()), m_shownFrame);
+    });
 }
 
 XrayMatchDialog::~XrayMatchDialog() = default;

@@ -30,6 +30,7 @@ class PacsService;
 class DisplayPanel;
 class GeometryPanel;
 class XrayMatchDialog;
+class XrayRegisterDialog;
 class MessagesPanel;
 class RenderingPanel;
 class SettingsModel;
@@ -94,6 +95,9 @@ public:
     /** File ▸ Open X-ray to match…: the X-ray beside the DRR of its geometry (the dialog,
      *  shown; the reason in the messages when the file cannot be matched). */
     XrayMatchDialog* matchXray(const QString& path);
+    /** File ▸ Register to X-ray…: the study's pose in the X-ray's geometry, by hand and by
+     *  registration (the dialog, shown; its start, end and cancel in the messages). */
+    XrayRegisterDialog* registerXray(const QString& path, int frame = 0);
     MessagesPanel* messages() const { return m_messages; }
     QProgressBar* progressBar() const { return m_progress; }
     QPushButton* cancelButton() const { return m_cancel; }
@@ -175,6 +179,8 @@ private:
     void openFileDialog();
     void openFolderDialog();
     void openXrayMatchDialog();
+    /** The X-ray the match dialog shows, else one asked for. */
+    void openRegisterDialog();
     void exportScreenshotDialog();
     void exportProjectionDialog();
     void exportSweepDialog();
@@ -222,6 +228,7 @@ private:
     XrayPanel* m_xray = nullptr;
     GeometryPanel* m_geometry = nullptr;
     XrayMatchDialog* m_xrayMatch = nullptr; ///< child of the window, made on first use
+    XrayRegisterDialog* m_register = nullptr; ///< child of the window, made on first use
     MessagesPanel* m_messages = nullptr;
     QProgressBar* m_progress = nullptr;
     QPushButton* m_cancel = nullptr;

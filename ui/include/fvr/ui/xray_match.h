@@ -18,10 +18,14 @@
 class QCheckBox;
 class QComboBox;
 class QLabel;
+class QPushButton;
 class QSlider;
 class QSpinBox;
 
 namespace fvr::ui {
+
+/** 8-bit grayscale of W x H values through their own 0.5-99.5 % window (inverted: dense dark). */
+QImage grayImage(const float* values, int width, int height, bool invert);
 
 /** The picture area: X-ray and DRR side by side, or one over the other. */
 class XrayMatchCanvas : public QWidget {
@@ -72,6 +76,14 @@ public:
     QSlider* opacitySlider() const { return m_opacity; }
     QSpinBox* frameSpin() const { return m_frame; }
     QCheckBox* invertCheck() const { return m_invert; }
+    /** Register to X-ray…: asks for registerRequested() with the X-ray and frame shown. */
+    QPushButton* registerButton() const { return m_register; }
+    /** The frame shown (0-based). */
+    int frame() const { return m_shownFrame; }
+
+signals:
+    /** The user asks to register the study to this X-ray's frame. */
+    void registerRequested(const QString& path, int frame);
 
 private:
     void renderDrr();
@@ -90,6 +102,7 @@ private:
     QSlider* m_opacity = nullptr;
     QSpinBox* m_frame = nullptr;
     QCheckBox* m_invert = nullptr;
+    QPushButton* m_register = nullptr;
 };
 
 } // namespace fvr::ui
