@@ -83,12 +83,13 @@ std::vector<RegistrationLevel> parseLevels(const Args& a) {
     if (a.levels.empty()) {
         const RegistrationOptions defaults;
         if (a.preset == "default") return defaults.levels;
-        if (a.preset == "fast") return {{4, 4.0, 200, 4.0, 8.0}, {2, 2.0, 120, 1.0, 2.0}};
+        // Pixels across the X-ray's larger side, CT voxel mm, evaluations, steps.
+        if (a.preset == "fast") return {{64, 4.0, 200, 4.0, 8.0}, {128, 2.0, 120, 1.0, 2.0}};
         if (a.preset == "fine")
-            return {{8, 6.0, 300, 4.0, 8.0},
-                    {4, 3.0, 250, 2.0, 4.0},
-                    {2, 1.5, 200, 0.5, 1.0},
-                    {1, 0.0, 150, 0.2, 0.4}};
+            return {{64, 6.0, 300, 4.0, 8.0},
+                    {128, 3.0, 250, 2.0, 4.0},
+                    {256, 1.5, 200, 0.5, 1.0},
+                    {512, 0.0, 150, 0.2, 0.4}};
         throw SettingsError("--preset '" + a.preset + "': expected fast, default or fine");
     }
     std::vector<RegistrationLevel> levels;

@@ -94,12 +94,14 @@ Json runOne(const Config& c, const Volume& ct, const std::vector<ConeCamera>& ca
         {"similarity_before", r.similarityBefore},
         {"similarity_after", r.similarityAfter}};
     for (const StageReport& s : r.stages)
-        j["stages"].push_back({{"name", s.name},
-                               {"seconds", s.seconds},
-                               {"drrs", s.drrs},
-                               {"image", s.imageWidth},
-                               {"voxel_mm", s.voxelMm},
-                               {"renderer", s.renderer}});
+        j["stages"].push_back(
+            {{"name", s.name},
+             {"mtre_mm", meanTargetError(tTruth, poseMatrix(s.pose, centre), targets)},
+             {"seconds", s.seconds},
+             {"drrs", s.drrs},
+             {"image", s.imageWidth},
+             {"voxel_mm", s.voxelMm},
+             {"renderer", s.renderer}});
     return j;
 }
 

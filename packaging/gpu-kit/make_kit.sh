@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Assembles the hardware bench kit from a built tree (make gpu-kit):
-#   OUT/fvr-gpu-kit/{bin,lib,licenses,run.sh,README.txt,MANIFEST.txt}  ->  TARBALL
+#   OUT/fvr-gpu-kit/{bin,lib,share,licenses,run.sh,README.txt,MANIFEST.txt}  ->  TARBALL
 #   (default OUT/fvr-gpu-kit.tar.gz)
 # bin/: fvr-render, fvr_bench_gpu, fvr_compare_npy, fvr_table1_md (stripped; DT_RPATH
 # $ORIGIN/../lib, set at link time: app/ and bench/CMakeLists.txt). lib/: every shared library
@@ -30,7 +30,7 @@ build_type=$(sed -n 's/^CMAKE_BUILD_TYPE:[A-Z]*=//p' "$build/CMakeCache.txt")
 
 kit=$out/fvr-gpu-kit
 rm -rf "$kit" "$tarball"
-mkdir -p "$kit/bin" "$kit/lib" "$kit/licenses"
+mkdir -p "$kit/bin" "$kit/lib" "$kit/share" "$kit/licenses"
 
 # The libraries the programs load, resolved on this machine (LD_LIBRARY_PATH unset).
 declare -A libs=()
@@ -52,6 +52,11 @@ for name in "${!libs[@]}"; do
   cp -L "${libs[$name]}" "$kit/lib/$name"
   chmod 644 "$kit/lib/$name"
 done
+# DCMTK's data dictionary: the library reads it from /usr/share/libdcmtkNN at run time, which a
+# bare machine lacks (without it no DICOM file decodes); run.sh points DCMDICTPATH here.
+dictionary=$(ls /usr/share/libdcmtk*/dicom.dic 2> /dev/null | head -1)
+[ -n "$dictionary" ] || fail "DCMTK's dicom.dic is missing (Debian package libdcmtk17)"
+cp "$dictionary" "$kit/share/dicom.dic"
 cp "$here/run.sh" "$here/README.txt" "$kit/"
 chmod 755 "$kit/run.sh"
 

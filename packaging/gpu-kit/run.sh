@@ -19,6 +19,8 @@
 set -u
 kit=$(cd "$(dirname "$0")" && pwd)
 bin=$kit/bin
+# DCMTK's data dictionary travels in the kit (a bare machine has none: DICOM would not decode).
+export DCMDICTPATH=${DCMDICTPATH:-$kit/share/dicom.dic}
 out=$kit/results
 quick=0
 # GPU = CPU within float rounding. The two round differently (FMA contraction, the order of

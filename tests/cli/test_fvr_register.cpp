@@ -83,6 +83,30 @@ Json readJson(const fs::path& p) {
     return Json::parse(in);
 }
 
+TEST(FvrRegister, PresetsAreLevelsOfImagePixels) {
+    // A 128-pixel X-ray: "fast" works at 64 and 128 pixels across; "fine" at 64, 128 and full
+    // size twice (its 256- and 512-pixel levels cannot upsample the image).
+    const fs::path dir = scratch("presets");
+    renderChest(dir / "ap.npy", 0.0);
+    const std::vector<std::pair<std::string, std::vector<int>>> presets = {
+        {"fast", {64, 128}}, {"fine", {64, 128, 128, 128}}};
+    for (const auto& [preset, widths] : presets) {
+        const RegisterRun r =
+            runFvrRegister("phantom:chest:96 " + (dir / "ap.npy").string() + " --preset " + preset +
+                           " --global 0 --offset 2,0,0,3,0,0 --threads 2 --out " +
+                           (dir / (preset + ".json")).string());
+        ASSERT_EQ(r.status, 0) << preset << ": " << r.output;
+        const Json j = readJson(dir / (preset + ".json"));
+        ASSERT_EQ(j["stages"].size(), widths.size()) << preset;
+        for (std::size_t k = 0; k < widths.size(); ++k)
+            EXPECT_EQ(j["stages"][k]["image_size"][0].get<int>(), widths[k]) << preset << " " << k;
+    }
+    const RegisterRun bad = runFvrRegister("phantom:chest:96 " + (dir / "ap.npy").string() +
+                                           " --preset quick --out " + (dir / "q.json").string());
+    EXPECT_NE(bad.status, 0);
+    EXPECT_NE(bad.output.find("expected fast, default or fine"), std::string::npos) << bad.output;
+}
+
 TEST(FvrRegister, BiplaneFromAnOffsetFindsTheGeometrysPose) {
     const fs::path dir = scratch("biplane");
     renderChest(dir / "ap.npy", 0.0);

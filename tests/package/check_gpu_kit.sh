@@ -20,7 +20,8 @@ mkdir "$tmp/unpacked"
 tar -C "$tmp/unpacked" -xzf "$tmp/fvr-gpu-kit.tar.gz"
 kit=$tmp/unpacked/fvr-gpu-kit
 for f in run.sh README.txt MANIFEST.txt bin/fvr-render bin/fvr_bench_gpu bin/fvr_compare_npy \
-         bin/fvr_table1_md lib/libfftw3f.so.3 lib/libdcmdata.so.17 lib/libepoxy.so.0; do
+         bin/fvr_table1_md bin/fvr_register_eval share/dicom.dic lib/libfftw3f.so.3 \
+         lib/libdcmdata.so.17 lib/libepoxy.so.0; do
   [ -e "$kit/$f" ] || bad "the kit lacks $f"
 done
 
@@ -47,6 +48,17 @@ done
 same=$("$kit/bin/fvr_compare_npy" "$tmp/a.npy" "$tmp/a.npy")
 grep -q '"psnr":300' <<<"$same" || bad "an image against itself: $same"
 if "$kit/bin/fvr_compare_npy" "$tmp/a.npy" "$tmp/b.npy" 2> /dev/null; then bad "128² vs 256² compared"; fi
+
+# DICOM decodes with the kit's own data dictionary alone (a bare machine has no other): a file
+# the kit wrote, JPEG Lossless compressed (decoding it needs the dictionary; without one it fails),
+# reads back with DCMDICTPATH naming the kit's copy (DCMTK then reads no other).
+(cd "$kit" && ./bin/fvr-render phantom:shepp-logan:32 --size 64 --backend cpu --out "$tmp/d.dcm") > /dev/null
+dcmcjpeg +e1 "$tmp/d.dcm" "$tmp/j.dcm"
+if DCMDICTPATH=/nonexistent "$kit/bin/fvr-render" "$tmp/j.dcm" --info > /dev/null 2>&1; then
+  bad "a JPEG DICOM decoded without any dictionary: the dictionary check below proves nothing"
+fi
+DCMDICTPATH=$kit/share/dicom.dic "$kit/bin/fvr-render" "$tmp/j.dcm" --info > /dev/null 2> "$tmp/j.err" ||
+  bad "a JPEG DICOM with the kit's dictionary: $(cat "$tmp/j.err")"
 
 # The quick run, from an unrelated working directory, with no display.
 mkdir "$tmp/cwd"

@@ -231,10 +231,10 @@ TEST(RegistrationPyramid, BlockMeanCtKeepsItsCentreAndLineIntegrals) {
     for (float v : ct.voxels) a += v;
     for (float v : half.voxels) b += v;
     EXPECT_NEAR(a / double(ct.voxels.size()), b / double(half.voxels.size()), 1e-3);
-    // 3 voxels left over of 41: the centre moves by half an input voxel at most.
+    // 1 voxel left over of 41: the centre moves by half an input voxel at most.
     const Volume odd = downsampleVolume(rodPhantom(41), 8.0);
     const glm::dvec3 moved = volumeCentre(odd) - volumeCentre(rodPhantom(41));
-    for (int a = 0; a < 3; ++a) EXPECT_LE(std::abs(moved[a]), 2.0 + 1e-9);
+    for (int axis = 0; axis < 3; ++axis) EXPECT_LE(std::abs(moved[axis]), 2.0 + 1e-9);
     EXPECT_EQ(downsampleVolume(ct, 0.0).dims, ct.dims);
 }
 

@@ -207,6 +207,21 @@ TEST(RegistrationIo, DicomXaOfTransmissionComesBackAsMinusLn) {
         const double tol = 0.5 / 65535.0 / img.pixels[k] + 1e-6;
         ASSERT_NEAR(x.view.image[k], mu * 50.0 * L[k], tol) << k;
     }
+    // The same intensities stored as MONOCHROME1: the reader inverts them for display, and -ln
+    // of inverted values would be no line integral: refused, naming the file.
+    DcmFileFormat ff;
+    ASSERT_TRUE(ff.loadFile((dir / "lin.dcm").c_str()).good());
+    ff.loadAllDataIntoMemory();
+    ff.getDataset()->putAndInsertString(DCM_PhotometricInterpretation, "MONOCHROME1");
+    ASSERT_TRUE(ff.saveFile((dir / "mono1.dcm").c_str(), EXS_LittleEndianExplicit).good());
+    try {
+        readXrayInput(dir / "mono1.dcm", glm::dvec3(0.0));
+        FAIL() << "MONOCHROME1 intensities were read";
+    } catch (const LoadError& e) {
+        EXPECT_NE(std::string(e.what()).find("mono1.dcm"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("MONOCHROME1"), std::string::npos) << e.what();
+    }
+    EXPECT_NO_THROW(readXrayInput(dir / "mono1.dcm", glm::dvec3(0.0), XrayValues::LineIntegrals));
 }
 
 TEST(RegistrationIo, RefusalsNameTheFileAndTheProblem) {

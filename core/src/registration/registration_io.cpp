@@ -110,7 +110,7 @@ std::string tagString(DcmDataset* ds, const DcmTagKey& tag) {
 
 /** The values' relation and the file's identity from its header (the pixels are the geometry
  *  reader's). */
-void readDicomIdentity(XrayInput& x, std::string& relationship, bool& ours) {
+void readDicomIdentity(XrayInput& x, std::string& relationship, bool& ours, bool& monochrome1) {
     DcmFileFormat ff;
     // Elements over 4 KiB (the pixels) are left in the file.
     if (ff.loadFile(x.file.c_str(), EXS_Unknown, EGL_noChange, 4096).bad())
@@ -120,6 +120,7 @@ void readDicomIdentity(XrayInput& x, std::string& relationship, bool& ours) {
     std::transform(relationship.begin(), relationship.end(), relationship.begin(),
                    [](unsigned char c) { return char(std::toupper(c)); });
     ours = tagString(ds, DCM_Manufacturer) == "FVR Workstation";
+    monochrome1 = tagString(ds, DCM_PhotometricInterpretation) == "MONOCHROME1";
     x.patientId = tagString(ds, DCM_PatientID);
     const std::string frame = tagString(ds, DCM_FrameOfReferenceUID);
     const std::string study = tagString(ds, DCM_StudyInstanceUID);
@@ -170,8 +171,8 @@ XrayInput readDicomXray(const fs::path& path, const glm::dvec3& isocentre, XrayV
         x.warnings.push_back("isocentre not stated in the file: taken at (" + number(isocentre.x) +
                              ", " + number(isocentre.y) + ", " + number(isocentre.z) + ") mm");
     std::string relationship;
-    bool ours = false;
-    readDicomIdentity(x, relationship, ours);
+    bool ours = false, monochrome1 = false;
+    readDicomIdentity(x, relationship, ours, monochrome1);
     checkFinite(path, x.view.image);
     XrayValues v = values;
     if (v == XrayValues::Auto) {
@@ -184,6 +185,12 @@ XrayInput readDicomXray(const fs::path& path, const glm::dvec3& isocentre, XrayV
                 "MONOCHROME2 radiograph shows bone bright); --values intensity for a raw "
                 "radiograph's intensities");
     }
+    if (v == XrayValues::Intensity && monochrome1)
+        // The reader inverted the stored values (larger = brighter); -ln of them would not be a
+        // line integral, and the stored range that undoes it is not kept.
+        failLoad(path, "intensities (PixelIntensityRelationship LIN or --values intensity) stored "
+                       "as MONOCHROME1 are not supported: convert the image to MONOCHROME2, or "
+                       "give --values line-integrals to use its inverted values as they are");
     if (v == XrayValues::Intensity) {
         intensityToLineIntegrals(x, 0.0, 1.0, "the 99.5th percentile of the frame");
     } else {
@@ -433,35 +440,15 @@ std::vector<float> windowed(const std::vector<float>& image) {
     return out;
 }
 
-/** The Sobel gradient magnitude of a windowed image, scaled so that its 99th percentile is 1. */
-std::vector<float> edges(const std::vector<float>& w, int width, int height) {
-    std::vector<float> g(w.size(), 0.0f);
-    auto at = [&](int x, int y) {
-        return double(w[std::size_t(y) * std::size_t(width) + std::size_t(x)]);
-    };
-    for (int y = 1; y + 1 < height; ++y)
-        for (int x = 1; x + 1 < width; ++x) {
-            const double gx = at(x + 1, y - 1) + 2 * at(x + 1, y) + at(x + 1, y + 1) -
-                              at(x - 1, y - 1) - 2 * at(x - 1, y) - at(x - 1, y + 1);
-            const double gy = at(x - 1, y + 1) + 2 * at(x, y + 1) + at(x + 1, y + 1) -
-                              at(x - 1, y - 1) - 2 * at(x, y - 1) - at(x + 1, y - 1);
-            g[std::size_t(y) * std::size_t(width) + std::size_t(x)] = float(std::hypot(gx, gy));
-        }
-    const double top = quantile(g, 0.99);
-    if (top > 0.0)
-        for (float& v : g) v = float(std::min(1.0, v / top));
-    return g;
-}
-
 std::uint8_t byte(double t) { return std::uint8_t(std::lround(std::clamp(t, 0.0, 1.0) * 255.0)); }
 
 } // namespace
 
-/** "blend": the X-ray in grey, the DRR's edges (Sobel magnitude, its 99th percentile full) over it
- *  in green, opaque in proportion to their strength, so that a registered pair shows the green
- *  lines on the X-ray's own edges. "checkerboard": squares of `square` pixels, the X-ray's grey
- *  and the DRR's grey in turn (the top-left square the X-ray's), so that edges run on unbroken
- *  across the squares' borders when the two match. */
+/** "blend": the X-ray in green and the DRR in magenta (red and blue), each windowed on its own,
+ *  as the workstation's Register to X-ray shows them: where the two agree the pixel is grey, where
+ *  they are offset the edges show green on one side and magenta on the other. "checkerboard":
+ *  squares of `square` pixels, the X-ray's grey and the DRR's grey in turn (the top-left square
+ *  the X-ray's), so that edges run on unbroken across the squares' borders when the two match. */
 void writeOverlayPng(const fs::path& path, const std::string& kind, const std::vector<float>& xray,
                      const std::vector<float>& drr, int width, int height, int square) {
     const std::size_t n = std::size_t(width) * std::size_t(height);
@@ -475,12 +462,9 @@ void writeOverlayPng(const fs::path& path, const std::string& kind, const std::v
     const std::vector<float> x = windowed(xray), d = windowed(drr);
     std::vector<std::uint8_t> rgb(n * 3);
     if (kind == "blend") {
-        const std::vector<float> e = edges(d, width, height);
         for (std::size_t k = 0; k < n; ++k) {
-            const double a = 0.85 * e[k], grey = x[k];
-            rgb[3 * k] = byte(grey * (1 - a));
-            rgb[3 * k + 1] = byte(grey * (1 - a) + a);
-            rgb[3 * k + 2] = byte(grey * (1 - a));
+            rgb[3 * k] = rgb[3 * k + 2] = byte(d[k]);
+            rgb[3 * k + 1] = byte(x[k]);
         }
     } else {
         for (int y = 0; y < height; ++y)

@@ -65,7 +65,7 @@ void writePoseJson(const std::filesystem::path& path, const glm::dmat4& T,
 std::vector<glm::dvec3> readTargetsCsv(const std::filesystem::path& path);
 
 /** Overlay PNGs of an X-ray and a DRR of the same camera, each windowed on its own 1st-99th
- *  percentiles: "blend" (X-ray grey, DRR edges... as documented in the .cpp) and "checkerboard"
+ *  percentiles: "blend" (X-ray green, DRR magenta: grey where they agree) and "checkerboard"
  *  (squares of `square` pixels alternating the two). */
 void writeOverlayPng(const std::filesystem::path& path, const std::string& kind,
                      const std::vector<float>& xray, const std::vector<float>& drr, int width,
