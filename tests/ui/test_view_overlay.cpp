@@ -66,8 +66,11 @@ TEST(ViewOverlay, LinesFollowTheFrame) {
     OverlayState s = knownState();
     s.interacting = true; // a drag: the frame rate the user sees, not the frame time
     EXPECT_EQ(lines(s)[1], "25 fps  linear  256×256  CPU  trilinear voxels, area pixels");
-    s.stats.wallMs = 0; // nothing on screen yet
+    s.stats.wallMs = 0; // not on screen yet: the renderer's own time, named so (never a bare -)
+    EXPECT_TRUE(lines(s)[1].startsWith("render 4.0 ms  linear")) << lines(s)[1].toStdString();
+    s.stats.totalMs = 0; // nothing rendered at all
     EXPECT_TRUE(lines(s)[1].startsWith("–  linear"));
+    s.stats.totalMs = 4.0;
     s.level = 0;
     EXPECT_EQ(lines(s)[2], "full quality (interactive target 20 fps)");
     s.gpu = true;
@@ -144,4 +147,30 @@ TEST(ViewOverlay, PaintsTheBoxOverTheImage) {
         for (int x = 0; x < img.width(); ++x) dark += qGray(img.pixel(x, y)) < 230;
     EXPECT_GT(dark, 20);
     EXPECT_EQ(img.pixel(box.left() + 1, box.bottom() - 1), QColor(Qt::white).rgba());
+}
+
+// The polychromatic output names its mode, tube and quantity (and its noise, on -ln(I/I0)
+// only), in both the parallel and the cone-beam box; no Beer-Lambert mu water there.
+TEST(ViewOverlay, PolychromaticLineNamesTheModeTubeAndQuantity) {
+    fvr::ui::PolychromaticSource src;
+    EXPECT_EQ(ViewOverlay::polychromaticLine(nullptr), QString());
+    EXPECT_TRUE(ViewOverlay::polychromaticLine(&src).contains("preparing the material spectra"));
+    src.spectra.push_back(nullptr); // spectra have come (the line reads none of them)
+    src.kvp = 80;
+    src.filtrationAlMm = 2.5;
+    src.noise.mAs = 0.5;
+    EXPECT_EQ(ViewOverlay::polychromaticLine(&src),
+              QString::fromUtf8("polychromatic 80 kVp, 2.5 mm Al: −ln(I/I0)  noise 0.5 mAs"));
+    src.show = 2;
+    src.filtrationCuMm = 0.1;
+    EXPECT_EQ(ViewOverlay::polychromaticLine(&src),
+              QString::fromUtf8("polychromatic 80 kVp, 2.5 mm Al, 0.1 mm Cu: bone mass thickness "
+                                "(g/cm²)"));
+    OverlayState s = knownState();
+    s.window.transmission = {}; // the polychromatic output has no Beer-Lambert display
+    s.output = ViewOverlay::polychromaticLine(&src);
+    EXPECT_EQ(lines(s)[3], s.output);
+    EXPECT_FALSE(ViewOverlay(s).text().contains(QString::fromUtf8("μw")));
+    s.coneGeometry = "LAO 0° CRAN 0°  SID 1000  SOD 750 mm";
+    EXPECT_TRUE(lines(s).contains(s.output));
 }

@@ -24,6 +24,18 @@ void AccuracyReadout::measure(ProjectionView& view, const StudyController& study
                      true);
         return;
     }
+    if (view.polychromatic() && !view.polychromatic()->spectra.empty()) {
+        // -ln(I/I0) against mu ray casting compared two different quantities (19 dB where the
+        // same view's line integrals give 45 dB): no figure rather than a misleading one.
+        emit message(tr("The accuracy readout compares line integrals with ray casting of the "
+                        "same voxels; the polychromatic output shows %1, a non-linear function "
+                        "of three material integrals that the ray caster does not make. Set "
+                        "X-ray ▸ Output to Line integrals to measure the renderer (the spectral "
+                        "response is then applied to those integrals per pixel).")
+                         .arg(ViewOverlay::polychromaticQuantity(view.polychromatic()->show)),
+                     true);
+        return;
+    }
     auto fvr = view.projection();
     if (!fvr) return;
     const auto volume = study.volume();

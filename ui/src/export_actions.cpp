@@ -79,11 +79,30 @@ bool MainWindow::exportProjection(const QString& path) {
                 .arg(p->width)
                 .arg(p->height)
                 .arg(p->pixelSize, 0, 'g', 4)
-                .arg(t.active() ? tr("transmitted intensity, μ_water %1/mm, exposure %2")
-                                      .arg(t.muWaterPerMm, 0, 'f', 4)
-                                      .arg(t.exposure)
-                                : tr("line integrals")));
+                .arg(exportedQuantity()));
     return true;
+}
+
+QString MainWindow::exportedQuantity() const {
+    if (const core::Transmission t = currentTransmission(); t.active())
+        return tr("transmitted intensity, μ_water %1/mm, exposure %2")
+            .arg(t.muWaterPerMm, 0, 'f', 4)
+            .arg(t.exposure);
+    // The polychromatic output of view 1, once its material spectra have come (till then it
+    // shows, and exports, its line integrals).
+    const auto& poly = m_views.empty() ? nullptr : m_views[0]->polychromatic();
+    if (poly && !poly->spectra.empty()) {
+        QString q = tr("polychromatic %1, %2")
+                        .arg(ViewOverlay::polychromaticQuantity(poly->show),
+                             ViewOverlay::polychromaticBeam(poly->kvp, poly->filtrationAlMm,
+                                                            poly->filtrationCuMm));
+        if (poly->show < 0 && poly->noise.active())
+            q += tr(", noise %1 mAs").arg(poly->noise.mAs, 0, 'g', 3);
+        return q;
+    }
+    return core::isAttenuation(m_study->spectrumSettings().mapping)
+               ? tr("line integrals, mm (μ/μ_water × mm)")
+               : tr("line integrals of the stored values × mm");
 }
 
 void MainWindow::writeDicomProjection(const std::string& path) const {
@@ -92,11 +111,18 @@ void MainWindow::writeDicomProjection(const std::string& path) const {
     core::DicomExportInfo info = core::exportInfoFor(m_study->series());
     core::ProjectionImage image = *p;
     const core::Transmission t = currentTransmission();
+    const auto& poly = m_views[0]->polychromatic();
     if (t.active()) {
         core::applyTransmission(image.pixels, t);
         info.valueDescription = "transmitted intensity (mu_water " +
                                 std::to_string(t.muWaterPerMm) + "/mm, exposure " +
                                 std::to_string(t.exposure) + ")";
+    } else if (poly && !poly->spectra.empty()) {
+        // -ln(I/I0) or g/cm^2 and the tube, in ASCII (the file declares no character set).
+        info.valueDescription = exportedQuantity()
+                                    .replace(QStringLiteral("−"), QStringLiteral("-"))
+                                    .replace(QStringLiteral("²"), QStringLiteral("^2"))
+                                    .toStdString();
     } else {
         info.valueDescription = core::isAttenuation(m_study->spectrumSettings().mapping)
                                     ? "line integral, mm (mu/mu_water x mm)"
@@ -159,7 +185,9 @@ bool MainWindow::exportSweep(const QString& folder, int frames, const core::Vec3
             message(tr("Sweep export failed: %1").arg(QString::fromUtf8(e.what())), true);
             return false;
         }
-        message(tr("Exported %1 frames to %2 (PNG frames and sweep.npy)").arg(frames).arg(folder));
+        message(tr("Exported %1 frames to %2 (PNG frames and sweep.npy: %3)")
+                    .arg(frames)
+                    .arg(folder, exportedQuantity()));
     } else {
         message(tr("Sweep export stopped"), true);
     }
@@ -190,7 +218,8 @@ void MainWindow::exportScreenshotDialog() {
 void MainWindow::exportProjectionDialog() {
     const QString path = QFileDialog::getSaveFileName(
         this, tr("Export projection"), exportFolder() + "/projection.npy",
-        tr("Float line integrals (*.npy);;16-bit PNG, current window (*.png);;PFM float (*.pfm);;"
+        tr("Float values, as shown before the window (*.npy);;16-bit PNG, current window "
+           "(*.png);;PFM float (*.pfm);;"
            "DICOM Secondary Capture (*.dcm)"));
     if (!path.isEmpty() && exportProjection(path))
         rememberExportFolder(QFileInfo(path).absolutePath());

@@ -94,8 +94,13 @@ void MainWindow::pushPolychromatic() {
                 message(tr("Polychromatic output: %1").arg(QString::fromUtf8(e.what())), true);
                 return;
             }
-            s->noise.mAs = x.noiseMas;
+            // Quantum noise is the detected intensity's: it goes on -ln(I/I0), and a material's
+            // mass thickness (the decomposition's truth, no measurement) has none.
+            s->noise.mAs = x.show < 0 ? x.noiseMas : 0.0;
             s->show = x.show;
+            s->kvp = x.kvp;
+            s->filtrationAlMm = x.filtrationAlMm;
+            s->filtrationCuMm = x.filtrationCuMm;
             source = s;
         }
         m_views[i]->setPolychromatic(source);

@@ -234,6 +234,10 @@ void MainWindow::applyOutput(bool resetWindow) {
         applyValueMapping();
         m_rewindow = true; // the window follows the new spectrum's image (onSpectrumReady)
     }
+    // The views get their output first: the window below is taken from what they show now (it
+    // was taken from the previous output's image: polychromatic bone in g/cm^2 windowed line
+    // integrals up to 243 as a white rectangle).
+    applyPolychromatic();
     if (resetWindow) {
         // Film look (bone white) for transmission. The window from the image (log exposure for
         // transmission); before any image, the first three decades of exposure.
@@ -243,7 +247,6 @@ void MainWindow::applyOutput(bool resetWindow) {
     } else {
         applyWindowFromPanel();
     }
-    applyPolychromatic();
 }
 
 } // namespace fvr::ui

@@ -92,7 +92,10 @@ void ProjectionView::setStudy(std::shared_ptr<const core::Volume> volume,
         // address is no proof of sameness once the old volume is freed.
         m_gpuConeVolume = nullptr;
     }
-    if (newVolume) m_windowSet = false;
+    if (newVolume) {
+        m_windowSet = false;
+        m_stats = {}; // the last study's times (a sweep's, say) are not this one's
+    }
     m_frameRequested = false; // the next frame is timed from here (its upload included)
     requestFrame();
 }
@@ -161,6 +164,9 @@ void ProjectionView::framePresented() {
     // the window (all synchronised views) included; not one stage's timer.
     m_stats.wallMs = double(m_requestClock.nsecsElapsed()) / 1e6;
     if (m_pendingLevel == m_progressive.level()) m_progressive.frameRendered(m_stats.wallMs);
+    // At rest the overlay was drawn before its frame was on screen: once more, with this
+    // frame's own time (a drag shows the rate of the frames before, as a rate should).
+    if (!m_progressive.interacting()) update();
 }
 
 void ProjectionView::setViewFrame(const core::ViewFrame& f) {
@@ -380,6 +386,7 @@ OverlayState ProjectionView::overlayState() const {
     s.level = m_renderedLevel;
     s.lastLevel = int(m_progressive.levels().size()) - 1;
     s.window = m_window;
+    s.output = ViewOverlay::polychromaticLine(m_poly.get());
     return s;
 }
 

@@ -71,6 +71,8 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
     if (m_reference && m_reference != this) subtractReference();
     if (!m_windowSet) windowFromFrame();
     m_renderDirty = false; // only after a frame really exists
+    // Its time on screen comes when it is there (framePresented); the last frame's is not its.
+    if (!m_progressive.interacting()) m_stats.wallMs = 0;
     ++m_frames;
     emit rendered();
 }
@@ -171,7 +173,11 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
     makeCurrent();
     std::optional<core::ProjectionImage> img;
     try {
+        const int before = m_frames;
         renderIfNeeded(true); // exports and measurements always get the full-quality frame
+        // A frame made here (an export, a sweep, a window preset, a difference's reference)
+        // serves the changes before it: the next change is timed from itself, not from them.
+        if (m_frames != before) m_frameRequested = false;
         if (coneBeam() && m_reference)
             renderConeFrame(m_settings.size), img = m_cpuImage; // its own, not the difference
         else if (coneBeam())

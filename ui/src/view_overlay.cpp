@@ -33,6 +33,34 @@ QStringList ViewOverlay::orientationLabels(const core::Volume& volume,
     return {lbl(-view.r), lbl(view.r), lbl(view.u), lbl(-view.u)};
 }
 
+QString ViewOverlay::polychromaticQuantity(int show) {
+    // The materials of core::defaultMaterials(), in the X-ray panel's words.
+    static const char* const kMaterials[] = {QT_TR_NOOP("air"), QT_TR_NOOP("soft tissue"),
+                                             QT_TR_NOOP("bone")};
+    if (show < 0) return QStringLiteral("−ln(I/I0)");
+    const QString name = show < 3 ? tr(kMaterials[show]) : tr("material %1").arg(show);
+    return tr("%1 mass thickness (g/cm²)").arg(name);
+}
+
+QString ViewOverlay::polychromaticBeam(double kvp, double filtrationAlMm, double filtrationCuMm) {
+    QString beam = tr("%1 kVp, %2 mm Al").arg(kvp, 0, 'g', 4).arg(filtrationAlMm, 0, 'g', 3);
+    if (filtrationCuMm > 0) beam += tr(", %1 mm Cu").arg(filtrationCuMm, 0, 'g', 3);
+    return beam;
+}
+
+QString ViewOverlay::polychromaticLine(const PolychromaticSource* source) {
+    if (!source) return {};
+    if (source->spectra.empty())
+        return tr("polychromatic: preparing the material spectra (line integrals meanwhile)");
+    QString line =
+        tr("polychromatic %1: %2")
+            .arg(polychromaticBeam(source->kvp, source->filtrationAlMm, source->filtrationCuMm),
+                 polychromaticQuantity(source->show));
+    if (source->show < 0 && source->noise.active())
+        line += tr("  noise %1 mAs").arg(source->noise.mAs, 0, 'g', 3);
+    return line;
+}
+
 QFont ViewOverlay::font(bool bold) const {
     QFont f = m_s.font;
     f.setPointSizeF(std::max(8.0, f.pointSizeF()));
@@ -88,7 +116,10 @@ QList<QRect> ViewOverlay::labelRects(const QRect& avoid) const {
 
 QString ViewOverlay::speed() const {
     // While dragging the frame rate the user sees; at rest the last frame's time.
+    // Without a time on screen (the frame was made for an export, a preset or a difference, or
+    // is not on screen yet): the renderer's own time, named so.
     const FrameStats& s = m_s.stats;
+    if (s.wallMs <= 0 && s.totalMs > 0) return tr("render %1 ms").arg(s.totalMs, 0, 'f', 1);
     if (s.wallMs <= 0) return QStringLiteral("–");
     if (m_s.interacting)
         return QStringLiteral("%1 fps").arg(1000.0 / std::max(1.0, s.wallMs), 0, 'f', 0);
@@ -124,6 +155,7 @@ QStringList ViewOverlay::performanceLines() const {
                      .arg(m_s.gpu ? QStringLiteral("GPU") : QStringLiteral("CPU"))
                      .arg(QString::fromUtf8(core::rayModelName(m_s.rayModel)));
         lines << m_s.coneGeometry;
+        if (!m_s.output.isEmpty()) lines << m_s.output;
         if (m_s.progressive && m_s.level > 0)
             lines << tr("interactive level %1/%2 (target %3 fps)")
                          .arg(m_s.level)
@@ -153,6 +185,7 @@ QStringList ViewOverlay::performanceLines() const {
                             .arg(m_s.level)
                             .arg(m_s.lastLevel)
                             .arg(m_s.targetFps, 0, 'f', 0));
+    if (!m_s.output.isEmpty()) lines << m_s.output;
     const QStringList fx = effectsSummary();
     if (!fx.isEmpty()) lines << fx.join(QStringLiteral("  "));
     lines << stageLine();

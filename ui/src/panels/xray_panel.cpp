@@ -158,12 +158,24 @@ void XrayPanel::updateBeam() {
     m_muWater->setText(tr("%1 /mm").arg(core::waterAttenuationPerMm(m_energy->value()), 0, 'f', 4));
     m_energy->setEnabled(transmission);
     m_exposure->setEnabled(transmission);
-    // The polychromatic rows show with that output only (the panel keeps its height otherwise).
+    // The polychromatic rows show with that output only (the panel keeps its height otherwise);
+    // the single energy's rows (energy, μ water, exposure) do not apply there: the tube's
+    // spectrum replaces them.
     const bool poly = isPolychromatic(output());
     for (QWidget* w :
          std::initializer_list<QWidget*>{m_kvp, m_filtrationAl, m_filtrationCu, m_detector, m_csi,
                                          m_noise, m_show, m_materialMemory})
         m_form->setRowVisible(w, poly);
+    for (QWidget* w : std::initializer_list<QWidget*>{m_energy, m_muWater, m_exposure})
+        m_form->setRowVisible(w, !poly);
+    // Quantum noise is drawn on the detected intensity (-ln(I/I0)); a material's mass thickness
+    // is the decomposition's truth, no measurement: noise does not apply to it.
+    const bool material = m_show->currentData().toInt() >= 0;
+    m_noise->setEnabled(!material);
+    m_noise->setToolTip(
+        material ? tr("Quantum noise is on the detected intensity, −ln(I/I0): a material's mass "
+                      "thickness is no measurement and has none. Show −ln(I/I0) to add noise.")
+                 : tr("Quantum noise for this exposure at 1 m (Poisson, seeded)"));
 }
 
 XrayPanel::Values XrayPanel::values() const {

@@ -17,7 +17,8 @@ public:
     ~AccuracyReadout() override;
 
     /** Starts measuring `view` (nothing without a study or a projection; a message while the
-     *  previous measurement runs or when slice filters are on). */
+     *  previous measurement runs, when slice filters are on, or for a polychromatic view: the
+     *  ray caster makes line integrals, not -ln(I/I0) or a material's mass thickness). */
     void measure(ProjectionView& view, const StudyController& study);
 
 signals:

@@ -130,6 +130,10 @@ private:
     /** View 1's projection as DICOM Secondary Capture: the values the float exports hold, the
      *  source's patient and study. Throws (WriteError, or nothing to export). */
     void writeDicomProjection(const std::string& path) const;
+    /** What the float exports of view 1 hold, in words for the Messages panel and the DICOM
+     *  ImageComments: the transmitted intensity, the polychromatic quantity (with the tube) or
+     *  the line integrals. */
+    QString exportedQuantity() const;
     void buildViewMenu(QMenu* view, QToolBar* toolbar);
     ProjectionView* addView(int index, int count, const core::ViewFrame& frame);
     void connectView(ProjectionView* v);

@@ -62,12 +62,24 @@ struct OverlayState {
     int level = 0; ///< the frame's quality level (0: full quality)
     int lastLevel = 0; ///< the coarsest interactive level
     core::DisplayWindow window;
+    /** The polychromatic output's line ("polychromatic 80 kVp, 2.5 mm Al: −ln(I/I0)"); empty
+     *  for line integrals and Beer-Lambert (their effects line says the latter). */
+    QString output;
 };
 
 class ViewOverlay {
     Q_DECLARE_TR_FUNCTIONS(ViewOverlay)
 public:
     explicit ViewOverlay(OverlayState state) : m_s(std::move(state)) {}
+
+    /** The quantity the polychromatic output shows: "−ln(I/I0)" (show < 0) or material
+     *  `show`'s mass thickness ("bone mass thickness (g/cm²)"). */
+    static QString polychromaticQuantity(int show);
+    /** The tube of a polychromatic output: "80 kVp, 2.5 mm Al" (", 0.1 mm Cu" with copper). */
+    static QString polychromaticBeam(double kvp, double filtrationAlMm, double filtrationCuMm);
+    /** The overlay's line for `source` (null: none, the output is not polychromatic): the mode,
+     *  the tube, the quantity and the noise; or that the material spectra are being prepared. */
+    static QString polychromaticLine(const PolychromaticSource* source);
 
     /** The patient-direction labels of a view of `volume` at the image's left, right, top and
      *  bottom edges ("L", "S", ...; with " (assumed)" when the file states no orientation). */

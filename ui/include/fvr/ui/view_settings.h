@@ -58,8 +58,12 @@ struct FrameEffects {
 struct PolychromaticSource {
     std::vector<std::shared_ptr<const core::Spectrum>> spectra;
     std::shared_ptr<const core::SpectralResponse> response;
-    core::NoiseModel noise;
+    core::NoiseModel noise; ///< on -ln(I/I0) only (none on a material's mass thickness)
     int show = -1; ///< -1: -ln(I/I0); m: material m's mass thickness (g/cm^2)
+    // The tube the response was made for (what the overlay and the exports say).
+    double kvp = 0.0;
+    double filtrationAlMm = 0.0;
+    double filtrationCuMm = 0.0;
 };
 
 } // namespace fvr::ui
