@@ -5,6 +5,10 @@
 #include <QComboBox>
 #include <QDoubleSpinBox>
 #include <QElapsedTimer>
+#include <QFile>
+#include <QJsonArray>
+#include <QJsonDocument>
+#include <QJsonObject>
 #include <QLabel>
 #include <QPlainTextEdit>
 #include <QRegularExpression>
@@ -22,6 +26,7 @@
 #include <fvr/ui/panels/display_panel.h>
 #include <fvr/ui/panels/messages_panel.h>
 #include <fvr/ui/panels/xray_panel.h>
+#include <fvr/ui/scripted_run.h>
 
 #include "test_support.h"
 #include "ui/ui_support.h"
@@ -141,6 +146,17 @@ TEST_F(Workstation, PolychromaticExportsNameTheirQuantity) {
         << c;
     m = lastMessage(*window);
     EXPECT_TRUE(m.contains(QString::fromUtf8("bone mass thickness (g/cm²)"))) << m.toStdString();
+    // The scripted run's views.json says the same of its .npy.
+    ui::ScriptedRunOptions opts;
+    opts.exportDir = QString::fromStdString((dir / "scripted").string());
+    ui::ScriptedRun run(*window, opts);
+    run.writeOutputs();
+    QFile json(opts.exportDir + "/views.json");
+    ASSERT_TRUE(json.open(QIODevice::ReadOnly));
+    const QJsonObject view1 =
+        QJsonDocument::fromJson(json.readAll()).object()["views"].toArray()[0].toObject();
+    EXPECT_EQ(view1["npyValues"].toString(),
+              QString::fromUtf8("polychromatic bone mass thickness (g/cm²), 80 kVp, 2.5 mm Al"));
     // Line integrals again: labelled so.
     chooseOutput(*window, ui::XrayOutput::LineIntegrals);
     ASSERT_TRUE(window->exportProjection(QString::fromStdString((dir / "li.npy").string())));

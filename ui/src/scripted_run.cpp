@@ -41,6 +41,17 @@ QJsonObject spectrumJson(const SpectrumSettings& s) {
                                              : QJsonValue(QJsonValue::Null)}};
 }
 
+/** What a view's .npy holds: the transmitted intensity, the polychromatic quantity with its
+ *  tube (once the view's material spectra have come) or the line integrals. */
+QString npyValues(const ProjectionView& v, bool transmission) {
+    if (transmission) return QStringLiteral("transmitted intensity");
+    const auto& poly = v.polychromatic();
+    if (!poly || poly->spectra.empty()) return QStringLiteral("line integrals");
+    return QStringLiteral("polychromatic %1, %2")
+        .arg(ViewOverlay::polychromaticQuantity(poly->show),
+             ViewOverlay::polychromaticBeam(poly->kvp, poly->filtrationAlMm, poly->filtrationCuMm));
+}
+
 /** One view's entry of views.json. */
 QJsonObject viewJson(int index, ProjectionView& v, const core::ProjectionImage& p,
                      bool transmission) {
@@ -52,7 +63,7 @@ QJsonObject viewJson(int index, ProjectionView& v, const core::ProjectionImage& 
             {"size", p.width}, // the views render squares
             {"pixelSizeMm", p.pixelSize},
             {"voxelModel", core::voxelModelName(v.settings().voxelModel)},
-            {"npyValues", transmission ? "transmitted intensity" : "line integrals"},
+            {"npyValues", npyValues(v, transmission)},
             {"window", windowJson(v.window())},
             {"viewFrame", QJsonObject{{"dir", vec(v.viewFrame().d)},
                                       {"up", vec(v.viewFrame().u)},
