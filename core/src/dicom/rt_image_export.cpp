@@ -44,15 +44,11 @@ void checkCamera(const DetectorImage& image, const TreatmentBeam& beam) {
  *  2 attributes outside the RT Image module). */
 void putIdentity(const Put& put, const DicomExportInfo& info) {
     dicom_write::putNewInstance(put, UID_RTImageStorage, info,
-                                {DCM_PatientBirthDate, DCM_PatientSex, DCM_ReferringPhysicianName,
-                                 DCM_StudyID, DCM_AccessionNumber, DCM_OperatorsName, DCM_StudyTime,
-                                 DCM_RadiationMachineName, DCM_PrimaryDosimeterUnit,
-                                 DCM_PatientOrientation});
+                                {DCM_OperatorsName, DCM_RadiationMachineName,
+                                 DCM_PrimaryDosimeterUnit, DCM_PatientOrientation});
     put(DCM_Modality, "RTIMAGE");
     put(DCM_Manufacturer, "FVR Workstation");
     put(DCM_SeriesDescription, info.seriesDescription);
-    put(DCM_SeriesNumber, "1");
-    put(DCM_InstanceNumber, "1");
     put(DCM_ImageType, "DERIVED\\SECONDARY\\DRR");
     put(DCM_ConversionType, "WSD"); // workstation
     put(DCM_DerivationDescription,
@@ -120,7 +116,7 @@ void writeRtImageDicom(const std::filesystem::path& path, const DetectorImage& i
     // the other way (LOG: larger line integrals, less intensity: -1).
     put(DCM_PixelIntensityRelationship, info.transmission ? "LIN" : "LOG");
     dset->putAndInsertSint16(DCM_PixelIntensityRelationshipSign, info.transmission ? 1 : -1);
-    dicom_write::putPixels16(put, dset, q, image.height, image.width, path);
+    dicom_write::putPixels16(put, dset, q, image.height, image.width, path, info.window);
     writeAtomically(path, [&](const std::filesystem::path& tmp) {
         const OFCondition st = file.saveFile(tmp.c_str(), EXS_LittleEndianExplicit);
         if (st.bad()) failWrite(path, st.text());
