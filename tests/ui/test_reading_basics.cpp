@@ -1,0 +1,213 @@
+// The workstation's small reading basics: --view on the command line is for its own study only;
+// the status bar's message stops before the renderer label; nothing exports without a study;
+// the series chooser names the patient, warns of a folder that mixes patients and labels a
+// series without description readably; --help needs no display; the window fits a small
+// (high scale factor) screen; the view keys act without a click into the view; and a DICOM
+// export carries the window the user sees.
+#include <QAction>
+#include <QLabel>
+#include <QScreen>
+#include <QStatusBar>
+
+#include <cmath>
+#include <filesystem>
+
+#include <dcmtk/config/osconfig.h>
+#include <dcmtk/dcmdata/dctk.h>
+
+#include "ui_support.h"
+#include "workstation_options.h"
+
+namespace fvr::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+/** Whether two view frames look the same way with the same up. */
+bool sameFrame(const core::ViewFrame& a, const core::ViewFrame& b) {
+    return glm::length(a.d - b.d) < 1e-9 && glm::length(a.u - b.u) < 1e-9;
+}
+
+TEST_F(Workstation, CommandLineViewIsForTheFirstStudyOnly) {
+    app::WorkstationOptions o;
+    o.view = core::PatientView::Left;
+    app::applyWorkstationOptions(*window, o);
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
+    const auto first = window->study().volume();
+    EXPECT_TRUE(sameFrame(window->views()[0]->viewFrame(),
+                          core::patientViewFrame(*first, core::PatientView::Left)));
+    // A study opened later starts at the default view, as without the option.
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
+    const auto second = window->study().volume();
+    ASSERT_NE(first, second);
+    EXPECT_TRUE(sameFrame(window->views()[0]->viewFrame(),
+                          core::patientViewFrame(*second, core::RenderSettings{}.view)));
+}
+
+TEST_F(Workstation, StatusBarMessageStopsBeforeTheRendererLabel) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
+    QLabel* renderer = nullptr;
+    for (QLabel* l : window->statusBar()->findChildren<QLabel*>())
+        if (l->text().startsWith("Renderer")) renderer = l;
+    ASSERT_TRUE(renderer);
+    ASSERT_TRUE(renderer->isVisible());
+    const QString text = "Opened " + QString(400, 'x') + " (64 x 64 x 93, uint8), for the test";
+    window->message(text);
+    const QString shown = window->statusBar()->currentMessage();
+    const int width = window->statusBar()->fontMetrics().horizontalAdvance(shown);
+    // The message's right end, from the status bar's left: a gap before the label's left edge.
+    EXPECT_LE(width + 8, renderer->x()) << shown.toStdString();
+    EXPECT_TRUE(shown.endsWith(QChar(0x2026))) << shown.toStdString(); // elided: "…"
+    EXPECT_TRUE(window->messages()->toPlainText().contains(text)); // the whole text stays
+}
+
+/** The File menu's export items (and Send to PACS). */
+QList<QAction*> exportActions(MainWindow& w) {
+    QList<QAction*> out;
+    for (QAction* a : w.findChildren<QAction*>())
+        if (a->text().startsWith("Export") || a->text().startsWith("&Copy view") ||
+            a->text().startsWith("Send projection"))
+            out << a;
+    return out;
+}
+
+TEST_F(Workstation, ExportItemsAreDisabledWithoutAStudy) {
+    const QList<QAction*> actions = exportActions(*window);
+    ASSERT_EQ(actions.size(), 5); // screenshot, projection, sweep, clipboard, PACS
+    for (QAction* a : actions) EXPECT_FALSE(a->isEnabled()) << a->text().toStdString();
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
+    for (QAction* a : actions) EXPECT_TRUE(a->isEnabled()) << a->text().toStdString();
+}
+
+TEST(SeriesChooser, LabelsASeriesWithoutDescriptionReadablyAndNamesThePatient) {
+    app();
+    core::DicomSeriesInfo s;
+    s.seriesUid = s.key = "1.2.840.113619.2.55.3.604688119";
+    s.patientName = "DOE^JANE";
+    s.patientId = "ID42";
+    s.modality = "CT";
+    s.studyDate = "20150206";
+    s.seriesNumber = "3";
+    s.imageCount = s.frameCount = 28;
+    s.dims = {512, 512, 28};
+    const QString label = ui::StudyController::seriesChoiceLabel(s);
+    EXPECT_FALSE(label.contains("1.2.840")) << label.toStdString();
+    EXPECT_TRUE(label.contains("series 3, 28 slices")) << label.toStdString();
+    EXPECT_TRUE(label.contains("DOE JANE (ID42)")) << label.toStdString();
+    EXPECT_TRUE(label.contains("CT")) << label.toStdString();
+    s.description = "HEAD 5mm";
+    EXPECT_TRUE(ui::StudyController::seriesChoiceLabel(s).contains("series 3: HEAD 5mm"));
+    core::DicomScanResult scan;
+    scan.series = {s, s};
+    QString prompt = ui::StudyController::seriesChoicePrompt("/data/x", scan);
+    EXPECT_TRUE(prompt.contains("DOE JANE (ID42)")) << prompt.toStdString();
+    EXPECT_FALSE(prompt.contains("mixes")) << prompt.toStdString();
+    scan.series[1].patientName = "ROE^RICHARD";
+    scan.series[1].patientId = "ID7";
+    prompt = ui::StudyController::seriesChoicePrompt("/data/x", scan);
+    EXPECT_TRUE(prompt.contains("mixes patients")) << prompt.toStdString();
+    EXPECT_TRUE(prompt.contains("2 different patients")) << prompt.toStdString();
+    EXPECT_TRUE(prompt.contains("ROE RICHARD (ID7)")) << prompt.toStdString();
+}
+
+TEST(SeriesChooser, AFolderOfTwoPatientsWarnsInTheChooser) {
+    app();
+    FVR_REQUIRE_DATA("dicom/ct_head_slicer_64x64x93");
+    FVR_REQUIRE_DATA("dicom/ct_head_ge_gantrytilt_28");
+    // Two real series of two patients in one folder (links to the files).
+    const fs::path dir = tmpDir() / ("two_patients_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    for (const char* series : {"ct_head_slicer_64x64x93", "ct_head_ge_gantrytilt_28"}) {
+        fs::create_directories(dir / series);
+        for (const auto& e : fs::directory_iterator(sharedData() / "dicom" / series))
+            fs::create_symlink(e.path(), dir / series / e.path().filename());
+    }
+    ui::StudyController study;
+    QSignalSpy choice(&study, &ui::StudyController::seriesChoiceNeeded);
+    study.open(StudySource::fromPath(QString::fromStdString(dir.string())));
+    ASSERT_TRUE(choice.wait(60000));
+    const QStringList labels = choice.first().at(2).toStringList();
+    const QString prompt = choice.first().at(3).toString();
+    // The names in the files (dcmdump): "Austrialian" (8775070) and "REMOVED" (QMNx85rKkkg).
+    EXPECT_TRUE(prompt.contains("mixes patients")) << prompt.toStdString();
+    EXPECT_TRUE(prompt.contains("Austrialian (8775070)")) << prompt.toStdString();
+    EXPECT_TRUE(prompt.contains("REMOVED (QMNx85rKkkg)")) << prompt.toStdString();
+    ASSERT_EQ(labels.size(), 2);
+    // The GE series has no description: its number and slices, not its UID.
+    const QString ge = labels.filter("REMOVED").value(0);
+    EXPECT_TRUE(ge.contains("series 2, 28 slices")) << ge.toStdString();
+    EXPECT_FALSE(ge.contains("1.2.")) << ge.toStdString();
+    fs::remove_all(dir);
+}
+
+TEST(WorkstationCommandLine, HelpNeedsNoDisplay) {
+    // No X server at all: the help is printed, no abort ("could not connect to display").
+    const auto r =
+        runCommand(std::string("env -u DISPLAY -u WAYLAND_DISPLAY QT_QPA_PLATFORM=xcb ") +
+                   FVR_WORKSTATION_EXE + " --help 2>&1");
+    EXPECT_EQ(r.status, 0) << r.out;
+    EXPECT_NE(r.out.find("Usage:"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("--view"), std::string::npos) << r.out;
+    const auto v =
+        runCommand(std::string("env -u DISPLAY -u WAYLAND_DISPLAY QT_QPA_PLATFORM=xcb ") +
+                   FVR_WORKSTATION_EXE + " --version 2>&1");
+    EXPECT_EQ(v.status, 0) << v.out;
+}
+
+TEST_F(Workstation, WindowFitsAScreenOf960By540) {
+    // QT_SCALE_FACTOR=2 on a 1920 x 1080 screen leaves 960 x 540 in the window's units (less
+    // the task bar): the window's smallest size and its first size must fit.
+    const QSize smallest = window->minimumSizeHint().expandedTo(window->minimumSize());
+    EXPECT_LE(smallest.width(), 960) << smallest.width();
+    EXPECT_LE(smallest.height(), 540 - 40) << smallest.height();
+    QScreen* screen = QGuiApplication::primaryScreen();
+    ASSERT_TRUE(screen);
+    const QSize first = MainWindow::defaultWindowSize(screen);
+    EXPECT_LE(first.width(), screen->availableGeometry().width());
+    EXPECT_LE(first.height(), screen->availableGeometry().height());
+    EXPECT_EQ(MainWindow::defaultWindowSize(nullptr), QSize(1400, 900));
+}
+
+TEST_F(Workstation, ViewKeysWorkWithoutAClickIntoTheView) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
+    window->activateWindow();
+    ASSERT_TRUE(QTest::qWaitForWindowActive(window.get()));
+    // The key goes where the keyboard focus is after opening, as a user's would.
+    QWidget* focus = QApplication::focusWidget();
+    ASSERT_TRUE(focus);
+    QTest::keyClick(focus, Qt::Key_3); // LEFT
+    EXPECT_TRUE(
+        sameFrame(window->views()[0]->viewFrame(),
+                  core::patientViewFrame(*window->study().volume(), core::PatientView::Left)))
+        << "focus on " << focus->metaObject()->className();
+}
+
+TEST_F(Workstation, DicomExportCarriesTheWindowTheUserSees) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
+    core::DisplayWindow w = window->views()[0]->window();
+    w.low = 1.5;
+    w.high = 9.5;
+    window->views()[0]->setWindow(w);
+    const auto path = tmpDir() / "ui-window.dcm";
+    fs::remove(path);
+    ASSERT_TRUE(window->exportProjection(QString::fromStdString(path.string())));
+    DcmFileFormat file;
+    ASSERT_TRUE(file.loadFile(path.c_str()).good());
+    Float64 centre = 0, width = 0;
+    file.getDataset()->findAndGetFloat64(DCM_WindowCenter, centre);
+    file.getDataset()->findAndGetFloat64(DCM_WindowWidth, width);
+    EXPECT_NEAR(centre, 5.5, 1e-9);
+    EXPECT_NEAR(width, 8.0, 1e-9);
+    // A second export is a series of its own.
+    const auto again = tmpDir() / "ui-window-2.dcm";
+    ASSERT_TRUE(window->exportProjection(QString::fromStdString(again.string())));
+    DcmFileFormat second;
+    ASSERT_TRUE(second.loadFile(again.c_str()).good());
+    OFString a, b;
+    file.getDataset()->findAndGetOFString(DCM_SeriesNumber, a);
+    second.getDataset()->findAndGetOFString(DCM_SeriesNumber, b);
+    EXPECT_NE(a, b);
+}
+
+} // namespace
+} // namespace fvr::test
