@@ -5,12 +5,15 @@
 // (high scale factor) screen; the view keys act without a click into the view; and a DICOM
 // export carries the window the user sees.
 #include <QAction>
+#include <QDockWidget>
+#include <QImage>
 #include <QLabel>
 #include <QScreen>
 #include <QStatusBar>
 
 #include <cmath>
 #include <filesystem>
+#include <unistd.h>
 
 #include <dcmtk/config/osconfig.h>
 #include <dcmtk/dcmdata/dctk.h>
@@ -51,14 +54,15 @@ TEST_F(Workstation, StatusBarMessageStopsBeforeTheRendererLabel) {
         if (l->text().startsWith("Renderer")) renderer = l;
     ASSERT_TRUE(renderer);
     ASSERT_TRUE(renderer->isVisible());
-    const QString text = "Opened " + QString(400, 'x') + " (64 x 64 x 93, uint8), for the test";
-    window->message(text);
+    // A long message, as a deep path makes one: an export that fails names its file.
+    const QString path = "/no/such/dir/" + QString(400, 'x') + ".npy";
+    EXPECT_FALSE(window->exportProjection(path));
     const QString shown = window->statusBar()->currentMessage();
     const int width = window->statusBar()->fontMetrics().horizontalAdvance(shown);
     // The message's right end, from the status bar's left: a gap before the label's left edge.
     EXPECT_LE(width + 8, renderer->x()) << shown.toStdString();
     EXPECT_TRUE(shown.endsWith(QChar(0x2026))) << shown.toStdString(); // elided: "…"
-    EXPECT_TRUE(window->messages()->toPlainText().contains(text)); // the whole text stays
+    EXPECT_TRUE(window->messages()->toPlainText().contains(path)); // the whole text stays
 }
 
 /** The File menu's export items (and Send to PACS). */
@@ -155,17 +159,52 @@ TEST(WorkstationCommandLine, HelpNeedsNoDisplay) {
 }
 
 TEST_F(Workstation, WindowFitsAScreenOf960By540) {
-    // QT_SCALE_FACTOR=2 on a 1920 x 1080 screen leaves 960 x 540 in the window's units (less
-    // the task bar): the window's smallest size and its first size must fit.
+    // QT_SCALE_FACTOR=2 on a 1920 x 1080 screen leaves 960 x 540 in the window's units, less
+    // the task bar: the window's smallest size and its size must fit there.
+    const QSize available(960, 500);
+    const QSize before = window->minimumSizeHint().expandedTo(window->minimumSize());
+    window->fitInto(available);
+    QTest::qWait(50); // the layout settles
     const QSize smallest = window->minimumSizeHint().expandedTo(window->minimumSize());
-    EXPECT_LE(smallest.width(), 960) << smallest.width();
-    EXPECT_LE(smallest.height(), 540 - 40) << smallest.height();
+    EXPECT_LE(smallest.width(), available.width()) << before.width() << " before";
+    EXPECT_LE(smallest.height(), available.height()) << before.height() << " before";
+    EXPECT_LE(window->width(), available.width());
+    EXPECT_LE(window->height(), available.height());
+    // Every panel is still there, as a tab.
+    for (const char* name : {"dock.study", "dock.rendering", "dock.display", "dock.messages"}) {
+        auto* d = window->findChild<QDockWidget*>(name);
+        ASSERT_TRUE(d) << name;
+        EXPECT_FALSE(d->isHidden()) << name;
+    }
+    // The first size without saved geometry: at most the screen's free area.
     QScreen* screen = QGuiApplication::primaryScreen();
     ASSERT_TRUE(screen);
     const QSize first = MainWindow::defaultWindowSize(screen);
     EXPECT_LE(first.width(), screen->availableGeometry().width());
     EXPECT_LE(first.height(), screen->availableGeometry().height());
     EXPECT_EQ(MainWindow::defaultWindowSize(nullptr), QSize(1400, 900));
+}
+
+TEST(WorkstationCommandLine, OpensWithinAFullHdScreenAtScaleFactorTwo) {
+    if (runCommand("command -v xvfb-run").status != 0) GTEST_SKIP() << "xvfb-run is missing";
+    // A screen of its own, 1920 x 1080, and QT_SCALE_FACTOR=2: the window's screenshot (in
+    // the screen's pixels) fits it.
+    const fs::path dir = tmpDir() / ("scale2_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir / "config");
+    const fs::path shot = dir / "window.png";
+    const auto r =
+        runCommand("xvfb-run -a -s '-screen 0 1920x1080x24' env XDG_CONFIG_HOME='" +
+                   (dir / "config").string() + "' QT_SCALE_FACTOR=2 QT_QPA_PLATFORM=xcb '" +
+                   FVR_WORKSTATION_EXE + "' --script-timeout 120 --screenshot '" + shot.string() +
+                   "' --quit 2>&1");
+    ASSERT_EQ(r.status, 0) << r.out;
+    const QImage image(QString::fromStdString(shot.string()));
+    ASSERT_FALSE(image.isNull()) << r.out;
+    EXPECT_LE(image.width(), 1920);
+    EXPECT_LE(image.height(), 1080);
+    EXPECT_GE(image.width(), 960); // it is the scaled window, not a thumbnail
+    fs::remove_all(dir);
 }
 
 TEST_F(Workstation, ViewKeysWorkWithoutAClickIntoTheView) {

@@ -8,6 +8,7 @@
 #include <QDragEnterEvent>
 #include <QInputDialog>
 #include <QLabel>
+#include <QLayout>
 #include <QMessageBox>
 #include <QMimeData>
 #include <QProgressBar>
@@ -63,6 +64,12 @@ MainWindow::MainWindow(QWidget* parent)
     restoreGeometry(settings.value(keys::kWindowGeometry).toByteArray());
     restoreState(settings.value(keys::kWindowState).toByteArray());
     if (!settings.contains(keys::kWindowGeometry)) resize(defaultWindowSize(screen()));
+    // A small screen (a laptop's, or 1920 x 1080 at QT_SCALE_FACTOR=2, 960 x 540 in the
+    // window's units): the panels as tabs, the window within it. From 1200 x 800 on the
+    // layout stays as it was.
+    if (const QScreen* s = screen();
+        s && (s->availableGeometry().height() < 800 || s->availableGeometry().width() < 1200))
+        fitInto(s->availableGeometry().size());
     rebuildRecentMenu();
     // The keys (1-6, R, F...) act at once: view 1 holds the focus, not the first spin box of a
     // panel, which would take the digits and letters for itself.
@@ -75,6 +82,26 @@ QSize MainWindow::defaultWindowSize(const QScreen* screen) {
     // screen in the window's units): most of the screen's free area, never more.
     if (screen) size = size.boundedTo(screen->availableGeometry().size() * 0.95);
     return size;
+}
+
+void MainWindow::fitInto(const QSize& available) {
+    // The right column's panels one above the other are taller than a small screen (or a
+    // 1920 x 1080 one at QT_SCALE_FACTOR=2): then they become tabs of one group, and the
+    // Messages panel joins them, so the window is as tall as its tallest panel.
+    auto dockNamed = [this](const char* name) { return findChild<QDockWidget*>(name); };
+    QDockWidget* display = dockNamed("dock.display");
+    const auto tooBig = [&] {
+        const QSize m = minimumSizeHint().expandedTo(minimumSize());
+        return m.height() > available.height() || m.width() > available.width();
+    };
+    if (display && tooBig()) {
+        for (const char* name : {"dock.study", "dock.rendering", "dock.messages"})
+            if (QDockWidget* d = dockNamed(name); d && !tabifiedDockWidgets(display).contains(d))
+                tabifyDockWidget(display, d);
+        display->raise();
+        if (layout()) layout()->activate(); // the new, smaller minimum before the resize
+    }
+    resize(size().boundedTo(available));
 }
 
 MainWindow::~MainWindow() {
