@@ -208,17 +208,39 @@ TEST(WorkstationCommandLine, OpensWithinAFullHdScreenAtScaleFactorTwo) {
 }
 
 TEST_F(Workstation, ViewKeysWorkWithoutAClickIntoTheView) {
-    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
-    window->activateWindow();
-    ASSERT_TRUE(QTest::qWaitForWindowActive(window.get()));
-    // The key goes where the keyboard focus is after opening, as a user's would.
-    QWidget* focus = QApplication::focusWidget();
-    ASSERT_TRUE(focus);
-    QTest::keyClick(focus, Qt::Key_3); // LEFT
-    EXPECT_TRUE(
-        sameFrame(window->views()[0]->viewFrame(),
-                  core::patientViewFrame(*window->study().volume(), core::PatientView::Left)))
-        << "focus on " << focus->metaObject()->className();
+    // As fvr-workstation starts: shown, then the command line's compare count (which makes the
+    // views anew) before the window is active; the keyboard focus is then wherever Qt puts it.
+    window.reset();
+    auto w = std::make_unique<MainWindow>();
+    w->resize(1200, 800);
+    w->show();
+    w->setCompareCount(1);
+    ASSERT_TRUE(openAndWait(*w, StudySource::phantom(48)));
+    // The window becomes active (again) after the views were made anew: the window manager's
+    // activation at start, or the user coming back from another window.
+    const auto activate = [&] {
+        QApplication::processEvents(); // views made anew are deleted
+        QWidget other;
+        other.show();
+        other.activateWindow();
+        ASSERT_TRUE(QTest::qWaitForWindowActive(&other));
+        w->activateWindow();
+        ASSERT_TRUE(QTest::qWaitForWindowActive(w.get()));
+    };
+    const auto volume = w->study().volume();
+    const std::pair<Qt::Key, core::PatientView> keys[] = {{Qt::Key_3, core::PatientView::Left},
+                                                          {Qt::Key_2, core::PatientView::PA}};
+    for (const auto& [key, view] : keys) {
+        activate();
+        // The key goes where the keyboard focus is, as a user's would.
+        QWidget* focus = QApplication::focusWidget();
+        QTest::keyClick(focus ? focus : w.get(), key);
+        EXPECT_TRUE(sameFrame(w->views()[0]->viewFrame(), core::patientViewFrame(*volume, view)))
+            << "focus on " << (focus ? focus->metaObject()->className() : "nothing");
+        // And after the compare mode changed from the toolbar.
+        w->setCompareCount(2);
+        w->setCompareCount(1);
+    }
 }
 
 TEST_F(Workstation, DicomExportCarriesTheWindowTheUserSees) {
