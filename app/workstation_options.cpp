@@ -139,7 +139,7 @@ void parseGeometry(const QCommandLineParser& p, WorkstationOptions& o) {
 
 } // namespace
 
-WorkstationOptions parseWorkstationOptions(const QApplication& app) {
+WorkstationOptions parseWorkstationOptions(const QCoreApplication& app) {
     QCommandLineParser p;
     declareOptions(p);
     p.process(app);
@@ -218,11 +218,13 @@ void applyGeometryOptions(ui::MainWindow& window, const WorkstationOptions& o, F
     }
     if (o.carm) {
         const auto [a, b] = *o.carm;
-        QObject::connect(&window.study(), &ui::StudyController::studyLoaded, &window,
-                         [&window, a, b] {
-                             window.geometryPanel()->primarySpin()->setValue(a);
-                             window.geometryPanel()->secondarySpin()->setValue(b);
-                         });
+        QObject::connect( // the command line's study only, as --view
+            &window.study(), &ui::StudyController::studyLoaded, &window,
+            [&window, a, b] {
+                window.geometryPanel()->primarySpin()->setValue(a);
+                window.geometryPanel()->secondarySpin()->setValue(b);
+            },
+            Qt::SingleShotConnection);
     }
 }
 
@@ -248,8 +250,10 @@ void applyWorkstationOptions(ui::MainWindow& window, const WorkstationOptions& o
     panel.appliesToCombo()->setCurrentIndex(0);
     if (o.view) {
         const core::PatientView pv = *o.view;
-        QObject::connect(&window.study(), &ui::StudyController::studyLoaded, &window,
-                         [&window, pv] { window.showPatientView(pv); });
+        // The command line's study only: a study opened later starts as any other.
+        QObject::connect(
+            &window.study(), &ui::StudyController::studyLoaded, &window,
+            [&window, pv] { window.showPatientView(pv); }, Qt::SingleShotConnection);
     }
 }
 

@@ -15,7 +15,7 @@
 #include <fvr/ui/study.h>
 #include <fvr/ui/view_settings.h>
 
-class QApplication;
+class QCoreApplication;
 
 namespace fvr::ui {
 class MainWindow;
@@ -40,9 +40,10 @@ struct WorkstationOptions {
     ui::ScriptedRunOptions script;
 };
 
-/** Parses the command line (--help and --version print and exit, as QCommandLineParser does);
+/** Parses the command line (--help and --version print and exit, as QCommandLineParser does:
+ *  main parses them before any display is opened, so that they need none);
  *  throws core::SettingsError naming the option for a bad value. */
-WorkstationOptions parseWorkstationOptions(const QApplication& app);
+WorkstationOptions parseWorkstationOptions(const QCoreApplication& app);
 
 /** Applies the views' options to a shown window before its study opens: compare count, view 1's
  *  kernel and every view's size (through the Rendering panel, as a user would: the startup settings

@@ -140,6 +140,9 @@ public:
         : m_o(o), m_files(files), m_count(viewCount), m_width(width), m_height(height),
           m_exportInfo(std::move(exportInfo)),
           m_stacked(viewCount > 1 && m_o.format == OutputFormat::Npy && !m_o.numbered) {
+        // One run is one new series: its views are its instances 1..n.
+        m_exportInfo.seriesInstanceUid = core::newSeriesInstanceUid();
+        m_exportInfo.seriesNumber = core::newExportSeriesNumber();
         // Opened before the first view is rendered: an unwritable path fails at once.
         if (m_stacked) {
             const auto at = m_files.staged(m_o.out);
@@ -148,6 +151,13 @@ public:
                     std::make_unique<NpyStackWriter>(at, m_height, m_width, std::int64_t(m_count));
             });
         }
+    }
+
+    /** View i's DICOM identity: the run's one series, instance i + 1. */
+    DicomExportInfo infoFor(std::size_t i) const {
+        DicomExportInfo info = m_exportInfo;
+        info.instanceNumber = int(i) + 1;
+        return info;
     }
 
     /** Runs `write`; its WriteError says the final path, not the staged one. */
@@ -182,9 +192,9 @@ public:
         if (!m_o.send.empty() && m_coneDicom) { // --send: an X-ray of its C-arm, or an RT Image
             m_toSend.push_back(sendPath(i));
             if (!m_coneDicom->beams.empty())
-                writeRtImageDicom(m_toSend.back(), img, m_coneDicom->beams.at(i), m_exportInfo);
+                writeRtImageDicom(m_toSend.back(), img, m_coneDicom->beams.at(i), infoFor(i));
             else
-                writeXrayDicom(m_toSend.back(), img, m_coneDicom->arms.at(i), m_exportInfo);
+                writeXrayDicom(m_toSend.back(), img, m_coneDicom->arms.at(i), infoFor(i));
         }
     }
 
@@ -205,8 +215,7 @@ public:
         if (!m_coneDicom->beams.empty()) { // a treatment beam: one RT Image each
             const std::string path = m_count > 1 ? numberedPath(m_o.out, i) : m_o.out;
             finalNamesOnError([&] {
-                writeRtImageDicom(m_files.staged(path), img, m_coneDicom->beams.at(i),
-                                  m_exportInfo);
+                writeRtImageDicom(m_files.staged(path), img, m_coneDicom->beams.at(i), infoFor(i));
             });
             m_written.push_back(path);
             if (!m_o.send.empty()) m_toSend.emplace_back(path); // sent after the commit
@@ -223,7 +232,7 @@ public:
             return;
         }
         const std::string path = m_count > 1 ? numberedPath(m_o.out, i) : m_o.out;
-        finalNamesOnError([&] { writeXrayDicom(m_files.staged(path), img, arm, m_exportInfo); });
+        finalNamesOnError([&] { writeXrayDicom(m_files.staged(path), img, arm, infoFor(i)); });
         m_written.push_back(path);
         if (!m_o.send.empty()) m_toSend.emplace_back(path); // sent after the commit
     }
@@ -251,7 +260,7 @@ public:
                 writePng(at, film ? m_lineIntegrals.data() : pixels.data(), m_height, m_width,
                          film ? *film : autoWindow(pixels), m_o.bitDepth);
             else if (m_o.format == OutputFormat::Dicom && img)
-                writeDicomProjection(at, *img, m_exportInfo);
+                writeDicomProjection(at, *img, infoFor(i));
             else if (m_o.format == OutputFormat::Pfm)
                 writePfm(at, pixels.data(), m_height, m_width);
             else
@@ -271,7 +280,7 @@ public:
             return;
         }
         m_toSend.push_back(sendPath(i));
-        writeDicomProjection(m_toSend.back(), *img, m_exportInfo);
+        writeDicomProjection(m_toSend.back(), *img, infoFor(i));
     }
     /** Where view i's DICOM for --send is written when the output is not DICOM. */
     std::filesystem::path sendPath(std::size_t i) {
@@ -405,6 +414,8 @@ private:
 /** The DICOM outputs' value description: the values, depth cue and slice filter. */
 DicomExportInfo dicomInfo(const Session& s, DicomExportInfo info) {
     info.valueDescription = valuesText(s);
+    // PatientOrientation of each view, where the volume says where the patient is.
+    if (s.volume.orientationStated) info.patientDirection = s.volume.direction;
     if (s.options.settings.depthCue > 0)
         info.valueDescription += "; depth cue " + numberText(s.options.settings.depthCue);
     if (s.options.settings.filter.active())

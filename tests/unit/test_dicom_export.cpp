@@ -69,3 +69,74 @@ TEST(DicomExport, SecondaryCapturePassesDciodvfyWithoutErrors) {
     EXPECT_NE(r.out.find("SCImage"), std::string::npos) << r.out; // the IOD it checked against
     EXPECT_EQ(r.out.find("Error"), std::string::npos) << r.out;
 }
+
+namespace {
+
+/** A string attribute of the DICOM file at `path`. */
+std::string dicomString(const std::filesystem::path& path, const DcmTagKey& key) {
+    DcmFileFormat ff;
+    EXPECT_TRUE(ff.loadFile(path.c_str()).good()) << path;
+    OFString v;
+    ff.getDataset()->findAndGetOFStringArray(key, v);
+    return v.c_str();
+}
+
+ProjectionImage rampImage() {
+    ProjectionImage img;
+    img.width = img.height = 16;
+    img.pixelSize = 1.0;
+    img.view = ViewFrame::fromDirUp({0, 1, 0}, {0, 0, 1}); // AP: looks towards posterior
+    for (int i = 0; i < 256; ++i) img.pixels.push_back(float(i));
+    return img;
+}
+
+} // namespace
+
+TEST(DicomExport, WritesTheUsersWindowOrientationAndSeries) {
+    const auto path = fvr::test::tmpDir() / "projection_display.dcm";
+    DicomExportInfo info;
+    info.window = DisplayWindowValues{40.0, 80.0, true};
+    info.patientDirection = glm::dmat3(1.0); // index axes = L, P, S
+    info.seriesInstanceUid = "1.2.3.9";
+    info.seriesNumber = 7;
+    info.instanceNumber = 3;
+    writeDicomProjection(path, rampImage(), info);
+    EXPECT_EQ(dicomString(path, DCM_WindowCenter), "40");
+    EXPECT_EQ(dicomString(path, DCM_WindowWidth), "80");
+    EXPECT_EQ(dicomString(path, DCM_PhotometricInterpretation), "MONOCHROME1"); // low is bright
+    // AP: rows towards the patient's left (right = dir x up = +x), columns towards the feet.
+    EXPECT_EQ(dicomString(path, DCM_PatientOrientation), "L\\F");
+    EXPECT_EQ(dicomString(path, DCM_SeriesInstanceUID), "1.2.3.9");
+    EXPECT_EQ(dicomString(path, DCM_SeriesNumber), "7");
+    EXPECT_EQ(dicomString(path, DCM_InstanceNumber), "3");
+    // A volume whose index x runs to the patient's right and z to the feet: "R\H".
+    info.patientDirection =
+        glm::dmat3(glm::dvec3(-1, 0, 0), glm::dvec3(0, 1, 0), glm::dvec3(0, 0, -1));
+    writeDicomProjection(path, rampImage(), info);
+    EXPECT_EQ(dicomString(path, DCM_PatientOrientation), "R\\H");
+}
+
+TEST(DicomExport, UnknownOrientationAndStudyFieldsAreWrittenEmpty) {
+    const auto path = fvr::test::tmpDir() / "projection_unknown.dcm";
+    writeDicomProjection(path, rampImage(), {});
+    DcmFileFormat ff;
+    ASSERT_TRUE(ff.loadFile(path.c_str()).good());
+    for (const DcmTagKey& k : {DCM_PatientOrientation, DCM_StudyTime, DCM_StudyID,
+                               DCM_AccessionNumber, DCM_ReferringPhysicianName, DCM_PatientSex,
+                               DCM_PatientBirthDate, DCM_Laterality, DCM_Manufacturer}) {
+        EXPECT_TRUE(ff.getDataset()->tagExists(k)) << DcmTag(k).getTagName(); // type 2: present
+        EXPECT_EQ(dicomString(path, k), "") << DcmTag(k).getTagName();
+    }
+    // Without a window of the user's the full range: centre 127.5, width 255.
+    EXPECT_NEAR(std::stod(dicomString(path, DCM_WindowCenter)), 127.5, 1e-9);
+    EXPECT_NEAR(std::stod(dicomString(path, DCM_WindowWidth)), 255.0, 1e-9);
+    EXPECT_EQ(dicomString(path, DCM_PhotometricInterpretation), "MONOCHROME2");
+}
+
+TEST(DicomExport, NewSeriesNumbersAreTheTimeOfDayAndIncrease) {
+    const int a = newExportSeriesNumber(), b = newExportSeriesNumber();
+    EXPECT_GT(b, a);
+    EXPECT_GE(a, 0);
+    EXPECT_LE(a, 240000); // HHMMSS (bumped by one where two exports share a second)
+    EXPECT_NE(newSeriesInstanceUid(), newSeriesInstanceUid());
+}

@@ -13,6 +13,7 @@
 #include <QSettings>
 #include <QStandardPaths>
 
+#include <cmath>
 #include <numbers>
 
 #include <fvr/core/dicom/dicom_export.h>
@@ -105,6 +106,22 @@ QString MainWindow::exportedQuantity() const {
                : tr("line integrals of the stored values × mm");
 }
 
+/** What the DICOM export takes from the display: the user's window in the written values' units
+ *  (a window on the log exposure becomes the intensities at its ends: the viewer's linear
+ *  window then spans the same intensities), the patient orientation where the volume knows it,
+ *  and a series of its own. */
+static void addDisplayToExport(core::DicomExportInfo& info, const core::DisplayWindow& w,
+                               const core::Volume& volume) {
+    double lo = w.low, hi = w.high;
+    if (w.transmission.active()) {
+        lo = std::pow(10.0, lo);
+        hi = std::pow(10.0, hi);
+    }
+    info.window = core::DisplayWindowValues{0.5 * (lo + hi), hi - lo, w.invert};
+    if (volume.orientationStated) info.patientDirection = volume.direction;
+    info.seriesNumber = core::newExportSeriesNumber();
+}
+
 void MainWindow::writeDicomProjection(const std::string& path) const {
     const auto p = m_views.empty() ? std::nullopt : m_views[0]->projection();
     if (!p) throw core::WriteError(path + ": nothing to export yet");
@@ -128,6 +145,7 @@ void MainWindow::writeDicomProjection(const std::string& path) const {
                                     ? "line integral, mm (mu/mu_water x mm)"
                                     : "line integral of the stored values x mm";
     }
+    addDisplayToExport(info, m_views[0]->window(), *m_study->volume());
     core::writeDicomProjection(path, image, info);
 }
 

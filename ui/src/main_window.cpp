@@ -8,10 +8,12 @@
 #include <QDragEnterEvent>
 #include <QInputDialog>
 #include <QLabel>
+#include <QLayout>
 #include <QMessageBox>
 #include <QMimeData>
 #include <QProgressBar>
 #include <QPushButton>
+#include <QScreen>
 #include <QScrollArea>
 #include <QSettings>
 #include <QStatusBar>
@@ -61,8 +63,45 @@ MainWindow::MainWindow(QWidget* parent)
     QSettings settings;
     restoreGeometry(settings.value(keys::kWindowGeometry).toByteArray());
     restoreState(settings.value(keys::kWindowState).toByteArray());
-    if (!settings.contains(keys::kWindowGeometry)) resize(1400, 900);
+    if (!settings.contains(keys::kWindowGeometry)) resize(defaultWindowSize(screen()));
+    // A small screen (a laptop's, or 1920 x 1080 at QT_SCALE_FACTOR=2, 960 x 540 in the
+    // window's units): the panels as tabs, the window within it. From 1200 x 800 on the
+    // layout stays as it was.
+    if (const QScreen* s = screen();
+        s && (s->availableGeometry().height() < 800 || s->availableGeometry().width() < 1200))
+        fitInto(s->availableGeometry().size());
     rebuildRecentMenu();
+    // The keys (1-6, R, F...) act at once: view 1 holds the focus, not the first spin box of a
+    // panel, which would take the digits and letters for itself.
+    if (!m_views.empty()) m_views[0]->setFocus(Qt::OtherFocusReason);
+}
+
+QSize MainWindow::defaultWindowSize(const QScreen* screen) {
+    QSize size(1400, 900);
+    // A small screen, or a high scale factor (QT_SCALE_FACTOR=2 makes 1920 x 1080 a 960 x 540
+    // screen in the window's units): most of the screen's free area, never more.
+    if (screen) size = size.boundedTo(screen->availableGeometry().size() * 0.95);
+    return size;
+}
+
+void MainWindow::fitInto(const QSize& available) {
+    // The right column's panels one above the other are taller than a small screen (or a
+    // 1920 x 1080 one at QT_SCALE_FACTOR=2): then they become tabs of one group, and the
+    // Messages panel joins them, so the window is as tall as its tallest panel.
+    auto dockNamed = [this](const char* name) { return findChild<QDockWidget*>(name); };
+    QDockWidget* display = dockNamed("dock.display");
+    const auto tooBig = [&] {
+        const QSize m = minimumSizeHint().expandedTo(minimumSize());
+        return m.height() > available.height() || m.width() > available.width();
+    };
+    if (display && tooBig()) {
+        for (const char* name : {"dock.study", "dock.rendering", "dock.messages"})
+            if (QDockWidget* d = dockNamed(name); d && !tabifiedDockWidgets(display).contains(d))
+                tabifyDockWidget(display, d);
+        display->raise();
+        if (layout()) layout()->activate(); // the new, smaller minimum before the resize
+    }
+    resize(size().boundedTo(available));
 }
 
 MainWindow::~MainWindow() {
@@ -111,7 +150,8 @@ void MainWindow::connectStudy() {
         updateStudyInfo();
     });
     connect(m_study.get(), &StudyController::seriesChoiceNeeded, this,
-            [this](const StudySource& src, const QStringList& keys, const QStringList& labels) {
+            [this](const StudySource& src, const QStringList& keys, const QStringList& labels,
+                   const QString& prompt) {
                 showProgress(false);
                 if (!m_askForSeries) { // scripted: the default series, as fvr-render
                     message(tr("%1 holds several series: opening the default one (%2)")
@@ -121,9 +161,8 @@ void MainWindow::connectStudy() {
                     return openStudy(chosen);
                 }
                 bool ok = false;
-                const QString pick = QInputDialog::getItem(
-                    this, tr("Choose a series"), tr("%1 holds several series:").arg(src.path),
-                    labels, 0, false, &ok);
+                const QString pick = QInputDialog::getItem(this, tr("Choose a series"), prompt,
+                                                           labels, 0, false, &ok);
                 if (!ok) return;
                 StudySource chosen = src;
                 chosen.seriesKey = keys.at(labels.indexOf(pick));
@@ -190,6 +229,7 @@ void MainWindow::buildDocks() {
 
 void MainWindow::buildStatusBar() {
     m_backend = new QLabel(tr("Renderer: —"), this);
+    m_backend->setContentsMargins(8, 0, 4, 0);
     statusBar()->addPermanentWidget(m_backend);
     m_progress = new QProgressBar(this);
     m_progress->setRange(0, 1000);
@@ -309,7 +349,12 @@ void MainWindow::showProgress(bool on) {
 
 void MainWindow::message(const QString& text, bool error) {
     m_messages->add(text);
-    statusBar()->showMessage(text, error ? 10000 : 4000);
+    // The status bar draws its message up to the renderer label: elided ("…") with a gap before
+    // it, so that the two never run together (the Messages panel keeps the whole text).
+    const int room = m_backend->isVisible() ? m_backend->x() - 16 : statusBar()->width() - 16;
+    statusBar()->showMessage(
+        statusBar()->fontMetrics().elidedText(text, Qt::ElideRight, std::max(room, 40)),
+        error ? 10000 : 4000);
 }
 
 void MainWindow::closeEvent(QCloseEvent* e) {

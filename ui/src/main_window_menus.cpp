@@ -42,14 +42,20 @@ void MainWindow::buildMenus() {
     QAction* shot =
         file->addAction(tr("Export &screenshot (PNG)…"), this, &MainWindow::exportScreenshotDialog);
     shot->setShortcut(QKeySequence::Save);
-    file->addAction(tr("Export &projection (16-bit PNG, .npy, .pfm, DICOM)…"), this,
-                    &MainWindow::exportProjectionDialog);
-    file->addAction(tr("Export rotation s&weep…"), this, &MainWindow::exportSweepDialog);
+    QAction* projection = file->addAction(tr("Export &projection (16-bit PNG, .npy, .pfm, DICOM)…"),
+                                          this, &MainWindow::exportProjectionDialog);
+    QAction* sweep =
+        file->addAction(tr("Export rotation s&weep…"), this, &MainWindow::exportSweepDialog);
     QAction* copy =
         file->addAction(tr("&Copy view to clipboard"), this, &MainWindow::copyToClipboard);
     copy->setShortcut(QKeySequence::Copy);
     file->addSeparator();
     buildPacsMenu(file);
+    // Nothing to export before a study is open: the items say so before any Save dialog.
+    for (QAction* a : {shot, projection, sweep, copy}) {
+        a->setEnabled(false);
+        connect(m_study.get(), &StudyController::studyLoaded, a, [a] { a->setEnabled(true); });
+    }
     file->addSeparator();
     QAction* quit = file->addAction(tr("&Quit"), this, &QWidget::close);
     quit->setShortcut(QKeySequence::Quit);

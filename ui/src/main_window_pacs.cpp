@@ -28,7 +28,10 @@ void MainWindow::buildPacsMenu(QMenu* file) {
         d->activateWindow();
     });
     open->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_P));
-    file->addAction(tr("Send projection to P&ACS…"), this, &MainWindow::sendProjectionDialog);
+    QAction* send =
+        file->addAction(tr("Send projection to P&ACS…"), this, &MainWindow::sendProjectionDialog);
+    send->setEnabled(false); // nothing to send before a study is open
+    connect(m_study.get(), &StudyController::studyLoaded, send, [send] { send->setEnabled(true); });
     file->addAction(tr("PACS &nodes and listener…"), this, &MainWindow::editPacsNodes);
     const PacsSettings s = PacsSettings::load();
     if (s.listen) { // off by default; a port in use says so instead of failing the start

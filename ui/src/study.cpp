@@ -239,6 +239,51 @@ QString seriesNote(bool isDefault, const core::DicomSeriesInfo& s) {
 }
 } // namespace
 
+namespace {
+/** "NAME (ID)", or what is known of them. */
+QString patientText(const core::DicomSeriesInfo& s) {
+    const QString name = QString::fromStdString(s.patientName).replace('^', ' ').trimmed();
+    const QString id = QString::fromStdString(s.patientId);
+    if (name.isEmpty() && id.isEmpty()) return StudyController::tr("unnamed patient");
+    if (id.isEmpty()) return name;
+    return name.isEmpty() ? StudyController::tr("patient %1").arg(id)
+                          : QStringLiteral("%1 (%2)").arg(name, id);
+}
+} // namespace
+
+QString StudyController::seriesChoiceLabel(const core::DicomSeriesInfo& s) {
+    const QString modality =
+        s.modality.empty() ? tr("unknown modality") : QString::fromStdString(s.modality);
+    const QString number = s.seriesNumber.empty()
+                               ? tr("series (no number)")
+                               : tr("series %1").arg(QString::fromStdString(s.seriesNumber));
+    // Without a description: what a reader tells series apart by, not the UID.
+    const QString what = s.description.empty()
+                             ? tr("%1, %2 slices").arg(number).arg(s.frameCount)
+                             : tr("%1: %2").arg(number, QString::fromStdString(s.description));
+    return QStringLiteral("%1 — %2 %3 — %4 (%5 images, %6×%7×%8)")
+        .arg(patientText(s), modality, QString::fromStdString(s.studyDate), what)
+        .arg(s.imageCount)
+        .arg(s.dims[0])
+        .arg(s.dims[1])
+        .arg(s.dims[2]);
+}
+
+QString StudyController::seriesChoicePrompt(const QString& folder,
+                                            const core::DicomScanResult& scan) {
+    QStringList patients;
+    for (const auto& s : scan.series)
+        if (!patients.contains(patientText(s))) patients << patientText(s);
+    if (patients.size() <= 1)
+        return tr("%1 holds several series of %2:")
+            .arg(folder, patients.isEmpty() ? tr("unnamed patient") : patients.first());
+    return tr("%1 holds series of %2 different patients (%3). Warning: this folder mixes "
+              "patients; check the patient of the series you choose:")
+        .arg(folder)
+        .arg(patients.size())
+        .arg(patients.join(QStringLiteral(", ")));
+}
+
 StudyController::GuiStep StudyController::seriesChoice(const StudySource& source,
                                                        const core::DicomScanResult& scan,
                                                        std::uint64_t id) {
@@ -248,20 +293,13 @@ StudyController::GuiStep StudyController::seriesChoice(const StudySource& source
     for (std::size_t n = 0; n < scan.series.size(); ++n) {
         const auto& s = scan.series[n == 0 ? first : (n <= first ? n - 1 : n)];
         keys << QString::fromStdString(s.key);
-        labels << QStringLiteral("%1 %2 — %3 (%4 images, %5×%6×%7)%8")
-                      .arg(QString::fromStdString(s.modality), QString::fromStdString(s.studyDate),
-                           QString::fromStdString(s.description.empty() ? s.seriesUid
-                                                                        : s.description))
-                      .arg(s.imageCount)
-                      .arg(s.dims[0])
-                      .arg(s.dims[1])
-                      .arg(s.dims[2])
-                      .arg(seriesNote(n == 0, s));
+        labels << seriesChoiceLabel(s) + seriesNote(n == 0, s);
     }
-    return [this, source, keys, labels, id] {
+    const QString prompt = seriesChoicePrompt(source.path, scan);
+    return [this, source, keys, labels, prompt, id] {
         markFinished(id);
         prepareCompareSpectra(); // the study in use still wants them
-        emit seriesChoiceNeeded(source, keys, labels);
+        emit seriesChoiceNeeded(source, keys, labels, prompt);
     };
 }
 

@@ -412,6 +412,14 @@ void readSeriesAttributes(DcmDataset* ds, DicomHeader& h) {
     h.patientName = getString(ds, DCM_PatientName);
     h.patientId = getString(ds, DCM_PatientID);
     h.studyDate = getString(ds, DCM_StudyDate);
+    h.study = {getString(ds, DCM_StudyTime),
+               getString(ds, DCM_StudyID),
+               getString(ds, DCM_StudyDescription),
+               getString(ds, DCM_AccessionNumber),
+               getString(ds, DCM_ReferringPhysicianName),
+               getString(ds, DCM_PatientSex),
+               getString(ds, DCM_PatientBirthDate),
+               getString(ds, DCM_Manufacturer)};
     h.modality = getString(ds, DCM_Modality);
     h.description = getString(ds, DCM_SeriesDescription);
     h.rescaleType = getString(ds, DCM_RescaleType);

@@ -89,6 +89,7 @@ struct DicomHeader {
     fs::path path;
     std::string sopInstanceUid, sopClassUid, studyUid, seriesUid, seriesNumber;
     std::string patientName, patientId, studyDate, modality, description;
+    DicomStudyFields study;
     std::string rescaleType;
     int xfer = 0; ///< E_TransferSyntax of the file
     std::string xferUid, xferName;

@@ -366,6 +366,8 @@ DicomSeriesInfo seriesIdentity(const DicomHeader& h0, const std::string& groupKe
     si.patientName = h0.patientName;
     si.patientId = h0.patientId;
     si.studyDate = h0.studyDate;
+    si.seriesNumber = h0.seriesNumber;
+    si.study = h0.study;
     si.modality = h0.modality;
     si.description = h0.description;
     si.transferSyntax = h0.xferName;

@@ -2,6 +2,7 @@
 #include "dicom_write_internal.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <ctime>
@@ -32,6 +33,13 @@ Quantized quantize(const std::vector<float>& pixels) {
     return q;
 }
 
+int seriesNumberNow() {
+    const std::time_t now = std::time(nullptr);
+    std::tm tm{};
+    gmtime_r(&now, &tm);
+    return tm.tm_hour * 10000 + tm.tm_min * 100 + tm.tm_sec;
+}
+
 void putNewInstance(const PutTag& put, const char* sopClassUid, const DicomExportInfo& info,
                     std::initializer_list<DcmTagKey> emptyType2) {
     char uid[100];
@@ -40,11 +48,24 @@ void putNewInstance(const PutTag& put, const char* sopClassUid, const DicomExpor
     put(DCM_StudyInstanceUID, info.studyInstanceUid.empty()
                                   ? dcmGenerateUniqueIdentifier(uid, SITE_STUDY_UID_ROOT)
                                   : info.studyInstanceUid);
-    put(DCM_SeriesInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_SERIES_UID_ROOT));
+    put(DCM_SeriesInstanceUID,
+        info.seriesInstanceUid.empty() ? newSeriesInstanceUid() : info.seriesInstanceUid);
+    put(DCM_SeriesNumber,
+        std::to_string(info.seriesNumber > 0 ? info.seriesNumber : newExportSeriesNumber()));
+    put(DCM_InstanceNumber, std::to_string(std::max(1, info.instanceNumber)));
     put(DCM_PatientName, info.patientName);
     put(DCM_PatientID, info.patientId);
     for (const DcmTagKey& t : emptyType2) put(t, "");
+    // The source's study and patient (type 2: present, empty when unknown).
+    const DicomStudyFields& st = info.study;
     put(DCM_StudyDate, info.studyDate);
+    put(DCM_StudyTime, st.studyTime);
+    put(DCM_StudyID, st.studyId);
+    put(DCM_AccessionNumber, st.accessionNumber);
+    put(DCM_ReferringPhysicianName, st.referringPhysicianName);
+    put(DCM_PatientSex, st.patientSex);
+    put(DCM_PatientBirthDate, st.patientBirthDate);
+    if (!st.studyDescription.empty()) put(DCM_StudyDescription, st.studyDescription);
     char date[16], time[16];
     const std::time_t now = std::time(nullptr);
     std::tm tm{};
@@ -53,6 +74,14 @@ void putNewInstance(const PutTag& put, const char* sopClassUid, const DicomExpor
     std::strftime(time, sizeof time, "%H%M%S", &tm);
     put(DCM_ContentDate, date);
     put(DCM_ContentTime, time);
+}
+
+void putWindow(const PutTag& put, const Quantized& q, const std::optional<DisplayWindowValues>& w) {
+    const double centre = w ? w->centre : 0.5 * (q.lo + q.hi);
+    const double width = std::max(1e-6, w ? w->width : q.hi - q.lo);
+    put(DCM_WindowCenter, decimalString(centre));
+    put(DCM_WindowWidth, decimalString(width));
+    if (width < 1.0) put(DCM_VOILUTFunction, "LINEAR_EXACT");
 }
 
 bool sameCamera(const ConeCamera& expected, const ConeCamera& actual, int width, int height,
@@ -81,7 +110,8 @@ std::string decimalString(double v) {
 }
 
 void putPixels16(const PutTag& put, DcmDataset* dset, const Quantized& q, int rows, int cols,
-                 const std::filesystem::path& path) {
+                 const std::filesystem::path& path,
+                 const std::optional<DisplayWindowValues>& window) {
     dset->putAndInsertUint16(DCM_SamplesPerPixel, 1);
     dset->putAndInsertUint16(DCM_Rows, Uint16(rows));
     dset->putAndInsertUint16(DCM_Columns, Uint16(cols));
@@ -92,11 +122,28 @@ void putPixels16(const PutTag& put, DcmDataset* dset, const Quantized& q, int ro
     put(DCM_RescaleSlope, decimalString(q.slope));
     put(DCM_RescaleIntercept, decimalString(q.lo));
     put(DCM_RescaleType, "US");
-    put(DCM_WindowCenter, decimalString(0.5 * (q.lo + q.hi)));
-    put(DCM_WindowWidth, decimalString(std::max(1e-6, q.hi - q.lo)));
-    if (q.hi - q.lo < 1.0) put(DCM_VOILUTFunction, "LINEAR_EXACT");
+    putWindow(put, q, window);
     if (dset->putAndInsertUint16Array(DCM_PixelData, q.stored.data(), q.stored.size()).bad())
         failWrite(path, "cannot store the pixel data");
 }
 
 } // namespace fvr::core::dicom_write
+
+namespace fvr::core {
+
+int newExportSeriesNumber() {
+    static std::atomic<int> last{0};
+    int previous = last.load();
+    int next = 0;
+    do {
+        next = std::max(dicom_write::seriesNumberNow(), previous + 1);
+    } while (!last.compare_exchange_weak(previous, next));
+    return next;
+}
+
+std::string newSeriesInstanceUid() {
+    char uid[100];
+    return dcmGenerateUniqueIdentifier(uid, SITE_SERIES_UID_ROOT);
+}
+
+} // namespace fvr::core

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <functional>
 #include <initializer_list>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -46,12 +47,23 @@ std::string decimalString(double v);
  *  frame in q.stored), its rescale back to the values, a window over them (LINEAR_EXACT for a
  *  width below 1, the only function that permits it: PS3.3 C.11.2.1.2) and the pixel data. */
 void putPixels16(const PutTag& put, DcmDataset* dset, const Quantized& q, int rows, int cols,
-                 const std::filesystem::path& path);
+                 const std::filesystem::path& path,
+                 const std::optional<DisplayWindowValues>& window = std::nullopt);
+
+/** WindowCenter/WindowWidth: `window` when given (the user's), else the full range of `q`;
+ *  LINEAR_EXACT for a width below 1, the only function that permits it (PS3.3 C.11.2.1.2). */
+void putWindow(const PutTag& put, const Quantized& q,
+               const std::optional<DisplayWindowValues>& window);
+
+/** The UTC time of day as HHMMSS. */
+int seriesNumberNow();
 
 /** What every object we write carries first: `sopClassUid` and a new instance UID, the export's
- *  study (a new one when it names none) and a new series, the patient, the type 2 attributes
- *  `emptyType2` present and empty (dciodvfy), the source study's date (a study has one date)
- *  and the content's date and time: now, UTC. */
+ *  study (a new one when it names none), its series (a new one when it names none) with its
+ *  number and the instance number, the patient, the type 2 attributes `emptyType2` present and
+ *  empty (dciodvfy), the source study's date, time, ID, accession number, referring physician
+ *  and description, the patient's sex and birth date (type 2: empty when unknown), and the
+ *  content's date and time: now, UTC. */
 void putNewInstance(const PutTag& put, const char* sopClassUid, const DicomExportInfo& info,
                     std::initializer_list<DcmTagKey> emptyType2);
 

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include <fvr/core/dicom/xray_geometry.h>
 #include <fvr/core/errors.h>
 
 #include "dicom_write_internal.h"
@@ -43,16 +44,12 @@ void checkCamera(const DetectorImage& image, const TreatmentBeam& beam) {
 /** Patient, study, series, equipment and image identification (the RT Image IOD's type 1 and
  *  2 attributes outside the RT Image module). */
 void putIdentity(const Put& put, const DicomExportInfo& info) {
-    dicom_write::putNewInstance(put, UID_RTImageStorage, info,
-                                {DCM_PatientBirthDate, DCM_PatientSex, DCM_ReferringPhysicianName,
-                                 DCM_StudyID, DCM_AccessionNumber, DCM_OperatorsName, DCM_StudyTime,
-                                 DCM_RadiationMachineName, DCM_PrimaryDosimeterUnit,
-                                 DCM_PatientOrientation});
+    dicom_write::putNewInstance(
+        put, UID_RTImageStorage, info,
+        {DCM_OperatorsName, DCM_RadiationMachineName, DCM_PrimaryDosimeterUnit});
     put(DCM_Modality, "RTIMAGE");
     put(DCM_Manufacturer, "FVR Workstation");
     put(DCM_SeriesDescription, info.seriesDescription);
-    put(DCM_SeriesNumber, "1");
-    put(DCM_InstanceNumber, "1");
     put(DCM_ImageType, "DERIVED\\SECONDARY\\DRR");
     put(DCM_ConversionType, "WSD"); // workstation
     put(DCM_DerivationDescription,
@@ -65,6 +62,10 @@ void putIdentity(const Put& put, const DicomExportInfo& info) {
 void putGeometry(const Put& put, const DetectorImage& image, const RtPlanBeam& planBeam) {
     const TreatmentBeam& b = planBeam.beam;
     const ConeCamera& c = image.camera;
+    // The camera is in the patient's frame (LPS, beamLimitingDeviceToLps): the patient
+    // directions of the rows and columns, as the XA says them.
+    put(DCM_PatientOrientation,
+        patientOrientationLetters(c.u) + "\\" + patientOrientationLetters(c.v));
     std::string label = planBeam.name.empty() ? "DRR" : "DRR " + planBeam.name;
     if (label.size() > 16) label.resize(16); // RTImageLabel is a SH
     put(DCM_RTImageLabel, label);
@@ -120,7 +121,7 @@ void writeRtImageDicom(const std::filesystem::path& path, const DetectorImage& i
     // the other way (LOG: larger line integrals, less intensity: -1).
     put(DCM_PixelIntensityRelationship, info.transmission ? "LIN" : "LOG");
     dset->putAndInsertSint16(DCM_PixelIntensityRelationshipSign, info.transmission ? 1 : -1);
-    dicom_write::putPixels16(put, dset, q, image.height, image.width, path);
+    dicom_write::putPixels16(put, dset, q, image.height, image.width, path, info.window);
     writeAtomically(path, [&](const std::filesystem::path& tmp) {
         const OFCondition st = file.saveFile(tmp.c_str(), EXS_LittleEndianExplicit);
         if (st.bad()) failWrite(path, st.text());

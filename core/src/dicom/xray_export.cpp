@@ -96,16 +96,12 @@ using Put = dicom_write::PutTag;
 /** Patient, study, series, equipment and image identification (XA IOD's type 1 and 2). */
 void putIdentity(const Put& put, const DicomExportInfo& info) {
     // The XA IOD's type 2 attributes: present, empty when unknown.
-    dicom_write::putNewInstance(put, UID_XRayAngiographicImageStorage, info,
-                                {DCM_PatientBirthDate, DCM_PatientSex, DCM_ReferringPhysicianName,
-                                 DCM_StudyID, DCM_AccessionNumber, DCM_Laterality, DCM_KVP,
-                                 DCM_XRayTubeCurrent, DCM_ExposureTime, DCM_Exposure,
-                                 DCM_StudyTime});
+    dicom_write::putNewInstance(
+        put, UID_XRayAngiographicImageStorage, info,
+        {DCM_Laterality, DCM_KVP, DCM_XRayTubeCurrent, DCM_ExposureTime, DCM_Exposure});
     put(DCM_Modality, "XA");
     put(DCM_Manufacturer, "FVR Workstation");
     put(DCM_SeriesDescription, info.seriesDescription);
-    put(DCM_SeriesNumber, "1");
-    put(DCM_InstanceNumber, "1");
     put(DCM_ImageType, "DERIVED\\SECONDARY\\SINGLE PLANE");
     put(DCM_DerivationDescription,
         "cone-beam DRR (digitally reconstructed radiograph); values: " + info.valueDescription);
@@ -163,7 +159,7 @@ void writeXrayDicomRun(const std::filesystem::path& path, const std::vector<Dete
     // The X-Ray Image module's defined terms: LOG for attenuation (line integrals, the log of
     // the transmitted intensity), LIN for values proportional to the beam's intensity.
     put(DCM_PixelIntensityRelationship, info.transmission ? "LIN" : "LOG");
-    dicom_write::putPixels16(put, dset, q, first.height, first.width, path);
+    dicom_write::putPixels16(put, dset, q, first.height, first.width, path, info.window);
     writeAtomically(path, [&](const std::filesystem::path& tmp) {
         const OFCondition st = file.saveFile(tmp.c_str(), EXS_LittleEndianExplicit);
         if (st.bad()) failWrite(path, st.text());

@@ -15,6 +15,7 @@
 #include <fvr/ui/study.h>
 
 class QLabel;
+class QScreen;
 class QProgressBar;
 class QPushButton;
 class QGridLayout;
@@ -51,6 +52,13 @@ public:
     void openStudy(const StudySource& source);
     /** Whether a folder of several series asks which one (off: the default series opens,
      *  as in fvr-render; scripted runs). */
+    /** The window's size without saved geometry: 1400 x 900 or 95% of `screen`'s free area,
+     *  whichever is less. */
+    static QSize defaultWindowSize(const QScreen* screen);
+    /** Makes the window fit `available` (the screen's free area): the right column's panels and
+     *  Messages become tabs of one group where their column is too tall, and the size is bounded
+     *  by it. Called for the window's screen when it is made. */
+    void fitInto(const QSize& available);
     void setAskForSeries(bool ask) { m_askForSeries = ask; }
     /** Number of views side by side: 1, 2 or 4. */
     void setCompareCount(int n);

@@ -137,6 +137,13 @@ public:
     /** Tests: every compare-spectrum job first waits this long (a slow machine), cancellable. */
     void setSimulatedCompareDelayMs(int ms) { m_simulatedCompareDelayMs = ms; }
 
+    /** A series as the chooser lists it: patient, modality, date, the description (or, without
+     *  one, "series N" and the slice count: never the raw UID), images and size. */
+    static QString seriesChoiceLabel(const core::DicomSeriesInfo& s);
+    /** The chooser's question: the folder and its patient; a warning naming them where the
+     *  series belong to several patients. */
+    static QString seriesChoicePrompt(const QString& folder, const core::DicomScanResult& scan);
+
 signals:
     void progress(double fraction, const QString& stage);
     void studyLoaded(const QString& name);
@@ -149,9 +156,10 @@ signals:
     void warningsChanged(const QStringList& warnings);
     /** A DICOM folder holds several series: the GUI asks the user and calls open() again with
      *  the chosen key. `labels` describe the series (same order as `keys`); the first is the
-     *  default series (core::defaultSeriesIndex, what fvr-render opens), marked so. */
+     *  default series (core::defaultSeriesIndex, what fvr-render opens), marked so. `prompt`
+     *  names the folder and its patient, and warns where the folder mixes patients. */
     void seriesChoiceNeeded(const StudySource& source, const QStringList& keys,
-                            const QStringList& labels);
+                            const QStringList& labels, const QString& prompt);
 
 private:
     /** The settings `requested` give for `volume` (raw values for data that are not HU, with

@@ -71,6 +71,14 @@ struct DicomError : LoadError {
     using LoadError::LoadError;
 };
 
+/** The study and patient attributes besides the UIDs, names and date that an export copies from
+ *  its source so that it joins the study without contradicting it (empty when absent). */
+struct DicomStudyFields {
+    std::string studyTime, studyId, studyDescription, accessionNumber, referringPhysicianName;
+    std::string patientSex, patientBirthDate;
+    std::string manufacturer; ///< of the equipment that made the source images
+};
+
 /** One series as found by a scan (a SeriesInstanceUID, split further where the image size,
  *  orientation or acquisition differs). */
 struct DicomSeriesInfo {
@@ -78,6 +86,8 @@ struct DicomSeriesInfo {
     std::string seriesUid;
     std::string studyUid;
     std::string patientName, patientId, studyDate, modality, description;
+    std::string seriesNumber; ///< SeriesNumber as written (empty when absent)
+    DicomStudyFields study;
     std::string transferSyntax; ///< name of the (first file's) transfer syntax
     int imageCount = 0; ///< files (a multi-frame file counts once)
     int frameCount = 0; ///< slices in total

@@ -5,11 +5,20 @@
 
 #include <optional>
 
+#include <glm/mat3x3.hpp>
+
 #include <fvr/core/dicom/dicom.h>
 #include <fvr/core/render/projection.h>
 #include <fvr/core/volume.h>
 
 namespace fvr::core {
+
+/** A display window in the values' units: centre and width (DICOM's C.11.2.1.2 linear window),
+ *  and whether low values show bright. */
+struct DisplayWindowValues {
+    double centre = 0.0, width = 1.0;
+    bool inverted = false;
+};
 
 /** What the exported image says about where it comes from. */
 struct DicomExportInfo {
@@ -22,7 +31,30 @@ struct DicomExportInfo {
     /** The pixels are transmitted intensities (Beer-Lambert), not line integrals: an X-ray
      *  image then says PixelIntensityRelationship LIN instead of LOG. */
     bool transmission = false;
+    /** The source's study time, ID, description, accession number, referring physician, the
+     *  patient's sex and birth date, and its manufacturer: copied, empty when unknown (type 2). */
+    DicomStudyFields study;
+    /** Index frame -> patient (LPS) of the rendered volume, when its orientation is known: the
+     *  Secondary Capture then says PatientOrientation (the patient directions of its rows and
+     *  columns); without it PatientOrientation is written empty (type 2C, unknown). */
+    std::optional<glm::dmat3> patientDirection;
+    /** The window the user sees, in the written values' units (WindowCenter/WindowWidth); unset:
+     *  the full range of the values. `windowInverted`: bright for low values (MONOCHROME1). */
+    std::optional<DisplayWindowValues> window;
+    /** The series this image belongs to: a new UID and number (newExportSeriesNumber) when empty
+     *  / 0, so that each export is a series of its own; images of one export share both and
+     *  count `instanceNumber` from 1. */
+    std::string seriesInstanceUid;
+    int seriesNumber = 0;
+    int instanceNumber = 1;
 };
+
+/** A SeriesNumber for a new export: the UTC time of day as HHMMSS (readable: "series 143205" was
+ *  made at 14:32:05), one more than the last one this process gave when that is not larger. */
+int newExportSeriesNumber();
+
+/** A new SeriesInstanceUID (DCMTK's generator under its site root). */
+std::string newSeriesInstanceUid();
 
 /** Patient, patient ID, study UID and study date of the series a projection comes from (none for
  *  a phantom or a volume file): the export joins the source's study in a PACS. */
