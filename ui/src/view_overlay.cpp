@@ -150,7 +150,7 @@ QStringList ViewOverlay::performanceLines() const {
                  .arg(m_s.effects.pixelAperture ? tr(", area pixels") : QString());
     if (!m_s.spectrum.isEmpty()) lines << m_s.spectrum;
     if (!m_s.progressive && !m_s.progressiveOff.isEmpty())
-        lines << tr("full quality: progressive refinement off (%1)").arg(m_s.progressiveOff);
+        lines << tr("progressive refinement off %1").arg(m_s.progressiveOff);
     if (m_s.progressive)
         lines << (m_s.level == 0
                       ? tr("full quality (interactive target %1 fps)").arg(m_s.targetFps, 0, 'f', 0)
@@ -215,7 +215,11 @@ QRect ViewOverlay::colourBarRect() const {
     const QRect r =
         m_s.image.intersected(QRectF(QPointF(0, 0), QSizeF(m_s.widget))).toAlignedRect();
     const int h = std::max(40, r.height() / 2);
-    return QRect(r.right() - 20, r.center().y() - h / 2, 12, h);
+    // Left of the right-hand orientation label, which it must not hide.
+    int right = r.right() - 8;
+    const QList<QRect> labels = labelRects();
+    if (labels.size() == 4) right = std::min(right, labels[1].left() - 6);
+    return QRect(right - 12, r.center().y() - h / 2, 12, h);
 }
 
 QStringList ViewOverlay::colourBarLabels() const {

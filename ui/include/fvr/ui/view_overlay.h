@@ -51,8 +51,8 @@ struct OverlayState {
     /** The spectrum the view renders from, in words (values, transform, oversampling, gridding
      *  correction for its kernel or none): compare views differ in it. */
     QString spectrum;
-    /** Why progressive refinement is off although a target frame rate is set (Difference mode);
-     *  empty: not off for a reason. */
+    /** Why progressive refinement is off although a target frame rate is set ("in Difference
+     *  mode"); empty: not off for a reason. */
     QString progressiveOff;
 
     // The performance lines.
