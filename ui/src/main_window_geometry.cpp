@@ -4,6 +4,8 @@
 
 #include <QSettings>
 
+#include <algorithm>
+
 #include <fvr/core/render/cone_projector.h>
 #include <fvr/ui/panels/geometry_panel.h>
 #include <fvr/ui/panels/rendering_panel.h>
@@ -23,8 +25,8 @@ void MainWindow::connectGeometry() {
     connect(m_geometry, &GeometryPanel::anglesChanged, this, &MainWindow::applyCArmAngles);
     // A view's own slot in compare mode: the panel shows that view's projection.
     connect(m_rendering, &RenderingPanel::appliesToChanged, this, [this](int slot) {
-        if (slot <= 0 || slot > int(m_views.size())) return;
-        const ViewSettings& s = m_viewSettings[std::size_t(slot - 1)];
+        if (slot < 0 || slot > int(m_views.size())) return;
+        const ViewSettings& s = m_viewSettings[std::size_t(std::max(slot, 1) - 1)];
         m_geometry->setValues({s.projection, s.cone});
     });
 }

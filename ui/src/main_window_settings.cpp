@@ -38,9 +38,10 @@ void MainWindow::connectPanels() {
             [this] { m_model->setRendering(m_rendering->values()); });
     connect(m_xray, &XrayPanel::changed, m_model, [this] { m_model->setXray(m_xray->values()); });
     connect(m_rendering, &RenderingPanel::appliesToChanged, this, [this](int slot) {
-        if (slot <= 0 || slot > int(m_views.size())) return;
-        // What the view is set to (it may still wait for its kernel's spectrum).
-        showViewSettings(m_viewSettings[std::size_t(slot - 1)]);
+        if (slot < 0 || slot > int(m_views.size())) return;
+        // What the view is set to (it may still wait for its kernel's spectrum); All views:
+        // view 1's.
+        showViewSettings(m_viewSettings[std::size_t(std::max(slot, 1) - 1)]);
     });
     connect(m_display, &DisplayPanel::windowChanged, this, &MainWindow::applyWindowFromPanel);
     connect(m_display, &DisplayPanel::presetRequested, this, &MainWindow::applyPreset);
@@ -57,7 +58,11 @@ void MainWindow::connectSettings() {
             &MainWindow::applySpectrumSettings);
     connect(m_model, &SettingsModel::valueMappingChanged, this, &MainWindow::applyValueMapping);
     connect(m_model, &SettingsModel::targetFpsChanged, this, [this](int fps) {
-        for (auto* v : m_views) v->setTargetFps(m_difference ? 0 : fps);
+        for (auto* v : m_views) {
+            v->setTargetFps(m_difference ? 0 : fps);
+            v->setProgressiveOffReason(m_difference && fps > 0 ? differenceProgressiveNote()
+                                                               : QString());
+        }
         saveRenderingSettings();
     });
     connect(m_model, &SettingsModel::frameOptionsChanged, this, &MainWindow::applyEffects);
@@ -104,12 +109,15 @@ void MainWindow::saveRenderingSettings() {
 void MainWindow::applyRenderSettings() {
     const ViewSettings s = m_model->viewSettings();
     const int slot = m_rendering->appliesTo();
+    // Only what changed against the view the panel showed (All views: view 1): a new slice
+    // resolution leaves each view's own kernel, and a new kernel each view's own size.
+    const ViewSettings shown = m_viewSettings[std::size_t(std::max(slot, 1) - 1)];
     for (int i = 0; i < int(m_views.size()); ++i) {
         if (m_compareCount > 1 && slot > 0 && slot - 1 != i) continue;
-        // The kernel, size and voxel model; the view keeps its projection (Geometry panel).
-        ViewSettings vs = s;
-        vs.projection = m_viewSettings[i].projection;
-        vs.cone = m_viewSettings[i].cone;
+        // The kernel and size; the view keeps its projection (Geometry panel) and voxel model.
+        ViewSettings vs = m_viewSettings[i];
+        if (s.kernel != shown.kernel || i == std::max(slot, 1) - 1) vs.kernel = s.kernel;
+        if (s.size != shown.size || i == std::max(slot, 1) - 1) vs.size = s.size;
         m_viewSettings[i] = vs;
         if (m_compareCount > 1) m_views[i]->setTitle(viewTitle(i, vs));
     }

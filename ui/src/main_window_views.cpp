@@ -6,6 +6,9 @@
 #include <QGridLayout>
 #include <QLabel>
 
+#include <algorithm>
+
+#include <fvr/ui/panels/geometry_panel.h>
 #include <fvr/ui/panels/rendering_panel.h>
 #include <fvr/ui/settings_model.h>
 
@@ -45,7 +48,14 @@ void MainWindow::setCompareCount(int n) {
         connectView(v);
         m_views.push_back(v);
     }
-    if (m_rendering) m_rendering->setViewCount(n);
+    if (m_rendering) {
+        // "Applies to" starts at All views: the panels show view 1's settings, the ones in use
+        // (not those of a view that was chosen before).
+        m_rendering->setViewCount(n);
+        showViewSettings(m_viewSettings[0]);
+        if (m_geometry)
+            m_geometry->setValues({m_viewSettings[0].projection, m_viewSettings[0].cone});
+    }
     updateCompareKernels(true); // Compare again: retries spectra that were not prepared
     // After setStudy (a new view's first study would reset the window to an auto window
     // computed whenever it first paints, losing the user's window or preset).
@@ -137,6 +147,17 @@ void MainWindow::connectView(ProjectionView* v) {
             });
     connect(v, &ProjectionView::backendChanged, this,
             [this, v](bool gpu, const QString& notice) { showBackend(*v, gpu, notice); });
+    connect(v, &ProjectionView::differenceScaleChanged, this,
+            &MainWindow::applySharedDifferenceScale);
+}
+
+void MainWindow::applySharedDifferenceScale() {
+    if (!m_difference) return;
+    double scale = 0;
+    for (std::size_t i = 1; i < m_views.size(); ++i)
+        scale = std::max(scale, m_views[i]->differenceMaxAbs());
+    if (!(scale > 0)) return; // no difference yet, or none at all: the views keep their own
+    for (std::size_t i = 1; i < m_views.size(); ++i) m_views[i]->setWindow({-scale, scale, false});
 }
 
 void MainWindow::showBackend(const ProjectionView& v, bool gpu, const QString& notice) {
@@ -160,12 +181,22 @@ void MainWindow::setDifferenceMode(bool on) {
     m_difference = on;
     for (std::size_t i = 1; i < m_views.size(); ++i)
         m_views[i]->setDifferenceReference(on ? m_views[0] : nullptr);
-    // Differences compare full-quality frames: no progressive levels while they are shown.
-    for (auto* v : m_views) v->setTargetFps(on ? 0 : m_model->rendering().targetFps);
+    // Differences compare full-quality frames: no progressive levels while they are shown, and
+    // the overlays say so where a target frame rate is set.
+    const int fps = m_model->rendering().targetFps;
+    for (auto* v : m_views) {
+        v->setTargetFps(on ? 0 : fps);
+        v->setProgressiveOffReason(on && fps > 0 ? differenceProgressiveNote() : QString());
+    }
     // Back from differences: the views take view 1's window again (transmission included).
     if (!on && !m_views.empty())
         for (std::size_t i = 1; i < m_views.size(); ++i)
             m_views[i]->setWindow(m_views[0]->window());
+}
+
+QString MainWindow::differenceProgressiveNote() const {
+    // Differences compare full-quality frames (short: it fits a view of four).
+    return tr("in Difference mode");
 }
 
 QString MainWindow::viewTitle(int index, const ViewSettings& s) const {

@@ -208,7 +208,40 @@ void ProjectionView::setDifferenceReference(ProjectionView* reference) {
     m_reference = reference;
     m_renderDirty = true;
     m_windowSet = false;
+    m_diffKey.reset();
+    m_diffMaxAbs = 0.0;
     update();
+}
+
+void ProjectionView::setProgressiveOffReason(const QString& reason) {
+    m_progressiveOff = reason;
+    update();
+}
+
+QString ProjectionView::valueUnits() const {
+    if (m_poly && !m_poly->spectra.empty())
+        return m_poly->show >= 0 ? tr("g/cm²") : QStringLiteral("−ln(I/I0)");
+    if (!m_spectrum) return {};
+    // Line integrals: attenuation relative to water integrates to water-equivalent mm; stored
+    // values to value × mm.
+    if (m_spectrum->mapping != core::ValueMapping::Raw) return tr("mm");
+    return m_spectrum->sourceUnits == core::ValueUnits::HounsfieldUnits ? tr("HU·mm")
+                                                                        : tr("value·mm");
+}
+
+QString ProjectionView::spectrumText() const {
+    if (!m_spectrum || coneBeam()) return {};
+    // The oversampling from the padded size (the spectrum keeps no other record of it).
+    const double over = m_spectrum->volumeDims[0] > 0
+                            ? double(m_spectrum->padded[0]) / double(m_spectrum->volumeDims[0])
+                            : 0.0;
+    const bool corrected =
+        m_spectrum->deapodizedFor && *m_spectrum->deapodizedFor == m_settings.kernel;
+    return tr("%1 %2  oversampling %3  %4")
+        .arg(QString::fromUtf8(core::valueMappingName(m_spectrum->mapping)),
+             QString::fromUtf8(core::transformName(m_spectrum->kind)))
+        .arg(over, 0, 'g', 3)
+        .arg(corrected ? tr("gridding corrected") : tr("no gridding correction"));
 }
 
 void ProjectionView::setTitle(const QString& title) {
@@ -363,7 +396,12 @@ OverlayState ProjectionView::overlayState() const {
     s.pending = m_pending;
     s.title = m_title;
     s.performance = m_overlay;
-    if (m_reference) s.differenceTo = m_reference->m_title;
+    if (m_reference) {
+        s.differenceTo = m_reference->m_title;
+        s.differenceUnits = valueUnits();
+    }
+    if (!m_title.isEmpty()) s.spectrum = spectrumText(); // compare views: each its own
+    s.progressiveOff = m_progressiveOff;
     s.labels = orientationLabels();
     s.notice = m_renderError.isEmpty() ? m_notice : m_renderError + '\n' + m_notice;
     s.shown = m_renderedQuality;
@@ -401,6 +439,10 @@ QStringList ProjectionView::orientationLabels() const {
 }
 
 QString ProjectionView::overlayText() const { return overlay().text(); }
+
+QStringList ProjectionView::colourBarLabels() const { return overlay().colourBarLabels(); }
+
+QRect ProjectionView::colourBarRect() const { return overlay().colourBarRect(); }
 
 QRect ProjectionView::overlayBox() const { return overlay().box(); }
 

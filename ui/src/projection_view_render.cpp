@@ -145,9 +145,18 @@ void ProjectionView::subtractReference() {
         maxAbs = std::max(maxAbs, double(std::abs(own->pixels[i])));
     }
     m_cpuImage = own;
-    if (!m_windowSet) {
+    // The scale is taken anew whenever what is compared changed (a kernel, a spectrum, an
+    // effect of either view), not when the views turn: the main window then windows every
+    // difference view with the largest (one symmetric scale for all of them).
+    const DifferenceKey key{
+        m_settings,   m_reference->m_settings,   m_spectrum.get(), m_reference->m_spectrum.get(),
+        m_poly.get(), m_reference->m_poly.get(), m_effects};
+    if (!m_windowSet || m_diffKey != key) {
+        m_diffKey = key;
+        m_diffMaxAbs = maxAbs;
         m_window = {-maxAbs, maxAbs > 0 ? maxAbs : 1.0, false};
         m_windowSet = true;
+        emit differenceScaleChanged();
     }
 }
 

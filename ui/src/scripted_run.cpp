@@ -52,11 +52,30 @@ QString npyValues(const ProjectionView& v, bool transmission) {
              ViewOverlay::polychromaticBeam(poly->kvp, poly->filtrationAlMm, poly->filtrationCuMm));
 }
 
+/** The spectrum one view renders from (compare views each have their kernel's): its values,
+ *  transform, oversampling (the study's: every spectrum of a study shares it), padded size and
+ *  whether it is gridding corrected for the view's kernel. */
+QJsonValue viewSpectrumJson(const ProjectionView& v, const SpectrumSettings& study) {
+    const auto& sp = v.spectrum();
+    if (!sp) return QJsonValue::Null;
+    const bool corrected = sp->deapodizedFor && *sp->deapodizedFor == v.settings().kernel;
+    return QJsonObject{
+        {"values", core::valueMappingName(sp->mapping)},
+        {"transform", core::transformName(sp->kind)},
+        {"oversampling", study.oversampling},
+        {"paddedDims",
+         QJsonArray{qint64(sp->padded[0]), qint64(sp->padded[1]), qint64(sp->padded[2])}},
+        {"griddingCorrection", corrected},
+        {"deapodizedFor", sp->deapodizedFor ? QJsonValue(core::kernelName(*sp->deapodizedFor))
+                                            : QJsonValue(QJsonValue::Null)}};
+}
+
 /** One view's entry of views.json. */
 QJsonObject viewJson(int index, ProjectionView& v, const core::ProjectionImage& p,
-                     bool transmission) {
+                     bool transmission, const SpectrumSettings& study) {
     const QString stem = QStringLiteral("view%1").arg(index + 1);
     return {{"index", index + 1},
+            {"spectrum", viewSpectrumJson(v, study)},
             {"npy", stem + ".npy"},
             {"png", stem + ".png"},
             {"kernel", core::kernelName(v.settings().kernel)},
@@ -201,7 +220,7 @@ void ScriptedRun::writeViews(const QString& dir) {
                        p->width);
         core::writePng(out.filePath(stem + ".png").toStdString(), p->pixels.data(), p->height,
                        p->width, v.window(), 8);
-        views.append(viewJson(int(i), v, *p, t.active()));
+        views.append(viewJson(int(i), v, *p, t.active(), m_window.study().spectrumSettings()));
     }
     const StudyController& study = m_window.study();
     const QJsonObject doc{{"study", study.title()},

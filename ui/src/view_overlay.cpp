@@ -1,9 +1,11 @@
 #include <fvr/ui/view_overlay.h>
 
 #include <QFontMetrics>
+#include <QLinearGradient>
 #include <QPainter>
 
 #include <algorithm>
+#include <cmath>
 
 #include <fvr/core/xray/patient_views.h>
 
@@ -178,6 +180,9 @@ QStringList ViewOverlay::performanceLines() const {
                  .arg(m_s.gpu ? QStringLiteral("GPU") : QStringLiteral("CPU"))
                  .arg(QString::fromUtf8(core::voxelModelLabel(m_s.voxelModel)))
                  .arg(m_s.effects.pixelAperture ? tr(", area pixels") : QString());
+    if (!m_s.spectrum.isEmpty()) lines << m_s.spectrum;
+    if (!m_s.progressive && !m_s.progressiveOff.isEmpty())
+        lines << tr("progressive refinement off %1").arg(m_s.progressiveOff);
     if (m_s.progressive)
         lines << (m_s.level == 0
                       ? tr("full quality (interactive target %1 fps)").arg(m_s.targetFps, 0, 'f', 0)
@@ -233,7 +238,56 @@ void ViewOverlay::paint(QPainter& p) const {
         p.setPen(kOverlayGreen);
         p.drawText(box.adjusted(4, 2, -4, -2), Qt::AlignLeft | Qt::AlignTop, text);
     }
+    paintColourBar(p);
     paintNotice(p);
+}
+
+QRect ViewOverlay::colourBarRect() const {
+    if (m_s.differenceUnits.isEmpty() || !m_s.hasImage) return {};
+    // At the image's right edge (inside the view), half the image's height, centred.
+    const QRect r =
+        m_s.image.intersected(QRectF(QPointF(0, 0), QSizeF(m_s.widget))).toAlignedRect();
+    const int h = std::max(40, r.height() / 2);
+    // Left of the right-hand orientation label, which it must not hide.
+    int right = r.right() - 8;
+    const QList<QRect> labels = labelRects();
+    if (labels.size() == 4) right = std::min(right, labels[1].left() - 6);
+    return QRect(right - 12, r.center().y() - h / 2, 12, h);
+}
+
+QStringList ViewOverlay::colourBarLabels() const {
+    if (colourBarRect().isNull()) return {};
+    const double hi = m_s.window.high, lo = m_s.window.low;
+    auto value = [&](double v) {
+        return (v > 0   ? QStringLiteral("+")
+                : v < 0 ? QStringLiteral("−")
+                        : QString()) +
+               QString::number(std::abs(v), 'g', 3) + QStringLiteral(" ") + m_s.differenceUnits;
+    };
+    return {value(hi), value((hi + lo) / 2), value(lo)};
+}
+
+void ViewOverlay::paintColourBar(QPainter& p) const {
+    // The display maps the window's low end to black and its high end to white (inverted when
+    // the window says so): the bar shows that ramp, its ends and middle labelled with units.
+    const QRect bar = colourBarRect();
+    if (bar.isNull()) return;
+    QLinearGradient g(bar.topLeft(), bar.bottomLeft());
+    const QColor top = m_s.window.invert ? Qt::black : Qt::white;
+    const QColor bottom = m_s.window.invert ? Qt::white : Qt::black;
+    g.setColorAt(0, top);
+    g.setColorAt(1, bottom);
+    p.fillRect(bar, g);
+    p.setPen(kOverlayGreen);
+    p.drawRect(bar);
+    const QStringList labels = colourBarLabels();
+    const QFontMetrics fm(font());
+    const int ys[3] = {bar.top(), bar.center().y(), bar.bottom()};
+    for (int i = 0; i < 3; ++i) {
+        const int w = fm.horizontalAdvance(labels[i]);
+        const QRect r(bar.left() - 6 - w, ys[i] - fm.height() / 2, w, fm.height());
+        drawHaloText(p, r, Qt::AlignRight | Qt::AlignVCenter, labels[i], kOverlayGreen);
+    }
 }
 
 void ViewOverlay::paintNoImage(QPainter& p) const {

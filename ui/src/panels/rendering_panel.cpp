@@ -177,6 +177,12 @@ void RenderingPanel::setValues(const Values& v) {
     selectData(m_oversampling, v.oversampling);
     selectData(m_values, int(v.mapping));
     m_deapodize->setChecked(v.deapodize);
+    // The box asks for the correction where it helps: for a kernel it does not help (linear),
+    // the view it shows renders without it, and the box says so.
+    m_deapodize->setText(v.deapodize && !core::griddingCorrectionHelps(v.kernel)
+                             ? tr("Gridding correction (deapodize): not applied to %1")
+                                   .arg(QString::fromUtf8(core::kernelName(v.kernel)))
+                             : tr("Gridding correction (deapodize)"));
     m_targetFps->setValue(v.targetFps);
     m_pixelAperture->setChecked(v.pixelAperture);
     m_clip->setChecked(v.clip);

@@ -172,6 +172,11 @@ private:
     void saveRenderingSettings();
     /** "View 2: linear 512×512": a compare view's title. */
     QString viewTitle(int index, const ViewSettings& s) const;
+    /** Difference mode: every difference view windowed with one symmetric scale, the largest
+     *  |difference| of them (errors 7x apart look 7x apart). */
+    void applySharedDifferenceScale();
+    /** What the overlays say in Difference mode about progressive refinement (it is off). */
+    QString differenceProgressiveNote() const;
     /** The spectrum settings the Rendering panel asks for. */
     SpectrumSettings spectrumSettingsFromPanel() const;
     void applySpectrumSettings();

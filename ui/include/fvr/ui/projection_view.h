@@ -91,6 +91,19 @@ public:
     void setOverlayVisible(bool on);
     /** When set, this view shows (own projection - reference) with a symmetric window. */
     void setDifferenceReference(ProjectionView* reference);
+    /** Difference mode: the largest |difference| of the frame the view's scale was last taken
+     *  from (taken anew when its kernel, size, voxel model, spectrum or effects, or the
+     *  reference's, change; not when the view turns); 0 before any difference frame. The main
+     *  window windows all difference views with the largest of them (one shared scale). */
+    double differenceMaxAbs() const { return m_diffMaxAbs; }
+    /** The units of the values the view shows ("mm", "HU·mm", "−ln(I/I0)", "g/cm²"). */
+    QString valueUnits() const;
+    /** The spectrum the view renders from, in words: values, transform, oversampling, and
+     *  whether it is gridding corrected for the view's kernel (compare views differ). */
+    QString spectrumText() const;
+    /** Why progressive refinement is off although a target frame rate is set (the overlay
+     *  says so instead of dropping the line); empty: not off for a reason. */
+    void setProgressiveOffReason(const QString& reason);
     /** Title drawn in the top-left corner (compare mode). */
     void setTitle(const QString& title);
 
@@ -111,6 +124,10 @@ public:
     QRect overlayBox() const;
     /** The overlay box's lines: the title, the performance overlay, the difference note. */
     QString overlayText() const;
+    /** Difference mode: the colour bar's labels, top to bottom, with units; empty without one. */
+    QStringList colourBarLabels() const;
+    /** Where the colour bar is drawn (widget coordinates); null without one. */
+    QRect colourBarRect() const;
     bool usingGpu() const { return m_gpu != nullptr; }
     /** Whether the view may render on a software GPU (llvmpipe …); by default it renders on
      *  the CPU there, which is faster. A hardware GPU is always used. */
@@ -138,6 +155,8 @@ signals:
     void backendChanged(bool gpu, const QString& notice);
     /** A drag on this view started or ended (the main window mirrors it on the other views). */
     void interactionChanged(bool on);
+    /** Difference mode: differenceMaxAbs() was taken anew (the shared scale may change). */
+    void differenceScaleChanged();
 
 protected:
     void initializeGL() override;
@@ -236,6 +255,18 @@ private:
     QString m_pending;
     bool m_pendingFailed = false;
     ProjectionView* m_reference = nullptr;
+    /** What a difference view's scale was taken for (DifferenceKey: both views' settings,
+     *  spectra, effects and polychromatic sources). */
+    struct DifferenceKey {
+        ViewSettings own, ref;
+        const void *ownSpectrum = nullptr, *refSpectrum = nullptr, *ownPoly = nullptr,
+                   *refPoly = nullptr;
+        FrameEffects effects;
+        bool operator==(const DifferenceKey&) const = default;
+    };
+    std::optional<DifferenceKey> m_diffKey;
+    double m_diffMaxAbs = 0.0;
+    QString m_progressiveOff;
 
     std::unique_ptr<gpu::GpuFourierRenderer> m_gpu;
     std::unique_ptr<core::CpuFourierRenderer> m_cpu;

@@ -45,6 +45,15 @@ struct OverlayState {
     std::optional<QString> differenceTo; ///< difference mode: the reference view's title
     QStringList labels; ///< patient directions at left, right, top, bottom; none without volume
     QString notice; ///< the render error and the backend notice (bottom, in red)
+    /** Difference mode: the units of the values, for the colour bar of the window's symmetric
+     *  range at the image's right edge; empty: no colour bar. */
+    QString differenceUnits;
+    /** The spectrum the view renders from, in words (values, transform, oversampling, gridding
+     *  correction for its kernel or none): compare views differ in it. */
+    QString spectrum;
+    /** Why progressive refinement is off although a target frame rate is set ("in Difference
+     *  mode"); empty: not off for a reason. */
+    QString progressiveOff;
 
     // The performance lines.
     core::QualityLevel shown; ///< what the frame on screen rendered with
@@ -102,6 +111,10 @@ public:
 
     /** Draws all of it with `p` (on the view, or on an image in the tests). */
     void paint(QPainter& p) const;
+    /** Where the difference colour bar is drawn; null without one. */
+    QRect colourBarRect() const;
+    /** The colour bar's labels, top to bottom ("+0.52 mm", "0", "−0.52 mm"); empty without one. */
+    QStringList colourBarLabels() const;
 
 private:
     QRect box(const QString& text) const;
@@ -110,6 +123,7 @@ private:
     QString stageLine() const;
     void paintNoImage(QPainter& p) const;
     void paintNotice(QPainter& p) const;
+    void paintColourBar(QPainter& p) const;
 
     OverlayState m_s;
 };
