@@ -193,6 +193,29 @@ TEST(RegistrationSimilarity, GradientNccIgnoresARampThatNccDoesNot) {
     EXPECT_THROW(parseSimilarity("mi"), SettingsError);
 }
 
+TEST(RegistrationSimilarity, APreparedTargetScoresAsTheMeasureDoes) {
+    // The X-ray's derivatives taken once give the same numbers as taking them at every call,
+    // over the target's mask and an extra mask together.
+    const int w = 40, h = 30;
+    MaskedImage x{w, h, std::vector<float>(w * h), std::vector<std::uint8_t>(w * h, 1)};
+    std::vector<float> m(w * h);
+    std::vector<std::uint8_t> extra(w * h, 1), both(w * h, 1);
+    for (int i = 0; i < w * h; ++i) {
+        x.pixels[i] = float(std::sin(i * 0.37));
+        m[i] = float(std::cos(i * 0.21));
+        x.mask[i] = i % 7 != 0;
+        extra[i] = i % 5 != 0;
+        both[i] = x.mask[i] && extra[i];
+    }
+    for (SimilarityMeasure s : {SimilarityMeasure::Ncc, SimilarityMeasure::GradientNcc}) {
+        const SimilarityTarget t(s, x);
+        EXPECT_EQ(t.score(m.data(), extra.data()),
+                  similarity(s, m.data(), x.pixels.data(), both.data(), w, h));
+        EXPECT_EQ(t.score(m.data()), similarity(s, m.data(), x.pixels.data(), x.mask.data(), w, h));
+        EXPECT_LT(std::abs(t.score(m.data())), 0.9); // unrelated images
+    }
+}
+
 TEST(RegistrationPyramid, DownsampledPixelsSitAtTheirBlocksCentres) {
     const ConeCamera cam = testCamera(); // 96 x 80, principal offset (2, -1)
     for (int f : {2, 3, 5}) {
@@ -236,6 +259,10 @@ TEST(RegistrationPyramid, BlockMeanCtKeepsItsCentreAndLineIntegrals) {
     const glm::dvec3 moved = volumeCentre(odd) - volumeCentre(rodPhantom(41));
     for (int axis = 0; axis < 3; ++axis) EXPECT_LE(std::abs(moved[axis]), 2.0 + 1e-9);
     EXPECT_EQ(downsampleVolume(ct, 0.0).dims, ct.dims);
+    EXPECT_EQ(volumeBlockFactors(ct, 8.0), (Dims3{2, 2, 2}));
+    EXPECT_EQ(volumeBlockFactors(ct, 5.0), (Dims3{1, 1, 1})); // round(5 / 4) = 1
+    EXPECT_EQ(volumeBlockFactors(ct, 0.0), (Dims3{1, 1, 1}));
+    EXPECT_EQ(volumeBlockFactors(ct, 1000.0), (Dims3{40, 40, 40})); // at most the whole axis
 }
 
 TEST(RegistrationCoverage, RaysThroughTheCutEndsAreLeftOut) {

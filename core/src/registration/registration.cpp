@@ -22,20 +22,54 @@ double secondsSince(Clock::time_point t0) {
     return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
+/** The levels' CTs and renderers, one per distinct block size: levels whose voxel sizes round to
+ *  the same blocks (a 3 mm CT at 2, 3 and 4 mm) share the CT and its renderer (on the GPU: one
+ *  upload), and a level at the CT's own voxels uses the CT itself, not a copy. */
+class LevelCts {
+public:
+    LevelCts(const Volume& ct, const RegistrationOptions& options) : m_ct(ct), m_options(options) {}
+
+    struct Entry {
+        Dims3 factors;
+        std::unique_ptr<Volume> owned; ///< the block means; null when the factors are all 1
+        const Volume* ct = nullptr;
+        std::unique_ptr<DrrRenderer> renderer;
+    };
+
+    Entry& at(double voxelMm) {
+        const Dims3 f = volumeBlockFactors(m_ct, voxelMm);
+        for (auto& e : m_entries)
+            if (e->factors == f) return *e;
+        auto e = std::make_unique<Entry>();
+        e->factors = f;
+        if (f != Dims3{1, 1, 1})
+            e->owned = std::make_unique<Volume>(downsampleVolume(m_ct, voxelMm));
+        e->ct = e->owned ? e->owned.get() : &m_ct;
+        e->renderer = m_options.renderer ? m_options.renderer(*e->ct, m_options.projector)
+                                         : cpuDrrRenderer(*e->ct, m_options.projector);
+        m_entries.push_back(std::move(e));
+        return *m_entries.back();
+    }
+
+private:
+    const Volume& m_ct;
+    const RegistrationOptions& m_options;
+    std::vector<std::unique_ptr<Entry>> m_entries;
+};
+
 /** One level's CT, renderer, cameras and X-rays, and the similarity of a pose there. */
 class LevelObjective {
 public:
-    LevelObjective(const Volume& ct, const std::vector<RegistrationView>& views,
+    LevelObjective(LevelCts::Entry& ct, const std::vector<RegistrationView>& views,
                    const RegistrationLevel& level, const RegistrationOptions& options,
                    const glm::dvec3& centre)
-        : m_ct(downsampleVolume(ct, level.voxelMm)), m_options(options), m_centre(centre) {
-        m_renderer = options.renderer ? options.renderer(m_ct, options.projector)
-                                      : cpuDrrRenderer(m_ct, options.projector);
+        : m_level(ct), m_options(options), m_centre(centre) {
         for (const RegistrationView& v : views) {
             const int f = levelImageFactor(v.camera.width, v.camera.height, level.imagePixels);
             m_cameras.push_back(downsampleCamera(v.camera, f));
             m_blur.push_back(options.detectorBlurPixels / double(f));
-            m_images.push_back(
+            m_targets.emplace_back(
+                options.similarity,
                 downsampleImage({v.camera.width, v.camera.height, v.image, v.mask}, f));
         }
     }
@@ -47,8 +81,8 @@ public:
         for (const ConeCamera& c : m_cameras) cameras.push_back(posedCamera(c, t));
         std::vector<DetectorImage> drrs;
         try {
-            for (const ConeCamera& c : cameras) validateConeView(c, m_ct);
-            drrs = m_renderer->render(cameras);
+            for (const ConeCamera& c : cameras) validateConeView(c, ct());
+            drrs = m_level.renderer->render(cameras);
         } catch (const SettingsError&) {
             return -1.0; // a pose from which the CT is out of view: the worst score
         }
@@ -63,8 +97,8 @@ public:
     }
 
     const std::vector<ConeCamera>& cameras() const { return m_cameras; }
-    const Volume& ct() const { return m_ct; }
-    std::string describe() const { return m_renderer->describe(); }
+    const Volume& ct() const { return *m_level.ct; }
+    std::string describe() const { return m_level.renderer->describe(); }
     int evaluations() const { return m_evaluations; }
     int drrs() const { return m_drrs; }
 
@@ -78,25 +112,16 @@ private:
     }
 
     double viewSimilarity(std::size_t v, const DetectorImage& drr, const glm::dmat4& t) const {
-        const MaskedImage& x = m_images[v];
-        std::vector<std::uint8_t> mask = x.mask;
-        if (m_options.coverageMask) {
-            const std::vector<std::uint8_t> covered = coverageMask(m_ct, m_cameras[v], t);
-            if (mask.empty())
-                mask = covered;
-            else
-                for (std::size_t i = 0; i < mask.size(); ++i) mask[i] = mask[i] && covered[i];
-        }
-        return core::similarity(m_options.similarity, drr.pixels.data(), x.pixels.data(),
-                                mask.empty() ? nullptr : mask.data(), x.width, x.height);
+        if (!m_options.coverageMask) return m_targets[v].score(drr.pixels.data());
+        const std::vector<std::uint8_t> covered = coverageMask(ct(), m_cameras[v], t);
+        return m_targets[v].score(drr.pixels.data(), covered.data());
     }
 
-    Volume m_ct;
+    LevelCts::Entry& m_level;
     const RegistrationOptions& m_options;
     glm::dvec3 m_centre;
-    std::unique_ptr<DrrRenderer> m_renderer;
     std::vector<ConeCamera> m_cameras;
-    std::vector<MaskedImage> m_images;
+    std::vector<SimilarityTarget> m_targets; ///< the X-rays at this level
     std::vector<double> m_blur; ///< per view, in this level's pixels
     int m_evaluations = 0, m_drrs = 0;
 };
@@ -301,15 +326,17 @@ RegistrationResult registerPose(const Volume& ct, const std::vector<Registration
         result.drrs += r.drrs;
         result.stages.push_back(r);
     };
+    LevelCts cts(ct, options);
     Pose current = init;
     if (global) {
-        LevelObjective objective(ct, views, options.globalLevel, options, result.centre);
+        LevelObjective objective(cts.at(options.globalLevel.voxelMm), views, options.globalLevel,
+                                 options, result.centre);
         record(runStage(search, objective, options.globalLevel, "global", true, current));
         current = search.bestPose;
     }
     for (int l = 0; l < levels && !search.cancelled; ++l) {
         const RegistrationLevel& level = options.levels[std::size_t(l)];
-        LevelObjective objective(ct, views, level, options, result.centre);
+        LevelObjective objective(cts.at(level.voxelMm), views, level, options, result.centre);
         record(
             runStage(search, objective, level, "level " + std::to_string(l + 1), false, current));
         current = search.bestPose;

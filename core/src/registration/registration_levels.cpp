@@ -59,13 +59,20 @@ int levelImageFactor(int width, int height, int imagePixels) {
     return std::max(1, int(std::lround(double(std::max(width, height)) / imagePixels)));
 }
 
+Dims3 volumeBlockFactors(const Volume& volume, double voxelMm) {
+    Dims3 f{1, 1, 1};
+    if (voxelMm > 0.0)
+        for (int a = 0; a < 3; ++a)
+            f[a] = std::clamp<std::int64_t>(std::llround(voxelMm / volume.spacing[a]), 1,
+                                            std::max<std::int64_t>(1, volume.dims[a]));
+    return f;
+}
+
 Volume downsampleVolume(const Volume& volume, double voxelMm) {
-    Dims3 f{1, 1, 1}, first{0, 0, 0};
+    const Dims3 f = volumeBlockFactors(volume, voxelMm);
+    Dims3 first{0, 0, 0};
     Volume out;
     for (int a = 0; a < 3; ++a) {
-        if (voxelMm > 0.0)
-            f[a] = std::clamp<std::int64_t>(std::llround(voxelMm / volume.spacing[a]), 1,
-                                            volume.dims[a]);
         out.dims[a] = volume.dims[a] / f[a];
         // The voxels left over split between the two ends: the grid's centre moves by at most
         // half an input voxel.

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include <fvr/core/errors.h>
 
@@ -81,16 +82,27 @@ std::vector<std::uint8_t> interiorMask(const std::uint8_t* mask, int w, int h) {
 
 } // namespace
 
+namespace {
+
+/** Gradient NCC from the derivatives: the mean of the x and y NCCs over the interior mask. */
+double gradientNccOf(const std::vector<float>& ax, const std::vector<float>& ay,
+                     const std::vector<float>& bx, const std::vector<float>& by,
+                     const std::uint8_t* mask, int width, int height) {
+    const std::vector<std::uint8_t> inner = interiorMask(mask, width, height);
+    const std::size_t n = std::size_t(width) * height;
+    return 0.5 * (ncc(ax.data(), bx.data(), inner.data(), n) +
+                  ncc(ay.data(), by.data(), inner.data(), n));
+}
+
+} // namespace
+
 double gradientNcc(const float* a, const float* b, const std::uint8_t* mask, int width,
                    int height) {
     if (width < 3 || height < 3) return 0.0;
     std::vector<float> ax, ay, bx, by;
     sobel(a, width, height, ax, ay);
     sobel(b, width, height, bx, by);
-    const std::vector<std::uint8_t> inner = interiorMask(mask, width, height);
-    const std::size_t n = std::size_t(width) * height;
-    return 0.5 * (ncc(ax.data(), bx.data(), inner.data(), n) +
-                  ncc(ay.data(), by.data(), inner.data(), n));
+    return gradientNccOf(ax, ay, bx, by, mask, width, height);
 }
 
 double similarity(SimilarityMeasure measure, const float* a, const float* b,
@@ -98,6 +110,29 @@ double similarity(SimilarityMeasure measure, const float* a, const float* b,
     if (measure == SimilarityMeasure::Ncc)
         return ncc(a, b, mask, std::size_t(width) * std::size_t(height));
     return gradientNcc(a, b, mask, width, height);
+}
+
+SimilarityTarget::SimilarityTarget(SimilarityMeasure measure, MaskedImage image)
+    : m_measure(measure), m_image(std::move(image)) {
+    if (m_measure == SimilarityMeasure::GradientNcc && m_image.width >= 3 && m_image.height >= 3)
+        sobel(m_image.pixels.data(), m_image.width, m_image.height, m_gx, m_gy);
+}
+
+double SimilarityTarget::score(const float* moving, const std::uint8_t* extraMask) const {
+    const int w = m_image.width, h = m_image.height;
+    std::vector<std::uint8_t> combined;
+    const std::uint8_t* mask = m_image.mask.empty() ? extraMask : m_image.mask.data();
+    if (!m_image.mask.empty() && extraMask) {
+        combined = m_image.mask;
+        for (std::size_t i = 0; i < combined.size(); ++i) combined[i] = combined[i] && extraMask[i];
+        mask = combined.data();
+    }
+    if (m_measure == SimilarityMeasure::Ncc)
+        return ncc(moving, m_image.pixels.data(), mask, std::size_t(w) * std::size_t(h));
+    if (w < 3 || h < 3) return 0.0;
+    std::vector<float> mx, my;
+    sobel(moving, w, h, mx, my);
+    return gradientNccOf(mx, my, m_gx, m_gy, mask, w, h);
 }
 
 MaskedImage downsampleImage(const MaskedImage& image, int factor) {

@@ -151,6 +151,10 @@ RegistrationResult registerPose(const Volume& ct, const std::vector<Registration
  *  (at least 1; 1 for imagePixels 0). */
 int levelImageFactor(int width, int height, int imagePixels);
 
+/** The whole block size per axis that brings the CT's voxels to about `voxelMm`:
+ *  round(voxelMm / spacing), at least 1 and at most the axis's voxels; all 1 for voxelMm <= 0. */
+Dims3 volumeBlockFactors(const Volume& volume, double voxelMm);
+
 /** The CT's block means to about `voxelMm` (per axis: the whole factor round(voxelMm / spacing),
  *  at least 1), the grid's centre kept; the volume itself (a copy) when every factor is 1. */
 Volume downsampleVolume(const Volume& volume, double voxelMm);

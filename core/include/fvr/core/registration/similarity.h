@@ -40,6 +40,21 @@ double gradientNcc(const float* a, const float* b, const std::uint8_t* mask, int
 double similarity(SimilarityMeasure measure, const float* a, const float* b,
                   const std::uint8_t* mask, int width, int height);
 
+/** A fixed image (an X-ray at one level) prepared once for many comparisons: its Sobel
+ *  derivatives are taken here, not at every evaluation. score() equals similarity() of the moving
+ *  image against it, over its own mask and `extraMask` (may be null) together. */
+class SimilarityTarget {
+public:
+    SimilarityTarget(SimilarityMeasure measure, MaskedImage image);
+    double score(const float* moving, const std::uint8_t* extraMask = nullptr) const;
+    const MaskedImage& image() const { return m_image; }
+
+private:
+    SimilarityMeasure m_measure;
+    MaskedImage m_image;
+    std::vector<float> m_gx, m_gy; ///< GradientNcc: the image's Sobel derivatives
+};
+
 /** Block means over factor x factor pixels (the last partial row and column dropped): W/f x H/f.
  *  A block is in the mask only when all its pixels are. factor 1 returns a copy. */
 MaskedImage downsampleImage(const MaskedImage& image, int factor);
