@@ -314,7 +314,9 @@ std::function<void(const RegistrationProgress&)> stderrProgress() {
 /** A sidecar's X-ray rendered from another volume than the CT (its name, grid or position):
  *  said, not refused (another CT of the same patient in the same frame is a fair input). */
 void warnOtherVolume(Inputs& in, const Volume& ct) {
-    Json block = Json::parse(fvr::cli::volumeBlockJson(ct).dump()); // keys sorted, as read
+    // Keys sorted, as read; a name that is not UTF-8 gets U+FFFD, as fvr-render's sidecar has it.
+    Json block = Json::parse(
+        fvr::cli::volumeBlockJson(ct).dump(-1, ' ', false, Json::error_handler_t::replace));
     block.erase("units");
     const std::string mine = "volume " + block.dump();
     for (XrayInput& x : in.xrays)

@@ -49,6 +49,23 @@ TEST(PacsLocalStore, IndexListsPartialThenCompleteAndSurvivesANewObject) {
     EXPECT_FALSE(fs::exists(root / "1.2.3"));
 }
 
+TEST(PacsLocalStore, ANameThatIsNotUtf8IsIndexedNotFatal) {
+    // A Latin-1 patient name (0xFC: u-umlaut) in a file that declares no character set: the
+    // index is written with U+FFFD for the bad byte, and the store goes on (a fuzzer found the
+    // dump throwing here, which ended the process).
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-latin1";
+    fs::remove_all(root);
+    {
+        LocalStore store(root);
+        StudyRecord s = study("1.2.5");
+        s.patientName = "M\xFCller^Hans";
+        EXPECT_NO_THROW(store.storeInstance(s, {"1.2.5.1", "CT", "", 1, 1}, "1.2.5.1.1", "x"));
+    }
+    const auto entries = LocalStore(root).studies();
+    ASSERT_EQ(entries.size(), 1u);
+    EXPECT_EQ(entries[0].study.patientName, "M\xEF\xBF\xBDller^Hans"); // U+FFFD in UTF-8
+}
+
 TEST(PacsLocalStore, AFailedRetrieveStaysPartialEvenWhenTheListenerSeesARelease) {
     const fs::path root = fvr::test::tmpDir() / "pacs-store-partial";
     fs::remove_all(root);

@@ -485,7 +485,11 @@ void LocalStore::save(const Index& index) const {
     json j{{"version", 2}, {"studies", json::object()}, {"incoming", json::object()}};
     for (const auto& [uid, entry] : index.studies) j["studies"][uid] = entry;
     for (const auto& [uid, entry] : index.incoming) j["incoming"][uid] = entry;
-    writeFileAtomic(m_root / kIndexName, j.dump(2) + "\n");
+    // The index is UTF-8 JSON; a text that is not UTF-8 (a Latin-1 name in a file without its
+    // SpecificCharacterSet, a damaged header) gets U+FFFD for each bad byte rather than making
+    // the dump throw and the store stop. The DICOM files keep their own bytes.
+    writeFileAtomic(m_root / kIndexName,
+                    j.dump(2, ' ', false, json::error_handler_t::replace) + "\n");
 }
 
 /** The listing of one index entry (`uid` a valid UID). */
