@@ -17,6 +17,7 @@
 #include <QScrollArea>
 #include <QSettings>
 #include <QStatusBar>
+#include <QUndoStack>
 #include <QStyle>
 
 #include <algorithm>
@@ -105,6 +106,8 @@ void MainWindow::fitInto(const QSize& available) {
 }
 
 MainWindow::~MainWindow() {
+    // The undo stack empties itself as it goes, after the Edit menu's actions went.
+    if (m_undo) m_undo->disconnect(this);
     delete m_pacsDialog.data(); // its retrieve ends before the store and listener go
 }
 
@@ -285,6 +288,7 @@ void MainWindow::onStudyLoaded(const QString& name) {
     for (auto* v : m_views) v->setViewFrame(start);
     showCArmAngles(start);
     updateStudyInfo();
+    startStudyHistory();
 }
 
 void MainWindow::onSpectrumReady() {

@@ -5,12 +5,10 @@
 #include <QFileDialog>
 #include <QFileInfo>
 #include <QMenuBar>
-#include <QMessageBox>
 #include <QSettings>
 #include <QSignalBlocker>
 #include <QToolBar>
 
-#include <fvr/ui/app_info.h>
 #include <fvr/ui/settings_keys.h>
 #include <fvr/ui/settings_model.h>
 #include <fvr/ui/xray_match.h>
@@ -50,9 +48,14 @@ void MainWindow::buildMenus() {
         file->addAction(tr("&Copy view to clipboard"), this, &MainWindow::copyToClipboard);
     copy->setShortcut(QKeySequence::Copy);
     file->addSeparator();
+    QAction* saveSession =
+        file->addAction(tr("Save sessio&n…"), this, &MainWindow::saveSessionDialog);
+    saveSession->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_S));
+    file->addAction(tr("Open sess&ion…"), this, &MainWindow::openSessionDialog);
+    file->addSeparator();
     buildPacsMenu(file);
     // Nothing to export before a study is open: the items say so before any Save dialog.
-    for (QAction* a : {shot, projection, sweep, copy}) {
+    for (QAction* a : {shot, projection, sweep, copy, saveSession}) {
         a->setEnabled(false);
         connect(m_study.get(), &StudyController::studyLoaded, a, [a] { a->setEnabled(true); });
     }
@@ -60,6 +63,9 @@ void MainWindow::buildMenus() {
     QAction* quit = file->addAction(tr("&Quit"), this, &QWidget::close);
     quit->setShortcut(QKeySequence::Quit);
 
+    buildUndo();
+    buildEditMenu();
+    connectUserPresets();
     QMenu* view = menuBar()->addMenu(tr("&View"));
     QToolBar* tb = addToolBar(tr("Main"));
     tb->setObjectName("toolbar.main");
@@ -67,17 +73,10 @@ void MainWindow::buildMenus() {
     tb->addAction(openFile);
     tb->addSeparator();
     buildViewMenu(view, tb);
-
-    QMenu* help = menuBar()->addMenu(tr("&Help"));
-    help->addAction(tr("&About"), this, [this] {
-        QMessageBox::about(
-            this, tr("About %1").arg(QString::fromUtf8(applicationName())),
-            tr("<b>%1 %2</b><p>X-ray-like projections by Fourier volume rendering "
-               "(Viola, Kanitsar, Gröller). Parallel projection, no occlusion: every "
-               "pixel is a line integral through the whole volume.</p>")
-                .arg(QString::fromUtf8(applicationName()),
-                     QString::fromUtf8(applicationVersion())));
-    });
+    view->addSeparator();
+    buildNavigation(view);
+    buildPanelsMenu(view);
+    buildHelpMenu();
 }
 
 void MainWindow::buildViewMenu(QMenu* view, QToolBar* tb) {
@@ -108,9 +107,10 @@ void MainWindow::buildViewMenu(QMenu* view, QToolBar* tb) {
                                      this, [this, n] { setCompareCount(n); });
         tb->addAction(a);
     }
-    QAction* diff = view->addAction(tr("&Difference to view 1"));
-    diff->setCheckable(true);
-    connect(diff, &QAction::toggled, this, [this](bool on) { setDifferenceMode(on); });
+    m_differenceAction = view->addAction(tr("&Difference to view 1"));
+    m_differenceAction->setCheckable(true);
+    connect(m_differenceAction, &QAction::toggled, this,
+            [this](bool on) { setDifferenceMode(on); });
     view->addSeparator();
     m_overlayAction = view->addAction(tr("Performance &overlay"));
     m_overlayAction->setCheckable(true);

@@ -5,6 +5,7 @@
 
 #include <QGridLayout>
 #include <QLabel>
+#include <QSignalBlocker>
 
 #include <algorithm>
 
@@ -25,6 +26,7 @@ void MainWindow::buildViews() {
 
 void MainWindow::setCompareCount(int n) {
     n = (n >= 4) ? 4 : (n >= 2 ? 2 : 1);
+    if (n != m_compareCount) noteStateChange(true);
     const core::ViewFrame frame = m_views.empty()
                                       ? core::ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0})
                                       : m_views[0]->viewFrame();
@@ -126,7 +128,9 @@ ProjectionView* MainWindow::addView(int index, int count, const core::ViewFrame&
 }
 
 void MainWindow::connectView(ProjectionView* v) {
+    connect(v, &ProjectionView::panZoomChanged, this, [this] { noteStateChange(true); });
     connect(v, &ProjectionView::viewFrameChanged, this, [this, v](const core::ViewFrame& f) {
+        noteStateChange(true); // a drag or the keys
         if (m_syncing) return;
         m_syncing = true;
         for (auto* o : m_views)
@@ -136,6 +140,7 @@ void MainWindow::connectView(ProjectionView* v) {
     });
     connect(v, &ProjectionView::windowChanged, this,
             [this, v](const core::DisplayWindow& w, bool byHand) {
+                noteStateChange(byHand);
                 if (m_syncing) return;
                 m_syncing = true;
                 if (v == m_views.front() || !m_difference) {
@@ -178,6 +183,11 @@ void MainWindow::showBackend(const ProjectionView& v, bool gpu, const QString& n
 }
 
 void MainWindow::setDifferenceMode(bool on) {
+    if (m_differenceAction && m_differenceAction->isChecked() != on) {
+        const QSignalBlocker block(m_differenceAction); // undo, a session
+        m_differenceAction->setChecked(on);
+    }
+    if (on != m_difference) noteStateChange(true);
     m_difference = on;
     for (std::size_t i = 1; i < m_views.size(); ++i)
         m_views[i]->setDifferenceReference(on ? m_views[0] : nullptr);
@@ -215,6 +225,7 @@ void MainWindow::showPatientView(core::PatientView pv) {
     const auto f = core::patientViewFrame(*m_study->volume(), pv);
     for (auto* v : m_views) v->setViewFrame(f);
     showCArmAngles(f);
+    noteStateChange(true);
 }
 
 } // namespace fvr::ui

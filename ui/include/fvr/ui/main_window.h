@@ -13,6 +13,7 @@
 #include <fvr/ui/panels/xray_panel.h>
 #include <fvr/ui/projection_view.h>
 #include <fvr/ui/study.h>
+#include <fvr/ui/workstation_state.h>
 
 class QLabel;
 class QScreen;
@@ -20,7 +21,10 @@ class QProgressBar;
 class QPushButton;
 class QGridLayout;
 class QMenu;
+class QSettings;
+class QTimer;
 class QToolBar;
+class QUndoStack;
 
 namespace fvr::ui {
 
@@ -114,8 +118,64 @@ public:
     /** The per-frame effects of the Rendering and X-ray panels. */
     FrameEffects currentEffects() const;
 
+    /** What is on screen as data (main_window_state.cpp): the settings, each compare slot's,
+     *  the orientation, each view's window, zoom and pan. */
+    WorkstationState currentState() const;
+    /** Shows `state` (undo/redo and sessions): the compare views, the settings (new spectra
+     *  are prepared where they need it), the orientation, windows, zoom and pan. */
+    void applyState(const WorkstationState& state);
+    /** Edit ▸ Undo/Redo: the user's changes to the view, window and settings, a burst of
+     *  changes (a drag, the wheel, a spin box held down) as one step. */
+    QUndoStack* undoStack() const { return m_undo; }
+    void undo();
+    void redo();
+    /** A change still settling is recorded now (tests, and before an undo). */
+    void flushStateChange();
+    /** File ▸ Save session: the study, the state and (through savingSession) the annotations,
+     *  as an INI file. False, with the reason in the Messages panel, when there is no study or
+     *  the file cannot be written. */
+    bool saveSession(const QString& path);
+    /** File ▸ Open session: opens its study, then shows its state (sessionRestored()). False,
+     *  with the file and the reason in the Messages panel, for a file that is not a session. */
+    bool openSession(const QString& path);
+    /** The keys: every view turns as a drag would (arrows: 5°, PageUp/PageDown: 90°). */
+    void rotateViews(double horizontalDeg, double verticalDeg);
+    /** The keys + and −: every view's zoom times `factor`. */
+    void zoomViews(double factor);
+    /** A window preset of the user's: a name, the window, and the quantity it was set on
+     *  (main_window_presets.cpp). */
+    struct UserPreset {
+        QString name;
+        double low = 0.0, high = 1.0;
+        QString quantity; ///< windowQuantity() when saved: "mm", "−ln(I/I0)", "log exposure"
+    };
+    QList<UserPreset> userPresets() const;
+    /** Display ▸ Save preset…: view 1's window under `name` for the quantity on screen
+     *  (replacing one of the same name and quantity). */
+    bool saveWindowPreset(const QString& name);
+    /** Applies user preset `index`; refused, with the reason in the messages, where the view
+     *  shows another quantity than the preset's. */
+    bool applyUserPreset(int index);
+    void deleteUserPreset(int index);
+    /** What the window applies to on view 1: its units, or the log exposure of a transmission
+     *  output. */
+    QString windowQuantity() const;
+    /** Help ▸ About's text: name, version, commit, and that it is not for diagnostic use. */
+    static QString aboutText();
+    /** Help ▸ Keyboard shortcuts: every menu action with a shortcut ("Undo", "Ctrl+Z") and
+     *  the mouse's gestures, as the dialog lists them. */
+    QList<QPair<QString, QString>> shortcutList() const;
+
 signals:
     void accuracyMeasured(double psnr, double relRmse);
+    /** A session is being written / was read: what else it keeps (the annotations) goes in or
+     *  comes out of `s`. */
+    void savingSession(QSettings& s);
+    void sessionOpened(QSettings& s);
+    /** An opened session's study is loaded and its state shown. */
+    void sessionRestored();
+    /** Something on screen changed (the Edit menu's state follows). */
+    void stateChangeNoted();
 
 protected:
     void closeEvent(QCloseEvent* e) override;
@@ -132,6 +192,24 @@ private:
     void connectSettings();
     void restorePanels();
     void buildMenus(); // main_window_menus.cpp
+    // main_window_state.cpp and main_window_reading.cpp
+    void buildUndo();
+    void buildEditMenu();
+    void buildNavigation(QMenu* view);
+    void buildPanelsMenu(QMenu* view);
+    void buildHelpMenu();
+    void showShortcutsDialog();
+    /** A change to what is on screen: a user's (an undo step once it settles) or not (an
+     *  automatic window: absorbed into the state undo returns to). */
+    void noteStateChange(bool byUser);
+    void recordState();
+    /** After a study loaded: an opened session's state, and an empty undo history. */
+    void startStudyHistory();
+    void connectUserPresets();
+    void storeUserPresets(const QList<UserPreset>& presets);
+    void applyPendingSession();
+    void saveSessionDialog();
+    void openSessionDialog();
     void buildPacsMenu(QMenu* file); // main_window_pacs.cpp
     void editPacsNodes();
     void sendProjectionDialog();
@@ -255,6 +333,16 @@ private:
     QAction* m_softwareGpuAction = nullptr;
     std::unique_ptr<AccuracyReadout> m_accuracy;
     std::unique_ptr<PacsService> m_pacs;
+    QAction* m_differenceAction = nullptr;
+    QAction* m_undoAction = nullptr;
+    QAction* m_redoAction = nullptr;
+    QUndoStack* m_undo = nullptr;
+    QTimer* m_stateTimer = nullptr;
+    WorkstationState m_recorded; ///< the state the next undo step starts from
+    bool m_userChange = false;
+    bool m_applyingState = false;
+    std::optional<WorkstationState> m_pendingSession; ///< shown once its study is loaded
+    QString m_pendingSessionPath;
     QPointer<PacsDialog> m_pacsDialog;
 };
 

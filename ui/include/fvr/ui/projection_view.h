@@ -87,6 +87,13 @@ public:
     void autoWindow();
     void setZoom(double zoom);
     double zoom() const { return m_zoom; }
+    /** The image's offset from the view's centre, in widget pixels (a middle drag). */
+    QPointF pan() const { return m_pan; }
+    void setPan(const QPointF& pan);
+    /** Turns the view as a drag of `horizontalDeg` to the right and `verticalDeg` down would
+     *  (the object follows): about the screen's vertical and horizontal axes for a parallel
+     *  view, the C-arm's primary and secondary angles for a cone beam. Emits viewFrameChanged. */
+    void rotateBy(double horizontalDeg, double verticalDeg);
     void resetPanZoom();
     void setOverlayVisible(bool on);
     /** When set, this view shows (own projection - reference) with a symmetric window. */
@@ -157,6 +164,8 @@ signals:
     void interactionChanged(bool on);
     /** Difference mode: differenceMaxAbs() was taken anew (the shared scale may change). */
     void differenceScaleChanged();
+    /** Zoom or pan changed (the wheel, a middle drag, the keys or a reset). */
+    void panZoomChanged();
 
 protected:
     void initializeGL() override;
@@ -200,9 +209,9 @@ private:
     core::DetectorImage castPolychromaticCone(const core::ConeCamera& camera,
                                               const core::ConeProjectorOptions& options);
     bool coneBeam() const { return m_settings.projection == ProjectionKind::Cone; }
-    /** A rotation drag on a cone-beam view: horizontal moves the primary angle (to the right:
-     *  toward LAO), vertical the secondary (up: toward cranial). */
-    void dragCArm(const QPoint& delta);
+    /** rotateBy() on a cone-beam view: horizontal moves the primary angle (to the right:
+     *  toward LAO), vertical the secondary (up: toward cranial, clamped to ±89°). */
+    void rotateCArm(double horizontalDeg, double verticalDeg);
     /** The same on the GPU (the view renders there): one GPU renderer per material, the
      *  spectral sum in one compute pass into the first one's frame, shown without a read-back
      *  (with noise: I/I0 read back once, the noise drawn on the CPU). False where it cannot
