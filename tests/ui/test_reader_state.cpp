@@ -334,3 +334,73 @@ TEST_F(Workstation, AboutSaysNotForDiagnosticUseWithVersionAndCommit) {
 
 } // namespace
 } // namespace fvr::test
+
+namespace fvr::test {
+namespace {
+
+/** The largest step between horizontal neighbours of the view's grey image, away from its
+ *  orientation labels' text: an edge's sharpness on screen. */
+int sharpestStep(ui::ProjectionView& v) {
+    const QImage g = v.screenshot().convertToFormat(QImage::Format_Grayscale8);
+    const double dpr = double(g.width()) / v.width();
+    const auto labels = v.orientationLabelRects();
+    int best = 0;
+    for (int y = 0; y < g.height(); ++y)
+        for (int x = 0; x + 1 < g.width(); ++x) {
+            const QPoint p(int(x / dpr), int(y / dpr));
+            if (std::any_of(labels.begin(), labels.end(),
+                            [&](const QRect& r) { return r.adjusted(-3, -3, 3, 3).contains(p); }))
+                continue;
+            best = std::max(best, std::abs(int(g.pixelColor(x + 1, y).value()) -
+                                           int(g.pixelColor(x, y).value())));
+        }
+    return best;
+}
+
+TEST_F(Workstation, ZoomRendersAtTheScreensResolutionNotMagnifiedPixels) {
+    ui::RenderingPanel::Values r = window->settings().rendering();
+    r.size = 128;
+    window->settings().setRendering(r);
+    // 128³ voxels across a field of view of their diagonal (222 voxels) on 128 pixels: the
+    // pixels are coarser than the voxels, so a zoomed-in frame has more to show.
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(128)));
+    ASSERT_TRUE(settled(*window));
+    auto* v = window->views()[0];
+    EXPECT_EQ(v->displayedSize(), 128); // zoom 1: the slice resolution
+    window->overlayAction()->setChecked(false); // the image alone in the screenshots
+    window->zoomViews(2.0);
+    ASSERT_TRUE(settled(*window));
+    // 2× the slice's pixels (256), or the screen's where that is less.
+    const int side = std::min(v->width(), v->height()) * 2;
+    EXPECT_EQ(v->displayedSize(), side >= 256 ? 256 : 128);
+    const int zoomed = v->displayedSize();
+    window->overlayAction()->setChecked(true);
+    QTest::qWait(50);
+    EXPECT_TRUE(v->overlayText().contains(QStringLiteral("rendered %1×%1").arg(zoomed)))
+        << v->overlayText().toStdString();
+    window->overlayAction()->setChecked(false);
+    // Exports and measurements keep the slice resolution.
+    const auto p = v->projection();
+    ASSERT_TRUE(p);
+    EXPECT_EQ(p->width, 128);
+    ASSERT_TRUE(settled(*window));
+    EXPECT_EQ(v->displayedSize(), zoomed);
+    // Sharper on screen than the magnified pixels of the same zoom: the phantom's skull edge
+    // spans fewer screen pixels.
+    const int sharp = sharpestStep(*v);
+    v->setZoomRendering(false);
+    ASSERT_TRUE(settled(*window));
+    EXPECT_EQ(v->displayedSize(), 128);
+    const int magnified = sharpestStep(*v);
+    EXPECT_GT(sharp, 1.3 * magnified) << sharp << " vs " << magnified;
+    // Difference views compare slice-resolution frames.
+    v->setZoomRendering(true);
+    window->setCompareCount(2);
+    window->setDifferenceMode(true);
+    window->zoomViews(4.0);
+    ASSERT_TRUE(settled(*window));
+    for (auto* view : window->views()) EXPECT_EQ(view->displayedSize(), 128);
+}
+
+} // namespace
+} // namespace fvr::test

@@ -17,8 +17,8 @@
 #include <QScrollArea>
 #include <QSettings>
 #include <QStatusBar>
-#include <QUndoStack>
 #include <QStyle>
+#include <QUndoStack>
 
 #include <algorithm>
 #include <cmath>
@@ -282,6 +282,7 @@ void MainWindow::onStudyLoaded(const QString& name) {
     setWindowTitle(QStringLiteral("%1 — %2").arg(QString::fromUtf8(applicationName()), name));
     message(tr("Opened %1").arg(name));
     if (m_study->source().kind != StudySource::Kind::Phantom) addRecent(m_study->source().path);
+    if (m_prior) closePrior(); // the prior was the last study's
     assignSpectra();
     const core::ViewFrame start =
         core::patientViewFrame(*m_study->volume(), core::RenderSettings{}.view);

@@ -33,6 +33,9 @@ void MainWindow::buildMenus() {
     file->addAction(tr("Open built-in Shepp-&Logan phantom"), this,
                     [this] { openStudy(StudySource::phantom(128)); });
     m_recentMenu = file->addMenu(tr("&Recent studies"));
+    QAction* prior =
+        file->addAction(tr("Open p&rior beside it…"), this, &MainWindow::openPriorDialog);
+    QAction* closePriorAction = file->addAction(tr("Close prior"), this, &MainWindow::closePrior);
     file->addSeparator();
     file->addAction(tr("Open &X-ray to match…"), this, &MainWindow::openXrayMatchDialog);
     file->addAction(tr("Re&gister to X-ray…"), this, &MainWindow::openRegisterDialog);
@@ -55,7 +58,7 @@ void MainWindow::buildMenus() {
     file->addSeparator();
     buildPacsMenu(file);
     // Nothing to export before a study is open: the items say so before any Save dialog.
-    for (QAction* a : {shot, projection, sweep, copy, saveSession}) {
+    for (QAction* a : {shot, projection, sweep, copy, saveSession, prior, closePriorAction}) {
         a->setEnabled(false);
         connect(m_study.get(), &StudyController::studyLoaded, a, [a] { a->setEnabled(true); });
     }

@@ -79,7 +79,9 @@ void MainWindow::updateCompareKernels(bool retry) {
 void MainWindow::assignSpectra() {
     const auto volume = m_study->volume();
     if (!volume) return;
+    const bool prior = assignPrior(); // view 2 shows the prior
     for (std::size_t i = 0; i < m_views.size(); ++i) {
+        if (i == 1 && prior) continue;
         ProjectionView* v = m_views[i];
         const ViewSettings& s = m_viewSettings[i];
         // View 1 shows the main spectrum whenever it can render the kernel (while a new one is
@@ -134,8 +136,8 @@ void MainWindow::connectView(ProjectionView* v) {
         if (m_syncing) return;
         m_syncing = true;
         for (auto* o : m_views)
-            if (o != v) o->setViewFrame(f);
-        showCArmAngles(f);
+            if (o != v) o->setViewFrame(linkedFrame(v, o, f));
+        showCArmAngles(m_views.front()->viewFrame());
         m_syncing = false;
     });
     connect(v, &ProjectionView::windowChanged, this,
@@ -183,6 +185,12 @@ void MainWindow::showBackend(const ProjectionView& v, bool gpu, const QString& n
 }
 
 void MainWindow::setDifferenceMode(bool on) {
+    if (on && m_prior && m_prior->volume()) {
+        message(tr("Difference: view 2 shows a prior, another study on its own grid; close the "
+                   "prior to compare kernels"),
+                true);
+        on = false;
+    }
     if (m_differenceAction && m_differenceAction->isChecked() != on) {
         const QSignalBlocker block(m_differenceAction); // undo, a session
         m_differenceAction->setChecked(on);
@@ -197,6 +205,7 @@ void MainWindow::setDifferenceMode(bool on) {
     for (auto* v : m_views) {
         v->setTargetFps(on ? 0 : fps);
         v->setProgressiveOffReason(on && fps > 0 ? differenceProgressiveNote() : QString());
+        v->setZoomRendering(!on); // differences compare frames of the slice resolution
     }
     // Back from differences: the views take view 1's window again (transmission included).
     if (!on && !m_views.empty())
@@ -223,7 +232,8 @@ QString MainWindow::viewTitle(int index, const ViewSettings& s) const {
 void MainWindow::showPatientView(core::PatientView pv) {
     if (!m_study->volume() || m_views.empty()) return;
     const auto f = core::patientViewFrame(*m_study->volume(), pv);
-    for (auto* v : m_views) v->setViewFrame(f);
+    for (auto* v : m_views)
+        v->setViewFrame(v->volume() ? core::patientViewFrame(*v->volume(), pv) : f);
     showCArmAngles(f);
     noteStateChange(true);
 }

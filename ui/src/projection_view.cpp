@@ -408,6 +408,8 @@ OverlayState ProjectionView::overlayState() const {
     s.pending = m_pending;
     s.title = m_title;
     s.performance = m_overlay;
+    s.sliceSize = m_settings.size;
+    s.zoom = m_zoom;
     if (m_reference) {
         s.differenceTo = m_reference->m_title;
         s.differenceUnits = valueUnits();

@@ -98,6 +98,8 @@ public:
     SettingsModel& settings() { return *m_model; }
     /** View ▸ Use a software GPU (tests). */
     QAction* softwareGpuAction() const { return m_softwareGpuAction; }
+    /** View ▸ Performance overlay (tests). */
+    QAction* overlayAction() const { return m_overlayAction; }
     /** The panels (tests drive their controls like a user). */
     StudyPanel* studyPanel() const { return m_studyPanel; }
     RenderingPanel* renderingPanel() const { return m_rendering; }
@@ -160,6 +162,15 @@ public:
     /** What the window applies to on view 1: its units, or the log exposure of a transmission
      *  output. */
     QString windowQuantity() const;
+    /** File ▸ Open prior…: another study beside this one (main_window_prior.cpp), in view 2
+     *  (compare mode), turned with view 1 as the same view of the patient, rendered with view
+     *  1's settings and window. Its progress and errors go to the Messages panel; priorReady()
+     *  once it shows. */
+    void openPrior(const StudySource& source);
+    void closePrior();
+    /** A prior is loaded and shown in view 2. */
+    bool hasPrior() const;
+    const StudyController* prior() const { return m_prior.get(); }
     /** Help ▸ About's text: name, version, commit, and that it is not for diagnostic use. */
     static QString aboutText();
     /** Help ▸ Keyboard shortcuts: every menu action with a shortcut ("Undo", "Ctrl+Z") and
@@ -174,6 +185,8 @@ signals:
     void sessionOpened(QSettings& s);
     /** An opened session's study is loaded and its state shown. */
     void sessionRestored();
+    /** A prior's spectrum is ready and view 2 shows it. */
+    void priorReady();
     /** Something on screen changed (the Edit menu's state follows). */
     void stateChangeNoted();
 
@@ -206,6 +219,12 @@ private:
     /** After a study loaded: an opened session's state, and an empty undo history. */
     void startStudyHistory();
     void connectUserPresets();
+    /** View 2 shows the prior, if there is one (assignSpectra). */
+    bool assignPrior();
+    /** `frame` of view `from` as view `to` shows it: the same patient view in its volume. */
+    core::ViewFrame linkedFrame(const ProjectionView* from, const ProjectionView* to,
+                                const core::ViewFrame& frame) const;
+    void openPriorDialog();
     void storeUserPresets(const QList<UserPreset>& presets);
     void applyPendingSession();
     void saveSessionDialog();
@@ -341,6 +360,7 @@ private:
     WorkstationState m_recorded; ///< the state the next undo step starts from
     bool m_userChange = false;
     bool m_applyingState = false;
+    std::unique_ptr<StudyController> m_prior; ///< a prior beside the study (view 2)
     std::optional<WorkstationState> m_pendingSession; ///< shown once its study is loaded
     QString m_pendingSessionPath;
     QPointer<PacsDialog> m_pacsDialog;
