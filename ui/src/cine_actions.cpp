@@ -9,6 +9,7 @@
 #include <QFileDialog>
 #include <QFileInfo>
 #include <QLabel>
+#include <QLineEdit>
 #include <QMenuBar>
 #include <QProgressDialog>
 #include <QSignalBlocker>
@@ -94,6 +95,7 @@ void MainWindow::buildReaderMenus() {
     tags->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_T));
 
     QMenu* cineMenu = menuBar()->addMenu(tr("&Cine"));
+    addToolBarBreak(); // its own row: the main toolbar fills a 1280-pixel window
     QToolBar* tb = addToolBar(tr("Cine"));
     tb->setObjectName("toolbar.cine");
     QAction* play = cineMenu->addAction(tr("&Play / pause"));
@@ -152,6 +154,8 @@ DicomTagsDialog* MainWindow::showDicomTags() {
         m_tags->setFiles({}, {});
     m_tags->show();
     m_tags->raise();
+    m_tags->activateWindow();
+    m_tags->filterEdit()->setFocus(); // type to search at once
     return m_tags;
 }
 
