@@ -95,7 +95,6 @@ void MainWindow::buildReaderMenus() {
     tags->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_T));
 
     QMenu* cineMenu = menuBar()->addMenu(tr("&Cine"));
-    addToolBarBreak(); // its own row: the main toolbar fills a 1280-pixel window
     QToolBar* tb = addToolBar(tr("Cine"));
     tb->setObjectName("toolbar.cine");
     QAction* play = cineMenu->addAction(tr("&Play / pause"));
