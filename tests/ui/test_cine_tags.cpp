@@ -5,7 +5,10 @@
 // narrows the rows.
 #include <QAction>
 #include <QComboBox>
+#include <QElapsedTimer>
 #include <QLineEdit>
+#include <QProgressDialog>
+#include <QTimer>
 #include <QTreeWidget>
 
 #include <cmath>
@@ -115,8 +118,13 @@ TEST_F(Workstation, MovieDecodesToTheRenderedFrameAtEachAngle) {
     ui::ProjectionView* v = window->views()[0];
     const core::ViewFrame start = v->viewFrame();
     const std::string path = tmp("movie.mp4");
+    QElapsedTimer clock;
+    clock.start();
     ASSERT_TRUE(window->exportMovie(QString::fromStdString(path)))
         << window->messages()->toPlainText().toStdString();
+    std::printf("[cine] 8-frame movie of %d x %d: %lld ms (%s)\n", v->settings().size,
+                v->settings().size, static_cast<long long>(clock.elapsed()),
+                v->usingGpu() ? "GPU" : "CPU");
     EXPECT_LT(glm::length(v->viewFrame().d - start.d), 1e-12); // back where it was
     const DecodedMovie d = decodeMovie(path);
     ASSERT_EQ(d.error, "");
@@ -140,6 +148,29 @@ TEST_F(Workstation, MovieDecodesToTheRenderedFrameAtEachAngle) {
         EXPECT_GT(same, correlation(d.frames[(k + 7) % 8], shown)) << "frame " << k;
     }
     v->setViewFrame(start);
+}
+
+TEST_F(Workstation, MovieExportCancelledWritesNothing) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
+    ui::CineSettings s;
+    s.stepDegrees = 2.0; // 180 frames: long enough to cancel
+    window->cine().setSettings(s);
+    const core::ViewFrame start = window->views()[0]->viewFrame();
+    const std::string path = tmp("cancelled.mp4");
+    fs::remove(path);
+    // The user presses Cancel in the progress dialog while the frames render.
+    QTimer cancel;
+    QObject::connect(&cancel, &QTimer::timeout, [&] {
+        for (QProgressDialog* p : window->findChildren<QProgressDialog*>()) p->cancel();
+    });
+    cancel.start(50);
+    EXPECT_FALSE(window->exportMovie(QString::fromStdString(path)));
+    EXPECT_FALSE(fs::exists(path));
+    EXPECT_TRUE(window->messages()->toPlainText().contains("Movie export cancelled"));
+    EXPECT_LT(glm::length(window->views()[0]->viewFrame().d - start.d), 1e-12);
+    for (const auto& e : fs::directory_iterator(tmpDir()))
+        EXPECT_EQ(e.path().filename().string().find("cancelled.mp4"), std::string::npos)
+            << "left: " << e.path();
 }
 
 TEST_F(Workstation, CineDicomReadsBackAndPassesDciodvfy) {
