@@ -130,11 +130,6 @@ void MainWindow::buildReaderMenus() {
         a->setEnabled(false);
         connect(m_study.get(), &StudyController::studyLoaded, a, [a] { a->setEnabled(true); });
     }
-    // Playing renders as a drag does (progressive refinement holds the frame rate); the pause
-    // shows the full-quality frame.
-    connect(m_cine, &CineController::playingChanged, this, [this](bool on) {
-        for (auto* v : m_views) v->setInteracting(on);
-    });
     // A new study: the cine stops, the tag browser shows the new series.
     connect(m_study.get(), &StudyController::studyLoaded, this, [this] {
         m_cine->pause();
