@@ -218,3 +218,21 @@ TEST(DicomTags, NotDicomNamesTheFile) {
         EXPECT_NE(std::string(e.what()).find("not_dicom.txt"), std::string::npos) << e.what();
     }
 }
+
+TEST(DicomTags, ValuesAreUtf8FromTheFilesCharacterSet) {
+    // The oracle: the name's Latin-1 bytes written by hand, read back as UTF-8.
+    const fs::path f = fvr::test::tmpDir() / "latin1_tags.dcm";
+    DcmFileFormat ff;
+    DcmDataset* ds = ff.getDataset();
+    ds->putAndInsertString(DCM_SOPClassUID, UID_SecondaryCaptureImageStorage);
+    ds->putAndInsertString(DCM_SOPInstanceUID, "1.2.3.4");
+    ds->putAndInsertString(DCM_SpecificCharacterSet, "ISO_IR 100");
+    ds->putAndInsertString(DCM_PatientName, "M\xFCller^J\xF6rg");
+    ASSERT_TRUE(ff.saveFile(f.c_str(), EXS_LittleEndianExplicit).good());
+    for (const auto& r : readDicomTags(f))
+        if (r.keyword == "PatientName") {
+            EXPECT_EQ(r.value, "M\xC3\xBCller^J\xC3\xB6rg");
+            return;
+        }
+    FAIL() << "no PatientName row";
+}

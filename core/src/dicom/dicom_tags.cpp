@@ -59,6 +59,9 @@ std::vector<DicomTagRow> readDicomTags(const std::filesystem::path& path) {
     DcmFileFormat file;
     const OFCondition st = file.loadFile(path.c_str());
     if (st.bad()) throw LoadError(path.string() + ": not readable as DICOM (" + st.text() + ")");
+    // Values as UTF-8 whatever SpecificCharacterSet the file declares (Latin-1 names ...);
+    // where DCMTK cannot convert, they stay as stored.
+    file.convertToUTF8();
     std::vector<DicomTagRow> rows;
     if (DcmMetaInfo* meta = file.getMetaInfo()) addItem(*meta, 0, rows);
     addItem(*file.getDataset(), 0, rows);
