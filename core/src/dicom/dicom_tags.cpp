@@ -26,11 +26,17 @@ std::string valueText(DcmElement& e) {
     const bool binary = vr == EVR_OB || vr == EVR_OW || vr == EVR_OF || vr == EVR_OD ||
                         vr == EVR_OL || vr == EVR_OV || vr == EVR_UN || vr == EVR_pixelSQ ||
                         vr == EVR_PixelData || vr == EVR_OverlayData;
-    if (binary) return "<" + std::to_string(e.getLength()) + " bytes>";
     OFString s;
-    if (e.getOFStringArray(s).bad()) return "<" + std::to_string(e.getLength()) + " bytes>";
+    if (binary || e.getOFStringArray(s).bad()) {
+        char n[32];
+        std::snprintf(n, sizeof n, "<%lu bytes>", static_cast<unsigned long>(e.getLength()));
+        return n;
+    }
     std::string v = s.c_str();
-    if (v.size() > kMaxValueChars) v = v.substr(0, kMaxValueChars) + "…";
+    if (v.size() > kMaxValueChars) {
+        v.resize(kMaxValueChars);
+        v += "…";
+    }
     return v;
 }
 
@@ -42,7 +48,9 @@ void addItem(DcmItem& item, int depth, std::vector<DicomTagRow>& rows) {
         DicomTagRow row{tagText(tag), tag.getTagName(), DcmVR(e->ident()).getVRName(), "", depth};
         if (e->ident() == EVR_SQ) {
             auto* sq = static_cast<DcmSequenceOfItems*>(e);
-            row.value = "<" + std::to_string(sq->card()) + " items>";
+            char n[32];
+            std::snprintf(n, sizeof n, "<%lu items>", sq->card());
+            row.value = n;
             rows.push_back(row);
             for (unsigned long k = 0; k < sq->card(); ++k)
                 if (DcmItem* it = sq->getItem(k)) addItem(*it, depth + 1, rows);
