@@ -78,7 +78,8 @@ void MainWindow::buildMenus() {
     buildViewMenu(view, tb);
     view->addSeparator();
     buildNavigation(view);
-    buildPanelsMenu(view);
+    buildReaderMenus(); // Cine and Study menus (cine_actions.cpp)
+    buildPanelsMenu(view); // after every dock and toolbar exists
     buildHelpMenu();
 }
 

@@ -8,6 +8,7 @@
 #include <map>
 #include <optional>
 
+#include <fvr/core/dicom/dicom_export.h>
 #include <fvr/core/pacs/pacs.h>
 #include <fvr/core/xray/patient_views.h>
 #include <fvr/ui/panels/xray_panel.h>
@@ -29,6 +30,9 @@ class QUndoStack;
 namespace fvr::ui {
 
 class AccuracyReadout;
+class CineController;
+struct CineSettings;
+class DicomTagsDialog;
 class MaterialsController;
 class PacsDialog;
 class PacsService;
@@ -83,6 +87,17 @@ public:
      *  projector of the same voxels and view, on a worker thread; the result (PSNR, relative
      *  RMSE) goes to the Messages panel and accuracyMeasured(). */
     void measureAccuracy();
+    /** Cine (cine_actions.cpp): the views turn by a step per tick (Cine menu, Space). */
+    CineController& cine() { return *m_cine; }
+    /** One full turn of the cine from view 1's current frame (360 / step frames, the cine's
+     *  axis and frame rate) as an MP4 (H.264) movie of view 1 through its window, with progress
+     *  and Cancel. False (and the reason in the messages) on failure or cancel. */
+    bool exportMovie(const QString& path);
+    /** The same frames as Multi-frame Grayscale Word Secondary Capture: the values the float
+     *  exports hold, FrameTime = 1000 / frame rate, the study's patient and study fields. */
+    bool exportCineDicom(const QString& path);
+    /** Study ▸ DICOM tags…: the tag browser of the open series (made once, shown). */
+    DicomTagsDialog* showDicomTags();
 
     /** PACS (main_window_pacs.cpp): the local store, listener and sends. */
     PacsService& pacs() { return *m_pacs; }
@@ -235,11 +250,19 @@ private:
     /** View 1's projection as DICOM Secondary Capture: the values the float exports hold, the
      *  source's patient and study. Throws (WriteError, or nothing to export). */
     void writeDicomProjection(const std::string& path) const;
+    /** What view 1's DICOM exports say: the source's patient and study, the exported quantity,
+     *  the user's window and a new series (the pixels get currentTransmission() where active). */
+    core::DicomExportInfo dicomExportInfo() const;
     /** What the float exports of view 1 hold, in words for the Messages panel and the DICOM
      *  ImageComments: the transmitted intensity, the polychromatic quantity (with the tube) or
      *  the line integrals. */
     QString exportedQuantity() const;
     void buildViewMenu(QMenu* view, QToolBar* toolbar);
+    /** The Study and Cine menus and the Cine toolbar (cine_actions.cpp). */
+    void buildReaderMenus();
+    /** View 1 rendered at every frame of one cine turn (progress, Cancel); view 1 is back at
+     *  its frame after. Empty when cancelled or failed (the reason in the messages). */
+    std::vector<core::ProjectionImage> renderCineTurn(const QString& what);
     ProjectionView* addView(int index, int count, const core::ViewFrame& frame);
     void connectView(ProjectionView* v);
     /** The status bar's renderer (GPU, CPU, and why) and a view's backend notice. */
@@ -351,6 +374,8 @@ private:
     QAction* m_overlayAction = nullptr;
     QAction* m_softwareGpuAction = nullptr;
     std::unique_ptr<AccuracyReadout> m_accuracy;
+    CineController* m_cine = nullptr; ///< child of the window
+    QPointer<DicomTagsDialog> m_tags;
     std::unique_ptr<PacsService> m_pacs;
     QAction* m_differenceAction = nullptr;
     QAction* m_undoAction = nullptr;
