@@ -59,9 +59,10 @@ std::string failureText(const OFCondition& cond, const Node& node, const LocalAe
  *  (permanent)". */
 std::string rejectionText(const std::vector<unsigned char>& pdu);
 
-/** Converts the item's strings to UTF-8 per its SpecificCharacterSet (kept as they are when the
- *  converter does not know it). */
-void toUtf8(DcmItem& item);
+/** Converts the item's strings to UTF-8 per its SpecificCharacterSet
+ *  (dicom_detail::convertTextToUtf8: U+FFFD for what cannot be converted); returns that problem
+ *  in words, "" when there was none. */
+std::string toUtf8(DcmItem& item);
 
 /** Records from a dataset (C-FIND response or received instance), strings in UTF-8. */
 StudyRecord studyRecordFrom(DcmItem& item);

@@ -3,6 +3,8 @@
 
 #include <dcmtk/dcmnet/diutil.h>
 
+#include "../dicom/dicom_charset.h"
+
 #include <fvr/core/text.h>
 
 #include <algorithm>
@@ -79,12 +81,7 @@ std::vector<std::unique_ptr<DcmDataset>> find(const Node& node, const LocalAe& l
 
 namespace detail {
 
-void toUtf8(DcmItem& item) {
-    OFString charset;
-    if (item.findAndGetOFStringArray(DCM_SpecificCharacterSet, charset).good() &&
-        !charset.empty() && charset != "ISO_IR 192")
-        item.convertToUTF8();
-}
+std::string toUtf8(DcmItem& item) { return dicom_detail::convertTextToUtf8(item); }
 
 StudyRecord studyRecordFrom(DcmItem& item) {
     StudyRecord s;
