@@ -20,25 +20,27 @@ struct CharsetCase {
     std::string utf8; ///< the name in UTF-8
     std::string description; ///< StudyDescription bytes in that set (ASCII when "")
     std::string descriptionUtf8;
+    /** Orthanc's name of the set (its DefaultEncoding, in which it answers a C-FIND). */
+    std::string orthancEncoding;
 };
 
 inline const std::vector<CharsetCase>& charsetCases() {
     static const std::vector<CharsetCase> cases{
-        {"latin1", "ISO_IR 100", "M\xFCller^Hans", "M\xC3\xBCller^Hans", "K\xF6pfe",
-         "K\xC3\xB6pfe"},
-        {"utf8", "ISO_IR 192", "M\xC3\xBCller^Hans", "M\xC3\xBCller^Hans", "", ""},
+        {"latin1", "ISO_IR 100", "M\xFCller^Hans", "M\xC3\xBCller^Hans", "K\xF6pfe", "K\xC3\xB6pfe",
+         "Latin1"},
+        {"utf8", "ISO_IR 192", "M\xC3\xBCller^Hans", "M\xC3\xBCller^Hans", "", "", "Utf8"},
         // PS3.5 H.3.1: Yamada^Tarou=<kanji>=<hiragana>, JIS X 0208 under ESC $ B.
         {"japanese", "\\ISO 2022 IR 87",
          "Yamada^Tarou=\x1b$B;3ED\x1b(B^\x1b$BB@O:\x1b(B=\x1b$B$d$^$@\x1b(B^\x1b$B$?$m$&\x1b(B",
          "Yamada^Tarou=\xE5\xB1\xB1\xE7\x94\xB0^\xE5\xA4\xAA\xE9\x83\x8E="
          "\xE3\x82\x84\xE3\x81\xBE\xE3\x81\xA0^\xE3\x81\x9F\xE3\x82\x8D\xE3\x81\x86",
-         "", ""},
+         "", "", "JapaneseKanji"},
         // ISO 8859-7: Dionysios^Giorgos.
         {"greek", "ISO_IR 126", "\xC4\xE9\xEF\xED\xF5\xF3\xE9\xEF\xF2^\xC3\xE9\xFE\xF1\xE3\xEF\xF2",
          "\xCE\x94\xCE\xB9\xCE\xBF\xCE\xBD\xCF\x85\xCF\x83\xCE\xB9\xCE\xBF\xCF\x82^"
          "\xCE\x93\xCE\xB9\xCF\x8E\xCF\x81\xCE\xB3\xCE\xBF\xCF\x82",
-         "\xE8\xFE\xF1\xE1\xEA\xE1\xF2",
-         "\xCE\xB8\xCF\x8E\xCF\x81\xCE\xB1\xCE\xBA\xCE\xB1\xCF\x82"}};
+         "\xE8\xFE\xF1\xE1\xEA\xE1\xF2", "\xCE\xB8\xCF\x8E\xCF\x81\xCE\xB1\xCE\xBA\xCE\xB1\xCF\x82",
+         "Greek"}};
     return cases;
 }
 
