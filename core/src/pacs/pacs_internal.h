@@ -37,6 +37,11 @@ public:
     void check(const OFCondition& cond, const std::string& what) const;
     /** Releases the association (or aborts it when `abort`); never throws. */
     void close(bool abort);
+    /** `cancel` ends every wait for the peer once it fires (WatchedLayer::setCancel); connect()
+     *  and check() then throw core::Cancelled. */
+    void setCancel(const CancelToken* cancel);
+    /** Whether the user's cancel ended the connection (see setCancel). */
+    bool cancelledByUser() const;
     /** The connection's failure in words ("ORTHANC@h:p: the PACS stopped answering ..."): it went
      *  silent, was lost, or TLS failed; "" when it saw none of these. */
     std::string linkFailure() const;

@@ -22,7 +22,9 @@ class RetrieveScu : public detail::Scu {
 public:
     RetrieveScu(const Node& node, const LocalAe& local, LocalStore& store,
                 const RetrieveProgressFn& progressFn, const CancelToken* cancel)
-        : Scu(node, local), m_store(store), m_progressFn(progressFn), m_cancel(cancel) {}
+        : Scu(node, local), m_store(store), m_progressFn(progressFn), m_cancel(cancel) {
+        setCancel(cancel); // a silent PACS is left within a second of the cancel
+    }
 
     OFCondition handleSTORERequest(const T_ASC_PresentationContextID, DcmDataset* incoming,
                                    OFBool& continueSession, Uint16& status) override {
@@ -211,6 +213,7 @@ void runRetrieve(RetrieveScu& scu, const Node& node, const LocalAe& local, DcmDa
     const OFCondition cond =
         move ? scu.sendMOVERequest(scu.pc, local.aeTitle.c_str(), &keys, nullptr)
              : scu.sendCGETRequest(scu.pc, &keys, nullptr);
+    if (scu.cancelledByUser()) scu.cancelSent = true; // the wait for the PACS ended by it
     if (scu.cancelSent || !scu.m_storeError.empty()) {
         scu.close(true);
         return;

@@ -281,6 +281,9 @@ struct ListenerState {
     StorageListener::EventFn onEvent;
     std::shared_ptr<StorageListener::Expectations> expectations;
     std::unique_ptr<detail::WatchedLayer> layer; // plain or TLS; outlives the SCP that uses it
+    /** Fired by stop(): a peer that has gone silent mid-association is left within a second
+     *  instead of at the timeout (a retrieve's listener stops when its cancel ends it). */
+    std::unique_ptr<CancelToken> stopping;
     std::unique_ptr<DcmSCP> scp;
     std::thread thread;
     std::atomic<bool> stop{false}, running{false};
@@ -481,6 +484,8 @@ void StorageListener::start() {
     // Our transport: TLS only when local.listenTls (else plain only), every wait bounded.
     m_impl->layer = detail::makeLayer(m_impl->local, m_impl->local.listenTls, NET_ACCEPTOR);
     scp->getConfig().setTransportLayer(m_impl->layer.get());
+    m_impl->stopping = std::make_unique<CancelToken>();
+    m_impl->layer->setCancel(m_impl->stopping.get());
     const OFList<OFString> syntaxes = acceptedSyntaxes();
     scp->addPresentationContext(UID_VerificationSOPClass, detail::uncompressedSyntaxes());
     for (int i = 0; i < numberOfDcmLongSCUStorageSOPClassUIDs; ++i)
@@ -505,6 +510,7 @@ void StorageListener::start() {
 void StorageListener::stop() {
     if (!m_impl->thread.joinable()) return;
     m_impl->stop = true;
+    m_impl->stopping->cancel();
     wakeUp(m_impl->local);
     m_impl->thread.join();
     m_impl->scp.reset(); // closes the port
