@@ -143,6 +143,18 @@ json& studyEntry(std::map<std::string, json>& studies, const StudyRecord& s) {
     return it->second;
 }
 
+/** Whether the index entry `entry` lacks a study field that `s` has, or the series entry of
+ *  `series` lacks its modality or description that `series` has. */
+bool lacksFields(const json& entry, const StudyRecord& s, const SeriesRecord& series) {
+    for (const StudyTextField& f : studyTextFields())
+        if (entry.value(f.name, std::string()).empty() && !(s.*f.member).empty()) return true;
+    const json all = entry.value("series", json::object());
+    if (!all.contains(series.seriesUid)) return true;
+    const json& one = all[series.seriesUid];
+    return (one.value("modality", std::string()).empty() && !series.modality.empty()) ||
+           (one.value("description", std::string()).empty() && !series.description.empty());
+}
+
 json& seriesEntry(json& study, const SeriesRecord& s) {
     json& series = study["series"];
     if (!series.contains(s.seriesUid))
@@ -563,8 +575,14 @@ void LocalStore::listInstance(const StudyRecord& study, const SeriesRecord& seri
     auto& section = index.of(area);
     const auto it = section.find(study.studyUid);
     const bool known = it != section.end() && it->second["series"].contains(series.seriesUid);
-    if (!known) {
-        seriesEntry(studyEntry(section, study), series);
+    // An entry that a retrieve began with UIDs alone (a series retrieve: no patient, date or
+    // description) takes them from the first instance that has them.
+    if (!known || lacksFields(it->second, study, series)) {
+        json& seriesJson = seriesEntry(studyEntry(section, study), series);
+        if (seriesJson.value("modality", std::string()).empty())
+            seriesJson["modality"] = series.modality;
+        if (seriesJson.value("description", std::string()).empty())
+            seriesJson["description"] = series.description;
         save(index);
     }
 }
@@ -694,8 +712,13 @@ void LocalStore::markReceived(const std::string& studyUid, const std::set<std::s
     // A retrieve that did not finish (cancelled, failed) keeps its study partial: a late
     // sub-association of its C-MOVE may still end normally.
     if (it == section.end() || it->second.value("retrievePending", false)) return;
+    json& series = it->second["series"];
     for (const auto& suid : seriesUids)
-        if (it->second["series"].contains(suid)) it->second["series"][suid]["complete"] = true;
+        if (series.contains(suid)) series[suid]["complete"] = true;
+    // A study is complete when all its series are (what the sender sent is all it meant to).
+    bool all = !series.empty();
+    for (const auto& [suid, s] : series.items()) all = all && s.value("complete", false);
+    if (all) it->second["complete"] = true;
     it->second["updated"] = nowIso();
     save(index);
 }
