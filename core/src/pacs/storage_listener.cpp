@@ -346,6 +346,27 @@ protected:
     }
     // --- end of whom the listener trusts ---
 
+    /** The studies this association brought into Incoming, for the user: "12 of DOE^JANE,
+     *  20240102, CHEST (complete)", joined by "; ". */
+    std::string arrivedText() const {
+        std::string out;
+        for (const auto& [study, n] : m_incomingCount) {
+            std::string what = "study " + study;
+            try {
+                if (const auto e = m_impl.store.find(study, Area::Incoming)) {
+                    const StudyRecord& r = e->study;
+                    what = r.patientName.empty() ? "an unnamed patient" : r.patientName;
+                    for (const std::string* f : {&r.studyDate, &r.description})
+                        if (!f->empty()) what += ", " + *f;
+                    what += e->complete ? " (complete)" : " (partial)";
+                }
+            } catch (const std::exception&) { // the index unreadable: the UID says which
+            }
+            out += (out.empty() ? "" : "; ") + std::to_string(n) + " of " + what;
+        }
+        return out;
+    }
+
     void notifyReleaseRequest() override {
         // The sender ended normally: what it sent into Incoming is complete there.
         int count = 0;
@@ -359,9 +380,8 @@ protected:
         for (const auto& [study, n] : m_incomingCount) count += n;
         if (count > 0)
             m_impl.event(StorageListener::Event::Kind::Incoming,
-                         peer() + " sent " + std::to_string(count) + " instance(s) of " +
-                             std::to_string(m_incomingCount.size()) +
-                             " study(ies): they are in the local store's Incoming area");
+                         peer() + " sent " + std::to_string(count) +
+                             " instance(s): " + arrivedText() + "; in Local studies (Incoming)");
         m_incoming.clear();
         m_incomingCount.clear();
         DcmSCP::notifyReleaseRequest();
