@@ -1,13 +1,21 @@
 // What the local store says about studies from a real Orthanc: a study Orthanc pushes to our
 // listener is complete once all its series are, listed with its patient fields and announced
 // (an Incoming event naming the patient); a series retrieve lists its study with the patient,
-// date and description (the C-FIND's, the oracle), and a later full retrieve keeps them.
+// date and description (the C-FIND's, the oracle), and a later full retrieve keeps them. Resume
+// of a partial study takes only the missing instances (every instance Orthanc sends is counted
+// by the store), and a complete study is taken from the store with Orthanc frozen.
+#include <fvr/core/errors.h>
 #include <fvr/core/pacs/local_store.h>
 #include <fvr/core/pacs/pacs.h>
 #include <fvr/core/pacs/storage_listener.h>
 
 #include <nlohmann/json.hpp>
 
+#include <sys/stat.h>
+
+#include <cstdint>
+#include <cstdio>
+#include <map>
 #include <mutex>
 
 #include "pacs_environment.h"
@@ -100,4 +108,84 @@ TEST(PacsLocalState, ASeriesRetrieveListsItsStudysPatientDateAndDescription) {
     ASSERT_TRUE(entry);
     EXPECT_TRUE(entry->complete);
     expectFields(entry->study, want);
+}
+
+namespace {
+
+std::string philipsStudy() {
+    return fvr::test::dicomTag(
+        *fs::directory_iterator(fvr::test::sharedData() / fvr::test::kPhilips), "StudyInstanceUID");
+}
+
+/** Each file under `folder` with its inode and modification time: what "untouched" compares. */
+std::map<fs::path, std::pair<ino_t, std::int64_t>> fileStamps(const fs::path& folder) {
+    std::map<fs::path, std::pair<ino_t, std::int64_t>> out;
+    for (const auto& e : fs::recursive_directory_iterator(folder)) {
+        struct stat st {};
+        if (e.is_regular_file() && ::stat(e.path().c_str(), &st) == 0)
+            out[e.path()] = {st.st_ino,
+                             std::int64_t(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec};
+    }
+    return out;
+}
+
+} // namespace
+
+TEST(PacsLocalState, ResumeFetchesOnlyTheMissingAndACompleteStudyNeedsNoNetwork) {
+    FVR_REQUIRE_ORTHANC();
+    Node move = env().node();
+    move.retrieve = RetrieveMethod::Move;
+    for (const Node& node : {env().node(), move}) {
+        const char* how = node.retrieve == RetrieveMethod::Move ? "C-MOVE" : "C-GET";
+        const fs::path root = fvr::test::storeRoot(std::string("resume-") + how);
+        int kept = 0;
+        {
+            // A retrieve cancelled once 14 of the 140 images came: partial.
+            LocalStore store(root);
+            fvr::core::CancelToken token;
+            EXPECT_THROW(retrieve(
+                             node, env().local(), philipsStudy(), "", store,
+                             [&](const RetrieveProgress& p) {
+                                 if (p.received >= 14) token.cancel();
+                             },
+                             &token),
+                         fvr::core::Cancelled)
+                << how;
+            const auto entry = store.find(philipsStudy());
+            ASSERT_TRUE(entry);
+            ASSERT_FALSE(entry->complete);
+            kept = entry->instances;
+        }
+        ASSERT_GE(kept, 14) << how;
+        ASSERT_LT(kept, 140) << how;
+        const auto before = fileStamps(root / philipsStudy());
+        // Resume: a new store object counts every instance the PACS sends (stored or not).
+        LocalStore store(root);
+        const RetrieveSummary resumed =
+            retrieveMissing(node, env().local(), philipsStudy(), "", store);
+        std::printf("[ resume   ] %s: %d kept, %d fetched, %d instances sent by Orthanc\n", how,
+                    resumed.present, resumed.fetched, store.instancesStored());
+        EXPECT_FALSE(resumed.fromStore);
+        EXPECT_EQ(resumed.present, kept) << how;
+        EXPECT_EQ(resumed.fetched, 140 - kept) << how;
+        EXPECT_EQ(store.instancesStored(), 140 - kept) << how; // nothing sent twice
+        const auto entry = store.find(philipsStudy());
+        ASSERT_TRUE(entry);
+        EXPECT_TRUE(entry->complete) << how;
+        EXPECT_EQ(entry->instances, 140) << how;
+        const auto after = fileStamps(root / philipsStudy());
+        for (const auto& [path, stamp] : before) {
+            ASSERT_TRUE(after.count(path)) << path;
+            EXPECT_EQ(after.at(path), stamp) << path; // the kept files untouched
+        }
+        // Complete now: a retrieve takes it from the store, with the PACS frozen.
+        env().orthanc().stop();
+        RetrieveSummary again;
+        EXPECT_NO_THROW(again = retrieveMissing(node, env().local(), philipsStudy(), "", store));
+        env().orthanc().cont();
+        EXPECT_TRUE(again.fromStore) << how;
+        EXPECT_EQ(again.fetched, 0) << how;
+        EXPECT_EQ(again.folder, store.studyFolder(philipsStudy()));
+        EXPECT_EQ(store.instancesStored(), 140 - kept) << how;
+    }
 }

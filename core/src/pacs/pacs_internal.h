@@ -85,6 +85,15 @@ struct StoredDataset {
  *  WriteError. A quarantined instance is no error: see the outcome. */
 StoredDataset storeDataset(LocalStore& store, DcmDataset& dataset, Area area = Area::Studies);
 
+/** One C-GET or C-MOVE (the node's method) with `keys`, into `store`: what came is checked
+ *  against studyUid (and seriesUid when given), `what` names it in messages. `bookkeeping`:
+ *  beginRetrieve/finishRetrieve around it (else the caller's). Returns the instances received;
+ *  throws as retrieve() does. */
+int retrieveWith(const Node& node, const LocalAe& local, const std::string& studyUid,
+                 const std::string& seriesUid, DcmDataset& keys, const std::string& what,
+                 LocalStore& store, const RetrieveProgressFn& progress, const CancelToken* cancel,
+                 bool bookkeeping);
+
 /** The C-GET/C-STORE transfer syntaxes we take: explicit and implicit VR little endian. */
 OFList<OFString> uncompressedSyntaxes();
 

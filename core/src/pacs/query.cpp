@@ -165,4 +165,23 @@ std::vector<SeriesRecord> findSeries(const Node& node, const LocalAe& local,
     return out;
 }
 
+std::vector<InstanceRecord> findInstances(const Node& node, const LocalAe& local,
+                                          const std::string& studyUid,
+                                          const std::string& seriesUid) {
+    if (studyUid.empty()) throw PacsError("findInstances needs a study UID");
+    DcmDataset keys;
+    keys.putAndInsertString(DCM_SpecificCharacterSet, "ISO_IR 192");
+    keys.putAndInsertString(DCM_QueryRetrieveLevel, "IMAGE");
+    keys.putAndInsertString(DCM_StudyInstanceUID, studyUid.c_str());
+    keys.putAndInsertString(DCM_SeriesInstanceUID, seriesUid.c_str());
+    keys.insertEmptyElement(DCM_SOPInstanceUID);
+    std::vector<InstanceRecord> out;
+    for (auto& ds : find(node, local, keys, "IMAGE"))
+        out.push_back({get(*ds, DCM_SeriesInstanceUID), get(*ds, DCM_SOPInstanceUID)});
+    std::sort(out.begin(), out.end(), [](const InstanceRecord& a, const InstanceRecord& b) {
+        return std::tie(a.seriesUid, a.sopInstanceUid) < std::tie(b.seriesUid, b.sopInstanceUid);
+    });
+    return out;
+}
+
 } // namespace fvr::core::pacs
