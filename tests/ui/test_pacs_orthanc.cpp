@@ -180,3 +180,20 @@ TEST_F(PacsWorkstation, MoveToOurListenerAndAWrongCalledAeSaidInWords) {
         << d->status()->text().toStdString();
     EXPECT_TRUE(window->messages()->toPlainText().contains("called AE title not recognised"));
 }
+
+TEST_F(PacsWorkstation, RetrievingACompleteStudyAgainOpensItFromTheStoreWithoutThePacs) {
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_EQ(d->results()->topLevelItemCount(), 1);
+    ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
+    // The PACS frozen: a second retrieve must not need it.
+    orthanc->stop();
+    const bool opened = retrieveAndOpen(*window, *d);
+    orthanc->cont();
+    ASSERT_TRUE(opened) << d->status()->text().toStdString();
+    EXPECT_TRUE(d->status()->text().contains("complete in the local store"))
+        << d->status()->text().toStdString();
+    EXPECT_EQ(window->study().volume()->dims, (core::Dims3{64, 64, 93}));
+}

@@ -381,16 +381,17 @@ void PacsDialog::retrieve(const pacs::Node& n, const std::string& studyUid,
                        n.retrieve == pacs::RetrieveMethod::Move ? tr("C-MOVE") : tr("C-GET")));
     const pacs::LocalAe local = m_settings.local;
     auto store = m_store;
-    auto folder = std::make_shared<std::filesystem::path>();
+    auto done = std::make_shared<pacs::RetrieveSummary>();
     QPointer<PacsDialog> self(this);
     auto progress = [self](const pacs::RetrieveProgress& p) {
         postToGui(self, [self, p] { self->onRetrieveProgress(p); });
     };
     m_retrieveCancel = run(
         [=](core::CancelToken& token) {
-            *folder = pacs::retrieve(n, local, studyUid, seriesUid, *store, progress, &token);
+            // What the store has stays: a complete study opens from it, Resume takes the rest.
+            *done = pacs::retrieveMissing(n, local, studyUid, seriesUid, *store, progress, &token);
         },
-        [this, label, folder](const std::optional<JobError>& error) {
+        [this, label, done](const std::optional<JobError>& error) {
             m_retrieving = false;
             m_progress->setVisible(false);
             m_cancel->setVisible(false);
@@ -405,7 +406,13 @@ void PacsDialog::retrieve(const pacs::Node& n, const std::string& studyUid,
                 setStatus(tr("Retrieve of %1 failed: %2").arg(label, error->message), true);
                 return;
             }
-            const QString path = QString::fromStdString(folder->string());
+            const QString path = QString::fromStdString(done->folder.string());
+            if (done->fromStore) {
+                setStatus(tr("%1 is complete in the local store: opened from %2, nothing retrieved")
+                              .arg(label, QDir::toNativeSeparators(path)));
+                emit openRequested(path);
+                return;
+            }
             setStatus(tr("Retrieved %1 into %2").arg(label, QDir::toNativeSeparators(path)));
             emit message(tr("Retrieved %1 from the PACS into %2").arg(label, path), false);
             emit openRequested(path);
