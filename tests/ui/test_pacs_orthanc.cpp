@@ -187,7 +187,9 @@ TEST_F(PacsWorkstation, RetrievingACompleteStudyAgainOpensItFromTheStoreWithoutT
     d->reloadSettings();
     ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
     ASSERT_EQ(d->results()->topLevelItemCount(), 1);
+    EXPECT_EQ(d->results()->topLevelItem(0)->text(7), ""); // nothing of it is local
     ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
+    EXPECT_EQ(d->results()->topLevelItem(0)->text(7), "complete"); // the Local column
     // The PACS frozen: a second retrieve must not need it.
     orthanc->stop();
     const bool opened = retrieveAndOpen(*window, *d);
