@@ -126,3 +126,23 @@ TEST(DicomCharset, AnExportDeclaresUtf8) {
         EXPECT_EQ(fvr::core::scanDicomFolder(out).series.at(0).patientName, c.utf8) << c.label;
     }
 }
+
+TEST(DicomCharset, AReceivedNameNoSetExplainsIsIndexedWithReplacementAndSaid) {
+    if (!fs::exists(slicer())) GTEST_SKIP() << "shared data not found: " << slicer();
+    const CharsetCase undeclared{"undeclared", "", "M\xFCller^Hans", "M\xEF\xBF\xBDller^Hans",
+                                 "",           ""};
+    const fs::path dir = caseDir("recv-undeclared");
+    const auto uids = fvr::test::writeCharsetStudy(undeclared, slicer(), dir, 1);
+    LocalStore store(caseDir("store-undeclared"));
+    DcmFileFormat file;
+    ASSERT_TRUE(file.loadFile((dir / "cs_0.dcm").c_str()).good());
+    const auto stored = detail::storeDataset(store, *file.getDataset());
+    EXPECT_EQ(store.find(uids.studyUid)->study.patientName, undeclared.utf8);
+    const auto problems = store.takeTextProblems();
+    ASSERT_EQ(problems.size(), 1u);
+    EXPECT_NE(problems[0].find("SOP instance " + stored.sopInstanceUid), std::string::npos)
+        << problems[0];
+    EXPECT_NE(problems[0].find("PatientName (0010,0010)"), std::string::npos) << problems[0];
+    EXPECT_NE(problems[0].find("U+FFFD"), std::string::npos) << problems[0];
+    EXPECT_TRUE(store.takeTextProblems().empty()); // said once
+}

@@ -26,6 +26,7 @@
 #include <sstream>
 #include <sys/file.h>
 #include <unistd.h>
+#include <utility>
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -497,9 +498,10 @@ void LocalStore::save(const Index& index) const {
     json j{{"version", 2}, {"studies", json::object()}, {"incoming", json::object()}};
     for (const auto& [uid, entry] : index.studies) j["studies"][uid] = entry;
     for (const auto& [uid, entry] : index.incoming) j["incoming"][uid] = entry;
-    // The index is UTF-8 JSON; a text that is not UTF-8 (a Latin-1 name in a file without its
-    // SpecificCharacterSet, a damaged header) gets U+FFFD for each bad byte rather than making
-    // the dump throw and the store stop. The DICOM files keep their own bytes.
+    // The index is UTF-8 JSON: received text is converted from its SpecificCharacterSet before
+    // it gets here (detail::storeDataset, with U+FFFD and noteTextProblem() for what cannot
+    // be); a record given directly that is not UTF-8 still gets U+FFFD for each bad byte rather
+    // than making the dump throw and the store stop. The DICOM files keep their own bytes.
     writeFileAtomic(m_root / kIndexName,
                     j.dump(2, ' ', false, json::error_handler_t::replace) + "\n");
 }
@@ -660,6 +662,16 @@ StoreOutcome LocalStore::storeInstance(const StudyRecord& study, const SeriesRec
 int LocalStore::instancesStored() const {
     std::lock_guard lock(m_mutex);
     return m_stored;
+}
+
+void LocalStore::noteTextProblem(const std::string& text) {
+    std::lock_guard lock(m_mutex);
+    if (m_textProblems.size() < 50) m_textProblems.push_back(text);
+}
+
+std::vector<std::string> LocalStore::takeTextProblems() {
+    std::lock_guard lock(m_mutex);
+    return std::exchange(m_textProblems, {});
 }
 
 void LocalStore::beginRetrieve(const StudyRecord& study, const std::string& seriesUid) {
