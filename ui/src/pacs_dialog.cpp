@@ -433,6 +433,8 @@ void PacsDialog::retrieve(const pacs::Node& n, const std::string& studyUid,
             *done = pacs::retrieveMissing(n, local, studyUid, seriesUid, *store, progress, &token);
         },
         [this, label, done](const std::optional<JobError>& error) {
+            for (const std::string& problem : m_store->takeTextProblems())
+                emit message(QString::fromStdString(problem), true);
             m_retrieving = false;
             m_progress->setVisible(false);
             m_cancel->setVisible(false);
