@@ -7,6 +7,8 @@
 
 #include <fvr/core/errors.h>
 
+#include "dicom_charset.h"
+
 namespace fvr::core {
 
 namespace {
@@ -67,9 +69,12 @@ std::vector<DicomTagRow> readDicomTags(const std::filesystem::path& path) {
     DcmFileFormat file;
     const OFCondition st = file.loadFile(path.c_str());
     if (st.bad()) throw LoadError(path.string() + ": not readable as DICOM (" + st.text() + ")");
-    // Values as UTF-8 whatever SpecificCharacterSet the file declares (Latin-1 names ...);
-    // where DCMTK cannot convert, they stay as stored.
+    // Values as UTF-8 whatever SpecificCharacterSet the file declares (Latin-1 names ...):
+    // DCMTK's conversion of the whole data set, then the reader's for the top level where that
+    // failed (the ISO 2022 Japanese sets, which this DCMTK's iconv cannot open); bytes no set
+    // explains become U+FFFD.
     file.convertToUTF8();
+    dicom_detail::convertTextToUtf8(*file.getDataset());
     std::vector<DicomTagRow> rows;
     if (DcmMetaInfo* meta = file.getMetaInfo()) addItem(*meta, 0, rows);
     addItem(*file.getDataset(), 0, rows);
