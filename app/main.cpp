@@ -8,6 +8,7 @@
 
 #include <fvr/ui/app_info.h>
 #include <fvr/ui/main_window.h>
+#include <fvr/ui/panels/messages_panel.h>
 #include <fvr/ui/scripted_run.h>
 
 #include "workstation_options.h"
@@ -72,6 +73,15 @@ int main(int argc, char** argv) {
     std::unique_ptr<fvr::ui::ScriptedRun> script;
     if (options.script.active())
         script = std::make_unique<fvr::ui::ScriptedRun>(window, options.script);
-    window.openStudy(options.source);
+    if (!options.session.isEmpty()) {
+        // A saved session: its study and screen (File ▸ Open session).
+        if (!window.openSession(options.session)) {
+            std::fprintf(stderr, "fvr-workstation: %s\n",
+                         qPrintable(window.messages()->toPlainText().trimmed().split('\n').last()));
+            if (options.script.quit) return 1;
+        }
+    } else {
+        window.openStudy(options.source);
+    }
     return app.exec();
 }

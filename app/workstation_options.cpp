@@ -71,6 +71,10 @@ void declareOptions(QCommandLineParser& p) {
          "Once the study is open, show this X-ray (XA, RF, DX, CR) beside the DRR rendered with "
          "its geometry (File > Open X-ray to match...)",
          "FILE"},
+        {"open-session",
+         "Open a saved session (File > Save session...): its study, views, windows and "
+         "settings; instead of a study",
+         "FILE"},
         {"window-size", "The main window's size, e.g. 1400x1000", "WxH"},
         {"export-views",
          "Once every view shows its full-quality frame, write DIR/view1.npy … (the float "
@@ -174,6 +178,9 @@ WorkstationOptions parseWorkstationOptions(const QCoreApplication& app) {
         o.windowSize = QSize(m.captured(1).toInt(), m.captured(2).toInt());
     }
     o.matchXray = p.value("match-xray");
+    o.session = p.value("open-session");
+    if (!o.session.isEmpty() && !p.positionalArguments().isEmpty())
+        throw core::SettingsError("--open-session: the session names its study; give no study too");
     o.script.exportDir = p.value("export-views");
     o.script.screenshotFile = p.value("screenshot");
     o.script.quit = p.isSet("quit");

@@ -35,6 +35,9 @@ struct WorkstationOptions {
     std::optional<std::pair<double, double>> carm; ///< --carm PRIMARY,SECONDARY (degrees)
     std::optional<double> sid, sod; ///< mm
     std::optional<core::RayModel> rayModel;
+    /** --open-session FILE: a saved session instead of a study (Qt itself takes --session, for
+     *  X11 session management). */
+    QString session;
     QString matchXray; ///< --match-xray FILE: File ▸ Open X-ray to match… once the study is open
     std::optional<QSize> windowSize;
     ui::ScriptedRunOptions script;

@@ -12,6 +12,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -277,6 +278,47 @@ TEST(ScriptedRun, AFifoStudyFailsAtOnceNamingIt) {
               std::string::npos)
         << r.out;
     EXPECT_FALSE(fs::exists(dir / "out" / "views.json"));
+}
+
+} // namespace
+
+namespace {
+
+TEST(ScriptedRun, ASessionFromTheCommandLineShowsItsStudyViewsAndWindows) {
+    const fs::path dir = fvr::test::tmpDir() / "scripted_session";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    // A session as File ▸ Save session writes one (INI): two views, view 2 linear, a window.
+    const fs::path session = dir / "two.fvrsession";
+    {
+        std::ofstream f(session);
+        f << "[session]\nformat=1\n[study]\nsource=phantom:shepp-logan:64\n"
+          << "[workstation]\ncompareCount=2\n"
+          << "[view1]\nrender\\kernel=catmull-rom\nrender\\size=128\nwindow\\low=2\n"
+          << "window\\high=40\n[view2]\nrender\\kernel=linear\nrender\\size=128\n"
+          << "window\\low=2\nwindow\\high=40\n";
+    }
+    const fs::path views = dir / "views";
+    const CommandOutput r = runWorkstation("--open-session '" + session.string() +
+                                               "' --export-views '" + views.string() + "' --quit",
+                                           dir);
+    ASSERT_EQ(r.status, 0) << r.out;
+    const QJsonObject info = readJson(views / "views.json");
+    const QJsonArray list = info["views"].toArray();
+    ASSERT_EQ(list.size(), 2) << QJsonDocument(info).toJson().toStdString();
+    EXPECT_EQ(list[0].toObject()["kernel"].toString(), "catmull-rom");
+    EXPECT_EQ(list[1].toObject()["kernel"].toString(), "linear");
+    EXPECT_EQ(list[1].toObject()["size"].toInt(), 128);
+    EXPECT_DOUBLE_EQ(list[0].toObject()["window"].toObject()["low"].toDouble(), 2.0);
+    EXPECT_DOUBLE_EQ(list[0].toObject()["window"].toObject()["high"].toDouble(), 40.0);
+    EXPECT_TRUE(info["study"].toString().contains("Shepp-Logan"));
+
+    // Not a session: exit 1, naming the file.
+    const fs::path bad = dir / "bad.fvrsession";
+    std::ofstream(bad) << "hello\n";
+    const CommandOutput b = runWorkstation("--open-session '" + bad.string() + "' --quit", dir);
+    EXPECT_EQ(b.status, 1) << b.out;
+    EXPECT_NE(b.out.find(bad.string()), std::string::npos) << b.out;
 }
 
 } // namespace
