@@ -78,6 +78,9 @@ TEST_F(Workstation, APriorStoredMirroredShowsTheSamePatientViewTurnedWithTheCurr
     window->setDifferenceMode(true);
     EXPECT_FALSE(window->currentState().difference);
     EXPECT_TRUE(window->messages()->toPlainText().contains("shows a prior"));
+    // The same quantity (raw values both): one window, view 1's.
+    EXPECT_EQ(shown->window().low, current->window().low);
+    EXPECT_EQ(shown->window().high, current->window().high);
     window->closePrior();
     EXPECT_FALSE(window->hasPrior());
     EXPECT_EQ(window->views()[1]->volume(), window->study().volume());

@@ -257,7 +257,8 @@ void MainWindow::applyWindowFromPanel() {
     const core::DisplayWindow w = m_display->window(currentTransmission());
     m_syncing = true;
     for (std::size_t i = 0; i < m_views.size(); ++i)
-        if (i == 0 || !m_difference) m_views[i]->setWindow(w);
+        if (i == 0 || (!m_difference && sameQuantity(*m_views[i], *m_views[0])))
+            m_views[i]->setWindow(w);
     m_syncing = false;
     QSettings st;
     DisplayPanel::save(st, m_display->values());

@@ -70,12 +70,20 @@ bool MainWindow::assignPrior() {
     ProjectionView* v = m_views[1];
     ViewSettings s = m_viewSettings[0];
     v->setSettings(s);
+    const bool fresh = v->volume() != m_prior->volume();
     v->setStudy(m_prior->volume(), m_prior->spectrum());
     v->setPendingText({});
     v->setTitle(tr("Prior: %1").arg(m_prior->title()));
     v->setViewFrame(
         core::transferViewFrame(*m_study->volume(), *m_prior->volume(), m_views[0]->viewFrame()));
+    // View 1's window where the prior shows the same quantity; where not (an MR prior's raw
+    // values beside a CT's μ), its first frame windows itself.
+    if (fresh && sameQuantity(*v, *m_views[0])) v->setWindow(m_views[0]->window());
     return true;
+}
+
+bool MainWindow::sameQuantity(const ProjectionView& a, const ProjectionView& b) {
+    return a.valueUnits().isEmpty() || b.valueUnits().isEmpty() || a.valueUnits() == b.valueUnits();
 }
 
 core::ViewFrame MainWindow::linkedFrame(const ProjectionView* from, const ProjectionView* to,

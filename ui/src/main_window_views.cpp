@@ -62,7 +62,8 @@ void MainWindow::setCompareCount(int n) {
     // After setStudy (a new view's first study would reset the window to an auto window
     // computed whenever it first paints, losing the user's window or preset).
     if (window)
-        for (auto* v : m_views) v->setWindow(*window);
+        for (auto* v : m_views)
+            if (sameQuantity(*v, *m_views.front())) v->setWindow(*window); // a prior: its own
     setDifferenceMode(m_difference);
 }
 
@@ -147,8 +148,11 @@ void MainWindow::connectView(ProjectionView* v) {
                 m_syncing = true;
                 if (v == m_views.front() || !m_difference) {
                     for (auto* o : m_views)
-                        if (o != v && !(m_difference && o != m_views.front())) o->setWindow(w);
-                    syncWindowToPanel(w, byHand ? WindowPreset::Custom : WindowPreset::Auto);
+                        if (o != v && !(m_difference && o != m_views.front()) &&
+                            sameQuantity(*o, *v))
+                            o->setWindow(w);
+                    if (sameQuantity(*v, *m_views.front())) // not a prior's own window
+                        syncWindowToPanel(w, byHand ? WindowPreset::Custom : WindowPreset::Auto);
                 }
                 m_syncing = false;
             });
@@ -210,7 +214,7 @@ void MainWindow::setDifferenceMode(bool on) {
     // Back from differences: the views take view 1's window again (transmission included).
     if (!on && !m_views.empty())
         for (std::size_t i = 1; i < m_views.size(); ++i)
-            m_views[i]->setWindow(m_views[0]->window());
+            if (sameQuantity(*m_views[i], *m_views[0])) m_views[i]->setWindow(m_views[0]->window());
 }
 
 QString MainWindow::differenceProgressiveNote() const {

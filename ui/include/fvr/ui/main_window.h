@@ -234,6 +234,9 @@ private:
     /** After a study loaded: an opened session's state, and an empty undo history. */
     void startStudyHistory();
     void connectUserPresets();
+    /** Two views show the same quantity (units), so one window suits both (a prior of other
+     *  values keeps its own); a view without a study yet: yes. */
+    static bool sameQuantity(const ProjectionView& a, const ProjectionView& b);
     /** View 2 shows the prior, if there is one (assignSpectra). */
     bool assignPrior();
     /** `frame` of view `from` as view `to` shows it: the same patient view in its volume. */
