@@ -66,7 +66,8 @@ bool MainWindow::exportProjection(const QString& path) {
         else if (ext == "pfm")
             core::writePfm(out, values.data(), p->height, p->width);
         else if (ext == "png")
-            core::writePng(out, p->pixels.data(), p->height, p->width, m_views[0]->window(), 16);
+            core::writePng(out, withAnnotations(*p).data(), p->height, p->width,
+                           m_views[0]->window(), 16);
         else if (ext == "dcm")
             writeDicomProjection(out);
         else
@@ -146,6 +147,7 @@ void MainWindow::writeDicomProjection(const std::string& path) const {
                                     : "line integral of the stored values x mm";
     }
     addDisplayToExport(info, m_views[0]->window(), *m_study->volume());
+    info.overlay = annotationOverlay(image.width, image.height);
     core::writeDicomProjection(path, image, info);
 }
 

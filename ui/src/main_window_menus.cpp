@@ -67,6 +67,7 @@ void MainWindow::buildMenus() {
     tb->addAction(openFile);
     tb->addSeparator();
     buildViewMenu(view, tb);
+    buildMeasureMenu();
 
     QMenu* help = menuBar()->addMenu(tr("&Help"));
     help->addAction(tr("&About"), this, [this] {

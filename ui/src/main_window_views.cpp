@@ -121,6 +121,7 @@ ProjectionView* MainWindow::addView(int index, int count, const core::ViewFrame&
             if (o != v) o->setInteracting(on); // synchronised views follow at their own level
     });
     if (count > 1) v->setTitle(viewTitle(index, s));
+    attachMeasure(v);
     m_viewGrid->addWidget(v, index / 2, index % 2);
     return v;
 }

@@ -1,0 +1,226 @@
+// The reader's tools on a view (measure_layer.h): what they measure and how they are drawn. The
+// mouse and key handling is in measure_input.cpp.
+#include <fvr/ui/measure_layer.h>
+
+#include <QTimer>
+
+#include <algorithm>
+#include <cmath>
+
+#include <fvr/core/xray/display_window.h>
+#include <fvr/ui/projection_view.h>
+
+namespace fvr::ui {
+
+using measure::Point;
+
+MeasureLayer::MeasureLayer(ProjectionView* view) : QObject(view), m_view(view) {
+    view->installEventFilter(this);
+    view->setMouseTracking(true); // the value under the cursor
+    // ROI statistics and the scale bar read the frame: fetched once a new frame is on screen.
+    connect(view, &ProjectionView::rendered, this, [this] { refreshSoon(); });
+}
+
+void MeasureLayer::setTool(MeasureTool tool) {
+    m_tool = tool;
+    m_angleSecondArm = false;
+    m_dragItem = m_dragPoint = -1;
+    m_view->setCursor(tool == MeasureTool::Pointer ? Qt::ArrowCursor : Qt::CrossCursor);
+}
+
+void MeasureLayer::add(Annotation a) {
+    m_items.push_back(std::move(a));
+    m_selected = int(m_items.size()) - 1;
+    refreshSoon();
+    emit changed();
+    m_view->update();
+}
+
+void MeasureLayer::clear() {
+    m_items.clear();
+    m_selected = m_dragItem = m_dragPoint = -1;
+    m_angleSecondArm = false;
+    emit changed();
+    m_view->update();
+}
+
+void MeasureLayer::remove(int index) {
+    if (index < 0 || index >= int(m_items.size())) return;
+    m_items.erase(m_items.begin() + index);
+    m_selected = m_dragItem = m_dragPoint = -1;
+    m_angleSecondArm = false;
+    emit changed();
+    m_view->update();
+}
+
+const std::optional<core::ProjectionImage>& MeasureLayer::image() {
+    if (m_painting) { // inside paintGL: the frame at hand, a new one comes after
+        if (m_imageFrame != m_view->framesRendered()) refreshSoon();
+        return m_image;
+    }
+    if (m_imageFrame != m_view->framesRendered() || !m_image) {
+        m_image = m_view->projection(); // may render: the frame count is read after it
+        m_imageFrame = m_view->framesRendered();
+        // The values as shown: transmitted intensities in Beer-Lambert mode.
+        const core::Transmission t = m_view->window().transmission;
+        if (m_image && t.active()) core::applyTransmission(m_image->pixels, t);
+    }
+    return m_image;
+}
+
+void MeasureLayer::refreshSoon() {
+    if (m_refreshQueued) return;
+    m_refreshQueued = true;
+    // Not inside paintGL (projection() makes the context current and releases it).
+    QTimer::singleShot(0, this, [this] {
+        m_refreshQueued = false;
+        if (!m_view->volume() || m_view->progressive().interacting()) return;
+        if (m_imageFrame == m_view->framesRendered() && m_image) return;
+        image();
+        m_view->update();
+    });
+}
+
+double MeasureLayer::pixelMm() {
+    const auto& img = image();
+    return img ? img->pixelSize : 0.0;
+}
+
+bool MeasureLayer::atIsocentre() const {
+    return m_view->settings().projection == ProjectionKind::Cone;
+}
+
+int MeasureLayer::imageSide() const {
+    if (m_image && m_image->width > 0) return m_image->width;
+    return std::max(1, m_view->settings().size);
+}
+
+Point MeasureLayer::toFraction(Point px) const {
+    const double s = imageSide();
+    return {px.x / s, px.y / s};
+}
+
+Point MeasureLayer::toPixels(Point f) const {
+    const double s = imageSide();
+    return {f.x * s, f.y * s};
+}
+
+QPointF MeasureLayer::toWidget(Point px) const {
+    const QRectF r = m_view->imageRectInWidget();
+    const double s = imageSide();
+    return {r.left() + px.x / s * r.width(), r.top() + px.y / s * r.height()};
+}
+
+Point MeasureLayer::toImage(QPointF w) const {
+    const QRectF r = m_view->imageRectInWidget();
+    const double s = imageSide();
+    return {(w.x() - r.left()) / r.width() * s, (w.y() - r.top()) / r.height() * s};
+}
+
+std::optional<double> MeasureLayer::lengthMm(int i) {
+    if (i < 0 || i >= int(m_items.size()) || m_items[i].kind != Annotation::Kind::Ruler)
+        return std::nullopt;
+    const double d = pixelMm();
+    if (d <= 0) return std::nullopt;
+    const auto& p = m_items[i].points;
+    return measure::distanceMm(toPixels(p[0]), toPixels(p[1]), d);
+}
+
+std::optional<double> MeasureLayer::angleDeg(int i) const {
+    if (i < 0 || i >= int(m_items.size()) || m_items[i].kind != Annotation::Kind::Angle)
+        return std::nullopt;
+    const auto& p = m_items[i].points; // fractions of a square: angles as in pixels
+    return measure::angleDeg(p[0], p[1], p[2]);
+}
+
+std::optional<measure::RoiStats> MeasureLayer::roiStats(int i) {
+    if (i < 0 || i >= int(m_items.size())) return std::nullopt;
+    const Annotation& a = m_items[i];
+    if (a.kind != Annotation::Kind::Rectangle && a.kind != Annotation::Kind::Ellipse)
+        return std::nullopt;
+    const auto& img = image();
+    if (!img) return std::nullopt;
+    const auto shape = a.kind == Annotation::Kind::Rectangle ? measure::RoiShape::Rectangle
+                                                             : measure::RoiShape::Ellipse;
+    return measure::roiStats(img->pixels, img->width, img->height, shape, toPixels(a.points[0]),
+                             toPixels(a.points[1]), img->pixelSize);
+}
+
+QString MeasureLayer::units() const {
+    if (m_view->window().transmission.active()) return QStringLiteral("I/I0");
+    return m_view->valueUnits();
+}
+
+std::optional<double> MeasureLayer::shownValue(Point px) {
+    const auto& img = image();
+    if (!img) return std::nullopt;
+    const int c = int(std::floor(px.x)), r = int(std::floor(px.y));
+    if (c < 0 || r < 0 || c >= img->width || r >= img->height) return std::nullopt;
+    return img->at(c, r);
+}
+
+QString MeasureLayer::readoutAt(QPointF widgetPos) {
+    const Point px = toImage(widgetPos);
+    const auto v = shownValue(px);
+    if (!v) return {};
+    return tr("x %1  y %2   %3 %4")
+        .arg(int(std::floor(px.x)))
+        .arg(int(std::floor(px.y)))
+        .arg(*v, 0, 'g', 5)
+        .arg(units());
+}
+
+QString MeasureLayer::label(int i) {
+    if (i < 0 || i >= int(m_items.size())) return {};
+    const QString iso = atIsocentre() ? tr(" at isocentre") : QString();
+    const Annotation& a = m_items[i];
+    switch (a.kind) {
+    case Annotation::Kind::Ruler:
+        if (const auto mm = lengthMm(i)) return tr("%1 mm").arg(*mm, 0, 'f', 1) + iso;
+        return {};
+    case Annotation::Kind::Angle:
+        return m_angleSecondArm && i == int(m_items.size()) - 1
+                   ? QString()
+                   : tr("%1°").arg(*angleDeg(i), 0, 'f', 1);
+    case Annotation::Kind::Rectangle:
+    case Annotation::Kind::Ellipse: {
+        const auto s = roiStats(i);
+        if (!s || s->count == 0) return {};
+        return tr("mean %1  SD %2 %3\nmin %4  max %5\narea %6 mm² (%7 px)%8")
+            .arg(s->mean, 0, 'g', 4)
+            .arg(s->sd, 0, 'g', 3)
+            .arg(units())
+            .arg(s->min, 0, 'g', 4)
+            .arg(s->max, 0, 'g', 4)
+            .arg(s->areaMm2, 0, 'f', 1)
+            .arg(s->count)
+            .arg(iso);
+    }
+    case Annotation::Kind::Arrow: return {};
+    case Annotation::Kind::Text: return a.text;
+    }
+    return {};
+}
+
+double MeasureLayer::scaleBarMm() {
+    const double d = m_image ? m_image->pixelSize : 0.0; // the cached frame: no render here
+    const QRectF r = m_view->imageRectInWidget();
+    if (d <= 0 || r.width() <= 0) return 0.0;
+    const double shownPx = std::min<double>(r.width(), m_view->width());
+    return measure::roundScaleLength(0.25 * shownPx / r.width() * imageSide() * d);
+}
+
+QString MeasureLayer::scaleBarLabel() {
+    const double mm = scaleBarMm();
+    if (mm <= 0) return {};
+    return tr("%1 mm").arg(mm, 0, 'g', 4) + (atIsocentre() ? tr(" at isocentre") : QString());
+}
+
+void MeasureLayer::turn(measure::Turn t) {
+    for (Annotation& a : m_items)
+        for (Point& p : a.points) p = toFraction(measure::turned(toPixels(p), t, imageSide() + 1));
+    emit changed();
+    m_view->update();
+}
+
+} // namespace fvr::ui
