@@ -469,5 +469,52 @@ TEST_F(Workstation, FlipAndRotateMoveALeftFeatureItsLabelsAndItsRuler) {
     EXPECT_EQ(v->orientationLabels(), l0);
 }
 
+// A real CT as a reader sees it: a ruler across the body, an ellipse ROI, an arrow and a text
+// (the README's screenshot, written to the test's folder as measure.png).
+TEST_F(Workstation, MeasuresOnARealCtAndItsScreenshot) {
+    FVR_REQUIRE_DATA("volumes/body_ct_hu_3mm/example_ct.mhd");
+    const fs::path ct = fs::path(FVR_SHARED_DATA_DIR) / "volumes/body_ct_hu_3mm/example_ct.mhd";
+    window->resize(1280, 860);
+    ASSERT_TRUE(openAndWait(*window, source(ct)));
+    ProjectionView* v = window->views()[0];
+    const auto img = v->projection();
+    ASSERT_TRUE(img);
+    const int M = img->width;
+    // The body's width along the row through its middle, from skin to skin (a tenth of the
+    // row's largest line integral).
+    const int row = M / 2;
+    float top = 0;
+    for (int c = 0; c < M; ++c) top = std::max(top, img->at(c, row));
+    int l = 0, r = M - 1;
+    while (l < M - 1 && img->at(l, row) < 0.1f * top) ++l;
+    while (r > 0 && img->at(r, row) < 0.1f * top) --r;
+    const double xl = l, xr = r + 1.0;
+    window->setMeasureTool(MeasureTool::Ruler);
+    MeasureLayer& m = v->measure();
+    drag(v, {xl, row + 0.5}, {xr, row + 0.5});
+    const double body = m.lengthMm(0).value_or(0);
+    std::printf("[measure] body CT: %.1f mm edge to edge at row %d (pixel %.3f mm)\n", body, row,
+                img->pixelSize);
+    EXPECT_NEAR(body, (xr - xl) * img->pixelSize, 1e-6);
+    EXPECT_GT(body, 150.0); // an adult's trunk
+    window->setMeasureTool(MeasureTool::Ellipse);
+    drag(v, {M * 0.43, M * 0.36}, {M * 0.52, M * 0.44});
+    window->setMeasureTool(MeasureTool::Arrow);
+    drag(v, {M * 0.56, M * 0.60}, {M * 0.68, M * 0.70});
+    m.add({Annotation::Kind::Text, {{0.685, 0.715}}, "note"});
+    window->setMeasureTool(MeasureTool::Pointer);
+    m.select(-1);
+    send(v, QEvent::MouseMove, m.toWidget({M * 0.47, M * 0.55}), Qt::NoButton);
+    EXPECT_TRUE(window->cursorReadout().endsWith(v->valueUnits()));
+    const auto roi = m.roiStats(1);
+    ASSERT_TRUE(roi);
+    EXPECT_GT(roi->count, 50u);
+    QTest::qWait(200);
+    const fs::path shot = tmpDir() / "measure" / "measure.png";
+    fs::create_directories(shot.parent_path());
+    EXPECT_TRUE(window->grabWithViews(window.get()).save(QString::fromStdString(shot.string())));
+    std::printf("[measure] screenshot %s\n", shot.c_str());
+}
+
 } // namespace
 } // namespace fvr::test

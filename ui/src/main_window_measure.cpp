@@ -17,6 +17,8 @@ namespace fvr::ui {
 
 void MainWindow::buildMeasureMenu() {
     QMenu* menu = menuBar()->addMenu(tr("&Measure"));
+    // Beside the main toolbar (a row of its own would not fit a 960 x 540 screen); what does not
+    // fit the width is behind the toolbar's » button, and all of it is in the Measure menu.
     QToolBar* tb = addToolBar(tr("Measure"));
     tb->setObjectName("toolbar.measure");
     auto* group = new QActionGroup(this);
@@ -32,6 +34,7 @@ void MainWindow::buildMeasureMenu() {
         {MeasureTool::Text, tr("&Text"), tr("Text annotation: click where it goes")}};
     for (const auto& [tool, name, tip] : tools) {
         QAction* a = menu->addAction(name, this, [this, tool] { setMeasureTool(tool); });
+        a->setIconText(QString(name).remove('&').remove(tr(" ROI"))); // short on the toolbar
         a->setCheckable(true);
         a->setChecked(tool == m_measureTool);
         a->setToolTip(tip);
@@ -45,6 +48,7 @@ void MainWindow::buildMeasureMenu() {
     QAction* clear = menu->addAction(tr("&Clear annotations"), this, [this] {
         for (auto* v : m_views) v->measure().clear();
     });
+    clear->setIconText(tr("Clear"));
     tb->addAction(clear);
     menu->addSeparator();
     const std::pair<measure::Turn, QString> turns[] = {

@@ -132,6 +132,7 @@ bool MeasureLayer::mousePress(QPointF pos, Qt::KeyboardModifiers mods) {
         if (!ok || a.text.trimmed().isEmpty()) return true;
         a.points = {at};
         add(std::move(a));
+        m_selected = int(m_items.size()) - 1; // Delete removes it again
         return true;
     }
     a.points.assign(a.kind == Annotation::Kind::Angle ? 3 : 2, at);

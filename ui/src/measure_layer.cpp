@@ -23,6 +23,7 @@ MeasureLayer::MeasureLayer(ProjectionView* view) : QObject(view), m_view(view) {
 
 void MeasureLayer::setTool(MeasureTool tool) {
     m_tool = tool;
+    if (m_angleSecondArm) remove(int(m_items.size()) - 1); // an angle left half drawn (Esc)
     m_angleSecondArm = false;
     m_dragItem = m_dragPoint = -1;
     m_view->setCursor(tool == MeasureTool::Pointer ? Qt::ArrowCursor : Qt::CrossCursor);
@@ -30,9 +31,13 @@ void MeasureLayer::setTool(MeasureTool tool) {
 
 void MeasureLayer::add(Annotation a) {
     m_items.push_back(std::move(a));
-    m_selected = int(m_items.size()) - 1;
     refreshSoon();
     emit changed();
+    m_view->update();
+}
+
+void MeasureLayer::select(int index) {
+    m_selected = index >= 0 && index < int(m_items.size()) ? index : -1;
     m_view->update();
 }
 
@@ -186,7 +191,7 @@ QString MeasureLayer::label(int i) {
     case Annotation::Kind::Ellipse: {
         const auto s = roiStats(i);
         if (!s || s->count == 0) return {};
-        return tr("mean %1  SD %2 %3\nmin %4  max %5\narea %6 mm² (%7 px)%8")
+        return tr("mean %1  SD %2  %3\nmin %4  max %5\narea %6 mm² (%7 px)%8")
             .arg(s->mean, 0, 'g', 4)
             .arg(s->sd, 0, 'g', 3)
             .arg(units())

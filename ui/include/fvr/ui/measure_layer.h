@@ -44,11 +44,13 @@ public:
     MeasureTool tool() const { return m_tool; }
 
     const std::vector<Annotation>& annotations() const { return m_items; }
+    /** Adds an annotation (not selected: a text is placed, then left alone). */
     void add(Annotation a);
     void clear();
     void remove(int index);
     /** The annotation whose handle was last grabbed or that was last drawn (-1: none). */
     int selected() const { return m_selected; }
+    void select(int index);
 
     /** The image the measurements read (the view's projection, fetched again when the view
      *  rendered a new frame). Empty without a study. */
