@@ -143,7 +143,7 @@ std::pair<double, double> columnEdges(const core::ProjectionImage& img, int col,
     return edgesOf([&](int r) { return double(img.at(col, r)); }, img.height, inside);
 }
 
-TEST_F(Workstation, RulerReadsABoxOfKnownSizeInAParallelViewAtAnyZoom) {
+TEST_F(Workstation, RulerReadsABoxOfKnownSizeInAParallelViewAtAnyZoomAndPan) {
     // 24 x 16 x 4 voxels of 1 mm, centred in the volume.
     ASSERT_TRUE(openAndWait(*window, source(writeBox("box", 20, 24, 24, 16, 30, 4))));
     ProjectionView* v = window->views()[0];
@@ -160,8 +160,21 @@ TEST_F(Workstation, RulerReadsABoxOfKnownSizeInAParallelViewAtAnyZoom) {
     EXPECT_NEAR(width, 24.0, 0.5 * d);
     EXPECT_EQ(m.label(0), QString("%1 mm").arg(width, 0, 'f', 1));
     // Zoomed in: the ruler stays on the image's points and reads the same; a new one drawn
-    // at this zoom reads the box's height.
+    // at this zoom and pan reads the box's height.
     v->setZoom(2.5);
+    EXPECT_NEAR(m.annotations()[0].points[1].x * M, xr, 1e-9);
+    EXPECT_NEAR(m.lengthMm(0).value_or(0), width, 1e-9);
+    // Panned by a middle drag: the image moves, the ruler with it.
+    const QPointF end0 = m.toWidget({xr, M / 2 + 0.5});
+    const QPointF from(v->width() / 2, v->height() / 2), to = from + QPointF(37, -21);
+    for (auto [type, at, button, buttons] :
+         {std::tuple{QEvent::MouseButtonPress, from, Qt::MiddleButton, Qt::MiddleButton},
+          std::tuple{QEvent::MouseMove, to, Qt::NoButton, Qt::MiddleButton},
+          std::tuple{QEvent::MouseButtonRelease, to, Qt::MiddleButton, Qt::NoButton}}) {
+        QMouseEvent e(type, at, v->mapToGlobal(at), button, buttons, Qt::NoModifier);
+        QApplication::sendEvent(v, &e);
+    }
+    EXPECT_NEAR(m.toWidget({xr, M / 2 + 0.5}).x(), end0.x() + 37, 1e-9);
     EXPECT_NEAR(m.annotations()[0].points[1].x * M, xr, 1e-9);
     EXPECT_NEAR(m.lengthMm(0).value_or(0), width, 1e-9);
     const auto [yt, yb] = columnEdges(img, M / 2, M / 2);

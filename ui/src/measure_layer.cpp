@@ -58,17 +58,34 @@ void MeasureLayer::remove(int index) {
     m_view->update();
 }
 
+bool MeasureLayer::imageCurrent() const {
+    const core::Transmission t = m_view->window().transmission;
+    return m_image && m_imageFrame == m_view->framesRendered() &&
+           t.muWaterPerMm == m_imageTransmission.muWaterPerMm &&
+           t.exposure == m_imageTransmission.exposure;
+}
+
+bool MeasureLayer::needsFrame() const {
+    for (const Annotation& a : m_items)
+        if (a.kind == Annotation::Kind::Rectangle || a.kind == Annotation::Kind::Ellipse)
+            return true; // statistics of the values on screen
+    // The scale bar and the rulers need the pixel size, which only the settings change.
+    return !m_image || !(m_imageSettings == m_view->settings());
+}
+
 const std::optional<core::ProjectionImage>& MeasureLayer::image() {
     if (m_painting) { // inside paintGL: the frame at hand, a new one comes after
-        if (m_imageFrame != m_view->framesRendered()) refreshSoon();
+        if (!imageCurrent()) refreshSoon();
         return m_image;
     }
-    if (m_imageFrame != m_view->framesRendered() || !m_image) {
+    if (!imageCurrent()) {
         m_image = m_view->projection(); // may render: the frame count is read after it
         m_imageFrame = m_view->framesRendered();
+        m_imageSettings = m_view->settings();
         // The values as shown: transmitted intensities in Beer-Lambert mode.
-        const core::Transmission t = m_view->window().transmission;
-        if (m_image && t.active()) core::applyTransmission(m_image->pixels, t);
+        m_imageTransmission = m_view->window().transmission;
+        if (m_image && m_imageTransmission.active())
+            core::applyTransmission(m_image->pixels, m_imageTransmission);
     }
     return m_image;
 }
@@ -76,11 +93,12 @@ const std::optional<core::ProjectionImage>& MeasureLayer::image() {
 void MeasureLayer::refreshSoon() {
     if (m_refreshQueued) return;
     m_refreshQueued = true;
-    // Not inside paintGL (projection() makes the context current and releases it).
+    // Not inside paintGL (projection() makes the context current and releases it), and only
+    // for a frame at rest that something on screen needs (a read-back from the GPU each time).
     QTimer::singleShot(0, this, [this] {
         m_refreshQueued = false;
-        if (!m_view->volume() || m_view->progressive().interacting()) return;
-        if (m_imageFrame == m_view->framesRendered() && m_image) return;
+        if (!m_view->volume() || !m_view->showsCurrentFrame()) return;
+        if (imageCurrent() || !needsFrame()) return;
         image();
         m_view->update();
     });
@@ -165,6 +183,8 @@ std::optional<double> MeasureLayer::shownValue(Point px) {
 }
 
 QString MeasureLayer::readoutAt(QPointF widgetPos) {
+    // Hovering renders nothing: a frame still coming (a drag, a change) has no readout yet.
+    if (!imageCurrent() && !m_view->showsCurrentFrame()) return {};
     const Point px = toImage(widgetPos);
     const auto v = shownValue(px);
     if (!v) return {};

@@ -15,7 +15,9 @@
 #include <vector>
 
 #include <fvr/core/render/projection.h>
+#include <fvr/core/xray/xray.h>
 #include <fvr/ui/measure_geometry.h>
+#include <fvr/ui/view_settings.h>
 
 class QPainter;
 
@@ -105,7 +107,13 @@ private:
     /** Draws one annotation with a transform from image pixels to the painter's coordinates. */
     void paintItem(QPainter& p, int index, const std::function<QPointF(measure::Point)>& map,
                    double scale, bool handles);
+    /** Soon after (not in paintGL): the view's frame again where needsFrame(). */
     void refreshSoon();
+    /** m_image is the view's frame on screen, in the quantity shown. */
+    bool imageCurrent() const;
+    /** Something on screen needs the current frame: ROI statistics, or a pixel size that may
+     *  have changed with the settings. */
+    bool needsFrame() const;
 
     ProjectionView* m_view;
     MeasureTool m_tool = MeasureTool::Pointer;
@@ -116,6 +124,8 @@ private:
     bool m_angleSecondArm = false; ///< an angle waits for its second arm's end
     std::optional<core::ProjectionImage> m_image;
     int m_imageFrame = -1; ///< the view's framesRendered() of m_image
+    ViewSettings m_imageSettings; ///< the view's settings for m_image
+    core::Transmission m_imageTransmission; ///< applied to m_image (Beer-Lambert)
     bool m_refreshQueued = false;
     bool m_painting = false; ///< in paint(): image() fetches nothing (no render in paintGL)
 };
