@@ -209,6 +209,14 @@ TEST_F(Workstation, RulerOnAConeBeamViewMeasuresAtTheIsocentreAndSaysSo) {
     EXPECT_NEAR(width, 24.0, 0.5 * d);
     EXPECT_TRUE(m.label(0).endsWith(" mm at isocentre")) << m.label(0).toStdString();
     EXPECT_TRUE(m.scaleBarLabel().endsWith(" mm at isocentre")) << m.scaleBarLabel().toStdString();
+    // Mirrored: the C-arm on the other side sees the thin centred box the same size.
+    window->turnImage(ui::measure::Turn::FlipHorizontal);
+    const auto mirrored = v->projection();
+    ASSERT_TRUE(mirrored);
+    EXPECT_TRUE(v->renderError().isEmpty()) << v->renderError().toStdString();
+    const auto [ml, mr] = rowEdges(*mirrored, M / 2, M / 2);
+    EXPECT_NEAR((mr - ml) * mirrored->pixelSize, 24.0, 0.5 * d);
+    EXPECT_NEAR(m.lengthMm(0).value_or(0), width, 1e-9);
 }
 
 TEST_F(Workstation, AngleReadsAKnownConfigurationAndItsHandlesMoveAndDelete) {
