@@ -490,6 +490,45 @@ TEST_F(Workstation, FlipAndRotateMoveALeftFeatureItsLabelsAndItsRuler) {
     EXPECT_EQ(v->orientationLabels(), l0);
 }
 
+TEST_F(Workstation, DifferenceViewMeasuresTheDifferenceItShowsAndAnnotationsStayOnViewOne) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
+    const int M = window->views()[0]->projection()->width;
+    window->setMeasureTool(MeasureTool::Ruler);
+    drag(window->views()[0], {M * 0.2, M * 0.5}, {M * 0.7, M * 0.5});
+    window->setCompareCount(2);
+    window->setDifferenceMode(true);
+    ASSERT_EQ(window->views().size(), 2u);
+    EXPECT_EQ(window->views()[0]->measure().annotations().size(), 1u); // kept
+    ProjectionView* v = window->views()[1];
+    ASSERT_TRUE(QTest::qWaitFor([&] { return v->showsCurrentFrame(); }, 60000));
+    window->setMeasureTool(MeasureTool::Rectangle);
+    const Point a{M * 0.3, M * 0.3}, b{M * 0.66, M * 0.61};
+    drag(v, a, b);
+    const auto s = v->measure().roiStats(0);
+    ASSERT_TRUE(s);
+    // The oracle: both views' own projections, subtracted here, over the rectangle's centres.
+    const auto own = v->projection(), ref = window->views()[0]->projection();
+    ASSERT_TRUE(own && ref);
+    const auto& p = v->measure().annotations()[0].points;
+    double sum = 0, n = 0, lo = 1e300, hi = -1e300;
+    for (int r = 0; r < M; ++r)
+        for (int c = 0; c < M; ++c) {
+            const double x = c + 0.5, y = r + 0.5;
+            if (x < p[0].x * M || x > p[1].x * M || y < p[0].y * M || y > p[1].y * M) continue;
+            const double d = double(own->at(c, r) - ref->at(c, r));
+            sum += d, n += 1, lo = std::min(lo, d), hi = std::max(hi, d);
+        }
+    std::printf("[measure] difference ROI: %zu px mean %.4g min %.4g max %.4g\n", s->count, s->mean,
+                s->min, s->max);
+    EXPECT_EQ(double(s->count), n);
+    EXPECT_NEAR(s->mean, sum / n, 1e-9 * std::max(1.0, std::abs(sum / n)));
+    EXPECT_EQ(s->min, lo);
+    EXPECT_EQ(s->max, hi);
+    EXPECT_NE(s->min, s->max); // the kernels differ: not an empty difference
+    EXPECT_TRUE(v->measure().label(0).contains("(difference)"))
+        << v->measure().label(0).toStdString();
+}
+
 // A real CT as a reader sees it: a ruler across the body, an ellipse ROI, an arrow and a text
 // (the README's screenshot, written to the test's folder as measure.png).
 TEST_F(Workstation, MeasuresOnARealCtAndItsScreenshot) {

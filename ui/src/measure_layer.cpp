@@ -80,12 +80,21 @@ const std::optional<core::ProjectionImage>& MeasureLayer::image() {
     }
     if (!imageCurrent()) {
         m_image = m_view->projection(); // may render: the frame count is read after it
-        m_imageFrame = m_view->framesRendered();
         m_imageSettings = m_view->settings();
-        // The values as shown: transmitted intensities in Beer-Lambert mode.
         m_imageTransmission = m_view->window().transmission;
-        if (m_image && m_imageTransmission.active())
+        if (ProjectionView* ref = m_view->differenceReference(); ref && ref != m_view) {
+            // A difference view shows its projection minus the reference's, as it subtracts.
+            const auto r = ref->projection();
+            if (m_image && r && r->width == m_image->width && r->height == m_image->height)
+                for (std::size_t i = 0; i < m_image->pixels.size(); ++i)
+                    m_image->pixels[i] -= r->pixels[i];
+            else
+                m_image.reset();
+        } else if (m_image && m_imageTransmission.active()) {
+            // The values as shown: transmitted intensities in Beer-Lambert mode.
             core::applyTransmission(m_image->pixels, m_imageTransmission);
+        }
+        m_imageFrame = m_view->framesRendered();
     }
     return m_image;
 }
@@ -170,6 +179,8 @@ std::optional<measure::RoiStats> MeasureLayer::roiStats(int i) {
 }
 
 QString MeasureLayer::units() const {
+    const ProjectionView* ref = m_view->differenceReference();
+    if (ref && ref != m_view) return tr("%1 (difference)").arg(m_view->valueUnits());
     if (m_view->window().transmission.active()) return QStringLiteral("I/I0");
     return m_view->valueUnits();
 }

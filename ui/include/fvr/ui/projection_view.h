@@ -94,6 +94,7 @@ public:
     void setOverlayVisible(bool on);
     /** When set, this view shows (own projection - reference) with a symmetric window. */
     void setDifferenceReference(ProjectionView* reference);
+    ProjectionView* differenceReference() const { return m_reference; }
     /** Difference mode: the largest |difference| of the frame the view's scale was last taken
      *  from (taken anew when its kernel, size, voxel model, spectrum or effects, or the
      *  reference's, change; not when the view turns); 0 before any difference frame. The main
