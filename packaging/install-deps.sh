@@ -13,6 +13,7 @@ packages=(
   libfftw3-dev zlib1g-dev libcli11-dev nlohmann-json3-dev libglm-dev
   libdcmtk-dev libopenjp2-7-dev
   libxrl-dev libnlopt-dev
+  libavcodec-dev libavformat-dev libswscale-dev # MP4 movies of a cine (FFmpeg)
   qt6-base-dev libqt6opengl6-dev libgl-dev libepoxy-dev libegl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev clang-format

@@ -16,6 +16,7 @@
 #include <dcmtk/config/osconfig.h>
 #include <dcmtk/dcmdata/dctk.h>
 
+#include "charset_cases.h"
 #include "cli_support.h"
 #include "test_support.h"
 
@@ -155,6 +156,34 @@ TEST(DicomConformance, EachExportIsANewSeriesAndASweepNumbersItsInstances) {
         const std::string f = tmp("numbered_000" + std::to_string(i) + ".dcm");
         EXPECT_EQ(tag(f, DCM_SeriesInstanceUID), uid) << f;
         EXPECT_EQ(tag(f, DCM_InstanceNumber), std::to_string(i + 1)) << f;
+    }
+}
+
+TEST(DicomConformance, SourcesInEachCharacterSetGiveUtf8) {
+    // Latin-1, UTF-8, ISO 2022 Japanese and Greek names: fvr-render --info says them in UTF-8, and
+    // the export declares ISO_IR 192, holds the UTF-8 bytes and passes dciodvfy.
+    const fs::path slicer = fvr::test::sharedData() / "dicom/ct_head_slicer_64x64x93";
+    if (!fs::exists(slicer)) GTEST_SKIP() << "shared data not found: " << slicer;
+    const bool dciodvfy = fvr::test::runCommand("command -v dciodvfy").status == 0;
+    for (const fvr::test::CharsetCase& c : fvr::test::charsetCases()) {
+        const std::string in = tmp("charset_" + c.label);
+        fs::remove_all(in);
+        fvr::test::writeCharsetStudy(c, slicer, in, 4);
+        const auto info = fvr::test::runFvrRender(in + " --info");
+        ASSERT_EQ(info.status, 0) << c.label << ": " << info.output;
+        EXPECT_NE(info.output.find("\"patient_name\": \"" + c.utf8 + "\""), std::string::npos)
+            << c.label << ": " << info.output;
+        const std::string out = tmp("charset_" + c.label + ".dcm");
+        const auto r = fvr::test::runFvrRender(in + " --size 32 --out " + out);
+        ASSERT_EQ(r.status, 0) << c.label << ": " << r.output;
+        EXPECT_EQ(tag(out, DCM_SpecificCharacterSet), "ISO_IR 192") << c.label;
+        EXPECT_EQ(tag(out, DCM_PatientName), c.utf8) << c.label;
+        if (!c.description.empty())
+            EXPECT_EQ(tag(out, DCM_StudyDescription), c.descriptionUtf8) << c.label;
+        if (dciodvfy) {
+            const auto errors = dciodvfyLines(out, "Error");
+            EXPECT_TRUE(errors.empty()) << c.label << ":\n" << ::testing::PrintToString(errors);
+        }
     }
 }
 

@@ -19,7 +19,7 @@ for f in ./usr/bin/fvr-workstation ./usr/bin/fvr-render ./usr/share/applications
 done
 depends=$(dpkg-deb -f "$deb" Depends)
 echo "Depends: $depends"
-for d in libfftw3 libdcmtk libqt6 python3-numpy; do
+for d in libfftw3 libdcmtk libqt6 python3-numpy libavcodec; do
   if grep -q "$d" <<<"$depends"; then echo "depends on $d"; else echo "MISSING dependency $d"; fail=1; fi
 done
 dpkg-deb -x "$deb" "$out/root"

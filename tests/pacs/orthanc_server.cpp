@@ -203,7 +203,8 @@ HttpResponse OrthancServer::request(const std::string& method, const std::string
     const int fd = connectLoopback(m_httpPort);
     if (fd < 0) return r;
     std::string req = method + " " + path + " HTTP/1.0\r\nHost: 127.0.0.1\r\n";
-    if (method == "POST") req += "Content-Length: " + std::to_string(body.size()) + "\r\n";
+    if (method == "POST" || method == "PUT")
+        req += "Content-Length: " + std::to_string(body.size()) + "\r\n";
     req += "Connection: close\r\n\r\n";
     std::string raw;
     if (sendAll(fd, req) && sendAll(fd, body)) {
@@ -224,6 +225,21 @@ HttpResponse OrthancServer::get(const std::string& path) const { return request(
 
 HttpResponse OrthancServer::post(const std::string& path, const std::string& body) const {
     return request("POST", path, body);
+}
+
+HttpResponse OrthancServer::put(const std::string& path, const std::string& body) const {
+    return request("PUT", path, body);
+}
+
+HttpResponse OrthancServer::remove(const std::string& path) const {
+    return request("DELETE", path, "");
+}
+
+std::string OrthancServer::lookup(const std::string& uid) const {
+    const HttpResponse r = post("/tools/lookup", uid);
+    if (r.status != 200) return "";
+    const nlohmann::json ids = nlohmann::json::parse(r.body, nullptr, false);
+    return ids.is_array() && ids.size() == 1 ? ids[0].value("ID", "") : "";
 }
 
 int OrthancServer::upload(const fs::path& folder) const {

@@ -49,6 +49,10 @@ public:
 
     HttpResponse get(const std::string& path) const;
     HttpResponse post(const std::string& path, const std::string& body) const;
+    HttpResponse put(const std::string& path, const std::string& body) const;
+    HttpResponse remove(const std::string& path) const; ///< DELETE
+    /** Orthanc's ID of the resource with DICOM UID `uid` (POST /tools/lookup), "" if none. */
+    std::string lookup(const std::string& uid) const;
     /** POST /instances for each file; returns how many Orthanc stored. */
     int upload(const std::filesystem::path& folder) const;
 

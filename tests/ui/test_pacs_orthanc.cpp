@@ -3,6 +3,7 @@
 // C-MOVE (our listener) into the local store and open, Send projection back, and a wrong called
 // AE title said in words. Skips with the reason without Orthanc or the shared data.
 #include <QComboBox>
+#include <QElapsedTimer>
 #include <QLabel>
 #include <QLineEdit>
 #include <QProgressBar>
@@ -10,6 +11,7 @@
 #include <QTreeWidget>
 
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <set>
 
@@ -179,4 +181,51 @@ TEST_F(PacsWorkstation, MoveToOurListenerAndAWrongCalledAeSaidInWords) {
     EXPECT_TRUE(d->status()->text().contains("called AE title not recognised"))
         << d->status()->text().toStdString();
     EXPECT_TRUE(window->messages()->toPlainText().contains("called AE title not recognised"));
+}
+
+TEST_F(PacsWorkstation, RetrievingACompleteStudyAgainOpensItFromTheStoreWithoutThePacs) {
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_EQ(d->results()->topLevelItemCount(), 1);
+    EXPECT_EQ(d->results()->topLevelItem(0)->text(7), ""); // nothing of it is local
+    ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
+    EXPECT_EQ(d->results()->topLevelItem(0)->text(7), "complete"); // the Local column
+    // The PACS frozen: a second retrieve must not need it.
+    orthanc->stop();
+    const bool opened = retrieveAndOpen(*window, *d);
+    orthanc->cont();
+    ASSERT_TRUE(opened) << d->status()->text().toStdString();
+    EXPECT_TRUE(d->status()->text().contains("complete in the local store"))
+        << d->status()->text().toStdString();
+    EXPECT_EQ(window->study().volume()->dims, (core::Dims3{64, 64, 93}));
+}
+
+TEST_F(PacsWorkstation, CancelOnAFrozenPacsSaysCancelledWithinASecond) {
+    // Orthanc frozen (it accepts connections, answers nothing), the timeout 10 s: Cancel ends
+    // the retrieve within a second and the dialog says it was cancelled, not that it failed.
+    ui::PacsSettings s = settings(pacs::RetrieveMethod::Get);
+    s.local.timeoutSeconds = 10;
+    s.save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_EQ(d->results()->topLevelItemCount(), 1);
+    d->results()->setCurrentItem(d->results()->topLevelItem(0));
+    orthanc->stop();
+    d->retrieveButton()->click();
+    QTest::qWait(1000); // hung: nothing comes
+    QElapsedTimer timer;
+    timer.start();
+    d->cancelButton()->click();
+    const bool ended = QTest::qWaitFor([&] { return !d->busy(); }, 30000);
+    const double seconds = timer.elapsed() / 1000.0;
+    orthanc->cont();
+    std::printf("[ timing   ] Cancel on a frozen PACS: the dialog ended %.3f s after it\n",
+                seconds);
+    ASSERT_TRUE(ended);
+    EXPECT_TRUE(d->status()->text().contains("cancelled")) << d->status()->text().toStdString();
+    EXPECT_FALSE(d->status()->text().contains("failed")) << d->status()->text().toStdString();
+    EXPECT_LT(seconds, 2.0); // the spec: 1 s, with a margin
 }

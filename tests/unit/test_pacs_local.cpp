@@ -363,3 +363,57 @@ TEST(PacsLocalStore, AnIndexOfVersion1IsRead) {
     EXPECT_TRUE(index.at("incoming").contains("1.2.4"));
     EXPECT_EQ(store.studies().size(), 2u);
 }
+
+TEST(PacsLocalStore, ASeriesRetrieveFillsTheStudysFieldsFromItsInstances) {
+    // A series retrieve begins the entry with the UIDs alone; its first instance gives the
+    // patient, date and description (and the series its modality and description).
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-series-fields";
+    fs::remove_all(root);
+    LocalStore store(root);
+    store.beginRetrieve(StudyRecord{"4.5"}, "4.5.1");
+    StudyRecord full = study("4.5");
+    full.studyDate = "20240102";
+    full.description = "CHEST";
+    store.storeInstance(full, {"4.5.1", "CT", "lung", 1, 1}, "4.5.1.1", "x");
+    store.finishRetrieve("4.5", "4.5.1", true);
+    auto entry = store.find("4.5");
+    ASSERT_TRUE(entry);
+    EXPECT_EQ(entry->study.patientName, "DOE^JANE");
+    EXPECT_EQ(entry->study.studyDate, "20240102");
+    EXPECT_EQ(entry->study.description, "CHEST");
+    ASSERT_EQ(entry->series.size(), 1u);
+    EXPECT_EQ(entry->series[0].modality, "CT");
+    EXPECT_EQ(entry->series[0].description, "lung");
+    // A nameless entry (as an older version left it) is filled by a later full retrieve.
+    store.beginRetrieve(StudyRecord{"4.6"}, "4.6.1");
+    store.storeInstance(StudyRecord{"4.6"}, {"4.6.1", "", "", 1, 1}, "4.6.1.1", "x");
+    store.finishRetrieve("4.6", "4.6.1", true);
+    EXPECT_EQ(store.find("4.6")->study.patientName, "");
+    store.beginRetrieve(StudyRecord{"4.6"}, "");
+    StudyRecord named = study("4.6");
+    store.storeInstance(named, {"4.6.1", "MR", "t1", 1, 1}, "4.6.1.1", "x"); // identical
+    store.finishRetrieve("4.6", "", true);
+    entry = store.find("4.6");
+    ASSERT_TRUE(entry);
+    EXPECT_EQ(entry->study.patientName, "DOE^JANE");
+    EXPECT_EQ(entry->series.at(0).modality, "MR");
+    EXPECT_TRUE(entry->complete);
+}
+
+TEST(PacsLocalStore, AReceivedStudyIsCompleteWhenAllItsSeriesAre) {
+    // What a peer pushed (Incoming) and sent whole: its series complete, so is the study; a
+    // study with a series still partial is not.
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-pushed";
+    fs::remove_all(root);
+    LocalStore store(root);
+    for (const char* s : {"7.1.1", "7.1.2"})
+        store.storeInstance(study("7.1"), {s, "CT", "", 1, 1}, std::string(s) + ".1", "x",
+                            Area::Incoming);
+    store.markReceived("7.1", {"7.1.1"}, Area::Incoming);
+    EXPECT_FALSE(store.find("7.1", Area::Incoming)->complete); // 7.1.2 not yet
+    store.markReceived("7.1", {"7.1.2"}, Area::Incoming);
+    const auto entry = store.find("7.1", Area::Incoming);
+    ASSERT_TRUE(entry);
+    EXPECT_TRUE(entry->complete);
+    EXPECT_EQ(entry->study.patientName, "DOE^JANE");
+}

@@ -49,3 +49,31 @@ TEST(PatientViews, Parse) {
     EXPECT_EQ(parsePatientView("FEET"), PatientView::Feet);
     EXPECT_THROW(parsePatientView("lateral"), SettingsError);
 }
+
+TEST(PatientViews, AViewTransfersToAnotherStudyAsTheSamePatientView) {
+    Volume axial; // identity: x = L, y = P, z = S
+    Volume coronal; // columns along L, rows along -S, slices along A
+    coronal.direction = {Vec3{1, 0, 0}, Vec3{0, 0, -1}, Vec3{0, -1, 0}};
+    Volume mirrored; // index x runs to the patient's right (det = -1)
+    mirrored.direction = {Vec3{-1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
+    const Volume* volumes[] = {&axial, &coronal, &mirrored};
+    for (const Volume* from : volumes)
+        for (const Volume* to : volumes)
+            for (PatientView pv : {PatientView::AP, PatientView::PA, PatientView::Left,
+                                   PatientView::Right, PatientView::Head, PatientView::Feet}) {
+                const ViewFrame t = transferViewFrame(*from, *to, patientViewFrame(*from, pv));
+                const ViewFrame want = patientViewFrame(*to, pv);
+                EXPECT_LT(glm::length(t.d - want.d), 1e-12);
+                EXPECT_LT(glm::length(t.u - want.u), 1e-12);
+                EXPECT_LT(glm::length(t.r - want.r), 1e-12);
+                // The labels on screen say the same in both.
+                EXPECT_EQ(patientDirectionLabel(*to, t.r),
+                          patientDirectionLabel(*from, patientViewFrame(*from, pv).r));
+            }
+    // An oblique turn (not a patient view) keeps its patient direction too.
+    const ViewFrame ap = patientViewFrame(axial, PatientView::AP);
+    const ViewFrame turned = ap.rotated(ap.u, 0.3).rotated(ap.r, -0.2);
+    const ViewFrame t = transferViewFrame(axial, mirrored, turned);
+    EXPECT_LT(glm::length(mirrored.direction * t.d - axial.direction * turned.d), 1e-12);
+    EXPECT_LT(glm::length(mirrored.direction * t.r - axial.direction * turned.r), 1e-12);
+}

@@ -123,15 +123,11 @@ static void addDisplayToExport(core::DicomExportInfo& info, const core::DisplayW
     info.seriesNumber = core::newExportSeriesNumber();
 }
 
-void MainWindow::writeDicomProjection(const std::string& path) const {
-    const auto p = m_views.empty() ? std::nullopt : m_views[0]->projection();
-    if (!p) throw core::WriteError(path + ": nothing to export yet");
+core::DicomExportInfo MainWindow::dicomExportInfo() const {
     core::DicomExportInfo info = core::exportInfoFor(m_study->series());
-    core::ProjectionImage image = *p;
     const core::Transmission t = currentTransmission();
     const auto& poly = m_views[0]->polychromatic();
     if (t.active()) {
-        core::applyTransmission(image.pixels, t);
         info.valueDescription = "transmitted intensity (mu_water " +
                                 std::to_string(t.muWaterPerMm) + "/mm, exposure " +
                                 std::to_string(t.exposure) + ")";
@@ -147,7 +143,17 @@ void MainWindow::writeDicomProjection(const std::string& path) const {
                                     : "line integral of the stored values x mm";
     }
     addDisplayToExport(info, m_views[0]->window(), *m_study->volume());
-    info.overlay = annotationOverlay(image.width, image.height);
+    return info;
+}
+
+void MainWindow::writeDicomProjection(const std::string& path) const {
+    const auto p = m_views.empty() ? std::nullopt : m_views[0]->projection();
+    if (!p) throw core::WriteError(path + ": nothing to export yet");
+    core::ProjectionImage image = *p;
+    if (const core::Transmission t = currentTransmission(); t.active())
+        core::applyTransmission(image.pixels, t);
+    core::DicomExportInfo info = dicomExportInfo();
+    info.overlay = annotationOverlay(image.width, image.height); // view 1's annotations
     core::writeDicomProjection(path, image, info);
 }
 

@@ -18,6 +18,7 @@
 #include <QSettings>
 #include <QStatusBar>
 #include <QStyle>
+#include <QUndoStack>
 
 #include <algorithm>
 #include <cmath>
@@ -105,6 +106,8 @@ void MainWindow::fitInto(const QSize& available) {
 }
 
 MainWindow::~MainWindow() {
+    // The undo stack empties itself as it goes, after the Edit menu's actions went.
+    if (m_undo) m_undo->disconnect(this);
     delete m_pacsDialog.data(); // its retrieve ends before the store and listener go
 }
 
@@ -279,12 +282,14 @@ void MainWindow::onStudyLoaded(const QString& name) {
     setWindowTitle(QStringLiteral("%1 — %2").arg(QString::fromUtf8(applicationName()), name));
     message(tr("Opened %1").arg(name));
     if (m_study->source().kind != StudySource::Kind::Phantom) addRecent(m_study->source().path);
+    if (m_prior) closePrior(); // the prior was the last study's
     assignSpectra();
     const core::ViewFrame start =
         core::patientViewFrame(*m_study->volume(), core::RenderSettings{}.view);
     for (auto* v : m_views) v->setViewFrame(start);
     showCArmAngles(start);
     updateStudyInfo();
+    startStudyHistory();
 }
 
 void MainWindow::onSpectrumReady() {

@@ -5,12 +5,10 @@
 #include <QFileDialog>
 #include <QFileInfo>
 #include <QMenuBar>
-#include <QMessageBox>
 #include <QSettings>
 #include <QSignalBlocker>
 #include <QToolBar>
 
-#include <fvr/ui/app_info.h>
 #include <fvr/ui/settings_keys.h>
 #include <fvr/ui/settings_model.h>
 #include <fvr/ui/xray_match.h>
@@ -35,6 +33,9 @@ void MainWindow::buildMenus() {
     file->addAction(tr("Open built-in Shepp-&Logan phantom"), this,
                     [this] { openStudy(StudySource::phantom(128)); });
     m_recentMenu = file->addMenu(tr("&Recent studies"));
+    QAction* prior =
+        file->addAction(tr("Open p&rior beside it…"), this, &MainWindow::openPriorDialog);
+    QAction* closePriorAction = file->addAction(tr("Close prior"), this, &MainWindow::closePrior);
     file->addSeparator();
     file->addAction(tr("Open &X-ray to match…"), this, &MainWindow::openXrayMatchDialog);
     file->addAction(tr("Re&gister to X-ray…"), this, &MainWindow::openRegisterDialog);
@@ -50,9 +51,14 @@ void MainWindow::buildMenus() {
         file->addAction(tr("&Copy view to clipboard"), this, &MainWindow::copyToClipboard);
     copy->setShortcut(QKeySequence::Copy);
     file->addSeparator();
+    QAction* saveSession =
+        file->addAction(tr("Save sessio&n…"), this, &MainWindow::saveSessionDialog);
+    saveSession->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_S));
+    file->addAction(tr("Open sess&ion…"), this, &MainWindow::openSessionDialog);
+    file->addSeparator();
     buildPacsMenu(file);
     // Nothing to export before a study is open: the items say so before any Save dialog.
-    for (QAction* a : {shot, projection, sweep, copy}) {
+    for (QAction* a : {shot, projection, sweep, copy, saveSession, prior, closePriorAction}) {
         a->setEnabled(false);
         connect(m_study.get(), &StudyController::studyLoaded, a, [a] { a->setEnabled(true); });
     }
@@ -60,6 +66,9 @@ void MainWindow::buildMenus() {
     QAction* quit = file->addAction(tr("&Quit"), this, &QWidget::close);
     quit->setShortcut(QKeySequence::Quit);
 
+    buildUndo();
+    buildEditMenu();
+    connectUserPresets();
     QMenu* view = menuBar()->addMenu(tr("&View"));
     QToolBar* tb = addToolBar(tr("Main"));
     tb->setObjectName("toolbar.main");
@@ -67,18 +76,12 @@ void MainWindow::buildMenus() {
     tb->addAction(openFile);
     tb->addSeparator();
     buildViewMenu(view, tb);
-    buildMeasureMenu();
-
-    QMenu* help = menuBar()->addMenu(tr("&Help"));
-    help->addAction(tr("&About"), this, [this] {
-        QMessageBox::about(
-            this, tr("About %1").arg(QString::fromUtf8(applicationName())),
-            tr("<b>%1 %2</b><p>X-ray-like projections by Fourier volume rendering "
-               "(Viola, Kanitsar, Gröller). Parallel projection, no occlusion: every "
-               "pixel is a line integral through the whole volume.</p>")
-                .arg(QString::fromUtf8(applicationName()),
-                     QString::fromUtf8(applicationVersion())));
-    });
+    view->addSeparator();
+    buildNavigation(view);
+    buildReaderMenus(); // Cine and Study menus (cine_actions.cpp)
+    buildMeasureMenu(); // Measure menu and toolbar (main_window_measure.cpp)
+    buildPanelsMenu(view); // after every dock and toolbar exists
+    buildHelpMenu();
 }
 
 void MainWindow::buildViewMenu(QMenu* view, QToolBar* tb) {
@@ -109,9 +112,10 @@ void MainWindow::buildViewMenu(QMenu* view, QToolBar* tb) {
                                      this, [this, n] { setCompareCount(n); });
         tb->addAction(a);
     }
-    QAction* diff = view->addAction(tr("&Difference to view 1"));
-    diff->setCheckable(true);
-    connect(diff, &QAction::toggled, this, [this](bool on) { setDifferenceMode(on); });
+    m_differenceAction = view->addAction(tr("&Difference to view 1"));
+    m_differenceAction->setCheckable(true);
+    connect(m_differenceAction, &QAction::toggled, this,
+            [this](bool on) { setDifferenceMode(on); });
     view->addSeparator();
     m_overlayAction = view->addAction(tr("Performance &overlay"));
     m_overlayAction->setCheckable(true);

@@ -147,6 +147,7 @@ void MainWindow::applySpectrumSettings() {
                                       .arg(QString::fromUtf8(core::kernelName(*s.deapodizeFor)))
                                 : QString()));
     m_study->setSpectrumSettings(s);
+    if (m_prior) m_prior->setSpectrumSettings(s); // like with like
     updateCompareKernels(); // the gridding correction may have changed
     if (m_study->volume() && m_study->targetSettings().mapping != s.mapping) {
         // The study cannot have these values (attenuation of data that are not HU): the panel

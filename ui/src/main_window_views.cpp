@@ -5,6 +5,7 @@
 
 #include <QGridLayout>
 #include <QLabel>
+#include <QSignalBlocker>
 
 #include <algorithm>
 
@@ -25,6 +26,7 @@ void MainWindow::buildViews() {
 
 void MainWindow::setCompareCount(int n) {
     n = (n >= 4) ? 4 : (n >= 2 ? 2 : 1);
+    if (n != m_compareCount) noteStateChange(true);
     const core::ViewFrame frame = m_views.empty()
                                       ? core::ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0})
                                       : m_views[0]->viewFrame();
@@ -81,7 +83,9 @@ void MainWindow::updateCompareKernels(bool retry) {
 void MainWindow::assignSpectra() {
     const auto volume = m_study->volume();
     if (!volume) return;
+    const bool prior = assignPrior(); // view 2 shows the prior
     for (std::size_t i = 0; i < m_views.size(); ++i) {
+        if (i == 1 && prior) continue;
         ProjectionView* v = m_views[i];
         const ViewSettings& s = m_viewSettings[i];
         // View 1 shows the main spectrum whenever it can render the kernel (while a new one is
@@ -131,16 +135,19 @@ ProjectionView* MainWindow::addView(int index, int count, const core::ViewFrame&
 }
 
 void MainWindow::connectView(ProjectionView* v) {
+    connect(v, &ProjectionView::panZoomChanged, this, [this] { noteStateChange(true); });
     connect(v, &ProjectionView::viewFrameChanged, this, [this, v](const core::ViewFrame& f) {
+        noteStateChange(true); // a drag or the keys
         if (m_syncing) return;
         m_syncing = true;
         for (auto* o : m_views)
-            if (o != v) o->setViewFrame(f);
-        showCArmAngles(f);
+            if (o != v) o->setViewFrame(linkedFrame(v, o, f));
+        showCArmAngles(m_views.front()->viewFrame());
         m_syncing = false;
     });
     connect(v, &ProjectionView::windowChanged, this,
             [this, v](const core::DisplayWindow& w, bool byHand) {
+                noteStateChange(byHand);
                 if (m_syncing) return;
                 m_syncing = true;
                 if (v == m_views.front() || !m_difference) {
@@ -183,6 +190,17 @@ void MainWindow::showBackend(const ProjectionView& v, bool gpu, const QString& n
 }
 
 void MainWindow::setDifferenceMode(bool on) {
+    if (on && m_prior && m_prior->volume()) {
+        message(tr("Difference: view 2 shows a prior, another study on its own grid; close the "
+                   "prior to compare kernels"),
+                true);
+        on = false;
+    }
+    if (m_differenceAction && m_differenceAction->isChecked() != on) {
+        const QSignalBlocker block(m_differenceAction); // undo, a session
+        m_differenceAction->setChecked(on);
+    }
+    if (on != m_difference) noteStateChange(true);
     m_difference = on;
     for (std::size_t i = 1; i < m_views.size(); ++i)
         m_views[i]->setDifferenceReference(on ? m_views[0] : nullptr);
@@ -192,6 +210,7 @@ void MainWindow::setDifferenceMode(bool on) {
     for (auto* v : m_views) {
         v->setTargetFps(on ? 0 : fps);
         v->setProgressiveOffReason(on && fps > 0 ? differenceProgressiveNote() : QString());
+        v->setZoomRendering(!on); // differences compare frames of the slice resolution
     }
     // Back from differences: the views take view 1's window again (transmission included).
     if (!on && !m_views.empty())
@@ -218,8 +237,10 @@ QString MainWindow::viewTitle(int index, const ViewSettings& s) const {
 void MainWindow::showPatientView(core::PatientView pv) {
     if (!m_study->volume() || m_views.empty()) return;
     const auto f = core::patientViewFrame(*m_study->volume(), pv);
-    for (auto* v : m_views) v->setViewFrame(f);
+    for (auto* v : m_views)
+        v->setViewFrame(v->volume() ? core::patientViewFrame(*v->volume(), pv) : f);
     showCArmAngles(f);
+    noteStateChange(true);
 }
 
 } // namespace fvr::ui

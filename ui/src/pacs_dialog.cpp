@@ -19,6 +19,8 @@
 #include <QTreeWidget>
 #include <QVBoxLayout>
 
+#include <map>
+
 #include <algorithm>
 
 #include <fvr/core/errors.h>
@@ -32,7 +34,16 @@ namespace {
 namespace pacs = core::pacs;
 
 enum Role { kStudyUid = Qt::UserRole, kSeriesUid, kSeriesLoaded, kFolder, kComplete };
-enum ResultColumn { kPatient, kPatientId, kDate, kDescription, kModalities, kSeries, kImages };
+enum ResultColumn {
+    kPatient,
+    kPatientId,
+    kDate,
+    kDescription,
+    kModalities,
+    kSeries,
+    kImages,
+    kLocal ///< what the local store holds of it: complete, partial (n images), or nothing
+};
 enum LocalColumn { kLocalPatient, kLocalDate, kLocalDescription, kLocalImages, kLocalState };
 
 QString text(const std::string& s) { return QString::fromStdString(s); }
@@ -105,7 +116,8 @@ QWidget* PacsDialog::buildQueryTab() {
     layout->addWidget(buildQueryForm());
     m_results = new QTreeWidget(tab);
     m_results->setHeaderLabels({tr("Patient"), tr("Patient ID"), tr("Study date"),
-                                tr("Description"), tr("Modalities"), tr("Series"), tr("Images")});
+                                tr("Description"), tr("Modalities"), tr("Series"), tr("Images"),
+                                tr("Local")});
     m_results->setSelectionMode(QAbstractItemView::SingleSelection);
     m_results->header()->setSectionResizeMode(QHeaderView::ResizeToContents);
     m_results->setToolTip(tr("Expand a study to list its series; retrieve a study or a series"));
@@ -310,7 +322,35 @@ void PacsDialog::showStudies(const std::vector<pacs::StudyRecord>& studies) {
         item->setToolTip(0, tr("Study Instance UID %1").arg(text(s.studyUid)));
         item->setChildIndicatorPolicy(QTreeWidgetItem::ShowIndicator);
     }
+    markLocalState();
     updateButtons();
+}
+
+void PacsDialog::markLocalState() {
+    std::map<std::string, pacs::LocalStore::Entry> local;
+    try {
+        for (pacs::LocalStore::Entry& e : m_store->studies())
+            if (e.area == pacs::Area::Studies) local.emplace(e.study.studyUid, std::move(e));
+    } catch (const std::exception&) {
+        return; // the Local studies tab says why
+    }
+    const auto state = [this](bool complete, int images) {
+        return complete ? tr("complete") : tr("partial (%n image(s))", nullptr, images);
+    };
+    for (int i = 0; i < m_results->topLevelItemCount(); ++i) {
+        QTreeWidgetItem* study = m_results->topLevelItem(i);
+        const auto it = local.find(study->data(0, kStudyUid).toString().toStdString());
+        const bool known = it != local.end();
+        study->setText(kLocal, known ? state(it->second.complete, it->second.instances) : "");
+        for (int c = 0; c < study->childCount(); ++c) {
+            QTreeWidgetItem* series = study->child(c);
+            series->setText(kLocal, QString());
+            if (!known) continue;
+            for (const auto& s : it->second.series)
+                if (text(s.seriesUid) == series->data(0, kSeriesUid).toString())
+                    series->setText(kLocal, state(s.complete || it->second.complete, s.instances));
+        }
+    }
 }
 
 void PacsDialog::loadSeries(QTreeWidgetItem* study) {
@@ -355,6 +395,7 @@ void PacsDialog::addSeries(QTreeWidgetItem* study, const QString& error,
         item->setToolTip(0, tr("Series Instance UID %1").arg(text(s.seriesUid)));
     }
     if (found.empty()) study->setChildIndicatorPolicy(QTreeWidgetItem::DontShowIndicator);
+    markLocalState();
 }
 
 void PacsDialog::retrieveSelected() {
@@ -381,16 +422,19 @@ void PacsDialog::retrieve(const pacs::Node& n, const std::string& studyUid,
                        n.retrieve == pacs::RetrieveMethod::Move ? tr("C-MOVE") : tr("C-GET")));
     const pacs::LocalAe local = m_settings.local;
     auto store = m_store;
-    auto folder = std::make_shared<std::filesystem::path>();
+    auto done = std::make_shared<pacs::RetrieveSummary>();
     QPointer<PacsDialog> self(this);
     auto progress = [self](const pacs::RetrieveProgress& p) {
         postToGui(self, [self, p] { self->onRetrieveProgress(p); });
     };
     m_retrieveCancel = run(
         [=](core::CancelToken& token) {
-            *folder = pacs::retrieve(n, local, studyUid, seriesUid, *store, progress, &token);
+            // What the store has stays: a complete study opens from it, Resume takes the rest.
+            *done = pacs::retrieveMissing(n, local, studyUid, seriesUid, *store, progress, &token);
         },
-        [this, label, folder](const std::optional<JobError>& error) {
+        [this, label, done](const std::optional<JobError>& error) {
+            for (const std::string& problem : m_store->takeTextProblems())
+                emit message(QString::fromStdString(problem), true);
             m_retrieving = false;
             m_progress->setVisible(false);
             m_cancel->setVisible(false);
@@ -405,7 +449,13 @@ void PacsDialog::retrieve(const pacs::Node& n, const std::string& studyUid,
                 setStatus(tr("Retrieve of %1 failed: %2").arg(label, error->message), true);
                 return;
             }
-            const QString path = QString::fromStdString(folder->string());
+            const QString path = QString::fromStdString(done->folder.string());
+            if (done->fromStore) {
+                setStatus(tr("%1 is complete in the local store: opened from %2, nothing retrieved")
+                              .arg(label, QDir::toNativeSeparators(path)));
+                emit openRequested(path);
+                return;
+            }
             setStatus(tr("Retrieved %1 into %2").arg(label, QDir::toNativeSeparators(path)));
             emit message(tr("Retrieved %1 from the PACS into %2").arg(label, path), false);
             emit openRequested(path);
@@ -455,6 +505,7 @@ void PacsDialog::refreshLocal() {
     } catch (const std::exception& e) {
         setStatus(tr("Local studies: %1").arg(QString::fromUtf8(e.what())), true);
     }
+    markLocalState();
     updateButtons();
 }
 

@@ -38,7 +38,12 @@ QString PacsService::applyListener(const PacsSettings& s, bool* ok) {
         auto onEvent = [self](const pacs::StorageListener::Event& e) {
             const bool problem = e.kind != pacs::StorageListener::Event::Kind::Incoming;
             const QString text = QString::fromStdString(e.text);
-            postToGui(self, [self, problem, text] { emit self->listenerEvent(problem, text); });
+            postToGui(self, [self, problem, text] {
+                emit self->listenerEvent(problem, text);
+                // Names whose bytes no character set explained, of what just arrived.
+                for (const std::string& p : self->m_store->takeTextProblems())
+                    emit self->listenerEvent(true, QString::fromStdString(p));
+            });
         };
         m_listener = std::make_unique<pacs::StorageListener>(s.local, *m_store, onEvent);
         m_listener->start();

@@ -191,14 +191,26 @@ void ProjectionView::autoWindow() {
 }
 
 void ProjectionView::setZoom(double zoom) {
-    m_zoom = std::clamp(zoom, 0.1, 40.0);
+    const double z = std::clamp(zoom, 0.1, 40.0);
+    if (z == m_zoom) return;
+    m_zoom = z;
     update();
+    emit panZoomChanged();
+}
+
+void ProjectionView::setPan(const QPointF& pan) {
+    if (pan == m_pan) return;
+    m_pan = pan;
+    update();
+    emit panZoomChanged();
 }
 
 void ProjectionView::resetPanZoom() {
+    if (m_zoom == 1.0 && m_pan.isNull()) return;
     m_zoom = 1.0;
     m_pan = {0, 0};
     update();
+    emit panZoomChanged();
 }
 
 void ProjectionView::setOverlayVisible(bool on) {
@@ -398,6 +410,8 @@ OverlayState ProjectionView::overlayState() const {
     s.pending = m_pending;
     s.title = m_title;
     s.performance = m_overlay;
+    s.sliceSize = m_settings.size;
+    s.zoom = m_zoom;
     if (m_reference) {
         s.differenceTo = m_reference->m_title;
         s.differenceUnits = valueUnits();
@@ -486,20 +500,25 @@ void ProjectionView::mouseMoveEvent(QMouseEvent* e) {
     } else if (m_dragButton == Qt::LeftButton) {
         // Trackball: horizontal drags turn about the screen's vertical axis, vertical drags about
         // the horizontal one; the object follows the mouse.
-        if (coneBeam()) {
-            dragCArm(delta);
-            return;
-        }
-        const double k = std::numbers::pi / std::max(1, std::min(width(), height()));
-        core::ViewFrame f = m_view;
-        if (delta.x()) f = f.rotated(f.u, delta.x() * k);
-        if (delta.y()) f = f.rotated(f.r, delta.y() * k);
-        setViewFrame(f);
-        emit viewFrameChanged(m_view);
+        // Half a turn across the view's shorter side.
+        const double k = 180.0 / std::max(1, std::min(width(), height()));
+        rotateBy(delta.x() * k, delta.y() * k);
     } else if (m_dragButton == Qt::MiddleButton) {
-        m_pan += QPointF(delta);
-        update();
+        setPan(m_pan + QPointF(delta));
     }
+}
+
+void ProjectionView::rotateBy(double horizontalDeg, double verticalDeg) {
+    if (coneBeam()) {
+        rotateCArm(horizontalDeg, verticalDeg);
+        return;
+    }
+    const double k = std::numbers::pi / 180.0;
+    core::ViewFrame f = m_view;
+    if (horizontalDeg != 0.0) f = f.rotated(f.u, horizontalDeg * k);
+    if (verticalDeg != 0.0) f = f.rotated(f.r, verticalDeg * k);
+    setViewFrame(f);
+    emit viewFrameChanged(m_view);
 }
 
 void ProjectionView::mouseReleaseEvent(QMouseEvent* e) {

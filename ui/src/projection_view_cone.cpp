@@ -126,14 +126,12 @@ core::DetectorImage ProjectionView::castPolychromaticCone(const core::ConeCamera
     return std::move(f.transmission); // -ln(I/I0), the quantity shown
 }
 
-void ProjectionView::dragCArm(const QPoint& delta) {
+void ProjectionView::rotateCArm(double horizontalDeg, double verticalDeg) {
     if (!m_volume) return;
-    const double k = 180.0 / std::max(1, std::min(width(), height())); // degrees per pixel
     const core::CArmAngles a = core::cArmAngles(*m_volume, m_view);
-    double primary = a.primaryDeg + delta.x() * k;
-    if (primary > 180.0) primary -= 360.0;
+    double primary = std::remainder(a.primaryDeg + horizontalDeg, 360.0); // (-180, 180]
     if (primary <= -180.0) primary += 360.0;
-    const double secondary = std::clamp(a.secondaryDeg - delta.y() * k, -89.0, 89.0);
+    const double secondary = std::clamp(a.secondaryDeg - verticalDeg, -89.0, 89.0);
     setViewFrame(core::cArmViewFrame(*m_volume, primary, secondary));
     emit viewFrameChanged(m_view);
 }

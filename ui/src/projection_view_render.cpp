@@ -61,9 +61,10 @@ void ProjectionView::renderIfNeeded(bool fullQuality) {
                                                     std::min(64, m_settings.size)));
     // Difference views compare full-quality frames (the reference renders full quality too).
     const int level = (fullQuality || m_reference) ? 0 : m_progressive.level();
-    if (level != m_renderedLevel) m_renderDirty = true;
+    core::QualityLevel q = m_progressive.levels()[std::size_t(level)];
+    if (level == 0 && !m_sliceSizeOnly) q.size = displayRenderSize(); // zoomed in: the screen's
+    if (level != m_renderedLevel || q.size != m_renderedQuality.size) m_renderDirty = true;
     if (!m_renderDirty) return;
-    const core::QualityLevel q = m_progressive.levels()[std::size_t(level)];
     renderFrame(renderParams(q.size, q.kernel),
                 level); // same field of view at every level: d = diagonal / M
     m_renderedLevel = level;
@@ -181,6 +182,16 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
     }
     makeCurrent();
     std::optional<core::ProjectionImage> img;
+    // Exports and measurements get the slice resolution's frame, also zoomed in (the next
+    // paint renders the screen's again).
+    m_sliceSizeOnly = true;
+    struct Restore {
+        ProjectionView* v;
+        ~Restore() {
+            v->m_sliceSizeOnly = false;
+            if (v->displayRenderSize() != v->m_renderedQuality.size) v->update();
+        }
+    } restore{this};
     try {
         const int before = m_frames;
         renderIfNeeded(true); // exports and measurements always get the full-quality frame
@@ -204,6 +215,32 @@ std::optional<core::ProjectionImage> ProjectionView::projection() {
     }
     doneCurrent();
     return img;
+}
+
+int ProjectionView::displayRenderSize() const {
+    const int slice = m_settings.size;
+    // A cone beam is ray cast per pixel, a polychromatic frame is one per material, a
+    // difference compares slice-resolution frames: those keep the slice resolution.
+    if (!m_zoomRendering || coneBeam() || m_reference || (m_poly && !m_poly->spectra.empty()))
+        return slice;
+    // The slice resolution is the user's detail at zoom 1; zoomed in, as much more as the
+    // zoom, up to a pixel per screen pixel.
+    const double onScreen = std::min(width(), height()) * m_zoom * devicePixelRatioF();
+    const double need = std::min(slice * m_zoom, onScreen);
+    if (need <= slice * 1.01) return slice;
+    int size = slice;
+    for (int s : core::settingsSizes()) {
+        if (s <= slice) continue;
+        size = s;
+        if (s >= need) break;
+    }
+    return size;
+}
+
+void ProjectionView::setZoomRendering(bool on) {
+    if (on == m_zoomRendering) return;
+    m_zoomRendering = on;
+    update();
 }
 
 core::RenderParams ProjectionView::renderParams(int M, core::Kernel kernel) const {

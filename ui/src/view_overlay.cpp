@@ -191,6 +191,14 @@ QStringList ViewOverlay::performanceLines() const {
                             .arg(m_s.lastLevel)
                             .arg(m_s.targetFps, 0, 'f', 0));
     if (!m_s.output.isEmpty()) lines << m_s.output;
+    if (m_s.level == 0 && m_s.sliceSize > 0 && m_s.shown.size > m_s.sliceSize) {
+        const double r = double(m_s.shown.size) / m_s.sliceSize;
+        lines << tr("zoom %1×: rendered %2×%2 for the screen (%3× the pixels of %4×%4)")
+                     .arg(m_s.zoom, 0, 'f', 1)
+                     .arg(m_s.shown.size)
+                     .arg(r * r, 0, 'f', 0)
+                     .arg(m_s.sliceSize);
+    }
     const QStringList fx = effectsSummary();
     if (!fx.isEmpty()) lines << fx.join(QStringLiteral("  "));
     lines << stageLine();

@@ -1,6 +1,7 @@
 // DICOM headers through DCMTK: codec registration, reading a file's attributes without its pixel
 // values (classic and enhanced multi-frame), and the checks that decide whether its pixel format
 // can be loaded.
+#include "dicom_charset.h"
 #include "dicom_internal.h"
 
 #include <algorithm>
@@ -404,24 +405,43 @@ void readTransferSyntax(DcmMetaInfo* meta, DcmDataset* ds, DicomHeader& h) {
     }
 }
 
-/** Study, series and patient attributes, and the Modality LUT. */
+/** The text attributes the header keeps, copied from `ds` and converted to UTF-8 from its
+ *  SpecificCharacterSet; what could not be converted (U+FFFD) is one of h.problems. */
+std::unique_ptr<DcmItem> textInUtf8(DcmDataset* ds, DicomHeader& h) {
+    auto text = std::make_unique<DcmItem>();
+    for (const DcmTagKey& tag :
+         {DCM_SpecificCharacterSet, DCM_PatientName, DCM_PatientID, DCM_StudyID,
+          DCM_StudyDescription, DCM_AccessionNumber, DCM_ReferringPhysicianName, DCM_Manufacturer,
+          DCM_SeriesDescription}) {
+        DcmElement* element = nullptr;
+        if (ds->findAndGetElement(tag, element).good() && element)
+            text->insert(static_cast<DcmElement*>(element->clone()));
+    }
+    if (const std::string problem = convertTextToUtf8(*text); !problem.empty())
+        h.problems.push_back(problem);
+    return text;
+}
+
+/** Study, series and patient attributes (text in UTF-8), and the Modality LUT. */
 void readSeriesAttributes(DcmDataset* ds, DicomHeader& h) {
+    const std::unique_ptr<DcmItem> owned = textInUtf8(ds, h);
+    DcmItem* text = owned.get();
     h.studyUid = getString(ds, DCM_StudyInstanceUID);
     h.seriesUid = getString(ds, DCM_SeriesInstanceUID);
     h.seriesNumber = getString(ds, DCM_SeriesNumber);
-    h.patientName = getString(ds, DCM_PatientName);
-    h.patientId = getString(ds, DCM_PatientID);
+    h.patientName = getString(text, DCM_PatientName);
+    h.patientId = getString(text, DCM_PatientID);
     h.studyDate = getString(ds, DCM_StudyDate);
     h.study = {getString(ds, DCM_StudyTime),
-               getString(ds, DCM_StudyID),
-               getString(ds, DCM_StudyDescription),
-               getString(ds, DCM_AccessionNumber),
-               getString(ds, DCM_ReferringPhysicianName),
+               getString(text, DCM_StudyID),
+               getString(text, DCM_StudyDescription),
+               getString(text, DCM_AccessionNumber),
+               getString(text, DCM_ReferringPhysicianName),
                getString(ds, DCM_PatientSex),
                getString(ds, DCM_PatientBirthDate),
-               getString(ds, DCM_Manufacturer)};
+               getString(text, DCM_Manufacturer)};
     h.modality = getString(ds, DCM_Modality);
-    h.description = getString(ds, DCM_SeriesDescription);
+    h.description = getString(text, DCM_SeriesDescription);
     h.rescaleType = getString(ds, DCM_RescaleType);
     h.gantryTilt = getString(ds, DCM_GantryDetectorTilt);
     if (DcmItem* lut = firstItem(ds, DCM_ModalityLUTSequence)) {

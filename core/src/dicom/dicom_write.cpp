@@ -43,6 +43,8 @@ int seriesNumberNow() {
 void putNewInstance(const PutTag& put, const char* sopClassUid, const DicomExportInfo& info,
                     std::initializer_list<DcmTagKey> emptyType2) {
     char uid[100];
+    // Every text we hold is UTF-8 (the reader converts from the source's character set).
+    put(DCM_SpecificCharacterSet, "ISO_IR 192");
     put(DCM_SOPClassUID, sopClassUid);
     put(DCM_SOPInstanceUID, dcmGenerateUniqueIdentifier(uid, SITE_INSTANCE_UID_ROOT));
     put(DCM_StudyInstanceUID, info.studyInstanceUid.empty()

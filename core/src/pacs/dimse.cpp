@@ -3,6 +3,7 @@
 
 #include "../dicom/dicom_internal.h"
 
+#include <fvr/core/errors.h>
 #include <fvr/core/pacs/dicom_url.h>
 
 #include <dcmtk/dcmnet/diutil.h>
@@ -193,6 +194,7 @@ void Scu::connect(const std::string& what) {
     if (cond.bad())
         throw PacsError(describe(m_node) + ": cannot set up the transport: " + cond.text());
     cond = negotiateAssociation();
+    if (cond.bad() && cancelledByUser()) throw Cancelled();
     if (cond == NET_EC_NoAcceptablePresentationContexts)
         throw PacsError(describe(m_node) + ": the PACS accepts none of what we proposed (" + what +
                         ")");
@@ -206,7 +208,12 @@ T_ASC_PresentationContextID Scu::context(const char* abstractSyntax, const std::
     return id;
 }
 
+void Scu::setCancel(const CancelToken* cancel) { m_layer->setCancel(cancel); }
+
+bool Scu::cancelledByUser() const { return m_layer->lastReport().cancelled; }
+
 void Scu::check(const OFCondition& cond, const std::string& what) const {
+    if (cond.bad() && cancelledByUser()) throw Cancelled();
     if (cond.bad())
         throw PacsError(failureText(cond, m_node, m_local, m_layer->lastReport(), false) +
                         " (during " + what + ")");

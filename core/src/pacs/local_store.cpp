@@ -26,6 +26,7 @@
 #include <sstream>
 #include <sys/file.h>
 #include <unistd.h>
+#include <utility>
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -141,6 +142,18 @@ json& studyEntry(std::map<std::string, json>& studies, const StudyRecord& s) {
         mergeStudy(it->second, s);
     it->second["updated"] = nowIso();
     return it->second;
+}
+
+/** Whether the index entry `entry` lacks a study field that `s` has, or the series entry of
+ *  `series` lacks its modality or description that `series` has. */
+bool lacksFields(const json& entry, const StudyRecord& s, const SeriesRecord& series) {
+    for (const StudyTextField& f : studyTextFields())
+        if (entry.value(f.name, std::string()).empty() && !(s.*f.member).empty()) return true;
+    const json all = entry.value("series", json::object());
+    if (!all.contains(series.seriesUid)) return true;
+    const json& one = all[series.seriesUid];
+    return (one.value("modality", std::string()).empty() && !series.modality.empty()) ||
+           (one.value("description", std::string()).empty() && !series.description.empty());
 }
 
 json& seriesEntry(json& study, const SeriesRecord& s) {
@@ -485,9 +498,10 @@ void LocalStore::save(const Index& index) const {
     json j{{"version", 2}, {"studies", json::object()}, {"incoming", json::object()}};
     for (const auto& [uid, entry] : index.studies) j["studies"][uid] = entry;
     for (const auto& [uid, entry] : index.incoming) j["incoming"][uid] = entry;
-    // The index is UTF-8 JSON; a text that is not UTF-8 (a Latin-1 name in a file without its
-    // SpecificCharacterSet, a damaged header) gets U+FFFD for each bad byte rather than making
-    // the dump throw and the store stop. The DICOM files keep their own bytes.
+    // The index is UTF-8 JSON: received text is converted from its SpecificCharacterSet before
+    // it gets here (detail::storeDataset, with U+FFFD and noteTextProblem() for what cannot
+    // be); a record given directly that is not UTF-8 still gets U+FFFD for each bad byte rather
+    // than making the dump throw and the store stop. The DICOM files keep their own bytes.
     writeFileAtomic(m_root / kIndexName,
                     j.dump(2, ' ', false, json::error_handler_t::replace) + "\n");
 }
@@ -563,8 +577,14 @@ void LocalStore::listInstance(const StudyRecord& study, const SeriesRecord& seri
     auto& section = index.of(area);
     const auto it = section.find(study.studyUid);
     const bool known = it != section.end() && it->second["series"].contains(series.seriesUid);
-    if (!known) {
-        seriesEntry(studyEntry(section, study), series);
+    // An entry that a retrieve began with UIDs alone (a series retrieve: no patient, date or
+    // description) takes them from the first instance that has them.
+    if (!known || lacksFields(it->second, study, series)) {
+        json& seriesJson = seriesEntry(studyEntry(section, study), series);
+        if (seriesJson.value("modality", std::string()).empty())
+            seriesJson["modality"] = series.modality;
+        if (seriesJson.value("description", std::string()).empty())
+            seriesJson["description"] = series.description;
         save(index);
     }
 }
@@ -644,6 +664,16 @@ int LocalStore::instancesStored() const {
     return m_stored;
 }
 
+void LocalStore::noteTextProblem(const std::string& text) {
+    std::lock_guard lock(m_mutex);
+    if (m_textProblems.size() < 50) m_textProblems.push_back(text);
+}
+
+std::vector<std::string> LocalStore::takeTextProblems() {
+    std::lock_guard lock(m_mutex);
+    return std::exchange(m_textProblems, {});
+}
+
 void LocalStore::beginRetrieve(const StudyRecord& study, const std::string& seriesUid) {
     checkedUid(study.studyUid, "study");
     if (!seriesUid.empty()) checkedUid(seriesUid, "series");
@@ -694,8 +724,13 @@ void LocalStore::markReceived(const std::string& studyUid, const std::set<std::s
     // A retrieve that did not finish (cancelled, failed) keeps its study partial: a late
     // sub-association of its C-MOVE may still end normally.
     if (it == section.end() || it->second.value("retrievePending", false)) return;
+    json& series = it->second["series"];
     for (const auto& suid : seriesUids)
-        if (it->second["series"].contains(suid)) it->second["series"][suid]["complete"] = true;
+        if (series.contains(suid)) series[suid]["complete"] = true;
+    // A study is complete when all its series are (what the sender sent is all it meant to).
+    bool all = !series.empty();
+    for (const auto& [suid, s] : series.items()) all = all && s.value("complete", false);
+    if (all) it->second["complete"] = true;
     it->second["updated"] = nowIso();
     save(index);
 }

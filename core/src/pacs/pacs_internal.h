@@ -37,6 +37,11 @@ public:
     void check(const OFCondition& cond, const std::string& what) const;
     /** Releases the association (or aborts it when `abort`); never throws. */
     void close(bool abort);
+    /** `cancel` ends every wait for the peer once it fires (WatchedLayer::setCancel); connect()
+     *  and check() then throw core::Cancelled. */
+    void setCancel(const CancelToken* cancel);
+    /** Whether the user's cancel ended the connection (see setCancel). */
+    bool cancelledByUser() const;
     /** The connection's failure in words ("ORTHANC@h:p: the PACS stopped answering ..."): it went
      *  silent, was lost, or TLS failed; "" when it saw none of these. */
     std::string linkFailure() const;
@@ -59,9 +64,10 @@ std::string failureText(const OFCondition& cond, const Node& node, const LocalAe
  *  (permanent)". */
 std::string rejectionText(const std::vector<unsigned char>& pdu);
 
-/** Converts the item's strings to UTF-8 per its SpecificCharacterSet (kept as they are when the
- *  converter does not know it). */
-void toUtf8(DcmItem& item);
+/** Converts the item's strings to UTF-8 per its SpecificCharacterSet
+ *  (dicom_detail::convertTextToUtf8: U+FFFD for what cannot be converted); returns that problem
+ *  in words, "" when there was none. */
+std::string toUtf8(DcmItem& item);
 
 /** Records from a dataset (C-FIND response or received instance), strings in UTF-8. */
 StudyRecord studyRecordFrom(DcmItem& item);
@@ -78,6 +84,15 @@ struct StoredDataset {
  *  Throws PacsError for missing UIDs or ones isValidUid() refuses (naming which and why), and
  *  WriteError. A quarantined instance is no error: see the outcome. */
 StoredDataset storeDataset(LocalStore& store, DcmDataset& dataset, Area area = Area::Studies);
+
+/** One C-GET or C-MOVE (the node's method) with `keys`, into `store`: what came is checked
+ *  against studyUid (and seriesUid when given), `what` names it in messages. `bookkeeping`:
+ *  beginRetrieve/finishRetrieve around it (else the caller's). Returns the instances received;
+ *  throws as retrieve() does. */
+int retrieveWith(const Node& node, const LocalAe& local, const std::string& studyUid,
+                 const std::string& seriesUid, DcmDataset& keys, const std::string& what,
+                 LocalStore& store, const RetrieveProgressFn& progress, const CancelToken* cancel,
+                 bool bookkeeping);
 
 /** The C-GET/C-STORE transfer syntaxes we take: explicit and implicit VR little endian. */
 OFList<OFString> uncompressedSyntaxes();

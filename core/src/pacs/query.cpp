@@ -3,6 +3,8 @@
 
 #include <dcmtk/dcmnet/diutil.h>
 
+#include "../dicom/dicom_charset.h"
+
 #include <fvr/core/text.h>
 
 #include <algorithm>
@@ -79,12 +81,7 @@ std::vector<std::unique_ptr<DcmDataset>> find(const Node& node, const LocalAe& l
 
 namespace detail {
 
-void toUtf8(DcmItem& item) {
-    OFString charset;
-    if (item.findAndGetOFStringArray(DCM_SpecificCharacterSet, charset).good() &&
-        !charset.empty() && charset != "ISO_IR 192")
-        item.convertToUTF8();
-}
+std::string toUtf8(DcmItem& item) { return dicom_detail::convertTextToUtf8(item); }
 
 StudyRecord studyRecordFrom(DcmItem& item) {
     StudyRecord s;
@@ -164,6 +161,25 @@ std::vector<SeriesRecord> findSeries(const Node& node, const LocalAe& local,
     for (auto& ds : find(node, local, keys, "SERIES")) out.push_back(detail::seriesRecordFrom(*ds));
     std::sort(out.begin(), out.end(), [](const SeriesRecord& a, const SeriesRecord& b) {
         return std::tie(a.seriesNumber, a.seriesUid) < std::tie(b.seriesNumber, b.seriesUid);
+    });
+    return out;
+}
+
+std::vector<InstanceRecord> findInstances(const Node& node, const LocalAe& local,
+                                          const std::string& studyUid,
+                                          const std::string& seriesUid) {
+    if (studyUid.empty()) throw PacsError("findInstances needs a study UID");
+    DcmDataset keys;
+    keys.putAndInsertString(DCM_SpecificCharacterSet, "ISO_IR 192");
+    keys.putAndInsertString(DCM_QueryRetrieveLevel, "IMAGE");
+    keys.putAndInsertString(DCM_StudyInstanceUID, studyUid.c_str());
+    keys.putAndInsertString(DCM_SeriesInstanceUID, seriesUid.c_str());
+    keys.insertEmptyElement(DCM_SOPInstanceUID);
+    std::vector<InstanceRecord> out;
+    for (auto& ds : find(node, local, keys, "IMAGE"))
+        out.push_back({get(*ds, DCM_SeriesInstanceUID), get(*ds, DCM_SOPInstanceUID)});
+    std::sort(out.begin(), out.end(), [](const InstanceRecord& a, const InstanceRecord& b) {
+        return std::tie(a.seriesUid, a.sopInstanceUid) < std::tie(b.seriesUid, b.sopInstanceUid);
     });
     return out;
 }

@@ -22,7 +22,9 @@ class RetrieveScu : public detail::Scu {
 public:
     RetrieveScu(const Node& node, const LocalAe& local, LocalStore& store,
                 const RetrieveProgressFn& progressFn, const CancelToken* cancel)
-        : Scu(node, local), m_store(store), m_progressFn(progressFn), m_cancel(cancel) {}
+        : Scu(node, local), m_store(store), m_progressFn(progressFn), m_cancel(cancel) {
+        setCancel(cancel); // a silent PACS is left within a second of the cancel
+    }
 
     OFCondition handleSTORERequest(const T_ASC_PresentationContextID, DcmDataset* incoming,
                                    OFBool& continueSession, Uint16& status) override {
@@ -211,6 +213,7 @@ void runRetrieve(RetrieveScu& scu, const Node& node, const LocalAe& local, DcmDa
     const OFCondition cond =
         move ? scu.sendMOVERequest(scu.pc, local.aeTitle.c_str(), &keys, nullptr)
              : scu.sendCGETRequest(scu.pc, &keys, nullptr);
+    if (scu.cancelledByUser()) scu.cancelSent = true; // the wait for the PACS ended by it
     if (scu.cancelSent || !scu.m_storeError.empty()) {
         scu.close(true);
         return;
@@ -287,16 +290,12 @@ void runRetrieve(RetrieveScu& scu, const Node& node, const LocalAe& local, DcmDa
 
 } // namespace
 
-fs::path retrieve(const Node& node, const LocalAe& local, const std::string& studyUid,
-                  const std::string& seriesUid, LocalStore& store,
-                  const RetrieveProgressFn& progress, const CancelToken* cancel) {
-    const std::string what = seriesUid.empty() ? "study " + studyUid : "series " + seriesUid;
-    const fs::path folder =
-        seriesUid.empty() ? store.studyFolder(studyUid) : store.seriesFolder(studyUid, seriesUid);
-    DcmDataset keys;
-    keys.putAndInsertString(DCM_QueryRetrieveLevel, seriesUid.empty() ? "STUDY" : "SERIES");
-    keys.putAndInsertString(DCM_StudyInstanceUID, studyUid.c_str());
-    if (!seriesUid.empty()) keys.putAndInsertString(DCM_SeriesInstanceUID, seriesUid.c_str());
+namespace detail {
+
+int retrieveWith(const Node& node, const LocalAe& local, const std::string& studyUid,
+                 const std::string& seriesUid, DcmDataset& keys, const std::string& what,
+                 LocalStore& store, const RetrieveProgressFn& progress, const CancelToken* cancel,
+                 bool bookkeeping) {
     const bool move = node.retrieve == RetrieveMethod::Move;
     RetrieveScu scu(node, local, store, progress, cancel);
     scu.studyUid = studyUid;
@@ -310,17 +309,17 @@ fs::path retrieve(const Node& node, const LocalAe& local, const std::string& stu
         expectation = (**listener).expect(node, studyUid, seriesUid);
         scu.expectation = &expectation;
     }
-    store.beginRetrieve(StudyRecord{studyUid}, seriesUid);
+    if (bookkeeping) store.beginRetrieve(StudyRecord{studyUid}, seriesUid);
     try {
         runRetrieve(scu, node, local, keys);
     } catch (...) {
-        store.finishRetrieve(studyUid, seriesUid, false);
+        if (bookkeeping) store.finishRetrieve(studyUid, seriesUid, false);
         throw;
     }
     const bool unaskedCame = scu.otherStudy + scu.otherSeries > 0;
     const bool ok = !scu.cancelSent && scu.m_storeError.empty() && scu.quarantined == 0 &&
                     !unaskedCame && scu.finalStatus == STATUS_Success && scu.progress.failed == 0;
-    store.finishRetrieve(studyUid, seriesUid, ok && scu.progress.received > 0);
+    if (bookkeeping) store.finishRetrieve(studyUid, seriesUid, ok && scu.progress.received > 0);
     if (scu.cancelSent) throw Cancelled();
     if (unaskedCame && scu.m_storeError.empty()) unasked(scu, store, node, studyUid, what);
     if (scu.progress.received == 0 && scu.m_storeError.empty())
@@ -332,6 +331,23 @@ fs::path retrieve(const Node& node, const LocalAe& local, const std::string& stu
                         "received ones are in " +
                         store.quarantineFolder().string() + "; the study stays partial");
     if (!ok) failed(scu, node, what, move);
+    return scu.progress.received;
+}
+
+} // namespace detail
+
+fs::path retrieve(const Node& node, const LocalAe& local, const std::string& studyUid,
+                  const std::string& seriesUid, LocalStore& store,
+                  const RetrieveProgressFn& progress, const CancelToken* cancel) {
+    const std::string what = seriesUid.empty() ? "study " + studyUid : "series " + seriesUid;
+    const fs::path folder =
+        seriesUid.empty() ? store.studyFolder(studyUid) : store.seriesFolder(studyUid, seriesUid);
+    DcmDataset keys;
+    keys.putAndInsertString(DCM_QueryRetrieveLevel, seriesUid.empty() ? "STUDY" : "SERIES");
+    keys.putAndInsertString(DCM_StudyInstanceUID, studyUid.c_str());
+    if (!seriesUid.empty()) keys.putAndInsertString(DCM_SeriesInstanceUID, seriesUid.c_str());
+    detail::retrieveWith(node, local, studyUid, seriesUid, keys, what, store, progress, cancel,
+                         true);
     return folder;
 }
 

@@ -281,6 +281,9 @@ struct ListenerState {
     StorageListener::EventFn onEvent;
     std::shared_ptr<StorageListener::Expectations> expectations;
     std::unique_ptr<detail::WatchedLayer> layer; // plain or TLS; outlives the SCP that uses it
+    /** Fired by stop(): a peer that has gone silent mid-association is left within a second
+     *  instead of at the timeout (a retrieve's listener stops when its cancel ends it). */
+    std::unique_ptr<CancelToken> stopping;
     std::unique_ptr<DcmSCP> scp;
     std::thread thread;
     std::atomic<bool> stop{false}, running{false};
@@ -343,6 +346,27 @@ protected:
     }
     // --- end of whom the listener trusts ---
 
+    /** The studies this association brought into Incoming, for the user: "12 of DOE^JANE,
+     *  20240102, CHEST (complete)", joined by "; ". */
+    std::string arrivedText() const {
+        std::string out;
+        for (const auto& [study, n] : m_incomingCount) {
+            std::string what = "study " + study;
+            try {
+                if (const auto e = m_impl.store.find(study, Area::Incoming)) {
+                    const StudyRecord& r = e->study;
+                    what = r.patientName.empty() ? "an unnamed patient" : r.patientName;
+                    for (const std::string* f : {&r.studyDate, &r.description})
+                        if (!f->empty()) what += ", " + *f;
+                    what += e->complete ? " (complete)" : " (partial)";
+                }
+            } catch (const std::exception&) { // the index unreadable: the UID says which
+            }
+            out += (out.empty() ? "" : "; ") + std::to_string(n) + " of " + what;
+        }
+        return out;
+    }
+
     void notifyReleaseRequest() override {
         // The sender ended normally: what it sent into Incoming is complete there.
         int count = 0;
@@ -356,9 +380,8 @@ protected:
         for (const auto& [study, n] : m_incomingCount) count += n;
         if (count > 0)
             m_impl.event(StorageListener::Event::Kind::Incoming,
-                         peer() + " sent " + std::to_string(count) + " instance(s) of " +
-                             std::to_string(m_incomingCount.size()) +
-                             " study(ies): they are in the local store's Incoming area");
+                         peer() + " sent " + std::to_string(count) +
+                             " instance(s): " + arrivedText() + "; in Local studies (Incoming)");
         m_incoming.clear();
         m_incomingCount.clear();
         DcmSCP::notifyReleaseRequest();
@@ -481,6 +504,8 @@ void StorageListener::start() {
     // Our transport: TLS only when local.listenTls (else plain only), every wait bounded.
     m_impl->layer = detail::makeLayer(m_impl->local, m_impl->local.listenTls, NET_ACCEPTOR);
     scp->getConfig().setTransportLayer(m_impl->layer.get());
+    m_impl->stopping = std::make_unique<CancelToken>();
+    m_impl->layer->setCancel(m_impl->stopping.get());
     const OFList<OFString> syntaxes = acceptedSyntaxes();
     scp->addPresentationContext(UID_VerificationSOPClass, detail::uncompressedSyntaxes());
     for (int i = 0; i < numberOfDcmLongSCUStorageSOPClassUIDs; ++i)
@@ -505,6 +530,7 @@ void StorageListener::start() {
 void StorageListener::stop() {
     if (!m_impl->thread.joinable()) return;
     m_impl->stop = true;
+    m_impl->stopping->cancel();
     wakeUp(m_impl->local);
     m_impl->thread.join();
     m_impl->scp.reset(); // closes the port

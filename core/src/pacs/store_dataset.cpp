@@ -32,12 +32,15 @@ StoredDataset storeDataset(LocalStore& store, DcmDataset& dataset, Area area) {
         if (dataset.findAndGetElement(tag, element).good() && element)
             info.insert(static_cast<DcmElement*>(element->clone()));
     }
-    toUtf8(info);
+    const std::string textProblem = toUtf8(info);
     const StudyRecord study = studyRecordFrom(info);
     const SeriesRecord series = seriesRecordFrom(info);
     const std::string sop = getString(dataset, DCM_SOPInstanceUID);
     if (study.studyUid.empty() || series.seriesUid.empty() || sop.empty())
         throw PacsError("a received instance lacks its study, series or SOP instance UID");
+    if (!textProblem.empty())
+        store.noteTextProblem("received SOP instance " + sop + " of study " + study.studyUid +
+                              ": " + textProblem);
     // The UIDs name the files: storeInstance() refuses, naming them and the rule, any that
     // isValidUid() does not take, before anything is listed or written.
     E_TransferSyntax xfer = dataset.getOriginalXfer();

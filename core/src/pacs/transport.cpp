@@ -61,9 +61,10 @@ class WatchedConnection : public DcmTransportConnection {
 public:
     WatchedConnection(DcmNativeSocketType socket, DcmTransportConnection* inner,
                       std::shared_ptr<WatchedLayer::Shared> shared, int timeoutMs, bool tls,
-                      bool acceptor)
+                      bool acceptor, std::shared_ptr<const CancelToken*> cancel)
         : DcmTransportConnection(socket), m_inner(inner), m_shared(std::move(shared)),
-          m_report(std::make_shared<LinkReport>()), m_timeout(timeoutMs), m_socket(socket) {
+          m_report(std::make_shared<LinkReport>()), m_timeout(timeoutMs), m_socket(socket),
+          m_cancel(std::move(cancel)) {
         if (acceptor) m_requestDeadline = Clock::now() + m_timeout;
         m_report->made = true;
         m_report->tls = tls;
@@ -106,6 +107,7 @@ private:
     OFCondition handshake(bool server);
     OFCondition boundedHandshake(bool server);
     bool waitFor(short events, int callerMs = -1);
+    bool cancelDue();
     void died(int err);
     void received(const void* buf, ssize_t n);
 
@@ -126,6 +128,8 @@ private:
      *  move it); cleared once it has. */
     std::optional<Clock::time_point> m_requestDeadline;
     bool m_dead = false; ///< silent, lost or closed: every read and write fails at once
+    std::shared_ptr<const CancelToken*> m_cancel; ///< the layer's token (null: none)
+    std::optional<Clock::time_point> m_cancelSeen; ///< when a wait first saw the cancel
 };
 
 OFCondition WatchedConnection::handshake(bool server) {
@@ -196,10 +200,11 @@ bool WatchedConnection::waitFor(short events, int callerMs) {
     if (callers) until = now + std::chrono::milliseconds(callerMs);
     for (;;) {
         if (m_dead) return false;
+        if (cancelDue()) return false;
         const auto left =
             std::chrono::duration_cast<std::chrono::milliseconds>(until - Clock::now()).count();
         pollfd p{m_socket, events, 0};
-        const int r = ::poll(&p, 1, int(std::max<long long>(0, std::min<long long>(left, 200))));
+        const int r = ::poll(&p, 1, int(std::max<long long>(0, std::min<long long>(left, 100))));
         if (r > 0 || (r < 0 && errno != EINTR)) return true; // ready, or the call says why not
         if (r == 0 && Clock::now() >= until) break;
     }
@@ -208,6 +213,20 @@ bool WatchedConnection::waitFor(short events, int callerMs) {
         m_dead = true;
     }
     return false;
+}
+
+/** Whether the user's cancel ends the connection now: it came kCancelGraceMs ago and the peer
+ *  has not moved a byte since (a peer that answers is heard, so that a C-CANCEL's exchange can
+ *  end the operation in order). Then the connection is dead, the report `cancelled`. */
+bool WatchedConnection::cancelDue() {
+    const CancelToken* token = *m_cancel;
+    if (!token || !token->cancelled()) return false;
+    const auto now = Clock::now();
+    if (!m_cancelSeen || (m_waitingSince && *m_waitingSince > *m_cancelSeen)) m_cancelSeen = now;
+    if (now - *m_cancelSeen < std::chrono::milliseconds(kCancelGraceMs)) return false;
+    m_report->cancelled = true;
+    m_dead = true;
+    return true;
 }
 
 void WatchedConnection::died(int err) {
@@ -290,9 +309,11 @@ DcmTransportConnection* WatchedLayer::createConnection(DcmNativeSocketType socke
     DcmTransportConnection* inner = m_tls ? m_tls->createConnection(socket, OFTrue)
                                           : DcmTransportLayer::createConnection(socket, OFFalse);
     if (!inner) return nullptr;
-    return new WatchedConnection(socket, inner, m_shared, m_timeoutMs, m_tls != nullptr,
-                                 m_acceptor);
+    return new WatchedConnection(socket, inner, m_shared, m_timeoutMs, m_tls != nullptr, m_acceptor,
+                                 m_cancel);
 }
+
+void WatchedLayer::setCancel(const CancelToken* cancel) { *m_cancel = cancel; }
 
 LinkReport WatchedLayer::lastReport() const {
     std::lock_guard lock(m_shared->mutex);

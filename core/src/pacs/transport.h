@@ -4,6 +4,7 @@
 // connection saw, from which failures are named ("stopped answering", "connection lost", the
 // TLS error, the rejection's reason).
 #include <fvr/core/pacs/pacs.h>
+#include <fvr/core/render/preprocess.h> // CancelToken
 
 #include <dcmtk/config/osconfig.h> // first DCMTK include
 #include <dcmtk/dcmnet/assoc.h>
@@ -28,7 +29,14 @@ struct LinkReport {
     std::string tlsError; ///< the handshake's failure, or a TLS error after it (OpenSSL's words)
     std::vector<unsigned char> firstBytes; ///< the first 10 bytes the peer sent after the handshake
     std::size_t received = 0; ///< bytes from the peer after the handshake
+    /** The user cancelled while we waited for the peer, and nothing moved for kCancelGraceMs
+     *  after: the connection was ended (not the peer's failure). */
+    bool cancelled = false;
 };
+
+/** After a cancel, how long a wait for the peer goes on: a peer that answers (the next message,
+ *  the C-CANCEL's response) is heard; a silent one is left at once after. */
+constexpr int kCancelGraceMs = 300;
 
 /**
  * DCMTK's transport layer (DcmTransportLayer), plain or TLS, whose connections bound the waits
@@ -55,6 +63,9 @@ public:
     DcmTransportConnection* createConnection(DcmNativeSocketType socket,
                                              OFBool useSecureLayer) override;
     bool tls() const { return m_tls != nullptr; }
+    /** A token whose cancel ends every wait of this layer's connections (opened before or
+     *  after) within kCancelGraceMs + one poll (100 ms), the report then `cancelled`. */
+    void setCancel(const CancelToken* cancel);
     /** What the most recent connection saw (a default report when none was opened). */
     LinkReport lastReport() const;
 
@@ -64,6 +75,7 @@ private:
     std::shared_ptr<Shared> m_shared;
     std::unique_ptr<DcmTLSTransportLayer> m_tls;
     int m_timeoutMs;
+    std::shared_ptr<const CancelToken*> m_cancel = std::make_shared<const CancelToken*>(nullptr);
     bool m_acceptor;
 };
 

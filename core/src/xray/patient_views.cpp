@@ -53,6 +53,15 @@ ViewFrame patientViewFrame(const Volume& volume, PatientView view) {
     return f;
 }
 
+ViewFrame transferViewFrame(const Volume& from, const Volume& to, const ViewFrame& frame) {
+    const auto move = [&](const Vec3& v) { return fromPatient(to, from.direction * v); };
+    ViewFrame f;
+    f.d = move(frame.d);
+    f.u = move(frame.u);
+    f.r = move(frame.r); // not d x u: a mirrored volume's index frame is left-handed
+    return f;
+}
+
 std::string patientDirectionLabel(const Volume& volume, const Vec3& v) {
     const Vec3 w = volume.direction * v; // the LPS direction
     const char pos[3] = {'L', 'P', 'S'}, neg[3] = {'R', 'A', 'I'};

@@ -4,9 +4,11 @@
 #include <QComboBox>
 #include <QDoubleSpinBox>
 #include <QFormLayout>
+#include <QHBoxLayout>
 #include <QLabel>
 #include <QPushButton>
 #include <QSettings>
+#include <QSignalBlocker>
 #include <QStandardItemModel>
 
 #include <algorithm>
@@ -44,9 +46,18 @@ DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
     df->addRow(QString(), m_invert);
     auto* autoBtn = new QPushButton(tr("Auto window"), this);
     df->addRow(QString(), autoBtn);
+    m_savePreset = new QPushButton(tr("Save preset…"), this);
+    m_savePreset->setToolTip(tr("Keep this window as a preset of your own (for this quantity)"));
+    m_deletePreset = new QPushButton(tr("Delete preset"), this);
+    m_deletePreset->setEnabled(false);
+    auto* presetButtons = new QHBoxLayout;
+    presetButtons->addWidget(m_savePreset);
+    presetButtons->addWidget(m_deletePreset);
+    df->addRow(QString(), presetButtons);
     auto* hint = new QLabel(
-        tr("<small>Left drag: rotate · wheel: zoom · middle drag: pan · right drag or "
-           "Ctrl+left: window/level · 1–6: AP, PA, left, right, head, feet · R: reset</small>"),
+        tr("<small>Left drag or arrows: rotate · wheel or +/−: zoom · middle drag: pan · right "
+           "drag or Ctrl+left: window/level · 1–6: AP, PA, left, right, head, feet · R: reset · "
+           "F1: all keys</small>"),
         this);
     hint->setWordWrap(true);
     df->addRow(hint);
@@ -65,7 +76,19 @@ DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
     connect(autoBtn, &QPushButton::clicked, this,
             [this] { emit presetRequested(WindowPreset::Auto); });
     connect(m_preset, &QComboBox::activated, this, [this](int index) {
-        emit presetRequested(WindowPreset(m_preset->itemData(index).toInt()));
+        const int item = m_preset->itemData(index).toInt();
+        if (item >= kUserPresetData)
+            emit userPresetRequested(item - kUserPresetData);
+        else
+            emit presetRequested(WindowPreset(item));
+    });
+    connect(m_preset, &QComboBox::currentIndexChanged, this, [this] {
+        m_deletePreset->setEnabled(m_preset->currentData().toInt() >= kUserPresetData);
+    });
+    connect(m_savePreset, &QPushButton::clicked, this, &DisplayPanel::savePresetRequested);
+    connect(m_deletePreset, &QPushButton::clicked, this, [this] {
+        const int item = m_preset->currentData().toInt();
+        if (item >= kUserPresetData) emit deletePresetRequested(item - kUserPresetData);
     });
 }
 
@@ -105,9 +128,32 @@ void DisplayPanel::showWindow(const core::DisplayWindow& w, WindowPreset from) {
     showPreset(from);
 }
 
+void DisplayPanel::setUserPresets(const QStringList& labels) {
+    const QSignalBlocker block(m_preset);
+    const QVariant current = m_preset->currentData();
+    for (int i = m_preset->count() - 1; i >= 0; --i)
+        if (m_preset->itemData(i).toInt() >= kUserPresetData ||
+            (m_preset->itemText(i).isEmpty() && !m_preset->itemData(i).isValid()))
+            m_preset->removeItem(i); // the user presets and their separator
+    if (!labels.isEmpty()) m_preset->insertSeparator(m_preset->count());
+    for (int i = 0; i < labels.size(); ++i)
+        m_preset->addItem(QStringLiteral("★ ") + labels[i], kUserPresetData + i);
+    const int index = m_preset->findData(current);
+    m_preset->setCurrentIndex(index >= 0 ? index : m_preset->findData(int(WindowPreset::Custom)));
+    m_deletePreset->setEnabled(m_preset->currentData().toInt() >= kUserPresetData);
+}
+
+void DisplayPanel::showUserPreset(int index) {
+    const QSignalBlocker block(m_preset);
+    const int i = m_preset->findData(kUserPresetData + index);
+    if (i >= 0) m_preset->setCurrentIndex(i);
+    m_deletePreset->setEnabled(i >= 0);
+}
+
 void DisplayPanel::showPreset(WindowPreset preset) {
     const QSignalBlocker block(m_preset);
     m_preset->setCurrentIndex(m_preset->findData(int(preset)));
+    m_deletePreset->setEnabled(false);
 }
 
 core::DisplayWindow presetWindow(WindowPreset preset, const std::vector<float>& pixels,

@@ -4,4 +4,6 @@ namespace fvr::ui {
 const char* applicationName(); ///< "FVR Workstation"
 const char* organizationName(); ///< QSettings organisation
 const char* applicationVersion(); ///< project version
+/** The source commit it was built from (short hash, "+" with local changes; "unknown"). */
+const char* applicationCommit();
 } // namespace fvr::ui

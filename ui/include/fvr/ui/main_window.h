@@ -15,6 +15,7 @@
 #include <fvr/ui/panels/xray_panel.h>
 #include <fvr/ui/projection_view.h>
 #include <fvr/ui/study.h>
+#include <fvr/ui/workstation_state.h>
 
 class QLabel;
 class QScreen;
@@ -22,11 +23,17 @@ class QProgressBar;
 class QPushButton;
 class QGridLayout;
 class QMenu;
+class QSettings;
+class QTimer;
 class QToolBar;
+class QUndoStack;
 
 namespace fvr::ui {
 
 class AccuracyReadout;
+class CineController;
+struct CineSettings;
+class DicomTagsDialog;
 class MaterialsController;
 class PacsDialog;
 class PacsService;
@@ -88,6 +95,17 @@ public:
      *  projector of the same voxels and view, on a worker thread; the result (PSNR, relative
      *  RMSE) goes to the Messages panel and accuracyMeasured(). */
     void measureAccuracy();
+    /** Cine (cine_actions.cpp): the views turn by a step per tick (Cine menu, Space). */
+    CineController& cine() { return *m_cine; }
+    /** One full turn of the cine from view 1's current frame (360 / step frames, the cine's
+     *  axis and frame rate) as an MP4 (H.264) movie of view 1 through its window, with progress
+     *  and Cancel. False (and the reason in the messages) on failure or cancel. */
+    bool exportMovie(const QString& path);
+    /** The same frames as Multi-frame Grayscale Word Secondary Capture: the values the float
+     *  exports hold, FrameTime = 1000 / frame rate, the study's patient and study fields. */
+    bool exportCineDicom(const QString& path);
+    /** Study ▸ DICOM tags…: the tag browser of the open series (made once, shown). */
+    DicomTagsDialog* showDicomTags();
 
     /** PACS (main_window_pacs.cpp): the local store, listener and sends. */
     PacsService& pacs() { return *m_pacs; }
@@ -103,6 +121,8 @@ public:
     SettingsModel& settings() { return *m_model; }
     /** View ▸ Use a software GPU (tests). */
     QAction* softwareGpuAction() const { return m_softwareGpuAction; }
+    /** View ▸ Performance overlay (tests). */
+    QAction* overlayAction() const { return m_overlayAction; }
     /** The panels (tests drive their controls like a user). */
     StudyPanel* studyPanel() const { return m_studyPanel; }
     RenderingPanel* renderingPanel() const { return m_rendering; }
@@ -123,8 +143,75 @@ public:
     /** The per-frame effects of the Rendering and X-ray panels. */
     FrameEffects currentEffects() const;
 
+    /** What is on screen as data (main_window_state.cpp): the settings, each compare slot's,
+     *  the orientation, each view's window, zoom and pan. */
+    WorkstationState currentState() const;
+    /** Shows `state` (undo/redo and sessions): the compare views, the settings (new spectra
+     *  are prepared where they need it), the orientation, windows, zoom and pan. */
+    void applyState(const WorkstationState& state);
+    /** Edit ▸ Undo/Redo: the user's changes to the view, window and settings, a burst of
+     *  changes (a drag, the wheel, a spin box held down) as one step. */
+    QUndoStack* undoStack() const { return m_undo; }
+    void undo();
+    void redo();
+    /** A change still settling is recorded now (tests, and before an undo). */
+    void flushStateChange();
+    /** File ▸ Save session: the study, the state and (through savingSession) the annotations,
+     *  as an INI file. False, with the reason in the Messages panel, when there is no study or
+     *  the file cannot be written. */
+    bool saveSession(const QString& path);
+    /** File ▸ Open session: opens its study, then shows its state (sessionRestored()). False,
+     *  with the file and the reason in the Messages panel, for a file that is not a session. */
+    bool openSession(const QString& path);
+    /** The keys: every view turns as a drag would (arrows: 5°, PageUp/PageDown: 90°). */
+    void rotateViews(double horizontalDeg, double verticalDeg);
+    /** The keys + and −: every view's zoom times `factor`. */
+    void zoomViews(double factor);
+    /** A window preset of the user's: a name, the window, and the quantity it was set on
+     *  (main_window_presets.cpp). */
+    struct UserPreset {
+        QString name;
+        double low = 0.0, high = 1.0;
+        QString quantity; ///< windowQuantity() when saved: "mm", "−ln(I/I0)", "log exposure"
+    };
+    QList<UserPreset> userPresets() const;
+    /** Display ▸ Save preset…: view 1's window under `name` for the quantity on screen
+     *  (replacing one of the same name and quantity). */
+    bool saveWindowPreset(const QString& name);
+    /** Applies user preset `index`; refused, with the reason in the messages, where the view
+     *  shows another quantity than the preset's. */
+    bool applyUserPreset(int index);
+    void deleteUserPreset(int index);
+    /** What the window applies to on view 1: its units, or the log exposure of a transmission
+     *  output. */
+    QString windowQuantity() const;
+    /** File ▸ Open prior…: another study beside this one (main_window_prior.cpp), in view 2
+     *  (compare mode), turned with view 1 as the same view of the patient, rendered with view
+     *  1's settings and window. Its progress and errors go to the Messages panel; priorReady()
+     *  once it shows. */
+    void openPrior(const StudySource& source);
+    void closePrior();
+    /** A prior is loaded and shown in view 2. */
+    bool hasPrior() const;
+    const StudyController* prior() const { return m_prior.get(); }
+    /** Help ▸ About's text: name, version, commit, and that it is not for diagnostic use. */
+    static QString aboutText();
+    /** Help ▸ Keyboard shortcuts: every menu action with a shortcut ("Undo", "Ctrl+Z") and
+     *  the mouse's gestures, as the dialog lists them. */
+    QList<QPair<QString, QString>> shortcutList() const;
+
 signals:
     void accuracyMeasured(double psnr, double relRmse);
+    /** A session is being written / was read: what else it keeps (the annotations) goes in or
+     *  comes out of `s`. */
+    void savingSession(QSettings& s);
+    void sessionOpened(QSettings& s);
+    /** An opened session's study is loaded and its state shown. */
+    void sessionRestored();
+    /** A prior's spectrum is ready and view 2 shows it. */
+    void priorReady();
+    /** Something on screen changed (the Edit menu's state follows). */
+    void stateChangeNoted();
 
 protected:
     void closeEvent(QCloseEvent* e) override;
@@ -141,17 +228,49 @@ private:
     void connectSettings();
     void restorePanels();
     void buildMenus(); // main_window_menus.cpp
+    // main_window_state.cpp and main_window_reading.cpp
+    void buildUndo();
+    void buildEditMenu();
+    void buildNavigation(QMenu* view);
+    void buildPanelsMenu(QMenu* view);
+    void buildHelpMenu();
+    void showShortcutsDialog();
+    /** A change to what is on screen: a user's (an undo step once it settles) or not (an
+     *  automatic window: absorbed into the state undo returns to). */
+    void noteStateChange(bool byUser);
+    void recordState();
+    /** After a study loaded: an opened session's state, and an empty undo history. */
+    void startStudyHistory();
+    void connectUserPresets();
+    /** View 2 shows the prior, if there is one (assignSpectra). */
+    bool assignPrior();
+    /** `frame` of view `from` as view `to` shows it: the same patient view in its volume. */
+    core::ViewFrame linkedFrame(const ProjectionView* from, const ProjectionView* to,
+                                const core::ViewFrame& frame) const;
+    void openPriorDialog();
+    void storeUserPresets(const QList<UserPreset>& presets);
+    void applyPendingSession();
+    void saveSessionDialog();
+    void openSessionDialog();
     void buildPacsMenu(QMenu* file); // main_window_pacs.cpp
     void editPacsNodes();
     void sendProjectionDialog();
     /** View 1's projection as DICOM Secondary Capture: the values the float exports hold, the
      *  source's patient and study. Throws (WriteError, or nothing to export). */
     void writeDicomProjection(const std::string& path) const;
+    /** What view 1's DICOM exports say: the source's patient and study, the exported quantity,
+     *  the user's window and a new series (the pixels get currentTransmission() where active). */
+    core::DicomExportInfo dicomExportInfo() const;
     /** What the float exports of view 1 hold, in words for the Messages panel and the DICOM
      *  ImageComments: the transmitted intensity, the polychromatic quantity (with the tube) or
      *  the line integrals. */
     QString exportedQuantity() const;
     void buildViewMenu(QMenu* view, QToolBar* toolbar);
+    /** The Study and Cine menus and the Cine toolbar (cine_actions.cpp). */
+    void buildReaderMenus();
+    /** View 1 rendered at every frame of one cine turn (progress, Cancel); view 1 is back at
+     *  its frame after. Empty when cancelled or failed (the reason in the messages). */
+    std::vector<core::ProjectionImage> renderCineTurn(const QString& what);
     /** The Measure menu and toolbar, the status bar's readout (main_window_measure.cpp). */
     void buildMeasureMenu();
     /** A new view draws with the current tool and reports the value under the cursor. */
@@ -275,7 +394,20 @@ private:
     QAction* m_overlayAction = nullptr;
     QAction* m_softwareGpuAction = nullptr;
     std::unique_ptr<AccuracyReadout> m_accuracy;
+    CineController* m_cine = nullptr; ///< child of the window
+    QPointer<DicomTagsDialog> m_tags;
     std::unique_ptr<PacsService> m_pacs;
+    QAction* m_differenceAction = nullptr;
+    QAction* m_undoAction = nullptr;
+    QAction* m_redoAction = nullptr;
+    QUndoStack* m_undo = nullptr;
+    QTimer* m_stateTimer = nullptr;
+    WorkstationState m_recorded; ///< the state the next undo step starts from
+    bool m_userChange = false;
+    bool m_applyingState = false;
+    std::unique_ptr<StudyController> m_prior; ///< a prior beside the study (view 2)
+    std::optional<WorkstationState> m_pendingSession; ///< shown once its study is loaded
+    QString m_pendingSessionPath;
     QPointer<PacsDialog> m_pacsDialog;
 };
 

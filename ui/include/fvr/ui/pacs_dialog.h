@@ -90,6 +90,8 @@ private:
                   const std::string& seriesUid, const QString& label);
     void onRetrieveProgress(const core::pacs::RetrieveProgress& p);
     void refreshLocal();
+    /** The results' Local column: complete or partial for what the store holds. */
+    void markLocalState();
     void openLocal();
     void resumeLocal();
     void setStatus(const QString& text, bool error = false);

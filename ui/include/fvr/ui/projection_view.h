@@ -88,8 +88,29 @@ public:
     const core::DisplayWindow& window() const { return m_window; }
     /** Window from the current projection's percentiles (0.5..99.5). */
     void autoWindow();
+    /** Zoom: the image's side is the view's shorter side times `zoom` (0.1 to 40). Zoomed in,
+     *  the full-quality frame renders at the screen's resolution (displayRenderSize()), not
+     *  the slice resolution's pixels magnified. */
     void setZoom(double zoom);
     double zoom() const { return m_zoom; }
+    /** Zoomed-in frames at the screen's resolution (on by default; the main window turns it off
+     *  in Difference mode, whose views compare frames of the slice resolution). */
+    void setZoomRendering(bool on);
+    /** The size the full-quality frame on screen renders at: the slice resolution, or zoomed in
+     *  (a parallel view, line integrals or Beer-Lambert) the smallest size of the Rendering
+     *  panel's (a power of two up to 2048) with the zoom times the slice resolution's pixels,
+     *  or a pixel per screen pixel where that is less. The same field of
+     *  view at every size: the Fourier slice samples the spectrum more finely, so the frame is
+     *  the band-limited projection at that resolution, never an interpolated magnification.
+     *  Exports, measurements and differences keep the slice resolution (projection()). */
+    int displayRenderSize() const;
+    /** The image's offset from the view's centre, in widget pixels (a middle drag). */
+    QPointF pan() const { return m_pan; }
+    void setPan(const QPointF& pan);
+    /** Turns the view as a drag of `horizontalDeg` to the right and `verticalDeg` down would
+     *  (the object follows): about the screen's vertical and horizontal axes for a parallel
+     *  view, the C-arm's primary and secondary angles for a cone beam. Emits viewFrameChanged. */
+    void rotateBy(double horizontalDeg, double verticalDeg);
     void resetPanZoom();
     void setOverlayVisible(bool on);
     /** When set, this view shows (own projection - reference) with a symmetric window. */
@@ -146,7 +167,8 @@ public:
     bool showsCurrentFrame() const {
         return m_spectrum && !m_spectrumDirty && !m_renderDirty && m_frames > 0 &&
                !(m_poly && m_poly->spectra.empty()) && // material spectra still coming
-               m_displayedLevel == 0 && m_renderedLevel == 0 && !m_progressive.interacting();
+               m_displayedLevel == 0 && m_renderedLevel == 0 && !m_progressive.interacting() &&
+               m_displayedSize == displayRenderSize(); // zoomed in: the screen's resolution
     }
     /** Number of frames rendered (tests). */
     int framesRendered() const { return m_frames; }
@@ -171,6 +193,8 @@ signals:
     void interactionChanged(bool on);
     /** Difference mode: differenceMaxAbs() was taken anew (the shared scale may change). */
     void differenceScaleChanged();
+    /** Zoom or pan changed (the wheel, a middle drag, the keys or a reset). */
+    void panZoomChanged();
 
 protected:
     void initializeGL() override;
@@ -214,9 +238,9 @@ private:
     core::DetectorImage castPolychromaticCone(const core::ConeCamera& camera,
                                               const core::ConeProjectorOptions& options);
     bool coneBeam() const { return m_settings.projection == ProjectionKind::Cone; }
-    /** A rotation drag on a cone-beam view: horizontal moves the primary angle (to the right:
-     *  toward LAO), vertical the secondary (up: toward cranial). */
-    void dragCArm(const QPoint& delta);
+    /** rotateBy() on a cone-beam view: horizontal moves the primary angle (to the right:
+     *  toward LAO), vertical the secondary (up: toward cranial, clamped to ±89°). */
+    void rotateCArm(double horizontalDeg, double verticalDeg);
     /** The same on the GPU (the view renders there): one GPU renderer per material, the
      *  spectral sum in one compute pass into the first one's frame, shown without a read-back
      *  (with noise: I/I0 read back once, the noise drawn on the CPU). False where it cannot
@@ -281,6 +305,8 @@ private:
     std::optional<DifferenceKey> m_diffKey;
     double m_diffMaxAbs = 0.0;
     QString m_progressiveOff;
+    bool m_zoomRendering = true;
+    bool m_sliceSizeOnly = false; ///< projection(): the frame at the slice resolution
 
     std::unique_ptr<gpu::GpuFourierRenderer> m_gpu;
     std::unique_ptr<core::CpuFourierRenderer> m_cpu;

@@ -57,6 +57,10 @@ struct OverlayState {
 
     // The performance lines.
     core::QualityLevel shown; ///< what the frame on screen rendered with
+    /** The slice resolution (the Rendering panel's); a frame shown larger is zoomed in at the
+     *  screen's resolution, and the overlay says at what cost. */
+    int sliceSize = 0;
+    double zoom = 1.0;
     bool gpu = false; ///< rendered by the GPU renderer
     core::VoxelModel voxelModel = core::VoxelModel::Trilinear;
     /** A cone-beam view: its ray model and C-arm line ("LAO 30° CRAN 15°  SID 1000  SOD 750");

@@ -119,6 +119,11 @@ public:
                                Area area = Area::Studies);
     /** Instances taken by storeInstance() in this object (stored, identical or quarantined). */
     int instancesStored() const;
+    /** A received instance's text that could not be converted to UTF-8 (listed with U+FFFD for
+     *  the bad bytes), in words naming the instance and the elements: kept (at most 50) until
+     *  takeTextProblems() hands them to the user. */
+    void noteTextProblem(const std::string& text);
+    std::vector<std::string> takeTextProblems();
 
     /** A retrieve starts (Studies area): the study (and series, when not empty) is listed as
      *  partial until finish(). The listener marks what it receives complete at the end of an
@@ -153,6 +158,7 @@ private:
     std::set<std::string> m_retrieving;
     std::set<std::filesystem::path> m_cleaned; ///< study folders rid of dead writers' temporaries
     int m_stored = 0;
+    std::vector<std::string> m_textProblems;
 };
 
 } // namespace fvr::core::pacs

@@ -158,6 +158,16 @@ std::vector<StudyRecord> findStudies(const Node& node, const LocalAe& local,
 std::vector<SeriesRecord> findSeries(const Node& node, const LocalAe& local,
                                      const std::string& studyUid);
 
+/** An instance as a C-FIND at IMAGE level names it. */
+struct InstanceRecord {
+    std::string seriesUid, sopInstanceUid;
+};
+/** C-FIND at IMAGE level: the instances of a study (of one series when seriesUid is given),
+ *  sorted by series and SOP Instance UID. */
+std::vector<InstanceRecord> findInstances(const Node& node, const LocalAe& local,
+                                          const std::string& studyUid,
+                                          const std::string& seriesUid = {});
+
 /** Progress of a retrieve: instances received (stored in the store), expected (from the PACS's
  *  responses; -1 until it says), failed (sub-operations the PACS reports as failed). */
 struct RetrieveProgress {
@@ -184,6 +194,27 @@ std::filesystem::path retrieve(const Node& node, const LocalAe& local, const std
                                const std::string& seriesUid, LocalStore& store,
                                const RetrieveProgressFn& progress = {},
                                const CancelToken* cancel = nullptr);
+
+/** What retrieveMissing() did. */
+struct RetrieveSummary {
+    std::filesystem::path folder; ///< the study's (or the series') folder, complete
+    bool fromStore = false; ///< it was complete in the store: no network used
+    int fetched = 0; ///< instances received (what the PACS sent)
+    int present = 0; ///< instances the PACS lists that the store had already
+};
+
+/**
+ * A retrieve that takes only what the store lacks: a study (series) the store lists as complete
+ * is returned as it is, without the network, unless `refresh`; otherwise the PACS's instances
+ * (C-FIND at IMAGE level) that have no file in the store are retrieved at IMAGE level, series by
+ * series (at most 500 SOP Instance UIDs a request), and the study (series) is complete when
+ * they all arrived. With nothing of it in the store (or `refresh`), it is retrieve(). Throws as
+ * retrieve() does.
+ */
+RetrieveSummary retrieveMissing(const Node& node, const LocalAe& local, const std::string& studyUid,
+                                const std::string& seriesUid, LocalStore& store,
+                                const RetrieveProgressFn& progress = {},
+                                const CancelToken* cancel = nullptr, bool refresh = false);
 
 /** C-STORE of DICOM files on one association (their SOP classes and transfer syntaxes
  *  proposed). Throws PacsError naming the file the PACS refused, or a file that is not DICOM. */

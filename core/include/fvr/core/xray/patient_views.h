@@ -21,6 +21,11 @@ PatientView parsePatientView(const std::string& s); ///< case-insensitive; throw
 /** The view frame (in the volume's index frame) for a patient view. Throws SettingsError when
  *  the direction cosines are degenerate. */
 ViewFrame patientViewFrame(const Volume& volume, PatientView view);
+/** The same view of the patient in another volume's index frame (a prior beside the current
+ *  study): `frame`'s axes, in `from`'s index frame, turned into the patient's LPS directions and
+ *  back into `to`'s. Storage order, obliqueness and mirroring (a determinant of -1) differ
+ *  between studies; the patient directions on screen stay the same. */
+ViewFrame transferViewFrame(const Volume& from, const Volume& to, const ViewFrame& frame);
 
 /** Patient-direction label of a direction given in the volume's index frame, e.g. "L", "A",
  *  "LA" (dominant first; components under ~20% of the largest are left out). */

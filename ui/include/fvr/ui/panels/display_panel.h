@@ -10,6 +10,7 @@
 class QCheckBox;
 class QComboBox;
 class QDoubleSpinBox;
+class QPushButton;
 class QSettings;
 
 namespace fvr::ui {
@@ -43,12 +44,20 @@ public:
     core::DisplayWindow window(const core::Transmission& transmission) const;
     /** Shows a view's window (width, level, invert) and where it came from; emits nothing. */
     void showWindow(const core::DisplayWindow& w, WindowPreset from);
+    /** The user's own presets, listed after the built-in ones (labels as given). */
+    void setUserPresets(const QStringList& labels);
+    /** Shows user preset `index` as the window's origin; emits nothing. */
+    void showUserPreset(int index);
 
     /** The controls (tests drive them like a user). */
     QComboBox* presetCombo() const { return m_preset; }
     QDoubleSpinBox* windowWidthSpin() const { return m_width; }
     QDoubleSpinBox* windowLevelSpin() const { return m_level; }
     QCheckBox* invertCheck() const { return m_invert; }
+    QPushButton* savePresetButton() const { return m_savePreset; }
+    QPushButton* deletePresetButton() const { return m_deletePreset; }
+    /** The combo's item data of user preset 0 (user preset i: this + i). */
+    static constexpr int kUserPresetData = 100;
 
 signals:
     /** Any control changed by the user. */
@@ -57,6 +66,12 @@ signals:
     void windowChanged();
     /** A preset was chosen (the Auto window button asks for WindowPreset::Auto). */
     void presetRequested(fvr::ui::WindowPreset preset);
+    /** User preset `index` was chosen. */
+    void userPresetRequested(int index);
+    /** "Save preset…": the window on screen as a preset of the user's. */
+    void savePresetRequested();
+    /** "Delete preset": user preset `index`. */
+    void deletePresetRequested(int index);
 
 private:
     void showPreset(WindowPreset preset);
@@ -65,6 +80,8 @@ private:
     QDoubleSpinBox* m_width = nullptr;
     QDoubleSpinBox* m_level = nullptr;
     QCheckBox* m_invert = nullptr;
+    QPushButton* m_savePreset = nullptr;
+    QPushButton* m_deletePreset = nullptr;
 };
 
 /** The window a preset gives for an image (`pixels`: what the window applies to); keeps `invert`.
