@@ -340,6 +340,12 @@ TEST_F(Workstation, ValueUnderTheCursorAndTheScaleBar) {
     int white = 0;
     for (int x = x1 - len + 2; x < x1 - 1; ++x) white += qGray(shot.pixel(x, y)) > 240;
     EXPECT_GT(white, (len - 4) * 9 / 10) << "of " << len;
+    // The overlay off (F): the image alone, no bar.
+    v->setOverlayVisible(false);
+    const QImage bare = v->screenshot().scaled(v->size());
+    int whiteBare = 0;
+    for (int x = x1 - len + 2; x < x1 - 1; ++x) whiteBare += qGray(bare.pixel(x, y)) > 240;
+    EXPECT_EQ(whiteBare, 0);
 }
 
 /** The bit of an overlay plane's data (16-bit words, the first pixel in the lowest bit). */
@@ -527,6 +533,38 @@ TEST_F(Workstation, DifferenceViewMeasuresTheDifferenceItShowsAndAnnotationsStay
     EXPECT_NE(s->min, s->max); // the kernels differ: not an empty difference
     EXPECT_TRUE(v->measure().label(0).contains("(difference)"))
         << v->measure().label(0).toStdString();
+}
+
+TEST_F(Workstation, ASavedSessionKeepsTheAnnotations) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
+    ProjectionView* v = window->views()[0];
+    const int M = v->projection()->width;
+    window->setMeasureTool(MeasureTool::Ruler);
+    drag(v, {M * 0.21, M * 0.33}, {M * 0.64, M * 0.58});
+    window->setMeasureTool(MeasureTool::Ellipse);
+    drag(v, {M * 0.3, M * 0.3}, {M * 0.5, M * 0.45});
+    v->measure().add({Annotation::Kind::Text, {{0.55, 0.75}}, "lesion, 2nd"});
+    const std::vector<Annotation> before = v->measure().annotations();
+    const double length = v->measure().lengthMm(0).value_or(0);
+    const fs::path path = tmpDir() / "measure" / "annotated.fvrsession";
+    fs::create_directories(path.parent_path());
+    ASSERT_TRUE(window->saveSession(QString::fromStdString(path.string())));
+    window->views()[0]->measure().clear();
+    QSignalSpy restored(window.get(), &MainWindow::sessionRestored);
+    ASSERT_TRUE(window->openSession(QString::fromStdString(path.string())));
+    ASSERT_TRUE(restored.count() > 0 || restored.wait(60000));
+    MeasureLayer& m = window->views()[0]->measure();
+    ASSERT_EQ(m.annotations().size(), before.size());
+    for (std::size_t i = 0; i < before.size(); ++i) {
+        EXPECT_EQ(m.annotations()[i].kind, before[i].kind);
+        EXPECT_EQ(m.annotations()[i].text, before[i].text);
+        ASSERT_EQ(m.annotations()[i].points.size(), before[i].points.size());
+        for (std::size_t k = 0; k < before[i].points.size(); ++k) {
+            EXPECT_EQ(m.annotations()[i].points[k].x, before[i].points[k].x); // 17 digits
+            EXPECT_EQ(m.annotations()[i].points[k].y, before[i].points[k].y);
+        }
+    }
+    EXPECT_NEAR(m.lengthMm(0).value_or(0), length, 1e-9);
 }
 
 // A real CT as a reader sees it: a ruler across the body, an ellipse ROI, an arrow and a text

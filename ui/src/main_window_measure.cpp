@@ -6,6 +6,7 @@
 #include <QActionGroup>
 #include <QLabel>
 #include <QMenuBar>
+#include <QSettings>
 #include <QStatusBar>
 #include <QToolBar>
 
@@ -57,6 +58,16 @@ void MainWindow::buildMeasureMenu() {
         {measure::Turn::Clockwise, tr("Rotate 90° clock&wise")},
         {measure::Turn::CounterClockwise, tr("Rotate 90° counter-clockw&ise")}};
     for (const auto& [t, name] : turns) menu->addAction(name, this, [this, t] { turnImage(t); });
+    // A saved session keeps view 1's annotations (its own group of the session file).
+    connect(this, &MainWindow::savingSession, this, [this](QSettings& st) {
+        if (!m_views.empty()) saveAnnotations(st, m_views[0]->measure().annotations());
+    });
+    connect(this, &MainWindow::sessionOpened, this, [this](QSettings& st) {
+        if (m_views.empty()) return;
+        MeasureLayer& m = m_views[0]->measure();
+        m.clear();
+        for (Annotation& a : loadAnnotations(st)) m.add(std::move(a));
+    });
     m_cursorLabel = new QLabel(this);
     m_cursorLabel->setContentsMargins(8, 0, 4, 0);
     m_cursorLabel->setMinimumWidth(fontMetrics().horizontalAdvance("x 0000  y 0000   -0.0000e+00 "

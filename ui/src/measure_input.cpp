@@ -231,8 +231,9 @@ void MeasureLayer::paint(QPainter& p) {
     const auto map = [this](Point px) { return toWidget(px); };
     for (int i = 0; i < int(m_items.size()); ++i) paintItem(p, i, map, 1.0, true);
     p.setClipping(false);
-    // The scale bar: bottom right, a round length of about a quarter of the shown width.
-    if (const double mm = scaleBarMm(); mm > 0) {
+    // The scale bar: bottom right, a round length of about a quarter of the shown width; it
+    // goes with the overlay (F: the image alone).
+    if (const double mm = scaleBarMm(); mm > 0 && m_view->overlayVisible()) {
         const QRectF r = m_view->imageRectInWidget();
         const double len = mm / m_image->pixelSize / imageSide() * r.width();
         const QString text = scaleBarLabel();

@@ -2,6 +2,7 @@
 // mouse and key handling is in measure_input.cpp.
 #include <fvr/ui/measure_layer.h>
 
+#include <QSettings>
 #include <QTimer>
 
 #include <algorithm>
@@ -257,6 +258,57 @@ void MeasureLayer::turn(measure::Turn t) {
         for (Point& p : a.points) p = toFraction(measure::turned(toPixels(p), t, imageSide() + 1));
     emit changed();
     m_view->update();
+}
+
+namespace {
+constexpr std::pair<Annotation::Kind, const char*> kKinds[] = {
+    {Annotation::Kind::Ruler, "ruler"},         {Annotation::Kind::Angle, "angle"},
+    {Annotation::Kind::Rectangle, "rectangle"}, {Annotation::Kind::Ellipse, "ellipse"},
+    {Annotation::Kind::Arrow, "arrow"},         {Annotation::Kind::Text, "text"}};
+
+std::size_t pointCount(Annotation::Kind k) {
+    if (k == Annotation::Kind::Angle) return 3;
+    return k == Annotation::Kind::Text ? 1 : 2;
+}
+} // namespace
+
+void saveAnnotations(QSettings& s, const std::vector<Annotation>& items) {
+    s.beginWriteArray("annotations", int(items.size()));
+    for (int i = 0; i < int(items.size()); ++i) {
+        s.setArrayIndex(i);
+        const Annotation& a = items[i];
+        for (const auto& [k, name] : kKinds)
+            if (k == a.kind) s.setValue("kind", QString::fromLatin1(name));
+        QStringList xy;
+        for (const Point& p : a.points)
+            xy << QString::number(p.x, 'g', 17) << QString::number(p.y, 'g', 17);
+        s.setValue("points", xy.join(' '));
+        if (!a.text.isEmpty()) s.setValue("text", a.text);
+    }
+    s.endArray();
+}
+
+std::vector<Annotation> loadAnnotations(QSettings& s) {
+    std::vector<Annotation> out;
+    const int n = s.beginReadArray("annotations");
+    for (int i = 0; i < n; ++i) {
+        s.setArrayIndex(i);
+        Annotation a;
+        bool known = false;
+        for (const auto& [k, name] : kKinds)
+            if (s.value("kind").toString() == QLatin1String(name)) a.kind = k, known = true;
+        const QStringList xy = s.value("points").toString().split(' ', Qt::SkipEmptyParts);
+        bool ok = known && xy.size() == 2 * int(pointCount(a.kind));
+        for (int j = 0; ok && j + 1 < xy.size(); j += 2) {
+            bool okx = false, oky = false;
+            a.points.push_back({xy[j].toDouble(&okx), xy[j + 1].toDouble(&oky)});
+            ok = okx && oky;
+        }
+        a.text = s.value("text").toString();
+        if (ok) out.push_back(std::move(a));
+    }
+    s.endArray();
+    return out;
 }
 
 } // namespace fvr::ui

@@ -20,6 +20,7 @@
 #include <fvr/ui/view_settings.h>
 
 class QPainter;
+class QSettings;
 
 namespace fvr::ui {
 
@@ -36,6 +37,13 @@ struct Annotation {
     std::vector<measure::Point> points;
     QString text; ///< Text: what it says
 };
+
+/** Writes the annotations into group "annotations" of `s` (a saved session): each one's kind,
+ *  points (image fractions, 17 digits) and text. */
+void saveAnnotations(QSettings& s, const std::vector<Annotation>& items);
+/** Reads what saveAnnotations() wrote; an entry of unknown kind or with the wrong number of
+ *  points is left out. */
+std::vector<Annotation> loadAnnotations(QSettings& s);
 
 class MeasureLayer : public QObject {
     Q_OBJECT

@@ -113,6 +113,7 @@ public:
     void rotateBy(double horizontalDeg, double verticalDeg);
     void resetPanZoom();
     void setOverlayVisible(bool on);
+    bool overlayVisible() const { return m_overlay; }
     /** When set, this view shows (own projection - reference) with a symmetric window. */
     void setDifferenceReference(ProjectionView* reference);
     ProjectionView* differenceReference() const { return m_reference; }
