@@ -140,3 +140,56 @@ TEST(DicomExport, NewSeriesNumbersAreTheTimeOfDayAndIncrease) {
     EXPECT_LE(a, 240000); // HHMMSS (bumped by one where two exports share a second)
     EXPECT_NE(newSeriesInstanceUid(), newSeriesInstanceUid());
 }
+
+TEST(DicomExport, OverlayPlaneHoldsItsBitsAndPassesDciodvfy) {
+    // A 20 x 20 image (rows of 20 bits, not whole words) with its diagonal (pixels 21 k) and
+    // pixel 398 on: pixel i is bit i % 16 of word i / 16.
+    ProjectionImage img;
+    img.width = img.height = 20;
+    img.pixelSize = 1.0;
+    img.view = ViewFrame::fromDirUp({0, 1, 0}, {0, 0, 1});
+    img.pixels.assign(400, 1.5f);
+    img.pixels[7] = 3.0f;
+    DicomExportInfo info;
+    info.overlay.bits.assign(400, 0);
+    for (int i = 0; i < 20; ++i) info.overlay.bits[i * 20 + i] = 1;
+    info.overlay.bits[398] = 1;
+    info.overlay.description = "annotations";
+    const auto path = fvr::test::tmpDir() / "projection_overlay.dcm";
+    writeDicomProjection(path, img, info);
+    DcmFileFormat ff;
+    ASSERT_TRUE(ff.loadFile(path.c_str()).good());
+    DcmDataset* ds = ff.getDataset();
+    Uint16 rows = 0, cols = 0, bits = 0;
+    ds->findAndGetUint16(DCM_OverlayRows, rows);
+    ds->findAndGetUint16(DCM_OverlayColumns, cols);
+    ds->findAndGetUint16(DCM_OverlayBitsAllocated, bits);
+    EXPECT_EQ(rows, 20);
+    EXPECT_EQ(cols, 20);
+    EXPECT_EQ(bits, 1);
+    const Uint16* words = nullptr;
+    unsigned long n = 0;
+    ASSERT_TRUE(ds->findAndGetUint16Array(DCM_OverlayData, words, &n).good());
+    ASSERT_EQ(n, 25u); // 400 bits
+    EXPECT_EQ(words[0], 0x0001); // pixel 0
+    EXPECT_EQ(words[1], 0x0020); // pixel 21: bit 5 of word 1
+    EXPECT_EQ(words[2], 0x0400); // pixel 42: bit 10 of word 2
+    EXPECT_EQ(words[3], 0x8000); // pixel 63: bit 15 of word 3
+    EXPECT_EQ(words[24], 0xC000); // pixels 398 and 399 (the diagonal's end)
+    int on = 0;
+    for (unsigned long w = 0; w < n; ++w) on += __builtin_popcount(words[w]);
+    EXPECT_EQ(on, 21);
+    if (fvr::test::runCommand("command -v dciodvfy").status == 0) {
+        const auto r = fvr::test::runCommand("dciodvfy -new '" + path.string() + "' 2>&1");
+        EXPECT_EQ(r.out.find("Error"), std::string::npos) << r.out;
+    }
+    // An overlay of another size is refused, naming the file.
+    info.overlay.bits.resize(399);
+    try {
+        writeDicomProjection(path, img, info);
+        FAIL() << "no error";
+    } catch (const WriteError& e) {
+        EXPECT_NE(std::string(e.what()).find(path.string()), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("overlay"), std::string::npos) << e.what();
+    }
+}

@@ -66,7 +66,8 @@ bool MainWindow::exportProjection(const QString& path) {
         else if (ext == "pfm")
             core::writePfm(out, values.data(), p->height, p->width);
         else if (ext == "png")
-            core::writePng(out, p->pixels.data(), p->height, p->width, m_views[0]->window(), 16);
+            core::writePng(out, withAnnotations(*p).data(), p->height, p->width,
+                           m_views[0]->window(), 16);
         else if (ext == "dcm")
             writeDicomProjection(out);
         else
@@ -151,7 +152,9 @@ void MainWindow::writeDicomProjection(const std::string& path) const {
     core::ProjectionImage image = *p;
     if (const core::Transmission t = currentTransmission(); t.active())
         core::applyTransmission(image.pixels, t);
-    core::writeDicomProjection(path, image, dicomExportInfo());
+    core::DicomExportInfo info = dicomExportInfo();
+    info.overlay = annotationOverlay(image.width, image.height); // view 1's annotations
+    core::writeDicomProjection(path, image, info);
 }
 
 bool MainWindow::exportSweep(const QString& folder, int frames, const core::Vec3& axis) {

@@ -79,6 +79,7 @@ void MainWindow::buildMenus() {
     view->addSeparator();
     buildNavigation(view);
     buildReaderMenus(); // Cine and Study menus (cine_actions.cpp)
+    buildMeasureMenu(); // Measure menu and toolbar (main_window_measure.cpp)
     buildPanelsMenu(view); // after every dock and toolbar exists
     buildHelpMenu();
 }

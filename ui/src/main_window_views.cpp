@@ -42,6 +42,9 @@ void MainWindow::setCompareCount(int n) {
             if (k != m_viewSettings[0].kernel && slot < 4)
                 m_viewSettings[slot++] = {k, m_viewSettings[0].size, m_viewSettings[0].voxelModel};
     }
+    // View 1's annotations stay with view 1 (the others start without).
+    const std::vector<Annotation> notes =
+        m_views.empty() ? std::vector<Annotation>{} : m_views[0]->measure().annotations();
     for (auto* v : m_views) v->deleteLater();
     m_views.clear();
     m_compareCount = n;
@@ -58,6 +61,7 @@ void MainWindow::setCompareCount(int n) {
         if (m_geometry)
             m_geometry->setValues({m_viewSettings[0].projection, m_viewSettings[0].cone});
     }
+    for (const Annotation& a : notes) m_views[0]->measure().add(a);
     updateCompareKernels(true); // Compare again: retries spectra that were not prepared
     // After setStudy (a new view's first study would reset the window to an auto window
     // computed whenever it first paints, losing the user's window or preset).
@@ -126,6 +130,7 @@ ProjectionView* MainWindow::addView(int index, int count, const core::ViewFrame&
             if (o != v) o->setInteracting(on); // synchronised views follow at their own level
     });
     if (count > 1) v->setTitle(viewTitle(index, s));
+    attachMeasure(v);
     m_viewGrid->addWidget(v, index / 2, index % 2);
     return v;
 }

@@ -16,6 +16,7 @@
 #include <fvr/core/xray/display_window.h>
 #include <fvr/gpu/cone_ray_caster.h>
 #include <fvr/gpu/gpu_renderer.h>
+#include <fvr/ui/measure_layer.h>
 
 namespace fvr::ui {
 
@@ -43,6 +44,7 @@ ProjectionView::ProjectionView(QWidget* parent) : QOpenGLWidget(parent) {
     setMouseTracking(false);
     m_view = core::ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0});
     connect(this, &QOpenGLWidget::frameSwapped, this, &ProjectionView::framePresented);
+    m_measure = new MeasureLayer(this);
 }
 
 ProjectionView::~ProjectionView() {
@@ -444,6 +446,7 @@ OverlayState ProjectionView::overlayState() const {
 
 void ProjectionView::drawOverlay() {
     QPainter p(this);
+    m_measure->paint(p); // under the overlay's text
     overlay().paint(p);
 }
 

@@ -33,6 +33,35 @@ std::string patientOrientationOf(const ViewFrame& view, const DicomExportInfo& i
 
 } // namespace
 
+namespace {
+/** Overlay plane 6000 (PS3.3 C.9.2): a graphics overlay of the image's size at its origin, one
+ *  bit per pixel packed into 16-bit words, the first pixel in the lowest bit. */
+void putOverlay(DcmDataset* ds, const DicomOverlay& o, int rows, int cols,
+                const std::filesystem::path& path) {
+    if (o.bits.size() != std::size_t(rows) * std::size_t(cols))
+        failWrite(path, "the overlay is " + std::to_string(o.bits.size()) +
+                            " pixels, not the image's " + std::to_string(rows) + " x " +
+                            std::to_string(cols));
+    std::vector<Uint16> words((o.bits.size() + 15) / 16, 0);
+    for (std::size_t i = 0; i < o.bits.size(); ++i)
+        if (o.bits[i]) words[i / 16] = Uint16(words[i / 16] | (1u << (i % 16)));
+    const Sint16 origin[2] = {1, 1};
+    bool ok = ds->putAndInsertUint16(DCM_OverlayRows, Uint16(rows)).good() &&
+              ds->putAndInsertUint16(DCM_OverlayColumns, Uint16(cols)).good() &&
+              ds->putAndInsertString(DCM_OverlayType, "G").good() &&
+              ds->putAndInsertSint16Array(DCM_OverlayOrigin, origin, 2).good() &&
+              ds->putAndInsertUint16(DCM_OverlayBitsAllocated, 1).good() &&
+              ds->putAndInsertUint16(DCM_OverlayBitPosition, 0).good() &&
+              ds->putAndInsertString(DCM_OverlayDescription, o.description.c_str()).good();
+    auto* data = new DcmOtherByteOtherWord(DcmTag(DCM_OverlayData, EVR_OW));
+    ok = ok && data->putUint16Array(words.data(), unsigned(words.size())).good();
+    if (!ok || ds->insert(data, true).bad()) {
+        delete data; // not in the data set
+        failWrite(path, "cannot store the overlay plane");
+    }
+}
+} // namespace
+
 void writeDicomProjection(const std::filesystem::path& path, const ProjectionImage& image,
                           const DicomExportInfo& info) {
     const int W = image.width, H = image.height;
@@ -83,6 +112,7 @@ void writeDicomProjection(const std::filesystem::path& path, const ProjectionIma
          "up, W x H = "
       << W << " x " << H << " (integer halves)";
     put(DCM_ImageComments, c.str());
+    if (!info.overlay.bits.empty()) putOverlay(ds, info.overlay, H, W, path);
     if (ds->putAndInsertUint16Array(DCM_PixelData, q.stored.data(), q.stored.size()).bad())
         failWrite(path, "cannot store the pixel data");
     writeAtomically(path, [&](const std::filesystem::path& tmp) {

@@ -11,6 +11,7 @@
 #include <fvr/core/dicom/dicom_export.h>
 #include <fvr/core/pacs/pacs.h>
 #include <fvr/core/xray/patient_views.h>
+#include <fvr/ui/measure_layer.h>
 #include <fvr/ui/panels/xray_panel.h>
 #include <fvr/ui/projection_view.h>
 #include <fvr/ui/study.h>
@@ -56,6 +57,13 @@ public:
     StudyController& study() { return *m_study; }
     /** The views on screen (1, 2 or 4); view 0 is the main one. */
     const std::vector<ProjectionView*>& views() const { return m_views; }
+    /** The reader's tool the views' left button draws with (Measure menu and toolbar). */
+    void setMeasureTool(MeasureTool tool);
+    MeasureTool measureTool() const { return m_measureTool; }
+    /** The status bar's value under the cursor (image pixel, value, units). */
+    QString cursorReadout() const;
+    /** Turns or mirrors the image of every view (the views turn together). */
+    void turnImage(measure::Turn t);
     /** Opens a study as the menus do (phantom, file or DICOM folder). */
     void openStudy(const StudySource& source);
     /** Whether a folder of several series asks which one (off: the default series opens,
@@ -266,6 +274,15 @@ private:
     /** View 1 rendered at every frame of one cine turn (progress, Cancel); view 1 is back at
      *  its frame after. Empty when cancelled or failed (the reason in the messages). */
     std::vector<core::ProjectionImage> renderCineTurn(const QString& what);
+    /** The Measure menu and toolbar, the status bar's readout (main_window_measure.cpp). */
+    void buildMeasureMenu();
+    /** A new view draws with the current tool and reports the value under the cursor. */
+    void attachMeasure(ProjectionView* v);
+    /** View 1's image values with its annotations burned in at the value the window shows
+     *  brightest (the 16-bit PNG export). */
+    std::vector<float> withAnnotations(const core::ProjectionImage& image) const;
+    /** View 1's annotations as a DICOM overlay plane of its image (empty: none). */
+    core::DicomOverlay annotationOverlay(int width, int height) const;
     ProjectionView* addView(int index, int count, const core::ViewFrame& frame);
     void connectView(ProjectionView* v);
     /** The status bar's renderer (GPU, CPU, and why) and a view's backend notice. */
@@ -373,6 +390,9 @@ private:
     QProgressBar* m_progress = nullptr;
     QPushButton* m_cancel = nullptr;
     QLabel* m_backend = nullptr;
+    QLabel* m_cursorLabel = nullptr; ///< the value under the cursor
+    MeasureTool m_measureTool = MeasureTool::Pointer;
+    std::map<MeasureTool, QAction*> m_measureActions;
     QMenu* m_recentMenu = nullptr;
     QAction* m_overlayAction = nullptr;
     QAction* m_softwareGpuAction = nullptr;

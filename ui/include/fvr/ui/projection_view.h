@@ -16,6 +16,7 @@
 #include <fvr/core/volume.h>
 #include <fvr/core/xray/polychromatic_cone.h>
 #include <fvr/core/xray/polychromatic_render.h>
+#include <fvr/ui/measure_geometry.h>
 #include <fvr/ui/view_overlay.h>
 #include <fvr/ui/view_settings.h>
 
@@ -30,6 +31,8 @@ struct GpuStageTimes;
 } // namespace fvr::gpu
 
 namespace fvr::ui {
+
+class MeasureLayer;
 
 class ProjectionView : public QOpenGLWidget {
     Q_OBJECT
@@ -110,8 +113,10 @@ public:
     void rotateBy(double horizontalDeg, double verticalDeg);
     void resetPanZoom();
     void setOverlayVisible(bool on);
+    bool overlayVisible() const { return m_overlay; }
     /** When set, this view shows (own projection - reference) with a symmetric window. */
     void setDifferenceReference(ProjectionView* reference);
+    ProjectionView* differenceReference() const { return m_reference; }
     /** Difference mode: the largest |difference| of the frame the view's scale was last taken
      *  from (taken anew when its kernel, size, voxel model, spectrum or effects, or the
      *  reference's, change; not when the view turns); 0 before any difference frame. The main
@@ -168,6 +173,16 @@ public:
     }
     /** Number of frames rendered (tests). */
     int framesRendered() const { return m_frames; }
+    /** The reader's tools on this view: measurements, annotations, the value under the cursor
+     *  and the scale bar (measure_layer.h). */
+    MeasureLayer& measure() const { return *m_measure; }
+    /** Where the image is drawn, in widget coordinates (zoom and pan included). */
+    QRectF imageRectInWidget() const { return imageRect(); }
+    /** Turns or mirrors the displayed image by turning the view (projection_view_measure.cpp):
+     *  a quarter turn about the view direction, or the view from the opposite side (of a
+     *  parallel projection, exactly the mirror image). The orientation labels follow, and the
+     *  annotations move with the image. */
+    void turnImage(measure::Turn t);
 
 signals:
     void viewFrameChanged(const core::ViewFrame& f);
@@ -336,6 +351,7 @@ private:
     bool m_framePending = false; ///< a new frame was painted and is not on screen yet
     int m_pendingLevel = 0;
     int m_frames = 0;
+    MeasureLayer* m_measure = nullptr; ///< a child QObject
 };
 
 } // namespace fvr::ui

@@ -3,7 +3,9 @@
 #include <filesystem>
 #include <string>
 
+#include <cstdint>
 #include <optional>
+#include <vector>
 
 #include <glm/mat3x3.hpp>
 
@@ -18,6 +20,13 @@ namespace fvr::core {
 struct DisplayWindowValues {
     double centre = 0.0, width = 1.0;
     bool inverted = false;
+};
+
+/** An overlay plane (group 6000) over the image: graphics and text as a bitmap that viewers show
+ *  over the image and can hide, leaving the pixel values untouched (annotations). */
+struct DicomOverlay {
+    std::vector<std::uint8_t> bits; ///< rows x cols, row-major, nonzero: on; empty: no overlay
+    std::string description; ///< OverlayDescription, e.g. "annotations"
 };
 
 /** What the exported image says about where it comes from. */
@@ -47,6 +56,8 @@ struct DicomExportInfo {
     std::string seriesInstanceUid;
     int seriesNumber = 0;
     int instanceNumber = 1;
+    /** Written as overlay plane 6000 (the image's size) when not empty. */
+    DicomOverlay overlay;
 };
 
 /** A SeriesNumber for a new export: the UTC time of day as HHMMSS (readable: "series 143205" was
