@@ -18,10 +18,13 @@ namespace fvr::ui {
 
 void MainWindow::buildMeasureMenu() {
     QMenu* menu = menuBar()->addMenu(tr("&Measure"));
-    // Beside the main toolbar (a row of its own would not fit a 960 x 540 screen); what does not
-    // fit the width is behind the toolbar's » button, and all of it is in the Measure menu.
-    QToolBar* tb = addToolBar(tr("Measure"));
+    // A tool palette down the views' left side, as readers know it: the top row is full (the
+    // main and cine toolbars), and a row of its own would not fit a 960 x 540 screen. All of it
+    // is in the Measure menu too.
+    auto* tb = new QToolBar(tr("Measure"), this);
     tb->setObjectName("toolbar.measure");
+    tb->setToolButtonStyle(Qt::ToolButtonTextOnly);
+    addToolBar(Qt::LeftToolBarArea, tb);
     auto* group = new QActionGroup(this);
     const std::tuple<MeasureTool, QString, QString> tools[] = {
         {MeasureTool::Pointer, tr("&Pointer"), tr("Rotate, window and pan (Esc)")},
