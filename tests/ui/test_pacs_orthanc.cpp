@@ -24,6 +24,7 @@
 #include <fvr/ui/pacs_dialog.h>
 #include <fvr/ui/pacs_service.h>
 #include <fvr/ui/pacs_settings.h>
+#include <fvr/ui/panels/study_panel.h>
 
 #include "pacs/orthanc_server.h"
 #include "ui/ui_support.h"
@@ -358,6 +359,13 @@ TEST_F(PacsWorkstation, EnterSearchesOnceAndRetrievesASelectedResult) {
     ASSERT_TRUE(ready.wait(120000)) << d->status()->text().toStdString();
     EXPECT_EQ(inserted, 1); // not searched again
     EXPECT_EQ(window->study().volume()->dims, (core::Dims3{64, 64, 93}));
+    // The Study panel heads with the study's title, not the store folder's UID (one word that
+    // cannot wrap); the UID follows on a line of its own.
+    const QString panel = window->studyPanel()->text();
+    const QString title = window->study().title().toHtmlEscaped();
+    EXPECT_FALSE(title.isEmpty());
+    EXPECT_TRUE(panel.startsWith("<b>" + title + "</b>")) << panel.toStdString();
+    EXPECT_TRUE(panel.contains("<small>UID 1.")) << panel.toStdString();
 }
 
 TEST_F(PacsWorkstation, TestConnectionChecksThatThePacsKnowsOurAeTitle) {
