@@ -382,6 +382,14 @@ TEST_F(PacsWorkstation, TestConnectionChecksThatThePacsKnowsOurAeTitle) {
     EXPECT_TRUE(d->status()->text().contains("the PACS refused our AE title FVRX: "))
         << d->status()->text().toStdString();
     EXPECT_TRUE(window->messages()->toPlainText().contains("refused our AE title FVRX"));
+    // The long status keeps one line (elided, all of it in the tooltip), beside the progress.
+    d->show();
+    ASSERT_TRUE(QTest::qWaitForWindowExposed(d));
+    const QLabel* status = d->status();
+    EXPECT_FALSE(status->wordWrap());
+    EXPECT_EQ(status->toolTip(), status->text());
+    EXPECT_GT(status->fontMetrics().horizontalAdvance(status->text()), status->width());
+    EXPECT_LT(status->height(), 2 * status->fontMetrics().height());
 
     settings(pacs::RetrieveMethod::Get).save();
     d->reloadSettings();

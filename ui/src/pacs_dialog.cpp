@@ -14,6 +14,7 @@
 #include <QLabel>
 #include <QLineEdit>
 #include <QMessageBox>
+#include <QPainter>
 #include <QProgressBar>
 #include <QPushButton>
 #include <QSettings>
@@ -66,6 +67,24 @@ QString studies(int n) {
     return n == 1 ? PacsDialog::tr("1 study") : PacsDialog::tr("%1 studies").arg(n);
 }
 
+/** The status line: one line whatever its length, elided at the right where it does not fit
+ *  (text() and the tooltip keep all of it), so that a long status neither wraps the row nor is
+ *  clipped beside the progress bar. */
+class ElidedLabel : public QLabel {
+public:
+    using QLabel::QLabel;
+    QSize minimumSizeHint() const override { return {0, QLabel::minimumSizeHint().height()}; }
+
+protected:
+    void paintEvent(QPaintEvent*) override {
+        QPainter painter(this);
+        painter.setPen(palette().color(foregroundRole()));
+        const QRect r = contentsRect();
+        painter.drawText(r, int(alignment()) | Qt::TextSingleLine,
+                         fontMetrics().elidedText(text(), Qt::ElideRight, r.width()));
+    }
+};
+
 enum DatePreset { kAnyDate, kToday, kYesterday, kLast7, kLast30, kLast365, kRange };
 
 /** The dates a preset (not kRange) stands for, counted back from `today`: both invalid for any
@@ -108,9 +127,7 @@ PacsDialog::PacsDialog(std::shared_ptr<pacs::LocalStore> store, QWidget* parent)
     m_progress->setVisible(false);
     m_cancel = new QPushButton(tr("Cancel"), this);
     m_cancel->setVisible(false);
-    m_status = new QLabel(this);
-    m_status->setWordWrap(true);
-    m_status->setTextInteractionFlags(Qt::TextSelectableByMouse);
+    m_status = new ElidedLabel(this);
     bottom->addWidget(m_status, 1);
     bottom->addWidget(m_progress);
     bottom->addWidget(m_cancel);
@@ -627,6 +644,7 @@ void PacsDialog::resumeLocal() {
 
 void PacsDialog::setStatus(const QString& t, bool error) {
     m_status->setText(t);
+    m_status->setToolTip(t); // all of it, where the line is elided
     m_status->setStyleSheet(error ? QStringLiteral("color: #c0392b") : QString());
     if (error) emit message(t, true);
 }
