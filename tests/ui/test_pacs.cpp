@@ -206,6 +206,22 @@ TEST_F(Workstation, PacsQueryFormGivesTheDicomQuery) {
     EXPECT_EQ(q.modality, "CT");
 }
 
+TEST_F(Workstation, PacsGreyedDateFieldsShowWhatThePresetSearches) {
+    ui::PacsSettings s;
+    s.nodes = {node("Hospital", "ORTHANC", 4242, pacs::RetrieveMethod::Get)};
+    s.save();
+    ui::PacsDialog* d = window->pacsDialog();
+    const QDate today = QDate::currentDate();
+    d->datePresetCombo()->setCurrentIndex(1); // today
+    EXPECT_FALSE(d->dateFromEdit()->isEnabled());
+    EXPECT_EQ(d->dateFromEdit()->date(), today); // not a week back
+    EXPECT_EQ(d->dateToEdit()->date(), today);
+    d->datePresetCombo()->setCurrentIndex(4); // last 30 days
+    EXPECT_EQ(d->dateFromEdit()->date(), today.addDays(-29));
+    EXPECT_EQ(d->dateToEdit()->date(), today);
+    EXPECT_EQ(d->query().dateFrom, date(today.addDays(-29)));
+}
+
 TEST_F(Workstation, ProjectionExportsAsDicomSecondaryCaptureWithItsValues) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(48)));
     const auto p = window->views()[0]->projection();

@@ -6,8 +6,11 @@
 #include <QElapsedTimer>
 #include <QLabel>
 #include <QLineEdit>
+#include <QMessageBox>
 #include <QProgressBar>
 #include <QPushButton>
+#include <QTabWidget>
+#include <QTimer>
 #include <QTreeWidget>
 
 #include <algorithm>
@@ -21,6 +24,7 @@
 #include <fvr/ui/pacs_dialog.h>
 #include <fvr/ui/pacs_service.h>
 #include <fvr/ui/pacs_settings.h>
+#include <fvr/ui/panels/study_panel.h>
 
 #include "pacs/orthanc_server.h"
 #include "ui/ui_support.h"
@@ -82,6 +86,32 @@ protected:
     int listenPort = 0;
     std::unique_ptr<test::OrthancServer> orthanc;
 };
+
+/** Answers the next modal box with `answer` (a QMessageBox named `name`, or any other modal
+ *  dialog when `name` is empty: accepted), polling for up to 20 s; `*asked` tells it came. */
+void answerModal(const QString& name, QMessageBox::StandardButton answer, bool* asked,
+                 int tries = 400) {
+    QTimer::singleShot(50, [=] {
+        QWidget* w = QApplication::activeModalWidget();
+        auto* box = qobject_cast<QMessageBox*>(w);
+        if (!w || (name.isEmpty() ? box != nullptr : (!box || box->objectName() != name))) {
+            if (tries > 0) answerModal(name, answer, asked, tries - 1);
+            return;
+        }
+        *asked = true;
+        if (box)
+            box->button(answer)->click();
+        else
+            QMetaObject::invokeMethod(w, "accept");
+    });
+}
+
+/** The dialog's button labelled `label`. */
+QPushButton* buttonNamed(QWidget& d, const QString& label) {
+    for (QPushButton* b : d.findChildren<QPushButton*>())
+        if (b->text() == label) return b;
+    return nullptr;
+}
 
 /** Clicks `b` and waits until the dialog's network job ended. */
 bool clickAndWait(ui::PacsDialog& d, QPushButton* b) {
@@ -228,4 +258,202 @@ TEST_F(PacsWorkstation, CancelOnAFrozenPacsSaysCancelledWithinASecond) {
     EXPECT_TRUE(d->status()->text().contains("cancelled")) << d->status()->text().toStdString();
     EXPECT_FALSE(d->status()->text().contains("failed")) << d->status()->text().toStdString();
     EXPECT_LT(seconds, 2.0); // the spec: 1 s, with a margin
+}
+
+TEST_F(PacsWorkstation, LocalStudiesDeleteAsksThenRemovesFilesAndEntry) {
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    d->show();
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
+    const auto entries = window->pacs().store()->studies();
+    ASSERT_EQ(entries.size(), 1u);
+    const fs::path folder = entries[0].folder;
+    ASSERT_TRUE(fs::exists(folder));
+    d->tabs()->setCurrentIndex(1);
+    QTreeWidget* local = d->localStudies();
+    ASSERT_EQ(local->topLevelItemCount(), 1);
+    local->setCurrentItem(local->topLevelItem(0));
+    local->setFocus();
+    // The context menu offers it, with the Delete key.
+    bool inMenu = false;
+    for (QAction* a : local->actions())
+        inMenu = inMenu || (a->text().startsWith("Delete") &&
+                            a->shortcut() == QKeySequence(QKeySequence::Delete));
+    EXPECT_TRUE(inMenu);
+
+    // The Delete key asks; No keeps everything.
+    bool asked = false;
+    answerModal("confirmDelete", QMessageBox::No, &asked);
+    QTest::keyClick(local, Qt::Key_Delete);
+    ASSERT_TRUE(QTest::qWaitFor([&] { return asked; }, 20000));
+    EXPECT_TRUE(fs::exists(folder));
+    EXPECT_EQ(local->topLevelItemCount(), 1);
+    EXPECT_TRUE(window->pacs().store()->find(entries[0].study.studyUid));
+
+    // The button asks too; Yes removes the files and the index entry.
+    asked = false;
+    answerModal("confirmDelete", QMessageBox::Yes, &asked);
+    d->deleteLocalButton()->click();
+    ASSERT_TRUE(asked);
+    EXPECT_FALSE(fs::exists(folder));
+    EXPECT_EQ(local->topLevelItemCount(), 0);
+    EXPECT_FALSE(window->pacs().store()->find(entries[0].study.studyUid));
+    EXPECT_TRUE(d->status()->text().startsWith("Deleted")) << d->status()->text().toStdString();
+    EXPECT_EQ(d->results()->topLevelItem(0)->text(7), ""); // nothing of it is local now
+}
+
+TEST_F(PacsWorkstation, ListenerOnAndOffFromTheDialogTakesEffectAtOnce) {
+    ui::PacsSettings s = settings(pacs::RetrieveMethod::Move); // listener on
+    s.save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    d->show();
+    EXPECT_FALSE(window->pacs().listening());
+    bool asked = false;
+    answerModal(QString(), QMessageBox::Ok, &asked); // Edit nodes… accepted as it is
+    d->editNodesButton()->click();
+    ASSERT_TRUE(asked);
+    EXPECT_TRUE(window->pacs().listening());
+    const QString port = QString::number(listenPort);
+    EXPECT_TRUE(window->messages()->toPlainText().contains("listening on port " + port))
+        << window->messages()->toPlainText().toStdString();
+    // It really listens: a C-MOVE to it brings the study.
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
+
+    s.listen = false;
+    s.save();
+    asked = false;
+    answerModal(QString(), QMessageBox::Ok, &asked);
+    d->editNodesButton()->click();
+    ASSERT_TRUE(asked);
+    EXPECT_FALSE(window->pacs().listening());
+    EXPECT_TRUE(window->messages()->toPlainText().contains("Storage listener stopped"));
+}
+
+TEST_F(PacsWorkstation, EnterSearchesOnceAndRetrievesASelectedResult) {
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    d->show();
+    // Each search fills the results anew: one search inserts the one study once.
+    int inserted = 0;
+    QObject::connect(d->results()->model(), &QAbstractItemModel::rowsInserted, d,
+                     [&](const QModelIndex& parent) { inserted += parent.isValid() ? 0 : 1; });
+    d->patientNameEdit()->setFocus();
+    QTest::keyClick(d->patientNameEdit(), Qt::Key_Return);
+    ASSERT_TRUE(QTest::qWaitFor([&] { return !d->busy(); }, 60000));
+    QTest::qWait(500); // a second search, if one was sent, ends meanwhile
+    ASSERT_TRUE(QTest::qWaitFor([&] { return !d->busy(); }, 60000));
+    EXPECT_EQ(inserted, 1);
+    ASSERT_EQ(d->results()->topLevelItemCount(), 1);
+    EXPECT_EQ(d->status()->text(), "1 study found on Test PACS");
+
+    // Enter on the selected result retrieves and opens it.
+    QSignalSpy ready(&window->study(), &ui::StudyController::spectrumReady);
+    d->results()->setCurrentItem(d->results()->topLevelItem(0));
+    d->results()->setFocus();
+    QTest::keyClick(d->results(), Qt::Key_Return);
+    ASSERT_TRUE(ready.wait(120000)) << d->status()->text().toStdString();
+    EXPECT_EQ(inserted, 1); // not searched again
+    EXPECT_EQ(window->study().volume()->dims, (core::Dims3{64, 64, 93}));
+    // The Study panel heads with the study's title, not the store folder's UID (one word that
+    // cannot wrap); the UID follows on a line of its own.
+    const QString panel = window->studyPanel()->text();
+    const QString title = window->study().title().toHtmlEscaped();
+    EXPECT_FALSE(title.isEmpty());
+    EXPECT_TRUE(panel.startsWith("<b>" + title + "</b>")) << panel.toStdString();
+    EXPECT_TRUE(panel.contains("<small>UID 1.")) << panel.toStdString();
+}
+
+TEST_F(PacsWorkstation, TestConnectionChecksThatThePacsKnowsOurAeTitle) {
+    // Orthanc as installed: C-ECHO from anyone, C-FIND only from the nodes it knows (FVRUI).
+    orthanc.reset();
+    orthanc = std::make_unique<test::OrthancServer>(dir / "orthanc-echo", kOurAe, listenPort,
+                                                    nlohmann::json{{"DicomAlwaysAllowEcho", true}});
+    ui::PacsSettings s = settings(pacs::RetrieveMethod::Get);
+    s.local.aeTitle = "FVRX";
+    s.save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    ASSERT_TRUE(clickAndWait(*d, d->echoButton()));
+    EXPECT_TRUE(d->status()->text().contains("the PACS refused our AE title FVRX: "))
+        << d->status()->text().toStdString();
+    EXPECT_TRUE(window->messages()->toPlainText().contains("refused our AE title FVRX"));
+    // The long status keeps one line (elided, all of it in the tooltip), beside the progress.
+    d->show();
+    ASSERT_TRUE(QTest::qWaitForWindowExposed(d));
+    const QLabel* status = d->status();
+    EXPECT_FALSE(status->wordWrap());
+    EXPECT_EQ(status->toolTip(), status->text());
+    EXPECT_GT(status->fontMetrics().horizontalAdvance(status->text()), status->width());
+    EXPECT_LT(status->height(), 2 * status->fontMetrics().height());
+
+    settings(pacs::RetrieveMethod::Get).save();
+    d->reloadSettings();
+    ASSERT_TRUE(clickAndWait(*d, d->echoButton()));
+    EXPECT_TRUE(d->status()->text().contains("accepts FVRUI as our AE title"))
+        << d->status()->text().toStdString();
+    EXPECT_TRUE(window->messages()->toPlainText().contains("accepts FVRUI as our AE title"))
+        << window->messages()->toPlainText().toStdString(); // a success reaches Messages too
+}
+
+TEST_F(PacsWorkstation, ResumeUsesTheStudysOwnNodeAndResultsGoWithTheNode) {
+    ui::PacsSettings s = settings(pacs::RetrieveMethod::Get);
+    pacs::Node wrong = s.nodes[0];
+    wrong.name = "Wrong PACS";
+    wrong.calledAe = "NOSUCHAE"; // Orthanc refuses it
+    s.nodes.push_back(wrong);
+    s.save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    d->nodeCombo()->setCurrentIndex(d->nodeCombo()->findData("Test PACS"));
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
+    // Made partial: a retrieve that did not finish, 20 images gone.
+    auto store = window->pacs().store();
+    const auto entry = store->studies().at(0);
+    store->beginRetrieve(entry.study, "");
+    store->finishRetrieve(entry.study.studyUid, "", false);
+    int removed = 0;
+    for (const auto& f : fs::directory_iterator(entry.series.at(0).folder))
+        if (removed < 20 && fs::remove(f.path())) ++removed;
+    ASSERT_EQ(removed, 20);
+
+    d->nodeCombo()->setCurrentIndex(d->nodeCombo()->findData("Wrong PACS"));
+    EXPECT_EQ(d->results()->topLevelItemCount(), 0); // the other node's results went
+    buttonNamed(*d, "Refresh")->click();
+    QTreeWidget* local = d->localStudies();
+    ASSERT_EQ(local->topLevelItemCount(), 1);
+    EXPECT_EQ(local->topLevelItem(0)->text(3), "73");
+    local->setCurrentItem(local->topLevelItem(0));
+    QSignalSpy ready(&window->study(), &ui::StudyController::spectrumReady);
+    ASSERT_TRUE(clickAndWait(*d, d->resumeLocalButton()));
+    EXPECT_TRUE(d->status()->text().contains("Retrieved")) << d->status()->text().toStdString();
+    const auto after = store->find(entry.study.studyUid);
+    ASSERT_TRUE(after);
+    EXPECT_TRUE(after->complete);
+    EXPECT_EQ(after->instances, 93);
+    EXPECT_EQ(after->source, "Test PACS");
+}
+
+TEST_F(PacsWorkstation, ASearchDuringARetrieveKeepsTheRetrievesStatus) {
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_EQ(d->results()->topLevelItemCount(), 1);
+    d->results()->setCurrentItem(d->results()->topLevelItem(0));
+    orthanc->stop(); // the retrieve hangs: it is still running when the search starts
+    d->retrieveButton()->click();
+    const QString retrieving = d->status()->text();
+    EXPECT_TRUE(retrieving.startsWith("Retrieving")) << retrieving.toStdString();
+    d->searchButton()->click();
+    EXPECT_EQ(d->status()->text(), retrieving);
+    d->cancelButton()->click();
+    const bool ended = QTest::qWaitFor([&] { return !d->busy(); }, 60000);
+    orthanc->cont();
+    ASSERT_TRUE(ended || QTest::qWaitFor([&] { return !d->busy(); }, 60000));
 }

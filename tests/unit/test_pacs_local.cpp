@@ -417,3 +417,25 @@ TEST(PacsLocalStore, AReceivedStudyIsCompleteWhenAllItsSeriesAre) {
     EXPECT_TRUE(entry->complete);
     EXPECT_EQ(entry->study.patientName, "DOE^JANE");
 }
+
+// The user's Delete: refused while a retrieve runs on the study (saying so), then the study's
+// entry and files go; its source node (for Resume) is kept in the index until then.
+TEST(PacsLocalStore, DeleteStudyRefusesARunningRetrieveThenRemovesEntryAndFiles) {
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-delete";
+    fs::remove_all(root);
+    LocalStore store(root);
+    store.beginRetrieve(study("1.2.7"), "");
+    const SeriesRecord series{"1.2.7.1", "CT", "head", 1, 1};
+    const fs::path file = store.storeInstance(study("1.2.7"), series, "1.2.7.1.1", "DICM-a").path;
+    store.setSource("1.2.7", "Main PACS");
+    EXPECT_NE(errorOf([&] { store.deleteStudy("1.2.7"); }).find("is being retrieved"),
+              std::string::npos);
+    EXPECT_TRUE(fs::exists(file)); // nothing removed
+    store.finishRetrieve("1.2.7", "", false);
+    EXPECT_EQ(LocalStore(root).find("1.2.7")->source, "Main PACS"); // read back from disk
+    store.deleteStudy("1.2.7");
+    EXPECT_FALSE(store.find("1.2.7"));
+    EXPECT_FALSE(fs::exists(root / "1.2.7"));
+    EXPECT_NE(errorOf([&] { store.deleteStudy("1.2.7"); }).find("is not in the local store"),
+              std::string::npos);
+}

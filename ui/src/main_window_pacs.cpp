@@ -47,6 +47,11 @@ PacsDialog* MainWindow::pacsDialog() {
         connect(m_pacsDialog, &PacsDialog::openRequested, this,
                 [this](const QString& folder) { openStudy(StudySource::fromPath(folder)); });
         connect(m_pacsDialog, &PacsDialog::message, this, &MainWindow::message);
+        connect(m_pacsDialog, &PacsDialog::settingsChanged, this, [this] {
+            bool ok = true; // the listener on or off at once, not at the next start
+            const QString what = m_pacs->applyListener(PacsSettings::load(), &ok);
+            if (!what.isEmpty()) message(what, !ok);
+        });
     }
     return m_pacsDialog;
 }

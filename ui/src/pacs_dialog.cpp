@@ -1,6 +1,7 @@
 // File ▸ PACS…: query, retrieve with progress and cancel, local studies.
 #include <fvr/ui/pacs_dialog.h>
 
+#include <QAction>
 #include <QComboBox>
 #include <QCoreApplication>
 #include <QDate>
@@ -9,8 +10,11 @@
 #include <QFormLayout>
 #include <QHBoxLayout>
 #include <QHeaderView>
+#include <QKeyEvent>
 #include <QLabel>
 #include <QLineEdit>
+#include <QMessageBox>
+#include <QPainter>
 #include <QProgressBar>
 #include <QPushButton>
 #include <QSettings>
@@ -33,7 +37,15 @@ namespace {
 
 namespace pacs = core::pacs;
 
-enum Role { kStudyUid = Qt::UserRole, kSeriesUid, kSeriesLoaded, kFolder, kComplete };
+enum Role {
+    kStudyUid = Qt::UserRole,
+    kSeriesUid,
+    kSeriesLoaded,
+    kFolder,
+    kComplete,
+    kIncoming, ///< Local studies: in the Incoming area (sent to the listener unasked)
+    kSource ///< Local studies: the node it was retrieved from, "" when unknown
+};
 enum ResultColumn {
     kPatient,
     kPatientId,
@@ -50,7 +62,43 @@ QString text(const std::string& s) { return QString::fromStdString(s); }
 
 QString count(int n) { return n >= 0 ? QString::number(n) : QString(); }
 
+/** "1 study", "2 studies". */
+QString studies(int n) {
+    return n == 1 ? PacsDialog::tr("1 study") : PacsDialog::tr("%1 studies").arg(n);
+}
+
+/** The status line: one line whatever its length, elided at the right where it does not fit
+ *  (text() and the tooltip keep all of it), so that a long status neither wraps the row nor is
+ *  clipped beside the progress bar. */
+class ElidedLabel : public QLabel {
+public:
+    using QLabel::QLabel;
+    QSize minimumSizeHint() const override { return {0, QLabel::minimumSizeHint().height()}; }
+
+protected:
+    void paintEvent(QPaintEvent*) override {
+        QPainter painter(this);
+        painter.setPen(palette().color(foregroundRole()));
+        const QRect r = contentsRect();
+        painter.drawText(r, int(alignment()) | Qt::TextSingleLine,
+                         fontMetrics().elidedText(text(), Qt::ElideRight, r.width()));
+    }
+};
+
 enum DatePreset { kAnyDate, kToday, kYesterday, kLast7, kLast30, kLast365, kRange };
+
+/** The dates a preset (not kRange) stands for, counted back from `today`: both invalid for any
+ *  date. */
+std::pair<QDate, QDate> presetDates(int preset, const QDate& today) {
+    switch (preset) {
+    case kToday: return {today, today};
+    case kYesterday: return {today.addDays(-1), today.addDays(-1)};
+    case kLast7: return {today.addDays(-6), today};
+    case kLast30: return {today.addDays(-29), today};
+    case kLast365: return {today.addDays(-364), today};
+    default: return {};
+    }
+}
 
 } // namespace
 
@@ -63,10 +111,11 @@ PacsDialog::PacsDialog(std::shared_ptr<pacs::LocalStore> store, QWidget* parent)
     m_node->setMinimumContentsLength(24);
     nodeRow->addWidget(new QLabel(tr("PACS node"), this));
     nodeRow->addWidget(m_node, 1);
-    auto* edit = new QPushButton(tr("Edit nodes…"), this);
+    m_editNodes = new QPushButton(tr("Edit nodes…"), this);
     m_echo = new QPushButton(tr("Test connection"), this);
-    m_echo->setToolTip(tr("C-ECHO: whether the node answers and accepts our AE title"));
-    nodeRow->addWidget(edit);
+    m_echo->setToolTip(tr("C-ECHO, then a C-FIND on a key no study has: whether the node "
+                          "answers and knows our AE title"));
+    nodeRow->addWidget(m_editNodes);
     nodeRow->addWidget(m_echo);
     layout->addLayout(nodeRow);
     m_tabs = new QTabWidget(this);
@@ -78,18 +127,17 @@ PacsDialog::PacsDialog(std::shared_ptr<pacs::LocalStore> store, QWidget* parent)
     m_progress->setVisible(false);
     m_cancel = new QPushButton(tr("Cancel"), this);
     m_cancel->setVisible(false);
-    m_status = new QLabel(this);
-    m_status->setWordWrap(true);
-    m_status->setTextInteractionFlags(Qt::TextSelectableByMouse);
+    m_status = new ElidedLabel(this);
     bottom->addWidget(m_status, 1);
     bottom->addWidget(m_progress);
     bottom->addWidget(m_cancel);
     layout->addLayout(bottom);
 
-    connect(edit, &QPushButton::clicked, this, [this] {
+    connect(m_editNodes, &QPushButton::clicked, this, [this] {
         PacsNodesDialog d(PacsSettings::load(), this);
         if (d.exec() != QDialog::Accepted) return;
         d.settings().save();
+        emit settingsChanged(); // the listener follows them at once (MainWindow)
         reloadSettings();
     });
     connect(m_echo, &QPushButton::clicked, this, &PacsDialog::testConnection);
@@ -99,6 +147,11 @@ PacsDialog::PacsDialog(std::shared_ptr<pacs::LocalStore> store, QWidget* parent)
     });
     connect(m_node, &QComboBox::currentTextChanged, this, [](const QString& name) {
         if (!name.isEmpty()) QSettings().setValue(keys::kPacsLastNode, name);
+    });
+    // The results are another node's: they go with it (a retrieve would ask the new node).
+    connect(m_node, &QComboBox::currentIndexChanged, this, [this] {
+        m_results->clear();
+        updateButtons();
     });
     reloadSettings();
     refreshLocal();
@@ -167,15 +220,17 @@ QWidget* PacsDialog::buildQueryForm() {
     m_modality->addItems({tr("Any"), "CT", "MR", "CR", "DX", "XA", "PT", "NM", "US", "OT"});
     form->addRow(tr("Modality"), m_modality);
     m_search = new QPushButton(tr("Search"), box);
-    m_search->setDefault(true);
     form->addRow(QString(), m_search);
     connect(m_datePreset, &QComboBox::currentIndexChanged, this, [this](int i) {
         m_dateFrom->setEnabled(i == kRange);
         m_dateTo->setEnabled(i == kRange);
+        // The greyed fields show what the preset searches (any date: they keep their dates).
+        const auto [from, to] = presetDates(i, QDate::currentDate());
+        if (from.isValid()) m_dateFrom->setDate(from), m_dateTo->setDate(to);
     });
+    // Enter in a field searches through keyPressEvent() (once: the fields pass it on, and no
+    // button is the dialog's default).
     connect(m_search, &QPushButton::clicked, this, &PacsDialog::search);
-    for (QLineEdit* e : {m_patientName, m_patientId, m_accession})
-        connect(e, &QLineEdit::returnPressed, this, &PacsDialog::search);
     return box;
 }
 
@@ -196,11 +251,24 @@ QWidget* PacsDialog::buildLocalTab() {
     m_resumeLocal = new QPushButton(tr("Resume retrieve"), tab);
     m_resumeLocal->setToolTip(tr("Retrieves what is missing of a partial study from the node"));
     m_openLocal = new QPushButton(tr("Open"), tab);
+    m_deleteLocal = new QPushButton(tr("Delete…"), tab);
+    m_deleteLocal->setToolTip(tr("Removes the study's files and its entry from the local store "
+                                 "(Delete key; also in the list's context menu)"));
     row->addWidget(refresh);
+    row->addWidget(m_deleteLocal);
     row->addStretch(1);
     row->addWidget(m_resumeLocal);
     row->addWidget(m_openLocal);
     layout->addLayout(row);
+    // The context menu: the buttons' actions; Delete as a key of the list's own.
+    m_local->setContextMenuPolicy(Qt::ActionsContextMenu);
+    m_local->addAction(tr("Open"), this, &PacsDialog::openLocal);
+    m_local->addAction(tr("Resume retrieve"), this, &PacsDialog::resumeLocal);
+    QAction* del = m_local->addAction(tr("Delete…"), this, [this] { deleteSelectedLocal(); });
+    del->setShortcut(QKeySequence::Delete);
+    del->setShortcutContext(Qt::WidgetShortcut);
+    connect(m_deleteLocal, &QPushButton::clicked, this, [this] { deleteSelectedLocal(); });
+    m_local->installEventFilter(this);
     connect(refresh, &QPushButton::clicked, this, &PacsDialog::refreshLocal);
     connect(m_openLocal, &QPushButton::clicked, this, &PacsDialog::openLocal);
     connect(m_resumeLocal, &QPushButton::clicked, this, &PacsDialog::resumeLocal);
@@ -255,11 +323,38 @@ void PacsDialog::testConnection() {
     setStatus(tr("Testing %1…").arg(text(n.name)));
     run([n, local](core::CancelToken&) { pacs::echo(n, local); },
         [this, n](const std::optional<JobError>& error) {
-            if (!error)
-                setStatus(tr("%1 answers (C-ECHO) and accepts %2 as our AE title.")
-                              .arg(text(n.name), text(m_settings.local.aeTitle)));
-            else
+            if (error)
                 setStatus(tr("%1: %2").arg(text(n.name), error->message), true);
+            else
+                verifyAeTitle(n);
+        });
+}
+
+void PacsDialog::verifyAeTitle(const pacs::Node& n) {
+    // A PACS answers C-ECHO from anyone (Orthanc's default), but searches and retrieves only
+    // for the AE titles it knows: a C-FIND on a patient ID no study has tells which.
+    const pacs::LocalAe local = m_settings.local;
+    const QString ae = text(local.aeTitle);
+    setStatus(
+        tr("%1 answers (C-ECHO); asking whether it knows %2 (C-FIND)…").arg(text(n.name), ae));
+    run(
+        [n, local](core::CancelToken&) {
+            pacs::StudyQuery q;
+            q.patientId = "FVR-CONNECTION-TEST"; // no study has it: the answer is empty
+            pacs::findStudies(n, local, q);
+        },
+        [this, n, ae](const std::optional<JobError>& error) {
+            if (error) {
+                setStatus(tr("%1 answers C-ECHO, but the PACS refused our AE title %2: %3 (the "
+                             "PACS must list %2 among its nodes)")
+                              .arg(text(n.name), ae, error->message),
+                          true);
+                return;
+            }
+            const QString ok = tr("%1 answers (C-ECHO) and accepts %2 as our AE title (C-FIND).")
+                                   .arg(text(n.name), ae);
+            setStatus(ok);
+            emit message(ok, false);
         });
 }
 
@@ -271,17 +366,8 @@ core::pacs::StudyQuery PacsDialog::query() const {
     const QString modality = m_modality->currentText().trimmed();
     if (m_modality->currentIndex() != 0 || modality != m_modality->itemText(0))
         q.modality = modality.toUpper().toStdString();
-    const QDate today = QDate::currentDate();
-    QDate from, to = today;
-    switch (m_datePreset->currentIndex()) {
-    case kToday: from = today; break;
-    case kYesterday: from = to = today.addDays(-1); break;
-    case kLast7: from = today.addDays(-6); break;
-    case kLast30: from = today.addDays(-29); break;
-    case kLast365: from = today.addDays(-364); break;
-    case kRange: from = m_dateFrom->date(), to = m_dateTo->date(); break;
-    default: to = QDate(); break;
-    }
+    auto [from, to] = presetDates(m_datePreset->currentIndex(), QDate::currentDate());
+    if (m_datePreset->currentIndex() == kRange) from = m_dateFrom->date(), to = m_dateTo->date();
     if (from.isValid()) q.dateFrom = from.toString(QStringLiteral("yyyyMMdd")).toStdString();
     if (to.isValid()) q.dateTo = to.toString(QStringLiteral("yyyyMMdd")).toStdString();
     return q;
@@ -294,16 +380,23 @@ void PacsDialog::search() {
     const pacs::LocalAe local = m_settings.local;
     const pacs::StudyQuery q = query();
     auto found = std::make_shared<std::vector<pacs::StudyRecord>>();
-    setStatus(tr("Searching %1…").arg(text(n.name)));
+    // A retrieve keeps the status line (its progress): the search speaks through the results,
+    // and its failure through Messages.
+    if (!m_retrieving) setStatus(tr("Searching %1…").arg(text(n.name)));
     m_results->clear();
     run([n, local, q, found](core::CancelToken&) { *found = pacs::findStudies(n, local, q); },
         [this, n, found](const std::optional<JobError>& error) {
             if (error) {
-                setStatus(tr("Search on %1 failed: %2").arg(text(n.name), error->message), true);
+                const QString why = tr("Search on %1 failed: %2").arg(text(n.name), error->message);
+                if (m_retrieving)
+                    emit message(why, true);
+                else
+                    setStatus(why, true);
                 return;
             }
             showStudies(*found);
-            setStatus(tr("%n study(s) found on %1", nullptr, int(found->size())).arg(text(n.name)));
+            if (!m_retrieving)
+                setStatus(tr("%1 found on %2").arg(studies(int(found->size())), text(n.name)));
         });
 }
 
@@ -432,7 +525,12 @@ void PacsDialog::retrieve(const pacs::Node& n, const std::string& studyUid,
             // What the store has stays: a complete study opens from it, Resume takes the rest.
             *done = pacs::retrieveMissing(n, local, studyUid, seriesUid, *store, progress, &token);
         },
-        [this, label, done](const std::optional<JobError>& error) {
+        [this, label, done, studyUid, source = n.name](const std::optional<JobError>& error) {
+            try { // for Resume: the node it came from (nothing when no entry was begun)
+                m_store->setSource(studyUid, source);
+            } catch (const std::exception& e) {
+                emit message(QString::fromUtf8(e.what()), true);
+            }
             for (const std::string& problem : m_store->takeTextProblems())
                 emit message(QString::fromStdString(problem), true);
             m_retrieving = false;
@@ -490,6 +588,8 @@ void PacsDialog::refreshLocal() {
             item->setData(0, kStudyUid, text(e.study.studyUid));
             item->setData(0, kFolder, QString::fromStdString(e.folder.string()));
             item->setData(0, kComplete, e.complete);
+            item->setData(0, kIncoming, e.area == pacs::Area::Incoming);
+            item->setData(0, kSource, text(e.source));
             for (const pacs::LocalStore::SeriesEntry& s : e.series) {
                 auto* child = new QTreeWidgetItem(item);
                 child->setText(kLocalPatient, text(s.modality));
@@ -500,6 +600,8 @@ void PacsDialog::refreshLocal() {
                 child->setData(0, kSeriesUid, text(s.seriesUid));
                 child->setData(0, kFolder, QString::fromStdString(s.folder.string()));
                 child->setData(0, kComplete, s.complete);
+                child->setData(0, kIncoming, e.area == pacs::Area::Incoming);
+                child->setData(0, kSource, text(e.source));
             }
         }
     } catch (const std::exception& e) {
@@ -522,9 +624,19 @@ void PacsDialog::openLocal() {
 
 void PacsDialog::resumeLocal() {
     const auto selected = m_local->selectedItems();
-    const pacs::Node* node = currentNode();
-    if (selected.isEmpty() || !node || m_retrieving) return;
+    if (selected.isEmpty() || m_retrieving) return;
     const QTreeWidgetItem* item = selected.front();
+    // The node the study came from, not the dropdown's; the dropdown's when the store does not
+    // know it (received by the listener, or retrieved before the store recorded it).
+    const QString source = item->data(0, kSource).toString();
+    const pacs::Node* node = source.isEmpty() ? currentNode() : m_settings.node(source);
+    if (!node) {
+        setStatus(tr("This study came from the node %1, which is no longer in the settings: "
+                     "Edit nodes… adds it again.")
+                      .arg(source),
+                  true);
+        return;
+    }
     const QTreeWidgetItem* study = item->parent() ? item->parent() : item;
     retrieve(*node, item->data(0, kStudyUid).toString().toStdString(),
              item->data(0, kSeriesUid).toString().toStdString(), study->text(kLocalPatient));
@@ -532,6 +644,7 @@ void PacsDialog::resumeLocal() {
 
 void PacsDialog::setStatus(const QString& t, bool error) {
     m_status->setText(t);
+    m_status->setToolTip(t); // all of it, where the line is elided
     m_status->setStyleSheet(error ? QStringLiteral("color: #c0392b") : QString());
     if (error) emit message(t, true);
 }
@@ -543,8 +656,79 @@ void PacsDialog::updateButtons() {
     m_retrieve->setEnabled(haveNode && !m_retrieving && !m_results->selectedItems().isEmpty());
     const auto local = m_local->selectedItems();
     const bool complete = !local.isEmpty() && local.front()->data(0, kComplete).toBool();
+    const bool knownSource =
+        !local.isEmpty() && !local.front()->data(0, kSource).toString().isEmpty();
     m_openLocal->setEnabled(complete);
-    m_resumeLocal->setEnabled(haveNode && !m_retrieving && !local.isEmpty() && !complete);
+    m_resumeLocal->setEnabled((haveNode || knownSource) && !m_retrieving && !local.isEmpty() &&
+                              !complete);
+    m_deleteLocal->setEnabled(!local.isEmpty());
+}
+
+void PacsDialog::deleteSelectedLocal(bool confirm) {
+    const auto selected = m_local->selectedItems();
+    if (selected.isEmpty()) return;
+    const QTreeWidgetItem* study =
+        selected.front()->parent() ? selected.front()->parent() : selected.front();
+    const std::string uid = study->data(0, kStudyUid).toString().toStdString();
+    const pacs::Area area =
+        study->data(0, kIncoming).toBool() ? pacs::Area::Incoming : pacs::Area::Studies;
+    const QString label =
+        tr("%1, %2 (%3 images)")
+            .arg(study->text(kLocalPatient), study->text(kLocalDate), study->text(kLocalImages));
+    if (area == pacs::Area::Studies && m_store->retrieving(uid)) {
+        setStatus(tr("%1 is being retrieved: Cancel the retrieve (or let it end) before deleting "
+                     "it.")
+                      .arg(label),
+                  true);
+        return;
+    }
+    if (confirm) {
+        QMessageBox ask(
+            QMessageBox::Question, tr("Delete local study"),
+            tr("Delete %1 from the local store? Its files are removed from %2.")
+                .arg(label, QDir::toNativeSeparators(study->data(0, kFolder).toString())),
+            QMessageBox::Yes | QMessageBox::No, this);
+        ask.setObjectName(QStringLiteral("confirmDelete"));
+        ask.setDefaultButton(QMessageBox::No);
+        if (ask.exec() != QMessageBox::Yes) return;
+    }
+    try {
+        m_store->deleteStudy(uid, area);
+        setStatus(tr("Deleted %1 from the local store").arg(label));
+        emit message(tr("Deleted %1 from the local store").arg(label), false);
+    } catch (const std::exception& e) {
+        setStatus(tr("Cannot delete %1: %2").arg(label, QString::fromUtf8(e.what())), true);
+    }
+    refreshLocal();
+}
+
+bool PacsDialog::eventFilter(QObject* watched, QEvent* event) {
+    // Delete in Local studies: the list's shortcut takes it when the window is active; this
+    // when the key comes otherwise (the shortcut then never fires, so it is never done twice).
+    if (watched == m_local && event->type() == QEvent::KeyPress &&
+        static_cast<QKeyEvent*>(event)->key() == Qt::Key_Delete) {
+        deleteSelectedLocal();
+        return true;
+    }
+    return QDialog::eventFilter(watched, event);
+}
+
+void PacsDialog::keyPressEvent(QKeyEvent* event) {
+    // The focus within the dialog (focusWidget(): also while the window is not the active one).
+    const auto within = [this](QWidget* w) {
+        return focusWidget() && (focusWidget() == w || w->isAncestorOf(focusWidget()));
+    };
+    const bool enter = event->key() == Qt::Key_Return || event->key() == Qt::Key_Enter;
+    if (!enter || (event->modifiers() & ~Qt::KeypadModifier)) {
+        QDialog::keyPressEvent(event);
+        return;
+    }
+    if (m_tabs->currentWidget()->isAncestorOf(m_local))
+        openLocal();
+    else if (within(m_results) && !m_results->selectedItems().isEmpty())
+        retrieveSelected();
+    else
+        search();
 }
 
 } // namespace fvr::ui

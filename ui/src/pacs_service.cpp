@@ -58,7 +58,8 @@ QString PacsService::applyListener(const PacsSettings& s, bool* ok) {
     const QString reach = pacs::listensBeyondLoopback(s.local.listenAddress)
                               ? tr(" (reachable from other machines)")
                               : tr(" (this machine only)");
-    return tr("Storage listener: %1 on %2:%3%6, into %4; takes C-MOVEs we ask for, and studies "
+    return tr("Storage listener: listening on port %3 (%1 on %2:%3%6), into %4; takes C-MOVEs we "
+              "ask for, and studies "
               "sent by: %5")
         .arg(QString::fromStdString(s.local.aeTitle),
              QString::fromStdString(s.local.listenAddress.empty() ? "0.0.0.0"

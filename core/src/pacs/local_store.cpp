@@ -514,6 +514,7 @@ static LocalStore::Entry entryFrom(const LocalStore& store, const std::string& u
     e.study = recordFromJson(uid, j);
     e.folder = store.studyFolder(uid, area);
     e.complete = j.value("complete", false);
+    e.source = j.value("source", std::string());
     e.instances = countInstances(e.folder);
     const json series = j.value("series", json::object());
     for (const auto& [suid, sj] : series.items()) {
@@ -744,6 +745,35 @@ void LocalStore::remove(const std::string& studyUid, Area area) {
     save(index); // unlisted first: a half-removed folder is never listed
     std::error_code ec;
     fs::remove_all(folder, ec);
+}
+
+void LocalStore::deleteStudy(const std::string& studyUid, Area area) {
+    const fs::path folder = studyFolder(studyUid, area); // refuses a UID that is not one
+    std::lock_guard lock(m_mutex);
+    if (area == Area::Studies && m_retrieving.count(studyUid))
+        throw PacsError("study " + studyUid +
+                        " is being retrieved: cancel the retrieve (or let it end) before "
+                        "deleting it");
+    const IndexLock fileLock(m_root);
+    Index index = load();
+    if (index.of(area).erase(studyUid) == 0)
+        throw PacsError("study " + studyUid + " is not in the local store " + m_root.string());
+    save(index); // the index first, atomically: a half-removed folder is never listed
+    std::error_code ec;
+    fs::remove_all(folder, ec);
+    if (ec)
+        throw WriteError(folder.string() +
+                         ": unlisted, but its files could not all be removed: " + ec.message());
+}
+
+void LocalStore::setSource(const std::string& studyUid, const std::string& nodeName) {
+    std::lock_guard lock(m_mutex);
+    const IndexLock fileLock(m_root);
+    Index index = load();
+    const auto it = index.studies.find(studyUid);
+    if (it == index.studies.end() || it->second.value("source", std::string()) == nodeName) return;
+    it->second["source"] = nodeName;
+    save(index);
 }
 
 } // namespace fvr::core::pacs

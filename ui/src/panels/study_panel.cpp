@@ -2,6 +2,8 @@
 
 #include <QLabel>
 
+#include <algorithm>
+
 #include <fvr/ui/study.h>
 
 namespace fvr::ui {
@@ -38,6 +40,21 @@ QString seriesLines(const core::DicomSeriesInfo& s) {
     return html;
 }
 
+/** The panel's heading. A folder of the local store is named by its study (or series) UID, which
+ *  says nothing and, one word without a space, cannot wrap: the study's title heads then, and
+ *  the UID follows on a line of its own that may wrap after its dots (zero-width spaces). */
+QString heading(const StudyController& study) {
+    const QString name = study.source().displayName();
+    const bool uid = !name.isEmpty() && std::all_of(name.begin(), name.end(), [](QChar c) {
+        return c.isDigit() || c == QLatin1Char('.');
+    });
+    if (!uid) return QStringLiteral("<b>%1</b><br>").arg(name.toHtmlEscaped());
+    QString wrappable = name;
+    wrappable.replace(QLatin1Char('.'), QStringLiteral(".\u200B"));
+    return QStringLiteral("<b>%1</b><br><small>UID %2</small><br>")
+        .arg(study.title().toHtmlEscaped(), wrappable);
+}
+
 } // namespace
 
 void StudyPanel::showStudy(const StudyController& study) {
@@ -48,8 +65,7 @@ void StudyPanel::showStudy(const StudyController& study) {
     }
     const auto spec = study.spectrum();
     const auto [lo, hi] = vol->valueRange();
-    QString html =
-        QStringLiteral("<b>%1</b><br>").arg(study.source().displayName().toHtmlEscaped());
+    QString html = heading(study);
     if (const auto& s = study.series()) html += seriesLines(*s);
     html +=
         tr("Dimensions: %1 × %2 × %3<br>").arg(vol->dims[0]).arg(vol->dims[1]).arg(vol->dims[2]);

@@ -17,6 +17,7 @@
 #include <fvr/ui/pacs_settings.h>
 
 class QComboBox;
+class QKeyEvent;
 class QDateEdit;
 class QLabel;
 class QLineEdit;
@@ -50,6 +51,10 @@ public:
     QDateEdit* dateToEdit() const { return m_dateTo; }
     QComboBox* modalityCombo() const { return m_modality; }
     QPushButton* echoButton() const { return m_echo; }
+    QPushButton* editNodesButton() const { return m_editNodes; }
+    QPushButton* deleteLocalButton() const { return m_deleteLocal; }
+    QPushButton* resumeLocalButton() const { return m_resumeLocal; }
+    QTabWidget* tabs() const { return m_tabs; }
     QPushButton* searchButton() const { return m_search; }
     QPushButton* retrieveButton() const { return m_retrieve; }
     QPushButton* cancelButton() const { return m_cancel; }
@@ -59,12 +64,25 @@ public:
     QLabel* status() const { return m_status; }
     /** The query the form describes. */
     core::pacs::StudyQuery query() const;
+    /** Deletes the study selected in Local studies (files and index entry), after asking when
+     *  `confirm` (a question box named "confirmDelete"). Refused, saying why, while a retrieve
+     *  runs on it. */
+    void deleteSelectedLocal(bool confirm = true);
 
 signals:
     /** A complete study or series in the local store, to open like a folder. */
     void openRequested(const QString& folder);
     /** For the Messages panel. */
     void message(const QString& text, bool error);
+    /** Edit nodes… saved new settings: the listener is to follow them at once. */
+    void settingsChanged();
+
+protected:
+    /** Enter: retrieves the selected result when the results have the focus, opens the
+     *  selected local study in Local studies, else searches (once: no default button). */
+    void keyPressEvent(QKeyEvent* event) override;
+    /** The Delete key in Local studies. */
+    bool eventFilter(QObject* watched, QEvent* event) override;
 
 private:
     QWidget* buildQueryTab();
@@ -79,6 +97,9 @@ private:
                                            bool waitAtClose = false);
     const core::pacs::Node* currentNode() const;
     void testConnection();
+    /** After a good C-ECHO: a C-FIND on a key no study has, which a PACS that does not know our
+     *  AE title refuses. */
+    void verifyAeTitle(const core::pacs::Node& n);
     void search();
     void showStudies(const std::vector<core::pacs::StudyRecord>& studies);
     void loadSeries(QTreeWidgetItem* study);
@@ -106,6 +127,8 @@ private:
     QTabWidget* m_tabs = nullptr;
     QComboBox* m_node = nullptr;
     QPushButton* m_echo = nullptr;
+    QPushButton* m_editNodes = nullptr;
+    QPushButton* m_deleteLocal = nullptr;
     QLineEdit* m_patientName = nullptr;
     QLineEdit* m_patientId = nullptr;
     QLineEdit* m_accession = nullptr;

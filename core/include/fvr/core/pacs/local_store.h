@@ -79,6 +79,9 @@ public:
         int instances = 0; ///< files in the study's folders
         std::vector<SeriesEntry> series;
         Area area = Area::Studies;
+        /** The name of the PACS node it was retrieved from (setSource()), "" when unknown (the
+         *  listener's, or stored before the index recorded it). */
+        std::string source;
     };
 
     const std::filesystem::path& root() const { return m_root; }
@@ -143,6 +146,14 @@ public:
 
     /** Removes the study's folder and its entry. */
     void remove(const std::string& studyUid, Area area = Area::Studies);
+    /** What the user's Delete does: unlists the study (the index rewritten atomically), then
+     *  removes its files. Throws PacsError while a retrieve runs on it (saying so) or when it is
+     *  not listed, WriteError naming the folder when files could not be removed (the study is
+     *  unlisted then). */
+    void deleteStudy(const std::string& studyUid, Area area = Area::Studies);
+    /** Records the PACS node a study (Studies area) was retrieved from, for Resume; nothing
+     *  when the study is not listed. */
+    void setSource(const std::string& studyUid, const std::string& nodeName);
 
 private:
     struct Index;
