@@ -160,6 +160,24 @@ TEST_F(Workstation, UndoAndRedoStepThroughViewWindowAndSettingChanges) {
     EXPECT_FALSE(window->undoStack()->canRedo());
 }
 
+TEST_F(Workstation, ASettingAndATurnRightAfterItAreTwoUndoSteps) {
+    ASSERT_TRUE(openAndWait(*window, StudySource::chest(48))); // HU: it has a transmission
+    ASSERT_TRUE(settled(*window));
+    window->flushStateChange();
+    const ui::WorkstationState start = window->currentState();
+    ui::XrayPanel::Values x = window->settings().xray();
+    x.output = ui::XrayOutput::Transmission;
+    window->settings().setXray(x); // then, within the burst interval, a turn
+    window->rotateViews(10, 0);
+    window->flushStateChange();
+    ASSERT_EQ(window->undoStack()->count(), 2);
+    window->undo(); // the turn only
+    EXPECT_EQ(window->settings().xray().output, ui::XrayOutput::Transmission);
+    EXPECT_LT(glm::length(window->views()[0]->viewFrame().d - start.frame.d), 1e-9);
+    window->undo();
+    EXPECT_EQ(window->settings().xray().output, start.xray.output);
+}
+
 TEST_F(Workstation, UndoReturnsCompareAndDifferenceModes) {
     ASSERT_TRUE(openAndWait(*window, StudySource::phantom(40)));
     window->flushStateChange();

@@ -91,7 +91,7 @@ bool MainWindow::applyUserPreset(int index) {
     syncWindowToPanel(w, WindowPreset::Custom);
     m_display->showUserPreset(index);
     applyWindowFromPanel();
-    noteStateChange(true);
+    noteStateChange(true, ChangeKind::Window);
     return true;
 }
 

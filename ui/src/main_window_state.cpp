@@ -105,9 +105,18 @@ void MainWindow::applyState(const WorkstationState& st) {
     m_recorded = currentState();
 }
 
-void MainWindow::noteStateChange(bool byUser) {
+void MainWindow::noteStateChange(bool byUser, ChangeKind kind) {
     if (m_applyingState || !m_stateTimer) return; // (the first views come before the stack)
+    if (byUser && m_userChange && m_stateTimer->isActive() && kind != m_pendingKind) {
+        // The step before ends with its last change (this one is already on screen).
+        if (!m_lastOfStep.sameAs(m_recorded))
+            m_undo->push(new StateCommand(this, m_recorded, m_lastOfStep));
+        m_recorded = m_lastOfStep;
+        m_userChange = false;
+    }
+    if (byUser) m_pendingKind = kind;
     m_userChange = m_userChange || byUser;
+    m_lastOfStep = currentState();
     m_stateTimer->start();
     emit stateChangeNoted();
 }
@@ -139,12 +148,17 @@ void MainWindow::buildUndo() {
           &SettingsModel::frameOptionsChanged, &SettingsModel::rendererChoiceChanged,
           &SettingsModel::outputChanged, &SettingsModel::beamChanged,
           &SettingsModel::effectsChanged, &SettingsModel::polychromaticChanged})
-        connect(m_model, signal, this, [this] { noteStateChange(true); });
-    connect(m_model, &SettingsModel::targetFpsChanged, this, [this] { noteStateChange(true); });
-    connect(m_display, &DisplayPanel::windowChanged, this, [this] { noteStateChange(true); });
-    connect(m_display, &DisplayPanel::presetRequested, this, [this] { noteStateChange(true); });
-    connect(m_geometry, &GeometryPanel::changed, this, [this] { noteStateChange(true); });
-    connect(m_geometry, &GeometryPanel::anglesChanged, this, [this] { noteStateChange(true); });
+        connect(m_model, signal, this, [this] { noteStateChange(true, ChangeKind::Settings); });
+    connect(m_model, &SettingsModel::targetFpsChanged, this,
+            [this] { noteStateChange(true, ChangeKind::Settings); });
+    connect(m_display, &DisplayPanel::windowChanged, this,
+            [this] { noteStateChange(true, ChangeKind::Window); });
+    connect(m_display, &DisplayPanel::presetRequested, this,
+            [this] { noteStateChange(true, ChangeKind::Window); });
+    connect(m_geometry, &GeometryPanel::changed, this,
+            [this] { noteStateChange(true, ChangeKind::Settings); });
+    connect(m_geometry, &GeometryPanel::anglesChanged, this,
+            [this] { noteStateChange(true, ChangeKind::View); });
     m_recorded = currentState();
 }
 

@@ -26,7 +26,7 @@ void MainWindow::buildViews() {
 
 void MainWindow::setCompareCount(int n) {
     n = (n >= 4) ? 4 : (n >= 2 ? 2 : 1);
-    if (n != m_compareCount) noteStateChange(true);
+    if (n != m_compareCount) noteStateChange(true, ChangeKind::Mode);
     const core::ViewFrame frame = m_views.empty()
                                       ? core::ViewFrame::fromDirUp({0, 0, 1}, {0, -1, 0})
                                       : m_views[0]->viewFrame();
@@ -136,9 +136,10 @@ ProjectionView* MainWindow::addView(int index, int count, const core::ViewFrame&
 }
 
 void MainWindow::connectView(ProjectionView* v) {
-    connect(v, &ProjectionView::panZoomChanged, this, [this] { noteStateChange(true); });
+    connect(v, &ProjectionView::panZoomChanged, this,
+            [this] { noteStateChange(true, ChangeKind::View); });
     connect(v, &ProjectionView::viewFrameChanged, this, [this, v](const core::ViewFrame& f) {
-        noteStateChange(true); // a drag or the keys
+        noteStateChange(true, ChangeKind::View); // a drag or the keys
         if (m_syncing) return;
         m_syncing = true;
         for (auto* o : m_views)
@@ -148,7 +149,7 @@ void MainWindow::connectView(ProjectionView* v) {
     });
     connect(v, &ProjectionView::windowChanged, this,
             [this, v](const core::DisplayWindow& w, bool byHand) {
-                noteStateChange(byHand);
+                noteStateChange(byHand, ChangeKind::Window);
                 if (m_syncing) return;
                 m_syncing = true;
                 if (v == m_views.front() || !m_difference) {
@@ -204,7 +205,7 @@ void MainWindow::setDifferenceMode(bool on) {
         const QSignalBlocker block(m_differenceAction); // undo, a session
         m_differenceAction->setChecked(on);
     }
-    if (on != m_difference) noteStateChange(true);
+    if (on != m_difference) noteStateChange(true, ChangeKind::Mode);
     m_difference = on;
     for (std::size_t i = 1; i < m_views.size(); ++i)
         m_views[i]->setDifferenceReference(on ? m_views[0] : nullptr);
@@ -244,7 +245,7 @@ void MainWindow::showPatientView(core::PatientView pv) {
     for (auto* v : m_views)
         v->setViewFrame(v->volume() ? core::patientViewFrame(*v->volume(), pv) : f);
     showCArmAngles(f);
-    noteStateChange(true);
+    noteStateChange(true, ChangeKind::View);
 }
 
 } // namespace fvr::ui

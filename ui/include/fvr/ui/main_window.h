@@ -235,9 +235,12 @@ private:
     void buildPanelsMenu(QMenu* view);
     void buildHelpMenu();
     void showShortcutsDialog();
+    /** What a change is about: changes of one kind in a burst are one undo step; a user's
+     *  change of another kind ends the step before it (a new output, then a drag: two steps). */
+    enum class ChangeKind { View, Window, Settings, Mode };
     /** A change to what is on screen: a user's (an undo step once it settles) or not (an
      *  automatic window: absorbed into the state undo returns to). */
-    void noteStateChange(bool byUser);
+    void noteStateChange(bool byUser, ChangeKind kind);
     void recordState();
     /** After a study loaded: an opened session's state, and an empty undo history. */
     void startStudyHistory();
@@ -407,6 +410,8 @@ private:
     QTimer* m_stateTimer = nullptr;
     WorkstationState m_recorded; ///< the state the next undo step starts from
     bool m_userChange = false;
+    ChangeKind m_pendingKind = ChangeKind::View;
+    WorkstationState m_lastOfStep; ///< the state after the pending step's last change
     bool m_applyingState = false;
     std::unique_ptr<StudyController> m_prior; ///< a prior beside the study (view 2)
     std::optional<WorkstationState> m_pendingSession; ///< shown once its study is loaded
