@@ -4,6 +4,7 @@
 // AE title said in words. Skips with the reason without Orthanc or the shared data.
 #include <QComboBox>
 #include <QElapsedTimer>
+#include <QHeaderView>
 #include <QLabel>
 #include <QLineEdit>
 #include <QMessageBox>
@@ -16,6 +17,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <set>
 
 #include <nlohmann/json.hpp>
@@ -24,7 +26,9 @@
 #include <fvr/ui/pacs_dialog.h>
 #include <fvr/ui/pacs_service.h>
 #include <fvr/ui/pacs_settings.h>
+#include <fvr/ui/panels/messages_panel.h>
 #include <fvr/ui/panels/study_panel.h>
+#include <fvr/ui/retrieve_queue.h>
 
 #include "pacs/orthanc_server.h"
 #include "ui/ui_support.h"
@@ -456,4 +460,178 @@ TEST_F(PacsWorkstation, ASearchDuringARetrieveKeepsTheRetrievesStatus) {
     const bool ended = QTest::qWaitFor([&] { return !d->busy(); }, 60000);
     orthanc->cont();
     ASSERT_TRUE(ended || QTest::qWaitFor([&] { return !d->busy(); }, 60000));
+}
+
+namespace {
+
+/** The values of a column of the results, top to bottom. */
+QStringList column(const QTreeWidget& list, int c) {
+    QStringList values;
+    for (int i = 0; i < list.topLevelItemCount(); ++i) values << list.topLevelItem(i)->text(c);
+    return values;
+}
+
+/** Clicks the header of the results' column `c`, as a user sorts. */
+void clickHeader(QTreeWidget& list, int c) {
+    QHeaderView* h = list.header();
+    QTest::mouseClick(
+        h->viewport(), Qt::LeftButton, {},
+        QPoint(h->sectionViewportPosition(c) + h->sectionSize(c) / 2, h->height() / 2));
+}
+
+/** Double-clicks the results' top-level row `row`. */
+void doubleClickRow(QTreeWidget& list, int row) {
+    const QRect r = list.visualItemRect(list.topLevelItem(row));
+    QTest::mouseClick(list.viewport(), Qt::LeftButton, {}, r.center());
+    QTest::mouseDClick(list.viewport(), Qt::LeftButton, {}, r.center());
+}
+
+constexpr const char* kTilt = "dicom/ct_head_ge_gantrytilt_28";
+
+} // namespace
+
+TEST_F(PacsWorkstation, ResultColumnsSortByTheirHeadersAndCountsAsNumbers) {
+    // Three studies: 93 images (2009-01-02), 140 (2015-02-06), 28 (no date). As text, "140"
+    // would sort before "28".
+    FVR_REQUIRE_DATA("dicom/ct_phantom_philips_512x512x140_jpeg_lossless");
+    FVR_REQUIRE_DATA(kTilt);
+    ASSERT_EQ(
+        orthanc->upload(test::sharedData() / "dicom/ct_phantom_philips_512x512x140_jpeg_lossless"),
+        140);
+    ASSERT_EQ(orthanc->upload(test::sharedData() / kTilt), 28);
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    d->show();
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    QTreeWidget& results = *d->results();
+    ASSERT_EQ(results.topLevelItemCount(), 3) << d->status()->text().toStdString();
+    // The newest first, the undated last.
+    EXPECT_EQ(column(results, 2), (QStringList{"2015-02-06", "2009-01-02", ""}));
+    clickHeader(results, 6); // Images
+    ASSERT_EQ(results.header()->sortIndicatorSection(), 6);
+    const bool ascending = results.header()->sortIndicatorOrder() == Qt::AscendingOrder;
+    const QStringList up{"28", "93", "140"}, down{"140", "93", "28"};
+    EXPECT_EQ(column(results, 6), ascending ? up : down);
+    clickHeader(results, 6); // again: the other way
+    EXPECT_EQ(column(results, 6), ascending ? down : up);
+    clickHeader(results, 0); // Patient, as text
+    const QStringList names = column(results, 0);
+    QStringList sorted = names;
+    std::sort(sorted.begin(), sorted.end(),
+              [](const QString& a, const QString& b) { return a.localeAwareCompare(b) < 0; });
+    if (results.header()->sortIndicatorOrder() == Qt::DescendingOrder)
+        std::reverse(sorted.begin(), sorted.end());
+    EXPECT_EQ(names, sorted);
+}
+
+TEST_F(PacsWorkstation, SelectedStudiesQueueAndArriveWithTheDialogClosedShownInTheMainWindow) {
+    FVR_REQUIRE_DATA(kTilt);
+    ASSERT_EQ(orthanc->upload(test::sharedData() / kTilt), 28);
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    d->show();
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_EQ(d->results()->topLevelItemCount(), 2);
+    d->results()->selectAll(); // both, as Ctrl+A or Shift+click selects them
+    QSignalSpy ready(&window->study(), &ui::StudyController::spectrumReady);
+    ui::RetrieveQueue& queue = window->pacs().retrieves();
+    auto* status = window->findChild<ui::RetrieveStatus*>("retrieveStatus");
+    ASSERT_NE(status, nullptr);
+    EXPECT_FALSE(status->isVisibleTo(window.get())); // nothing to show before
+    // The status bar's progress as the images come: the largest count it showed of each job.
+    std::map<int, int> shownOf;
+    QObject::connect(&queue, &ui::RetrieveQueue::progressed, window.get(), [&](int id) {
+        shownOf[id] = std::max(shownOf[id], status->progress()->value());
+    });
+    orthanc->stop(); // the first retrieve waits: the main window is seen showing it
+    d->queueButton()->click();
+    d->hide();
+    ASSERT_EQ(queue.jobs().size(), 2u);
+    EXPECT_EQ(queue.jobs()[0].state, ui::RetrieveJob::State::Running);
+    EXPECT_EQ(queue.jobs()[1].state, ui::RetrieveJob::State::Waiting);
+    EXPECT_TRUE(status->isVisibleTo(window.get()));
+    EXPECT_TRUE(status->label()->text().startsWith("Retrieving Austrialian (1 more waiting)"))
+        << status->label()->text().toStdString();
+    orthanc->cont();
+    ASSERT_TRUE(QTest::qWaitFor([&] { return !queue.busy(); }, 120000));
+    EXPECT_FALSE(status->isVisibleTo(window.get()));
+    std::map<int, int> images; // of each study in the store, complete
+    for (const auto& e : window->pacs().store()->studies())
+        if (e.complete) images[e.instances] += 1;
+    EXPECT_EQ(images, (std::map<int, int>{{28, 1}, {93, 1}}));
+    for (const ui::RetrieveJob& j : queue.jobs()) {
+        EXPECT_EQ(j.state, ui::RetrieveJob::State::Done) << j.outcome.toStdString();
+        EXPECT_EQ(shownOf[j.id], j.progress.expected) << j.label.toStdString();
+    }
+    EXPECT_EQ(shownOf.size(), 2u);
+    QTest::qWait(300);
+    EXPECT_EQ(ready.count(), 0); // "Retrieve" queues; it opens nothing
+    EXPECT_TRUE(window->messages()->toPlainText().contains("Retrieved Austrialian into"));
+    // The dialog's Retrieves tab lists both, done.
+    d->show();
+    EXPECT_EQ(column(*d->queueList(), 2), (QStringList{"done", "done"}));
+}
+
+TEST_F(PacsWorkstation, ARetrieveEndingAfterAnotherStudyWasOpenedDoesNotReplaceIt) {
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_EQ(d->results()->topLevelItemCount(), 1);
+    d->results()->setCurrentItem(d->results()->topLevelItem(0));
+    ui::RetrieveQueue& queue = window->pacs().retrieves();
+    orthanc->stop(); // the retrieve waits while the user opens something else
+    d->retrieveButton()->click(); // "Retrieve and open"
+    d->hide();
+    QSignalSpy ready(&window->study(), &ui::StudyController::spectrumReady);
+    window->openStudy(ui::StudySource::phantom(64));
+    ASSERT_TRUE(ready.wait(60000));
+    const core::Dims3 phantom = window->study().volume()->dims;
+    EXPECT_EQ(phantom, (core::Dims3{64, 64, 64}));
+    orthanc->cont();
+    ASSERT_TRUE(QTest::qWaitFor([&] { return !queue.busy(); }, 120000));
+    ASSERT_EQ(queue.jobs().back().state, ui::RetrieveJob::State::Done);
+    QTest::qWait(500); // an open, if one were asked, would start meanwhile
+    EXPECT_EQ(ready.count(), 1);
+    EXPECT_EQ(window->study().volume()->dims, phantom);
+    EXPECT_TRUE(window->messages()->toPlainText().contains("was not opened"));
+    // Asked again with nothing opened since: it opens (from the store).
+    d->results()->setCurrentItem(d->results()->topLevelItem(0));
+    d->retrieveButton()->click();
+    ASSERT_TRUE(ready.wait(120000));
+    EXPECT_EQ(window->study().volume()->dims, (core::Dims3{64, 64, 93}));
+}
+
+TEST_F(PacsWorkstation, ADoubleClickDuringARetrieveQueuesTheSecondStudy) {
+    FVR_REQUIRE_DATA(kTilt);
+    ASSERT_EQ(orthanc->upload(test::sharedData() / kTilt), 28);
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    d->show();
+    ASSERT_TRUE(QTest::qWaitForWindowExposed(d));
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_EQ(d->results()->topLevelItemCount(), 2);
+    ui::RetrieveQueue& queue = window->pacs().retrieves();
+    QSignalSpy ready(&window->study(), &ui::StudyController::spectrumReady);
+    orthanc->stop(); // the first is still running at the second double-click
+    doubleClickRow(*d->results(), 0);
+    doubleClickRow(*d->results(), 1);
+    ASSERT_EQ(queue.jobs().size(), 2u);
+    EXPECT_EQ(column(*d->queueList(), 2), (QStringList{"retrieving", "waiting"}));
+    EXPECT_TRUE(d->status()->text().contains("1 more waiting"))
+        << d->status()->text().toStdString();
+    doubleClickRow(*d->results(), 1); // a third time: already waiting, said, not queued twice
+    EXPECT_EQ(queue.jobs().size(), 2u);
+    orthanc->cont();
+    ASSERT_TRUE(QTest::qWaitFor([&] { return !queue.busy(); }, 120000));
+    for (const ui::RetrieveJob& j : queue.jobs())
+        EXPECT_EQ(j.state, ui::RetrieveJob::State::Done) << j.outcome.toStdString();
+    // The first opened; the second, asked before the first was opened, does not replace it.
+    ASSERT_TRUE(ready.count() > 0 || ready.wait(60000));
+    QTest::qWait(500);
+    EXPECT_EQ(ready.count(), 1);
+    EXPECT_EQ(window->study().volume()->dims, (core::Dims3{64, 64, 93}));
 }

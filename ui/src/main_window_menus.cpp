@@ -9,6 +9,7 @@
 #include <QSignalBlocker>
 #include <QToolBar>
 
+#include <fvr/ui/pacs_service.h>
 #include <fvr/ui/settings_keys.h>
 #include <fvr/ui/settings_model.h>
 #include <fvr/ui/xray_match.h>
@@ -152,6 +153,8 @@ void MainWindow::openStudy(const StudySource& source) {
     message(
         tr("Opening %1…")
             .arg(source.kind == StudySource::Kind::Phantom ? source.displayName() : source.path));
+    // A retrieve asked before this no longer opens when it ends (it would replace this one).
+    if (m_pacs) m_pacs->retrieves().studyOpened();
     m_study->open(source); // Recent studies get it once it opened (onStudyLoaded)
 }
 

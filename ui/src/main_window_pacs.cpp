@@ -3,11 +3,13 @@
 
 #include <QInputDialog>
 #include <QMenu>
+#include <QStatusBar>
 #include <QTemporaryDir>
 
 #include <fvr/ui/pacs_dialog.h>
 #include <fvr/ui/pacs_service.h>
 #include <fvr/ui/pacs_settings.h>
+#include <fvr/ui/retrieve_queue.h>
 
 namespace fvr::ui {
 
@@ -21,6 +23,28 @@ void MainWindow::buildPacsMenu(QMenu* file) {
             [this](bool ok, const QString& text) { message(text, !ok); });
     connect(m_pacs.get(), &PacsService::listenerEvent, this,
             [this](bool problem, const QString& text) { message(text, problem); });
+    RetrieveQueue& retrieves = m_pacs->retrieves();
+    connect(&retrieves, &RetrieveQueue::message, this, &MainWindow::message);
+    connect(&retrieves, &RetrieveQueue::ended, this, [this](int id) {
+        const RetrieveJob* j = m_pacs->retrieves().job(id);
+        // Opened only when asked with "Retrieve and open" and nothing was opened since: a
+        // retrieve that ends later never replaces what the user went on to read.
+        if (j && m_pacs->retrieves().shouldOpen(*j))
+            openStudy(StudySource::fromPath(QString::fromStdString(j->folder.string())));
+        else if (j && j->open && j->state == RetrieveJob::State::Done)
+            message(tr("%1 is in the local store and was not opened, another study being open "
+                       "since: File ▸ PACS ▸ Local studies opens it")
+                        .arg(j->label));
+    });
+    auto* status = new RetrieveStatus(retrieves, this);
+    statusBar()->addPermanentWidget(status);
+    connect(status, &RetrieveStatus::showQueue, this, [this] {
+        PacsDialog* d = pacsDialog();
+        d->showQueue();
+        d->show();
+        d->raise();
+        d->activateWindow();
+    });
     QAction* open = file->addAction(tr("&PACS: search and retrieve…"), this, [this] {
         PacsDialog* d = pacsDialog();
         d->show();
@@ -43,7 +67,7 @@ void MainWindow::buildPacsMenu(QMenu* file) {
 
 PacsDialog* MainWindow::pacsDialog() {
     if (!m_pacsDialog) {
-        m_pacsDialog = new PacsDialog(m_pacs->store(), this);
+        m_pacsDialog = new PacsDialog(m_pacs->retrieves(), this);
         connect(m_pacsDialog, &PacsDialog::openRequested, this,
                 [this](const QString& folder) { openStudy(StudySource::fromPath(folder)); });
         connect(m_pacsDialog, &PacsDialog::message, this, &MainWindow::message);

@@ -31,36 +31,42 @@
 #include <fvr/ui/settings_keys.h>
 #include <fvr/ui/study.h>
 
+#include "pacs_dialog_internal.h"
+
 namespace fvr::ui {
 
 namespace {
 
 namespace pacs = core::pacs;
+using namespace pacs_dialog;
 
-enum Role {
-    kStudyUid = Qt::UserRole,
-    kSeriesUid,
-    kSeriesLoaded,
-    kFolder,
-    kComplete,
-    kIncoming, ///< Local studies: in the Incoming area (sent to the listener unasked)
-    kSource ///< Local studies: the node it was retrieved from, "" when unknown
-};
-enum ResultColumn {
-    kPatient,
-    kPatientId,
-    kDate,
-    kDescription,
-    kModalities,
-    kSeries,
-    kImages,
-    kLocal ///< what the local store holds of it: complete, partial (n images), or nothing
-};
 enum LocalColumn { kLocalPatient, kLocalDate, kLocalDescription, kLocalImages, kLocalState };
 
-QString text(const std::string& s) { return QString::fromStdString(s); }
+/** A column's value to sort by where its text does not sort (counts, series numbers). */
+constexpr int kSortKey = Qt::UserRole + 32;
+
+/** A row that sorts by its column's kSortKey (a number) where both rows have one, else by the
+ *  text as the user's locale orders it: "10" after "9", "Series 10" after "Series 9", ISO dates
+ *  in time order. */
+class SortedItem : public QTreeWidgetItem {
+public:
+    using QTreeWidgetItem::QTreeWidgetItem;
+    bool operator<(const QTreeWidgetItem& other) const override {
+        const int c = treeWidget() ? treeWidget()->sortColumn() : 0;
+        const QVariant a = data(c, kSortKey), b = other.data(c, kSortKey);
+        if (a.isValid() && b.isValid()) return a.toLongLong() < b.toLongLong();
+        return QString::localeAwareCompare(text(c), other.text(c)) < 0;
+    }
+};
+
 
 QString count(int n) { return n >= 0 ? QString::number(n) : QString(); }
+
+/** Sets a count's text and its sort key (unknown, -1: empty, first). */
+void setCount(QTreeWidgetItem* item, int column, int n) {
+    item->setText(column, count(n));
+    item->setData(column, kSortKey, n);
+}
 
 /** "1 study", "2 studies". */
 QString studies(int n) {
@@ -102,8 +108,8 @@ std::pair<QDate, QDate> presetDates(int preset, const QDate& today) {
 
 } // namespace
 
-PacsDialog::PacsDialog(std::shared_ptr<pacs::LocalStore> store, QWidget* parent)
-    : QDialog(parent), m_store(std::move(store)) {
+PacsDialog::PacsDialog(RetrieveQueue& queue, QWidget* parent)
+    : QDialog(parent), m_queue(queue), m_store(queue.store()) {
     setWindowTitle(tr("PACS"));
     auto* layout = new QVBoxLayout(this);
     auto* nodeRow = new QHBoxLayout;
@@ -121,6 +127,7 @@ PacsDialog::PacsDialog(std::shared_ptr<pacs::LocalStore> store, QWidget* parent)
     m_tabs = new QTabWidget(this);
     m_tabs->addTab(buildQueryTab(), tr("Search the PACS"));
     m_tabs->addTab(buildLocalTab(), tr("Local studies"));
+    m_tabs->addTab(buildQueueTab(), tr("Retrieves"));
     layout->addWidget(m_tabs, 1);
     auto* bottom = new QHBoxLayout;
     m_progress = new QProgressBar(this);
@@ -141,10 +148,16 @@ PacsDialog::PacsDialog(std::shared_ptr<pacs::LocalStore> store, QWidget* parent)
         reloadSettings();
     });
     connect(m_echo, &QPushButton::clicked, this, &PacsDialog::testConnection);
+    m_cancel->setToolTip(tr("Cancels the running retrieve; the waiting ones then go on"));
     connect(m_cancel, &QPushButton::clicked, this, [this] {
-        if (m_retrieveCancel) m_retrieveCancel->cancel();
-        setStatus(tr("Cancelling…"));
+        if (const RetrieveJob* j = m_queue.running()) {
+            m_queue.cancel(j->id);
+            setStatus(tr("Cancelling…"));
+        }
     });
+    connect(&m_queue, &RetrieveQueue::changed, this, &PacsDialog::onQueueChanged);
+    connect(&m_queue, &RetrieveQueue::progressed, this, &PacsDialog::onQueueChanged);
+    connect(&m_queue, &RetrieveQueue::ended, this, &PacsDialog::onRetrieveEnded);
     connect(m_node, &QComboBox::currentTextChanged, this, [](const QString& name) {
         if (!name.isEmpty()) QSettings().setValue(keys::kPacsLastNode, name);
     });
@@ -155,12 +168,13 @@ PacsDialog::PacsDialog(std::shared_ptr<pacs::LocalStore> store, QWidget* parent)
     });
     reloadSettings();
     refreshLocal();
+    onQueueChanged(); // retrieves queued before the dialog was made
     resize(980, 640);
 }
 
-// m_jobs cancels retrieves and waits for them (they write into the store); an echo or a query
-// cannot be cancelled and may wait for the network timeout: it ends on its own, and its result
-// finds no dialog.
+// Retrieves belong to the queue, which outlives the dialog. An echo or a query cannot be
+// cancelled and may wait for the network timeout: it ends on its own, and its result finds no
+// dialog.
 PacsDialog::~PacsDialog() = default;
 
 QWidget* PacsDialog::buildQueryTab() {
@@ -171,20 +185,36 @@ QWidget* PacsDialog::buildQueryTab() {
     m_results->setHeaderLabels({tr("Patient"), tr("Patient ID"), tr("Study date"),
                                 tr("Description"), tr("Modalities"), tr("Series"), tr("Images"),
                                 tr("Local")});
-    m_results->setSelectionMode(QAbstractItemView::SingleSelection);
+    m_results->setSelectionMode(QAbstractItemView::ExtendedSelection);
     m_results->header()->setSectionResizeMode(QHeaderView::ResizeToContents);
-    m_results->setToolTip(tr("Expand a study to list its series; retrieve a study or a series"));
+    m_results->setSortingEnabled(true);
+    m_results->sortByColumn(kDate, Qt::DescendingOrder); // the newest first; a header sorts
+    m_results->setToolTip(tr("Expand a study to list its series; retrieve studies or series "
+                             "(Ctrl or Shift selects several); a column's header sorts"));
     layout->addWidget(m_results, 1);
     auto* row = new QHBoxLayout;
     row->addStretch(1);
+    m_queueRetrieve = new QPushButton(tr("Retrieve"), tab);
+    m_queueRetrieve->setToolTip(tr("Queues the selected studies and series into the local "
+                                   "store; nothing is opened"));
     m_retrieve = new QPushButton(tr("Retrieve and open"), tab);
-    m_retrieve->setEnabled(false);
-    row->addWidget(m_retrieve);
+    m_retrieve->setToolTip(tr("Queues the selection and opens the first when it is in, unless "
+                              "another study was opened meanwhile (double-click, Enter)"));
+    for (QPushButton* b : {m_queueRetrieve, m_retrieve}) {
+        b->setEnabled(false);
+        row->addWidget(b);
+    }
     layout->addLayout(row);
+    m_results->setContextMenuPolicy(Qt::ActionsContextMenu);
+    m_results->addAction(tr("Retrieve"), this, [this] { retrieveSelected(false); });
+    m_results->addAction(tr("Retrieve and open"), this, [this] { retrieveSelected(true); });
+    m_results->addAction(tr("Retrieve again from the PACS (refresh what is local)"), this,
+                         [this] { retrieveSelected(false, true); });
     connect(m_results, &QTreeWidget::itemExpanded, this, &PacsDialog::loadSeries);
     connect(m_results, &QTreeWidget::itemSelectionChanged, this, &PacsDialog::updateButtons);
-    connect(m_results, &QTreeWidget::itemDoubleClicked, this, &PacsDialog::retrieveSelected);
-    connect(m_retrieve, &QPushButton::clicked, this, &PacsDialog::retrieveSelected);
+    connect(m_results, &QTreeWidget::itemDoubleClicked, this, [this] { retrieveSelected(true); });
+    connect(m_queueRetrieve, &QPushButton::clicked, this, [this] { retrieveSelected(false); });
+    connect(m_retrieve, &QPushButton::clicked, this, [this] { retrieveSelected(true); });
     return tab;
 }
 
@@ -245,6 +275,8 @@ QWidget* PacsDialog::buildLocalTab() {
     m_local->setHeaderLabels(
         {tr("Patient"), tr("Study date"), tr("Description"), tr("Images"), tr("State")});
     m_local->header()->setSectionResizeMode(QHeaderView::ResizeToContents);
+    m_local->setSortingEnabled(true);
+    m_local->sortByColumn(kLocalDate, Qt::DescendingOrder);
     layout->addWidget(m_local, 1);
     auto* row = new QHBoxLayout;
     auto* refresh = new QPushButton(tr("Refresh"), tab);
@@ -382,39 +414,41 @@ void PacsDialog::search() {
     auto found = std::make_shared<std::vector<pacs::StudyRecord>>();
     // A retrieve keeps the status line (its progress): the search speaks through the results,
     // and its failure through Messages.
-    if (!m_retrieving) setStatus(tr("Searching %1…").arg(text(n.name)));
+    if (!m_queue.running()) setStatus(tr("Searching %1…").arg(text(n.name)));
     m_results->clear();
     run([n, local, q, found](core::CancelToken&) { *found = pacs::findStudies(n, local, q); },
         [this, n, found](const std::optional<JobError>& error) {
             if (error) {
                 const QString why = tr("Search on %1 failed: %2").arg(text(n.name), error->message);
-                if (m_retrieving)
+                if (m_queue.running())
                     emit message(why, true);
                 else
                     setStatus(why, true);
                 return;
             }
             showStudies(*found);
-            if (!m_retrieving)
+            if (!m_queue.running())
                 setStatus(tr("%1 found on %2").arg(studies(int(found->size())), text(n.name)));
         });
 }
 
 void PacsDialog::showStudies(const std::vector<pacs::StudyRecord>& studies) {
     m_results->clear();
+    m_results->setSortingEnabled(false); // once, after the rows are in
     for (const pacs::StudyRecord& s : studies) {
-        auto* item = new QTreeWidgetItem(m_results);
+        auto* item = new SortedItem(m_results);
         item->setText(kPatient, personName(s.patientName));
         item->setText(kPatientId, text(s.patientId));
         item->setText(kDate, dicomDate(s.studyDate));
         item->setText(kDescription, text(s.description));
         item->setText(kModalities, text(s.modalities));
-        item->setText(kSeries, count(s.numberOfSeries));
-        item->setText(kImages, count(s.numberOfInstances));
+        setCount(item, kSeries, s.numberOfSeries);
+        setCount(item, kImages, s.numberOfInstances);
         item->setData(0, kStudyUid, text(s.studyUid));
         item->setToolTip(0, tr("Study Instance UID %1").arg(text(s.studyUid)));
         item->setChildIndicatorPolicy(QTreeWidgetItem::ShowIndicator);
     }
+    m_results->setSortingEnabled(true);
     markLocalState();
     updateButtons();
 }
@@ -478,11 +512,12 @@ void PacsDialog::addSeries(QTreeWidgetItem* study, const QString& error,
         return;
     }
     for (const pacs::SeriesRecord& s : found) {
-        auto* item = new QTreeWidgetItem(study);
+        auto* item = new SortedItem(study);
         item->setText(kPatient, tr("Series %1").arg(count(s.seriesNumber)));
+        item->setData(kPatient, kSortKey, s.seriesNumber);
         item->setText(kDescription, text(s.description));
         item->setText(kModalities, text(s.modality));
-        item->setText(kImages, count(s.numberOfInstances));
+        setCount(item, kImages, s.numberOfInstances);
         item->setData(0, kStudyUid, study->data(0, kStudyUid));
         item->setData(0, kSeriesUid, text(s.seriesUid));
         item->setToolTip(0, tr("Series Instance UID %1").arg(text(s.seriesUid)));
@@ -491,97 +526,16 @@ void PacsDialog::addSeries(QTreeWidgetItem* study, const QString& error,
     markLocalState();
 }
 
-void PacsDialog::retrieveSelected() {
-    const auto selected = m_results->selectedItems();
-    const pacs::Node* node = currentNode();
-    if (selected.isEmpty() || !node || m_retrieving) return;
-    const QTreeWidgetItem* item = selected.front();
-    const QTreeWidgetItem* study = item->parent() ? item->parent() : item;
-    const QString label = item->parent()
-                              ? tr("%1, %2").arg(study->text(kPatient), item->text(kPatient))
-                              : study->text(kPatient);
-    retrieve(*node, item->data(0, kStudyUid).toString().toStdString(),
-             item->data(0, kSeriesUid).toString().toStdString(), label);
-}
-
-void PacsDialog::retrieve(const pacs::Node& n, const std::string& studyUid,
-                          const std::string& seriesUid, const QString& label) {
-    m_retrieving = true;
-    m_progress->setRange(0, 0);
-    m_progress->setVisible(true);
-    m_cancel->setVisible(true);
-    setStatus(tr("Retrieving %1 from %2 (%3)…")
-                  .arg(label, text(n.name),
-                       n.retrieve == pacs::RetrieveMethod::Move ? tr("C-MOVE") : tr("C-GET")));
-    const pacs::LocalAe local = m_settings.local;
-    auto store = m_store;
-    auto done = std::make_shared<pacs::RetrieveSummary>();
-    QPointer<PacsDialog> self(this);
-    auto progress = [self](const pacs::RetrieveProgress& p) {
-        postToGui(self, [self, p] { self->onRetrieveProgress(p); });
-    };
-    m_retrieveCancel = run(
-        [=](core::CancelToken& token) {
-            // What the store has stays: a complete study opens from it, Resume takes the rest.
-            *done = pacs::retrieveMissing(n, local, studyUid, seriesUid, *store, progress, &token);
-        },
-        [this, label, done, studyUid, source = n.name](const std::optional<JobError>& error) {
-            try { // for Resume: the node it came from (nothing when no entry was begun)
-                m_store->setSource(studyUid, source);
-            } catch (const std::exception& e) {
-                emit message(QString::fromUtf8(e.what()), true);
-            }
-            for (const std::string& problem : m_store->takeTextProblems())
-                emit message(QString::fromStdString(problem), true);
-            m_retrieving = false;
-            m_progress->setVisible(false);
-            m_cancel->setVisible(false);
-            refreshLocal();
-            if (error && error->cancelled()) {
-                setStatus(tr("Retrieve of %1 cancelled: the images received are kept as a partial "
-                             "study (Local studies ▸ Resume retrieve), never opened as complete.")
-                              .arg(label));
-                return;
-            }
-            if (error) {
-                setStatus(tr("Retrieve of %1 failed: %2").arg(label, error->message), true);
-                return;
-            }
-            const QString path = QString::fromStdString(done->folder.string());
-            if (done->fromStore) {
-                setStatus(tr("%1 is complete in the local store: opened from %2, nothing retrieved")
-                              .arg(label, QDir::toNativeSeparators(path)));
-                emit openRequested(path);
-                return;
-            }
-            setStatus(tr("Retrieved %1 into %2").arg(label, QDir::toNativeSeparators(path)));
-            emit message(tr("Retrieved %1 from the PACS into %2").arg(label, path), false);
-            emit openRequested(path);
-        },
-        true); // cancelled and waited for at close: it writes into the store
-}
-
-void PacsDialog::onRetrieveProgress(const pacs::RetrieveProgress& p) {
-    if (!m_retrieving) return;
-    if (p.expected > 0) {
-        m_progress->setRange(0, p.expected);
-        m_progress->setValue(std::min(p.received, p.expected));
-        m_progress->setFormat(tr("%1 of %2 images").arg(p.received).arg(p.expected));
-    } else {
-        m_progress->setRange(0, 0);
-    }
-    if (p.failed > 0) setStatus(tr("%n image(s) failed so far", nullptr, p.failed), true);
-}
-
 void PacsDialog::refreshLocal() {
     m_local->clear();
+    m_local->setSortingEnabled(false); // once, after the rows are in
     try {
         for (const pacs::LocalStore::Entry& e : m_store->studies()) {
-            auto* item = new QTreeWidgetItem(m_local);
+            auto* item = new SortedItem(m_local);
             item->setText(kLocalPatient, personName(e.study.patientName));
             item->setText(kLocalDate, dicomDate(e.study.studyDate));
             item->setText(kLocalDescription, text(e.study.description));
-            item->setText(kLocalImages, QString::number(e.instances));
+            setCount(item, kLocalImages, e.instances);
             item->setText(kLocalState,
                           (e.area == pacs::Area::Incoming ? tr("incoming, ") : QString()) +
                               (e.complete ? tr("complete") : tr("partial")));
@@ -591,10 +545,10 @@ void PacsDialog::refreshLocal() {
             item->setData(0, kIncoming, e.area == pacs::Area::Incoming);
             item->setData(0, kSource, text(e.source));
             for (const pacs::LocalStore::SeriesEntry& s : e.series) {
-                auto* child = new QTreeWidgetItem(item);
+                auto* child = new SortedItem(item);
                 child->setText(kLocalPatient, text(s.modality));
                 child->setText(kLocalDescription, text(s.description));
-                child->setText(kLocalImages, QString::number(s.instances));
+                setCount(child, kLocalImages, s.instances);
                 child->setText(kLocalState, s.complete ? tr("complete") : tr("partial"));
                 child->setData(0, kStudyUid, text(e.study.studyUid));
                 child->setData(0, kSeriesUid, text(s.seriesUid));
@@ -607,6 +561,7 @@ void PacsDialog::refreshLocal() {
     } catch (const std::exception& e) {
         setStatus(tr("Local studies: %1").arg(QString::fromUtf8(e.what())), true);
     }
+    m_local->setSortingEnabled(true);
     markLocalState();
     updateButtons();
 }
@@ -624,7 +579,7 @@ void PacsDialog::openLocal() {
 
 void PacsDialog::resumeLocal() {
     const auto selected = m_local->selectedItems();
-    if (selected.isEmpty() || m_retrieving) return;
+    if (selected.isEmpty()) return;
     const QTreeWidgetItem* item = selected.front();
     // The node the study came from, not the dropdown's; the dropdown's when the store does not
     // know it (received by the listener, or retrieved before the store recorded it).
@@ -638,29 +593,31 @@ void PacsDialog::resumeLocal() {
         return;
     }
     const QTreeWidgetItem* study = item->parent() ? item->parent() : item;
+    // Queued, not opened when it ends: Open does that once it is complete.
     retrieve(*node, item->data(0, kStudyUid).toString().toStdString(),
-             item->data(0, kSeriesUid).toString().toStdString(), study->text(kLocalPatient));
+             item->data(0, kSeriesUid).toString().toStdString(), study->text(kLocalPatient), false);
 }
 
-void PacsDialog::setStatus(const QString& t, bool error) {
+void PacsDialog::setStatus(const QString& t, bool error, bool toMessages) {
     m_status->setText(t);
     m_status->setToolTip(t); // all of it, where the line is elided
     m_status->setStyleSheet(error ? QStringLiteral("color: #c0392b") : QString());
-    if (error) emit message(t, true);
+    if (error && toMessages) emit message(t, true);
 }
 
 void PacsDialog::updateButtons() {
     const bool haveNode = currentNode() != nullptr;
     m_echo->setEnabled(haveNode);
     m_search->setEnabled(haveNode);
-    m_retrieve->setEnabled(haveNode && !m_retrieving && !m_results->selectedItems().isEmpty());
+    const bool results = haveNode && !m_results->selectedItems().isEmpty();
+    m_retrieve->setEnabled(results); // queued behind a running retrieve
+    m_queueRetrieve->setEnabled(results);
     const auto local = m_local->selectedItems();
     const bool complete = !local.isEmpty() && local.front()->data(0, kComplete).toBool();
     const bool knownSource =
         !local.isEmpty() && !local.front()->data(0, kSource).toString().isEmpty();
     m_openLocal->setEnabled(complete);
-    m_resumeLocal->setEnabled((haveNode || knownSource) && !m_retrieving && !local.isEmpty() &&
-                              !complete);
+    m_resumeLocal->setEnabled((haveNode || knownSource) && !local.isEmpty() && !complete);
     m_deleteLocal->setEnabled(!local.isEmpty());
 }
 
@@ -675,9 +632,9 @@ void PacsDialog::deleteSelectedLocal(bool confirm) {
     const QString label =
         tr("%1, %2 (%3 images)")
             .arg(study->text(kLocalPatient), study->text(kLocalDate), study->text(kLocalImages));
-    if (area == pacs::Area::Studies && m_store->retrieving(uid)) {
-        setStatus(tr("%1 is being retrieved: Cancel the retrieve (or let it end) before deleting "
-                     "it.")
+    if (area == pacs::Area::Studies && (m_store->retrieving(uid) || m_queue.queued(uid))) {
+        setStatus(tr("%1 is being retrieved or waits to be: cancel its retrieve (or let it end) "
+                     "before deleting it.")
                       .arg(label),
                   true);
         return;
@@ -726,7 +683,7 @@ void PacsDialog::keyPressEvent(QKeyEvent* event) {
     if (m_tabs->currentWidget()->isAncestorOf(m_local))
         openLocal();
     else if (within(m_results) && !m_results->selectedItems().isEmpty())
-        retrieveSelected();
+        retrieveSelected(true);
     else
         search();
 }

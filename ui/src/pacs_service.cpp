@@ -10,9 +10,11 @@ namespace pacs = core::pacs;
 PacsService::PacsService(std::filesystem::path storeRoot, QObject* parent)
     : QObject(parent),
       m_store(std::make_shared<pacs::LocalStore>(storeRoot.empty() ? pacs::defaultLocalStoreRoot()
-                                                                   : std::move(storeRoot))) {}
+                                                                   : std::move(storeRoot))),
+      m_retrieves(std::make_unique<RetrieveQueue>(m_store)) {}
 
 PacsService::~PacsService() {
+    m_retrieves.reset(); // cancelled and waited for first: a C-MOVE may use the listener
     if (m_listener) m_listener->stop();
     m_jobs.wait(); // sends cannot be cancelled; their files are removed when they end
 }

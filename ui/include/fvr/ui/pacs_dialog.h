@@ -1,8 +1,9 @@
 #pragma once
-/** File ▸ PACS…: find studies on a PACS node (C-FIND), retrieve a study or series into the local
- *  study store (C-GET or C-MOVE) with progress and cancel, and open it; the local studies (open
- *  again without the network, resume a partial retrieve). Network work runs on worker threads,
- *  never on the GUI thread (BackgroundJobs); results and progress come back on the GUI thread. */
+/** File ▸ PACS…: find studies on a PACS node (C-FIND); queue retrieves of studies and series
+ *  into the local study store (C-GET or C-MOVE; RetrieveQueue, which goes on while the dialog is
+ *  closed) with progress and cancel; the queue; the local studies (open again without the
+ *  network, resume a partial retrieve, delete). Network work runs on worker threads, never on
+ *  the GUI thread (BackgroundJobs); results and progress come back on the GUI thread. */
 #include <QDialog>
 
 #include <functional>
@@ -15,6 +16,7 @@
 #include <fvr/core/render/preprocess.h>
 #include <fvr/ui/background_job.h>
 #include <fvr/ui/pacs_settings.h>
+#include <fvr/ui/retrieve_queue.h>
 
 class QComboBox;
 class QKeyEvent;
@@ -32,15 +34,17 @@ namespace fvr::ui {
 class PacsDialog : public QDialog {
     Q_OBJECT
 public:
-    /** `store`: the local study store, shared with the storage listener (one object per
-     *  process: it serialises their writes). */
-    explicit PacsDialog(std::shared_ptr<core::pacs::LocalStore> store, QWidget* parent = nullptr);
-    ~PacsDialog() override; ///< cancels a retrieve and waits for it (see run())
+    /** `queue`: the retrieves, and through it the local study store, shared with the storage
+     *  listener (one object per process: it serialises their writes). It outlives the dialog. */
+    explicit PacsDialog(RetrieveQueue& queue, QWidget* parent = nullptr);
+    ~PacsDialog() override;
 
     /** Reloads the nodes from the settings (after Edit nodes or elsewhere). */
     void reloadSettings();
-    /** Whether a network job (echo, find, retrieve) runs. */
-    bool busy() const { return m_pending > 0; }
+    /** Whether a network job (echo, find) runs, or a retrieve waits or runs. */
+    bool busy() const { return m_pending > 0 || m_queue.busy(); }
+    /** Shows the Retrieves tab (the queue). */
+    void showQueue();
 
     // For tests, which drive the dialog as a user does.
     QComboBox* nodeCombo() const { return m_node; }
@@ -56,10 +60,12 @@ public:
     QPushButton* resumeLocalButton() const { return m_resumeLocal; }
     QTabWidget* tabs() const { return m_tabs; }
     QPushButton* searchButton() const { return m_search; }
-    QPushButton* retrieveButton() const { return m_retrieve; }
+    QPushButton* retrieveButton() const { return m_retrieve; } ///< "Retrieve and open"
+    QPushButton* queueButton() const { return m_queueRetrieve; } ///< "Retrieve" (no open)
     QPushButton* cancelButton() const { return m_cancel; }
     QTreeWidget* results() const { return m_results; }
     QTreeWidget* localStudies() const { return m_local; }
+    QTreeWidget* queueList() const { return m_queueList; }
     QProgressBar* progress() const { return m_progress; }
     QLabel* status() const { return m_status; }
     /** The query the form describes. */
@@ -78,8 +84,8 @@ signals:
     void settingsChanged();
 
 protected:
-    /** Enter: retrieves the selected result when the results have the focus, opens the
-     *  selected local study in Local studies, else searches (once: no default button). */
+    /** Enter: retrieves and opens the selected result when the results have the focus, opens
+     *  the selected local study in Local studies, else searches (once: no default button). */
     void keyPressEvent(QKeyEvent* event) override;
     /** The Delete key in Local studies. */
     bool eventFilter(QObject* watched, QEvent* event) override;
@@ -88,6 +94,7 @@ private:
     QWidget* buildQueryTab();
     QWidget* buildQueryForm();
     QWidget* buildLocalTab();
+    QWidget* buildQueueTab();
     /** Runs `work` on a worker thread; `done` runs on the GUI thread with its error (none on
      *  success) unless the dialog is gone. The dialog's destructor waits for the jobs with
      *  `waitAtClose` (retrieves, cancelled first), not for the others (an echo or a query may
@@ -106,23 +113,31 @@ private:
     /** The series found for `study` (or the query's error) as its children. */
     void addSeries(QTreeWidgetItem* study, const QString& error,
                    const std::vector<core::pacs::SeriesRecord>& found);
-    void retrieveSelected();
+    /** Queues each selected result (a series alone when its study is not selected too); with
+     *  `open`, the first opens when it ends (RetrieveQueue::shouldOpen). `refresh`: again from
+     *  the PACS, what the store has complete too. */
+    void retrieveSelected(bool open, bool refresh = false);
     void retrieve(const core::pacs::Node& node, const std::string& studyUid,
-                  const std::string& seriesUid, const QString& label);
-    void onRetrieveProgress(const core::pacs::RetrieveProgress& p);
+                  const std::string& seriesUid, const QString& label, bool open,
+                  bool refresh = false);
+    /** The bottom strip and the Retrieves tab follow the queue. */
+    void onQueueChanged();
+    void onRetrieveEnded(int id);
+    void fillQueueList();
     void refreshLocal();
     /** The results' Local column: complete or partial for what the store holds. */
     void markLocalState();
     void openLocal();
     void resumeLocal();
-    void setStatus(const QString& text, bool error = false);
+    /** The status line; an error goes to the Messages panel too unless `toMessages` is false
+     *  (what the queue reports itself). */
+    void setStatus(const QString& text, bool error = false, bool toMessages = true);
     void updateButtons();
 
+    RetrieveQueue& m_queue;
     std::shared_ptr<core::pacs::LocalStore> m_store;
     PacsSettings m_settings;
-    int m_pending = 0; ///< jobs whose outcome has not been handled
-    bool m_retrieving = false;
-    std::shared_ptr<core::CancelToken> m_retrieveCancel;
+    int m_pending = 0; ///< echo and find jobs whose outcome has not been handled
 
     QTabWidget* m_tabs = nullptr;
     QComboBox* m_node = nullptr;
@@ -139,13 +154,16 @@ private:
     QPushButton* m_search = nullptr;
     QTreeWidget* m_results = nullptr;
     QPushButton* m_retrieve = nullptr;
+    QPushButton* m_queueRetrieve = nullptr;
     QPushButton* m_cancel = nullptr;
     QProgressBar* m_progress = nullptr;
     QLabel* m_status = nullptr;
     QTreeWidget* m_local = nullptr;
     QPushButton* m_openLocal = nullptr;
     QPushButton* m_resumeLocal = nullptr;
-    BackgroundJobs m_jobs{this}; ///< last: retrieves end before the rest of the dialog goes
+    QTreeWidget* m_queueList = nullptr;
+    QPushButton* m_cancelQueued = nullptr;
+    BackgroundJobs m_jobs{this}; ///< echoes and finds (abandoned at close)
 };
 
 } // namespace fvr::ui

@@ -1,7 +1,7 @@
 #pragma once
 /** The workstation's PACS state beside the dialog: the local study store (one per process,
- *  shared by retrieves and the listener), the storage listener that the settings start and stop,
- *  and sends (C-STORE) on worker threads. */
+ *  shared by retrieves and the listener), the retrieve queue, the storage listener that the
+ *  settings start and stop, and sends (C-STORE) on worker threads. */
 #include <QObject>
 
 #include <filesystem>
@@ -11,6 +11,7 @@
 #include <fvr/core/pacs/local_store.h>
 #include <fvr/core/pacs/storage_listener.h>
 #include <fvr/ui/background_job.h>
+#include <fvr/ui/retrieve_queue.h>
 
 namespace fvr::ui {
 
@@ -24,6 +25,8 @@ public:
     ~PacsService() override; ///< stops the listener, waits for sends
 
     const std::shared_ptr<core::pacs::LocalStore>& store() const { return m_store; }
+    /** The retrieves into the store, one after another, whether the PACS dialog is open or not. */
+    RetrieveQueue& retrieves() { return *m_retrieves; }
     /** Starts or stops the listener as `s` says (restarted when any of what it is made from
      *  changed: AE title, port, address, allowed peers, TLS, timeout). Returns what happened, for
      * the Messages panel; `ok` false when it could not start. What it refuses or quarantines comes
@@ -45,6 +48,7 @@ signals:
 private:
     std::shared_ptr<core::pacs::LocalStore> m_store;
     std::unique_ptr<core::pacs::StorageListener> m_listener;
+    std::unique_ptr<RetrieveQueue> m_retrieves;
     int m_sending = 0;
     BackgroundJobs m_jobs{this}; ///< sends; waited for before the store goes
 };
