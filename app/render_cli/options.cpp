@@ -553,8 +553,13 @@ void declarePacs(CLI::App& app, Options& o) {
     app.add_option("--store", o.store,
                    "the local study store for dicom:// INPUT (default\n"
                    "$XDG_DATA_HOME/fvr-workstation/studies, the workstation's); a study\n"
-                   "it lists complete opens without the network")
+                   "it lists complete opens without the network; of a partial one only\n"
+                   "the missing images are retrieved")
         ->option_text("DIR")
+        ->group(g);
+    app.add_flag("--refresh", o.refresh,
+                 "re-retrieve a dicom:// INPUT from the PACS, all of it, even what the\n"
+                 "store has complete")
         ->group(g);
 }
 

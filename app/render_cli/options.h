@@ -108,6 +108,7 @@ struct Options {
     bool querySeries = false; ///< --query-series: each study's series too
     std::string send; ///< --send dicom://AE@host:port
     std::string store; ///< --store DIR: the local study store (default: the user's)
+    bool refresh = false; ///< --refresh: retrieve INPUT again even when the store has it complete
     int pacsTimeout = 10; ///< --pacs-timeout S: seconds without a reply before a PACS call fails
     // DICOM TLS (--tls): to the PACS of INPUT and --send, and for --retrieve move's listener.
     bool tls = false;

@@ -147,6 +147,9 @@ void checkPacsOptions(const Options& o) {
         if (!url) throw SettingsError("--query: INPUT must be a PACS, dicom://AE@host:port");
         parseStudyQuery(o.query);
     }
+    if (o.refresh && (!url || o.queryGiven))
+        throw SettingsError("--refresh: INPUT must be a study (or series) on a PACS, "
+                            "dicom://AE@host:port/STUDY_UID[/SERIES_UID], without --query");
     if (url) {
         const pacs::DicomUrl u = parseUrl("INPUT", o.input);
         if (!o.queryGiven && u.studyUid.empty())
@@ -170,28 +173,29 @@ std::filesystem::path retrieveInput(const Options& o) {
                                            : std::filesystem::path(o.store));
     const std::string what =
         url.seriesUid.empty() ? "study " + url.studyUid : "series " + url.seriesUid;
-    if (const auto entry = store.find(url.studyUid)) {
-        for (const auto& s : entry->series)
-            if (s.seriesUid == url.seriesUid && s.complete) return s.folder;
-        if (entry->complete)
-            return url.seriesUid.empty() ? entry->folder
-                                         : store.seriesFolder(url.studyUid, url.seriesUid);
-    }
-    int images = 0;
+    // Only what the store lacks: nothing (and no network) for a complete study, the missing
+    // instances of a partial one, everything again with --refresh.
     const auto t0 = std::chrono::steady_clock::now();
-    const auto folder =
-        pacs::retrieve(url.node, localAe(o), url.studyUid, url.seriesUid, store,
-                       [&, line = progressLine(what)](const pacs::RetrieveProgress& p) mutable {
-                           images = p.received;
-                           line(p);
-                       });
+    const pacs::RetrieveSummary done =
+        pacs::retrieveMissing(url.node, localAe(o), url.studyUid, url.seriesUid, store,
+                              progressLine(what), nullptr, o.refresh);
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (done.fromStore) {
+        std::fprintf(stderr, "%s is complete in the local store (%s): nothing retrieved\n",
+                     what.c_str(), done.folder.string().c_str());
+        return done.folder;
+    }
     if (isatty(2)) std::fprintf(stderr, "\n");
-    std::fprintf(stderr, "retrieved %s from %s (%s, %d images in %.2f s) into %s\n", what.c_str(),
-                 pacs::describe(url.node).c_str(),
-                 o.retrieve == pacs::RetrieveMethod::Move ? "C-MOVE" : "C-GET", images, s,
-                 folder.string().c_str());
-    return folder;
+    const char* how = o.retrieve == pacs::RetrieveMethod::Move ? "C-MOVE" : "C-GET";
+    char counts[96];
+    if (done.present == 0)
+        std::snprintf(counts, sizeof counts, "%d images", done.fetched);
+    else
+        std::snprintf(counts, sizeof counts, "%d of %d images fetched, %d already local,",
+                      done.fetched, done.fetched + done.present, done.present);
+    std::fprintf(stderr, "retrieved %s from %s (%s, %s in %.2f s) into %s\n", what.c_str(),
+                 pacs::describe(url.node).c_str(), how, counts, s, done.folder.string().c_str());
+    return done.folder;
 }
 
 int runQuery(const Options& o) {

@@ -27,8 +27,10 @@ core::pacs::StudyQuery parseStudyQuery(const std::vector<std::string>& terms);
 void checkPacsOptions(const Options& o);
 
 /** INPUT dicom://AE@host:port/STUDY[/SERIES]: the folder of the study (series) in the local
- *  store (--store, default core::pacs::defaultLocalStoreRoot()); retrieved with --retrieve
- *  (progress on stderr) unless the store lists it complete. Throws PacsError. */
+ *  store (--store, default core::pacs::defaultLocalStoreRoot()). Taken from the store without
+ *  the network when it lists it complete (unless --refresh); else what the store lacks is
+ *  retrieved with --retrieve (core::pacs::retrieveMissing: the missing instances of a partial
+ *  study, all of it otherwise), progress and a summary on stderr. Throws PacsError. */
 std::filesystem::path retrieveInput(const Options& o);
 
 /** --query: the matching studies as JSON on stdout (with their series for --query-series). */

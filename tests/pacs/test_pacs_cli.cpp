@@ -1,12 +1,16 @@
 // fvr-render and the PACS: a dicom:// INPUT renders as the same folder does, --query prints
 // JSON, --send stores the views on Orthanc.
 #include <algorithm>
+#include <cstdio>
 #include <fstream>
 #include <iterator>
+#include <set>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include <fvr/core/dicom/dicom.h>
+#include <fvr/core/pacs/local_store.h>
 
 #include "pacs_environment.h"
 #include "test_support.h"
@@ -244,4 +248,148 @@ TEST(PacsCli, SendStoresTreatmentBeamsAsRtImages) {
         gantry.push_back(t["GantryAngle"]);
     }
     EXPECT_NE(std::find(gantry.begin(), gantry.end(), "270"), gantry.end());
+}
+
+namespace {
+
+/** How many instances Orthanc holds of a study (its REST API): the oracle of "N of M". */
+int orthancStudyInstances(const std::string& studyUid) {
+    const std::string id = env().orthanc().lookup(studyUid);
+    if (id.empty()) return -1;
+    return int(
+        nlohmann::json::parse(env().orthanc().get("/studies/" + id + "/instances").body).size());
+}
+
+/** Deletes every `step`-th file of `folder` (sorted by name), as an interrupted retrieve leaves
+ *  a study; returns the names deleted. */
+std::set<std::string> deleteEvery(const fs::path& folder, int step) {
+    std::vector<fs::path> files;
+    for (const auto& e : fs::directory_iterator(folder)) files.push_back(e.path());
+    std::sort(files.begin(), files.end());
+    std::set<std::string> gone;
+    for (std::size_t i = 0; i < files.size(); i += step) {
+        fs::remove(files[i]);
+        gone.insert(files[i].filename().string());
+    }
+    return gone;
+}
+
+std::set<std::string> fileNames(const fs::path& folder) {
+    std::set<std::string> out;
+    for (const auto& e : fs::directory_iterator(folder)) out.insert(e.path().filename().string());
+    return out;
+}
+
+/** Lists the study (and `seriesUid`, when not empty) partial, as a retrieve that did not finish
+ *  leaves them (the store's own API). */
+void markPartial(const fs::path& root, const std::string& studyUid, const std::string& seriesUid) {
+    fvr::core::pacs::LocalStore store(root);
+    store.beginRetrieve(fvr::core::pacs::StudyRecord{studyUid}, seriesUid);
+    store.finishRetrieve(studyUid, seriesUid, false);
+}
+
+} // namespace
+
+TEST(PacsCli, APartialStudyFetchesOnlyTheMissingImages) {
+    FVR_REQUIRE_ORTHANC();
+    const fs::path dir = env().dir / "cli-partial";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const std::string study = slicerTag("StudyInstanceUID"),
+                      series = slicerTag("SeriesInstanceUID");
+    const int total = orthancStudyInstances(study);
+    ASSERT_EQ(total, 93);
+    const std::string common =
+        " --backend cpu --size 128 --view AP --store " + (dir / "store").string() + " --out ";
+    auto r = render((fvr::test::sharedData() / fvr::test::kSlicer).string() + common +
+                        (dir / "local.npy").string(),
+                    dir / "local.err");
+    ASSERT_EQ(r.status, 0) << readAll(dir / "local.err");
+    r = render(nodeUrl() + "/" + study + common + (dir / "full.npy").string(), dir / "full.err");
+    ASSERT_EQ(r.status, 0) << readAll(dir / "full.err");
+    ASSERT_NE(readAll(dir / "full.err").find("(C-GET, 93 images in "), std::string::npos)
+        << readAll(dir / "full.err");
+    const fs::path seriesDir = dir / "store" / study / series;
+    const std::set<std::string> all = fileNames(seriesDir);
+    ASSERT_EQ(all.size(), 93u);
+
+    // The study partial, 14 of its files gone: only those 14 are retrieved, by C-GET.
+    std::set<std::string> gone = deleteEvery(seriesDir, 7);
+    ASSERT_EQ(gone.size(), 14u);
+    markPartial(dir / "store", study, "");
+    ASSERT_FALSE(fvr::core::pacs::LocalStore(dir / "store").find(study)->complete);
+    r = render(nodeUrl() + "/" + study + common + (dir / "resumed.npy").string(),
+               dir / "resumed.err");
+    ASSERT_EQ(r.status, 0) << readAll(dir / "resumed.err");
+    const std::string said = readAll(dir / "resumed.err");
+    const std::size_t at = said.rfind("retrieved");
+    if (at != std::string::npos) // the summary line, for the timings
+        std::printf("[ resume   ] %s\n", said.substr(at, said.find('\n', at) - at).c_str());
+    EXPECT_NE(said.find("retrieved study " + study + " from ORTHANC@127.0.0.1:"), std::string::npos)
+        << said;
+    EXPECT_NE(said.find("(C-GET, 14 of 93 images fetched, 79 already local, in "),
+              std::string::npos)
+        << said;
+    EXPECT_EQ(fileNames(seriesDir), all); // the deleted ones back, nothing else
+    EXPECT_TRUE(fvr::core::pacs::LocalStore(dir / "store").find(study)->complete);
+    EXPECT_EQ(readAll(dir / "local.npy"), readAll(dir / "resumed.npy"));
+
+    // A partial series, named in the URL: its 10 missing images, by C-MOVE.
+    gone = deleteEvery(seriesDir, 10);
+    ASSERT_EQ(gone.size(), 10u);
+    markPartial(dir / "store", study, ""); // a series partial: its study too
+    markPartial(dir / "store", study, series);
+    r = render(nodeUrl() + "/" + study + "/" + series + " --retrieve move --listen-port " +
+                   std::to_string(env().local().listenPort) + common +
+                   (dir / "series.npy").string(),
+               dir / "series.err");
+    ASSERT_EQ(r.status, 0) << readAll(dir / "series.err");
+    EXPECT_NE(readAll(dir / "series.err")
+                  .find("retrieved series " + series +
+                        " from ORTHANC@127.0.0.1:" + std::to_string(env().orthanc().dicomPort()) +
+                        " (C-MOVE, 10 of 93 images fetched, 83 already local, in "),
+              std::string::npos)
+        << readAll(dir / "series.err");
+    EXPECT_EQ(fileNames(seriesDir), all);
+    EXPECT_EQ(readAll(dir / "local.npy"), readAll(dir / "series.npy"));
+}
+
+TEST(PacsCli, RefreshRetrievesACompleteStudyAgain) {
+    FVR_REQUIRE_ORTHANC();
+    const fs::path dir = env().dir / "cli-refresh";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const std::string study = slicerTag("StudyInstanceUID");
+    const std::string store = " --store " + (dir / "store").string() + " --info";
+    auto r = render(nodeUrl() + "/" + study + store, dir / "first.err");
+    ASSERT_EQ(r.status, 0) << readAll(dir / "first.err");
+    const fs::path folder = dir / "store" / study;
+    // Complete: nothing retrieved, and the stderr says where it was found.
+    r = render(nodeUrl() + "/" + study + store, dir / "again.err");
+    ASSERT_EQ(r.status, 0) << readAll(dir / "again.err");
+    EXPECT_NE(readAll(dir / "again.err")
+                  .find("study " + study + " is complete in the local store (" + folder.string() +
+                        "): nothing retrieved"),
+              std::string::npos)
+        << readAll(dir / "again.err");
+    EXPECT_EQ(readAll(dir / "again.err").find("retrieved study"), std::string::npos);
+    // --refresh: all 93 from the PACS again (Orthanc holds 93), so it needs the PACS.
+    r = render(nodeUrl() + "/" + study + store + " --refresh", dir / "refresh.err");
+    ASSERT_EQ(r.status, 0) << readAll(dir / "refresh.err");
+    EXPECT_NE(readAll(dir / "refresh.err").find("(C-GET, 93 images in "), std::string::npos)
+        << readAll(dir / "refresh.err");
+    EXPECT_EQ(orthancStudyInstances(study), 93);
+    const auto info = nlohmann::json::parse(r.out);
+    ASSERT_EQ(info["series"].size(), 1u) << r.out;
+    EXPECT_EQ(info["series"][0]["dims"], nlohmann::json({64, 64, 93})) << r.out;
+    r = render(nodeUrl(fvr::test::freeLoopbackPort()) + "/" + study + store + " --refresh",
+               dir / "closed.err");
+    EXPECT_EQ(r.status, 1) << readAll(dir / "closed.err");
+    // Not for a folder, nor with --query.
+    r = render((fvr::test::sharedData() / fvr::test::kSlicer).string() + " --info --refresh",
+               dir / "folder.err");
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(readAll(dir / "folder.err").find("--refresh: INPUT must be a study"),
+              std::string::npos)
+        << readAll(dir / "folder.err");
 }
