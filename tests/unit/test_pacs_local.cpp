@@ -418,6 +418,30 @@ TEST(PacsLocalStore, AReceivedStudyIsCompleteWhenAllItsSeriesAre) {
     EXPECT_EQ(entry->study.patientName, "DOE^JANE");
 }
 
+TEST(PacsLocalStore, AStudyWithASeriesLeftPartialIsPartial) {
+    // A complete study; one of its series retrieved again (a refresh) and cancelled: that series
+    // is partial, and so is the study, until a retrieve completes the series.
+    const fs::path root = fvr::test::tmpDir() / "pacs-store-series-partial";
+    fs::remove_all(root);
+    LocalStore store(root);
+    store.beginRetrieve(study("8.1"), "");
+    for (const char* s : {"8.1.1", "8.1.2"})
+        store.storeInstance(study("8.1"), {s, "CT", "", 1, 1}, std::string(s) + ".1", "x");
+    store.finishRetrieve("8.1", "", true);
+    ASSERT_TRUE(store.find("8.1")->complete);
+    store.beginRetrieve(study("8.1"), "8.1.2");
+    store.finishRetrieve("8.1", "8.1.2", false); // cancelled
+    auto entry = store.find("8.1");
+    ASSERT_TRUE(entry);
+    EXPECT_FALSE(entry->complete);
+    ASSERT_EQ(entry->series.size(), 2u);
+    EXPECT_TRUE(entry->series[0].complete);
+    EXPECT_FALSE(entry->series[1].complete);
+    store.beginRetrieve(study("8.1"), "8.1.2");
+    store.finishRetrieve("8.1", "8.1.2", true);
+    EXPECT_TRUE(store.find("8.1")->complete);
+}
+
 // The user's Delete: refused while a retrieve runs on the study (saying so), then the study's
 // entry and files go; its source node (for Resume) is kept in the index until then.
 TEST(PacsLocalStore, DeleteStudyRefusesARunningRetrieveThenRemovesEntryAndFiles) {

@@ -528,6 +528,11 @@ static LocalStore::Entry entryFrom(const LocalStore& store, const std::string& u
         s.instances = countInstances(s.folder);
         e.series.push_back(std::move(s));
     }
+    // Never complete with a series that is not: a refresh of one series of a complete study
+    // that was cancelled leaves that series partial, and Open and Resume must see it.
+    e.complete =
+        e.complete && std::all_of(e.series.begin(), e.series.end(),
+                                  [](const LocalStore::SeriesEntry& s) { return s.complete; });
     e.study.numberOfSeries = static_cast<int>(e.series.size());
     e.study.numberOfInstances = e.instances;
     return e;
