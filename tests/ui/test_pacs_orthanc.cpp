@@ -2,6 +2,7 @@
 // free loopback ports): Test connection, search, series on demand, retrieve with C-GET and
 // C-MOVE (our listener) into the local store and open, Send projection back, and a wrong called
 // AE title said in words. Skips with the reason without Orthanc or the shared data.
+#include <QAction>
 #include <QComboBox>
 #include <QElapsedTimer>
 #include <QHeaderView>
@@ -634,4 +635,71 @@ TEST_F(PacsWorkstation, ADoubleClickDuringARetrieveQueuesTheSecondStudy) {
     QTest::qWait(500);
     EXPECT_EQ(ready.count(), 1);
     EXPECT_EQ(window->study().volume()->dims, (core::Dims3{64, 64, 93}));
+}
+
+TEST_F(PacsWorkstation, RetrieveAgainFromThePacsRefreshesACompleteStudy) {
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
+    auto store = window->pacs().store();
+    const int before = store->instancesStored();
+    // The results' context menu: again from the PACS although the store has it complete.
+    QAction* again = nullptr;
+    for (QAction* a : d->results()->actions())
+        if (a->text().startsWith("Retrieve again")) again = a;
+    ASSERT_NE(again, nullptr);
+    d->results()->setCurrentItem(d->results()->topLevelItem(0));
+    again->trigger();
+    ui::RetrieveQueue& queue = window->pacs().retrieves();
+    ASSERT_TRUE(QTest::qWaitFor([&] { return !queue.busy(); }, 120000));
+    const ui::RetrieveJob& j = queue.jobs().back();
+    EXPECT_EQ(j.state, ui::RetrieveJob::State::Done) << j.outcome.toStdString();
+    EXPECT_FALSE(j.fromStore);
+    EXPECT_EQ(j.progress.expected, 93); // what Orthanc said it sends
+    EXPECT_EQ(store->instancesStored() - before, 93); // and what arrived
+    EXPECT_TRUE(store->find(j.studyUid)->complete);
+    // A plain Retrieve of it again takes nothing: the PACS frozen, it is done from the store.
+    orthanc->stop();
+    d->queueButton()->click();
+    const bool idle = QTest::qWaitFor([&] { return !queue.busy(); }, 60000);
+    orthanc->cont();
+    ASSERT_TRUE(idle);
+    EXPECT_TRUE(queue.jobs().back().fromStore) << queue.jobs().back().outcome.toStdString();
+    EXPECT_EQ(store->instancesStored() - before, 93);
+}
+
+TEST_F(PacsWorkstation, AnErrorIsNotLeftInRedOnceSomethingElseWorks) {
+    ui::PacsSettings s = settings(pacs::RetrieveMethod::Get);
+    pacs::Node wrong = s.nodes[0];
+    wrong.name = "Wrong PACS";
+    wrong.calledAe = "NOSUCHAE"; // Orthanc refuses it
+    s.nodes.push_back(wrong);
+    s.save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    d->nodeCombo()->setCurrentIndex(d->nodeCombo()->findData("Test PACS"));
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
+    // A failure on the wrong node: red.
+    d->nodeCombo()->setCurrentIndex(d->nodeCombo()->findData("Wrong PACS"));
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_TRUE(d->statusIsError()) << d->status()->text().toStdString();
+    // Another node: the error was the other one's.
+    d->nodeCombo()->setCurrentIndex(d->nodeCombo()->findData("Test PACS"));
+    EXPECT_FALSE(d->statusIsError()) << d->status()->text().toStdString();
+    // Red again, then a local study opens: the line says so, not the old failure.
+    d->nodeCombo()->setCurrentIndex(d->nodeCombo()->findData("Wrong PACS"));
+    ASSERT_TRUE(clickAndWait(*d, d->echoButton()));
+    ASSERT_TRUE(d->statusIsError()) << d->status()->text().toStdString();
+    QTreeWidget* local = d->localStudies();
+    ASSERT_EQ(local->topLevelItemCount(), 1);
+    local->setCurrentItem(local->topLevelItem(0));
+    QSignalSpy ready(&window->study(), &ui::StudyController::spectrumReady);
+    buttonNamed(*d, "Open")->click();
+    EXPECT_FALSE(d->statusIsError()) << d->status()->text().toStdString();
+    EXPECT_TRUE(d->status()->text().startsWith("Opening Austrialian"))
+        << d->status()->text().toStdString();
+    EXPECT_TRUE(ready.wait(60000));
 }

@@ -59,7 +59,6 @@ public:
     }
 };
 
-
 QString count(int n) { return n >= 0 ? QString::number(n) : QString(); }
 
 /** Sets a count's text and its sort key (unknown, -1: empty, first). */
@@ -164,6 +163,8 @@ PacsDialog::PacsDialog(RetrieveQueue& queue, QWidget* parent)
     // The results are another node's: they go with it (a retrieve would ask the new node).
     connect(m_node, &QComboBox::currentIndexChanged, this, [this] {
         m_results->clear();
+        // An error was the other node's: it no longer describes what the dialog shows.
+        if (m_statusError && !m_queue.running()) setStatus(QString());
         updateButtons();
     });
     reloadSettings();
@@ -523,6 +524,9 @@ void PacsDialog::addSeries(QTreeWidgetItem* study, const QString& error,
         item->setToolTip(0, tr("Series Instance UID %1").arg(text(s.seriesUid)));
     }
     if (found.empty()) study->setChildIndicatorPolicy(QTreeWidgetItem::DontShowIndicator);
+    // An earlier failure (this query's last try, say) is not left in red over what worked.
+    if (m_statusError && !m_queue.running())
+        setStatus(tr("%n series of %1", nullptr, int(found.size())).arg(study->text(kPatient)));
     markLocalState();
 }
 
@@ -574,6 +578,8 @@ void PacsDialog::openLocal() {
         setStatus(tr("This study is partial: Resume retrieve completes it first."), true);
         return;
     }
+    const QTreeWidgetItem* study = item->parent() ? item->parent() : item;
+    setStatus(tr("Opening %1 from the local store").arg(study->text(kLocalPatient)));
     emit openRequested(item->data(0, kFolder).toString());
 }
 
@@ -602,6 +608,7 @@ void PacsDialog::setStatus(const QString& t, bool error, bool toMessages) {
     m_status->setText(t);
     m_status->setToolTip(t); // all of it, where the line is elided
     m_status->setStyleSheet(error ? QStringLiteral("color: #c0392b") : QString());
+    m_statusError = error;
     if (error && toMessages) emit message(t, true);
 }
 

@@ -68,6 +68,8 @@ public:
     QTreeWidget* queueList() const { return m_queueList; }
     QProgressBar* progress() const { return m_progress; }
     QLabel* status() const { return m_status; }
+    /** Whether the status line says what failed (drawn in red). */
+    bool statusIsError() const { return m_statusError; }
     /** The query the form describes. */
     core::pacs::StudyQuery query() const;
     /** Deletes the study selected in Local studies (files and index entry), after asking when
@@ -138,6 +140,7 @@ private:
     std::shared_ptr<core::pacs::LocalStore> m_store;
     PacsSettings m_settings;
     int m_pending = 0; ///< echo and find jobs whose outcome has not been handled
+    bool m_statusError = false; ///< the status line says what failed (in red)
 
     QTabWidget* m_tabs = nullptr;
     QComboBox* m_node = nullptr;
