@@ -703,3 +703,32 @@ TEST_F(PacsWorkstation, AnErrorIsNotLeftInRedOnceSomethingElseWorks) {
         << d->status()->text().toStdString();
     EXPECT_TRUE(ready.wait(60000));
 }
+
+TEST_F(PacsWorkstation, QuittingDuringARetrieveAsksFirst) {
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    d->results()->setCurrentItem(d->results()->topLevelItem(0));
+    ui::RetrieveQueue& queue = window->pacs().retrieves();
+    orthanc->stop(); // the retrieve is still running at the quit
+    d->queueButton()->click();
+    d->hide();
+    bool asked = false;
+    answerModal("confirmQuitRetrieves", QMessageBox::No, &asked);
+    window->close();
+    EXPECT_TRUE(asked);
+    EXPECT_TRUE(window->isVisible()); // No: the window stays, the retrieve goes on
+    EXPECT_TRUE(queue.busy());
+    asked = false;
+    answerModal("confirmQuitRetrieves", QMessageBox::Yes, &asked);
+    window->close();
+    EXPECT_TRUE(asked);
+    EXPECT_FALSE(window->isVisible());
+    orthanc->cont();
+    ASSERT_TRUE(QTest::qWaitFor([&] { return !queue.busy(); }, 120000));
+    // Without retrieves nothing is asked.
+    window->show();
+    window->close();
+    EXPECT_FALSE(window->isVisible());
+}

@@ -364,6 +364,10 @@ void MainWindow::message(const QString& text, bool error) {
 }
 
 void MainWindow::closeEvent(QCloseEvent* e) {
+    if (!confirmQuitDuringRetrieves()) {
+        e->ignore();
+        return;
+    }
     m_study->cancel();
     QSettings s;
     s.setValue(keys::kWindowGeometry, saveGeometry());

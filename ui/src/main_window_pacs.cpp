@@ -3,6 +3,7 @@
 
 #include <QInputDialog>
 #include <QMenu>
+#include <QMessageBox>
 #include <QStatusBar>
 #include <QTemporaryDir>
 
@@ -78,6 +79,21 @@ PacsDialog* MainWindow::pacsDialog() {
         });
     }
     return m_pacsDialog;
+}
+
+bool MainWindow::confirmQuitDuringRetrieves() {
+    const RetrieveQueue& q = m_pacs->retrieves();
+    if (!q.busy()) return true;
+    const int n = q.waiting() + (q.running() ? 1 : 0);
+    QMessageBox ask(QMessageBox::Question, tr("Quit during retrieves"),
+                    tr("%n PACS retrieve(s) running or waiting. Quit anyway?", nullptr, n) +
+                        QStringLiteral("\n\n") +
+                        tr("What arrived is kept as partial studies: File ▸ PACS ▸ Local studies "
+                           "▸ Resume retrieve completes them later."),
+                    QMessageBox::Yes | QMessageBox::No, this);
+    ask.setObjectName(QStringLiteral("confirmQuitRetrieves"));
+    ask.setDefaultButton(QMessageBox::No);
+    return ask.exec() == QMessageBox::Yes;
 }
 
 void MainWindow::editPacsNodes() {

@@ -260,6 +260,9 @@ private:
     void openSessionDialog();
     void buildPacsMenu(QMenu* file); // main_window_pacs.cpp
     void editPacsNodes();
+    /** Quitting while retrieves wait or run: asks first (a question box named
+     *  "confirmQuitRetrieves"); true to quit. */
+    bool confirmQuitDuringRetrieves();
     void sendProjectionDialog();
     /** View 1's projection as DICOM Secondary Capture: the values the float exports hold, the
      *  source's patient and study. Throws (WriteError, or nothing to export). */
