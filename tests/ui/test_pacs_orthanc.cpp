@@ -569,7 +569,8 @@ TEST_F(PacsWorkstation, SelectedStudiesQueueAndArriveWithTheDialogClosedShownInT
     EXPECT_EQ(shownOf.size(), 2u);
     QTest::qWait(300);
     EXPECT_EQ(ready.count(), 0); // "Retrieve" queues; it opens nothing
-    EXPECT_TRUE(window->messages()->toPlainText().contains("Retrieved Austrialian into"));
+    EXPECT_TRUE(window->messages()->toPlainText().contains(
+        "Retrieved Austrialian: 93 images received, into"));
     // The dialog's Retrieves tab lists both, done.
     d->show();
     EXPECT_EQ(column(*d->queueList(), 2), (QStringList{"done", "done"}));

@@ -130,6 +130,7 @@ PacsDialog::PacsDialog(RetrieveQueue& queue, QWidget* parent)
     layout->addWidget(m_tabs, 1);
     auto* bottom = new QHBoxLayout;
     m_progress = new QProgressBar(this);
+    fitRetrieveProgress(*m_progress);
     m_progress->setVisible(false);
     m_cancel = new QPushButton(tr("Cancel"), this);
     m_cancel->setVisible(false);

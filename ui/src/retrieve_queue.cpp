@@ -160,10 +160,10 @@ void RetrieveQueue::finish(int id, const std::optional<JobError>& error,
             summary.fromStore
                 ? tr("%1 is complete in the local store (%2): nothing retrieved")
                       .arg(j->label, folder)
-                : tr("Retrieved %1 into %2 (%n image(s) received", nullptr, summary.fetched)
-                          .arg(j->label, folder) +
-                      (summary.present > 0 ? tr(", %n already local)", nullptr, summary.present)
-                                           : QStringLiteral(")"));
+                : tr("Retrieved %1: %n image(s) received", nullptr, summary.fetched).arg(j->label) +
+                      (summary.present > 0 ? tr(", %n already local", nullptr, summary.present)
+                                           : QString()) +
+                      tr(", into %1").arg(folder);
     }
     emit message(j->outcome, j->state == RetrieveJob::State::Failed);
     emit ended(id);
@@ -181,6 +181,14 @@ void showRetrieveProgress(QProgressBar& bar, const pacs::RetrieveProgress& p) {
     }
 }
 
+void fitRetrieveProgress(QProgressBar& bar) {
+    bar.setTextVisible(true);
+    // Its widest text on one line, whatever the layout beside it.
+    bar.setMinimumWidth(bar.fontMetrics().horizontalAdvance(
+                            RetrieveQueue::tr("%1 of %2 images").arg(99999).arg(99999)) +
+                        32);
+}
+
 RetrieveStatus::RetrieveStatus(RetrieveQueue& queue, QWidget* parent)
     : QWidget(parent), m_queue(queue) {
     setObjectName(QStringLiteral("retrieveStatus"));
@@ -188,8 +196,7 @@ RetrieveStatus::RetrieveStatus(RetrieveQueue& queue, QWidget* parent)
     row->setContentsMargins(0, 0, 0, 0);
     m_label = new QLabel(this);
     m_progress = new QProgressBar(this);
-    m_progress->setMaximumWidth(220);
-    m_progress->setTextVisible(true);
+    fitRetrieveProgress(*m_progress);
     m_cancel = new QPushButton(tr("Cancel"), this);
     m_cancel->setToolTip(tr("Cancels the running retrieve (what arrived is kept as a partial "
                             "study); the waiting ones then go on"));

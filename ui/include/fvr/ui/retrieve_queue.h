@@ -137,5 +137,7 @@ private:
 
 /** The running job's images as a progress bar: "n of m images", or busy while unknown. */
 void showRetrieveProgress(QProgressBar& bar, const core::pacs::RetrieveProgress& p);
+/** Wide enough for that text on one line. */
+void fitRetrieveProgress(QProgressBar& bar);
 
 } // namespace fvr::ui
