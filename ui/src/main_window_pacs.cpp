@@ -11,6 +11,7 @@
 #include <fvr/ui/pacs_service.h>
 #include <fvr/ui/pacs_settings.h>
 #include <fvr/ui/retrieve_queue.h>
+#include <fvr/ui/study.h>
 
 namespace fvr::ui {
 
@@ -86,8 +87,9 @@ bool MainWindow::confirmQuitDuringRetrieves() {
     if (!q.busy()) return true;
     const int n = q.waiting() + (q.running() ? 1 : 0);
     QMessageBox ask(QMessageBox::Question, tr("Quit during retrieves"),
-                    tr("%n PACS retrieve(s) running or waiting. Quit anyway?", nullptr, n) +
-                        QStringLiteral("\n\n") +
+                    countOf(n, tr("A PACS retrieve is running."),
+                            tr("%1 PACS retrieves are running or waiting.")) +
+                        tr(" Quit anyway?") + QStringLiteral("\n\n") +
                         tr("What arrived is kept as partial studies: File ▸ PACS ▸ Local studies "
                            "▸ Resume retrieve completes them later."),
                     QMessageBox::Yes | QMessageBox::No, this);

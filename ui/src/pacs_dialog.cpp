@@ -69,7 +69,7 @@ void setCount(QTreeWidgetItem* item, int column, int n) {
 
 /** "1 study", "2 studies". */
 QString studies(int n) {
-    return n == 1 ? PacsDialog::tr("1 study") : PacsDialog::tr("%1 studies").arg(n);
+    return countOf(n, PacsDialog::tr("1 study"), PacsDialog::tr("%1 studies"));
 }
 
 /** The status line: one line whatever its length, elided at the right where it does not fit
@@ -464,7 +464,8 @@ void PacsDialog::markLocalState() {
         return; // the Local studies tab says why
     }
     const auto state = [this](bool complete, int images) {
-        return complete ? tr("complete") : tr("partial (%n image(s))", nullptr, images);
+        return complete ? tr("complete")
+                        : tr("partial (%1)").arg(countOf(images, tr("1 image"), tr("%1 images")));
     };
     for (int i = 0; i < m_results->topLevelItemCount(); ++i) {
         QTreeWidgetItem* study = m_results->topLevelItem(i);

@@ -12,6 +12,8 @@
 #include <QTreeWidget>
 #include <QVBoxLayout>
 
+#include <fvr/ui/study.h>
+
 #include "pacs_dialog_internal.h"
 
 namespace fvr::ui {
@@ -124,8 +126,9 @@ void PacsDialog::onQueueChanged() {
             tr("Retrieving %1 from %2 (%3)…").arg(j->label, text(j->node.name), method(j->node));
         if (waiting > 0) what += tr(" %n more waiting.", nullptr, waiting);
         if (j->progress.failed > 0)
-            setStatus(what + tr(" %n image(s) failed so far.", nullptr, j->progress.failed), true,
-                      false);
+            setStatus(what + tr(" %1 failed so far.")
+                                 .arg(countOf(j->progress.failed, tr("1 image"), tr("%1 images"))),
+                      true, false);
         else if (m_status->text() != what && !m_status->text().startsWith(tr("Cancelling")))
             setStatus(what);
     }

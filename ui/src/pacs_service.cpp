@@ -2,6 +2,7 @@
 #include <fvr/ui/pacs_service.h>
 
 #include <fvr/ui/pacs_settings.h>
+#include <fvr/ui/study.h>
 
 namespace fvr::ui {
 
@@ -92,7 +93,9 @@ void PacsService::send(const pacs::Node& node, const pacs::LocalAe& local,
         },
         [this, count, peer] {
             --m_sending;
-            emit sent(true, tr("Sent %n image(s) to %1", nullptr, count).arg(peer));
+            emit sent(
+                true,
+                tr("Sent %1 to %2").arg(countOf(count, tr("1 image"), tr("%1 images")), peer));
         },
         [this](const JobError& e) {
             --m_sending;

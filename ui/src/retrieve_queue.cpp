@@ -1,6 +1,8 @@
 // PACS retrieves one after another, beside any window, and their progress in the status bar.
 #include <fvr/ui/retrieve_queue.h>
 
+#include <fvr/ui/study.h>
+
 #include <QDir>
 #include <QHBoxLayout>
 #include <QLabel>
@@ -160,8 +162,9 @@ void RetrieveQueue::finish(int id, const std::optional<JobError>& error,
             summary.fromStore
                 ? tr("%1 is complete in the local store (%2): nothing retrieved")
                       .arg(j->label, folder)
-                : tr("Retrieved %1: %n image(s) received", nullptr, summary.fetched).arg(j->label) +
-                      (summary.present > 0 ? tr(", %n already local", nullptr, summary.present)
+                : tr("Retrieved %1: %2 received")
+                          .arg(j->label, countOf(summary.fetched, tr("1 image"), tr("%1 images"))) +
+                      (summary.present > 0 ? tr(", %1 already local").arg(summary.present)
                                            : QString()) +
                       tr(", into %1").arg(folder);
     }

@@ -84,6 +84,10 @@ QString personName(const std::string& dicomName) {
     return QString::fromStdString(dicomName).replace('^', ' ').simplified();
 }
 
+QString countOf(int n, const QString& one, const QString& many) {
+    return n == 1 ? one : QString(many).arg(n);
+}
+
 QString dicomDate(const std::string& date) {
     const QString text = QString::fromStdString(date);
     const QDate day = QDate::fromString(text, QStringLiteral("yyyyMMdd"));

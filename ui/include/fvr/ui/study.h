@@ -63,6 +63,9 @@ QString personName(const std::string& dicomName);
 /** A DICOM date as the panels and the PACS dialog show it: "20150206" as "2015-02-06"; what is
  *  not a calendar day YYYYMMDD (empty, "2015", "20231301") as it is. */
 QString dicomDate(const std::string& date);
+/** A count with its noun in the singular or the plural: countOf(1, tr("1 image"),
+ *  tr("%1 images")) is "1 image", with 93 "93 images" (never "image(s)"). */
+QString countOf(int n, const QString& one, const QString& many);
 
 class StudyController : public QObject {
     Q_OBJECT
