@@ -135,6 +135,22 @@ bool retrieveAndOpen(ui::MainWindow& w, ui::PacsDialog& d) {
     return ready.wait(120000);
 }
 
+/** The settings with a second node, "Wrong PACS", whose called AE title Orthanc refuses; on
+ *  "Test PACS" the study found, retrieved and opened. Null (and a failure said) when not. */
+ui::PacsDialog* retrievedWithAWrongNodeBeside(ui::MainWindow& w, ui::PacsSettings s) {
+    pacs::Node wrong = s.nodes[0];
+    wrong.name = "Wrong PACS";
+    wrong.calledAe = "NOSUCHAE"; // Orthanc refuses it
+    s.nodes.push_back(wrong);
+    s.save();
+    ui::PacsDialog* d = w.pacsDialog();
+    d->reloadSettings();
+    d->nodeCombo()->setCurrentIndex(d->nodeCombo()->findData("Test PACS"));
+    const bool ok = clickAndWait(*d, d->searchButton()) && retrieveAndOpen(w, *d);
+    EXPECT_TRUE(ok) << d->status()->text().toStdString();
+    return ok ? d : nullptr;
+}
+
 } // namespace
 
 TEST_F(PacsWorkstation, FindRetrieveOpenAndSendBack) {
@@ -406,17 +422,8 @@ TEST_F(PacsWorkstation, TestConnectionChecksThatThePacsKnowsOurAeTitle) {
 }
 
 TEST_F(PacsWorkstation, ResumeUsesTheStudysOwnNodeAndResultsGoWithTheNode) {
-    ui::PacsSettings s = settings(pacs::RetrieveMethod::Get);
-    pacs::Node wrong = s.nodes[0];
-    wrong.name = "Wrong PACS";
-    wrong.calledAe = "NOSUCHAE"; // Orthanc refuses it
-    s.nodes.push_back(wrong);
-    s.save();
-    ui::PacsDialog* d = window->pacsDialog();
-    d->reloadSettings();
-    d->nodeCombo()->setCurrentIndex(d->nodeCombo()->findData("Test PACS"));
-    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
-    ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
+    ui::PacsDialog* d = retrievedWithAWrongNodeBeside(*window, settings(pacs::RetrieveMethod::Get));
+    ASSERT_NE(d, nullptr);
     // Made partial: a retrieve that did not finish, 20 images gone.
     auto store = window->pacs().store();
     const auto entry = store->studies().at(0);
@@ -672,17 +679,8 @@ TEST_F(PacsWorkstation, RetrieveAgainFromThePacsRefreshesACompleteStudy) {
 }
 
 TEST_F(PacsWorkstation, AnErrorIsNotLeftInRedOnceSomethingElseWorks) {
-    ui::PacsSettings s = settings(pacs::RetrieveMethod::Get);
-    pacs::Node wrong = s.nodes[0];
-    wrong.name = "Wrong PACS";
-    wrong.calledAe = "NOSUCHAE"; // Orthanc refuses it
-    s.nodes.push_back(wrong);
-    s.save();
-    ui::PacsDialog* d = window->pacsDialog();
-    d->reloadSettings();
-    d->nodeCombo()->setCurrentIndex(d->nodeCombo()->findData("Test PACS"));
-    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
-    ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
+    ui::PacsDialog* d = retrievedWithAWrongNodeBeside(*window, settings(pacs::RetrieveMethod::Get));
+    ASSERT_NE(d, nullptr);
     // A failure on the wrong node: red.
     d->nodeCombo()->setCurrentIndex(d->nodeCombo()->findData("Wrong PACS"));
     ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
