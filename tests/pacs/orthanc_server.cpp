@@ -197,6 +197,15 @@ void OrthancServer::restart() {
 
 std::string OrthancServer::log() const { return readFile(m_dir / "orthanc.log"); }
 
+int OrthancServer::imagesSentByGet() const {
+    if (put("/tools/log-level", "verbose").status != 200) return -1;
+    const std::string text = log();
+    const std::string line = "(dicom) Store SCU RQ: MsgID";
+    int n = 0;
+    for (auto at = text.find(line); at != std::string::npos; at = text.find(line, at + 1)) ++n;
+    return n;
+}
+
 HttpResponse OrthancServer::request(const std::string& method, const std::string& path,
                                     const std::string& body) const {
     HttpResponse r;

@@ -55,6 +55,12 @@ public:
     std::string lookup(const std::string& uid) const;
     /** POST /instances for each file; returns how many Orthanc stored. */
     int upload(const std::filesystem::path& folder) const;
+    /** Orthanc's own count of the images it sent by C-GET: the C-STORE sub-operations its C-GET
+     *  SCP wrote in its log ("Store SCU RQ", one per instance sent). Orthanc logs them only at
+     *  its verbose level, which the first call sets (PUT /tools/log-level), so a first call
+     *  before the retrieves returns 0; -1 when the level cannot be set. No statistic of its REST
+     *  API counts what it sends. */
+    int imagesSentByGet() const;
 
 private:
     void launch();

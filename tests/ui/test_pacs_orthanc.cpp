@@ -135,6 +135,18 @@ bool retrieveAndOpen(ui::MainWindow& w, ui::PacsDialog& d) {
     return ready.wait(120000);
 }
 
+/** The store's first study made partial as a retrieve that did not finish leaves it, `n` of
+ *  its images gone; returns how many went. */
+int makePartial(pacs::LocalStore& store, int n) {
+    const auto entry = store.studies().at(0);
+    store.beginRetrieve(entry.study, "");
+    store.finishRetrieve(entry.study.studyUid, "", false);
+    int removed = 0;
+    for (const auto& f : fs::directory_iterator(entry.series.at(0).folder))
+        if (removed < n && fs::remove(f.path())) ++removed;
+    return removed;
+}
+
 /** The settings with a second node, "Wrong PACS", whose called AE title Orthanc refuses; on
  *  "Test PACS" the study found, retrieved and opened. Null (and a failure said) when not. */
 ui::PacsDialog* retrievedWithAWrongNodeBeside(ui::MainWindow& w, ui::PacsSettings s) {
@@ -424,15 +436,9 @@ TEST_F(PacsWorkstation, TestConnectionChecksThatThePacsKnowsOurAeTitle) {
 TEST_F(PacsWorkstation, ResumeUsesTheStudysOwnNodeAndResultsGoWithTheNode) {
     ui::PacsDialog* d = retrievedWithAWrongNodeBeside(*window, settings(pacs::RetrieveMethod::Get));
     ASSERT_NE(d, nullptr);
-    // Made partial: a retrieve that did not finish, 20 images gone.
     auto store = window->pacs().store();
     const auto entry = store->studies().at(0);
-    store->beginRetrieve(entry.study, "");
-    store->finishRetrieve(entry.study.studyUid, "", false);
-    int removed = 0;
-    for (const auto& f : fs::directory_iterator(entry.series.at(0).folder))
-        if (removed < 20 && fs::remove(f.path())) ++removed;
-    ASSERT_EQ(removed, 20);
+    ASSERT_EQ(makePartial(*store, 20), 20);
 
     d->nodeCombo()->setCurrentIndex(d->nodeCombo()->findData("Wrong PACS"));
     EXPECT_EQ(d->results()->topLevelItemCount(), 0); // the other node's results went
@@ -730,4 +736,29 @@ TEST_F(PacsWorkstation, QuittingDuringARetrieveAsksFirst) {
     window->show();
     window->close();
     EXPECT_FALSE(window->isVisible());
+}
+
+TEST_F(PacsWorkstation, OrthancSendsNoImageForALocalStudyAndOnResumeOnlyTheMissing) {
+    // Counted on Orthanc's side: the C-STORE sub-operations its C-GET SCP logs.
+    ASSERT_EQ(orthanc->imagesSentByGet(), 0);
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
+    EXPECT_EQ(orthanc->imagesSentByGet(), 93); // the count counts: the whole study once
+    ui::RetrieveQueue& queue = window->pacs().retrieves();
+    // Complete in the store: Retrieve and open again opens it, Orthanc sends nothing.
+    ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
+    EXPECT_TRUE(queue.jobs().back().fromStore);
+    EXPECT_EQ(orthanc->imagesSentByGet(), 93);
+    // Partial, 20 images gone: Resume makes Orthanc send those 20.
+    ASSERT_EQ(makePartial(*window->pacs().store(), 20), 20);
+    buttonNamed(*d, "Refresh")->click();
+    d->localStudies()->setCurrentItem(d->localStudies()->topLevelItem(0));
+    ASSERT_TRUE(clickAndWait(*d, d->resumeLocalButton()));
+    EXPECT_EQ(queue.jobs().back().state, ui::RetrieveJob::State::Done)
+        << queue.jobs().back().outcome.toStdString();
+    EXPECT_EQ(orthanc->imagesSentByGet(), 93 + 20);
+    EXPECT_TRUE(window->pacs().store()->studies().at(0).complete);
 }
