@@ -318,9 +318,11 @@ TEST(PacsCli, APartialStudyFetchesOnlyTheMissingImages) {
     ASSERT_EQ(gone.size(), 14u);
     markPartial(dir / "store", study, "");
     ASSERT_FALSE(fvr::core::pacs::LocalStore(dir / "store").find(study)->complete);
+    const int sentBefore = env().orthanc().imagesSentByGet(); // Orthanc's own count
     r = render(nodeUrl() + "/" + study + common + (dir / "resumed.npy").string(),
                dir / "resumed.err");
     ASSERT_EQ(r.status, 0) << readAll(dir / "resumed.err");
+    EXPECT_EQ(env().orthanc().imagesSentByGet() - sentBefore, 14);
     const std::string said = readAll(dir / "resumed.err");
     const std::size_t at = said.rfind("retrieved");
     if (at != std::string::npos) // the summary line, for the timings
@@ -364,9 +366,11 @@ TEST(PacsCli, RefreshRetrievesACompleteStudyAgain) {
     auto r = render(nodeUrl() + "/" + study + store, dir / "first.err");
     ASSERT_EQ(r.status, 0) << readAll(dir / "first.err");
     const fs::path folder = dir / "store" / study;
-    // Complete: nothing retrieved, and the stderr says where it was found.
+    // Complete: nothing retrieved (Orthanc sends nothing), and the stderr says where it was.
+    const int sentBefore = env().orthanc().imagesSentByGet();
     r = render(nodeUrl() + "/" + study + store, dir / "again.err");
     ASSERT_EQ(r.status, 0) << readAll(dir / "again.err");
+    EXPECT_EQ(env().orthanc().imagesSentByGet(), sentBefore);
     EXPECT_NE(readAll(dir / "again.err")
                   .find("study " + study + " is complete in the local store (" + folder.string() +
                         "): nothing retrieved"),
@@ -376,6 +380,7 @@ TEST(PacsCli, RefreshRetrievesACompleteStudyAgain) {
     // --refresh: all 93 from the PACS again (Orthanc holds 93), so it needs the PACS.
     r = render(nodeUrl() + "/" + study + store + " --refresh", dir / "refresh.err");
     ASSERT_EQ(r.status, 0) << readAll(dir / "refresh.err");
+    EXPECT_EQ(env().orthanc().imagesSentByGet() - sentBefore, 93);
     EXPECT_NE(readAll(dir / "refresh.err").find("(C-GET, 93 images in "), std::string::npos)
         << readAll(dir / "refresh.err");
     EXPECT_EQ(orthancStudyInstances(study), 93);
