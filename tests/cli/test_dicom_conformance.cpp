@@ -18,9 +18,12 @@
 
 #include "charset_cases.h"
 #include "cli_support.h"
+#include "dicom_tag.h"
 #include "test_support.h"
 
 namespace {
+
+using fvr::test::dicomTag;
 
 namespace fs = std::filesystem;
 
@@ -32,15 +35,6 @@ std::string tmp(const std::string& name) {
 }
 
 std::string source() { return (fvr::test::sharedData() / kStudy).string(); }
-
-/** A string attribute of `path` ("" when absent). */
-std::string tag(const std::string& path, const DcmTagKey& key) {
-    DcmFileFormat ff;
-    if (ff.loadFile(path.c_str()).bad()) return "<unreadable>";
-    OFString v;
-    ff.getDataset()->findAndGetOFStringArray(key, v);
-    return v.c_str();
-}
 
 bool present(const std::string& path, const DcmTagKey& key) {
     DcmFileFormat ff;
@@ -112,20 +106,21 @@ TEST(DicomConformance, EveryKindKeepsTheSourceStudysFields) {
                                          DCM_PatientSex,
                                          DCM_PatientBirthDate,
                                          DCM_ReferringPhysicianName};
-    ASSERT_NE(tag(first, DCM_StudyTime), ""); // the data has them: the test compares values
-    ASSERT_NE(tag(first, DCM_StudyID), "");
-    ASSERT_NE(tag(first, DCM_PatientSex), "");
+    ASSERT_NE(dicomTag(first, DCM_StudyTime), ""); // the data has them: the test compares values
+    ASSERT_NE(dicomTag(first, DCM_StudyID), "");
+    ASSERT_NE(dicomTag(first, DCM_PatientSex), "");
     for (const auto& [path, args] : writeEachKind()) {
         for (const DcmTagKey& k : keys) {
-            EXPECT_EQ(tag(path, k), tag(first, k)) << args << ": " << DcmTag(k).getTagName();
+            EXPECT_EQ(dicomTag(path, k), dicomTag(first, k))
+                << args << ": " << DcmTag(k).getTagName();
             EXPECT_TRUE(present(path, k)) << args << ": " << DcmTag(k).getTagName();
         }
         EXPECT_TRUE(present(path, DCM_PatientOrientation)) << args;
-        EXPECT_NE(tag(path, DCM_PatientOrientation), "") << args;
+        EXPECT_NE(dicomTag(path, DCM_PatientOrientation), "") << args;
     }
     // A Secondary Capture keeps the maker of the images it shows; this program made the capture.
-    EXPECT_EQ(tag(tmp("sc.dcm"), DCM_Manufacturer), tag(first, DCM_Manufacturer));
-    EXPECT_EQ(tag(tmp("sc.dcm"), DCM_SecondaryCaptureDeviceManufacturer), "FVR Workstation");
+    EXPECT_EQ(dicomTag(tmp("sc.dcm"), DCM_Manufacturer), dicomTag(first, DCM_Manufacturer));
+    EXPECT_EQ(dicomTag(tmp("sc.dcm"), DCM_SecondaryCaptureDeviceManufacturer), "FVR Workstation");
 }
 
 TEST(DicomConformance, AnApViewSaysLeftAndFeet) {
@@ -137,8 +132,8 @@ TEST(DicomConformance, AnApViewSaysLeftAndFeet) {
     ASSERT_EQ(fvr::test::runFvrRender(source() + " --size 32 --out " + ap).status, 0);
     const auto r = fvr::test::runFvrRender(source() + " --size 32 --view LEFT --out " + left);
     ASSERT_EQ(r.status, 0) << r.output;
-    EXPECT_EQ(tag(ap, DCM_PatientOrientation), "L\\F");
-    EXPECT_EQ(tag(left, DCM_PatientOrientation), "P\\F");
+    EXPECT_EQ(dicomTag(ap, DCM_PatientOrientation), "L\\F");
+    EXPECT_EQ(dicomTag(left, DCM_PatientOrientation), "P\\F");
 }
 
 TEST(DicomConformance, EachExportIsANewSeriesAndASweepNumbersItsInstances) {
@@ -146,16 +141,16 @@ TEST(DicomConformance, EachExportIsANewSeriesAndASweepNumbersItsInstances) {
     const std::string a = tmp("series_a.dcm"), b = tmp("series_b.dcm");
     ASSERT_EQ(fvr::test::runFvrRender(source() + " --size 32 --out " + a).status, 0);
     ASSERT_EQ(fvr::test::runFvrRender(source() + " --size 32 --out " + b).status, 0);
-    EXPECT_NE(tag(a, DCM_SeriesInstanceUID), tag(b, DCM_SeriesInstanceUID));
-    EXPECT_NE(tag(a, DCM_SeriesNumber), tag(b, DCM_SeriesNumber));
-    EXPECT_EQ(tag(a, DCM_InstanceNumber), "1");
+    EXPECT_NE(dicomTag(a, DCM_SeriesInstanceUID), dicomTag(b, DCM_SeriesInstanceUID));
+    EXPECT_NE(dicomTag(a, DCM_SeriesNumber), dicomTag(b, DCM_SeriesNumber));
+    EXPECT_EQ(dicomTag(a, DCM_InstanceNumber), "1");
     const std::string s = tmp("numbered.dcm");
     ASSERT_EQ(fvr::test::runFvrRender(source() + " --size 32 --sweep 3 --out " + s).status, 0);
-    const std::string uid = tag(tmp("numbered_0000.dcm"), DCM_SeriesInstanceUID);
+    const std::string uid = dicomTag(tmp("numbered_0000.dcm"), DCM_SeriesInstanceUID);
     for (int i = 0; i < 3; ++i) {
         const std::string f = tmp("numbered_000" + std::to_string(i) + ".dcm");
-        EXPECT_EQ(tag(f, DCM_SeriesInstanceUID), uid) << f;
-        EXPECT_EQ(tag(f, DCM_InstanceNumber), std::to_string(i + 1)) << f;
+        EXPECT_EQ(dicomTag(f, DCM_SeriesInstanceUID), uid) << f;
+        EXPECT_EQ(dicomTag(f, DCM_InstanceNumber), std::to_string(i + 1)) << f;
     }
 }
 
@@ -176,10 +171,10 @@ TEST(DicomConformance, SourcesInEachCharacterSetGiveUtf8) {
         const std::string out = tmp("charset_" + c.label + ".dcm");
         const auto r = fvr::test::runFvrRender(in + " --size 32 --out " + out);
         ASSERT_EQ(r.status, 0) << c.label << ": " << r.output;
-        EXPECT_EQ(tag(out, DCM_SpecificCharacterSet), "ISO_IR 192") << c.label;
-        EXPECT_EQ(tag(out, DCM_PatientName), c.utf8) << c.label;
+        EXPECT_EQ(dicomTag(out, DCM_SpecificCharacterSet), "ISO_IR 192") << c.label;
+        EXPECT_EQ(dicomTag(out, DCM_PatientName), c.utf8) << c.label;
         if (!c.description.empty())
-            EXPECT_EQ(tag(out, DCM_StudyDescription), c.descriptionUtf8) << c.label;
+            EXPECT_EQ(dicomTag(out, DCM_StudyDescription), c.descriptionUtf8) << c.label;
         if (dciodvfy) {
             const auto errors = dciodvfyLines(out, "Error");
             EXPECT_TRUE(errors.empty()) << c.label << ":\n" << ::testing::PrintToString(errors);

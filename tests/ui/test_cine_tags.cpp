@@ -23,11 +23,14 @@
 #include <fvr/ui/cine_controller.h>
 #include <fvr/ui/dicom_tags_dialog.h>
 
+#include "dicom_tag.h"
 #include "support/movie_decode.h"
 #include "ui_support.h"
 
 namespace fvr::test {
 namespace {
+
+using fvr::test::dicomTag;
 
 namespace fs = std::filesystem;
 
@@ -46,14 +49,6 @@ core::Vec3 siAxis(const core::Volume& v) {
 
 std::string tmp(const std::string& name) {
     return (tmpDir() / ("cine_" + std::to_string(getpid()) + "_" + name)).string();
-}
-
-std::string tag(const std::string& path, const DcmTagKey& key) {
-    DcmFileFormat ff;
-    if (ff.loadFile(path.c_str()).bad()) return "<unreadable>";
-    OFString v;
-    ff.getDataset()->findAndGetOFStringArray(key, v);
-    return v.c_str();
 }
 
 QAction* playAction(MainWindow& w) { return w.findChild<QAction*>("cine.play"); }
@@ -184,13 +179,13 @@ TEST_F(Workstation, CineDicomReadsBackAndPassesDciodvfy) {
     const std::string path = tmp("cine.dcm");
     ASSERT_TRUE(window->exportCineDicom(QString::fromStdString(path)))
         << window->messages()->toPlainText().toStdString();
-    EXPECT_EQ(tag(path, DCM_NumberOfFrames), "3");
-    EXPECT_EQ(tag(path, DCM_FrameTime), "125");
-    EXPECT_EQ(tag(path, DCM_FrameIncrementPointer), "(0018,1063)");
+    EXPECT_EQ(dicomTag(path, DCM_NumberOfFrames), "3");
+    EXPECT_EQ(dicomTag(path, DCM_FrameTime), "125");
+    EXPECT_EQ(dicomTag(path, DCM_FrameIncrementPointer), "(0018,1063)");
     const std::string first = window->study().series()->files.front().string();
     for (const DcmTagKey& k : {DCM_PatientName, DCM_PatientID, DCM_StudyInstanceUID, DCM_StudyDate})
-        EXPECT_EQ(tag(path, k), tag(first, k)) << DcmTag(k).getTagName();
-    EXPECT_NE(tag(path, DCM_SeriesInstanceUID), tag(first, DCM_SeriesInstanceUID));
+        EXPECT_EQ(dicomTag(path, k), dicomTag(first, k)) << DcmTag(k).getTagName();
+    EXPECT_NE(dicomTag(path, DCM_SeriesInstanceUID), dicomTag(first, DCM_SeriesInstanceUID));
     if (runCommand("command -v dciodvfy").status != 0)
         GTEST_SKIP() << "dciodvfy (Debian package dicom3tools) is not installed";
     const auto r = runCommand("dciodvfy -new '" + path + "' 2>&1");
@@ -209,7 +204,7 @@ TEST_F(Workstation, TagBrowserListsPatientNameAndTheFilterNarrows) {
     ASSERT_TRUE(tags);
     const auto& files = window->study().series()->files;
     EXPECT_EQ(tags->instanceCombo()->count(), int(files.size()));
-    const std::string name = tag(files.front().string(), DCM_PatientName);
+    const std::string name = dicomTag(files.front().string(), DCM_PatientName);
     const QStringList all = tags->visibleRows();
     EXPECT_TRUE(all.contains("PatientName=" + QString::fromStdString(name))) << name;
     EXPECT_GT(all.size(), 20);
@@ -219,14 +214,14 @@ TEST_F(Workstation, TagBrowserListsPatientNameAndTheFilterNarrows) {
         << narrowed.join("; ").toStdString();
     tags->filterEdit()->setText("00100010"); // the tag without brackets
     EXPECT_EQ(tags->visibleRows(), narrowed);
-    tags->filterEdit()->setText(QString::fromStdString(tag(files.front().string(), DCM_Rows)));
+    tags->filterEdit()->setText(QString::fromStdString(dicomTag(files.front().string(), DCM_Rows)));
     EXPECT_TRUE(tags->visibleRows().contains("Rows=64"));
     EXPECT_LT(tags->visibleRows().size(), all.size());
     // Another instance: its own SOPInstanceUID.
     tags->filterEdit()->setText("SOPInstanceUID");
     const auto uidRow = [&](int i) {
         return "SOPInstanceUID=" +
-               QString::fromStdString(tag(files[i].string(), DCM_SOPInstanceUID));
+               QString::fromStdString(dicomTag(files[i].string(), DCM_SOPInstanceUID));
     };
     EXPECT_TRUE(tags->visibleRows().contains(uidRow(0)));
     tags->instanceCombo()->setCurrentIndex(5);

@@ -640,15 +640,51 @@ TEST_F(PacsWorkstation, ADoubleClickDuringARetrieveQueuesTheSecondStudy) {
         << d->status()->text().toStdString();
     doubleClickRow(*d->results(), 1); // a third time: already waiting, said, not queued twice
     EXPECT_EQ(queue.jobs().size(), 2u);
+    EXPECT_TRUE(d->status()->text().contains("already waiting to be retrieved: it opens when"))
+        << d->status()->text().toStdString();
     orthanc->cont();
     ASSERT_TRUE(QTest::qWaitFor([&] { return !queue.busy(); }, 120000));
     for (const ui::RetrieveJob& j : queue.jobs())
         EXPECT_EQ(j.state, ui::RetrieveJob::State::Done) << j.outcome.toStdString();
-    // The first opened; the second, asked before the first was opened, does not replace it.
+    // The latest Retrieve and open is the one opened: the second; the first, in the store, not.
     ASSERT_TRUE(ready.count() > 0 || ready.wait(60000));
     QTest::qWait(500);
     EXPECT_EQ(ready.count(), 1);
-    EXPECT_EQ(window->study().volume()->dims, (core::Dims3{64, 64, 93}));
+    EXPECT_EQ(window->study().source().path.toStdString(), queue.jobs()[1].folder.string());
+    EXPECT_TRUE(window->messages()->toPlainText().contains(
+        "was not opened: a later Retrieve and open asked for another study"));
+}
+
+TEST_F(PacsWorkstation, CancellingSeveralSelectedRetrievesAtOnce) {
+    FVR_REQUIRE_DATA(kTilt);
+    ASSERT_EQ(orthanc->upload(test::sharedData() / kTilt), 28);
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    d->show();
+    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ASSERT_EQ(d->results()->topLevelItemCount(), 2);
+    ui::RetrieveQueue& queue = window->pacs().retrieves();
+    orthanc->stop(); // the first runs (hung), the second waits
+    d->results()->selectAll();
+    d->queueButton()->click();
+    ASSERT_EQ(queue.jobs().size(), 2u);
+    // Both rows selected in the Retrieves tab, one click: the waiting one is dropped at once
+    // (the list changes under the click), the running one says it is cancelling.
+    d->showQueue();
+    d->queueList()->selectAll();
+    buttonNamed(*d, "Cancel selected")->click();
+    EXPECT_EQ(queue.jobs()[1].state, ui::RetrieveJob::State::Cancelled);
+    EXPECT_EQ(column(*d->queueList(), 2), (QStringList{"cancelling", "cancelled"}));
+    auto* status = window->findChild<ui::RetrieveStatus*>("retrieveStatus");
+    EXPECT_TRUE(status->label()->text().startsWith("Cancelling the retrieve of"))
+        << status->label()->text().toStdString();
+    EXPECT_FALSE(status->cancelButton()->isEnabled());
+    const bool ended = QTest::qWaitFor([&] { return !queue.busy(); }, 30000);
+    orthanc->cont();
+    ASSERT_TRUE(ended);
+    EXPECT_EQ(queue.jobs()[0].state, ui::RetrieveJob::State::Cancelled);
+    EXPECT_FALSE(status->isVisibleTo(window.get()));
 }
 
 TEST_F(PacsWorkstation, RetrieveAgainFromThePacsRefreshesACompleteStudy) {

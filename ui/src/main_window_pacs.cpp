@@ -37,6 +37,10 @@ void MainWindow::buildPacsMenu(QMenu* file) {
             message(tr("%1 is in the local store and was not opened, another study being open "
                        "since: File ▸ PACS ▸ Local studies opens it")
                         .arg(j->label));
+        else if (j && j->openSuperseded && j->state == RetrieveJob::State::Done)
+            message(tr("%1 is in the local store and was not opened: a later Retrieve and open "
+                       "asked for another study")
+                        .arg(j->label));
     });
     auto* status = new RetrieveStatus(retrieves, this);
     statusBar()->addPermanentWidget(status);

@@ -467,6 +467,8 @@ void PacsDialog::markLocalState() {
         return complete ? tr("complete")
                         : tr("partial (%1)").arg(countOf(images, tr("1 image"), tr("%1 images")));
     };
+    // Unsorted while the column is written: sorted by it, each row would move under the index.
+    m_results->setSortingEnabled(false);
     for (int i = 0; i < m_results->topLevelItemCount(); ++i) {
         QTreeWidgetItem* study = m_results->topLevelItem(i);
         const auto it = local.find(study->data(0, kStudyUid).toString().toStdString());
@@ -481,6 +483,7 @@ void PacsDialog::markLocalState() {
                     series->setText(kLocal, state(s.complete || it->second.complete, s.instances));
         }
     }
+    m_results->setSortingEnabled(true);
 }
 
 void PacsDialog::loadSeries(QTreeWidgetItem* study) {

@@ -28,7 +28,8 @@ enum QueueColumn { kQueueWhat, kQueueNode, kQueueState, kQueueImages };
 QString stateName(const RetrieveJob& j) {
     switch (j.state) {
     case RetrieveJob::State::Waiting: return PacsDialog::tr("waiting");
-    case RetrieveJob::State::Running: return PacsDialog::tr("retrieving");
+    case RetrieveJob::State::Running:
+        return j.cancelling ? PacsDialog::tr("cancelling") : PacsDialog::tr("retrieving");
     case RetrieveJob::State::Done:
         return j.fromStore ? PacsDialog::tr("complete (was local)") : PacsDialog::tr("done");
     case RetrieveJob::State::Failed: return PacsDialog::tr("failed");
@@ -66,8 +67,11 @@ QWidget* PacsDialog::buildQueueTab() {
     row->addWidget(clear);
     layout->addLayout(row);
     connect(m_cancelQueued, &QPushButton::clicked, this, [this] {
-        for (QTreeWidgetItem* item : m_queueList->selectedItems())
-            m_queue.cancel(item->data(0, Qt::UserRole).toInt());
+        // The ids first: each cancel changes the queue, and the list follows it.
+        std::vector<int> ids;
+        for (const QTreeWidgetItem* item : m_queueList->selectedItems())
+            ids.push_back(item->data(0, Qt::UserRole).toInt());
+        for (int id : ids) m_queue.cancel(id);
     });
     connect(clear, &QPushButton::clicked, &m_queue, &RetrieveQueue::clearEnded);
     return tab;
@@ -112,7 +116,11 @@ void PacsDialog::retrieve(const pacs::Node& n, const std::string& studyUid,
     job.open = open;
     job.refresh = refresh;
     QString why;
-    if (m_queue.enqueue(std::move(job), &why) == 0) setStatus(why);
+    m_queue.enqueue(std::move(job), &why);
+    if (!why.isEmpty()) { // asked again: said here and kept in Messages
+        setStatus(why);
+        emit message(why, false);
+    }
 }
 
 void PacsDialog::onQueueChanged() {
@@ -129,7 +137,9 @@ void PacsDialog::onQueueChanged() {
             setStatus(what + tr(" %1 failed so far.")
                                  .arg(countOf(j->progress.failed, tr("1 image"), tr("%1 images"))),
                       true, false);
-        else if (m_status->text() != what && !m_status->text().startsWith(tr("Cancelling")))
+        else if (j->cancelling)
+            setStatus(tr("Cancelling the retrieve of %1…").arg(j->label));
+        else if (m_status->text() != what)
             setStatus(what);
     }
     fillQueueList();
@@ -145,21 +155,35 @@ void PacsDialog::onRetrieveEnded(int id) {
 }
 
 void PacsDialog::fillQueueList() {
-    QSet<int> selected;
-    for (const QTreeWidgetItem* item : m_queueList->selectedItems())
-        selected.insert(item->data(0, Qt::UserRole).toInt());
-    m_queueList->clear();
-    for (const RetrieveJob& j : m_queue.jobs()) {
-        auto* item = new QTreeWidgetItem(m_queueList);
+    const auto& jobs = m_queue.jobs();
+    const auto row = [](QTreeWidgetItem* item, const RetrieveJob& j) {
         item->setText(kQueueWhat, j.label);
         item->setText(kQueueNode, text(j.node.name));
         item->setText(kQueueState, stateName(j));
-        if (j.progress.expected > 0)
-            item->setText(kQueueImages,
-                          tr("%1 of %2").arg(j.progress.received).arg(j.progress.expected));
+        item->setText(
+            kQueueImages,
+            j.progress.expected > 0
+                ? PacsDialog::tr("%1 of %2").arg(j.progress.received).arg(j.progress.expected)
+                : QString());
         item->setData(0, Qt::UserRole, j.id);
         item->setToolTip(kQueueState, j.outcome);
-        item->setSelected(selected.contains(j.id));
+    };
+    // The same jobs: their rows in place (selection, current row and scrolling stay).
+    bool same = m_queueList->topLevelItemCount() == int(jobs.size());
+    for (int i = 0; same && i < int(jobs.size()); ++i)
+        same = m_queueList->topLevelItem(i)->data(0, Qt::UserRole).toInt() == jobs[i].id;
+    if (same) {
+        for (int i = 0; i < int(jobs.size()); ++i) row(m_queueList->topLevelItem(i), jobs[i]);
+    } else {
+        QSet<int> selected;
+        for (const QTreeWidgetItem* item : m_queueList->selectedItems())
+            selected.insert(item->data(0, Qt::UserRole).toInt());
+        m_queueList->clear();
+        for (const RetrieveJob& j : jobs) {
+            auto* item = new QTreeWidgetItem(m_queueList);
+            row(item, j);
+            item->setSelected(selected.contains(j.id));
+        }
     }
     m_cancelQueued->setEnabled(m_queue.busy());
 }

@@ -51,16 +51,34 @@ bool RetrieveQueue::queued(const std::string& studyUid) const {
                        [&](const RetrieveJob& j) { return !j.ended() && j.studyUid == studyUid; });
 }
 
+void RetrieveQueue::wantOpen(RetrieveJob& job) {
+    // The latest "Retrieve and open" is what the user wants to see: an earlier one, still on
+    // its way, no longer opens.
+    for (RetrieveJob& j : m_jobs)
+        if (&j != &job && !j.ended() && j.open) {
+            j.open = false;
+            j.openSuperseded = true;
+        }
+    job.open = true;
+    job.openSuperseded = false;
+    job.openedBefore = m_opened;
+}
+
 int RetrieveQueue::enqueue(RetrieveJob job, QString* why) {
-    for (const RetrieveJob& j : m_jobs)
+    for (RetrieveJob& j : m_jobs)
         if (!j.ended() && j.studyUid == job.studyUid &&
             (j.seriesUid.empty() || j.seriesUid == job.seriesUid)) {
+            // Asked again: not twice, but what was asked now holds (open it, refresh it).
+            const bool waiting = j.state == RetrieveJob::State::Waiting;
+            if (job.open) wantOpen(j);
+            if (waiting && job.refresh) j.refresh = true;
             if (why)
-                *why = tr("%1 is already %2")
-                           .arg(job.label, j.state == RetrieveJob::State::Running
-                                               ? tr("being retrieved")
-                                               : tr("waiting to be retrieved"));
-            return 0;
+                *why = (waiting ? tr("%1 is already waiting to be retrieved")
+                                : tr("%1 is already being retrieved"))
+                           .arg(job.label) +
+                       (job.open ? tr(": it opens when it is in") : QString());
+            emit changed();
+            return j.id;
         }
     job.id = m_nextId++;
     job.state = RetrieveJob::State::Waiting;
@@ -68,9 +86,11 @@ int RetrieveQueue::enqueue(RetrieveJob job, QString* why) {
     job.outcome.clear();
     job.folder.clear();
     job.fromStore = false;
-    job.openedBefore = m_opened;
+    job.cancelling = false;
     m_jobs.push_back(std::move(job));
-    const int id = m_jobs.back().id;
+    RetrieveJob& added = m_jobs.back();
+    if (added.open) wantOpen(added);
+    const int id = added.id;
     emit changed();
     startNext();
     return id;
@@ -81,6 +101,8 @@ void RetrieveQueue::cancel(int id) {
     if (!j || j->ended()) return;
     if (j->state == RetrieveJob::State::Running) {
         if (m_cancel) m_cancel->cancel(); // finish() reports it when the retrieve stops
+        j->cancelling = true;
+        emit changed();
         return;
     }
     j->state = RetrieveJob::State::Cancelled;
@@ -222,6 +244,11 @@ void RetrieveStatus::update() {
     const RetrieveJob* j = m_queue.running();
     setVisible(j != nullptr);
     if (!j) return;
+    m_cancel->setEnabled(!j->cancelling);
+    if (j->cancelling) {
+        m_label->setText(tr("Cancelling the retrieve of %1…").arg(j->label));
+        return;
+    }
     const int waiting = m_queue.waiting();
     m_label->setText(waiting > 0
                          ? tr("Retrieving %1 (%n more waiting)", nullptr, waiting).arg(j->label)

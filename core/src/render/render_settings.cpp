@@ -75,9 +75,9 @@ PreprocessOptions RenderSettings::toPreprocessOptions() const {
     return po;
 }
 
-RenderParams RenderSettings::toRenderParams(const ViewFrame& view,
+RenderParams RenderSettings::toRenderParams(const ViewFrame& frame,
                                             const ImageGeometry& image) const {
-    RenderParams p{view, image, kernel};
+    RenderParams p{frame, image, kernel};
     p.depthCue = depthCue;
     p.filter = filter;
     p.clipToVolume = clip;

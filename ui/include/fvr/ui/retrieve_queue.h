@@ -40,9 +40,12 @@ struct RetrieveJob {
     std::uint64_t openedBefore = 0; ///< the queue's count of opened studies when it was asked
     /** Again from the PACS, also what the store has complete (retrieveMissing's `refresh`). */
     bool refresh = false;
+    /** Asked with "Retrieve and open", but a later "Retrieve and open" took its place. */
+    bool openSuperseded = false;
 
     State state = State::Waiting;
     core::pacs::RetrieveProgress progress;
+    bool cancelling = false; ///< Running, asked to stop
     QString outcome; ///< in words, once it ended
     std::filesystem::path folder; ///< Done: the study's (series') folder, complete
     bool fromStore = false; ///< Done: complete in the store already, nothing retrieved
@@ -58,7 +61,10 @@ public:
     ~RetrieveQueue() override; ///< cancels what waits and runs, waits for the running one
 
     /** Queues `job` (its state and outcome are reset) and returns its id; it starts at once when
-     *  nothing runs. 0, with `why` set, when the same study (series) waits or runs already. */
+     *  nothing runs. When the same study (series) waits or runs already, that job's id, with
+     *  `why` saying so: not queued twice, but it now opens when `job.open` (and retrieves anew
+     *  when `job.refresh`, if it has not started). With `open`, an earlier job asked to open no
+     *  longer does (the latest Retrieve and open is the one opened). */
     int enqueue(RetrieveJob job, QString* why = nullptr);
     /** A waiting job is dropped (Cancelled); the running one is asked to stop, and ends
      *  Cancelled with what arrived kept as a partial study. */
@@ -79,8 +85,8 @@ public:
     /** The window opened a study: a retrieve asked before it no longer opens when it ends. */
     void studyOpened() { ++m_opened; }
     std::uint64_t opened() const { return m_opened; }
-    /** Whether a job that ended Done is to be opened now (asked with "Retrieve and open", and
-     *  nothing opened since it was asked). */
+    /** Whether a job that ended Done is to be opened now (asked with "Retrieve and open", no
+     *  later one asked instead, and nothing opened since it was asked). */
     bool shouldOpen(const RetrieveJob& job) const {
         return job.state == RetrieveJob::State::Done && job.open && job.openedBefore == m_opened;
     }
@@ -99,6 +105,8 @@ signals:
 
 private:
     RetrieveJob* find(int id);
+    /** `job` opens when it ends; no other one does. */
+    void wantOpen(RetrieveJob& job);
     void startNext();
     void finish(int id, const std::optional<JobError>& error,
                 const core::pacs::RetrieveSummary& summary);
