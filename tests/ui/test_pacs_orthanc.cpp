@@ -80,6 +80,9 @@ protected:
         s.listen = m == pacs::RetrieveMethod::Move;
         return s;
     }
+    /** Orthanc holding the gantry-tilt head CT too (28 images): the dialog shown, both studies
+     *  found (null, the failure said, when not). */
+    ui::PacsDialog* twoStudiesFound();
     std::set<std::string> instances() const {
         const auto r = orthanc->get("/instances");
         std::set<std::string> ids;
@@ -161,6 +164,18 @@ ui::PacsDialog* retrievedWithAWrongNodeBeside(ui::MainWindow& w, ui::PacsSetting
     const bool ok = clickAndWait(*d, d->searchButton()) && retrieveAndOpen(w, *d);
     EXPECT_TRUE(ok) << d->status()->text().toStdString();
     return ok ? d : nullptr;
+}
+
+ui::PacsDialog* PacsWorkstation::twoStudiesFound() {
+    EXPECT_EQ(orthanc->upload(test::sharedData() / "dicom/ct_head_ge_gantrytilt_28"), 28);
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    d->show();
+    const bool found = QTest::qWaitForWindowExposed(d) && clickAndWait(*d, d->searchButton()) &&
+                       d->results()->topLevelItemCount() == 2;
+    EXPECT_TRUE(found) << d->status()->text().toStdString();
+    return found ? d : nullptr;
 }
 
 } // namespace
@@ -541,13 +556,8 @@ TEST_F(PacsWorkstation, ResultColumnsSortByTheirHeadersAndCountsAsNumbers) {
 
 TEST_F(PacsWorkstation, SelectedStudiesQueueAndArriveWithTheDialogClosedShownInTheMainWindow) {
     FVR_REQUIRE_DATA(kTilt);
-    ASSERT_EQ(orthanc->upload(test::sharedData() / kTilt), 28);
-    settings(pacs::RetrieveMethod::Get).save();
-    ui::PacsDialog* d = window->pacsDialog();
-    d->reloadSettings();
-    d->show();
-    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
-    ASSERT_EQ(d->results()->topLevelItemCount(), 2);
+    ui::PacsDialog* d = twoStudiesFound();
+    ASSERT_NE(d, nullptr);
     d->results()->selectAll(); // both, as Ctrl+A or Shift+click selects them
     QSignalSpy ready(&window->study(), &ui::StudyController::spectrumReady);
     ui::RetrieveQueue& queue = window->pacs().retrieves();
@@ -621,14 +631,8 @@ TEST_F(PacsWorkstation, ARetrieveEndingAfterAnotherStudyWasOpenedDoesNotReplaceI
 
 TEST_F(PacsWorkstation, ADoubleClickDuringARetrieveQueuesTheSecondStudy) {
     FVR_REQUIRE_DATA(kTilt);
-    ASSERT_EQ(orthanc->upload(test::sharedData() / kTilt), 28);
-    settings(pacs::RetrieveMethod::Get).save();
-    ui::PacsDialog* d = window->pacsDialog();
-    d->reloadSettings();
-    d->show();
-    ASSERT_TRUE(QTest::qWaitForWindowExposed(d));
-    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
-    ASSERT_EQ(d->results()->topLevelItemCount(), 2);
+    ui::PacsDialog* d = twoStudiesFound();
+    ASSERT_NE(d, nullptr);
     ui::RetrieveQueue& queue = window->pacs().retrieves();
     QSignalSpy ready(&window->study(), &ui::StudyController::spectrumReady);
     orthanc->stop(); // the first is still running at the second double-click
@@ -657,13 +661,8 @@ TEST_F(PacsWorkstation, ADoubleClickDuringARetrieveQueuesTheSecondStudy) {
 
 TEST_F(PacsWorkstation, CancellingSeveralSelectedRetrievesAtOnce) {
     FVR_REQUIRE_DATA(kTilt);
-    ASSERT_EQ(orthanc->upload(test::sharedData() / kTilt), 28);
-    settings(pacs::RetrieveMethod::Get).save();
-    ui::PacsDialog* d = window->pacsDialog();
-    d->reloadSettings();
-    d->show();
-    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
-    ASSERT_EQ(d->results()->topLevelItemCount(), 2);
+    ui::PacsDialog* d = twoStudiesFound();
+    ASSERT_NE(d, nullptr);
     ui::RetrieveQueue& queue = window->pacs().retrieves();
     orthanc->stop(); // the first runs (hung), the second waits
     d->results()->selectAll();
