@@ -9,6 +9,8 @@
 #include <QLineEdit>
 #include <QProgressDialog>
 #include <QTimer>
+#include <QToolBar>
+#include <QToolButton>
 #include <QTreeWidget>
 
 #include <cmath>
@@ -87,6 +89,29 @@ TEST_F(Workstation, CineTurnsByTheStepPerTickAndStopsOnPause) {
     QTest::qWait(300);
     EXPECT_EQ(cine.ticks(), ticks);
     EXPECT_LT(glm::length(window->views()[0]->viewFrame().d - paused.d), 1e-12);
+}
+
+TEST_F(Workstation, MainAndCineToolbarsShowEveryControlSideBySideAt1200Pixels) {
+    // The toolbar buttons short ("Open folder", "2 views", "Play"), the menus whole: at 1200
+    // pixels (the tests' window, a laptop's) none of the Cine toolbar's controls hides behind »,
+    // on the main toolbar's row.
+    window->resize(1200, 800);
+    QTest::qWait(100);
+    auto* cine = window->findChild<QToolBar*>("toolbar.cine");
+    auto* main = window->findChild<QToolBar*>("toolbar.main");
+    ASSERT_TRUE(cine && main);
+    for (QToolBar* tb : {main, cine})
+        for (QAction* a : tb->actions())
+            if (QWidget* w = tb->widgetForAction(a); w && !a->isSeparator())
+                EXPECT_TRUE(w->isVisible()) << a->text().toStdString();
+    EXPECT_EQ(cine->y(), main->y());
+    // The menus keep the whole words, the buttons say them in their tooltips.
+    auto* folder = qobject_cast<QToolButton*>(main->widgetForAction(main->actions().at(0)));
+    ASSERT_NE(folder, nullptr);
+    EXPECT_EQ(folder->text(), "Open folder");
+    EXPECT_EQ(main->actions().at(0)->text(), "Open DICOM &folder…");
+    EXPECT_TRUE(folder->toolTip().startsWith("Open DICOM folder"))
+        << folder->toolTip().toStdString();
 }
 
 TEST_F(Workstation, CineOfOneTurnStopsWhereItStarted) {

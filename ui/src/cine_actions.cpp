@@ -102,6 +102,7 @@ void MainWindow::buildReaderMenus() {
     play->setCheckable(true);
     play->setShortcut(QKeySequence(Qt::Key_Space));
     play->setToolTip(tr("Play or pause the rotation (Space)"));
+    play->setIconText(tr("Play"));
     connect(play, &QAction::triggered, m_cine, [this, play](bool on) {
         on ? m_cine->play() : m_cine->pause();
         const QSignalBlocker block(play);
@@ -111,6 +112,7 @@ void MainWindow::buildReaderMenus() {
         const QSignalBlocker block(play);
         play->setChecked(on);
         play->setText(on ? tr("&Pause") : tr("&Play"));
+        play->setIconText(on ? tr("Pause") : tr("Play"));
     });
     tb->addAction(play);
     addCineControls(tb, m_cine);

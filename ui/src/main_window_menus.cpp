@@ -29,6 +29,10 @@ void MainWindow::buildMenus() {
     QAction* openFile =
         file->addAction(tr("&Open volume file…"), this, &MainWindow::openFileDialog);
     openFile->setShortcut(QKeySequence::Open);
+    // Short on the toolbar, whole in the menu and the tooltip: the main and Cine toolbars fit
+    // side by side from about 1110 pixels on, their controls not hidden behind » at 1200.
+    openFolder->setIconText(tr("Open folder"));
+    openFile->setIconText(tr("Open file"));
     file->addAction(tr("Open built-in &chest phantom"), this,
                     [this] { openStudy(StudySource::chest()); });
     file->addAction(tr("Open built-in Shepp-&Logan phantom"), this,
@@ -105,12 +109,14 @@ void MainWindow::buildViewMenu(QMenu* view, QToolBar* tb) {
     });
     // R, and Shift+R (Caps Lock, or a user who types a capital R) the same.
     reset->setShortcuts({QKeySequence(Qt::Key_R), QKeySequence(Qt::SHIFT | Qt::Key_R)});
+    reset->setIconText(tr("Reset"));
     tb->addAction(reset);
     view->addSeparator();
     tb->addSeparator();
     for (int n : {1, 2, 4}) {
         QAction* a = view->addAction(n == 1 ? tr("Single view") : tr("Compare %1 views").arg(n),
                                      this, [this, n] { setCompareCount(n); });
+        a->setIconText(n == 1 ? tr("1 view") : tr("%1 views").arg(n));
         tb->addAction(a);
     }
     m_differenceAction = view->addAction(tr("&Difference to view 1"));
