@@ -82,6 +82,9 @@ protected:
     }
     /** Orthanc holding the gantry-tilt head CT too (28 images): the dialog shown, both studies
      *  found (null, the failure said, when not). */
+    /** The settings for C-GET from the fixture's Orthanc, its one study found (null, the
+     *  failure said, when not). */
+    ui::PacsDialog* oneStudyFound();
     ui::PacsDialog* twoStudiesFound();
     std::set<std::string> instances() const {
         const auto r = orthanc->get("/instances");
@@ -164,6 +167,16 @@ ui::PacsDialog* retrievedWithAWrongNodeBeside(ui::MainWindow& w, ui::PacsSetting
     const bool ok = clickAndWait(*d, d->searchButton()) && retrieveAndOpen(w, *d);
     EXPECT_TRUE(ok) << d->status()->text().toStdString();
     return ok ? d : nullptr;
+}
+
+ui::PacsDialog* PacsWorkstation::oneStudyFound() {
+    settings(pacs::RetrieveMethod::Get).save();
+    ui::PacsDialog* d = window->pacsDialog();
+    d->reloadSettings();
+    const bool found =
+        clickAndWait(*d, d->searchButton()) && d->results()->topLevelItemCount() == 1;
+    EXPECT_TRUE(found) << d->status()->text().toStdString();
+    return found ? d : nullptr;
 }
 
 ui::PacsDialog* PacsWorkstation::twoStudiesFound() {
@@ -262,11 +275,8 @@ TEST_F(PacsWorkstation, MoveToOurListenerAndAWrongCalledAeSaidInWords) {
 }
 
 TEST_F(PacsWorkstation, RetrievingACompleteStudyAgainOpensItFromTheStoreWithoutThePacs) {
-    settings(pacs::RetrieveMethod::Get).save();
-    ui::PacsDialog* d = window->pacsDialog();
-    d->reloadSettings();
-    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
-    ASSERT_EQ(d->results()->topLevelItemCount(), 1);
+    ui::PacsDialog* d = oneStudyFound();
+    ASSERT_NE(d, nullptr);
     EXPECT_EQ(d->results()->topLevelItem(0)->text(7), ""); // nothing of it is local
     ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
     EXPECT_EQ(d->results()->topLevelItem(0)->text(7), "complete"); // the Local column
@@ -473,11 +483,8 @@ TEST_F(PacsWorkstation, ResumeUsesTheStudysOwnNodeAndResultsGoWithTheNode) {
 }
 
 TEST_F(PacsWorkstation, ASearchDuringARetrieveKeepsTheRetrievesStatus) {
-    settings(pacs::RetrieveMethod::Get).save();
-    ui::PacsDialog* d = window->pacsDialog();
-    d->reloadSettings();
-    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
-    ASSERT_EQ(d->results()->topLevelItemCount(), 1);
+    ui::PacsDialog* d = oneStudyFound();
+    ASSERT_NE(d, nullptr);
     d->results()->setCurrentItem(d->results()->topLevelItem(0));
     orthanc->stop(); // the retrieve hangs: it is still running when the search starts
     d->retrieveButton()->click();
@@ -600,11 +607,8 @@ TEST_F(PacsWorkstation, SelectedStudiesQueueAndArriveWithTheDialogClosedShownInT
 }
 
 TEST_F(PacsWorkstation, ARetrieveEndingAfterAnotherStudyWasOpenedDoesNotReplaceIt) {
-    settings(pacs::RetrieveMethod::Get).save();
-    ui::PacsDialog* d = window->pacsDialog();
-    d->reloadSettings();
-    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
-    ASSERT_EQ(d->results()->topLevelItemCount(), 1);
+    ui::PacsDialog* d = oneStudyFound();
+    ASSERT_NE(d, nullptr);
     d->results()->setCurrentItem(d->results()->topLevelItem(0));
     ui::RetrieveQueue& queue = window->pacs().retrieves();
     orthanc->stop(); // the retrieve waits while the user opens something else
@@ -687,10 +691,8 @@ TEST_F(PacsWorkstation, CancellingSeveralSelectedRetrievesAtOnce) {
 }
 
 TEST_F(PacsWorkstation, RetrieveAgainFromThePacsRefreshesACompleteStudy) {
-    settings(pacs::RetrieveMethod::Get).save();
-    ui::PacsDialog* d = window->pacsDialog();
-    d->reloadSettings();
-    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ui::PacsDialog* d = oneStudyFound();
+    ASSERT_NE(d, nullptr);
     ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
     auto store = window->pacs().store();
     const int before = store->instancesStored();
@@ -745,10 +747,8 @@ TEST_F(PacsWorkstation, AnErrorIsNotLeftInRedOnceSomethingElseWorks) {
 }
 
 TEST_F(PacsWorkstation, QuittingDuringARetrieveAsksFirst) {
-    settings(pacs::RetrieveMethod::Get).save();
-    ui::PacsDialog* d = window->pacsDialog();
-    d->reloadSettings();
-    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ui::PacsDialog* d = oneStudyFound();
+    ASSERT_NE(d, nullptr);
     d->results()->setCurrentItem(d->results()->topLevelItem(0));
     ui::RetrieveQueue& queue = window->pacs().retrieves();
     orthanc->stop(); // the retrieve is still running at the quit
@@ -776,10 +776,8 @@ TEST_F(PacsWorkstation, QuittingDuringARetrieveAsksFirst) {
 TEST_F(PacsWorkstation, OrthancSendsNoImageForALocalStudyAndOnResumeOnlyTheMissing) {
     // Counted on Orthanc's side: the C-STORE sub-operations its C-GET SCP logs.
     ASSERT_EQ(orthanc->imagesSentByGet(), 0);
-    settings(pacs::RetrieveMethod::Get).save();
-    ui::PacsDialog* d = window->pacsDialog();
-    d->reloadSettings();
-    ASSERT_TRUE(clickAndWait(*d, d->searchButton()));
+    ui::PacsDialog* d = oneStudyFound();
+    ASSERT_NE(d, nullptr);
     ASSERT_TRUE(retrieveAndOpen(*window, *d)) << d->status()->text().toStdString();
     EXPECT_EQ(orthanc->imagesSentByGet(), 93); // the count counts: the whole study once
     ui::RetrieveQueue& queue = window->pacs().retrieves();
